@@ -1,0 +1,34 @@
+"""The error types that may leave sensorgap's public API.
+
+``InputError`` is bad input (a config file, a CLI argument, an OpenDRIVE file): the CLI
+prints its one-line message and exits with code 2. Anything else escaping is an internal
+error (exit code 1).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+
+class InputError(Exception):
+    """Bad input, reported as one line: ``<source>: <field>: <what is wrong / allowed>``.
+
+    Args:
+        source: the file (or CLI option, e.g. ``--extent``) the bad value came from.
+        field: dotted path of the offending field inside ``source`` ('' if none).
+        message: what is wrong and what is allowed.
+    """
+
+    def __init__(self, source: str | Path, field: str, message: str) -> None:
+        self.source = str(source)
+        self.field = field
+        self.message = message
+        super().__init__(self.line())
+
+    def line(self) -> str:
+        """The single line the CLI prints on stderr."""
+        parts = [self.source]
+        if self.field:
+            parts.append(self.field)
+        parts.append(self.message)
+        return ": ".join(p.replace("\n", " ") for p in parts)
