@@ -1,0 +1,5 @@
+import sys
+
+from sensorgap.cli import main
+
+sys.exit(main())

@@ -1,0 +1,191 @@
+"""Command line: thin wrappers over the library. Bad input -> one line, exit 2."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import traceback
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, NoReturn
+
+from sensorgap.errors import InputError
+
+if TYPE_CHECKING:
+    from sensorgap.coverage import Scene
+
+EXIT_INPUT = 2
+EXIT_INTERNAL = 1
+_GLUED_OPTIONS = {"--extent", "--height"}
+
+
+def _float_list(text: str, n: int, option: str) -> list[float]:
+    parts = text.split(",")
+    try:
+        vals = [float(p) for p in parts]
+    except ValueError:
+        vals = []
+    if len(vals) != n or not all(math.isfinite(v) for v in vals):
+        raise InputError(option, "", f"expected {n} finite comma-separated numbers, got {text!r}")
+    return vals
+
+
+def _positive(value: float, option: str) -> float:
+    if not (math.isfinite(value) and value > 0.0):
+        raise InputError(option, "", f"must be a finite number > 0, got {value!r}")
+    return value
+
+
+def _scene(args: argparse.Namespace, ego_heading_rad: float = 0.0) -> Scene:
+    from sensorgap.config import load_environment, load_target
+    from sensorgap.coverage import Scene
+    from sensorgap.models import Conditions, load_system
+
+    system = load_system(args.vehicle)
+    env = load_environment(args.environment, Path(args.environments) if args.environments
+                           else None)
+    target = load_target(args.target)
+    return Scene(system, target, Conditions.from_config(env, ego_heading_rad))
+
+
+def cmd_probe(args: argparse.Namespace) -> int:
+    """Per-sensor SNR/Pd and fused Pd at points read from a CSV."""
+    from sensorgap.atomic import atomic_write_bytes
+    from sensorgap.coverage import evaluate_points
+    from sensorgap.coverage.outputs import probe_csv
+    from sensorgap.coverage.pointsio import read_points_csv
+
+    scene = _scene(args)
+    pts = read_points_csv(Path(args.points), default_z=scene.target.reference_height_m)
+    data = probe_csv(evaluate_points(scene, pts))
+    if args.out:
+        atomic_write_bytes(args.out, data)
+    else:
+        sys.stdout.write(data.decode("utf-8"))
+    return 0
+
+
+def cmd_coverage(args: argparse.Namespace) -> int:
+    """A coverage grid, heat map and summary into --out."""
+    from sensorgap.coverage import GridSpec
+    from sensorgap.coverage.outputs import write_coverage
+
+    scene = _scene(args)
+    xmin, xmax, ymin, ymax = _float_list(args.extent, 4, "--extent")
+    if not (xmin < xmax and ymin < ymax):
+        raise InputError("--extent", "", "must be XMIN,XMAX,YMIN,YMAX with XMIN < XMAX and "
+                         f"YMIN < YMAX, got {args.extent!r}")
+    res = _positive(args.resolution, "--resolution")
+    height = scene.target.reference_height_m if args.height is None else args.height
+    if not (math.isfinite(height) and -10.0 <= height <= 50.0):
+        raise InputError("--height", "", f"must be within -10..50 m, got {height!r}")
+    cells = round((xmax - xmin) / res) * round((ymax - ymin) / res)
+    if cells > 200_000_000:
+        raise InputError("--resolution", "", f"grid of {cells} cells is too large "
+                         "(at most 2e8); coarsen the resolution or shrink the extent")
+    grid = GridSpec(xmin, xmax, ymin, ymax, res, height)
+    summary = write_coverage(scene, grid, Path(args.out), per_sensor=args.per_sensor,
+                             workers=args.workers)
+    lv = summary["area_m2_by_level"]
+    print(f"{args.out}: {grid.nx}x{grid.ny} cells, area Pd=1 {lv['pd=1.0']:.0f} m2, "
+          f"Pd>0 {lv['pd>0']:.0f} m2")
+    return 0
+
+
+def cmd_schema(args: argparse.Namespace) -> int:
+    """Print the JSON Schema of vehicle / environment / target files."""
+    from sensorgap.filesio import json_bytes
+    from sensorgap.models.schema import file_schemas
+
+    schemas = file_schemas()
+    out = schemas if args.kind == "all" else schemas[args.kind]
+    sys.stdout.write(json_bytes(out).decode("utf-8"))
+    return 0
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    """The default main job into --out."""
+    from sensorgap.jobs import run_default
+
+    run_default(Path(args.out), workers=args.workers)
+    return 0
+
+
+def _add_scene_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--vehicle", required=True, help="preset name (system_a) or .toml path")
+    p.add_argument("--environment", required=True, help="environment preset name")
+    p.add_argument("--environments", help="environments file (default: shipped presets)")
+    p.add_argument("--target", required=True, help="pedestrian | bike | car | truck")
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with one-line errors (exit code 2)."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(EXIT_INPUT, f"{self.prog}: error: {message} (see --help)\n")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of the ``sensorgap`` command."""
+    parser = _Parser(prog="sensorgap", description=__doc__)
+    parser.add_argument("--debug", action="store_true", help="show tracebacks")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    p = sub.add_parser("probe", help="SNR and Pd per sensor at points from a CSV")
+    _add_scene_args(p)
+    p.add_argument("--points", required=True, help="CSV with columns x,y[,z] (vehicle frame, m)")
+    p.add_argument("--out", help="output CSV (default: stdout)")
+    p.set_defaults(func=cmd_probe)
+
+    p = sub.add_parser("coverage", help="coverage grid, heat map and summary")
+    _add_scene_args(p)
+    p.add_argument("--height", type=float, help="m (default: the target's reference height)")
+    p.add_argument("--resolution", type=float, default=0.5, help="cell size, m")
+    p.add_argument("--extent", default="-60,160,-40,40", help="XMIN,XMAX,YMIN,YMAX in m")
+    p.add_argument("--per-sensor", action="store_true", help="also store each sensor's map")
+    p.add_argument("--workers", type=int, default=2, help="threads")
+    p.add_argument("--out", required=True, help="output folder")
+    p.set_defaults(func=cmd_coverage)
+
+    p = sub.add_parser("schema", help="JSON Schema of the config files")
+    p.add_argument("kind", nargs="?", default="all",
+                   choices=["all", "vehicle", "environments", "targets"])
+    p.set_defaults(func=cmd_schema)
+
+    p = sub.add_parser("run", help="the default main job")
+    p.add_argument("--out", default="output", help="output folder")
+    p.add_argument("--workers", type=int, default=2, help="threads")
+    p.set_defaults(func=cmd_run)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point: returns the exit code (0 ok, 2 bad input, 1 internal error)."""
+    parser = build_parser()
+    argv = list(sys.argv[1:] if argv is None else argv)
+    # "--extent -20,100,-5,5": glue values that start with '-' to their option
+    for i in range(len(argv) - 1, 0, -1):
+        if argv[i - 1] in _GLUED_OPTIONS and argv[i].startswith("-"):
+            argv[i - 1 : i + 1] = [f"{argv[i - 1]}={argv[i]}"]
+    args = parser.parse_args(argv)
+    func: Callable[[argparse.Namespace], int] = args.func
+    try:
+        return func(args)
+    except InputError as exc:
+        print(f"sensorgap: error: {exc.line()}", file=sys.stderr)
+        return EXIT_INPUT
+    except KeyboardInterrupt:
+        print("sensorgap: interrupted", file=sys.stderr)
+        return 130
+    except Exception as exc:  # noqa: BLE001 - the one place that turns bugs into exit 1
+        if args.debug:
+            traceback.print_exc()
+        msg = str(exc).splitlines()[0] if str(exc) else ""
+        print(f"sensorgap: internal error: {type(exc).__name__}: {msg} "
+              "(this is a bug; rerun with --debug for the traceback)", file=sys.stderr)
+        return EXIT_INTERNAL
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,73 @@
+"""Environment presets: weather, sun position and lighting, ROC shift."""
+
+from __future__ import annotations
+
+import math
+from typing import Literal
+
+from pydantic import Field
+
+from sensorgap.config.common import Finite, NonNeg, Strict
+
+
+class SunConfig(Strict):
+    """The sun as seen from the scene.
+
+    ``frame = "vehicle"``: azimuth counter-clockwise from the vehicle's x axis (ISO 8855,
+    positive to the left), as for a coverage map. ``frame = "world"``: OpenSCENARIO
+    convention, azimuth clockwise from north (0 = north, 90 = east); converted with the ego
+    heading at evaluation time.
+    """
+
+    azimuth_deg: float = Field(ge=-360.0, le=360.0, allow_inf_nan=False)
+    elevation_deg: float = Field(ge=-90.0, le=90.0, allow_inf_nan=False)
+    frame: Literal["vehicle", "world"] = "vehicle"
+    visible: bool = Field(
+        default=True, description="Sun disc visible (clear sky); False under overcast/fog"
+    )
+    direct_irradiance_w_m2: NonNeg = Field(
+        default=480.0,
+        description="Direct-normal irradiance in the camera band, W/m2 (for glare, eq. 10)",
+    )
+
+    @property
+    def azimuth_rad(self) -> float:
+        """Azimuth in rad (convention of ``frame``)."""
+        return math.radians(self.azimuth_deg)
+
+    @property
+    def elevation_rad(self) -> float:
+        """Elevation above the horizon in rad."""
+        return math.radians(self.elevation_deg)
+
+
+class EnvironmentConfig(Strict):
+    """One environment preset: weather, light, sun."""
+
+    name: str
+    description: str = ""
+    rain_mm_h: float = Field(default=0.0, ge=0.0, le=500.0, allow_inf_nan=False)
+    snow_mm_h: float = Field(default=0.0, ge=0.0, le=100.0, allow_inf_nan=False)
+    snow_wet: bool = False
+    visibility_m: float = Field(
+        default=23000.0, gt=0.0, le=1.0e6, allow_inf_nan=False,
+        description="Meteorological optical range, m (23 km = standard clear air)",
+    )
+    fog_lwc_g_m3: float | None = Field(
+        default=None, ge=0.0, le=5.0, allow_inf_nan=False,
+        description="Fog liquid water content, g/m3; default derived from visibility (Kunkel 1984)",
+    )
+    temperature_c: float = Field(default=15.0, ge=-60.0, le=60.0, allow_inf_nan=False)
+    relative_humidity_pct: float = Field(default=50.0, ge=0.0, le=100.0, allow_inf_nan=False)
+    pressure_hpa: float = Field(default=1013.25, gt=0.0, le=1100.0, allow_inf_nan=False)
+    water_vapour_g_m3: float = Field(default=7.5, ge=0.0, le=50.0, allow_inf_nan=False)
+    irradiance_w_m2: NonNeg = Field(
+        default=534.0,
+        description="Irradiance on objects in the camera band (E_sun of eq. 6), W/m2",
+    )
+    roc_shift_db: Finite = Field(
+        default=0.0,
+        description="SNR penalty of the ROC in this weather (paper: curves shifted), dB",
+    )
+    sun: SunConfig | None = None
+    sources: dict[str, str] = Field(default_factory=dict)

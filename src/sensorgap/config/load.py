@@ -1,0 +1,150 @@
+"""Load and validate TOML config files; every failure becomes one ``InputError`` line."""
+
+from __future__ import annotations
+
+import tomllib
+from pathlib import Path
+from typing import Any, TypeVar
+
+from pydantic import BaseModel, ValidationError
+
+from sensorgap.config.environment import EnvironmentConfig
+from sensorgap.config.presets import templates_dir, vehicle_presets
+from sensorgap.config.target import TargetConfig
+from sensorgap.config.vehicle import VehicleConfig
+from sensorgap.errors import InputError
+
+M = TypeVar("M", bound=BaseModel)
+
+MAX_CONFIG_BYTES = 5_000_000
+
+
+def read_toml(path: Path) -> dict[str, Any]:
+    """Parse a TOML file; missing, unreadable, oversized or malformed -> ``InputError``."""
+    if not path.is_file():
+        raise InputError(path, "", "file not found")
+    try:
+        size = path.stat().st_size
+        if size > MAX_CONFIG_BYTES:
+            raise InputError(path, "", f"file is {size} bytes; at most {MAX_CONFIG_BYTES} allowed")
+        text = path.read_bytes().decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise InputError(path, "", f"not UTF-8 text ({exc.reason})") from None
+    except OSError as exc:
+        raise InputError(path, "", f"cannot read: {exc.strerror}") from None
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(path, "", f"TOML syntax error: {exc}") from None
+
+
+def _loc(loc: tuple[int | str, ...]) -> str:
+    out = ""
+    for part in loc:
+        if isinstance(part, int):
+            out += f"[{part}]"
+        else:
+            out += ("." if out else "") + str(part)
+    return out
+
+
+def validation_to_input_error(
+    source: Path | str, exc: ValidationError, prefix: str = ""
+) -> InputError:
+    """The first pydantic error as an ``InputError`` naming the field and what is allowed."""
+    err = exc.errors(include_url=False)[0]
+    field = _loc(tuple(err.get("loc", ())))
+    if prefix:
+        field = f"{prefix}.{field}" if field else prefix
+    msg = str(err.get("msg", "invalid value"))
+    msg = msg.removeprefix("Value error, ")
+    if "input" in err and err.get("type") not in ("missing", "model_type", "dict_type"):
+        value = err["input"]
+        if not isinstance(value, dict | list):
+            msg += f" (got {value!r})"
+    extra = len(exc.errors()) - 1
+    if extra:
+        msg += f" [+{extra} more error{'s' if extra > 1 else ''}]"
+    return InputError(source, field, msg)
+
+
+def parse_model(model: type[M], data: Any, source: Path | str, prefix: str = "") -> M:
+    """Validate ``data`` as ``model``; errors become ``InputError``."""
+    try:
+        return model.model_validate(data)
+    except ValidationError as exc:
+        raise validation_to_input_error(source, exc, prefix) from None
+
+
+def resolve_vehicle_path(name_or_path: str | Path) -> Path:
+    """A preset name (``system_a``) or a path to a vehicle TOML file."""
+    text = str(name_or_path)
+    candidate = Path(text)
+    if text.endswith(".toml") or "/" in text or candidate.exists():
+        return candidate
+    preset = templates_dir() / "vehicles" / f"{text}.toml"
+    if not preset.is_file():
+        raise InputError(
+            "--vehicle",
+            "",
+            f"unknown preset {text!r}; presets: {', '.join(vehicle_presets())} "
+            "(or give a path to a .toml file)",
+        )
+    return preset
+
+
+def load_vehicle(name_or_path: str | Path) -> tuple[VehicleConfig, Path]:
+    """Load and validate a vehicle file; returns the config and the file it came from."""
+    path = resolve_vehicle_path(name_or_path)
+    return parse_model(VehicleConfig, read_toml(path), path), path
+
+
+def environments_path() -> Path:
+    """The shipped environment presets file."""
+    return templates_dir() / "environments.toml"
+
+
+def _named_tables(
+    model: type[M], path: Path, key: str
+) -> dict[str, M]:
+    data = read_toml(path)
+    tables = data.get(key)
+    if not isinstance(tables, dict) or not tables:
+        raise InputError(path, key, f"expected a non-empty table [{key}.<name>]")
+    unknown = sorted(set(data) - {key})
+    if unknown:
+        raise InputError(path, unknown[0], f"unknown top-level key; only [{key}.*] allowed")
+    out: dict[str, M] = {}
+    for name, body in tables.items():
+        if not isinstance(body, dict):
+            raise InputError(path, f"{key}.{name}", "expected a table")
+        out[name] = parse_model(model, {"name": name, **body}, path, prefix=f"{key}.{name}")
+    return out
+
+
+def load_environments(path: Path | None = None) -> dict[str, EnvironmentConfig]:
+    """All environments of a file (default: the shipped presets), by name."""
+    return _named_tables(EnvironmentConfig, path or environments_path(), "environments")
+
+
+def load_environment(name: str, path: Path | None = None) -> EnvironmentConfig:
+    """One environment preset by name; unknown names list what is allowed."""
+    envs = load_environments(path)
+    if name not in envs:
+        raise InputError("--environment", "", f"unknown environment {name!r}; presets: "
+                         f"{', '.join(envs)}")
+    return envs[name]
+
+
+def load_targets(path: Path | None = None) -> dict[str, TargetConfig]:
+    """All target classes (default: the shipped ``targets.toml``), by name."""
+    return _named_tables(TargetConfig, path or templates_dir() / "targets.toml", "targets")
+
+
+def load_target(name: str, path: Path | None = None) -> TargetConfig:
+    """One target class by name."""
+    targets = load_targets(path)
+    if name not in targets:
+        raise InputError("--target", "", f"unknown target {name!r}; allowed: "
+                         f"{', '.join(targets)}")
+    return targets[name]

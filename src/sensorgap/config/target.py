@@ -1,0 +1,32 @@
+"""Target classes (pedestrian, bike, car, truck): cross-sections, size, reference height."""
+
+from __future__ import annotations
+
+from pydantic import Field
+
+from sensorgap.config.common import NonNeg, Positive, Strict
+
+
+class TargetConfig(Strict):
+    """One target class.
+
+    Cross-sections after Ponn et al. 2019, Sec. III: ``rcs_m2`` for the active sensors
+    (radar, lidar, ultrasonic: 1, 10, 100, 200 m2) and the geometric
+    ``camera_cross_section_m2`` for cameras (0.9, 1.35, 2.7, 6.75 m2).
+    """
+
+    name: str
+    description: str = ""
+    rcs_m2: Positive = Field(description="Cross-section for active sensors, m2 (paper Sec. III)")
+    camera_cross_section_m2: Positive = Field(description="Geometric cross-section, m2 (paper)")
+    length_m: Positive
+    width_m: Positive
+    height_m: Positive
+    reference_height_m: NonNeg = Field(
+        description="Height at which coverage is evaluated for this class, m"
+    )
+    lidar_reflectance: float = Field(
+        gt=0.0, le=1.0, description="Diffuse reflectance at the lidar wavelength (extended law)"
+    )
+    max_speed_m_s: Positive = Field(default=70.0, description="Upper bound for trajectories, m/s")
+    sources: dict[str, str] = Field(default_factory=dict)

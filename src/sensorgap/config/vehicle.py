@@ -1,0 +1,165 @@
+"""Vehicle files: body, sensor devices (physical parameters) and sensor mounts.
+
+Frame: OpenSCENARIO / ISO 8855 vehicle frame: x forward, y left, z up, origin at the
+centre of the rear axle on the ground. Yaw counter-clockwise from x; pitch by the
+right-hand rule about y, so a positive pitch tilts the boresight *down*. Degrees in files.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Literal
+
+from pydantic import ConfigDict, Field, field_validator, model_validator
+
+from sensorgap.config.common import Positive, Strict
+
+
+class RocConfig(Strict):
+    """How SNR becomes a detection probability (see ``sensorgap.models.roc``).
+
+    ``paper``: 0 below ``snr50_db - half_width_db``, 1 above ``snr50_db + half_width_db``,
+    smooth (cubic smoothstep in dB) between; 50 % at ``snr50_db`` (Ponn 2019 after Hasch 2012:
+    10 dB in sunny conditions). ``swerling0`` / ``swerling1``: exact single-pulse detection of
+    a steady / Rayleigh-fluctuating target at false-alarm probability ``pfa``.
+    ``albersheim``: Albersheim's approximation, only inside its validity range.
+    """
+
+    kind: Literal["paper", "swerling0", "swerling1", "albersheim"] = "paper"
+    snr50_db: float = Field(default=10.0, ge=-50.0, le=100.0, allow_inf_nan=False)
+    half_width_db: float = Field(default=6.0, gt=0.0, le=50.0, allow_inf_nan=False)
+    pfa: float = Field(default=1.0e-6, gt=0.0, lt=1.0, allow_inf_nan=False)
+    n_pulses: int = Field(default=1, ge=1, le=8096)
+
+    @model_validator(mode="after")
+    def _albersheim_range(self) -> RocConfig:
+        if self.kind == "albersheim" and not (1e-7 <= self.pfa <= 1e-3):
+            raise ValueError(
+                f"albersheim is valid for 1e-7 <= pfa <= 1e-3 only, got {self.pfa:g}"
+            )
+        return self
+
+
+class DeviceConfig(Strict):
+    """A sensor device: its type and physical parameters (equations 1-10 of the paper).
+
+    The parameters depend on ``type`` and are validated by the sensor type's own schema
+    (``sensorgap.models.registry``). ``sources`` names the data sheet, paper or standard of
+    every parameter, or says ``estimate: ...``.
+    """
+
+    model_config = ConfigDict(extra="allow", frozen=True, allow_inf_nan=False)
+
+    type: str
+    sources: dict[str, str] = Field(default_factory=dict)
+    roc: RocConfig | None = None
+
+    def params(self) -> dict[str, Any]:
+        """The physical parameters (everything but type, sources, roc)."""
+        return dict(self.model_extra or {})
+
+
+class MountConfig(Strict):
+    """One mounted sensor: which device, where, which way, what it can see."""
+
+    id: str = Field(pattern=r"^[A-Za-z0-9_\-]+$", max_length=64)
+    device: str
+    position_m: tuple[float, float, float] = Field(
+        description="x, y, z in the vehicle frame, m"
+    )
+    yaw_deg: float = Field(default=0.0, ge=-360.0, le=360.0, allow_inf_nan=False)
+    pitch_deg: float = Field(default=0.0, ge=-90.0, le=90.0, allow_inf_nan=False)
+    hfov_deg: float = Field(ge=0.0, le=360.0, allow_inf_nan=False)
+    vfov_deg: float = Field(ge=0.0, le=180.0, allow_inf_nan=False)
+    min_range_m: float = Field(default=0.0, ge=0.0, allow_inf_nan=False)
+    max_range_m: Positive
+    source: str = Field(description="Where pose, field of view and range come from")
+
+    @field_validator("position_m")
+    @classmethod
+    def _finite_position(cls, v: tuple[float, float, float]) -> tuple[float, float, float]:
+        if not all(math.isfinite(c) and abs(c) <= 100.0 for c in v):
+            raise ValueError("position must be three finite numbers within +-100 m")
+        return v
+
+    @model_validator(mode="after")
+    def _ranges(self) -> MountConfig:
+        if self.min_range_m >= self.max_range_m:
+            raise ValueError(
+                f"min_range_m ({self.min_range_m}) must be below max_range_m ({self.max_range_m})"
+            )
+        return self
+
+    @property
+    def yaw_rad(self) -> float:
+        """Yaw, rad, wrapped to (-pi, pi]."""
+        y = math.remainder(math.radians(self.yaw_deg), 2.0 * math.pi)
+        return math.pi if y == -math.pi else y
+
+    @property
+    def pitch_rad(self) -> float:
+        """Pitch (positive = down), rad."""
+        return math.radians(self.pitch_deg)
+
+    @property
+    def hfov_rad(self) -> float:
+        """Horizontal field of view (full angle), rad."""
+        return math.radians(self.hfov_deg)
+
+    @property
+    def vfov_rad(self) -> float:
+        """Vertical field of view (full angle), rad."""
+        return math.radians(self.vfov_deg)
+
+
+class BodyConfig(Strict):
+    """The vehicle body: name, size, footprint relative to the rear axle."""
+
+    name: str
+    description: str = ""
+    length_m: float = Field(gt=0.5, le=30.0, allow_inf_nan=False)
+    width_m: float = Field(gt=0.5, le=5.0, allow_inf_nan=False)
+    height_m: float = Field(gt=0.5, le=6.0, allow_inf_nan=False)
+    wheelbase_m: float = Field(gt=0.5, le=20.0, allow_inf_nan=False)
+    rear_overhang_m: float = Field(ge=0.0, le=10.0, allow_inf_nan=False)
+    max_speed_m_s: Positive = 70.0
+    sources: dict[str, str] = Field(default_factory=dict)
+
+    @property
+    def x_rear_m(self) -> float:
+        """x of the rear bumper in the vehicle frame, m."""
+        return -self.rear_overhang_m
+
+    @property
+    def x_front_m(self) -> float:
+        """x of the front bumper in the vehicle frame, m."""
+        return self.length_m - self.rear_overhang_m
+
+    def footprint(self) -> list[tuple[float, float]]:
+        """Footprint rectangle corners (x, y) in the vehicle frame, m, counter-clockwise."""
+        xr, xf, hw = self.x_rear_m, self.x_front_m, 0.5 * self.width_m
+        return [(xr, -hw), (xf, -hw), (xf, hw), (xr, hw)]
+
+
+class VehicleConfig(Strict):
+    """A whole vehicle file."""
+
+    schema_version: Literal[1] = 1
+    vehicle: BodyConfig
+    roc: RocConfig = Field(default_factory=RocConfig)
+    devices: dict[str, DeviceConfig]
+    sensors: list[MountConfig] = Field(min_length=1)
+
+    @model_validator(mode="after")
+    def _consistent(self) -> VehicleConfig:
+        seen: set[str] = set()
+        for i, s in enumerate(self.sensors):
+            if s.id in seen:
+                raise ValueError(f"sensors[{i}].id: duplicate sensor id {s.id!r}")
+            seen.add(s.id)
+            if s.device not in self.devices:
+                raise ValueError(
+                    f"sensors[{i}].device: unknown device {s.device!r}; "
+                    f"defined: {', '.join(sorted(self.devices)) or 'none'}"
+                )
+        return self

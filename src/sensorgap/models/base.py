@@ -1,0 +1,75 @@
+"""The interface every sensor type implements, and the pieces they share.
+
+A sensor type is a ``SensorModel`` subclass with a pydantic ``Params`` schema. For one
+scene (mount, target, conditions) ``prepare`` folds every constant term into dB once and
+returns a ``PreparedSensor`` whose ``snr_db(r, az, el)`` is a pure numpy function of the
+geometry. Register new types with ``sensorgap.models.registry.register``.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import ClassVar
+
+import numpy as np
+from numpy.typing import NDArray
+from pydantic import BaseModel
+
+from sensorgap.config.target import TargetConfig
+from sensorgap.models.conditions import Band, Conditions
+from sensorgap.models.geometry import Mount
+
+F64 = NDArray[np.float64]
+SnrFunction = Callable[[F64, F64, F64], F64]
+
+
+@dataclass
+class PreparedSensor:
+    """A sensor ready to evaluate in one scene.
+
+    Attributes:
+        snr_db: SNR (dB) of in-view points from range (m), azimuth and elevation (rad) in
+            the sensor frame. Never called with r <= 0.
+        terms_db: the constant terms folded into ``snr_db`` (for audit reports), dB.
+        effects: which effects were modelled for this scene (e.g. ``glare``), with a note.
+        uses_angles: whether ``snr_db`` reads azimuth/elevation (a gain pattern); when not,
+            callers may pass zeros and skip computing them.
+    """
+
+    snr_db: SnrFunction
+    uses_angles: bool = True
+    terms_db: dict[str, float] = field(default_factory=dict)
+    effects: dict[str, str] = field(default_factory=dict)
+
+
+class SensorModel(ABC):
+    """Base class of the phenomenological sensor models (Ponn et al. 2019, eq. 1-10)."""
+
+    #: Name used in vehicle files (``devices.<name>.type``).
+    type_name: ClassVar[str]
+    #: Pydantic schema of the physical parameters.
+    Params: ClassVar[type[BaseModel]]
+
+    def __init__(self, params: BaseModel) -> None:
+        self.params = params
+
+    @abstractmethod
+    def band(self) -> Band:
+        """The band this sensor works in (selects the weather attenuation)."""
+
+    @abstractmethod
+    def prepare(
+        self, mount: Mount, target: TargetConfig, conditions: Conditions
+    ) -> PreparedSensor:
+        """Fold every scene constant into a ``PreparedSensor``."""
+
+    def may_be_glared(self, mount: Mount, conditions: Conditions) -> bool:
+        """Whether the direct sun can affect this sensor in ``conditions`` (default: no)."""
+        return False
+
+
+def log10_range(r: F64) -> F64:
+    """log10 of ranges (m) known to be > 0."""
+    return np.log10(r)

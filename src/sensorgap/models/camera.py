@@ -1,0 +1,144 @@
+"""Camera (Ponn 2019, eq. 6-10, after Lange 2000).
+
+Signal electrons (eq. 6-7), with the object's pixel count for an equidistant (f-theta)
+lens, ``IFOV = HFOV / N_h`` and ``N_pix,o(R) = min(sigma_cam / (R IFOV)^2, N_pix)``:
+
+``P_r = E_sun sigma_cam D^2 N_pix,o(R) / (16 R^2 L_oa(R) N_pix)``,
+``N_e = P_r t_int QE / (h nu)``.
+
+Noise (eq. 8) ``N_n = sqrt(N_e) + k B_n T_sys t_int QE / (h nu)``; SNR (eq. 9/10)
+``N_e / (N_n + w N_e,sun)`` with the direct-sun electrons (eq. 10)
+``N_e,sun = E_dir A_r t_int QE / (h nu)``, ``A_r = pi D^2 / 4``.
+
+The direct-sun term is applied only while the sun is in or near this camera's field of
+view: ``w = 1`` inside it, falling as ``cos^2`` to 0 at ``glare_margin_deg`` outside it
+(lens flare / veiling glare; estimate), and 0 beyond, at night and under overcast skies.
+Aperture ``D = f / N`` with focal length ``f = pixel_pitch / IFOV``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from pydantic import Field
+
+from sensorgap.config.common import Strict
+from sensorgap.config.target import TargetConfig
+from sensorgap.models.base import F64, PreparedSensor, SensorModel
+from sensorgap.models.conditions import Band, Conditions
+from sensorgap.models.constants import BOLTZMANN_J_K, PLANCK_J_S, SPEED_OF_LIGHT_M_S
+from sensorgap.models.geometry import Mount, angle_outside_fov, pattern_loss_db
+from sensorgap.models.numerics import LN10_OVER_10
+from sensorgap.models.registry import register
+
+_MIN_IFOV_RAD = 1.0e-9  # a zero-width camera still gets a finite pixel angle
+
+
+class CameraParams(Strict):
+    """Physical parameters of a camera (eq. 6-10)."""
+
+    wavelength_m: float = Field(default=550e-9, ge=3.0e-7, le=1.5e-5,
+                                description="Centre wavelength for h nu, m")
+    pixels_h: int = Field(ge=1, le=100_000, description="Horizontal pixel count")
+    pixels_v: int = Field(ge=1, le=100_000, description="Vertical pixel count")
+    pixel_pitch_m: float = Field(gt=0.0, le=1.0e-4, description="Pixel pitch, m")
+    f_number: float = Field(ge=0.5, le=64.0, description="Lens f-number N")
+    quantum_efficiency: float = Field(gt=0.0, le=1.0, description="QE")
+    integration_time_s: float = Field(gt=0.0, le=1.0, description="t_int, s")
+    noise_bandwidth_hz: float = Field(gt=0.0, le=1.0e12, description="B_n, Hz")
+    system_noise_temperature_k: float = Field(gt=0.0, le=1.0e7, description="T_sys, K")
+    system_loss_db: float = Field(default=0.0, ge=0.0, le=100.0,
+                                  description="Lens/windscreen transmission loss, dB")
+    fov_edge_loss_db: float = Field(default=3.0, ge=0.0, le=60.0,
+                                    description="Relative illumination loss at the FOV edge, dB")
+    glare_margin_deg: float = Field(default=10.0, ge=0.0, le=90.0,
+                                    description="Sun angle outside the FOV still glaring, deg")
+
+
+@register
+class Camera(SensorModel):
+    """Passive camera, eq. 6-10 of Ponn et al. 2019."""
+
+    type_name = "camera"
+    Params = CameraParams
+    params: CameraParams
+
+    def band(self) -> Band:
+        """Optical band at the centre wavelength."""
+        return Band("optical", wavelength_m=self.params.wavelength_m)
+
+    def glare_weight(self, mount: Mount, conditions: Conditions) -> float:
+        """Fraction (0..1) of the direct-sun term of eq. 9-10 applied to this camera."""
+        sun = conditions.sun_direction
+        if sun is None:
+            return 0.0
+        outside = angle_outside_fov(mount, sun)
+        margin = math.radians(self.params.glare_margin_deg)
+        if outside <= 0.0:
+            return 1.0
+        if outside >= margin:
+            return 0.0
+        w = math.cos(0.5 * math.pi * outside / margin) ** 2
+        return w if w > 1e-9 else 0.0
+
+    def may_be_glared(self, mount: Mount, conditions: Conditions) -> bool:
+        """True when the sun is in or within ``glare_margin_deg`` of the field of view."""
+        return self.glare_weight(mount, conditions) > 0.0
+
+    def prepare(
+        self, mount: Mount, target: TargetConfig, conditions: Conditions
+    ) -> PreparedSensor:
+        """Fold eq. 6-10 constants; the glare term only when the sun can reach this camera."""
+        p = self.params
+        h_nu = PLANCK_J_S * SPEED_OF_LIGHT_M_S / p.wavelength_m
+        conv = p.integration_time_s * p.quantum_efficiency / h_nu  # electrons per W received
+        ifov = max(mount.hfov / p.pixels_h, _MIN_IFOV_RAD)
+        focal = p.pixel_pitch_m / ifov
+        aperture = focal / p.f_number
+        n_pix_db = 10.0 * math.log10(float(p.pixels_h) * float(p.pixels_v))
+        env = conditions.env
+        effects: dict[str, str] = {}
+        irr = env.irradiance_w_m2
+        if irr <= 0.0:
+            effects["dark"] = "no irradiance on the object: camera SNR at its floor"
+        sigma_db = 10.0 * math.log10(target.camera_cross_section_m2)
+        terms = {
+            "E_sun [dBW/m2]": 10.0 * math.log10(max(irr, 1e-300)),
+            "sigma_cam [dBsm]": sigma_db,
+            "D^2 [dB m2]": 20.0 * math.log10(aperture),
+            "-16 [dB]": -10.0 * math.log10(16.0),
+            "-N_pix [dB]": -n_pix_db,
+            "-L_sys [dB]": -p.system_loss_db,
+            "t QE/(h nu) [dB 1/J]": 10.0 * math.log10(conv),
+        }
+        k_db = math.fsum(terms.values())
+        thermal = BOLTZMANN_J_K * p.noise_bandwidth_hz * p.system_noise_temperature_k * conv
+        w = self.glare_weight(mount, conditions)
+        sun_e = 0.0
+        if w > 0.0 and env.sun is not None:
+            sun_e = w * env.sun.direct_irradiance_w_m2 * math.pi * aperture**2 / 4.0 * conv
+            effects["glare"] = f"direct sun on the sensor, weight {w:.3f}, {sun_e:.3e} e-"
+        ln_fixed_noise = math.log(thermal + sun_e)
+        gamma = conditions.attenuation_db_km(self.band())
+        two_way_db_m = 2.0 * gamma / 1000.0
+        ifov_db = 20.0 * math.log10(ifov)
+        edge, hfov, vfov = p.fov_edge_loss_db, mount.hfov, mount.vfov
+
+        def snr_db(r: F64, az: F64, el: F64) -> F64:
+            lr20 = 20.0 * np.log10(r)
+            npo_db = np.minimum(sigma_db - lr20 - ifov_db, n_pix_db)
+            ne_db = k_db + npo_db - lr20 - two_way_db_m * r
+            if edge > 0.0:
+                ne_db = ne_db - pattern_loss_db(az, el, hfov, vfov, edge)
+            ln_ne = ne_db * LN10_OVER_10
+            ln_noise = np.logaddexp(0.5 * ln_ne, ln_fixed_noise)
+            return np.asarray((ln_ne - ln_noise) / LN10_OVER_10, dtype=np.float64)
+
+        terms["N_thermal [dB e-]"] = 10.0 * math.log10(thermal)
+        if sun_e > 0.0:
+            terms["N_sun [dB e-]"] = 10.0 * math.log10(sun_e)
+        terms["weather one-way [dB/km]"] = gamma
+        terms["focal length [mm]"] = focal * 1e3
+        return PreparedSensor(snr_db=snr_db, terms_db=terms, effects=effects,
+                              uses_angles=edge > 0.0)

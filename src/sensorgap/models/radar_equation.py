@@ -1,0 +1,65 @@
+"""The radar equation shared by radar and ultrasonic sensors (Ponn 2019, eq. 2-3):
+
+``SNR = P_e G_e G_r sigma lambda^2 / ((4 pi)^3 R^4 L_oa(R) k B_n T_sys)``
+
+in dB, with ``L_oa(R) = L_sys + 2 gamma R`` (two-way atmospheric/weather loss at one-way
+specific attenuation gamma, plus fixed system losses such as a bumper fascia) and the
+antenna gains reduced over the field of view by ``pattern_loss_db`` (each antenna once).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from sensorgap.models.base import F64, PreparedSensor
+from sensorgap.models.constants import BOLTZMANN_J_K
+from sensorgap.models.geometry import Mount, pattern_loss_db
+
+FOUR_PI_CUBED_DB = 30.0 * math.log10(4.0 * math.pi)
+
+
+def radar_constant_db(
+    *,
+    tx_power_dbm: float,
+    tx_gain_dbi: float,
+    rx_gain_dbi: float,
+    cross_section_m2: float,
+    wavelength_m: float,
+    system_loss_db: float,
+    noise_bandwidth_hz: float,
+    system_noise_temperature_k: float,
+) -> dict[str, float]:
+    """The range-independent terms of eq. 3 in dB (their sum is the SNR at R = 1 m on
+    boresight without weather loss)."""
+    return {
+        "P_e [dBW]": tx_power_dbm - 30.0,
+        "G_e [dBi]": tx_gain_dbi,
+        "G_r [dBi]": rx_gain_dbi,
+        "sigma [dBsm]": 10.0 * math.log10(cross_section_m2),
+        "lambda^2 [dB m2]": 20.0 * math.log10(wavelength_m),
+        "-(4 pi)^3 [dB]": -FOUR_PI_CUBED_DB,
+        "-L_sys [dB]": -system_loss_db,
+        "-k B_n T_sys [dBW]": -10.0
+        * math.log10(BOLTZMANN_J_K * noise_bandwidth_hz * system_noise_temperature_k),
+    }
+
+
+def prepare_radar_equation(
+    terms_db: dict[str, float], one_way_db_km: float, mount: Mount, edge_loss_db: float
+) -> PreparedSensor:
+    """A ``PreparedSensor`` evaluating eq. 3 with R^-4 spreading and two-way weather loss."""
+    k_db = math.fsum(terms_db.values())
+    two_way_db_m = 2.0 * one_way_db_km / 1000.0
+    hfov, vfov = mount.hfov, mount.vfov
+
+    def snr_db(r: F64, az: F64, el: F64) -> F64:
+        out = k_db - 40.0 * np.log10(r) - two_way_db_m * r
+        if edge_loss_db > 0.0:
+            out -= 2.0 * pattern_loss_db(az, el, hfov, vfov, edge_loss_db)
+        return out
+
+    terms = dict(terms_db)
+    terms["weather one-way [dB/km]"] = one_way_db_km
+    return PreparedSensor(snr_db=snr_db, terms_db=terms, uses_angles=edge_loss_db > 0.0)

@@ -1,0 +1,114 @@
+"""The command line end to end (in process and as a subprocess): outputs, exit codes,
+one-line errors, determinism."""
+
+from __future__ import annotations
+
+import csv
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sensorgap.cli import main
+
+
+def run(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "sensorgap.cli", *args],
+                          capture_output=True, text=True, timeout=300)
+
+
+def test_probe_columns_and_values(tmp_path: Path) -> None:
+    pts = tmp_path / "p.csv"
+    pts.write_text("x,y\n10,0\n50,3\n-20,-2\n")
+    out = tmp_path / "o.csv"
+    assert main(["probe", "--vehicle", "system_a", "--environment", "clear", "--target", "car",
+                 "--points", str(pts), "--out", str(out)]) == 0
+    rows = list(csv.reader(out.read_text().splitlines()))
+    header = rows[0]
+    assert header[:3] == ["x", "y", "z"] and header[-1] == "pd"
+    assert "radar_front_center.snr_db" in header and "radar_front_center.pd" in header
+    assert len(header) == 3 + 2 * 23 + 1
+    z = [float(r[2]) for r in rows[1:]]
+    assert z == [0.75, 0.75, 0.75]  # the car's reference height
+    pd = [float(r[-1]) for r in rows[1:]]
+    assert all(0.0 <= p <= 1.0 for p in pd) and pd[0] == 1.0
+
+
+def test_coverage_outputs_and_determinism(tmp_path: Path) -> None:
+    args = ["coverage", "--vehicle", "system_b", "--environment", "glare_front_right",
+            "--target", "car", "--resolution", "1", "--extent", "-20,100,-20,20"]
+    assert main([*args, "--out", str(tmp_path / "a")]) == 0
+    assert main([*args, "--out", str(tmp_path / "b")]) == 0
+    for name in ("coverage.npz", "coverage.png", "summary.json"):
+        assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes()
+    data = np.load(tmp_path / "a" / "coverage.npz")
+    assert data["pd"].shape == (40, 120)
+    assert np.all((data["pd"] >= 0) & (data["pd"] <= 1))
+    summary = json.loads((tmp_path / "a" / "summary.json").read_text())
+    assert summary["environment"] == "glare_front_right"
+    assert any(": glare:" in e for e in summary["effects"])
+    assert summary["area_m2_by_level"]["pd>0"] > 0
+
+
+def test_schema_prints_json_schema() -> None:
+    proc = run("schema")
+    assert proc.returncode == 0
+    schemas = json.loads(proc.stdout)
+    assert set(schemas) == {"vehicle", "environments", "targets"}
+    variants = schemas["vehicle"]["$defs"]["DeviceConfig"]["oneOf"]
+    assert {v["properties"]["type"]["const"] for v in variants} == {
+        "camera", "lidar", "radar", "ultrasonic"}
+
+
+@pytest.mark.parametrize(("args", "pattern"), [
+    (["--vehicle", "system_q"], "--vehicle: unknown preset 'system_q'"),
+    (["--environment", "mars"], "--environment: unknown environment 'mars'"),
+    (["--target", "horse"], "--target: unknown target 'horse'"),
+    (["--extent", "1,2,3"], "--extent: expected 4 finite comma-separated numbers"),
+    (["--extent", "5,1,0,1"], "--extent: must be XMIN,XMAX,YMIN,YMAX"),
+    (["--resolution", "0"], "--resolution: must be a finite number > 0"),
+    (["--resolution", "nan"], "--resolution: must be a finite number > 0"),
+])
+def test_bad_cli_input_one_line_exit_2(tmp_path: Path, args: list[str], pattern: str) -> None:
+    base = {"--vehicle": "system_a", "--environment": "clear", "--target": "car",
+            "--extent": "0,10,0,10", "--resolution": "1"}
+    for k, v in zip(args[::2], args[1::2], strict=True):
+        base[k] = v
+    flat = [x for kv in base.items() for x in kv]
+    out = tmp_path / "out"
+    proc = run("coverage", *flat, "--out", str(out))
+    assert proc.returncode == 2
+    assert proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr
+    assert pattern in proc.stderr
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(("content", "pattern"), [
+    ("", "header: empty file"),
+    ("a,b\n1,2\n", "header: missing column 'x'"),
+    ("x,y\n1,nan\n", "line 2, column y: expected a finite number"),
+    ("x,y\n1,abc\n", "line 2, column y: expected a finite number"),
+    ("x,y\n", "no data rows"),
+])
+def test_bad_points_file(tmp_path: Path, content: str, pattern: str) -> None:
+    pts = tmp_path / "p.csv"
+    pts.write_text(content)
+    out = tmp_path / "o.csv"
+    proc = run("probe", "--vehicle", "system_a", "--environment", "clear", "--target", "car",
+               "--points", str(pts), "--out", str(out))
+    assert proc.returncode == 2, proc.stderr
+    assert pattern in proc.stderr and str(pts) in proc.stderr
+    assert "Traceback" not in proc.stderr
+    assert not out.exists()
+
+
+def test_bad_vehicle_file_via_cli(tmp_path: Path) -> None:
+    bad = tmp_path / "v.toml"
+    bad.write_text("schema_version = 1\n[vehicle]\nname = 'x'\n")
+    proc = run("probe", "--vehicle", str(bad), "--environment", "clear", "--target", "car",
+               "--points", str(bad))
+    assert proc.returncode == 2
+    assert str(bad) in proc.stderr and proc.stderr.count("\n") == 1
