@@ -119,7 +119,7 @@ def camera_by_hand(r: float, gamma: float, e_sun: float, hfov: float, sun_w: flo
     d = f / 1.8
     n_pix = 1920 * 1080
     n_pix_o = min(2.7 / (r * ifov) ** 2, n_pix)
-    l_oa = 10 ** (1.0 / 10) * 10 ** (2 * gamma * r / 1000 / 10)
+    l_oa = 10 ** (1.0 / 10) * 10 ** (gamma * r / 1000 / 10)  # one pass
     pr = e_sun * 2.7 * d**2 * n_pix_o / (16 * r**2 * l_oa * n_pix)  # eq. 6
     h_nu = H * C / 550e-9
     ne = pr * 1e-3 * 0.6 / h_nu  # eq. 7

@@ -17,17 +17,28 @@ def pd(snr_db: float, **kw: float | str) -> float:
 
 
 def test_paper_roc_by_hand() -> None:
-    # smoothstep: t = (s - 4) / 12 for snr50 = 10, hw = 6; Pd = 3t^2 - 2t^3
+    # Pd = 0.5 ** ((1 + SNR50) / (1 + SNR)), SNR50 = 10 dB; 0 below the floor (0 dB)
     assert pd(10.0) == pytest.approx(0.5, abs=1e-15)
-    assert pd(7.0) == pytest.approx(3 * 0.25**2 - 2 * 0.25**3, abs=1e-15)  # 0.15625
-    assert pd(4.0) == 0.0 and pd(-300.0) == 0.0
-    assert pd(16.0) == 1.0 and pd(300.0) == 1.0
+    assert pd(15.0) == pytest.approx(0.5 ** (11.0 / (1.0 + 10**1.5)), rel=1e-13)  # 0.791
+    assert pd(0.0) == pytest.approx(0.5 ** (11.0 / 2.0), rel=1e-13)
+    assert pd(-1e-9) == 0.0 and pd(-300.0) == 0.0
+    assert pd(300.0) == 1.0
+    # the same as exact Swerling 1 at Pfa = 0.5^11 above the floor
+    assert pd(7.0) == pytest.approx(pd(7.0, kind="swerling1", pfa=0.5**11), rel=1e-13)
 
 
 def test_paper_roc_weather_shift() -> None:
     cfg = RocConfig()
     a = detection_probability(np.array([13.0]), cfg, shift_db=3.0)
     assert float(a[0]) == pytest.approx(0.5, abs=1e-15)
+
+
+def test_smoothstep_roc_by_hand() -> None:
+    # t = (s - 4) / 12 for snr50 = 10, hw = 6; Pd = 3t^2 - 2t^3
+    assert pd(10.0, kind="smoothstep") == pytest.approx(0.5, abs=1e-15)
+    assert pd(7.0, kind="smoothstep") == pytest.approx(3 * 0.25**2 - 2 * 0.25**3, abs=1e-15)
+    assert pd(4.0, kind="smoothstep") == 0.0 and pd(-300.0, kind="smoothstep") == 0.0
+    assert pd(16.0, kind="smoothstep") == 1.0 and pd(300.0, kind="smoothstep") == 1.0
 
 
 def snr_for(pd_target: float, **kw: float | str) -> float:
@@ -82,7 +93,8 @@ def test_albersheim_rejects_pfa_outside_range() -> None:
         RocConfig(kind="albersheim", pfa=1e-2)
 
 
-@pytest.mark.parametrize("kind", ["paper", "swerling0", "swerling1", "albersheim"])
+@pytest.mark.parametrize("kind", ["paper", "smoothstep", "swerling0", "swerling1",
+                                  "albersheim"])
 def test_roc_monotone_finite_in_unit_interval(kind: str) -> None:
     s = np.linspace(-400.0, 400.0, 4001)
     p = detection_probability(s, RocConfig(kind=kind, pfa=1e-6))  # type: ignore[arg-type]

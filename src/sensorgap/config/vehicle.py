@@ -18,15 +18,19 @@ from sensorgap.config.common import Positive, Strict
 class RocConfig(Strict):
     """How SNR becomes a detection probability (see ``sensorgap.models.roc``).
 
-    ``paper``: 0 below ``snr50_db - half_width_db``, 1 above ``snr50_db + half_width_db``,
-    smooth (cubic smoothstep in dB) between; 50 % at ``snr50_db`` (Ponn 2019 after Hasch 2012:
-    10 dB in sunny conditions). ``swerling0`` / ``swerling1``: exact single-pulse detection of
-    a steady / Rayleigh-fluctuating target at false-alarm probability ``pfa``.
+    ``paper`` (default): 50 % at ``snr50_db`` (Ponn 2019 after Hasch 2012: 10 dB in sunny
+    conditions) on a Swerling-1-shaped curve ``Pd = 0.5^((1 + SNR50) / (1 + SNR))`` that
+    approaches 1 asymptotically, and 0 below ``floor_db`` (no detection declared below it).
+    ``smoothstep``: 0 below ``snr50_db - half_width_db``, exactly 1 above
+    ``snr50_db + half_width_db``, cubic in dB between. ``swerling0`` / ``swerling1``: exact
+    single-pulse detection of a steady / Rayleigh-fluctuating target at false-alarm
+    probability ``pfa``.
     ``albersheim``: Albersheim's approximation, only inside its validity range.
     """
 
-    kind: Literal["paper", "swerling0", "swerling1", "albersheim"] = "paper"
+    kind: Literal["paper", "smoothstep", "swerling0", "swerling1", "albersheim"] = "paper"
     snr50_db: float = Field(default=10.0, ge=-50.0, le=100.0, allow_inf_nan=False)
+    floor_db: float = Field(default=0.0, ge=-300.0, le=100.0, allow_inf_nan=False)
     half_width_db: float = Field(default=6.0, gt=0.0, le=50.0, allow_inf_nan=False)
     pfa: float = Field(default=1.0e-6, gt=0.0, lt=1.0, allow_inf_nan=False)
     n_pulses: int = Field(default=1, ge=1, le=8096)

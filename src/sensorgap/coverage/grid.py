@@ -3,7 +3,8 @@ optionally on several threads (numpy releases the GIL in its array loops).
 
 Per tile, each sensor is evaluated only on the sub-grid inside the bounding box of what it
 can reach at that height (``horizontal_reach_bbox``); sensors that reach no cell of the
-grid are never prepared nor evaluated.
+grid are never prepared nor evaluated. The generic per-cell loops (field of view, range,
+ROC and fusion) are compiled (``fastkernel``); the sensor physics stays numpy.
 """
 
 from __future__ import annotations
@@ -15,11 +16,17 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from sensorgap.coverage.kernel import evaluate_offsets
+from sensorgap.coverage.fastkernel import (
+    accumulate_log_miss,
+    mount_constants,
+    roc_constants,
+    subgrid_geometry,
+)
 from sensorgap.coverage.scene import Scene
 from sensorgap.models.fusion import FusionAccumulator
 from sensorgap.models.geometry import horizontal_reach_bbox
-from sensorgap.models.numerics import SNR_NOT_IN_VIEW_DB
+from sensorgap.models.numerics import SNR_NOT_IN_VIEW_DB, clip_snr_db
+from sensorgap.models.roc import detection_probability, snr_db_for_zero_detection
 
 F64 = NDArray[np.float64]
 
@@ -94,14 +101,25 @@ def _index_range(values: F64, lo: float, hi: float) -> tuple[int, int]:
     return int(np.searchsorted(values, lo, "left")), int(np.searchsorted(values, hi, "right"))
 
 
+#: Default bound on the fused-Pd error of saturation culling (see ``evaluate_grid``).
+DEFAULT_SATURATION_EPS = 1e-10
+
+
 def evaluate_grid(
     scene: Scene,
     grid: GridSpec,
     per_sensor: bool = False,
     workers: int = 1,
     tile_cells: int = DEFAULT_TILE_CELLS,
+    saturation_eps: float = DEFAULT_SATURATION_EPS,
 ) -> GridCoverage:
     """Fused Pd (eq. 11) on ``grid``; with ``per_sensor`` also each sensor's Pd and SNR (dB).
+
+    Saturation culling (fused-only mode): once a cell's fused miss probability
+    ``prod(1 - p_i)`` is <= ``saturation_eps``, the remaining sensors are not evaluated
+    there; they could raise its fused Pd by at most that much, so the result is within
+    ``saturation_eps`` of the full evaluation (0 disables the cull; cells with Pd = 1 are
+    always skipped, exactly).
 
     Memory: O(tile_cells) temporaries per worker plus the outputs (8 bytes per cell for the
     fused map, 16 per cell and sensor with ``per_sensor``).
@@ -128,41 +146,56 @@ def evaluate_grid(
     rows_per_tile = max(1, math.ceil(ny / n_tiles))
     tiles = [(r0, min(ny, r0 + rows_per_tile)) for r0 in range(0, ny, rows_per_tile)]
     if not per_sensor:
-        # Fused-only: evaluate far-reaching, wide sensors first; cells they detect with
-        # certainty (Pd = 1 is absorbing in eq. 11) are skipped by later sensors. Exact.
-        boxes.sort(key=lambda b: -(b[0].mount.max_range ** 2) * min(b[0].mount.hfov, 6.3))
+        # Fused-only: sensors whose ROC reaches exactly 1 first, then far-reaching, wide
+        # ones; cells detected with certainty (Pd = 1 is absorbing in eq. 11) are skipped by
+        # later sensors (exact).
+        boxes.sort(key=lambda b: (snr_db_for_zero_detection(b[0].roc) is None
+                                  or b[0].roc.kind == "paper",
+                                  -(b[0].mount.max_range ** 2) * min(b[0].mount.hfov, 6.3)))
+
+    if not (0.0 <= saturation_eps < 1.0):
+        raise ValueError(f"saturation_eps must be in [0, 1), got {saturation_eps}")
+    log_eps = math.log(saturation_eps) if saturation_eps > 0.0 else -math.inf
+    consts = {s.id: mount_constants(s.mount) for s, *_ in boxes}
+    shift = scene.roc_shift_db
+    rocs = {s.id: roc_constants(s.roc, shift) for s, *_ in boxes}
 
     def run_tile(rows: tuple[int, int]) -> None:
         r0, r1 = rows
         acc = FusionAccumulator((r1 - r0, nx))
-        certain = acc.certain.reshape(-1)
+        flat_log = acc.log_miss.reshape(-1)
+        flat_cert = acc.certain.reshape(-1)
         for s, ix0, ix1, iy0, iy1 in boxes:
             a, b = max(iy0, r0), min(iy1, r1)
             if a >= b or ix0 >= ix1:
                 continue
             m = s.mount
-            dx = xs[ix0:ix1] - m.x
-            dy = ys[a:b] - m.y
-            dz = grid.height - m.z
-            r2 = (dy * dy)[:, None] + (dx * dx)[None, :] + dz * dz
-            near = r2 <= m.max_range * m.max_range
-            if m.min_range > 0.0:
-                near &= r2 >= m.min_range * m.min_range
-            if not per_sensor:
-                near &= ~acc.certain[a - r0:b - r0, ix0:ix1]
-            flat = np.flatnonzero(near)
+            prepared = scene.prepared(s)
+            if per_sensor:
+                skip = np.zeros((b - a, ix1 - ix0), dtype=bool)
+            else:  # saturated cells: later sensors change them by <= saturation_eps
+                skip = acc.certain[a - r0 : b - r0, ix0:ix1]
+                if log_eps > -math.inf:
+                    skip = skip | (acc.log_miss[a - r0 : b - r0, ix0:ix1] <= log_eps)
+            flat, r, az, el = subgrid_geometry(xs[ix0:ix1] - m.x, ys[a:b] - m.y,
+                                               grid.height - m.z, consts[s.id], skip,
+                                               prepared.uses_angles)
             if flat.size == 0:
                 continue
+            if not prepared.uses_angles:
+                az = el = np.zeros_like(r)
+            snr = clip_snr_db(prepared.snr_db(r, az, el))
             iy, ix = np.divmod(flat, ix1 - ix0)
-            ok, snr, pd = evaluate_offsets(scene, s, dx[ix], dy[iy], dz)
-            if snr.size == 0:
-                continue
-            ty, tx = iy[ok] + (a - r0), ix[ok] + ix0
-            acc.add(pd, ty * nx + tx)
-            if per_sensor:
-                pd_out[s.id][ty + r0, tx] = pd
-                snr_out[s.id][ty + r0, tx] = snr
-        del certain
+            tflat = (iy + (a - r0)) * nx + (ix + ix0)
+            compiled = rocs[s.id]
+            if per_sensor or compiled is None:
+                pd = detection_probability(snr, s.roc, shift)
+                acc.add(pd, tflat)
+                if per_sensor:
+                    pd_out[s.id][iy + a, ix + ix0] = pd
+                    snr_out[s.id][iy + a, ix + ix0] = snr
+            else:
+                accumulate_log_miss(snr, tflat, compiled[0], compiled[1], flat_log, flat_cert)
         fused[r0:r1] = acc.result()
 
     if workers > 1 and len(tiles) > 1:

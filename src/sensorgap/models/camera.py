@@ -3,7 +3,9 @@
 Signal electrons (eq. 6-7), with the object's pixel count for an equidistant (f-theta)
 lens, ``IFOV = HFOV / N_h`` and ``N_pix,o(R) = min(sigma_cam / (R IFOV)^2, N_pix)``:
 
-``P_r = E_sun sigma_cam D^2 N_pix,o(R) / (16 R^2 L_oa(R) N_pix)``,
+``P_r = E_sun sigma_cam D^2 N_pix,o(R) / (16 R^2 L_oa(R) N_pix)``, with
+``L_oa(R) = L_sys + gamma R`` (one pass object -> camera; the illumination of the object is
+``E_sun`` of the environment),
 ``N_e = P_r t_int QE / (h nu)``.
 
 Noise (eq. 8) ``N_n = sqrt(N_e) + k B_n T_sys t_int QE / (h nu)``; SNR (eq. 9/10)
@@ -121,14 +123,14 @@ class Camera(SensorModel):
             effects["glare"] = f"direct sun on the sensor, weight {w:.3f}, {sun_e:.3e} e-"
         ln_fixed_noise = math.log(thermal + sun_e)
         gamma = conditions.attenuation_db_km(self.band())
-        two_way_db_m = 2.0 * gamma / 1000.0
+        one_way_db_m = gamma / 1000.0  # object -> camera: one pass (Koschmieder)
         ifov_db = 20.0 * math.log10(ifov)
         edge, hfov, vfov = p.fov_edge_loss_db, mount.hfov, mount.vfov
 
         def snr_db(r: F64, az: F64, el: F64) -> F64:
             lr20 = 20.0 * np.log10(r)
             npo_db = np.minimum(sigma_db - lr20 - ifov_db, n_pix_db)
-            ne_db = k_db + npo_db - lr20 - two_way_db_m * r
+            ne_db = k_db + npo_db - lr20 - one_way_db_m * r
             if edge > 0.0:
                 ne_db = ne_db - pattern_loss_db(az, el, hfov, vfov, edge)
             ln_ne = ne_db * LN10_OVER_10

@@ -4,10 +4,14 @@ Kinds (``RocConfig.kind``):
 
 * ``paper`` (default): Ponn et al. 2019 use ROC curves after Bernsteiner et al. 2013 with
   Pd = 50 % at 10 dB SNR in sunny conditions (Hasch et al. 2012) and curves shifted for
-  adverse weather; the curves are not published. We use a cubic smoothstep in dB,
-  ``Pd = 3t^2 - 2t^3`` with ``t = (SNR - shift - snr50 + hw) / (2 hw)`` clipped to [0, 1]:
-  exactly 0 below ``snr50 - hw``, exactly 1 above ``snr50 + hw`` (the paper's "Pd = 1.0" and
-  "Pd = 0" levels exist), monotone, C1. ``hw`` (half width) is an estimate.
+  adverse weather; the curves are not published. We use the Swerling-1 shape anchored at that
+  point, ``Pd = 0.5^((1 + SNR50) / (1 + SNR))`` (= ``Pfa^(1/(1+SNR))`` with
+  ``Pfa = 0.5^(1 + SNR50)``, 4.9e-4 for 10 dB), which approaches 1 asymptotically, and
+  ``Pd = 0`` below ``floor_db`` (no detection is declared from a signal below the floor; the
+  paper's blinded cameras have Pd = 0). Why this shape: docs/models.md (Table IV).
+* ``smoothstep``: cubic smoothstep in dB, ``Pd = 3t^2 - 2t^3`` with
+  ``t = (SNR - shift - snr50 + hw) / (2 hw)`` clipped to [0, 1]: exactly 0 below
+  ``snr50 - hw``, exactly 1 above ``snr50 + hw``, monotone, C1.
 * ``swerling1``: exact, single pulse, Rayleigh-fluctuating target:
   ``Pd = Pfa^(1/(1+SNR))`` (Richards, Fundamentals of Radar Signal Processing, eq. 6.57).
 * ``swerling0``: exact, single pulse, steady target:
@@ -42,8 +46,15 @@ def _lin(snr_db: F64) -> F64:
     return np.power(10.0, np.clip(snr_db, SNR_FLOOR_DB, _SATURATION_DB) / 10.0)
 
 
-def pd_paper(snr_db: F64, snr50_db: float, half_width_db: float) -> F64:
-    """Paper-style ROC: cubic smoothstep in dB; exactly 0 / 1 outside the transition."""
+def pd_paper(snr_db: F64, snr50_db: float, floor_db: float) -> F64:
+    """Paper ROC: Swerling-1 shape with Pd(snr50) = 0.5, exactly 0 below ``floor_db``."""
+    snr = np.power(10.0, np.clip(snr_db, SNR_FLOOR_DB, SNR_CEIL_DB) / 10.0)
+    pd = np.exp(math.log(0.5) * (1.0 + 10.0 ** (snr50_db / 10.0)) / (1.0 + snr))
+    return np.where(snr_db < floor_db, 0.0, pd)
+
+
+def pd_smoothstep(snr_db: F64, snr50_db: float, half_width_db: float) -> F64:
+    """Cubic smoothstep in dB; exactly 0 / 1 outside the transition."""
     t = (snr_db - (snr50_db - half_width_db)) / (2.0 * half_width_db)
     t = np.clip(t, 0.0, 1.0)
     return t * t * (3.0 - 2.0 * t)
@@ -89,7 +100,9 @@ def detection_probability(snr_db: F64, roc: RocConfig, shift_db: float = 0.0) ->
     """Pd in [0, 1] for SNR values (dB) under ``roc``, after the weather shift (dB)."""
     s = np.clip(np.asarray(snr_db, dtype=np.float64) - shift_db, SNR_FLOOR_DB, SNR_CEIL_DB)
     if roc.kind == "paper":
-        pd = pd_paper(s, roc.snr50_db, roc.half_width_db)
+        pd = pd_paper(s, roc.snr50_db, roc.floor_db)
+    elif roc.kind == "smoothstep":
+        pd = pd_smoothstep(s, roc.snr50_db, roc.half_width_db)
     elif roc.kind == "swerling1":
         pd = pd_swerling1(s, roc.pfa)
     elif roc.kind == "swerling0":
@@ -101,9 +114,9 @@ def detection_probability(snr_db: F64, roc: RocConfig, shift_db: float = 0.0) ->
 
 def snr_db_for_certain_detection(roc: RocConfig, shift_db: float = 0.0) -> float:
     """The SNR (dB) from which Pd is exactly 1 (paper ROC) or 1 to double precision."""
-    if roc.kind == "paper":
+    if roc.kind == "smoothstep":
         return roc.snr50_db + roc.half_width_db + shift_db
-    if roc.kind == "swerling1":
+    if roc.kind in ("swerling1", "paper"):
         return SNR_CEIL_DB + shift_db
     return _SATURATION_DB + shift_db
 
@@ -111,6 +124,8 @@ def snr_db_for_certain_detection(roc: RocConfig, shift_db: float = 0.0) -> float
 def snr_db_for_zero_detection(roc: RocConfig, shift_db: float = 0.0) -> float | None:
     """The SNR (dB) at and below which Pd is exactly 0; ``None`` if the curve never is 0
     (exact curves floor at Pfa)."""
-    if roc.kind == "paper":
+    if roc.kind == "smoothstep":
         return roc.snr50_db - roc.half_width_db + shift_db
+    if roc.kind == "paper":
+        return roc.floor_db + shift_db
     return None
