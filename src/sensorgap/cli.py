@@ -17,7 +17,7 @@ if TYPE_CHECKING:
 
 EXIT_INPUT = 2
 EXIT_INTERNAL = 1
-_GLUED_OPTIONS = {"--extent", "--height"}
+_GLUED_OPTIONS = {"--extent", "--height", "--ego-lane", "--target-lane"}
 
 
 def _float_list(text: str, n: int, option: str) -> list[float]:
@@ -93,6 +93,58 @@ def cmd_coverage(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_nearfield(args: argparse.Namespace) -> int:
+    """Near-field blind spots (exact polygons and grid) into --out."""
+    from sensorgap.analysis.nearfield import write_nearfield
+    from sensorgap.models import load_system
+
+    res = _positive(args.resolution, "--resolution")
+    summary = write_nearfield(load_system(args.vehicle), Path(args.out), res)
+    bs = summary["blind_spot_m2"]
+    print(f"{args.out}: blind spots {bs['exact']:.2f} m2 exact, {bs['grid']:.2f} m2 on the "
+          f"{res:g} m grid")
+    return 0
+
+
+def cmd_farfield(args: argparse.Namespace) -> int:
+    """Pd along a target lane ahead of the ego (Table IV levels) into --out."""
+    from sensorgap.analysis.farfield_outputs import write_farfield
+    from sensorgap.analysis.paper import FarFieldSetup, run_farfield
+    from sensorgap.config.presets import resolve_road
+    from sensorgap.models import load_system
+    from sensorgap.roads import read_opendrive
+
+    length = _positive(args.length, "--length")
+    setup = FarFieldSetup(road=args.road, road_id=args.road_id, ego_lane=args.ego_lane,
+                          target_lane=args.target_lane, ego_s_m=args.ego_s, length_m=length,
+                          target=args.target)
+    net = read_opendrive(resolve_road(args.road))
+    road = net.road(args.road_id)
+    if not (0.0 <= args.ego_s <= road.length):
+        raise InputError("--ego-s", "", f"must be within 0..{road.length:g} m of road "
+                         f"{args.road_id}, got {args.ego_s!r}")
+    for opt, lane in (("--ego-lane", args.ego_lane), ("--target-lane", args.target_lane)):
+        if not net.lane_exists(args.road_id, lane, args.ego_s):
+            raise InputError(opt, "", f"lane {lane} does not exist on road {args.road_id} "
+                             f"at s = {args.ego_s:g} m")
+    system = load_system(args.vehicle)
+    scene, ff = run_farfield(system, args.environment, setup, net)
+    write_farfield(scene, ff, Path(args.out), f"{system.name}, {args.environment}: "
+                   f"{args.target} on lane {args.target_lane}", extra={"setup": setup.__dict__})
+    print(", ".join(f"{k} {v:.0f} m" for k, v in ff.levels_m.items()))
+    return 0
+
+
+def cmd_paper(args: argparse.Namespace) -> int:
+    """Reproduce the paper's results section into --out."""
+    from sensorgap.analysis.paper import run_paper
+
+    result = run_paper(Path(args.out))
+    for name, ok in result["checks"].items():
+        print(f"[{'ok' if ok else 'FAIL'}] {name}")
+    return 0
+
+
 def cmd_schema(args: argparse.Namespace) -> int:
     """Print the JSON Schema of vehicle / environment / target files."""
     from sensorgap.filesio import json_bytes
@@ -147,6 +199,29 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--workers", type=int, default=2, help="threads")
     p.add_argument("--out", required=True, help="output folder")
     p.set_defaults(func=cmd_coverage)
+
+    p = sub.add_parser("nearfield", help="near-field blind spots (Fig. 5)")
+    p.add_argument("--vehicle", required=True, help="preset name or .toml path")
+    p.add_argument("--resolution", type=float, default=0.05, help="grid cell size, m")
+    p.add_argument("--out", required=True, help="output folder")
+    p.set_defaults(func=cmd_nearfield)
+
+    p = sub.add_parser("farfield", help="Pd along a lane ahead of the ego (Table IV)")
+    p.add_argument("--vehicle", required=True, help="preset name or .toml path")
+    p.add_argument("--environment", required=True, help="environment preset name")
+    p.add_argument("--road", default="motorway_r500", help="road name or .xodr path")
+    p.add_argument("--road-id", default="1", help="OpenDRIVE road id")
+    p.add_argument("--ego-lane", type=int, default=-1, help="ego lane id")
+    p.add_argument("--ego-s", type=float, default=450.0, help="ego position along the road, m")
+    p.add_argument("--target-lane", type=int, default=-2, help="target lane id")
+    p.add_argument("--target", default="car", help="pedestrian | bike | car | truck")
+    p.add_argument("--length", type=float, default=303.0, help="path length ahead, m")
+    p.add_argument("--out", required=True, help="output folder")
+    p.set_defaults(func=cmd_farfield)
+
+    p = sub.add_parser("paper", help="reproduce the paper's near-field areas and Table IV")
+    p.add_argument("--out", required=True, help="output folder")
+    p.set_defaults(func=cmd_paper)
 
     p = sub.add_parser("schema", help="JSON Schema of the config files")
     p.add_argument("kind", nargs="?", default="all",

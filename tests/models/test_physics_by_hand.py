@@ -25,7 +25,8 @@ C = 299792458.0
 TOL_DB = 1e-9
 
 TARGET = TargetConfig(name="t", rcs_m2=100.0, camera_cross_section_m2=2.7, length_m=4.5,
-                      width_m=1.8, height_m=1.5, reference_height_m=0.75, lidar_reflectance=0.1)
+                      width_m=1.8, height_m=1.5, reference_height_m=0.75, lidar_reflectance=0.1,
+                      camera_reflectance=0.15)
 MOUNT = Mount(x=0.0, y=0.0, z=0.5, yaw=0.0, pitch=0.0, hfov=math.radians(30.0),
               vfov=math.radians(10.0), min_range=0.0, max_range=5000.0)
 
@@ -120,7 +121,7 @@ def camera_by_hand(r: float, gamma: float, e_sun: float, hfov: float, sun_w: flo
     n_pix = 1920 * 1080
     n_pix_o = min(2.7 / (r * ifov) ** 2, n_pix)
     l_oa = 10 ** (1.0 / 10) * 10 ** (gamma * r / 1000 / 10)  # one pass
-    pr = e_sun * 2.7 * d**2 * n_pix_o / (16 * r**2 * l_oa * n_pix)  # eq. 6
+    pr = 0.15 / math.pi * e_sun * 2.7 * d**2 * n_pix_o / (16 * r**2 * l_oa * n_pix)  # eq. 6
     h_nu = H * C / 550e-9
     ne = pr * 1e-3 * 0.6 / h_nu  # eq. 7
     nen = math.sqrt(ne) + K * 1e3 * 300.0 * 1e-3 * 0.6 / h_nu  # eq. 8

@@ -28,5 +28,8 @@ class TargetConfig(Strict):
     lidar_reflectance: float = Field(
         gt=0.0, le=1.0, description="Diffuse reflectance at the lidar wavelength (extended law)"
     )
+    camera_reflectance: float = Field(
+        gt=0.0, le=1.0, description="Diffuse reflectance in the camera band (rho/pi term)"
+    )
     max_speed_m_s: Positive = Field(default=70.0, description="Upper bound for trajectories, m/s")
     sources: dict[str, str] = Field(default_factory=dict)

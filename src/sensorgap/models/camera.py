@@ -3,7 +3,9 @@
 Signal electrons (eq. 6-7), with the object's pixel count for an equidistant (f-theta)
 lens, ``IFOV = HFOV / N_h`` and ``N_pix,o(R) = min(sigma_cam / (R IFOV)^2, N_pix)``:
 
-``P_r = E_sun sigma_cam D^2 N_pix,o(R) / (16 R^2 L_oa(R) N_pix)``, with
+``P_r = (rho / pi) E_sun sigma_cam D^2 N_pix,o(R) / (16 R^2 L_oa(R) N_pix)``, with the
+object's diffuse reflectance rho: the object returns the radiance ``rho E_sun / pi``
+(physics.md pitfall 5; eq. 6 as printed assumes ``rho / pi = 1``), and
 ``L_oa(R) = L_sys + gamma R`` (one pass object -> camera; the illumination of the object is
 ``E_sun`` of the environment),
 ``N_e = P_r t_int QE / (h nu)``.
@@ -108,6 +110,7 @@ class Camera(SensorModel):
         terms = {
             "E_sun [dBW/m2]": 10.0 * math.log10(max(irr, 1e-300)),
             "sigma_cam [dBsm]": sigma_db,
+            "rho/pi [dB]": 10.0 * math.log10(target.camera_reflectance / math.pi),
             "D^2 [dB m2]": 20.0 * math.log10(aperture),
             "-16 [dB]": -10.0 * math.log10(16.0),
             "-N_pix [dB]": -n_pix_db,

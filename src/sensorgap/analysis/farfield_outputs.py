@@ -1,0 +1,74 @@
+"""Far-field products: ``farfield.csv``, ``levels.csv``, ``farfield.png`` (Figs. 6-7 style),
+``summary.json``."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import matplotlib.pyplot as plt
+import numpy as np
+
+from sensorgap.analysis.farfield import LEVELS, FarField
+from sensorgap.coverage.grid import GridSpec, evaluate_grid
+from sensorgap.coverage.outputs import scene_provenance
+from sensorgap.coverage.plot import PD_CMAP, PD_NORM, draw_vehicle, save_figure
+from sensorgap.coverage.scene import Scene
+from sensorgap.filesio import write_csv, write_json
+
+MAX_PLOT_CELLS = 1_500_000
+
+
+def farfield_figure_grid(ff: FarField, height: float) -> GridSpec:
+    """A grid around the path (vehicle frame) fine enough to show it, at most
+    ``MAX_PLOT_CELLS`` cells."""
+    x0 = min(-10.0, float(ff.vehicle[:, 0].min()) - 10.0)
+    x1 = float(ff.vehicle[:, 0].max()) + 10.0
+    y0 = min(-15.0, float(ff.vehicle[:, 1].min()) - 10.0)
+    y1 = max(15.0, float(ff.vehicle[:, 1].max()) + 10.0)
+    res = max(0.25, math.sqrt((x1 - x0) * (y1 - y0) / MAX_PLOT_CELLS))
+    res = math.ceil(res * 4.0) / 4.0
+    return GridSpec(x0, x1, y0, y1, res, height)
+
+
+def write_farfield(scene: Scene, ff: FarField, out_dir: Path, title: str,
+                   extra: dict[str, Any] | None = None) -> dict[str, Any]:
+    """Write the far-field files into ``out_dir``; returns the summary."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    cols = ["s", "x_world", "y_world", "x_vehicle", "y_vehicle", "pd"]
+    data = [ff.s, ff.world[:, 0], ff.world[:, 1], ff.vehicle[:, 0], ff.vehicle[:, 1], ff.pd]
+    for sid, pd in ff.per_sensor.items():
+        cols.append(f"{sid}.pd")
+        data.append(pd)
+    write_csv(out_dir / "farfield.csv", cols, data)
+    write_csv(out_dir / "levels.csv", ["level", "metres"],
+              [np.array([k for k, _ in LEVELS]), np.array([ff.levels_m[k] for k, _ in LEVELS])])
+    grid = farfield_figure_grid(ff, scene.target.reference_height_m)
+    cov = evaluate_grid(scene, grid, workers=2)
+    fig, ax = plt.subplots(figsize=(11.0, 5.0), layout="constrained")
+    g = cov.grid
+    im = ax.imshow(cov.fused, origin="lower", extent=(g.xmin, g.xmax, g.ymin, g.ymax),
+                   cmap=PD_CMAP, norm=PD_NORM, interpolation="nearest", aspect="equal")
+    draw_vehicle(ax, scene.system, fov=False)
+    ax.plot(ff.vehicle[:, 0], ff.vehicle[:, 1], color="magenta", linewidth=2.0,
+            label="target path (Pd along it in farfield.csv)")
+    ax.set_xlim(g.xmin, g.xmax)
+    ax.set_ylim(g.ymin, g.ymax)
+    ax.set_xlabel("x (vehicle frame) [m]")
+    ax.set_ylabel("y (vehicle frame) [m]")
+    ax.set_title(title, fontsize=10)
+    ax.legend(loc="upper left", fontsize=8)
+    fig.colorbar(im, ax=ax, label="detection probability $p_d$", shrink=0.8)
+    save_figure(fig, out_dir / "farfield.png")
+    summary = {
+        **scene_provenance(scene),
+        **(extra or {}),
+        "path_length_m": float(ff.ds.sum()),
+        "step_m": float(ff.ds[0]),
+        "levels_m": ff.levels_m,
+        "figure_grid_resolution_m": grid.resolution,
+        "files": ["farfield.csv", "levels.csv", "farfield.png", "summary.json"],
+    }
+    write_json(out_dir / "summary.json", summary)
+    return summary

@@ -1,0 +1,205 @@
+"""``sensorgap paper``: the paper's results section reproduced from the presets.
+
+Near field (blind-spot areas of A and B, Fig. 5) and far field (Table IV: A/B x normal /
+glare from the front right, Figs. 6-7) on ``roads/motorway_r500.xodr``, written next to the
+paper's numbers with the difference per cell (``paper.md``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from sensorgap.analysis.farfield import LEVELS, EgoPose, FarField, farfield
+from sensorgap.analysis.farfield_outputs import write_farfield
+from sensorgap.config import load_environment, load_target
+from sensorgap.config.presets import resolve_road
+from sensorgap.coverage.scene import Scene
+from sensorgap.filesio import write_csv
+from sensorgap.atomic import atomic_write_text
+from sensorgap.models import Conditions, System, load_system
+from sensorgap.roads import RoadNetwork, read_opendrive
+
+#: Ponn et al. 2019, Table IV: cumulated path length (m) per level.
+PAPER_TABLE_IV: dict[tuple[str, str], dict[str, float]] = {
+    ("A", "normal"): {"pd=1.0": 73, "pd>=0.8": 148, "pd>=0.5": 169, "pd>0": 210, "pd=0": 93},
+    ("B", "normal"): {"pd=1.0": 50, "pd>=0.8": 159, "pd>=0.5": 237, "pd>0": 249, "pd=0": 54},
+    ("A", "glare"): {"pd=1.0": 73, "pd>=0.8": 148, "pd>=0.5": 169, "pd>0": 210, "pd=0": 93},
+    ("B", "glare"): {"pd=1.0": 0, "pd>=0.8": 89, "pd>=0.5": 119, "pd>0": 121, "pd=0": 181},
+}
+#: Ponn et al. 2019, Fig. 5 caption: total blind-spot area, m2.
+PAPER_BLIND_SPOT_M2 = {"A": 4.17, "B": 0.77}
+TABLE_IV_TOLERANCE_M = 20.0
+NEARFIELD_TOLERANCE = 0.30
+
+SYSTEMS = {"A": "system_a", "B": "system_b"}
+CONDITIONS = {"normal": "clear", "glare": "glare_front_right"}
+
+
+@dataclass(frozen=True)
+class FarFieldSetup:
+    """Where the ego and the target are (the paper's far-field scene)."""
+
+    road: str = "motorway_r500"
+    road_id: str = "1"
+    ego_lane: int = -1  # left lane (inner lane of the left-hand curve)
+    target_lane: int = -2  # right lane
+    ego_s_m: float = 450.0  # 50 m before the clothoid into the R = 500 m curve
+    length_m: float = 303.0  # path length ahead of the ego (sum of each Table IV column)
+    target: str = "car"
+
+
+def ego_pose(net: RoadNetwork, setup: FarFieldSetup) -> EgoPose:
+    """The ego's rear axle on the centre of its lane at ``ego_s_m``."""
+    x, y, h, _ = net.lane_center(setup.road_id, setup.ego_lane, np.array([setup.ego_s_m]))
+    return EgoPose(float(x[0]), float(y[0]), float(h[0]))
+
+
+def target_path(net: RoadNetwork, setup: FarFieldSetup, step_m: float = 0.5) -> np.ndarray:
+    """Centre line of the target lane from the ego's s to the road end (world, m)."""
+    length = net.road(setup.road_id).length
+    s = np.arange(setup.ego_s_m, length, step_m)
+    x, y, _, _ = net.lane_center(setup.road_id, setup.target_lane, s)
+    return np.column_stack([x, y])
+
+
+def run_farfield(system: System, env_name: str, setup: FarFieldSetup,
+                 net: RoadNetwork) -> tuple[Scene, FarField]:
+    """The far-field profile of one system in one environment."""
+    pose = ego_pose(net, setup)
+    env = load_environment(env_name)
+    scene = Scene(system, load_target(setup.target), Conditions.from_config(env, pose.heading))
+    return scene, farfield(scene, target_path(net, setup), pose, setup.length_m)
+
+
+def _md_table(header: list[str], rows: list[list[str]]) -> str:
+    lines = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
+    lines += ["| " + " | ".join(r) + " |" for r in rows]
+    return "\n".join(lines)
+
+
+def run_paper(out: Path, setup: FarFieldSetup | None = None,
+              nearfield_resolution_m: float = 0.05) -> dict[str, Any]:
+    """Write table_iv.csv, nearfield.csv, paper.md and the figures into ``out``."""
+    from sensorgap.analysis.nearfield import write_nearfield
+
+    setup = setup or FarFieldSetup()
+    net = read_opendrive(resolve_road(setup.road))
+    out.mkdir(parents=True, exist_ok=True)
+    systems = {k: load_system(v) for k, v in SYSTEMS.items()}
+
+    near: dict[str, dict[str, Any]] = {}
+    for key, system in systems.items():
+        near[key] = write_nearfield(system, out / f"nearfield_{key}", nearfield_resolution_m)
+    write_csv(out / "nearfield.csv", ["system", "blind_spot_m2", "uncovered_0p1m_m2"], [
+        np.array(list(near)),
+        np.array([near[k]["blind_spot_m2"]["exact"] for k in near]),
+        np.array([near[k]["uncovered_0p1m_m2"]["exact"] for k in near]),
+    ])
+
+    ours: dict[tuple[str, str], dict[str, float]] = {}
+    for key, system in systems.items():
+        for cond, env_name in CONDITIONS.items():
+            scene, ff = run_farfield(system, env_name, setup, net)
+            ours[(key, cond)] = ff.levels_m
+            write_farfield(scene, ff, out / f"farfield_{key}_{cond}",
+                           f"System {key}, {cond} ({env_name}): car path in the right lane",
+                           extra={"setup": setup.__dict__})
+    rows_sys, rows_cond, rows_level, rows_m = [], [], [], []
+    for (key, cond), levels in ours.items():
+        for level, _ in LEVELS:
+            rows_sys.append(key)
+            rows_cond.append(cond)
+            rows_level.append(level)
+            rows_m.append(round(levels[level], 1))
+    write_csv(out / "table_iv.csv", ["system", "condition", "level", "metres"],
+              [np.array(rows_sys), np.array(rows_cond), np.array(rows_level),
+               np.array(rows_m, dtype=np.float64)])
+    checks = qualitative_checks(ours, near)
+    atomic_write_text(out / "paper.md", paper_markdown(ours, near, checks, setup))
+    return {"table_iv": {f"{k[0]}_{k[1]}": v for k, v in ours.items()}, "nearfield": near,
+            "checks": checks}
+
+
+def qualitative_checks(ours: dict[tuple[str, str], dict[str, float]],
+                       near: dict[str, dict[str, Any]]) -> dict[str, bool]:
+    """The paper's qualitative conclusions, evaluated on our numbers."""
+    a_n, b_n, a_g, b_g = (ours[("A", "normal")], ours[("B", "normal")], ours[("A", "glare")],
+                          ours[("B", "glare")])
+    return {
+        "near field: B's blind-spot area < A's":
+            near["B"]["blind_spot_m2"]["exact"] < near["A"]["blind_spot_m2"]["exact"],
+        "normal: B >= A at Pd >= 0.5": b_n["pd>=0.5"] >= a_n["pd>=0.5"],
+        "glare: A unchanged at Pd >= 0.8, >= 0.5, > 0 (within 1 m)":
+            all(abs(a_g[k] - a_n[k]) <= 1.0 for k in ("pd>=0.8", "pd>=0.5", "pd>0")),
+        "glare: B's Pd = 1.0 distance about 0 m (< 5 m)": b_g["pd=1.0"] < 5.0,
+        "glare: B < A at every Pd level": all(b_g[k] < a_g[k] for k in
+                                               ("pd=1.0", "pd>=0.8", "pd>=0.5", "pd>0")),
+    }
+
+
+def paper_markdown(ours: dict[tuple[str, str], dict[str, float]],
+                   near: dict[str, dict[str, Any]], checks: dict[str, bool],
+                   setup: FarFieldSetup) -> str:
+    """paper.md: our numbers next to the paper's, per-cell differences, explanations."""
+    out = ["# sensorgap vs Ponn et al. 2019 (results section)", "",
+           "Generated by `sensorgap paper`. Models: docs/models.md; parameters and their "
+           "sources: templates/.", "", "## Table IV: cumulated path length per Pd level (m)", "",
+           f"Road `{setup.road}` (road {setup.road_id}), ego in lane {setup.ego_lane} at "
+           f"s = {setup.ego_s_m:g} m, target ({setup.target}) path on the centre of lane "
+           f"{setup.target_lane}, {setup.length_m:g} m ahead of the ego's front bumper, "
+           f"at the target's reference height. Tolerance +-{TABLE_IV_TOLERANCE_M:g} m.", ""]
+    header = ["level"] + [f"{k} {c}: ours / paper / diff" for k, c in ours]
+    rows = []
+    worst = 0.0
+    for level, label in LEVELS:
+        row = [label]
+        for key in ours:
+            o, p = ours[key][level], PAPER_TABLE_IV[key][level]
+            d = o - p
+            worst = max(worst, abs(d))
+            flag = "" if abs(d) <= TABLE_IV_TOLERANCE_M else " (!)"
+            row.append(f"{o:.0f} / {p:.0f} / {d:+.0f}{flag}")
+        rows.append(row)
+    out += [_md_table(header, rows), "",
+            f"Largest difference: {worst:.0f} m "
+            f"({'within' if worst <= TABLE_IV_TOLERANCE_M else 'outside'} the tolerance).", ""]
+    out += ["## Near field: blind spots (m2)", ""]
+    nrows = []
+    for key in near:
+        exact = near[key]["blind_spot_m2"]["exact"]
+        paper = PAPER_BLIND_SPOT_M2[key]
+        rel = (exact - paper) / paper
+        nrows.append([key, f"{exact:.2f}", f"{paper:.2f}", f"{rel:+.0%}",
+                      f"{near[key]['uncovered_0p1m_m2']['exact']:.2f}"])
+    out += [_md_table(["system", "blind spots, ours", "paper", "difference",
+                       "not covered at 0.1 m, ours"], nrows), "",
+            f"Tolerance +-{NEARFIELD_TOLERANCE:.0%}.", ""]
+    out += ["## The paper's qualitative conclusions", ""]
+    out += [f"- [{'x' if ok else ' '}] {name}" for name, ok in checks.items()]
+    out += ["", "## Where and why we differ", "", *EXPLANATIONS, ""]
+    return "\n".join(out) + "\n"
+
+
+EXPLANATIONS = [
+    "- The paper publishes the equations, cross-sections, Table III (type, position class, "
+    "HFOV, range) and the 50 %-at-10 dB ROC anchor, but not the sensor parameters, vertical "
+    "fields of view, mounting positions, ROC curve shapes, the road geometry or where the ego "
+    "stands. Ours are data-sheet values or labelled estimates (templates/), calibrated only "
+    "through physically plausible, global parameters (radar noise bandwidth and detection "
+    "floor, lidar aperture and optics loss, camera exposure and ROC width); no per-cell "
+    "factors.",
+    "- ROC shapes: Table IV shows Pd = 1.0 stretches only where a camera or the lidar sees the "
+    "target (B under glare, radar only: 0 m). We therefore use an asymptotic (Swerling-1 "
+    "shaped) curve for radars and a saturating one for cameras and the lidar "
+    "(docs/models.md).",
+    "- A under glare loses ~10 m at Pd = 1.0: the first metres of the path lie beside the "
+    "ego's front-right corner, outside the lidar's 145 deg field of view, where only the right "
+    "mirror camera sees the target; the low sun from the front right blinds it. The paper "
+    "reports A unchanged, i.e. its A covered that corner otherwise (unpublished positions).",
+    "- A's Pd > 0 ends at the front radar's detection floor; the paper's 210 m and our value "
+    "differ by the unpublished radar parameters and road position.",
+]

@@ -1,0 +1,493 @@
+"""OpenDRIVE reader: ``read_opendrive(path) -> RoadNetwork`` with full validation.
+
+Reads the 2-D road layout of OpenDRIVE 1.4-1.7 files: planView geometries (line, arc,
+spiral, poly3, paramPoly3), laneOffset, lane sections with lane widths and lane links, road
+links and junctions (default, direct, virtual) with their connections and lane links.
+Elevation, superelevation, lane heights, road marks, objects and signals are ignored.
+
+Every problem is one ``InputError`` naming the file and the element, e.g.
+``roads/x.xodr: road[id=3]/planView/geometry[2]@length: must be > 0, got -5 (line 12)``.
+Element indices count from 0 among siblings of the same name.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Literal, NoReturn, cast
+
+import numpy as np
+from lxml import etree
+
+from sensorgap.errors import InputError
+from sensorgap.roads.geometry import Arc, Geometry, Line, ParamPoly3, Poly3, Spiral
+from sensorgap.roads.model import (
+    Connection,
+    ContactPoint,
+    CubicPiece,
+    Junction,
+    Lane,
+    LaneSection,
+    Road,
+    RoadLink,
+    eval_pieces,
+)
+from sensorgap.roads.network import RoadNetwork
+from sensorgap.roads.xmlsafe import DEFAULT_MAX_BYTES, parse_xml_file
+
+#: Largest accepted gap/overlap between consecutive geometries, and between the sum of the
+#: geometry lengths and the road length, m.
+S_TOLERANCE = 1e-3
+#: Most negative lane width tolerated (rounding in writers), m.
+WIDTH_TOLERANCE = 1e-6
+
+_GEOMETRY_KINDS = ("line", "arc", "spiral", "poly3", "paramPoly3")
+
+
+def _local(el: etree._Element) -> str:
+    """Tag name without namespace; '' for comments and processing instructions."""
+    tag = el.tag
+    return tag.rpartition("}")[2] if isinstance(tag, str) else ""
+
+
+def _kids(el: etree._Element, name: str) -> list[etree._Element]:
+    return [c for c in el if _local(c) == name]
+
+
+def _kid(el: etree._Element, name: str) -> etree._Element | None:
+    kids = _kids(el, name)
+    return kids[0] if kids else None
+
+
+class _Reader:
+    """Parses one document; ``source`` names the file in every error."""
+
+    def __init__(self, source: str) -> None:
+        self.source = source
+
+    # -- primitives --------------------------------------------------------------------
+    def fail(self, where: str, message: str, el: etree._Element | None = None) -> NoReturn:
+        line = f" (line {el.sourceline})" if el is not None and el.sourceline else ""
+        raise InputError(self.source, where, message + line)
+
+    def text(self, el: etree._Element, attr: str, where: str, default: str | None = None) -> str:
+        raw = el.get(attr)
+        if raw is None or not raw.strip():
+            if default is not None:
+                return default
+            self.fail(f"{where}@{attr}", "required attribute is missing", el)
+        return raw.strip()
+
+    def num(self, el: etree._Element, attr: str, where: str,
+            default: float | None = None) -> float:
+        raw = el.get(attr)
+        if raw is None:
+            if default is not None:
+                return default
+            self.fail(f"{where}@{attr}", "required attribute is missing", el)
+        try:
+            value = float(raw)
+        except ValueError:
+            self.fail(f"{where}@{attr}", f"must be a number, got {raw!r}", el)
+        if not math.isfinite(value):
+            self.fail(f"{where}@{attr}", f"must be a finite number, got {raw!r}", el)
+        return value
+
+    def integer(self, el: etree._Element, attr: str, where: str) -> int:
+        raw = self.text(el, attr, where)
+        try:
+            return int(raw)
+        except ValueError:
+            self.fail(f"{where}@{attr}", f"must be an integer, got {raw!r}", el)
+
+    def choice(self, el: etree._Element, attr: str, where: str, allowed: tuple[str, ...],
+               default: str | None = None) -> str:
+        value = self.text(el, attr, where, default)
+        if value not in allowed:
+            self.fail(f"{where}@{attr}", f"must be one of {', '.join(allowed)}, got {value!r}", el)
+        return value
+
+    def cubic(self, el: etree._Element, where: str, s_attr: str) -> CubicPiece:
+        return CubicPiece(self.num(el, s_attr, where), *(self.num(el, k, where)
+                                                         for k in ("a", "b", "c", "d")))
+
+    # -- document ----------------------------------------------------------------------
+    def network(self, root: etree._Element) -> RoadNetwork:
+        if _local(root) != "OpenDRIVE":
+            self.fail(_local(root) or "root", "root element must be <OpenDRIVE>", root)
+        header = _kid(root, "header")
+        if header is None:
+            self.fail("header", "missing: an OpenDRIVE file starts with <header>", root)
+        major = header.get("revMajor")
+        if major is not None and major.strip() != "1":
+            self.fail("header@revMajor", f"must be 1 (OpenDRIVE 1.x), got {major!r}", header)
+        road_els = _kids(root, "road")
+        if not road_els:
+            self.fail("OpenDRIVE", "must contain at least one <road>", root)
+        roads: dict[str, Road] = {}
+        lines: dict[str, int] = {}
+        for i, rel in enumerate(road_els):
+            road = self.road(rel, i)
+            if road.id in roads:
+                self.fail(f"road[id={road.id}]@id", f"duplicate road id (first on line "
+                          f"{lines[road.id]})", rel)
+            roads[road.id] = road
+            lines[road.id] = rel.sourceline or 0
+        junctions: dict[str, Junction] = {}
+        jels: dict[str, etree._Element] = {}
+        for i, jel in enumerate(_kids(root, "junction")):
+            junction = self.junction(jel, i)
+            if junction.id in junctions:
+                self.fail(f"junction[id={junction.id}]@id", "duplicate junction id", jel)
+            junctions[junction.id] = junction
+            jels[junction.id] = jel
+        self.check_road_refs(roads, junctions, road_els)
+        junctions = {jid: self.check_junction(j, roads, jels[jid]) for jid, j in junctions.items()}
+        return RoadNetwork(roads, junctions, source=self.source)
+
+    # -- roads -------------------------------------------------------------------------
+    def road(self, el: etree._Element, index: int) -> Road:
+        rid = el.get("id", "").strip()
+        where = f"road[id={rid}]" if rid else f"road[{index}]"
+        if not rid:
+            self.fail(f"{where}@id", "required attribute is missing", el)
+        length = self.num(el, "length", where)
+        if length <= 0.0:
+            self.fail(f"{where}@length", f"must be > 0, got {length:g}", el)
+        junction = el.get("junction", "-1").strip() or "-1"
+        rule = cast(Literal["RHT", "LHT"],
+                    self.choice(el, "rule", where, ("RHT", "LHT"), default="RHT"))
+        pred = succ = None
+        link = _kid(el, "link")
+        if link is not None:
+            pred = self.road_link(link, "predecessor", where)
+            succ = self.road_link(link, "successor", where)
+        geoms = self.plan_view(el, where, length)
+        offsets, sections = self.lanes(el, where, length)
+        return Road(rid, length, junction, geoms, offsets, sections, pred, succ, rule,
+                    el.get("name", ""))
+
+    def road_link(self, link: etree._Element, kind: str, where: str) -> RoadLink | None:
+        els = _kids(link, kind)
+        if not els:
+            return None
+        w = f"{where}/link/{kind}"
+        if len(els) > 1:
+            self.fail(w, f"at most one <{kind}> per road", els[1])
+        e = els[0]
+        etype = self.choice(e, "elementType", w, ("road", "junction"))
+        eid = self.text(e, "elementId", w)
+        cp: ContactPoint | None = None
+        if etype == "road":
+            cp = cast(ContactPoint, self.choice(e, "contactPoint", w, ("start", "end")))
+        return RoadLink(cast(Literal["road", "junction"], etype), eid, cp)
+
+    def plan_view(self, el: etree._Element, where: str, length: float) -> tuple[Geometry, ...]:
+        pv = _kid(el, "planView")
+        if pv is None:
+            self.fail(f"{where}/planView", "missing: every road needs a planView", el)
+        gels = _kids(pv, "geometry")
+        if not gels:
+            self.fail(f"{where}/planView", "must contain at least one <geometry>", pv)
+        geoms: list[Geometry] = []
+        for i, g in enumerate(gels):
+            w = f"{where}/planView/geometry[{i}]"
+            s, x, y, hdg = (self.num(g, k, w) for k in ("s", "x", "y", "hdg"))
+            glen = self.num(g, "length", w)
+            if glen <= 0.0:
+                self.fail(f"{w}@length", f"must be > 0, got {glen:g}", g)
+            expected = geoms[-1].s + geoms[-1].length if geoms else 0.0
+            if abs(s - expected) > S_TOLERANCE:
+                what = "a gap" if s > expected else "an overlap"
+                after = f"after geometry[{i - 1}]" if geoms else "at the road start"
+                self.fail(f"{w}@s", f"must be {expected:.6g} (geometries are contiguous in s); "
+                          f"got {s:.6g}, {what} of {abs(s - expected):.6g} m {after}", g)
+            kids = [c for c in g if _local(c)]
+            if len(kids) != 1 or _local(kids[0]) not in _GEOMETRY_KINDS:
+                found = ", ".join(_local(c) for c in kids) or "nothing"
+                self.fail(w, f"must contain exactly one of {', '.join(_GEOMETRY_KINDS)}; "
+                          f"found {found}", g)
+            geoms.append(self.geometry(kids[0], f"{w}/{_local(kids[0])}", s, x, y, hdg, glen))
+        total = geoms[-1].s + geoms[-1].length
+        if abs(total - length) > S_TOLERANCE:
+            self.fail(f"{where}@length", f"must equal the end of the last planView geometry "
+                      f"({total:.6g} m), got {length:.6g}", el)
+        return tuple(geoms)
+
+    def geometry(self, k: etree._Element, w: str, s: float, x: float, y: float, hdg: float,
+                 length: float) -> Geometry:
+        kind = _local(k)
+        if kind == "line":
+            return Line(s, x, y, hdg, length)
+        if kind == "arc":
+            return Arc(s, x, y, hdg, length, self.num(k, "curvature", w))
+        if kind == "spiral":
+            return Spiral(s, x, y, hdg, length, self.num(k, "curvStart", w),
+                          self.num(k, "curvEnd", w))
+        if kind == "poly3":
+            a, b, c, d = (self.num(k, n, w) for n in ("a", "b", "c", "d"))
+            return Poly3(s, x, y, hdg, length, a, b, c, d)
+        au, bu, cu, du, av, bv, cv, dv = (self.num(k, n, w) for n in (
+            "aU", "bU", "cU", "dU", "aV", "bV", "cV", "dV"))
+        p_range = cast(Literal["arcLength", "normalized"],
+                       self.choice(k, "pRange", w, ("arcLength", "normalized"), "normalized"))
+        return ParamPoly3(s, x, y, hdg, length, a_u=au, b_u=bu, c_u=cu, d_u=du,
+                          a_v=av, b_v=bv, c_v=cv, d_v=dv, p_range=p_range)
+
+    # -- lanes -------------------------------------------------------------------------
+    def lanes(self, el: etree._Element, where: str,
+              length: float) -> tuple[tuple[CubicPiece, ...], tuple[LaneSection, ...]]:
+        lel = _kid(el, "lanes")
+        if lel is None:
+            self.fail(f"{where}/lanes", "missing: every road needs <lanes> with at least one "
+                      "<laneSection>", el)
+        offsets: list[CubicPiece] = []
+        for i, o in enumerate(_kids(lel, "laneOffset")):
+            w = f"{where}/lanes/laneOffset[{i}]"
+            piece = self.cubic(o, w, "s")
+            if not -S_TOLERANCE <= piece.s <= length + S_TOLERANCE:
+                self.fail(f"{w}@s", f"must be within [0, {length:g}] m, got {piece.s:g}", o)
+            if offsets and piece.s < offsets[-1].s:
+                self.fail(f"{w}@s", f"must not decrease (previous {offsets[-1].s:g})", o)
+            offsets.append(piece)
+        sels = _kids(lel, "laneSection")
+        if not sels:
+            self.fail(f"{where}/lanes", "must contain at least one <laneSection>", lel)
+        starts: list[float] = []
+        for i, sec in enumerate(sels):
+            w = f"{where}/lanes/laneSection[{i}]"
+            s = self.num(sec, "s", w)
+            if i == 0 and abs(s) > S_TOLERANCE:
+                self.fail(f"{w}@s", f"the first laneSection must start at s=0, got {s:g}", sec)
+            if i > 0 and s <= starts[-1]:
+                self.fail(f"{w}@s", f"must be greater than the previous laneSection's s "
+                          f"({starts[-1]:g}), got {s:g}", sec)
+            if s >= length:
+                self.fail(f"{w}@s", f"must be < the road length {length:g}, got {s:g}", sec)
+            starts.append(max(s, 0.0) if i == 0 else s)
+        ends = starts[1:] + [length]
+        sections = tuple(self.section(sec, f"{where}/lanes/laneSection[{i}]", starts[i], ends[i])
+                         for i, sec in enumerate(sels))
+        return tuple(offsets), sections
+
+    def section(self, el: etree._Element, w: str, s: float, s_end: float) -> LaneSection:
+        center_el = _kid(el, "center")
+        if center_el is None:
+            self.fail(f"{w}/center", "missing: a laneSection needs a <center> lane", el)
+        centers = [self.lane(c, f"{w}/center", 0.0) for c in _kids(center_el, "lane")]
+        if len(centers) != 1 or centers[0].id != 0:
+            self.fail(f"{w}/center", "must hold exactly one <lane> with id 0", center_el)
+        sides: dict[str, tuple[Lane, ...]] = {}
+        for side, sign in (("left", 1), ("right", -1)):
+            sel = _kid(el, side)
+            lanes = ([] if sel is None else
+                     [self.lane(ln, f"{w}/{side}", s_end - s) for ln in _kids(sel, "lane")])
+            ids = sorted((ln.id for ln in lanes), key=abs)
+            want = [sign * k for k in range(1, len(lanes) + 1)]
+            if ids != want:
+                self.fail(f"{w}/{side}", f"lane ids must be {', '.join(map(str, want))} "
+                          f"(each once), got {', '.join(str(ln.id) for ln in lanes)}", sel)
+            sides[side] = tuple(sorted(lanes, key=lambda ln: abs(ln.id)))
+        if not sides["left"] and not sides["right"]:
+            self.fail(w, "has no lanes: a laneSection needs at least one left or right lane", el)
+        return LaneSection(s, s_end, sides["left"], centers[0], sides["right"])
+
+    def lane(self, el: etree._Element, w_side: str, sec_len: float) -> Lane:
+        raw = el.get("id")
+        lid = self.integer(el, "id", f"{w_side}/lane")
+        w = f"{w_side}/lane[id={raw.strip() if raw else ''}]"
+        ltype = self.text(el, "type", w)
+        direction = self.choice(el, "direction", w, ("standard", "reversed", "both"),
+                                default="standard")
+        preds: list[int] = []
+        succs: list[int] = []
+        link = _kid(el, "link")
+        if link is not None:
+            preds = [self.integer(p, "id", f"{w}/link/predecessor")
+                     for p in _kids(link, "predecessor")]
+            succs = [self.integer(p, "id", f"{w}/link/successor")
+                     for p in _kids(link, "successor")]
+        if lid == 0:
+            return Lane(0, ltype, (), tuple(preds), tuple(succs), direction)
+        if _kid(el, "border") is not None:
+            self.fail(f"{w}/border", "lane <border> records are not supported; describe the "
+                      "lane with <width> records", _kid(el, "border"))
+        widths: list[CubicPiece] = []
+        for i, wel in enumerate(_kids(el, "width")):
+            ww = f"{w}/width[{i}]"
+            piece = self.cubic(wel, ww, "sOffset")
+            if piece.s < 0.0:
+                self.fail(f"{ww}@sOffset", f"must be >= 0, got {piece.s:g}", wel)
+            if widths and piece.s < widths[-1].s:
+                self.fail(f"{ww}@sOffset", f"must not decrease (previous {widths[-1].s:g})", wel)
+            widths.append(piece)
+        if not widths:
+            self.fail(w, "needs at least one <width> record", el)
+        for i, piece in enumerate(widths):
+            end = widths[i + 1].s if i + 1 < len(widths) else max(sec_len, piece.s)
+            at, wmin = _cubic_min(piece, end)
+            if wmin < -WIDTH_TOLERANCE:
+                self.fail(f"{w}/width[{i}]", f"width must be >= 0, got {wmin:.6g} m at "
+                          f"sOffset {at:.6g}", el)
+        return Lane(lid, ltype, tuple(widths), tuple(preds), tuple(succs), direction)
+
+    # -- junctions ---------------------------------------------------------------------
+    def junction(self, el: etree._Element, index: int) -> Junction:
+        jid = el.get("id", "").strip()
+        where = f"junction[id={jid}]" if jid else f"junction[{index}]"
+        if not jid:
+            self.fail(f"{where}@id", "required attribute is missing", el)
+        jtype = self.choice(el, "type", where, ("default", "direct", "virtual"), "default")
+        conns: list[Connection] = []
+        for i, c in enumerate(_kids(el, "connection")):
+            cid = c.get("id", "").strip()
+            w = f"{where}/connection[id={cid}]" if cid else f"{where}/connection[{i}]"
+            cid = self.text(c, "id", w)
+            inc = self.text(c, "incomingRoad", w)
+            attr = "linkedRoad" if jtype == "direct" else "connectingRoad"
+            conn_road = self.text(c, attr, w)
+            cp = cast(ContactPoint, self.choice(c, "contactPoint", w, ("start", "end")))
+            links = tuple((self.integer(ll, "from", f"{w}/laneLink[{k}]"),
+                           self.integer(ll, "to", f"{w}/laneLink[{k}]"))
+                          for k, ll in enumerate(_kids(c, "laneLink")))
+            conns.append(Connection(cid, inc, conn_road, cp, links))
+        return Junction(jid, el.get("name", ""), jtype, tuple(conns))
+
+    # -- cross references --------------------------------------------------------------
+    def check_road_refs(self, roads: dict[str, Road], junctions: dict[str, Junction],
+                        els: list[etree._Element]) -> None:
+        by_id = {r.id: el for r, el in zip(roads.values(), els, strict=False)}
+        for road in roads.values():
+            el = by_id[road.id]
+            where = f"road[id={road.id}]"
+            if road.junction != "-1" and road.junction not in junctions:
+                self.fail(f"{where}@junction", f"junction {road.junction} does not exist", el)
+            for kind, link in (("predecessor", road.predecessor), ("successor", road.successor)):
+                if link is None:
+                    continue
+                pool: dict[str, Road] | dict[str, Junction] = (
+                    roads if link.element_type == "road" else junctions)
+                if link.element_id not in pool:
+                    self.fail(f"{where}/link/{kind}@elementId",
+                              f"{link.element_type} {link.element_id} does not exist", el)
+            self.check_lane_links(road, roads, el)
+
+    def check_lane_links(self, road: Road, roads: dict[str, Road], el: etree._Element) -> None:
+        for i, sec in enumerate(road.sections):
+            for lane in sec.left + sec.right:
+                w = (f"road[id={road.id}]/lanes/laneSection[{i}]/"
+                     f"{'left' if lane.id > 0 else 'right'}/lane[id={lane.id}]/link")
+                for kind, ids in (("predecessor", lane.predecessors),
+                                  ("successor", lane.successors)):
+                    target = self.lane_link_target(road, i, kind, roads)
+                    if target is None:
+                        continue
+                    troad, tsec = target
+                    for lid in ids:
+                        if troad.sections[tsec].lane(lid) is None or lid == 0:
+                            self.fail(f"{w}/{kind}@id", f"lane {lid} does not exist in road "
+                                      f"{troad.id} laneSection[{tsec}] (lanes: "
+                                      f"{_ids(troad.sections[tsec])})", el)
+
+    @staticmethod
+    def lane_link_target(road: Road, i: int, kind: str,
+                         roads: dict[str, Road]) -> tuple[Road, int] | None:
+        """The (road, section index) a lane link of section ``i`` points into, if any."""
+        step = 1 if kind == "successor" else -1
+        if 0 <= i + step < len(road.sections):
+            return road, i + step
+        link = road.successor if kind == "successor" else road.predecessor
+        if link is None or link.element_type != "road" or link.element_id not in roads:
+            return None
+        other = roads[link.element_id]
+        return other, (0 if link.contact_point == "start" else len(other.sections) - 1)
+
+    def check_junction(self, j: Junction, roads: dict[str, Road],
+                       el: etree._Element) -> Junction:
+        out: list[Connection] = []
+        for c in j.connections:
+            w = f"junction[id={j.id}]/connection[id={c.id}]"
+            attr = "linkedRoad" if j.type == "direct" else "connectingRoad"
+            for name, rid in (("incomingRoad", c.incoming_road), (attr, c.connecting_road)):
+                if rid not in roads:
+                    self.fail(f"{w}@{name}", f"road {rid} does not exist", el)
+            inc, con = roads[c.incoming_road], roads[c.connecting_road]
+            if j.type != "direct" and con.junction != j.id:
+                self.fail(f"{w}@{attr}", f"road {con.id} must belong to junction {j.id} "
+                          f"(its @junction is {con.junction})", el)
+            sides: tuple[tuple[ContactPoint, RoadLink | None], ...] = (
+                ("end", inc.successor), ("start", inc.predecessor))
+            ends = [e for e, link in sides if link is not None
+                    and link.element_type == "junction" and link.element_id == j.id]
+            if not ends:
+                self.fail(f"{w}@incomingRoad", f"road {inc.id} is not linked to junction "
+                          f"{j.id} (neither its predecessor nor its successor)", el)
+            end = ends[0] if len(ends) == 1 else _nearer_end(inc, con, c.contact_point)
+            isec = 0 if end == "start" else len(inc.sections) - 1
+            csec = 0 if c.contact_point == "start" else len(con.sections) - 1
+            for k, (a, b) in enumerate(c.lane_links):
+                lw = f"{w}/laneLink[{k}]"
+                if a == 0 or inc.sections[isec].lane(a) is None:
+                    self.fail(f"{lw}@from", f"lane {a} does not exist at the {end} of road "
+                              f"{inc.id} (lanes: {_ids(inc.sections[isec])})", el)
+                if b == 0 or con.sections[csec].lane(b) is None:
+                    self.fail(f"{lw}@to", f"lane {b} does not exist at the {c.contact_point} of "
+                              f"road {con.id} (lanes: {_ids(con.sections[csec])})", el)
+            out.append(Connection(c.id, c.incoming_road, c.connecting_road, c.contact_point,
+                                  c.lane_links, end))
+        return Junction(j.id, j.name, j.type, tuple(out))
+
+
+def _cubic_min(piece: CubicPiece, end: float) -> tuple[float, float]:
+    """Smallest value of a cubic record over [piece.s, end] and where (exact: end points and
+    the real roots of the derivative)."""
+    if piece.b == piece.c == piece.d == 0.0:
+        return piece.s, piece.a
+    span = max(end - piece.s, 0.0)
+    cands = [0.0, span]
+    if piece.c != 0.0 or piece.d != 0.0:
+        roots = np.roots([3.0 * piece.d, 2.0 * piece.c, piece.b])
+        cands += [float(r.real) for r in roots if abs(r.imag) < 1e-12 and 0.0 < r.real < span]
+    u = np.array(cands)
+    vals = eval_pieces((CubicPiece(0.0, piece.a, piece.b, piece.c, piece.d),), u)[0]
+    k = int(np.argmin(vals))
+    return piece.s + float(u[k]), float(vals[k])
+
+
+def _ids(sec: LaneSection) -> str:
+    return ", ".join(str(i) for i in sec.lane_ids)
+
+
+def _road_end_xy(road: Road, end: ContactPoint) -> tuple[float, float]:
+    if end == "start":
+        g = road.geometries[0]
+        return g.x, g.y
+    x, y, _ = road.geometries[-1].end()
+    return x, y
+
+
+def _nearer_end(inc: Road, con: Road, contact: ContactPoint) -> ContactPoint:
+    """Which end of ``inc`` lies nearer the connecting road's contact point (for an incoming
+    road linked to the same junction at both ends)."""
+    cx, cy = _road_end_xy(con, contact)
+    d = {e: math.hypot(x - cx, y - cy)
+         for e in ("start", "end") for x, y in [_road_end_xy(inc, e)]}
+    return "start" if d["start"] <= d["end"] else "end"
+
+
+def read_opendrive(path: str | Path, max_bytes: int = DEFAULT_MAX_BYTES) -> RoadNetwork:
+    """Read and validate an OpenDRIVE file.
+
+    Args:
+        path: the ``.xodr`` file.
+        max_bytes: largest accepted file size, bytes (default 50 MB), checked before parsing.
+
+    Returns:
+        The road network (roads, junctions, lane graph, coordinate transforms).
+
+    Raises:
+        InputError: unreadable, oversized, hostile or malformed XML; invalid or inconsistent
+            OpenDRIVE content. The message names the file and the element.
+    """
+    root = parse_xml_file(path, max_bytes)
+    return _Reader(str(path)).network(root)
