@@ -149,3 +149,26 @@ def test_lane_at_borders(poly: RoadNetwork) -> None:
     s = np.full(7, 60.0)
     t = np.array([0.26, 1.0, 3.26, 0.26 - 1e-9, -3.24, -6.23, -6.25])
     np.testing.assert_array_equal(poly.lane_at(1, s, t), [1, 1, 0, -1, -2, -2, 0])
+
+
+def test_lane_centre_heading_and_curvature_on_a_clothoid_with_varying_offsets(
+        load_xodr: Callable[..., RoadNetwork]) -> None:
+    # curvature changes (clothoid) while the lane offset and width change: every term of the
+    # offset-curve formulas is active; compare with finite differences of the centre line
+    geo = ('<geometry s="0" x="0" y="0" hdg="0.3" length="100"><spiral curvStart="0.001" '
+           'curvEnd="0.03"/></geometry>')
+    lanes = ('<lanes><laneOffset s="0" a="0.1" b="0.01" c="-2e-4" d="1e-6"/>'
+             '<laneSection s="0"><center><lane id="0" type="none"/></center><right>'
+             + _lane(-1, _width_xml(0, (3.0, 0.02, 1e-4, -1e-6)))
+             + _lane(-2, _width_xml(0, (2.0, -0.01, 3e-4, 0.0)))
+             + "</right></laneSection></lanes>")
+    net = load_xodr(document(road_xml(geometry=geo, lanes=lanes)))
+    s = np.linspace(5.0, 95.0, 10)
+    e = 1e-4
+    for lane in (-1, -2):
+        x, y, h, k = net.lane_center(1, lane, s)
+        xp, yp, hp, _ = net.lane_center(1, lane, s + e)
+        xm, ym, hm, _ = net.lane_center(1, lane, s - e)
+        np.testing.assert_allclose(h, np.arctan2(yp - ym, xp - xm), atol=1e-8)
+        np.testing.assert_allclose(k, (hp - hm) / np.hypot(xp - xm, yp - ym), rtol=1e-6)
+        assert np.all(np.abs(k) > 1e-3)  # the check is not trivially on a straight line

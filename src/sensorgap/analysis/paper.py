@@ -15,11 +15,11 @@ import numpy as np
 
 from sensorgap.analysis.farfield import LEVELS, EgoPose, FarField, farfield
 from sensorgap.analysis.farfield_outputs import write_farfield
+from sensorgap.atomic import atomic_write_text
 from sensorgap.config import load_environment, load_target
 from sensorgap.config.presets import resolve_road
 from sensorgap.coverage.scene import Scene
 from sensorgap.filesio import write_csv
-from sensorgap.atomic import atomic_write_text
 from sensorgap.models import Conditions, System, load_system
 from sensorgap.roads import RoadNetwork, read_opendrive
 
@@ -168,13 +168,13 @@ def paper_markdown(ours: dict[tuple[str, str], dict[str, float]],
             f"Largest difference: {worst:.0f} m "
             f"({'within' if worst <= TABLE_IV_TOLERANCE_M else 'outside'} the tolerance).", ""]
     out += ["## Near field: blind spots (m2)", ""]
-    nrows = []
-    for key in near:
-        exact = near[key]["blind_spot_m2"]["exact"]
-        paper = PAPER_BLIND_SPOT_M2[key]
+    nrows: list[list[str]] = []
+    for name, result in near.items():
+        exact = result["blind_spot_m2"]["exact"]
+        paper = PAPER_BLIND_SPOT_M2[name]
         rel = (exact - paper) / paper
-        nrows.append([key, f"{exact:.2f}", f"{paper:.2f}", f"{rel:+.0%}",
-                      f"{near[key]['uncovered_0p1m_m2']['exact']:.2f}"])
+        nrows.append([name, f"{exact:.2f}", f"{paper:.2f}", f"{rel:+.0%}",
+                      f"{result['uncovered_0p1m_m2']['exact']:.2f}"])
     out += [_md_table(["system", "blind spots, ours", "paper", "difference",
                        "not covered at 0.1 m, ours"], nrows), "",
             f"Tolerance +-{NEARFIELD_TOLERANCE:.0%}.", ""]
