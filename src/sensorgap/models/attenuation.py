@@ -167,7 +167,8 @@ def _flag(name: str, value: object) -> bool:
     """A boolean flag (bool or numpy bool), else ``ValueError``."""
     if value is True or value is False:
         return bool(value)
-    if type(value).__name__ == "bool_":  # numpy.bool_ without importing numpy
+    cls = type(value)
+    if cls.__module__ == "numpy" and cls.__name__ in ("bool", "bool_"):  # numpy.bool_
         return bool(value)
     raise ValueError(f"{name} must be a bool, got {value!r}")
 
@@ -570,7 +571,8 @@ def fog_lwc_from_visibility_g_m3(visibility_m: float) -> float:
 
     The fit is for fog (V < 1 km). The formula value is returned for any visibility, but
     above ``FOG_VISIBILITY_LIMIT_M`` (haze, mist, clear air: the extinction is not by fog
-    droplets) the caller should take LWC ~ 0 (0.003 g/m3 at 1 km, 2e-5 at 23 km).
+    droplets) the caller should take LWC ~ 0 (the formula gives 0.017 g/m3 at 1 km and
+    5e-4 g/m3 at 23 km).
 
     Args:
         visibility_m: meteorological optical range (visibility), m (> 0).

@@ -40,9 +40,9 @@ def _schema() -> Any:
 
 
 def xsd_errors(path: str | Path, limit: int = 20, max_bytes: int = DEFAULT_MAX_BYTES) -> list[str]:
-    """OpenDRIVE 1.7 XSD violations of ``path`` (at most ``limit``), '' -free one-liners;
-    an empty list means the file is valid. The file is parsed with the hardened parser
-    (``InputError`` for hostile or malformed XML)."""
+    """OpenDRIVE 1.7 XSD violations of ``path`` (at most ``limit``, one line each: element
+    path and reason); an empty list means the file is valid. The file is parsed with the
+    hardened parser first (``InputError`` for hostile, oversized or malformed XML)."""
     root = parse_xml_file(path, max_bytes)
     errors: list[str] = []
     for err in _schema().iter_errors(root):

@@ -1,0 +1,111 @@
+"""Far field on the committed motorway: Table IV levels, files, bad road input."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sensorgap.analysis.farfield import EgoPose, farfield, level_lengths, path_ahead
+from sensorgap.analysis.paper import FarFieldSetup, run_farfield, target_path
+from sensorgap.config.presets import resolve_road
+from sensorgap.errors import InputError
+from sensorgap.models import System, load_system
+from sensorgap.roads import read_opendrive
+from tests.conftest import make_scene
+
+
+def run(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "sensorgap", *args], capture_output=True,
+                          text=True, timeout=300)
+
+
+def test_level_lengths_by_hand() -> None:
+    pd = np.array([1.0, 1.0, 0.9, 0.6, 0.3, 0.0, 0.0])
+    ds = np.full(7, 0.5)
+    assert level_lengths(pd, ds) == {"pd=1.0": 1.0, "pd>=0.8": 1.5, "pd>=0.5": 2.0,
+                                     "pd>0": 2.5, "pd=0": 1.0}
+
+
+def test_path_ahead_starts_at_front_bumper() -> None:
+    x = np.linspace(-50.0, 500.0, 1101)
+    path = np.column_stack([x, np.full_like(x, -3.75)])
+    pose = EgoPose(10.0, 0.0, 0.0)
+    world, s, ds = path_ahead(path, pose, x_front=4.0, length_m=100.0, step_m=0.5)
+    assert world[0, 0] == pytest.approx(14.25)  # 10 + 4 + half a step
+    assert ds.sum() == pytest.approx(100.0) and s[-1] == pytest.approx(99.75)
+    with pytest.raises(InputError, match="only .* m of the target lane"):
+        path_ahead(path, pose, x_front=4.0, length_m=1000.0, step_m=0.5)
+
+
+def test_farfield_straight_road_by_geometry(system_a: System) -> None:
+    """On a straight road, a target far beyond every sensor's range has Pd = 0 exactly."""
+    x = np.linspace(0.0, 2000.0, 4001)
+    path = np.column_stack([x, np.full_like(x, -3.75)])
+    ff = farfield(make_scene(system_a), path, EgoPose(0.0, 0.0, 0.0), length_m=600.0)
+    beyond = ff.vehicle[:, 0] > 260.0  # longest range: 250 m radar
+    assert np.all(ff.pd[beyond] == 0.0)
+    assert ff.levels_m["pd=0"] >= 600.0 - 262.0
+    assert sum(ff.levels_m[k] for k in ("pd>0", "pd=0")) == pytest.approx(600.0)
+
+
+def test_motorway_setup_matches_the_paper_geometry() -> None:
+    net = read_opendrive(resolve_road("motorway_r500"))
+    setup = FarFieldSetup()
+    path = target_path(net, setup)
+    assert len(path) > 100
+    b = load_system("system_b")
+    _, ff = run_farfield(b, "glare_front_right", setup, net)
+    assert ff.ds.sum() == pytest.approx(303.0)
+    assert ff.levels_m["pd=1.0"] == 0.0  # B under glare: radar only, never certain
+
+
+def test_farfield_cli_files(tmp_path: Path) -> None:
+    out = tmp_path / "ff"
+    proc = run("farfield", "--vehicle", "system_a", "--environment", "clear", "--out", str(out))
+    assert proc.returncode == 0, proc.stderr
+    for name in ("farfield.csv", "levels.csv", "farfield.png", "summary.json"):
+        assert (out / name).is_file()
+    levels = (out / "levels.csv").read_text().splitlines()
+    assert levels[0] == "level,metres" and len(levels) == 6
+
+
+HOSTILE = {
+    "xxe.xodr": '<?xml version="1.0"?>\n<!DOCTYPE r [<!ENTITY x SYSTEM "file:///etc/passwd">]>'
+                "\n<OpenDRIVE>&x;</OpenDRIVE>\n",
+    "bomb.xodr": '<?xml version="1.0"?>\n<!DOCTYPE r [<!ENTITY a "aaaaaaaaaa">'
+                 '<!ENTITY b "&a;&a;&a;&a;&a;&a;&a;&a;&a;&a;">'
+                 '<!ENTITY c "&b;&b;&b;&b;&b;&b;&b;&b;&b;&b;">]>\n<OpenDRIVE>&c;</OpenDRIVE>\n',
+    "broken.xodr": "<OpenDRIVE><road>",
+}
+
+
+@pytest.mark.parametrize("name", sorted(HOSTILE))
+def test_hostile_road_files_exit_2(tmp_path: Path, name: str) -> None:
+    road = tmp_path / name
+    road.write_text(HOSTILE[name])
+    out = tmp_path / "out"
+    proc = run("farfield", "--vehicle", "system_a", "--environment", "clear", "--road",
+               str(road), "--out", str(out))
+    assert proc.returncode == 2, proc.stderr
+    assert str(road) in proc.stderr and proc.stderr.count("\n") == 1
+    assert "Traceback" not in proc.stderr and not out.exists()
+
+
+@pytest.mark.parametrize(("args", "pattern"), [
+    (["--ego-lane", "-5"], "--ego-lane: lane -5 does not exist"),
+    (["--target-lane", "7"], "--target-lane: lane 7 does not exist"),
+    (["--ego-s", "5000"], "--ego-s: must be within 0..1300"),
+    (["--ego-s", "1200"], "--target-lane: only"),
+    (["--road", "no_such_road"], "no_such_road.xodr"),
+])
+def test_bad_farfield_args_exit_2(tmp_path: Path, args: list[str], pattern: str) -> None:
+    out = tmp_path / "out"
+    proc = run("farfield", "--vehicle", "system_a", "--environment", "clear", *args,
+               "--out", str(out))
+    assert proc.returncode == 2, proc.stderr
+    assert pattern in proc.stderr and "Traceback" not in proc.stderr
+    assert not out.exists()
