@@ -50,7 +50,7 @@ class EnvironmentConfig(Strict):
     snow_mm_h: float = Field(default=0.0, ge=0.0, le=100.0, allow_inf_nan=False)
     snow_wet: bool = False
     visibility_m: float = Field(
-        default=23000.0, gt=0.0, le=1.0e6, allow_inf_nan=False,
+        default=23000.0, ge=1.0, le=1.0e6, allow_inf_nan=False,
         description="Meteorological optical range, m (23 km = standard clear air)",
     )
     fog_lwc_g_m3: float | None = Field(
@@ -59,7 +59,8 @@ class EnvironmentConfig(Strict):
     )
     temperature_c: float = Field(default=15.0, ge=-60.0, le=60.0, allow_inf_nan=False)
     relative_humidity_pct: float = Field(default=50.0, ge=0.0, le=100.0, allow_inf_nan=False)
-    pressure_hpa: float = Field(default=1013.25, gt=0.0, le=1100.0, allow_inf_nan=False)
+    pressure_hpa: float = Field(default=1013.25, ge=500.0, le=1100.0, allow_inf_nan=False,
+                                description="Total barometric pressure (roads: ~500-1100), hPa")
     water_vapour_g_m3: float = Field(default=7.5, ge=0.0, le=50.0, allow_inf_nan=False)
     irradiance_w_m2: NonNeg = Field(
         default=534.0,
