@@ -133,8 +133,8 @@ def qualitative_checks(ours: dict[tuple[str, str], dict[str, float]],
         "near field: B's blind-spot area < A's":
             near["B"]["blind_spot_m2"]["exact"] < near["A"]["blind_spot_m2"]["exact"],
         "normal: B >= A at Pd >= 0.5": b_n["pd>=0.5"] >= a_n["pd>=0.5"],
-        "glare: A unchanged at Pd >= 0.8, >= 0.5, > 0 (within 1 m)":
-            all(abs(a_g[k] - a_n[k]) <= 1.0 for k in ("pd>=0.8", "pd>=0.5", "pd>0")),
+        "glare: A unchanged (every level within 2 m)":
+            all(abs(a_g[k] - a_n[k]) <= 2.0 for k, _ in LEVELS),
         "glare: B's Pd = 1.0 distance about 0 m (< 5 m)": b_g["pd=1.0"] < 5.0,
         "glare: B < A at every Pd level": all(b_g[k] < a_g[k] for k in
                                                ("pd=1.0", "pd>=0.8", "pd>=0.5", "pd>0")),
@@ -196,10 +196,12 @@ EXPLANATIONS = [
     "target (B under glare, radar only: 0 m). We therefore use an asymptotic (Swerling-1 "
     "shaped) curve for radars and a saturating one for cameras and the lidar "
     "(docs/models.md).",
-    "- A under glare loses ~10 m at Pd = 1.0: the first metres of the path lie beside the "
+    "- A under glare loses ~1 m at Pd = 1.0: the first metre of the path lies beside the "
     "ego's front-right corner, outside the lidar's 145 deg field of view, where only the right "
-    "mirror camera sees the target; the low sun from the front right blinds it. The paper "
-    "reports A unchanged, i.e. its A covered that corner otherwise (unpublished positions).",
+    "mirror camera is certain of the target, and the low sun from the front right blinds it. "
+    "(With the lidar mounted lower, its 3.2 deg vertical field of view misses the 0.75 m plane "
+    "for ~10 m and A would lose ~10 m under glare: the paper's unchanged A says its lidar "
+    "covered that plane close in.)",
     "- A's Pd > 0 ends at the front radar's detection floor; the paper's 210 m and our value "
     "differ by the unpublished radar parameters and road position.",
 ]
