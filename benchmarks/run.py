@@ -14,6 +14,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 BENCHMARKS = {
     "coverage": "benchmarks.bench_coverage",
+    "search": "benchmarks.bench_search",
 }
 
 

@@ -145,6 +145,20 @@ def cmd_paper(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_search(args: argparse.Namespace) -> int:
+    """Search for critical scenarios into --out (SQLite store, ranking.csv/json)."""
+    from sensorgap.search.run import run_search
+
+    outcome = run_search(
+        args.vehicle, [f for f in args.families.split(",") if f],
+        [e for e in args.environments.split(",") if e], args.budget, args.seed, args.top,
+        Path(args.out), strategy=args.strategy, mode=args.pd, sun_search=not args.no_sun,
+        environments_file=Path(args.environments_file) if args.environments_file else None)
+    print(f"{args.out}: {outcome.evaluated} evaluated, {outcome.reused} reused, "
+          f"best risk {outcome.summary['best_risk']:.3g}, {len(outcome.ranking)} ranked")
+    return 0
+
+
 def cmd_schema(args: argparse.Namespace) -> int:
     """Print the JSON Schema of vehicle / environment / target files."""
     from sensorgap.filesio import json_bytes
@@ -222,6 +236,22 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("paper", help="reproduce the paper's near-field areas and Table IV")
     p.add_argument("--out", required=True, help="output folder")
     p.set_defaults(func=cmd_paper)
+
+    p = sub.add_parser("search", help="search for critical scenarios (undetected and dangerous)")
+    p.add_argument("--vehicle", required=True, help="preset name or .toml path")
+    p.add_argument("--families", required=True,
+                   help="comma-separated family names (templates/scenarios) or .toml paths")
+    p.add_argument("--environments", required=True, help="comma-separated environment presets")
+    p.add_argument("--environments-file", help="environments file (default: shipped presets)")
+    p.add_argument("--budget", type=int, default=200, help="evaluations in total")
+    p.add_argument("--seed", type=int, default=0, help="random seed")
+    p.add_argument("--top", type=int, default=10, help="ranked scenarios to write")
+    p.add_argument("--strategy", default="cem", help="cem | lhs | random | grid (or a plugin)")
+    p.add_argument("--pd", default="lookup", choices=["lookup", "exact"],
+                   help="Pd per step from cached coverage maps or exact evaluation")
+    p.add_argument("--no-sun", action="store_true", help="do not search sun azimuth/elevation")
+    p.add_argument("--out", required=True, help="run folder (resumes if it exists)")
+    p.set_defaults(func=cmd_search)
 
     p = sub.add_parser("schema", help="JSON Schema of the config files")
     p.add_argument("kind", nargs="?", default="all",

@@ -1,0 +1,33 @@
+"""Scenario families: parameterised ego/target trajectories on real roads.
+
+Importing this package registers the built-in kinds (``cut_in``, ``overtake``,
+``slow_ahead``, ``crossing``); families are the TOML files in ``templates/scenarios``.
+"""
+
+from sensorgap.scenarios import kinds  # noqa: F401  (registration)
+from sensorgap.scenarios.family import (
+    Family,
+    FamilyKind,
+    Param,
+    Scenario,
+    get_kind,
+    kind_names,
+    register_kind,
+)
+from sensorgap.scenarios.loader import family_presets, load_families, load_family
+from sensorgap.scenarios.trajectory import InfeasibleScenario, Trajectory
+
+__all__ = [
+    "Family",
+    "FamilyKind",
+    "InfeasibleScenario",
+    "Param",
+    "Scenario",
+    "Trajectory",
+    "family_presets",
+    "get_kind",
+    "kind_names",
+    "load_families",
+    "load_family",
+    "register_kind",
+]

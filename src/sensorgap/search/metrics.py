@@ -1,0 +1,284 @@
+"""Metrics of an evaluated scenario (``Trace``): classes with a direction, by name.
+
+``better`` says which way is *more critical* (what the search looks for): ``higher`` or
+``lower``; ``none`` marks descriptive values (where a corridor lies). Every metric returns
+a finite float (infinite TTC/headway are capped at ``CAP_S``).
+
+Risk (the ranking score)::
+
+    risk = max_k  P_undet(t_k) * exp(-TTC_k / TAU_S)
+
+with ``P_undet(t_k) = prod_{j<=k} (1 - Pd_j)`` (independent steps at 20 Hz) and TTC the
+longitudinal time to collision of an in-path target (0 once the boxes overlap, inf when
+not in path or not closing). It is the probability that the target is still undetected,
+weighted by how imminent a collision is at that moment: 1 = undetected at impact,
+~0.37 = undetected 2 s before impact, 0 = detected before it ever got close or never a
+threat.
+"""
+
+from __future__ import annotations
+
+import math
+from abc import ABC, abstractmethod
+from typing import ClassVar, Literal, TypeVar
+
+import numpy as np
+
+from sensorgap.scenarios.trajectory import DT_S
+from sensorgap.search.evaluate import Trace
+
+#: Time constant of the imminence weight of the risk, s.
+TAU_S = 2.0
+#: Cumulative detection probability that counts as reliable detection.
+RELIABLE_PD = 0.99
+#: Per-step Pd below which a step belongs to a low-detection corridor.
+LOW_PD = 0.5
+#: Cap for infinite TTC / headway, s.
+CAP_S = 99.0
+
+
+def _cap(v: float) -> float:
+    return float(min(v, CAP_S))
+
+
+def detection_index(tr: Trace) -> int | None:
+    """First step with cumulative detection probability >= ``RELIABLE_PD`` (or None)."""
+    hit = np.flatnonzero(tr.p_undetected <= 1.0 - RELIABLE_PD)
+    return int(hit[0]) if hit.size else None
+
+
+def risk_profile(tr: Trace) -> np.ndarray:
+    """P_undet(t_k) * exp(-TTC_k / TAU_S) per step."""
+    return np.asarray(tr.p_undetected * np.exp(-tr.ttc / TAU_S), dtype=np.float64)
+
+
+def critical_index(tr: Trace) -> int:
+    """The step that sets the risk (first maximum)."""
+    return int(np.argmax(risk_profile(tr)))
+
+
+def corridor(tr: Trace, threshold: float = LOW_PD) -> tuple[int, int]:
+    """Longest contiguous run of steps with Pd < threshold: [start, end) (0, 0 if none)."""
+    low = np.concatenate([[False], tr.pd < threshold, [False]])
+    edges = np.flatnonzero(np.diff(low.astype(np.int8)))
+    if edges.size == 0:
+        return 0, 0
+    starts, ends = edges[0::2], edges[1::2]
+    i = int(np.argmax(ends - starts))
+    return int(starts[i]), int(ends[i])
+
+
+class Metric(ABC):
+    """One metric; subclasses set ``name``, ``unit``, ``better``, ``description``."""
+
+    name: ClassVar[str]
+    unit: ClassVar[str] = ""
+    better: ClassVar[Literal["higher", "lower", "none"]] = "higher"
+    description: ClassVar[str] = ""
+
+    @abstractmethod
+    def compute(self, tr: Trace) -> float:
+        """The metric's value (finite)."""
+
+
+M = TypeVar("M", bound=type[Metric])
+_METRICS: dict[str, type[Metric]] = {}
+
+
+def register_metric(cls: M) -> M:
+    """Class decorator: register a metric under ``cls.name``."""
+    _METRICS[cls.name] = cls
+    return cls
+
+
+def metric_names() -> list[str]:
+    """Registered metric names in registration order (built-ins first)."""
+    from sensorgap.search.plugins import load_plugins
+
+    load_plugins()
+    return list(_METRICS)
+
+
+def get_metric(name: str) -> Metric:
+    """An instance of a registered metric; KeyError names the known ones."""
+    from sensorgap.search.plugins import load_plugins
+
+    load_plugins()
+    if name not in _METRICS:
+        raise KeyError(f"unknown metric {name!r}; known: {', '.join(_METRICS)}")
+    return _METRICS[name]()
+
+
+def compute_all(tr: Trace, names: list[str] | None = None) -> dict[str, float]:
+    """Every (or the named) metric of a trace."""
+    out = {}
+    for n in names or metric_names():
+        v = float(get_metric(n).compute(tr))
+        if not math.isfinite(v):
+            raise ValueError(f"metric {n} is not finite: {v}")
+        out[n] = v
+    return out
+
+
+@register_metric
+class Risk(Metric):
+    name = "risk"
+    description = "max_k P_undet(t_k) exp(-TTC_k / 2 s) (see module docstring)"
+
+    def compute(self, tr: Trace) -> float:
+        return float(np.max(risk_profile(tr)))
+
+
+@register_metric
+class PUndetectedEnd(Metric):
+    name = "p_undetected_end"
+    description = "probability the target is still undetected at the end (or at impact)"
+
+    def compute(self, tr: Trace) -> float:
+        return float(tr.p_undetected[-1])
+
+
+@register_metric
+class Detected(Metric):
+    name = "detected"
+    better = "lower"
+    description = "1 if reliably detected (cumulative Pd >= 0.99) within the scenario"
+
+    def compute(self, tr: Trace) -> float:
+        return 0.0 if detection_index(tr) is None else 1.0
+
+
+@register_metric
+class TimeToDetection(Metric):
+    name = "t_detect_s"
+    unit = "s"
+    description = "time of first reliable detection (scenario duration if never)"
+
+    def compute(self, tr: Trace) -> float:
+        k = detection_index(tr)
+        return tr.duration_s if k is None else float(tr.t[k])
+
+
+def _at_detection(tr: Trace, values: np.ndarray, worst: str) -> float:
+    k = detection_index(tr)
+    if k is None:  # never detected: the most critical value reached undetected
+        return _cap(float(np.min(values)) if worst == "min" else float(np.max(values)))
+    return _cap(float(values[k]))
+
+
+@register_metric
+class TtcAtDetection(Metric):
+    name = "ttc_at_detect_s"
+    unit = "s"
+    better = "lower"
+    description = "TTC at first reliable detection (min TTC if never detected; cap 99 s)"
+
+    def compute(self, tr: Trace) -> float:
+        return _at_detection(tr, tr.ttc, "min")
+
+
+@register_metric
+class HeadwayAtDetection(Metric):
+    name = "headway_at_detect_s"
+    unit = "s"
+    better = "lower"
+    description = "time headway at first reliable detection (min if never; cap 99 s)"
+
+    def compute(self, tr: Trace) -> float:
+        return _at_detection(tr, tr.headway, "min")
+
+
+@register_metric
+class DistanceAtDetection(Metric):
+    name = "distance_at_detect_m"
+    unit = "m"
+    better = "lower"
+    description = "ego rear axle to target centre at detection (min distance if never)"
+
+    def compute(self, tr: Trace) -> float:
+        return _at_detection(tr, tr.distance, "min")
+
+
+@register_metric
+class MinTtc(Metric):
+    name = "min_ttc_s"
+    unit = "s"
+    better = "lower"
+    description = "minimum TTC over the scenario (cap 99 s; 0 = collision)"
+
+    def compute(self, tr: Trace) -> float:
+        return _cap(float(np.min(tr.ttc)))
+
+
+@register_metric
+class MeanPd(Metric):
+    name = "mean_pd"
+    better = "lower"
+    description = "mean per-step fused Pd"
+
+    def compute(self, tr: Trace) -> float:
+        return float(np.mean(tr.pd))
+
+
+@register_metric
+class CorridorDuration(Metric):
+    name = "corridor_s"
+    unit = "s"
+    description = "longest contiguous stretch with Pd < 0.5, duration"
+
+    def compute(self, tr: Trace) -> float:
+        a, b = corridor(tr)
+        return (b - a) * DT_S
+
+
+class _CorridorPoint(Metric):
+    unit = "m"
+    better = "none"
+    index: ClassVar[int] = 0  # 0: start, 1: end
+    coord: ClassVar[str] = "x"
+
+    def compute(self, tr: Trace) -> float:
+        a, b = corridor(tr)
+        if b == a:
+            return 0.0
+        k = a if self.index == 0 else b - 1
+        return float((tr.x if self.coord == "x" else tr.y)[k])
+
+
+@register_metric
+class CorridorT0(Metric):
+    name = "corridor_t0_s"
+    unit = "s"
+    better = "none"
+    description = "start time of the longest low-detection corridor"
+
+    def compute(self, tr: Trace) -> float:
+        return float(tr.t[corridor(tr)[0]])
+
+
+@register_metric
+class CorridorX0(_CorridorPoint):
+    name = "corridor_x0_m"
+    description = "target x (ego frame) where the corridor starts"
+
+
+@register_metric
+class CorridorY0(_CorridorPoint):
+    name = "corridor_y0_m"
+    coord = "y"
+    description = "target y (ego frame) where the corridor starts"
+
+
+@register_metric
+class CorridorX1(_CorridorPoint):
+    name = "corridor_x1_m"
+    index = 1
+    description = "target x (ego frame) where the corridor ends"
+
+
+@register_metric
+class CorridorY1(_CorridorPoint):
+    name = "corridor_y1_m"
+    index = 1
+    coord = "y"
+    description = "target y (ego frame) where the corridor ends"

@@ -1,0 +1,168 @@
+"""``run_search``: the search over families x environments, written to a run folder.
+
+Run folder: ``search.sqlite`` (every evaluated candidate; resume), ``ranking.csv`` and
+``ranking.json`` (the diverse top K with metrics, parameters and reasons) and
+``summary.json`` (settings and counts). Deterministic: the same settings and seed give
+byte-identical ranking files.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from tqdm import tqdm
+
+from sensorgap.atomic import atomic_write_bytes
+from sensorgap.config import load_environments
+from sensorgap.errors import InputError
+from sensorgap.filesio import format_float, write_json
+from sensorgap.models import load_system
+from sensorgap.scenarios import load_families
+from sensorgap.search.evaluate import Evaluator
+from sensorgap.search.metrics import metric_names
+from sensorgap.search.problem import Result, SearchProblem
+from sensorgap.search.ranking import MIN_DISTANCE, diverse_top, explain
+from sensorgap.search.store import Store
+from sensorgap.search.strategies import get_strategy, strategy_names
+
+MAX_BUDGET = 1_000_000
+
+
+@dataclass
+class SearchOutcome:
+    """What a search produced."""
+
+    ranking: list[dict[str, Any]]
+    results: list[Result]
+    evaluated: int
+    reused: int
+    summary: dict[str, Any] = field(default_factory=dict)
+
+
+def _fmt(v: Any) -> str:
+    if isinstance(v, float):
+        return format_float(v)
+    return str(v)
+
+
+def ranking_csv(rows: list[dict[str, Any]], columns: list[str]) -> bytes:
+    """CSV of the ranking (quoted where needed, ``\\n`` line ends, round-trip floats)."""
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(columns)
+    for r in rows:
+        w.writerow(["" if r.get(c) is None else _fmt(r[c]) for c in columns])
+    return buf.getvalue().encode("utf-8")
+
+
+def run_search(vehicle: str | Path, families: list[str], environments: list[str],
+               budget: int, seed: int, top: int, out: Path, strategy: str = "cem",
+               mode: str = "lookup", sun_search: bool = True,
+               environments_file: Path | None = None, progress: bool | None = None,
+               min_distance: float = MIN_DISTANCE) -> SearchOutcome:
+    """Search, store every candidate, write the ranking; see the module docstring."""
+    if not 1 <= budget <= MAX_BUDGET:
+        raise InputError("--budget", "", f"must be within 1..{MAX_BUDGET}, got {budget}")
+    if top < 1:
+        raise InputError("--top", "", f"must be >= 1, got {top}")
+    if get_strategy(strategy) is None:
+        raise InputError("--strategy", "", f"unknown strategy {strategy!r}; allowed: "
+                         f"{', '.join(strategy_names())}")
+    if mode not in ("lookup", "exact"):
+        raise InputError("--pd", "", f"must be lookup or exact, got {mode!r}")
+    all_envs = load_environments(environments_file)
+    if not environments:
+        raise InputError("--environments", "", "give at least one environment; presets: "
+                         f"{', '.join(all_envs)}")
+    for e in environments:
+        if e not in all_envs:
+            raise InputError("--environments", "", f"unknown environment {e!r}; presets: "
+                             f"{', '.join(all_envs)}")
+    fams = load_families(families)
+    if budget < len(fams):
+        raise InputError("--budget", "", f"budget {budget} is smaller than the number of "
+                         f"families ({len(fams)}); give at least one evaluation per family")
+    system = load_system(vehicle)
+    envs = {e: all_envs[e] for e in dict.fromkeys(environments)}
+    evaluator = Evaluator(system, mode=mode)
+    problems = {f.name: SearchProblem(f, envs, evaluator, sun_search) for f in fams}
+    settings = {"vehicle": system.name, "vehicle_file": system.source.name,
+                "families": [f.name for f in fams], "environments": list(envs),
+                "seed": seed, "strategy": strategy, "pd": mode, "sun_search": sun_search}
+    out.mkdir(parents=True, exist_ok=True)
+    store = Store(out / "search.sqlite", settings)
+    shares = [budget // len(fams) + (1 if i < budget % len(fams) else 0)
+              for i in range(len(fams))]
+    results: list[Result] = []
+    evaluated = reused = 0
+    disable = (not sys.stderr.isatty()) if progress is None else not progress
+    try:
+        with tqdm(total=budget, disable=disable, desc="search", unit="cand") as bar:
+            for i, (fam, share) in enumerate(zip(fams, shares, strict=True)):
+                prob = problems[fam.name]
+                strat_cls = get_strategy(strategy)
+                assert strat_cls is not None
+                strat = strat_cls(prob.dim, prob.levels, share,
+                                  np.random.default_rng([seed, i]))
+                idx = 0
+                while True:
+                    X = strat.ask()
+                    if len(X) == 0:
+                        break
+                    batch: list[Result] = []
+                    new: list[tuple[int, Result]] = []
+                    for u in X:
+                        cand = prob.decode(u)
+                        r = store.get(fam.name, idx, cand.scenario_id)
+                        if r is None:
+                            r = prob.evaluate(cand)
+                            new.append((idx, r))
+                            evaluated += 1
+                        else:
+                            reused += 1
+                        batch.append(r)
+                        idx += 1
+                    if new:
+                        store.put(new)
+                    strat.tell(X, np.array([r.risk for r in batch]))
+                    results.extend(batch)
+                    bar.update(len(batch))
+    finally:
+        store.close()
+    chosen = diverse_top(results, problems, top, min_distance)
+    params = sorted({p.name for f in fams for p in f.space})
+    metrics = metric_names()
+    rows = []
+    for rank, r in enumerate(chosen, start=1):
+        c = r.candidate
+        ex = explain(problems[c.family], c)
+        row: dict[str, Any] = {
+            "rank": rank, "scenario_id": c.scenario_id, "family": c.family,
+            "environment": c.environment_label, "target": problems[c.family].family.target_class,
+            "sun_azimuth_deg": None if c.sun is None else c.sun[0],
+            "sun_elevation_deg": None if c.sun is None else c.sun[1],
+            "risk": r.risk, "dominant_effect": ex.dominant, "reason": ex.reason,
+        }
+        row.update({m: r.metrics[m] for m in metrics})
+        row.update({f"p_{k}": v for k, v in c.params.items()})
+        rows.append(row)
+    columns = ["rank", "scenario_id", "family", "environment", "target", "sun_azimuth_deg",
+               "sun_elevation_deg", "risk", "dominant_effect",
+               *[m for m in metrics if m != "risk"], *[f"p_{p}" for p in params], "reason"]
+    atomic_write_bytes(out / "ranking.csv", ranking_csv(rows, columns))
+    write_json(out / "ranking.json", {"columns": columns, "ranking": rows,
+                                      "settings": settings})
+    n_ok = sum(r.feasible for r in results)
+    summary = {"settings": {**settings, "budget": budget, "top": top,
+                            "min_distance": min_distance},
+               "candidates": len(results), "feasible": n_ok, "infeasible": len(results) - n_ok,
+               "best_risk": max((r.risk for r in results), default=0.0),
+               "per_family": {f.name: s for f, s in zip(fams, shares, strict=True)}}
+    write_json(out / "summary.json", summary)
+    return SearchOutcome(rows, results, evaluated, reused, summary)

@@ -1,0 +1,158 @@
+"""Search strategies behind one ask/tell interface (the problem is separate, as in pymoo).
+
+A strategy proposes points of the unit cube ``[0, 1]^d`` (``ask``) and is told the risk of
+each (``tell``); it knows nothing about scenarios. ``levels[i]`` is the number of choices
+of dimension i (``None``: continuous), which grid search uses. Every random number comes
+from the ``numpy.random.Generator`` passed in, so a seed fixes the whole run.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from abc import ABC, abstractmethod
+from typing import Any, ClassVar, TypeVar
+
+import numpy as np
+from numpy.typing import NDArray
+
+F64 = NDArray[np.float64]
+
+
+class Strategy(ABC):
+    """Base class: ``ask() -> (n, d)`` (n = 0 when done), ``tell(X, risk)``."""
+
+    name: ClassVar[str]
+    description: ClassVar[str] = ""
+
+    def __init__(self, dim: int, levels: list[int | None], budget: int,
+                 rng: np.random.Generator, batch: int = 32, **options: Any) -> None:
+        if options:
+            raise ValueError(f"{self.name}: unknown options {', '.join(sorted(options))}")
+        self.dim, self.levels, self.budget, self.rng = dim, levels, budget, rng
+        self.batch = max(1, batch)
+        self.asked = 0
+
+    def ask(self) -> F64:
+        """The next batch (never beyond the budget)."""
+        n = min(self.batch, self.budget - self.asked)
+        if n <= 0:
+            return np.empty((0, self.dim))
+        X = self._propose(n)
+        self.asked += len(X)
+        return X
+
+    @abstractmethod
+    def _propose(self, n: int) -> F64:
+        """Up to n new points."""
+
+    def tell(self, X: F64, risk: F64) -> None:  # noqa: B027 - optional hook
+        """Results of the last batch (default: ignored)."""
+
+
+S = TypeVar("S", bound=type[Strategy])
+_STRATEGIES: dict[str, type[Strategy]] = {}
+
+
+def register_strategy(cls: S) -> S:
+    """Class decorator: register a strategy under ``cls.name``."""
+    _STRATEGIES[cls.name] = cls
+    return cls
+
+
+def strategy_names() -> list[str]:
+    """Registered strategies, sorted."""
+    from sensorgap.search.plugins import load_plugins
+
+    load_plugins()
+    return sorted(_STRATEGIES)
+
+
+def get_strategy(name: str) -> type[Strategy] | None:
+    """A registered strategy class, or None."""
+    from sensorgap.search.plugins import load_plugins
+
+    load_plugins()
+    return _STRATEGIES.get(name)
+
+
+@register_strategy
+class RandomSearch(Strategy):
+    name = "random"
+    description = "independent uniform samples"
+
+    def _propose(self, n: int) -> F64:
+        return self.rng.random((n, self.dim))
+
+
+@register_strategy
+class LatinHypercube(Strategy):
+    name = "lhs"
+    description = "Latin hypercube per batch (one sample per stratum and dimension)"
+
+    def _propose(self, n: int) -> F64:
+        cols = [(self.rng.permutation(n) + self.rng.random(n)) / n for _ in range(self.dim)]
+        return np.column_stack(cols) if cols else np.empty((n, 0))
+
+
+@register_strategy
+class GridSearch(Strategy):
+    name = "grid"
+    description = ("full factorial: every choice x k levels per continuous dimension, "
+                   "the largest k whose product fits the budget (cell centres)")
+
+    def __init__(self, dim: int, levels: list[int | None], budget: int,
+                 rng: np.random.Generator, batch: int = 32, **options: Any) -> None:
+        super().__init__(dim, levels, budget, rng, batch, **options)
+        fixed = math.prod(v for v in levels if v)
+        n_cont = sum(1 for v in levels if not v)
+        k = 1
+        if n_cont:
+            while fixed * (k + 1) ** n_cont <= budget:
+                k += 1
+        axes = [np.arange(v or k) for v in levels]
+        self._points = [np.array([(i + 0.5) / (levels[d] or k) for d, i in enumerate(c)])
+                        for c in itertools.product(*axes)]
+        self.budget = min(budget, len(self._points))
+
+    def _propose(self, n: int) -> F64:
+        rows = self._points[self.asked:self.asked + n]
+        return np.array(rows, dtype=np.float64).reshape(len(rows), self.dim)
+
+
+@register_strategy
+class CrossEntropy(Strategy):
+    """Cross-entropy method: sample a Gaussian per dimension (clipped to the cube), keep the
+    ``elite`` fraction with the highest risk, move mean and std towards them (smoothing
+    ``alpha``), std never below ``min_std``. The first batch is a Latin hypercube."""
+
+    name = "cem"
+    description = "cross-entropy method (adaptive)"
+
+    def __init__(self, dim: int, levels: list[int | None], budget: int,
+                 rng: np.random.Generator, batch: int = 20, elite: float = 0.2,
+                 alpha: float = 0.7, min_std: float = 0.03, **options: Any) -> None:
+        super().__init__(dim, levels, budget, rng, batch, **options)
+        self.mean = np.full(dim, 0.5)
+        self.std = np.full(dim, 0.35)
+        self.elite, self.alpha, self.min_std = elite, alpha, min_std
+        self._archive_x: list[F64] = []
+        self._archive_f: list[float] = []
+
+    def _propose(self, n: int) -> F64:
+        if self.asked == 0:
+            cols = [(self.rng.permutation(n) + self.rng.random(n)) / n for _ in range(self.dim)]
+            return np.column_stack(cols) if cols else np.empty((n, 0))
+        X = self.mean + self.std * self.rng.standard_normal((n, self.dim))
+        return np.clip(X, 0.0, 1.0)
+
+    def tell(self, X: F64, risk: F64) -> None:
+        self._archive_x.extend(X)
+        self._archive_f.extend(float(r) for r in risk)
+        # elite of everything seen so far (keeps the best even after a bad batch)
+        n_elite = max(2, round(self.elite * self.batch))
+        order = np.lexsort((np.arange(len(self._archive_f)), -np.asarray(self._archive_f)))
+        elite = np.asarray(self._archive_x)[order[:n_elite]]
+        self.mean = self.alpha * elite.mean(axis=0) + (1 - self.alpha) * self.mean
+        self.std = np.maximum(self.alpha * elite.std(axis=0) + (1 - self.alpha) * self.std,
+                              self.min_std)

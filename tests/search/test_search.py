@@ -1,0 +1,223 @@
+"""Search layer: families, trajectories, evaluation, metrics, strategies, store, ranking."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sensorgap.config import load_environment
+from sensorgap.errors import InputError
+from sensorgap.models import System
+from sensorgap.scenarios import family_presets, load_family
+from sensorgap.scenarios.trajectory import (
+    LIMITS,
+    InfeasibleScenario,
+    Trajectory,
+    blend,
+    time_axis,
+)
+from sensorgap.search.evaluate import Evaluator, Trace
+from sensorgap.search.metrics import compute_all, corridor, detection_index, metric_names
+from sensorgap.search.problem import SearchProblem
+from sensorgap.search.run import run_search
+from sensorgap.search.strategies import get_strategy, strategy_names
+
+FAST = ["cut_in_right", "crossing_pedestrian"]
+
+
+def _mid(fam_name: str) -> dict[str, float | str]:
+    fam = load_family(fam_name)
+    return fam.decode(np.full(len(fam.space), 0.5))
+
+
+def test_blend_shapes() -> None:
+    u = np.linspace(-0.5, 1.5, 41)
+    for shape in ("cosine", "quintic"):
+        w = blend(shape, u)
+        assert w[0] == 0.0 and w[-1] == 1.0 and np.all(np.diff(w) >= 0.0)
+    with pytest.raises(ValueError, match="shape"):
+        blend("zigzag", u)
+
+
+def test_trajectory_feasibility_check() -> None:
+    t = time_axis(2.0)
+    assert len(t) == 41 and t[1] == pytest.approx(0.05)
+    x = 0.5 * 20.0 * t**2  # 20 m/s2: too hard for a car
+    tr = Trajectory.from_path(t, x, np.zeros_like(t), np.zeros_like(t))
+    with pytest.raises(InfeasibleScenario, match="longitudinal"):
+        tr.check(LIMITS["car"], "target")
+    ok = Trajectory.from_path(t, 10.0 * t, np.zeros_like(t), np.zeros_like(t))
+    ok.check(LIMITS["car"], "ego")
+    assert np.allclose(ok.speed, 10.0)
+
+
+@pytest.mark.parametrize("name", family_presets())
+def test_every_preset_generates_on_its_road(name: str) -> None:
+    fam = load_family(name)
+    sc = fam.generate(_mid(name))
+    assert len(sc.ego.t) == round(fam.duration_s * 20) + 1
+    rid, lane = fam.settings["road_id"], fam.settings.get("ego_lane", fam.settings.get("lane"))
+    road_id, lane_id, _, _ = fam.network.world_to_road(sc.ego.x, sc.ego.y)
+    assert set(np.asarray(road_id).tolist()) == {rid}
+    assert set(np.asarray(lane_id).tolist()) == {lane}
+
+
+def test_cut_in_ends_in_ego_lane() -> None:
+    fam = load_family("cut_in_right")
+    p = {**_mid("cut_in_right"), "lc_start_s": 1.0, "lc_duration_s": 3.0}
+    sc = fam.generate(p)
+    _, lanes, _, _ = fam.network.world_to_road(sc.target.x, sc.target.y)
+    assert lanes[0] == -2 and lanes[-1] == -1
+
+
+def _write(tmp: Path, text: str) -> str:
+    p = tmp / "fam.toml"
+    p.write_text(text)
+    return str(p)
+
+
+BASE = """[family]
+kind = "slow_ahead"
+road = "motorway_r500"
+road_id = "1"
+lane = -1
+target = "car"
+"""
+
+
+@pytest.mark.parametrize(("body", "match"), [
+    ("[parameters]\ngap0_m = [100.0, 50.0]\n", "empty or reversed range"),
+    ("[parameters]\ngap0_m = [50.0, 50.0]\n", "empty or reversed range"),
+    ("[parameters]\nbogus = [1.0, 2.0]\n", "unknown parameter"),
+    ("[parameters]\nego_s0_m = [1000.0, 1200.0]\n", "cannot fit on the road"),
+])
+def test_bad_family_files(tmp_path: Path, body: str, match: str) -> None:
+    with pytest.raises(InputError, match=match):
+        load_family(_write(tmp_path, BASE + body))
+
+
+def test_bad_kind_and_unknown_family(tmp_path: Path) -> None:
+    with pytest.raises(InputError, match="unknown kind"):
+        load_family(_write(tmp_path, BASE.replace("slow_ahead", "teleport")))
+    with pytest.raises(InputError, match="unknown family 'nope'"):
+        load_family("nope")
+    with pytest.raises(InputError, match="lane 5 does not exist"):
+        load_family(_write(tmp_path, BASE.replace("lane = -1", "lane = 5")))
+
+
+def _trace(pd: list[float], ttc: list[float] | None = None) -> Trace:
+    n = len(pd)
+    arr = np.zeros(n)
+    return Trace(t=np.arange(n) * 0.05, x=arr, y=arr, pd=np.array(pd),
+                 ttc=np.array(ttc if ttc is not None else [np.inf] * n), headway=arr + np.inf,
+                 distance=arr + 10.0, ego_speed=arr + 10.0, heading=arr, collided=False,
+                 duration_s=(n - 1) * 0.05)
+
+
+def test_metrics_by_hand() -> None:
+    tr = _trace([0.0, 0.5, 0.5, 0.0, 0.0, 0.0, 0.99, 0.2], ttc=[9, 9, 9, 2, 2, 0.5, 0.4, 9])
+    assert tr.p_undetected[2] == pytest.approx(0.25)
+    assert detection_index(tr) == 6
+    assert corridor(tr) == (3, 6)
+    m = compute_all(tr)
+    assert m["risk"] == pytest.approx(0.25 * np.exp(-0.5 / 2.0))
+    assert m["t_detect_s"] == pytest.approx(0.30)
+    assert m["ttc_at_detect_s"] == pytest.approx(0.4)
+    assert m["corridor_s"] == pytest.approx(0.15)
+    assert set(metric_names()) <= set(m)
+    never = compute_all(_trace([0.0] * 5))
+    assert never["detected"] == 0.0 and never["t_detect_s"] == pytest.approx(0.2)
+    assert never["ttc_at_detect_s"] == 99.0
+
+
+def test_lookup_close_to_exact(system_b: System) -> None:
+    fam = load_family("slow_ahead_curve")
+    envs = {"clear": load_environment("clear")}
+    p_look = SearchProblem(fam, envs, Evaluator(system_b, "lookup"))
+    p_exact = SearchProblem(fam, envs, Evaluator(system_b, "exact"))
+    rng = np.random.default_rng(0)
+    for _ in range(4):
+        cand = p_look.decode(rng.random(p_look.dim))
+        a = p_look.evaluate(cand, keep_trace=True).trace
+        b = p_exact.evaluate(cand, keep_trace=True).trace
+        assert a is not None and b is not None
+        assert np.max(np.abs(a.pd - b.pd)) < 0.1
+
+
+def test_strategies_registry_and_bounds() -> None:
+    assert {"cem", "grid", "lhs", "random"} <= set(strategy_names())
+    for name in strategy_names():
+        cls = get_strategy(name)
+        assert cls is not None
+        s = cls(3, [None, 2, None], 50, np.random.default_rng(1))
+        seen = 0
+        while len(X := s.ask()):
+            assert np.all((X >= 0.0) & (X <= 1.0))
+            s.tell(X, X[:, 0])
+            seen += len(X)
+        assert seen <= 50
+    grid = get_strategy("grid")
+    assert grid is not None
+    g = grid(2, [3, None], 30, np.random.default_rng(0))
+    pts = g.ask()
+    assert len(pts) == 30 and len({round(v, 6) for v in pts[:, 0]}) == 3
+
+
+def test_cem_concentrates_on_optimum() -> None:
+    cls = get_strategy("cem")
+    assert cls is not None
+    s = cls(4, [None] * 4, 200, np.random.default_rng(2))
+    best = 0.0
+    while len(X := s.ask()):
+        f = np.exp(-20.0 * np.sum((X - 0.8) ** 2, axis=1))
+        best = max(best, float(f.max()))
+        s.tell(X, f)
+    assert best > 0.9
+
+
+@pytest.mark.parametrize(("kw", "match"), [
+    ({"budget": 0}, "--budget"),
+    ({"environments": ["mars"]}, "unknown environment 'mars'"),
+    ({"families": ["nope"]}, "unknown family"),
+    ({"strategy": "magic"}, "unknown strategy"),
+])
+def test_run_bad_input(tmp_path: Path, kw: dict[str, object], match: str) -> None:
+    args: dict[str, object] = {"vehicle": "system_b", "families": FAST,
+                               "environments": ["clear"], "budget": 4, "seed": 0, "top": 3,
+                               "out": tmp_path}
+    args.update(kw)
+    with pytest.raises(InputError, match=match):
+        run_search(**args)  # type: ignore[arg-type]
+
+
+def test_run_deterministic_and_resumes(tmp_path: Path) -> None:
+    kw = {"vehicle": "system_b", "families": FAST, "environments": ["clear", "fog_50"],
+          "budget": 24, "seed": 7, "top": 5}
+    a = run_search(out=tmp_path / "a", **kw)  # type: ignore[arg-type]
+    b = run_search(out=tmp_path / "b", **kw)  # type: ignore[arg-type]
+    csv_a = (tmp_path / "a" / "ranking.csv").read_bytes()
+    assert csv_a == (tmp_path / "b" / "ranking.csv").read_bytes()
+    assert a.evaluated == 24 and len(a.ranking) >= 1
+    header = csv_a.decode().splitlines()[0].split(",")
+    for col in ("rank", "scenario_id", "family", "environment", "risk", "reason",
+                "p_ego_speed_m_s", "t_detect_s"):
+        assert col in header
+    again = run_search(out=tmp_path / "a", **kw)  # type: ignore[arg-type]
+    assert again.evaluated == 0 and again.reused == 24
+    assert (tmp_path / "a" / "ranking.csv").read_bytes() == csv_a
+    with pytest.raises(InputError, match="different settings"):
+        run_search(out=tmp_path / "a", **{**kw, "seed": 8})  # type: ignore[arg-type]
+    assert all(r["reason"] for r in b.ranking)
+
+
+def test_systems_differ_with_reasons(tmp_path: Path) -> None:
+    kw = {"families": ["slow_ahead_curve"], "environments": ["fog_50", "clear"],
+          "budget": 20, "seed": 3, "top": 5, "strategy": "lhs"}
+    a = run_search("system_a", out=tmp_path / "a", **kw)  # type: ignore[arg-type]
+    b = run_search("system_b", out=tmp_path / "b", **kw)  # type: ignore[arg-type]
+    assert [r["risk"] for r in a.ranking] != [r["risk"] for r in b.ranking]
+    for r in a.ranking + b.ranking:
+        assert r["dominant_effect"] in {"glare", "weather", "range", "FOV", "none"}
+        assert r["reason"].startswith(r["dominant_effect"])
