@@ -109,3 +109,32 @@ def test_missing_file_and_unknown_preset(tmp_path: Path) -> None:
         load_system(tmp_path / "nope.toml")
     with pytest.raises(InputError, match=r"--vehicle: unknown preset 'system_z'; presets: "):
         load_system("system_z")
+
+
+ENV_BAD = [
+    ("rain_mm_h = -1.0", r"environments\.wet\.rain_mm_h: .*greater than or equal to 0"),
+    ("rain_mm_h = nan", r"environments\.wet\.rain_mm_h"),
+    ("visibility_m = inf", r"environments\.wet\.visibility_m"),
+    ("visibility_m = 0.0", r"environments\.wet\.visibility_m: .*greater than or equal to 1"),
+    ("sun = { azimuth_deg = 0.0, elevation_deg = 95.0 }",
+     r"environments\.wet\.sun\.elevation_deg: .*less than or equal to 90"),
+    ("fog = 3", r"environments\.wet\.fog: Extra inputs are not permitted"),
+    ("roc_shift_db = \"3\"", r"environments\.wet\.roc_shift_db: Input should be a valid number"),
+]
+
+
+@pytest.mark.parametrize(("line", "pattern"), ENV_BAD)
+def test_bad_environment_files(tmp_path: Path, line: str, pattern: str) -> None:
+    p = tmp_path / "env.toml"
+    p.write_text(f"[environments.wet]\n{line}\n")
+    with pytest.raises(InputError) as info:
+        load_environments(p)
+    assert info.value.line().startswith(str(p))
+    assert re.search(pattern, info.value.line()), info.value.line()
+
+
+def test_environment_file_must_have_table(tmp_path: Path) -> None:
+    p = tmp_path / "env.toml"
+    p.write_text("rain = 1\n")
+    with pytest.raises(InputError, match=r"environments: expected a non-empty table"):
+        load_environments(p)

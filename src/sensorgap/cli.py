@@ -71,6 +71,8 @@ def cmd_coverage(args: argparse.Namespace) -> int:
     from sensorgap.coverage import GridSpec
     from sensorgap.coverage.outputs import write_coverage
 
+    if not 1 <= args.workers <= 64:
+        raise InputError("--workers", "", f"must be 1..64, got {args.workers}")
     scene = _scene(args)
     xmin, xmax, ymin, ymax = _float_list(args.extent, 4, "--extent")
     if not (xmin < xmax and ymin < ymax):

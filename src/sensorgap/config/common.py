@@ -15,6 +15,7 @@ Positive = Annotated[float, Field(gt=0.0, allow_inf_nan=False)]
 
 
 class Strict(BaseModel):
-    """Base for config models: unknown keys are errors, numbers must be finite."""
+    """Base for config models: unknown keys are errors, numbers must be finite, and no type
+    coercion (a quoted "3" is not a number; integers are accepted where floats are)."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False, strict=True)

@@ -52,7 +52,7 @@ class DeviceConfig(Strict):
     every parameter, or says ``estimate: ...``.
     """
 
-    model_config = ConfigDict(extra="allow", frozen=True, allow_inf_nan=False)
+    model_config = ConfigDict(extra="allow", frozen=True, allow_inf_nan=False, strict=True)
 
     type: str
     sources: dict[str, str] = Field(default_factory=dict)
@@ -68,8 +68,8 @@ class MountConfig(Strict):
 
     id: str = Field(pattern=r"^[A-Za-z0-9_\-]+$", max_length=64)
     device: str
-    position_m: tuple[float, float, float] = Field(
-        description="x, y, z in the vehicle frame, m"
+    position_m: list[float] = Field(
+        min_length=3, max_length=3, description="x, y, z in the vehicle frame, m"
     )
     yaw_deg: float = Field(default=0.0, ge=-360.0, le=360.0, allow_inf_nan=False)
     pitch_deg: float = Field(default=0.0, ge=-90.0, le=90.0, allow_inf_nan=False)
@@ -81,7 +81,7 @@ class MountConfig(Strict):
 
     @field_validator("position_m")
     @classmethod
-    def _finite_position(cls, v: tuple[float, float, float]) -> tuple[float, float, float]:
+    def _finite_position(cls, v: list[float]) -> list[float]:
         if not all(math.isfinite(c) and abs(c) <= 100.0 for c in v):
             raise ValueError("position must be three finite numbers within +-100 m")
         return v
