@@ -1,0 +1,62 @@
+"""`sensorgap paper`: the paper's results section reproduced within the issue's tolerances
+(Table IV cells +-20 m, blind-spot areas +-30 %) and its qualitative conclusions hold."""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from sensorgap.analysis.paper import (
+    NEARFIELD_TOLERANCE,
+    PAPER_BLIND_SPOT_M2,
+    PAPER_TABLE_IV,
+    TABLE_IV_TOLERANCE_M,
+    run_paper,
+)
+
+
+@pytest.fixture(scope="module")
+def paper(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict[str, Any]]:
+    out = tmp_path_factory.mktemp("paper")
+    return out, run_paper(out)
+
+
+def test_files(paper: tuple[Path, dict[str, Any]]) -> None:
+    out, _ = paper
+    for name in ("table_iv.csv", "nearfield.csv", "paper.md"):
+        assert (out / name).is_file()
+    for key in ("A", "B"):
+        assert (out / f"nearfield_{key}" / "nearfield.png").is_file()
+        for cond in ("normal", "glare"):
+            assert (out / f"farfield_{key}_{cond}" / "farfield.png").is_file()
+    rows = list(csv.DictReader((out / "table_iv.csv").open()))
+    assert len(rows) == 4 * 5
+    assert set(rows[0]) == {"system", "condition", "level", "metres"}
+    assert {r["level"] for r in rows} == {"pd=1.0", "pd>=0.8", "pd>=0.5", "pd>0", "pd=0"}
+    near = list(csv.DictReader((out / "nearfield.csv").open()))
+    assert [r["system"] for r in near] == ["A", "B"]
+    assert set(near[0]) == {"system", "blind_spot_m2", "uncovered_0p1m_m2"}
+
+
+def test_qualitative_conclusions(paper: tuple[Path, dict[str, Any]]) -> None:
+    _, result = paper
+    assert result["checks"] and all(result["checks"].values()), result["checks"]
+
+
+def test_table_iv_within_tolerance(paper: tuple[Path, dict[str, Any]]) -> None:
+    out, _ = paper
+    for r in csv.DictReader((out / "table_iv.csv").open()):
+        want = PAPER_TABLE_IV[(r["system"], r["condition"])][r["level"]]
+        assert abs(float(r["metres"]) - want) <= TABLE_IV_TOLERANCE_M, r
+    md = (out / "paper.md").read_text()
+    assert "(within the tolerance)" in md
+
+
+def test_blind_spots_within_tolerance(paper: tuple[Path, dict[str, Any]]) -> None:
+    out, _ = paper
+    for r in csv.DictReader((out / "nearfield.csv").open()):
+        want = PAPER_BLIND_SPOT_M2[r["system"]]
+        assert abs(float(r["blind_spot_m2"]) - want) <= NEARFIELD_TOLERANCE * want, r
