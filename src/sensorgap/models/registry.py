@@ -13,26 +13,11 @@ from __future__ import annotations
 from importlib.metadata import entry_points
 
 from sensorgap.models.base import SensorModel
+from sensorgap.registry import Registry
 
 ENTRY_POINT_GROUP = "sensorgap.sensors"
 
-_TYPES: dict[str, type[SensorModel]] = {}
 _entry_points_loaded = False
-
-
-def register(cls: type[SensorModel]) -> type[SensorModel]:
-    """Register a sensor type under ``cls.type_name`` (usable as a class decorator)."""
-    name = cls.type_name
-    existing = _TYPES.get(name)
-    if existing is not None and existing is not cls:
-        raise ValueError(f"sensor type {name!r} is already registered by {existing.__module__}")
-    _TYPES[name] = cls
-    return cls
-
-
-def unregister(name: str) -> None:
-    """Remove a registered sensor type (for tests and plug-in reloads)."""
-    _TYPES.pop(name, None)
 
 
 def _load_entry_points() -> None:
@@ -43,17 +28,29 @@ def _load_entry_points() -> None:
     for ep in entry_points(group=ENTRY_POINT_GROUP):
         cls = ep.load()
         if isinstance(cls, type) and issubclass(cls, SensorModel):
-            register(cls)
+            _TYPES.register(cls)
+
+
+_TYPES: Registry[type[SensorModel]] = Registry(
+    "sensor type", key=lambda cls: cls.type_name, on_lookup=_load_entry_points
+)
+
+
+def register(cls: type[SensorModel]) -> type[SensorModel]:
+    """Register a sensor type under ``cls.type_name`` (usable as a class decorator)."""
+    return _TYPES.register(cls)
+
+
+def unregister(name: str) -> None:
+    """Remove a registered sensor type (for tests and plug-in reloads)."""
+    _TYPES.unregister(name)
 
 
 def get(name: str) -> type[SensorModel] | None:
     """The sensor type registered as ``name``, or ``None``."""
-    if name not in _TYPES:
-        _load_entry_points()
     return _TYPES.get(name)
 
 
 def names() -> list[str]:
     """All registered sensor type names, sorted."""
-    _load_entry_points()
-    return sorted(_TYPES)
+    return _TYPES.names()

@@ -17,6 +17,7 @@ from typing import Any, ClassVar, TypeVar
 import numpy as np
 from numpy.typing import NDArray
 
+from sensorgap.registry import Registry
 from sensorgap.roads import RoadNetwork
 from sensorgap.scenarios.trajectory import LIMITS, Limits, Trajectory
 
@@ -139,31 +140,33 @@ class Family:
 
 # -- registries --------------------------------------------------------------------------
 K = TypeVar("K", bound=type[FamilyKind])
-_KINDS: dict[str, type[FamilyKind]] = {}
+
+
+def _load_plugins() -> None:
+    from sensorgap.search.plugins import load_plugins
+
+    load_plugins()
+
+
+_KINDS: Registry[type[FamilyKind]] = Registry("family kind", key=lambda c: c.name,
+                                        on_lookup=_load_plugins)
 
 
 def register_kind(cls: K) -> K:
     """Class decorator: register a family kind under ``cls.name``."""
-    _KINDS[cls.name] = cls
-    return cls
+    return _KINDS.register(cls)
 
 
 def kind_names() -> list[str]:
-    """Registered kinds, sorted."""
-    from sensorgap.search.plugins import load_plugins
-
-    load_plugins()
-    return sorted(_KINDS)
+    """Registered family kind names, sorted."""
+    return _KINDS.names(sort=True)
 
 
 def get_kind(name: str) -> type[FamilyKind] | None:
-    """A registered kind, or ``None``."""
-    from sensorgap.search.plugins import load_plugins
-
-    load_plugins()
+    """The registered family kind, or ``None``."""
     return _KINDS.get(name)
 
 
 def registry_snapshot() -> Mapping[str, Callable[..., Any]]:
     """Read-only view of the kinds (for docs and tests)."""
-    return dict(_KINDS)
+    return _KINDS.snapshot()

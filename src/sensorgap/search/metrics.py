@@ -24,6 +24,7 @@ from typing import ClassVar, Literal, TypeVar
 
 import numpy as np
 
+from sensorgap.registry import Registry
 from sensorgap.scenarios.trajectory import DT_S
 from sensorgap.search.evaluate import Trace
 
@@ -82,31 +83,34 @@ class Metric(ABC):
 
 
 M = TypeVar("M", bound=type[Metric])
-_METRICS: dict[str, type[Metric]] = {}
+
+
+def _load_plugins() -> None:
+    from sensorgap.search.plugins import load_plugins
+
+    load_plugins()
+
+
+_METRICS: Registry[type[Metric]] = Registry("metric", key=lambda c: c.name,
+                                        on_lookup=_load_plugins)
 
 
 def register_metric(cls: M) -> M:
     """Class decorator: register a metric under ``cls.name``."""
-    _METRICS[cls.name] = cls
-    return cls
+    return _METRICS.register(cls)
 
 
 def metric_names() -> list[str]:
     """Registered metric names in registration order (built-ins first)."""
-    from sensorgap.search.plugins import load_plugins
-
-    load_plugins()
-    return list(_METRICS)
+    return _METRICS.names(sort=False)
 
 
 def get_metric(name: str) -> Metric:
     """An instance of a registered metric; KeyError names the known ones."""
-    from sensorgap.search.plugins import load_plugins
-
-    load_plugins()
-    if name not in _METRICS:
-        raise KeyError(f"unknown metric {name!r}; known: {', '.join(_METRICS)}")
-    return _METRICS[name]()
+    cls = _METRICS.get(name)
+    if cls is None:
+        raise KeyError(f"unknown metric {name!r}; known: {', '.join(metric_names())}")
+    return cls()
 
 
 def compute_all(tr: Trace, names: list[str] | None = None) -> dict[str, float]:

@@ -16,6 +16,8 @@ from typing import Any, ClassVar, TypeVar
 import numpy as np
 from numpy.typing import NDArray
 
+from sensorgap.registry import Registry
+
 F64 = NDArray[np.float64]
 
 
@@ -51,28 +53,30 @@ class Strategy(ABC):
 
 
 S = TypeVar("S", bound=type[Strategy])
-_STRATEGIES: dict[str, type[Strategy]] = {}
+
+
+def _load_plugins() -> None:
+    from sensorgap.search.plugins import load_plugins
+
+    load_plugins()
+
+
+_STRATEGIES: Registry[type[Strategy]] = Registry("strategy", key=lambda c: c.name,
+                                        on_lookup=_load_plugins)
 
 
 def register_strategy(cls: S) -> S:
     """Class decorator: register a strategy under ``cls.name``."""
-    _STRATEGIES[cls.name] = cls
-    return cls
+    return _STRATEGIES.register(cls)
 
 
 def strategy_names() -> list[str]:
-    """Registered strategies, sorted."""
-    from sensorgap.search.plugins import load_plugins
-
-    load_plugins()
-    return sorted(_STRATEGIES)
+    """Registered strategy names, sorted."""
+    return _STRATEGIES.names(sort=True)
 
 
 def get_strategy(name: str) -> type[Strategy] | None:
-    """A registered strategy class, or None."""
-    from sensorgap.search.plugins import load_plugins
-
-    load_plugins()
+    """The registered strategy, or ``None``."""
     return _STRATEGIES.get(name)
 
 
