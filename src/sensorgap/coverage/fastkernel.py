@@ -62,10 +62,19 @@ def subgrid_geometry(
     aa = np.empty(n if want_angles else 0, np.float64)
     ee = np.empty(n if want_angles else 0, np.float64)
     rmax2 = rmax * rmax
+    # dx is an evenly spaced ascending grid: each row only scans the columns that can lie
+    # within max_range (one extra cell each side absorbs rounding; r2 is checked anyway)
+    step = dx[1] - dx[0] if nx > 1 else 1.0
     k = 0
     for j in range(ny):
         ddy = dy[j]
-        for i in range(nx):
+        room = rmax2 - ddy * ddy - dz * dz
+        if room < 0.0:
+            continue
+        half = math.sqrt(room)
+        i0 = max(0, int(math.floor((-half - dx[0]) / step)) - 1)
+        i1 = min(nx, int(math.ceil((half - dx[0]) / step)) + 2)
+        for i in range(i0, i1):
             if skip[j, i]:
                 continue
             ddx = dx[i]
