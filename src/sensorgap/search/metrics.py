@@ -13,7 +13,9 @@ longitudinal time to collision of an in-path target (0 once the boxes overlap, i
 not in path or not closing). It is the probability that the target is still undetected,
 weighted by how imminent a collision is at that moment: 1 = undetected at impact,
 ~0.37 = undetected 2 s before impact, 0 = detected before it ever got close or never a
-threat.
+threat. With independent 20 Hz steps the risk underflows towards 0 for most scenarios, so
+ranking and search use ``log10_risk`` (the same quantity in the log domain, floor -300),
+which keeps scenarios ordered by how close they come to an undetected threat.
 """
 
 from __future__ import annotations
@@ -53,9 +55,22 @@ def risk_profile(tr: Trace) -> np.ndarray:
     return np.asarray(tr.p_undetected * np.exp(-tr.ttc / TAU_S), dtype=np.float64)
 
 
+#: log10 of the risk reported when the target never becomes a threat (no finite TTC).
+LOG10_RISK_FLOOR = -300.0
+
+
+def log10_risk_profile(tr: Trace) -> np.ndarray:
+    """log10(P_undet(t_k) exp(-TTC_k / TAU_S)) per step, computed in the log domain so that
+    it stays finite and ordered where the risk itself underflows (e.g. 1e-40); steps without
+    a finite TTC sit at ``LOG10_RISK_FLOOR``."""
+    ln = tr.log_undetected - np.where(np.isfinite(tr.ttc), tr.ttc, 0.0) / TAU_S
+    out = np.where(np.isfinite(tr.ttc), ln / math.log(10.0), LOG10_RISK_FLOOR)
+    return np.asarray(np.maximum(out, LOG10_RISK_FLOOR), dtype=np.float64)
+
+
 def critical_index(tr: Trace) -> int:
-    """The step that sets the risk (first maximum)."""
-    return int(np.argmax(risk_profile(tr)))
+    """The step that sets the risk (first maximum, in the log domain)."""
+    return int(np.argmax(log10_risk_profile(tr)))
 
 
 def corridor(tr: Trace, threshold: float = LOW_PD) -> tuple[int, int]:
@@ -131,6 +146,16 @@ class Risk(Metric):
 
     def compute(self, tr: Trace) -> float:
         return float(np.max(risk_profile(tr)))
+
+
+@register_metric
+class Log10Risk(Metric):
+    name = "log10_risk"
+    description = ("log10 of the risk, computed in the log domain: the ranking and search "
+                   "objective, graded even where the risk underflows (floor -300)")
+
+    def compute(self, tr: Trace) -> float:
+        return float(np.max(log10_risk_profile(tr)))
 
 
 @register_metric

@@ -68,8 +68,15 @@ class Result:
 
     @property
     def risk(self) -> float:
-        """The ranking score (0 for infeasible candidates)."""
+        """The risk, a probability (0 for infeasible candidates)."""
         return float(self.metrics.get("risk", 0.0)) if self.feasible else 0.0
+
+    @property
+    def score(self) -> float:
+        """The ranking and search objective: log10 of the risk (-300 when infeasible)."""
+        if not self.feasible:
+            return -300.0
+        return float(self.metrics.get("log10_risk", -300.0))
 
 
 class SearchProblem:

@@ -53,7 +53,7 @@ def diverse_top(results: list[Result], problems: dict[str, SearchProblem], top: 
     """The ``top`` highest-risk feasible results, near-duplicates collapsed (ties broken by
     scenario id, so the order is deterministic)."""
     ok = sorted((r for r in results if r.feasible),
-                key=lambda r: (-r.risk, r.candidate.scenario_id))
+                key=lambda r: (-r.score, -r.risk, r.candidate.scenario_id))
     chosen: list[Result] = []
     for r in ok:
         prob = problems[r.candidate.family]

@@ -130,7 +130,7 @@ def run_search(vehicle: str | Path, families: list[str], environments: list[str]
                         idx += 1
                     if new:
                         store.put(new)
-                    strat.tell(X, np.array([r.risk for r in batch]))
+                    strat.tell(X, np.array([r.score for r in batch]))
                     results.extend(batch)
                     bar.update(len(batch))
     finally:
@@ -163,6 +163,7 @@ def run_search(vehicle: str | Path, families: list[str], environments: list[str]
                             "min_distance": min_distance},
                "candidates": len(results), "feasible": n_ok, "infeasible": len(results) - n_ok,
                "best_risk": max((r.risk for r in results), default=0.0),
+               "best_log10_risk": max((r.score for r in results), default=-300.0),
                "per_family": {f.name: s for f, s in zip(fams, shares, strict=True)}}
     write_json(out / "summary.json", summary)
     return SearchOutcome(rows, results, evaluated, reused, summary)

@@ -1,6 +1,6 @@
 """Search strategies behind one ask/tell interface (the problem is separate, as in pymoo).
 
-A strategy proposes points of the unit cube ``[0, 1]^d`` (``ask``) and is told the risk of
+A strategy proposes points of the unit cube ``[0, 1]^d`` (``ask``) and is told the score of
 each (``tell``); it knows nothing about scenarios. ``levels[i]`` is the number of choices
 of dimension i (``None``: continuous), which grid search uses. Every random number comes
 from the ``numpy.random.Generator`` passed in, so a seed fixes the whole run.
