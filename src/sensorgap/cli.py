@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, NoReturn
 
 from sensorgap.errors import InputError
+from sensorgap.filesio import write_manifest
 
 if TYPE_CHECKING:
     from sensorgap.coverage import Scene
@@ -89,6 +90,7 @@ def cmd_coverage(args: argparse.Namespace) -> int:
     grid = GridSpec(xmin, xmax, ymin, ymax, res, height)
     summary = write_coverage(scene, grid, Path(args.out), per_sensor=args.per_sensor,
                              workers=args.workers)
+    write_manifest(args.out)
     lv = summary["area_m2_by_level"]
     print(f"{args.out}: {grid.nx}x{grid.ny} cells, area Pd=1 {lv['pd=1.0']:.0f} m2, "
           f"Pd>0 {lv['pd>0']:.0f} m2")
@@ -102,6 +104,7 @@ def cmd_nearfield(args: argparse.Namespace) -> int:
 
     res = _positive(args.resolution, "--resolution")
     summary = write_nearfield(load_system(args.vehicle), Path(args.out), res)
+    write_manifest(args.out)
     bs = summary["blind_spot_m2"]
     print(f"{args.out}: blind spots {bs['exact']:.2f} m2 exact, {bs['grid']:.2f} m2 on the "
           f"{res:g} m grid")
@@ -133,6 +136,7 @@ def cmd_farfield(args: argparse.Namespace) -> int:
     scene, ff = run_farfield(system, args.environment, setup, net)
     write_farfield(scene, ff, Path(args.out), f"{system.name}, {args.environment}: "
                    f"{args.target} on lane {args.target_lane}", extra={"setup": setup.__dict__})
+    write_manifest(args.out)
     print(", ".join(f"{k} {v:.0f} m" for k, v in ff.levels_m.items()))
     return 0
 
@@ -142,6 +146,7 @@ def cmd_paper(args: argparse.Namespace) -> int:
     from sensorgap.analysis.paper import run_paper
 
     result = run_paper(Path(args.out))
+    write_manifest(args.out)
     for name, ok in result["checks"].items():
         print(f"[{'ok' if ok else 'FAIL'}] {name}")
     return 0
@@ -156,6 +161,7 @@ def cmd_search(args: argparse.Namespace) -> int:
         [e for e in args.environments.split(",") if e], args.budget, args.seed, args.top,
         Path(args.out), strategy=args.strategy, mode=args.pd, sun_search=not args.no_sun,
         environments_file=Path(args.environments_file) if args.environments_file else None)
+    write_manifest(args.out)
     print(f"{args.out}: {outcome.evaluated} evaluated, {outcome.reused} reused, "
           f"best risk {outcome.summary['best_risk']:.3g}, {len(outcome.ranking)} ranked")
     return 0
@@ -177,6 +183,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     from sensorgap.jobs import run_default
 
     run_default(Path(args.out), workers=args.workers)
+    write_manifest(args.out)
     return 0
 
 

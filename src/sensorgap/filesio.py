@@ -90,3 +90,27 @@ def write_npz(path: str | Path, arrays: Mapping[str, NDArray[Any]]) -> Path:
             info.external_attr = 0o644 << 16
             zf.writestr(info, member.getvalue())
     return atomic_write_bytes(path, buf.getvalue())
+
+
+MANIFEST_NAME = "manifest.json"
+_MANIFEST_SKIP_SUFFIXES = (".tmp", "-journal", "-wal", "-shm")
+
+
+def write_manifest(folder: str | Path) -> Path:
+    """Write ``folder/manifest.json``: every file below ``folder`` (sorted relative POSIX
+    paths) with its size in bytes and SHA-256, so an assessor can verify that nothing was
+    changed or lost. Deterministic: no timestamps. Temporary and database journal files are
+    left out, and so is the manifest itself."""
+    import hashlib
+
+    root = Path(folder)
+    files = {}
+    for p in sorted(root.rglob("*")):
+        if not p.is_file() or p.name == MANIFEST_NAME or p.name.endswith(_MANIFEST_SKIP_SUFFIXES):
+            continue
+        if p.name.startswith(".") and ".tmp" in p.name:
+            continue
+        data = p.read_bytes()
+        files[p.relative_to(root).as_posix()] = {
+            "bytes": len(data), "sha256": hashlib.sha256(data).hexdigest()}
+    return write_json(root / MANIFEST_NAME, {"algorithm": "sha256", "files": files})

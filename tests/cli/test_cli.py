@@ -112,3 +112,17 @@ def test_bad_vehicle_file_via_cli(tmp_path: Path) -> None:
                "--points", str(bad))
     assert proc.returncode == 2
     assert str(bad) in proc.stderr and proc.stderr.count("\n") == 1
+
+
+def test_run_folders_carry_a_manifest(tmp_path: Path) -> None:
+    import hashlib
+
+    out = tmp_path / "cov"
+    assert main(["coverage", "--vehicle", "system_a", "--environment", "clear", "--target",
+                 "car", "--resolution", "2", "--extent=-10,40,-10,10", "--out", str(out)]) == 0
+    manifest = json.loads((out / "manifest.json").read_text())
+    files = manifest["files"]
+    assert set(files) == {"coverage.npz", "coverage.png", "summary.json"}
+    for name, entry in files.items():
+        data = (out / name).read_bytes()
+        assert entry == {"bytes": len(data), "sha256": hashlib.sha256(data).hexdigest()}
