@@ -18,7 +18,8 @@ if TYPE_CHECKING:
 
 EXIT_INPUT = 2
 EXIT_INTERNAL = 1
-_GLUED_OPTIONS = {"--extent", "--height", "--ego-lane", "--target-lane"}
+_GLUED_OPTIONS = {"--extent", "--height", "--ego-lane", "--target-lane", "--lanes",
+                  "--start", "--goal"}
 
 
 def _float_list(text: str, n: int, option: str) -> list[float]:
@@ -167,6 +168,47 @@ def cmd_search(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_corridor(args: argparse.Namespace) -> int:
+    """The least-detectable approach path into a critical zone (corridor search)."""
+    from sensorgap.coverage import GridSpec, evaluate_grid
+    from sensorgap.coverage.plot import coverage_figure, save_figure
+    from sensorgap.filesio import write_csv, write_json
+    from sensorgap.search.corridor import corridor_search
+
+    lanes = []
+    for part in args.lanes.split(","):
+        lo_hi = _float_list(part.replace(":", ","), 2, "--lanes")
+        lanes.append((lo_hi[0], lo_hi[1]))
+    res = _positive(args.lateral_res, "--lateral-res")
+    scene = _scene(args)
+    c = corridor_search(scene, args.start, args.goal, lanes, args.speed, lateral_res=res)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    write_csv(out / "corridor.csv", ["t", "x", "y", "heading", "pd"],
+              [c.t, c.x, c.y, c.heading, c.pd])
+    ys = [lo for lo, _ in lanes] + [hi for _, hi in lanes]
+    grid = GridSpec(min(args.start, -10.0) - 5.0, max(args.goal, 10.0) + 5.0,
+                    min(ys) - 10.0, max(ys) + 10.0, 0.25, scene.target.reference_height_m)
+    fig = coverage_figure(evaluate_grid(scene, grid, workers=2), scene.system,
+                          f"{scene.system.name}: least-detectable {scene.target.name} path, "
+                          f"{scene.conditions.env.name}, P_undet = {c.p_undetected:.3g}")
+    fig.axes[0].plot(c.x, c.y, color="magenta", linewidth=2.0, label="corridor")
+    fig.axes[0].legend(loc="upper left", fontsize=8)
+    save_figure(fig, out / "corridor.png")
+    write_json(out / "summary.json", {
+        "vehicle": scene.system.name, "environment": scene.conditions.env.name,
+        "target": scene.target.name, "start_x_m": args.start, "goal_x_m": args.goal,
+        "lanes_m": lanes, "speed_rel_m_s": args.speed, "lateral_res_m": res,
+        "p_undetected": c.p_undetected, "log10_p_undetected": c.log10_p_undetected,
+        "duration_s": float(c.t[-1]),
+        "min_pd": float(c.pd.min()), "max_pd": float(c.pd.max()),
+        "files": ["corridor.csv", "corridor.png", "summary.json"]})
+    write_manifest(out)
+    print(f"{out}: P(undetected along the corridor) = {c.p_undetected:.3g} "
+          f"(log10 {c.log10_p_undetected:.1f}) over {c.t[-1]:.1f} s")
+    return 0
+
+
 def cmd_schema(args: argparse.Namespace) -> int:
     """Print the JSON Schema of vehicle / environment / target files."""
     from sensorgap.filesio import json_bytes
@@ -261,6 +303,17 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-sun", action="store_true", help="do not search sun azimuth/elevation")
     p.add_argument("--out", required=True, help="run folder (resumes if it exists)")
     p.set_defaults(func=cmd_search)
+
+    p = sub.add_parser("corridor", help="least-detectable approach path (corridor search)")
+    _add_scene_args(p)
+    p.add_argument("--start", type=float, default=-60.0, help="start x (vehicle frame), m")
+    p.add_argument("--goal", type=float, default=6.0, help="critical-zone x, m")
+    p.add_argument("--lanes", default="-7.5:-3.75",
+                   help="lateral lane bands LO:HI[,LO:HI...] in the vehicle frame, m")
+    p.add_argument("--speed", type=float, default=8.0, help="relative speed along x, m/s")
+    p.add_argument("--lateral-res", type=float, default=0.25, help="lattice row spacing, m")
+    p.add_argument("--out", required=True, help="output folder")
+    p.set_defaults(func=cmd_corridor)
 
     p = sub.add_parser("schema", help="JSON Schema of the config files")
     p.add_argument("kind", nargs="?", default="all",

@@ -1,0 +1,128 @@
+"""Corridor search: the least-detectable approach path into a critical zone.
+
+After Ponn, Lanz & Diermeyer (2020), who search the path the sensors perceive worst with A*
+on the coverage map. Here, in the ego's vehicle frame (the ego's sensors move with it, so a
+path is relative motion), a lattice over the coverage map:
+
+* nodes: points at the target's reference height, one column per sensor cycle and rows
+  ``lateral_res`` apart that lie on a lane band (``lanes``: lateral intervals in the
+  vehicle frame, m), with the exact fused Pd at each;
+* edges: from column i to column i + 1 (one sensor cycle, ``step = v_rel * dt``), lateral
+  moves of at most ``max_lateral_cells`` rows per column, which bounds the relative heading
+  (kinematics) and the lateral speed ``<= max_lateral_cells * res / dt``;
+* cost of entering a cell: ``-ln(1 - Pd)``, the negative log of the probability that the
+  sensor cycle there misses the target (per-cycle independence, as the search metrics), so
+  the shortest path maximises ``P_undet = exp(-sum cost)`` over the whole approach.
+
+The path runs from the start column (``x_start``) to the critical zone (``x_goal``; e.g.
+just ahead of the ego's front bumper for an overtaking target). The networkx shortest path
+(Dijkstra with a virtual source and sink) is returned as a time-sampled trajectory.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import networkx as nx
+import numpy as np
+from numpy.typing import NDArray
+
+from sensorgap.coverage.scene import Scene
+from sensorgap.errors import InputError
+
+F64 = NDArray[np.float64]
+#: Cost of a cell where the target is detected with certainty (Pd = 1): -ln(1e-300).
+CERTAIN_COST = -math.log(1e-300)
+
+
+@dataclass(frozen=True)
+class Corridor:
+    """The least-detectable path (vehicle frame) and what it achieves.
+
+    Attributes:
+        t: time, s. x, y: position of the target's reference point, m. heading: rad.
+        pd: per-cycle detection probability along the path.
+        p_undetected: probability the target is never detected along the whole path.
+        log10_p_undetected: the same in the log domain (stays graded where it underflows).
+        speed_rel: relative speed along x, m/s.
+    """
+
+    t: F64
+    x: F64
+    y: F64
+    heading: F64
+    pd: F64
+    p_undetected: float
+    log10_p_undetected: float
+    speed_rel: float
+
+
+def corridor_search(
+    scene: Scene, x_start: float, x_goal: float, lanes: list[tuple[float, float]],
+    speed_rel: float, dt: float = 0.05, lateral_res: float = 0.25,
+    max_lateral_cells: int = 1, height: float | None = None,
+) -> Corridor:
+    """Least-detectable path from ``x_start`` to ``x_goal`` (vehicle frame, m) on ``lanes``.
+
+    Args:
+        speed_rel: relative speed of the target along x, m/s (> 0: moving towards +x).
+        dt: sensor cycle, s (one column per cycle: column spacing ``speed_rel * dt``).
+        lateral_res: row spacing, m. max_lateral_cells: rows per cycle at most.
+    """
+    if not (math.isfinite(speed_rel) and speed_rel > 0.0):
+        raise InputError("--speed", "", f"relative speed must be > 0 m/s, got {speed_rel!r}")
+    if not x_goal > x_start:
+        raise InputError("--goal", "", f"goal x ({x_goal:g}) must lie ahead of start x "
+                         f"({x_start:g}) in the direction of motion")
+    if not lanes or any(not (lo < hi) for lo, hi in lanes):
+        raise InputError("--lanes", "", "need at least one lateral interval lo < hi (m)")
+    step = speed_rel * dt
+    n_cols = max(2, round((x_goal - x_start) / step) + 1)
+    y_lo, y_hi = min(lo for lo, _ in lanes), max(hi for _, hi in lanes)
+    h = scene.target.reference_height_m if height is None else height
+    # columns at the cycle spacing, rows at lateral_res: the exact fused Pd per node
+    xs = np.asarray(x_start + np.arange(n_cols) * step, dtype=np.float64)
+    ys = np.asarray(np.arange(y_lo + 0.5 * lateral_res, y_hi, lateral_res), dtype=np.float64)
+    on_lane = np.zeros(ys.size, dtype=bool)
+    for lo, hi in lanes:
+        on_lane |= (ys >= lo) & (ys <= hi)
+    if not on_lane.any():
+        raise InputError("--lanes", "", f"no row of {lateral_res:g} m fits the lanes")
+    rows = np.flatnonzero(on_lane)
+    pd = _pd_nodes(scene, xs, ys[rows], h)
+    with np.errstate(divide="ignore"):
+        cost = np.where(pd >= 1.0, CERTAIN_COST, -np.log1p(-np.minimum(pd, 1.0)))
+    g = nx.DiGraph()
+    for r in range(rows.size):
+        g.add_edge("source", (0, r), weight=float(cost[0, r]))
+        g.add_edge((n_cols - 1, r), "sink", weight=0.0)
+    for c in range(n_cols - 1):
+        for r in range(rows.size):
+            for dr in range(-max_lateral_cells, max_lateral_cells + 1):
+                r2 = r + dr
+                # stay on the lattice and do not jump across a gap between lane bands
+                if 0 <= r2 < rows.size and abs(int(rows[r2]) - int(rows[r])) == abs(dr):
+                    g.add_edge((c, r), (c + 1, r2), weight=float(cost[c + 1, r2]))
+    path = nx.shortest_path(g, "source", "sink", weight="weight")[1:-1]
+    cols = np.array([p[0] for p in path])
+    rr = np.array([p[1] for p in path])
+    x, y = xs[cols], ys[rows[rr]]
+    heading = np.arctan2(np.gradient(y), np.gradient(x))
+    pd_path = pd[cols, rr]
+    total = float(np.sum(cost[cols, rr]))
+    return Corridor(t=cols * dt, x=x, y=y, heading=heading, pd=pd_path,
+                    p_undetected=math.exp(-total), log10_p_undetected=-total / math.log(10.0),
+                    speed_rel=speed_rel)
+
+
+def _pd_nodes(scene: Scene, xs: F64, ys: F64, height: float) -> F64:
+    """Exact fused Pd at every lattice node, (columns, rows)."""
+    from sensorgap.coverage.points import evaluate_points
+
+    X, Y = np.meshgrid(xs, ys, indexing="ij")
+    pts = np.column_stack([X.ravel(), Y.ravel(), np.full(X.size, height)])
+    return evaluate_points(scene, pts).fused.reshape(X.shape)
+
+
+__all__ = ["CERTAIN_COST", "Corridor", "corridor_search"]
