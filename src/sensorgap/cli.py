@@ -161,7 +161,8 @@ def cmd_search(args: argparse.Namespace) -> int:
         args.vehicle, [f for f in args.families.split(",") if f],
         [e for e in args.environments.split(",") if e], args.budget, args.seed, args.top,
         Path(args.out), strategy=args.strategy, mode=args.pd, sun_search=not args.no_sun,
-        environments_file=Path(args.environments_file) if args.environments_file else None)
+        environments_file=Path(args.environments_file) if args.environments_file else None,
+        detection=args.detection)
     write_manifest(args.out)
     print(f"{args.out}: {outcome.evaluated} evaluated, {outcome.reused} reused, "
           f"best risk {outcome.summary['best_risk']:.3g}, {len(outcome.ranking)} ranked")
@@ -301,6 +302,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--pd", default="lookup", choices=["lookup", "exact"],
                    help="Pd per step from cached coverage maps or exact evaluation")
     p.add_argument("--no-sun", action="store_true", help="do not search sun azimuth/elevation")
+    p.add_argument("--detection", default="cumulative",
+                   help="reliable detection: 'cumulative' (Pd >= 0.99) or M/N confirmation")
     p.add_argument("--out", required=True, help="run folder (resumes if it exists)")
     p.set_defaults(func=cmd_search)
 

@@ -19,6 +19,7 @@ import math
 from collections import OrderedDict
 from dataclasses import dataclass, field
 from functools import cached_property
+from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -26,6 +27,7 @@ from numpy.typing import NDArray
 from sensorgap.config import EnvironmentConfig, TargetConfig, load_target
 from sensorgap.coverage import GridSpec, Scene, evaluate_grid, evaluate_points
 from sensorgap.coverage.kernel import evaluate_sensor
+from sensorgap.errors import InputError
 from sensorgap.models import Conditions, System
 from sensorgap.scenarios.family import Scenario
 from sensorgap.scenarios.trajectory import DT_S
@@ -38,6 +40,39 @@ LATERAL_MARGIN_M = 0.2
 MAP_EXTENT = (-120.0, 260.0, -40.0, 40.0)
 MAP_RESOLUTION_M = 0.5
 _ALMOST_ONE = float(np.nextafter(1.0, 0.0))
+
+
+@dataclass(frozen=True)
+class DetectionRule:
+    """When a target counts as reliably detected.
+
+    ``cumulative``: the first step at which ``1 - P_undet(t) >= threshold`` (independent
+    steps). ``m_of_n``: track confirmation, the first step k at which the probability that at
+    least ``m`` of the last ``n`` cycles detected the target is ``>= threshold``
+    (Poisson-binomial over the window, independent cycles).
+    """
+
+    kind: Literal["cumulative", "m_of_n"] = "cumulative"
+    m: int = 3
+    n: int = 5
+    threshold: float = 0.99
+
+    @classmethod
+    def parse(cls, text: str) -> DetectionRule:
+        """``cumulative`` or ``M/N`` (e.g. ``3/5``); anything else -> ``InputError``."""
+        if text == "cumulative":
+            return cls()
+        parts = text.split("/")
+        if len(parts) == 2 and all(p.strip().isdigit() for p in parts):
+            m, n = int(parts[0]), int(parts[1])
+            if 1 <= m <= n <= 50:
+                return cls(kind="m_of_n", m=m, n=n)
+        raise InputError("--detection", "", f"expected 'cumulative' or M/N with "
+                         f"1 <= M <= N <= 50 (e.g. 3/5), got {text!r}")
+
+    def label(self) -> str:
+        """Short text for settings and reports."""
+        return "cumulative" if self.kind == "cumulative" else f"{self.m}/{self.n}"
 
 
 @dataclass
@@ -64,6 +99,7 @@ class Trace:
     collided: bool
     duration_s: float
     extra: dict[str, float] = field(default_factory=dict)
+    rule: DetectionRule = field(default_factory=DetectionRule)
 
     @cached_property
     def log_undetected(self) -> F64:
@@ -124,11 +160,13 @@ class Evaluator:
     """Pd per step for scenarios of one vehicle (caches scenes and coverage maps)."""
 
     def __init__(self, system: System, mode: str = "lookup", max_maps: int = 32,
-                 resolution_m: float = MAP_RESOLUTION_M) -> None:
+                 resolution_m: float = MAP_RESOLUTION_M,
+                 rule: DetectionRule | None = None) -> None:
         if mode not in ("lookup", "exact"):
             raise ValueError(f"mode must be 'lookup' or 'exact', got {mode!r}")
         self.system = system
         self.mode = mode
+        self.rule = rule or DetectionRule()
         self.resolution_m = resolution_m
         self.max_maps = max_maps
         self._maps: OrderedDict[tuple[str, str], tuple[GridSpec, NDArray[np.float32]]] = (
@@ -266,7 +304,7 @@ class Evaluator:
         return Trace(t=sc.ego.t[:n], x=kin.x[:n], y=kin.y[:n], pd=pd, ttc=kin.ttc[:n],
                      headway=kin.headway[:n], distance=kin.distance[:n],
                      ego_speed=sc.ego.speed[:n], heading=sc.ego.heading[:n],
-                     collided=bool(hits.size), duration_s=duration_s)
+                     collided=bool(hits.size), duration_s=duration_s, rule=self.rule)
 
 
 __all__ = ["DT_S", "Evaluator", "Kinematics", "Trace", "kinematics"]

@@ -32,7 +32,7 @@ from sensorgap.search.evaluate import Trace
 
 #: Time constant of the imminence weight of the risk, s.
 TAU_S = 2.0
-#: Cumulative detection probability that counts as reliable detection.
+#: Cumulative detection probability that counts as reliable detection (the default rule).
 RELIABLE_PD = 0.99
 #: Per-step Pd below which a step belongs to a low-detection corridor.
 LOW_PD = 0.5
@@ -44,9 +44,29 @@ def _cap(v: float) -> float:
     return float(min(v, CAP_S))
 
 
+def at_least_m_of_window(pd: np.ndarray, m: int, n: int) -> np.ndarray:
+    """P(at least m detections among the last n cycles) at every step (Poisson-binomial
+    over the window of independent cycles; shorter windows at the start)."""
+    out = np.zeros(pd.size)
+    for k in range(pd.size):
+        window = pd[max(0, k - n + 1):k + 1]
+        dist = np.zeros(window.size + 1)  # dist[j] = P(j detections so far)
+        dist[0] = 1.0
+        for p in window:
+            dist[1:] = dist[1:] * (1.0 - p) + dist[:-1] * p
+            dist[0] *= 1.0 - p
+        out[k] = float(dist[m:].sum()) if m <= window.size else 0.0
+    return out
+
+
 def detection_index(tr: Trace) -> int | None:
-    """First step with cumulative detection probability >= ``RELIABLE_PD`` (or None)."""
-    hit = np.flatnonzero(tr.p_undetected <= 1.0 - RELIABLE_PD)
+    """First step at which the target counts as reliably detected under ``tr.rule``
+    (cumulative Pd >= threshold, or M-of-N confirmation), or None."""
+    rule = tr.rule
+    if rule.kind == "cumulative":
+        hit = np.flatnonzero(tr.p_undetected <= 1.0 - rule.threshold)
+    else:
+        hit = np.flatnonzero(at_least_m_of_window(tr.pd, rule.m, rule.n) >= rule.threshold)
     return int(hit[0]) if hit.size else None
 
 

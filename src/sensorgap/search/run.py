@@ -24,7 +24,7 @@ from sensorgap.errors import InputError
 from sensorgap.filesio import format_float, write_json
 from sensorgap.models import load_system
 from sensorgap.scenarios import load_families
-from sensorgap.search.evaluate import Evaluator
+from sensorgap.search.evaluate import DetectionRule, Evaluator
 from sensorgap.search.metrics import metric_names
 from sensorgap.search.problem import Result, SearchProblem
 from sensorgap.search.ranking import MIN_DISTANCE, diverse_top, explain
@@ -65,7 +65,8 @@ def run_search(vehicle: str | Path, families: list[str], environments: list[str]
                budget: int, seed: int, top: int, out: Path, strategy: str = "cem",
                mode: str = "lookup", sun_search: bool = True,
                environments_file: Path | None = None, progress: bool | None = None,
-               min_distance: float = MIN_DISTANCE) -> SearchOutcome:
+               min_distance: float = MIN_DISTANCE,
+               detection: str = "cumulative") -> SearchOutcome:
     """Search, store every candidate, write the ranking; see the module docstring."""
     if not 1 <= budget <= MAX_BUDGET:
         raise InputError("--budget", "", f"must be within 1..{MAX_BUDGET}, got {budget}")
@@ -90,11 +91,13 @@ def run_search(vehicle: str | Path, families: list[str], environments: list[str]
                          f"families ({len(fams)}); give at least one evaluation per family")
     system = load_system(vehicle)
     envs = {e: all_envs[e] for e in dict.fromkeys(environments)}
-    evaluator = Evaluator(system, mode=mode)
+    rule = DetectionRule.parse(detection)
+    evaluator = Evaluator(system, mode=mode, rule=rule)
     problems = {f.name: SearchProblem(f, envs, evaluator, sun_search) for f in fams}
     settings = {"vehicle": system.name, "vehicle_file": system.source.name,
                 "families": [f.name for f in fams], "environments": list(envs),
-                "seed": seed, "strategy": strategy, "pd": mode, "sun_search": sun_search}
+                "seed": seed, "strategy": strategy, "pd": mode, "sun_search": sun_search,
+                "detection": rule.label()}
     out.mkdir(parents=True, exist_ok=True)
     store = Store(out / "search.sqlite", settings)
     shares = [budget // len(fams) + (1 if i < budget % len(fams) else 0)
