@@ -17,6 +17,7 @@ from typing import Any, ClassVar, TypeVar
 import numpy as np
 from numpy.typing import NDArray
 
+from sensorgap.plugins import load_plugins
 from sensorgap.registry import Registry
 from sensorgap.roads import RoadNetwork
 from sensorgap.scenarios.trajectory import LIMITS, Limits, Trajectory
@@ -142,14 +143,8 @@ class Family:
 K = TypeVar("K", bound=type[FamilyKind])
 
 
-def _load_plugins() -> None:
-    from sensorgap.search.plugins import load_plugins
-
-    load_plugins()
-
-
 _KINDS: Registry[type[FamilyKind]] = Registry("family kind", key=lambda c: c.name,
-                                        on_lookup=_load_plugins)
+                                        on_lookup=load_plugins)
 
 
 def register_kind(cls: K) -> K:

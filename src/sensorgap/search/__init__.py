@@ -1,6 +1,6 @@
 """Search for critical scenarios: where and when a target stays undetected while it
 becomes dangerous. See ``docs/search.md``."""
 
-from sensorgap.search.plugins import GROUP, load_plugins
+from sensorgap.plugins import GROUP, load_plugins
 
 __all__ = ["GROUP", "load_plugins"]

@@ -26,6 +26,7 @@ from typing import ClassVar, Literal, TypeVar
 
 import numpy as np
 
+from sensorgap.plugins import load_plugins
 from sensorgap.registry import Registry
 from sensorgap.scenarios.trajectory import DT_S
 from sensorgap.search.evaluate import Trace
@@ -120,14 +121,8 @@ class Metric(ABC):
 M = TypeVar("M", bound=type[Metric])
 
 
-def _load_plugins() -> None:
-    from sensorgap.search.plugins import load_plugins
-
-    load_plugins()
-
-
 _METRICS: Registry[type[Metric]] = Registry("metric", key=lambda c: c.name,
-                                        on_lookup=_load_plugins)
+                                        on_lookup=load_plugins)
 
 
 def register_metric(cls: M) -> M:

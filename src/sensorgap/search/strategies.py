@@ -16,6 +16,7 @@ from typing import Any, ClassVar, TypeVar
 import numpy as np
 from numpy.typing import NDArray
 
+from sensorgap.plugins import load_plugins
 from sensorgap.registry import Registry
 
 F64 = NDArray[np.float64]
@@ -55,14 +56,8 @@ class Strategy(ABC):
 S = TypeVar("S", bound=type[Strategy])
 
 
-def _load_plugins() -> None:
-    from sensorgap.search.plugins import load_plugins
-
-    load_plugins()
-
-
 _STRATEGIES: Registry[type[Strategy]] = Registry("strategy", key=lambda c: c.name,
-                                        on_lookup=_load_plugins)
+                                        on_lookup=load_plugins)
 
 
 def register_strategy(cls: S) -> S:
