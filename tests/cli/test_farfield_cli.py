@@ -109,3 +109,33 @@ def test_bad_farfield_args_exit_2(tmp_path: Path, args: list[str], pattern: str)
     assert proc.returncode == 2, proc.stderr
     assert pattern in proc.stderr and "Traceback" not in proc.stderr
     assert not out.exists()
+
+
+def _motorway_variant(tmp_path: Path, name: str, old: str, new: str) -> Path:
+    text = resolve_road("motorway_r500").read_text()
+    assert old in text
+    p = tmp_path / name
+    p.write_text(text.replace(old, new, 1))
+    return p
+
+
+@pytest.mark.parametrize(("name", "old", "new", "pattern"), [
+    ("neg.xodr", 'hdg="0.0" length="500.0"', 'hdg="0.0" length="-5.0"', "length"),
+    ("nolanes.xodr", "<lanes>", "<lanesX>", "lanes"),
+])
+def test_bad_road_geometry_exit_2(tmp_path: Path, name: str, old: str, new: str,
+                                  pattern: str) -> None:
+    if name == "nolanes.xodr":
+        text = resolve_road("motorway_r500").read_text()
+        start, end = text.index("<lanes>"), text.index("</lanes>") + len("</lanes>")
+        road = tmp_path / name
+        road.write_text(text[:start] + text[end:])
+    else:
+        road = _motorway_variant(tmp_path, name, old, new)
+    out = tmp_path / "out"
+    proc = run("farfield", "--vehicle", "system_a", "--environment", "clear", "--road",
+               str(road), "--out", str(out))
+    assert proc.returncode == 2, proc.stderr
+    assert str(road) in proc.stderr and pattern in proc.stderr
+    assert proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr
+    assert not out.exists()
