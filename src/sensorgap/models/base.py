@@ -23,6 +23,7 @@ from sensorgap.models.geometry import Mount
 
 F64 = NDArray[np.float64]
 SnrFunction = Callable[[F64, F64, F64], F64]
+GlareSnrFunction = Callable[[F64, F64, F64, F64], F64]
 
 
 @dataclass
@@ -36,10 +37,22 @@ class PreparedSensor:
         effects: which effects were modelled for this scene (e.g. ``glare``), with a note.
         uses_angles: whether ``snr_db`` reads azimuth/elevation (a gain pattern); when not,
             callers may pass zeros and skip computing them.
+        snr_db_glare: for sensors the sun can blind: SNR (dB) with a per-point glare weight
+            ``w`` in [0, 1] (the fraction of the direct-sun term applied, see
+            ``SensorModel.glare_weights``), ``snr_db_glare(r, az, el, w)``; ``None`` when the
+            scene has no direct sun or the sensor is immune. With ``w`` equal to the
+            scene's own weight it equals ``snr_db``.
+        signal_db, snr_from_signal: the same split in two, for lookup maps of glare-prone
+            sensors: the received signal (dB, a smooth function of the geometry that can be
+            tabulated) and SNR (dB) from that signal and a glare weight;
+            ``snr_db_glare(r, az, el, w) == snr_from_signal(signal_db(r, az, el), w)``.
     """
 
     snr_db: SnrFunction
     uses_angles: bool = True
+    snr_db_glare: GlareSnrFunction | None = None
+    signal_db: SnrFunction | None = None
+    snr_from_signal: Callable[[F64, F64], F64] | None = None
     terms_db: dict[str, float] = field(default_factory=dict)
     effects: dict[str, str] = field(default_factory=dict)
 
@@ -68,6 +81,11 @@ class SensorModel(ABC):
     def may_be_glared(self, mount: Mount, conditions: Conditions) -> bool:
         """Whether the direct sun can affect this sensor in ``conditions`` (default: no)."""
         return False
+
+    def glare_weights(self, mount: Mount, sun_directions: F64) -> F64:
+        """Glare weight in [0, 1] for (N, 3) vehicle-frame sun unit vectors (rows of NaN:
+        no direct sun); default: immune (zeros)."""
+        return np.zeros(len(sun_directions))
 
 
 def log10_range(r: F64) -> F64:

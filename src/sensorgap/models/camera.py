@@ -32,7 +32,12 @@ from sensorgap.config.target import TargetConfig
 from sensorgap.models.base import F64, PreparedSensor, SensorModel
 from sensorgap.models.conditions import Band, Conditions
 from sensorgap.models.constants import BOLTZMANN_J_K, PLANCK_J_S, SPEED_OF_LIGHT_M_S
-from sensorgap.models.geometry import Mount, angle_outside_fov, pattern_loss_db
+from sensorgap.models.geometry import (
+    Mount,
+    angle_outside_fov,
+    angles_outside_fov,
+    pattern_loss_db,
+)
 from sensorgap.models.numerics import LN10_OVER_10
 from sensorgap.models.registry import register
 
@@ -86,6 +91,32 @@ class Camera(SensorModel):
         w = math.cos(0.5 * math.pi * outside / margin) ** 2
         return w if w > 1e-9 else 0.0
 
+    def glare_weights(self, mount: Mount, sun_directions: F64) -> F64:
+        """Vectorised ``glare_weight`` for (N, 3) vehicle-frame sun unit vectors; rows of
+        NaN (no direct sun) get 0."""
+        d = np.asarray(sun_directions, dtype=np.float64)
+        w = np.zeros(len(d))
+        margin = math.radians(self.params.glare_margin_deg)
+        # cheap exact pre-filter: a direction glaring the camera lies within
+        # acos(cos(hfov/2 + margin) cos(vfov/2 + margin)) of the boresight
+        a = min(0.5 * mount.hfov + margin, math.pi)
+        b = min(0.5 * mount.vfov + margin, 0.5 * math.pi)
+        bore = mount.rotation()[:, 0]
+        cos_bound = math.cos(a) * math.cos(b) if a < 0.5 * math.pi else -2.0
+        with np.errstate(invalid="ignore"):
+            ok = (d @ bore) >= cos_bound - 1e-12  # NaN rows (no sun) compare False
+        if not ok.any():
+            return w
+        outside = angles_outside_fov(mount, d[ok])
+        if margin > 0.0:
+            frac = np.minimum(outside / margin, 1.0)
+            wk = np.where(outside <= 0.0, 1.0, np.cos(0.5 * math.pi * frac) ** 2)
+            wk = np.where((outside >= margin) | (wk <= 1e-9), 0.0, wk)
+        else:
+            wk = np.where(outside <= 0.0, 1.0, 0.0)
+        w[ok] = wk
+        return w
+
     def may_be_glared(self, mount: Mount, conditions: Conditions) -> bool:
         """True when the sun is in or within ``glare_margin_deg`` of the field of view."""
         return self.glare_weight(mount, conditions) > 0.0
@@ -120,9 +151,12 @@ class Camera(SensorModel):
         k_db = math.fsum(terms.values())
         thermal = BOLTZMANN_J_K * p.noise_bandwidth_hz * p.system_noise_temperature_k * conv
         w = self.glare_weight(mount, conditions)
+        sun_full = 0.0  # direct-sun electrons at glare weight 1
+        if env.sun is not None and env.sun.visible:
+            sun_full = env.sun.direct_irradiance_w_m2 * math.pi * aperture**2 / 4.0 * conv
         sun_e = 0.0
         if w > 0.0 and env.sun is not None:
-            sun_e = w * env.sun.direct_irradiance_w_m2 * math.pi * aperture**2 / 4.0 * conv
+            sun_e = w * sun_full
             effects["glare"] = f"direct sun on the sensor, weight {w:.3f}, {sun_e:.3e} e-"
         ln_fixed_noise = math.log(thermal + sun_e)
         gamma = conditions.attenuation_db_km(self.band())
@@ -140,10 +174,29 @@ class Camera(SensorModel):
             ln_noise = np.logaddexp(0.5 * ln_ne, ln_fixed_noise)
             return np.asarray((ln_ne - ln_noise) / LN10_OVER_10, dtype=np.float64)
 
+        def signal_db(r: F64, az: F64, el: F64) -> F64:
+            lr20 = 20.0 * np.log10(r)
+            npo_db = np.minimum(sigma_db - lr20 - ifov_db, n_pix_db)
+            ne_db = k_db + npo_db - lr20 - one_way_db_m * r
+            if edge > 0.0:
+                ne_db = ne_db - pattern_loss_db(az, el, hfov, vfov, edge)
+            return np.asarray(ne_db, dtype=np.float64)
+
+        def snr_from_signal(ne_db: F64, w: F64) -> F64:
+            ln_ne = ne_db * LN10_OVER_10
+            ln_noise = np.logaddexp(0.5 * ln_ne, np.log(thermal + w * sun_full))
+            return np.asarray((ln_ne - ln_noise) / LN10_OVER_10, dtype=np.float64)
+
+        def snr_db_glare(r: F64, az: F64, el: F64, w: F64) -> F64:
+            return snr_from_signal(signal_db(r, az, el), w)
+
         terms["N_thermal [dB e-]"] = 10.0 * math.log10(thermal)
         if sun_e > 0.0:
             terms["N_sun [dB e-]"] = 10.0 * math.log10(sun_e)
         terms["weather one-way [dB/km]"] = gamma
         terms["focal length [mm]"] = focal * 1e3
         return PreparedSensor(snr_db=snr_db, terms_db=terms, effects=effects,
-                              uses_angles=edge > 0.0)
+                              uses_angles=edge > 0.0,
+                              snr_db_glare=snr_db_glare if sun_full > 0.0 else None,
+                              signal_db=signal_db if sun_full > 0.0 else None,
+                              snr_from_signal=snr_from_signal if sun_full > 0.0 else None)

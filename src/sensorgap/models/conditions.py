@@ -10,6 +10,9 @@ import math
 from dataclasses import dataclass, field
 from typing import Literal
 
+import numpy as np
+from numpy.typing import NDArray
+
 from sensorgap.config.environment import EnvironmentConfig
 from sensorgap.models import attenuation as att
 
@@ -59,6 +62,24 @@ class Conditions:
             el = sun.elevation_rad
             direction = (math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el))
         return cls(env=env, sun_direction=direction)
+
+    @staticmethod
+    def sun_directions(env: EnvironmentConfig,
+                       ego_heading_rad: NDArray[np.float64]) -> NDArray[np.float64] | None:
+        """Vehicle-frame unit vectors to the sun, (N, 3), one per ego heading (rad), the
+        vectorised ``from_config(...).sun_direction``; ``None`` when the sun cannot reach
+        any sensor (no sun, not visible, at or below the horizon)."""
+        sun = env.sun
+        if sun is None or not sun.visible or sun.elevation_deg <= 0.0:
+            return None
+        h = np.asarray(ego_heading_rad, dtype=np.float64)
+        if sun.frame == "vehicle":
+            az = np.full(h.shape, sun.azimuth_rad)
+        else:
+            az = 0.5 * math.pi - sun.azimuth_rad - h
+        el = sun.elevation_rad
+        return np.column_stack([math.cos(el) * np.cos(az), math.cos(el) * np.sin(az),
+                                np.full(h.shape, math.sin(el))])
 
     @property
     def roc_shift_db(self) -> float:

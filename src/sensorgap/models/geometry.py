@@ -152,6 +152,17 @@ def angle_outside_fov(mount: Mount, direction: tuple[float, float, float]) -> fl
     return math.hypot(ex_h, ex_v)
 
 
+def angles_outside_fov(mount: Mount, directions: F64) -> F64:
+    """Vectorised ``angle_outside_fov``: (N, 3) vehicle-frame unit directions -> how far
+    (rad) each lies outside the field of view (0 inside)."""
+    d = np.asarray(directions, dtype=np.float64) @ mount.rotation()
+    az = np.arctan2(d[:, 1], d[:, 0])
+    el = np.arctan2(d[:, 2], np.hypot(d[:, 0], d[:, 1]))
+    ex_h = np.maximum(0.0, np.abs(az) - 0.5 * mount.hfov)
+    ex_v = np.maximum(0.0, np.abs(el) - 0.5 * mount.vfov)
+    return np.asarray(np.hypot(ex_h, ex_v), dtype=np.float64)
+
+
 def horizontal_reach_bbox(
     mount: Mount, height: float
 ) -> tuple[float, float, float, float] | None:

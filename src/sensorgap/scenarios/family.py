@@ -9,7 +9,7 @@ target class, duration) and parameter ranges, loaded from ``templates/scenarios/
 from __future__ import annotations
 
 import math
-from abc import ABC, abstractmethod
+from abc import ABC
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any, ClassVar, TypeVar
@@ -20,10 +20,19 @@ from numpy.typing import NDArray
 from sensorgap.plugins import load_plugins
 from sensorgap.registry import Registry
 from sensorgap.roads import RoadNetwork
-from sensorgap.scenarios.trajectory import LIMITS, Limits, Trajectory
+from sensorgap.scenarios.batch import (
+    LaneTable,
+    Scenario,
+    ScenarioBatch,
+    Tracks,
+    check_tracks,
+)
+from sensorgap.scenarios.trajectory import LIMITS, InfeasibleScenario, Limits, OffRoad
 
 F64 = NDArray[np.float64]
 ParamValue = float | str
+#: Parameter columns of a batch: name -> (B,) float64 values, or (B,) str for choices.
+Columns = Mapping[str, NDArray[Any]]
 
 
 @dataclass(frozen=True)
@@ -59,21 +68,14 @@ class Param:
         return self.choices if self.choices else (self.low, self.high)
 
 
-@dataclass(frozen=True)
-class Scenario:
-    """Generated trajectories: ego (rear axle) and target (centre), same time axis."""
-
-    ego: Trajectory
-    target: Trajectory
-    target_class: str
-
-
 class FamilyKind(ABC):
     """A parameterised generator of ego and target trajectories.
 
     Subclasses set ``name``, ``settings`` (setting -> default, ``None`` = required) and
     ``parameters`` (the default space; a TOML family narrows or replaces ranges) and
-    implement ``generate``. Register with ``@register_kind``.
+    implement ``generate_batch`` (fast: B parameter vectors at once, the built-in kinds) or
+    ``generate`` (one at a time; the batch default loops over it). Register with
+    ``@register_kind``.
     """
 
     name: ClassVar[str]
@@ -81,11 +83,55 @@ class FamilyKind(ABC):
     settings: ClassVar[dict[str, Any]] = {}
     parameters: ClassVar[tuple[Param, ...]] = ()
 
-    @abstractmethod
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        if (getattr(cls, "name", None) and cls.generate is FamilyKind.generate
+                and cls.generate_batch is FamilyKind.generate_batch):
+            raise TypeError(f"family kind {cls.__name__} must implement generate_batch or "
+                            "generate")
+
     def generate(self, family: Family, p: Mapping[str, ParamValue],
                  net: RoadNetwork) -> Scenario:
-        """Trajectories for parameters ``p``; ``InfeasibleScenario`` if they are not
-        feasible, ``InputError`` (from the road layer) if they leave the road."""
+        """Trajectories for parameters ``p``; ``InfeasibleScenario`` (``OffRoad`` when they
+        leave the road) if they are not feasible. Default: a batch of one."""
+        cols = {k: np.array([v]) for k, v in p.items()}
+        b = self.generate_batch(family, cols, net)
+        if not b.ok[0]:
+            assert b.offroad is not None
+            raise (OffRoad if b.offroad[0] else InfeasibleScenario)(b.notes[0])
+        return b.scenario(0)
+
+    def generate_batch(self, family: Family, cols: Columns, net: RoadNetwork
+                       ) -> ScenarioBatch:
+        """Trajectories for B parameter vectors (columns); infeasible rows are marked in
+        the batch. Default: one ``generate`` call per row."""
+        n = len(next(iter(cols.values()))) if cols else 1
+        rows: list[Scenario | None] = []
+        notes = [""] * n
+        off = np.zeros(n, dtype=bool)
+        for i in range(n):
+            try:
+                rows.append(self.generate(family, {k: _scalar(v[i]) for k, v in cols.items()},
+                                          net))
+            except InfeasibleScenario as exc:
+                rows.append(None)
+                notes[i] = str(exc)
+                off[i] = isinstance(exc, OffRoad)
+        ok = np.array([r is not None for r in rows], dtype=bool)
+        good = next((r for r in rows if r is not None), None)
+        t = good.ego.t if good is not None else np.arange(2, dtype=np.float64)
+
+        def stack(who: str) -> Tracks:
+            arrs = []
+            for r in rows:
+                tr = getattr(r, who) if r is not None else None
+                arrs.append([np.zeros(len(t)) if tr is None else getattr(tr, a)
+                             for a in ("x", "y", "heading", "speed")])
+            return Tracks(*(np.array([a[j] for a in arrs]).reshape(n, len(t))
+                            for j in range(4)))
+
+        return ScenarioBatch(t, stack("ego"), stack("target"), ok, notes,
+                             family.target_class, off)
 
 
 @dataclass
@@ -100,6 +146,7 @@ class Family:
     source: str = ""
     description: str = ""
     _names: tuple[str, ...] = field(default=(), repr=False)
+    _tables: dict[tuple[str, int], LaneTable] = field(default_factory=dict, repr=False)
 
     @property
     def target_class(self) -> str:
@@ -121,11 +168,30 @@ class Family:
         return {p.name: p.decode(float(v)) for p, v in zip(self.space, u, strict=True)}
 
     def generate(self, params: Mapping[str, ParamValue]) -> Scenario:
-        """Generate and check feasibility (target limits; ego with car limits)."""
-        sc = self.kind.generate(self, params, self.network)
-        sc.ego.check(LIMITS["car"], "ego")
-        sc.target.check(self.limits, "target")
-        return sc
+        """Generate and check feasibility (target limits; ego with car limits); a batch of
+        one, so identical to the corresponding row of ``generate_batch``."""
+        b = self.generate_batch({k: np.array([v]) for k, v in params.items()})
+        if not b.ok[0]:
+            assert b.offroad is not None
+            raise (OffRoad if b.offroad[0] else InfeasibleScenario)(b.notes[0])
+        return b.scenario(0)
+
+    def generate_batch(self, cols: Columns) -> ScenarioBatch:
+        """Generate B scenarios (parameter columns) and check feasibility per row."""
+        b = self.kind.generate_batch(self, cols, self.network)
+        for who, tracks, limits in (("ego", b.ego, LIMITS["car"]),
+                                    ("target", b.target, self.limits)):
+            bad, notes = check_tracks(tracks, b.t, limits, who)
+            b.reject(bad, notes)
+        return b
+
+    def lane_table(self, road_id: str, lane: int) -> LaneTable:
+        """The (cached) sampled centre line of a lane."""
+        key = (road_id, lane)
+        tab = self._tables.get(key)
+        if tab is None:
+            tab = self._tables[key] = LaneTable(self.network, road_id, lane)
+        return tab
 
     def distance(self, a: Mapping[str, ParamValue], b: Mapping[str, ParamValue]) -> float:
         """Normalised parameter distance: RMS over dimensions of the range-scaled difference
@@ -137,6 +203,10 @@ class Family:
             else:
                 acc += (p.encode(a[p.name]) - p.encode(b[p.name])) ** 2
         return math.sqrt(acc / max(1, len(self.space)))
+
+
+def _scalar(v: Any) -> ParamValue:
+    return str(v) if isinstance(v, str | np.str_) else float(v)
 
 
 # -- registries --------------------------------------------------------------------------

@@ -1,31 +1,29 @@
 """The built-in family kinds: cut-in, overtake (approach from behind), slower or stopped
 vehicle ahead (in a curve), crossing pedestrian/cyclist. Open loop: the ego keeps its speed
-and lane (the search asks what the sensors see, not how a planner reacts)."""
+and lane (the search asks what the sensors see, not how a planner reacts).
+
+Each kind generates a whole batch at once (``generate_batch``): B parameter vectors ->
+(B, T) states, lane centres from the family's ``LaneTable``; one scenario is a batch of one.
+"""
 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from functools import cache
 
 import numpy as np
 from numpy.typing import NDArray
 
 from sensorgap.roads import RoadNetwork
-from sensorgap.scenarios.family import (
-    Family,
-    FamilyKind,
-    Param,
-    ParamValue,
-    Scenario,
-    register_kind,
+from sensorgap.scenarios.batch import (
+    ScenarioBatch,
+    Tracks,
+    blend_batch,
+    off_road,
+    tracks_from_path,
 )
-from sensorgap.scenarios.trajectory import (
-    InfeasibleScenario,
-    OffRoad,
-    Trajectory,
-    blend,
-    time_axis,
-)
+from sensorgap.scenarios.family import Columns, Family, FamilyKind, Param, register_kind
+from sensorgap.scenarios.trajectory import InfeasibleScenario, time_axis
 
 F64 = NDArray[np.float64]
 
@@ -34,48 +32,63 @@ _ROAD_SETTINGS = {"road": None, "road_id": None, "target": None, "duration_s": 1
 
 def travel_direction(net: RoadNetwork, road_id: str, lane: int) -> int:
     """+1 if traffic in ``lane`` moves along +s, -1 against (from the lane graph)."""
+    return _travel(id(net), net, road_id, lane)
+
+
+@cache
+def _travel(_key: int, net: RoadNetwork, road_id: str, lane: int) -> int:
     for _node, data in net.lane_graph.nodes(data=True):
         if data.get("road") == road_id and data.get("lane") == lane:
             return int(data["travel"])
     raise InfeasibleScenario(f"lane {lane} does not exist on road {road_id}")
 
 
-def _on_road(net: RoadNetwork, road_id: str, s: F64, who: str) -> None:
-    length = net.road(road_id).length
-    lo, hi = float(np.min(s)), float(np.max(s))
-    if lo < 0.0 or hi > length:
-        raise OffRoad(f"{who} leaves road {road_id} (s from {lo:.1f} to {hi:.1f} m, "
-                                 f"road is 0..{length:g} m)")
+def _col(cols: Columns, name: str) -> F64:
+    """A float parameter column as (B, 1) for broadcasting against time."""
+    return np.asarray(cols[name], dtype=np.float64)[:, None]
 
 
-def lane_poses(net: RoadNetwork, road_id: str, lane: int, s: F64,
-               travel: int) -> tuple[F64, F64, F64]:
-    """Lane-centre x, y (m) and heading in the travel direction (rad) at road ``s``."""
-    x, y, h, _ = net.lane_center(road_id, lane, s)
-    return x, y, h + (math.pi if travel < 0 else 0.0)
+def _is(cols: Columns, name: str, value: str) -> NDArray[np.bool_]:
+    return np.asarray(cols[name]).astype(str) == value
 
 
-def _follow(net: RoadNetwork, road_id: str, lane: int, s: F64, travel: int,
-            t: F64) -> Trajectory:
-    x, y, h = lane_poses(net, road_id, lane, s, travel)
-    return Trajectory.from_path(t, x, y, h)
+class _LaneKind(FamilyKind):
+    """Shared machinery: objects moving along lanes at constant speed."""
 
+    def _start(self, family: Family, lane_key: str) -> tuple[str, int, int, F64]:
+        st = family.settings
+        rid = str(st["road_id"])
+        lane = int(st[lane_key])
+        return rid, lane, travel_direction(family.network, rid, lane), time_axis(
+            family.duration_s)
 
-def _changing(net: RoadNetwork, road_id: str, lane_from: int, lane_to: int, s: F64,
-              travel: int, t: F64, w: F64) -> Trajectory:
-    xa, ya, ha = lane_poses(net, road_id, lane_from, s, travel)
-    if np.any(w > 0.0):
-        xb, yb, _ = lane_poses(net, road_id, lane_to, s, travel)
-        xa, ya = (1.0 - w) * xa + w * xb, (1.0 - w) * ya + w * yb
-    return Trajectory.from_path(t, xa, ya, ha)
+    @staticmethod
+    def _follow(family: Family, rid: str, lane: int, s: F64, travel: int, t: F64) -> Tracks:
+        tab = family.lane_table(rid, lane)
+        x, y, h = tab.poses(s, travel)
+        return tracks_from_path(t, x, y, h)
 
+    @staticmethod
+    def _changing(family: Family, rid: str, lane_from: int, lane_to: int, s: F64,
+                  travel: int, t: F64, w: F64) -> Tracks:
+        xa, ya, ha = family.lane_table(rid, lane_from).poses(s, travel)
+        xb, yb, _ = family.lane_table(rid, lane_to).poses(s, travel)
+        x = (1.0 - w) * xa + w * xb
+        y = (1.0 - w) * ya + w * yb
+        return tracks_from_path(t, x, y, ha)
 
-def _f(p: Mapping[str, ParamValue], name: str) -> float:
-    return float(p[name])
+    @staticmethod
+    def _batch(t: F64, ego: Tracks, target: Tracks, family: Family,
+               checks: list[tuple[NDArray[np.bool_], list[str]]]) -> ScenarioBatch:
+        b = ScenarioBatch(t, ego, target, np.ones(len(ego.x), dtype=bool),
+                          [""] * len(ego.x), family.target_class)
+        for bad, notes in checks:
+            b.reject(bad, notes, offroad=True)
+        return b
 
 
 @register_kind
-class CutIn(FamilyKind):
+class CutIn(_LaneKind):
     """Target starts in ``target_lane`` ``dx0_m`` ahead of the ego's rear axle (negative:
     behind) and changes into ``ego_lane``; both at constant speed."""
 
@@ -92,24 +105,24 @@ class CutIn(FamilyKind):
         Param("shape", choices=("cosine", "quintic")),
     )
 
-    def generate(self, family: Family, p: Mapping[str, ParamValue],
-                 net: RoadNetwork) -> Scenario:
-        st = family.settings
-        rid = str(st["road_id"])
-        t = time_axis(family.duration_s)
-        tr = travel_direction(net, rid, int(st["ego_lane"]))
-        s_e = _f(p, "ego_s0_m") + tr * _f(p, "ego_speed_m_s") * t
-        s_t = _f(p, "ego_s0_m") + tr * (_f(p, "dx0_m") + _f(p, "target_speed_m_s") * t)
-        _on_road(net, rid, s_e, "ego")
-        _on_road(net, rid, s_t, "target")
-        w = blend(str(p["shape"]), (t - _f(p, "lc_start_s")) / _f(p, "lc_duration_s"))
-        ego = _follow(net, rid, int(st["ego_lane"]), s_e, tr, t)
-        tgt = _changing(net, rid, int(st["target_lane"]), int(st["ego_lane"]), s_t, tr, t, w)
-        return Scenario(ego, tgt, family.target_class)
+    def generate_batch(self, family: Family, cols: Columns,
+                       net: RoadNetwork) -> ScenarioBatch:
+        rid, lane, tr, t = self._start(family, "ego_lane")
+        s0 = _col(cols, "ego_s0_m")
+        s_e = s0 + tr * _col(cols, "ego_speed_m_s") * t
+        s_t = s0 + tr * (_col(cols, "dx0_m") + _col(cols, "target_speed_m_s") * t)
+        length = net.road(rid).length
+        checks = [off_road(s_e, length, rid, "ego"), off_road(s_t, length, rid, "target")]
+        u = (t - _col(cols, "lc_start_s")) / _col(cols, "lc_duration_s")
+        w = blend_batch(np.asarray(cols["shape"]).astype(str), u)
+        ego = self._follow(family, rid, lane, s_e, tr, t)
+        tgt = self._changing(family, rid, int(family.settings["target_lane"]), lane, s_t, tr,
+                             t, w)
+        return self._batch(t, ego, tgt, family, checks)
 
 
 @register_kind
-class Overtake(FamilyKind):
+class Overtake(_LaneKind):
     """Target approaches from behind in ``target_lane`` (rear and side field), passes the
     ego and, with ``merge = "yes"``, merges into the ego lane once its centre is
     ``merge_gap_m`` ahead of the ego's rear axle."""
@@ -127,29 +140,27 @@ class Overtake(FamilyKind):
         Param("merge_duration_s", 2.5, 5.0, unit="s"),
     )
 
-    def generate(self, family: Family, p: Mapping[str, ParamValue],
-                 net: RoadNetwork) -> Scenario:
-        st = family.settings
-        rid = str(st["road_id"])
-        t = time_axis(family.duration_s)
-        tr = travel_direction(net, rid, int(st["ego_lane"]))
-        ve, dv, dx0 = _f(p, "ego_speed_m_s"), _f(p, "speed_delta_m_s"), _f(p, "dx0_m")
-        s_e = _f(p, "ego_s0_m") + tr * ve * t
-        s_t = _f(p, "ego_s0_m") + tr * (dx0 + (ve + dv) * t)
-        _on_road(net, rid, s_e, "ego")
-        _on_road(net, rid, s_t, "target")
-        if p["merge"] == "yes":
-            t_m = (_f(p, "merge_gap_m") - dx0) / dv
-            w = blend("cosine", (t - t_m) / _f(p, "merge_duration_s"))
-        else:
-            w = np.zeros_like(t)
-        ego = _follow(net, rid, int(st["ego_lane"]), s_e, tr, t)
-        tgt = _changing(net, rid, int(st["target_lane"]), int(st["ego_lane"]), s_t, tr, t, w)
-        return Scenario(ego, tgt, family.target_class)
+    def generate_batch(self, family: Family, cols: Columns,
+                       net: RoadNetwork) -> ScenarioBatch:
+        rid, lane, tr, t = self._start(family, "ego_lane")
+        ve, dv, dx0 = (_col(cols, "ego_speed_m_s"), _col(cols, "speed_delta_m_s"),
+                       _col(cols, "dx0_m"))
+        s0 = _col(cols, "ego_s0_m")
+        s_e = s0 + tr * ve * t
+        s_t = s0 + tr * (dx0 + (ve + dv) * t)
+        length = net.road(rid).length
+        checks = [off_road(s_e, length, rid, "ego"), off_road(s_t, length, rid, "target")]
+        t_m = (_col(cols, "merge_gap_m") - dx0) / dv
+        w = blend_batch(np.full(len(s0), "cosine"), (t - t_m) / _col(cols, "merge_duration_s"))
+        w = np.where(_is(cols, "merge", "yes")[:, None], w, 0.0)
+        ego = self._follow(family, rid, lane, s_e, tr, t)
+        tgt = self._changing(family, rid, int(family.settings["target_lane"]), lane, s_t, tr,
+                             t, w)
+        return self._batch(t, ego, tgt, family, checks)
 
 
 @register_kind
-class SlowAhead(FamilyKind):
+class SlowAhead(_LaneKind):
     """A slower or stopped target ``gap0_m`` ahead in the ego lane (place it in a curve
     with ``ego_s0_m``); both at constant speed, so a gap that closes ends in a collision."""
 
@@ -163,22 +174,21 @@ class SlowAhead(FamilyKind):
         Param("gap0_m", 40.0, 220.0, unit="m"),
     )
 
-    def generate(self, family: Family, p: Mapping[str, ParamValue],
-                 net: RoadNetwork) -> Scenario:
-        st = family.settings
-        rid, lane = str(st["road_id"]), int(st["lane"])
-        t = time_axis(family.duration_s)
-        tr = travel_direction(net, rid, lane)
-        s_e = _f(p, "ego_s0_m") + tr * _f(p, "ego_speed_m_s") * t
-        s_t = _f(p, "ego_s0_m") + tr * (_f(p, "gap0_m") + _f(p, "target_speed_m_s") * t)
-        _on_road(net, rid, s_e, "ego")
-        _on_road(net, rid, s_t, "target")
-        return Scenario(_follow(net, rid, lane, s_e, tr, t), _follow(net, rid, lane, s_t, tr, t),
-                        family.target_class)
+    def generate_batch(self, family: Family, cols: Columns,
+                       net: RoadNetwork) -> ScenarioBatch:
+        rid, lane, tr, t = self._start(family, "lane")
+        s0 = _col(cols, "ego_s0_m")
+        s_e = s0 + tr * _col(cols, "ego_speed_m_s") * t
+        s_t = s0 + tr * (_col(cols, "gap0_m") + _col(cols, "target_speed_m_s") * t)
+        length = net.road(rid).length
+        checks = [off_road(s_e, length, rid, "ego"), off_road(s_t, length, rid, "target")]
+        ego = self._follow(family, rid, lane, s_e, tr, t)
+        tgt = self._follow(family, rid, lane, s_t, tr, t)
+        return self._batch(t, ego, tgt, family, checks)
 
 
 @register_kind
-class Crossing(FamilyKind):
+class Crossing(_LaneKind):
     """A pedestrian or cyclist crosses the road ``cross_ahead_m`` ahead of the ego's start,
     at constant speed, from the ego's ``side``; timed so that it reaches the ego lane's
     centre ``conflict_offset_s`` after the ego's rear axle reaches the crossing line
@@ -196,24 +206,26 @@ class Crossing(FamilyKind):
         Param("side", choices=("right", "left")),
     )
 
-    def generate(self, family: Family, p: Mapping[str, ParamValue],
-                 net: RoadNetwork) -> Scenario:
-        st = family.settings
-        rid, lane = str(st["road_id"]), int(st["ego_lane"])
-        t = time_axis(family.duration_s)
-        tr = travel_direction(net, rid, lane)
-        ve = _f(p, "ego_speed_m_s")
-        s_e = _f(p, "ego_s0_m") + tr * ve * t
-        s_c = _f(p, "ego_s0_m") + tr * _f(p, "cross_ahead_m")
-        _on_road(net, rid, s_e, "ego")
-        _on_road(net, rid, np.array([s_c]), "crossing line")
-        inner, outer = net.lane_edges(rid, lane, np.array([s_c]))
-        t_c = 0.5 * float(inner[0] + outer[0])
+    def generate_batch(self, family: Family, cols: Columns,
+                       net: RoadNetwork) -> ScenarioBatch:
+        rid, lane, tr, t = self._start(family, "ego_lane")
+        ve = _col(cols, "ego_speed_m_s")
+        s0 = _col(cols, "ego_s0_m")
+        s_e = s0 + tr * ve * t
+        s_c = s0 + tr * _col(cols, "cross_ahead_m")  # (B, 1)
+        length = net.road(rid).length
+        checks = [off_road(s_e, length, rid, "ego"),
+                  off_road(s_c, length, rid, "crossing line")]
+        s_cc = np.clip(s_c[:, 0], 0.0, length)
+        inner, outer = net.lane_edges(rid, lane, s_cc)
+        t_c = (0.5 * (inner + outer))[:, None]
         right = -tr  # the ego's right in road t: -t when driving along +s
-        side = right if p["side"] == "right" else -right
-        t_p = _f(p, "cross_ahead_m") / ve + _f(p, "conflict_offset_s")
-        lat = t_c + side * _f(p, "target_speed_m_s") * (t_p - t)
-        x, y = net.road_to_world(rid, np.full_like(t, s_c), lat)
-        _, _, h = net.reference_line(rid, np.array([s_c]))
-        tgt = Trajectory.from_path(t, x, y, np.full_like(t, float(h[0]) - side * 0.5 * math.pi))
-        return Scenario(_follow(net, rid, lane, s_e, tr, t), tgt, family.target_class)
+        side = np.where(_is(cols, "side", "right"), right, -right).astype(np.float64)[:, None]
+        t_p = _col(cols, "cross_ahead_m") / ve + _col(cols, "conflict_offset_s")
+        lat = t_c + side * _col(cols, "target_speed_m_s") * (t_p - t)
+        xr, yr, hr = net.reference_line(rid, s_cc)
+        xr, yr, hr = xr[:, None], yr[:, None], hr[:, None]
+        x, y = xr - lat * np.sin(hr), yr + lat * np.cos(hr)
+        tgt = tracks_from_path(t, x, y, np.broadcast_to(hr - side * 0.5 * math.pi, x.shape))
+        ego = self._follow(family, rid, lane, s_e, tr, t)
+        return self._batch(t, ego, tgt, family, checks)

@@ -1,22 +1,28 @@
-"""Evaluate a scenario: target in the ego frame per step, Pd per step, criticality.
+"""Evaluate scenarios: target in the ego frame per step, Pd per step, criticality.
 
-Two modes (``Evaluator(mode=...)``):
+Batches: ``Evaluator.evaluate_batch`` takes B generated scenarios (``ScenarioBatch``) and
+their environments and returns a ``BatchTrace`` of (B, T) arrays; one scenario
+(``Evaluator.trace``) is a batch of one, so both agree exactly.
 
-* ``exact``: ``evaluate_points`` at every step, with the sun resolved for the ego heading
-  of the step (headings grouped to 0.1 deg for a world-frame sun).
-* ``lookup``: per (weather, target class) one per-sensor coverage map without sun
-  (``evaluate_grid(per_sensor=True)``, 0.5 m cells over x -120..260 m, y -40..40 m at the
-  target's reference height), bilinear interpolation of each sensor's Pd, fused with eq. 11.
-  Cameras that the sun can glare at a step (``may_be_glared``; sun direction per ego
-  heading, 1 deg bins) and points outside the map are evaluated exactly, so the lookup only
-  approximates the interpolation between cell centres (error measured in
+Pd per step, fused in the log domain (``sensorgap.coverage.logmiss``):
+
+* ``exact``: every sensor evaluated at every step, each camera with its glare weight for
+  the sun direction of that step (the ego's heading turns a world-frame sun).
+* ``lookup``: per (weather, target class) per-sensor ln(1 - Pd) maps without sun (0.5 m
+  cells over x -120..260 m, y -40..40 m at the target's reference height), bilinear
+  interpolation; glared cameras and points outside the map are evaluated exactly, so the
+  lookup only approximates the interpolation between cell centres (error measured in
   ``benchmarks/bench_search.py``).
+
+Collisions end a scenario: steps after the first overlap of the boxes are not evaluated.
 """
 
 from __future__ import annotations
 
 import math
+import threading
 from collections import OrderedDict
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Literal
@@ -25,12 +31,21 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sensorgap.config import EnvironmentConfig, TargetConfig, load_target
-from sensorgap.coverage import GridSpec, Scene, evaluate_grid, evaluate_points
-from sensorgap.coverage.kernel import evaluate_sensor
+from sensorgap.coverage import GridSpec, Scene
+from sensorgap.coverage.logmiss import (
+    ALMOST_ONE,
+    LogMissMaps,
+    exact_log_miss,
+    log_miss_of,
+    lookup_log_miss,
+    per_sensor_pd,
+)
 from sensorgap.errors import InputError
 from sensorgap.models import Conditions, System
+from sensorgap.scenarios.batch import ScenarioBatch, Tracks
 from sensorgap.scenarios.family import Scenario
-from sensorgap.scenarios.trajectory import DT_S
+from sensorgap.scenarios.trajectory import DT_S, Trajectory
+from sensorgap.search.fastkin import kinematics_kernel
 
 F64 = NDArray[np.float64]
 
@@ -39,7 +54,7 @@ LATERAL_MARGIN_M = 0.2
 #: Map extent (vehicle frame, m) and cell size of the lookup maps.
 MAP_EXTENT = (-120.0, 260.0, -40.0, 40.0)
 MAP_RESOLUTION_M = 0.5
-_ALMOST_ONE = float(np.nextafter(1.0, 0.0))
+_ALMOST_ONE = ALMOST_ONE
 
 
 @dataclass(frozen=True)
@@ -100,11 +115,15 @@ class Trace:
     duration_s: float
     extra: dict[str, float] = field(default_factory=dict)
     rule: DetectionRule = field(default_factory=DetectionRule)
+    log_miss: F64 | None = None
 
     @cached_property
     def log_undetected(self) -> F64:
-        """log P(not detected in any step up to and including k) (independent steps)."""
-        return np.cumsum(np.log1p(-np.minimum(self.pd, _ALMOST_ONE)))
+        """log P(not detected in any step up to and including k) (independent steps);
+        from the per-step fused ln P_miss when given (exact in the log domain), else from
+        ``pd``."""
+        lm = log_miss_of(self.pd) if self.log_miss is None else self.log_miss
+        return np.cumsum(lm)
 
     @cached_property
     def p_undetected(self) -> F64:
@@ -123,33 +142,87 @@ class Kinematics:
     distance: F64
 
 
+def kinematics_arrays(ego: Tracks | Scenario, target_tracks: Tracks | None,
+                      system: System, target: TargetConfig) -> Kinematics:
+    """Target position in the ego frame, TTC (longitudinal, in-path only) and headway,
+    element-wise over arrays of any shape (states of ``Tracks`` or one ``Scenario``)."""
+    e: Tracks | Trajectory
+    g: Tracks | Trajectory
+    if isinstance(ego, Scenario):
+        e, g = ego.ego, ego.target
+    else:
+        assert target_tracks is not None
+        e, g = ego, target_tracks
+    body = system.config.vehicle
+    shape = np.shape(e.x)
+
+    def flat(a: F64) -> F64:
+        return np.ascontiguousarray(a, dtype=np.float64).reshape(-1)
+
+    out = [np.empty(int(np.prod(shape))) for _ in range(5)]
+    kinematics_kernel(flat(e.x), flat(e.y), flat(e.heading), flat(e.speed), flat(g.x),
+                      flat(g.y), flat(g.heading), flat(g.speed), target.length_m,
+                      target.width_m, 0.5 * body.width_m, body.x_front_m, body.x_rear_m,
+                      LATERAL_MARGIN_M, *out)
+    xr, yr, ttc, headway, dist = (a.reshape(shape) for a in out)
+    return Kinematics(xr, yr, ttc, headway, dist)
+
+
 def kinematics(sc: Scenario, system: System, target: TargetConfig) -> Kinematics:
     """Target position in the ego frame, TTC (longitudinal, in-path only), headway."""
-    body = system.config.vehicle
-    e, g = sc.ego, sc.target
-    c, s = np.cos(e.heading), np.sin(e.heading)
-    dx, dy = g.x - e.x, g.y - e.y
-    xr, yr = c * dx + s * dy, -s * dx + c * dy
-    vxe, vye = e.velocity()
-    vxt, vyt = g.velocity()
-    vxr = c * (vxt - vxe) + s * (vyt - vye)
-    dh = g.heading - e.heading
-    ac, as_ = np.abs(np.cos(dh)), np.abs(np.sin(dh))
-    half_long = 0.5 * (ac * target.length_m + as_ * target.width_m)
-    half_lat = 0.5 * (as_ * target.length_m + ac * target.width_m)
-    in_path = np.abs(yr) <= 0.5 * body.width_m + half_lat + LATERAL_MARGIN_M
-    front = xr >= 0.5 * (body.x_front_m + body.x_rear_m)
-    gap = np.where(front, xr - half_long - body.x_front_m, body.x_rear_m - xr - half_long)
-    closing = np.where(front, -vxr, vxr)
-    ttc = np.full_like(xr, np.inf)
-    hit = in_path & (gap <= 0.0)
-    ttc[hit] = 0.0
-    closing_ok = in_path & ~hit & (closing > 1e-9)
-    ttc[closing_ok] = gap[closing_ok] / closing[closing_ok]
-    headway = np.full_like(xr, np.inf)
-    ahead = in_path & front & ~hit & (e.speed > 0.1)
-    headway[ahead] = gap[ahead] / e.speed[ahead]
-    return Kinematics(xr, yr, ttc, headway, np.hypot(xr, yr))
+    return kinematics_arrays(sc, None, system, target)
+
+
+@dataclass
+class BatchTrace:
+    """Per-step quantities of B evaluated scenarios, (B, T) arrays on one time axis.
+
+    Row i is valid for its first ``n[i]`` steps (a collision ends a scenario); beyond that
+    ``log_miss`` is 0, TTC and headway are inf and positions repeat the last valid step.
+    See ``Trace`` for the meaning of each quantity.
+    """
+
+    t: F64
+    x: F64
+    y: F64
+    log_miss: F64
+    ttc: F64
+    headway: F64
+    distance: F64
+    ego_speed: F64
+    heading: F64
+    n: NDArray[np.int64]
+    collided: NDArray[np.bool_]
+    duration_s: float
+    rule: DetectionRule = field(default_factory=DetectionRule)
+
+    def __len__(self) -> int:
+        return len(self.n)
+
+    @cached_property
+    def valid(self) -> NDArray[np.bool_]:
+        """(B, T) step belongs to the scenario."""
+        return np.arange(len(self.t))[None, :] < self.n[:, None]
+
+    @cached_property
+    def pd(self) -> F64:
+        """(B, T) fused Pd (0 beyond the valid steps)."""
+        return np.asarray(-np.expm1(self.log_miss) + 0.0, dtype=np.float64)
+
+    @cached_property
+    def log_undetected(self) -> F64:
+        """(B, T) ln P_undet(t_k), cumulative over the steps."""
+        return np.cumsum(self.log_miss, axis=1)
+
+    def row(self, i: int) -> Trace:
+        """Scenario ``i`` as a ``Trace`` (its valid steps)."""
+        k = int(self.n[i])
+        return Trace(t=self.t[:k], x=self.x[i, :k], y=self.y[i, :k], pd=self.pd[i, :k],
+                     ttc=self.ttc[i, :k], headway=self.headway[i, :k],
+                     distance=self.distance[i, :k], ego_speed=self.ego_speed[i, :k],
+                     heading=self.heading[i, :k], collided=bool(self.collided[i]),
+                     duration_s=self.duration_s, rule=self.rule,
+                     log_miss=self.log_miss[i, :k])
 
 
 def _env_weather_key(env: EnvironmentConfig) -> str:
@@ -157,7 +230,7 @@ def _env_weather_key(env: EnvironmentConfig) -> str:
 
 
 class Evaluator:
-    """Pd per step for scenarios of one vehicle (caches scenes and coverage maps)."""
+    """Pd per step for scenarios of one vehicle (caches scenes and lookup maps)."""
 
     def __init__(self, system: System, mode: str = "lookup", max_maps: int = 32,
                  resolution_m: float = MAP_RESOLUTION_M,
@@ -169,11 +242,13 @@ class Evaluator:
         self.rule = rule or DetectionRule()
         self.resolution_m = resolution_m
         self.max_maps = max_maps
-        self._maps: OrderedDict[tuple[str, str], tuple[GridSpec, NDArray[np.float32]]] = (
-            OrderedDict())
-        self._scenes: OrderedDict[tuple[object, ...], Scene] = OrderedDict()
+        self._maps: OrderedDict[tuple[str, str], LogMissMaps] = OrderedDict()
+        self._scenes: dict[tuple[str, str], Scene] = {}
         self._targets: dict[str, TargetConfig] = {}
         self.sensor_ids = system.sensor_ids()
+        #: point-sensor pairs evaluated exactly in lookup mode (glare, outside the map)
+        self.exact_pairs = 0
+        self._lock = threading.RLock()
 
     # -- caches ------------------------------------------------------------------------
     def target(self, name: str) -> TargetConfig:
@@ -182,129 +257,136 @@ class Evaluator:
             self._targets[name] = load_target(name)
         return self._targets[name]
 
-    def _sun(self, env: EnvironmentConfig, heading: float,
-             bin_deg: float) -> tuple[tuple[object, ...], Conditions]:
-        """(cache key, conditions) for ``env`` at an ego heading; sun quantised."""
-        wkey = _env_weather_key(env)
-        cond = Conditions.from_config(env, heading)
-        sun = env.sun
-        if cond.sun_direction is None or sun is None:
-            return (wkey, None), cond
-        if sun.frame == "world":
-            az_v = math.degrees(0.5 * math.pi - sun.azimuth_rad - heading)
-            az_v = (round(az_v / bin_deg) * bin_deg) % 360.0
-        else:
-            az_v = sun.azimuth_deg % 360.0
-        el = math.radians(sun.elevation_deg)
-        a = math.radians(az_v)
-        direction = (math.cos(el) * math.cos(a), math.cos(el) * math.sin(a), math.sin(el))
-        key = (wkey, round(az_v, 6), sun.elevation_deg, sun.direct_irradiance_w_m2)
-        return key, Conditions(env=env, sun_direction=direction)
-
-    def scene(self, key: tuple[object, ...], target: TargetConfig, cond: Conditions) -> Scene:
-        """A cached scene for (conditions key, target)."""
-        k = (*key, target.name)
-        sc = self._scenes.get(k)
-        if sc is None:
-            sc = Scene(self.system, target, cond)
-            self._scenes[k] = sc
-            if len(self._scenes) > 512:
-                self._scenes.popitem(last=False)
-        else:
-            self._scenes.move_to_end(k)
+    def scene(self, env: EnvironmentConfig, target: TargetConfig) -> Scene:
+        """The scene of (weather, target) without a sun direction (glare per point)."""
+        key = (_env_weather_key(env), target.name)
+        with self._lock:
+            sc = self._scenes.get(key)
+            if sc is None:
+                if len(self._scenes) >= 256:
+                    self._scenes.clear()
+                sc = Scene(self.system, target, Conditions(env=env, sun_direction=None))
+                for s in sc.sensors:  # prepared up front: scenes are shared by threads
+                    sc.prepared(s)
+                self._scenes[key] = sc
         return sc
 
-    def _map(self, env: EnvironmentConfig, target: TargetConfig
-             ) -> tuple[GridSpec, NDArray[np.float32]]:
-        key = (_env_weather_key(env), target.name)
-        hit = self._maps.get(key)
-        if hit is not None:
-            self._maps.move_to_end(key)
-            return hit
-        grid = GridSpec(*MAP_EXTENT, self.resolution_m, target.reference_height_m)
-        scene = Scene(self.system, target, Conditions(env=env, sun_direction=None))
-        cov = evaluate_grid(scene, grid, per_sensor=True)
-        stack = np.zeros((len(self.sensor_ids), grid.ny, grid.nx), dtype=np.float32)
-        for i, sid in enumerate(self.sensor_ids):
-            if sid in cov.pd:
-                stack[i] = cov.pd[sid]
-        self._maps[key] = (grid, stack)
-        if len(self._maps) > self.max_maps:
-            self._maps.popitem(last=False)
-        return grid, stack
+    def prepare(self, env: EnvironmentConfig, target: TargetConfig) -> None:
+        """Build the scene (and, in lookup mode, the maps) of (weather, target) now."""
+        self.scene(env, target)
+        if self.mode == "lookup":
+            self.maps(env, target)
 
-    # -- evaluation --------------------------------------------------------------------
+    def maps(self, env: EnvironmentConfig, target: TargetConfig) -> LogMissMaps:
+        """The lookup maps of (weather, target) (cached, LRU)."""
+        key = (_env_weather_key(env), target.name)
+        with self._lock:
+            hit = self._maps.get(key)
+            if hit is not None:
+                self._maps.move_to_end(key)
+                return hit
+            grid = GridSpec(*MAP_EXTENT, self.resolution_m, target.reference_height_m)
+            maps = LogMissMaps.build(self.scene(env, target), grid, workers=2)
+            self._maps[key] = maps
+            if len(self._maps) > self.max_maps:
+                self._maps.popitem(last=False)
+            return maps
+
+    # -- points ------------------------------------------------------------------------
+    def log_miss(self, env: EnvironmentConfig, target: TargetConfig, x: F64, y: F64,
+                 sun_dirs: F64 | None, exact: bool | None = None) -> F64:
+        """Fused ln P_miss at vehicle-frame points (m) with per-point sun directions."""
+        exact = self.mode == "exact" if exact is None else exact
+        scene = self.scene(env, target)
+        z = np.full(len(x), target.reference_height_m)
+        if exact:
+            return exact_log_miss(scene, x, y, z, sun_dirs)
+        out, n_exact = lookup_log_miss(self.maps(env, target), scene, x, y, z, sun_dirs)
+        with self._lock:
+            self.exact_pairs += n_exact
+        return out
+
     def per_sensor_pd(self, env: EnvironmentConfig, target: TargetConfig, heading: F64,
                       x: F64, y: F64, exact: bool | None = None) -> F64:
-        """(S, N) per-sensor Pd at vehicle-frame points x, y (m) for ego headings (rad)."""
-        exact = self.mode == "exact" if exact is None else exact
-        n = len(x)
-        out = np.zeros((len(self.sensor_ids), n))
-        z = np.full(n, target.reference_height_m)
-        bin_deg = 0.1 if exact else 1.0
-        # group the steps by their (quantised) sun key
-        if env.sun is not None and env.sun.frame == "world":
-            hq = np.round(np.degrees(heading) / bin_deg).astype(np.int64)
-            groups = [(int(h) * bin_deg, np.flatnonzero(hq == h)) for h in np.unique(hq)]
-        else:
-            groups = [(0.0, np.arange(n))]
-        inside = np.zeros(n, dtype=bool)
-        if not exact:
-            grid, stack = self._map(env, target)
-            xs0, ys0 = grid.xmin + 0.5 * grid.resolution, grid.ymin + 0.5 * grid.resolution
-            fx, fy = (x - xs0) / grid.resolution, (y - ys0) / grid.resolution
-            inside = (fx >= 0.0) & (fx <= grid.nx - 1) & (fy >= 0.0) & (fy <= grid.ny - 1)
-            idx = np.flatnonzero(inside)
-            if idx.size:
-                i0 = np.minimum(fx[idx].astype(np.int64), grid.nx - 2)
-                j0 = np.minimum(fy[idx].astype(np.int64), grid.ny - 2)
-                ax, ay = fx[idx] - i0, fy[idx] - j0
-                p00, p01 = stack[:, j0, i0], stack[:, j0, i0 + 1]
-                p10, p11 = stack[:, j0 + 1, i0], stack[:, j0 + 1, i0 + 1]
-                out[:, idx] = ((1 - ay) * ((1 - ax) * p00 + ax * p01)
-                               + ay * ((1 - ax) * p10 + ax * p11))
-        for h_deg, steps in groups:
-            key, cond = self._sun(env, math.radians(h_deg), bin_deg)
-            scene = self.scene(key, target, cond)
-            if exact:
-                cov = evaluate_points(scene, np.column_stack([x[steps], y[steps], z[steps]]))
-                out[:, steps] = cov.pd
-                continue
-            outside = steps[~inside[steps]]
-            if outside.size:
-                cov = evaluate_points(scene, np.column_stack([x[outside], y[outside],
-                                                              z[outside]]))
-                out[:, outside] = cov.pd
-            lookup = steps[inside[steps]]
-            if lookup.size == 0 or cond.sun_direction is None:
-                continue
-            for row, s in enumerate(self.system.sensors):
-                if s.model.may_be_glared(s.mount, cond):
-                    ix, _, pd = evaluate_sensor(scene, s, x[lookup], y[lookup], z[lookup])
-                    out[row, lookup] = 0.0
-                    out[row, lookup[ix]] = pd
-        return out
+        """(S, N) per-sensor Pd at vehicle-frame points x, y (m) for ego headings (rad),
+        always exact (used to explain a ranked scenario)."""
+        scene = self.scene(env, target)
+        z = np.full(len(x), target.reference_height_m)
+        return per_sensor_pd(scene, x, y, z, Conditions.sun_directions(env, heading))
 
     def fused_pd(self, env: EnvironmentConfig, target: TargetConfig, heading: F64,
                  x: F64, y: F64) -> F64:
         """Fused Pd (eq. 11) at the points."""
-        ps = np.clip(self.per_sensor_pd(env, target, heading, x, y), 0.0, 1.0)
-        certain = np.any(ps >= 1.0, axis=0)
-        fused = -np.expm1(np.sum(np.log1p(-np.minimum(ps, _ALMOST_ONE)), axis=0))
-        fused[certain] = 1.0
-        return np.asarray(fused + 0.0, dtype=np.float64)
+        lm = self.log_miss(env, target, x, y, Conditions.sun_directions(env, heading))
+        return np.asarray(-np.expm1(lm) + 0.0, dtype=np.float64)
+
+    # -- scenarios ---------------------------------------------------------------------
+    def evaluate_batch(self, batch: ScenarioBatch, env_names: Sequence[str] | NDArray[np.str_],
+                       presets: Mapping[str, EnvironmentConfig],
+                       sun_deg: F64 | None = None, rows: NDArray[np.intp] | None = None,
+                       duration_s: float | None = None) -> BatchTrace:
+        """Evaluate the ``rows`` (default: all) of a batch.
+
+        ``env_names[i]``: the preset of row i; ``sun_deg[i]`` (azimuth, elevation), deg:
+        a world-frame sun replacing the preset's (NaN: keep the preset's sun).
+        """
+        target = self.target(batch.target_class)
+        if rows is None or len(rows) == len(batch):
+            rows = np.arange(len(batch))
+            ego, tgt = batch.ego, batch.target
+        else:
+            ego, tgt = batch.ego.take(rows), batch.target.take(rows)
+        kin = kinematics_arrays(ego, tgt, self.system, target)
+        b, t = kin.x.shape
+        hit = kin.ttc <= 0.0
+        collided = np.asarray(hit.any(axis=1), dtype=bool)
+        n = np.where(collided, np.argmax(hit, axis=1) + 1, t).astype(np.int64)
+        valid = np.arange(t)[None, :] < n[:, None]
+        log_miss = np.zeros((b, t))
+        names = np.asarray(env_names)[rows]
+        sun = (np.full((b, 2), np.nan) if sun_deg is None
+               else np.asarray(sun_deg, dtype=np.float64)[rows])
+        for name in np.unique(names):
+            env = presets[str(name)]
+            g = np.flatnonzero(names == name)
+            vr, vc = np.nonzero(valid[g])
+            gr = g[vr]
+            dirs = _sun_directions(env, sun[gr], ego.heading[gr, vc])
+            log_miss[gr, vc] = self.log_miss(env, target, kin.x[gr, vc], kin.y[gr, vc], dirs)
+        ttc = np.where(valid, kin.ttc, np.inf)
+        headway = np.where(valid, kin.headway, np.inf)
+        return BatchTrace(t=batch.t, x=kin.x, y=kin.y, log_miss=log_miss, ttc=ttc,
+                          headway=headway, distance=kin.distance, ego_speed=ego.speed,
+                          heading=ego.heading, n=n, collided=collided,
+                          duration_s=float(batch.t[-1]) if duration_s is None else duration_s,
+                          rule=self.rule)
 
     def trace(self, sc: Scenario, env: EnvironmentConfig, duration_s: float) -> Trace:
-        """Evaluate a generated scenario in ``env``."""
-        target = self.target(sc.target_class)
-        kin = kinematics(sc, self.system, target)
-        hits = np.flatnonzero(kin.ttc <= 0.0)
-        n = int(hits[0]) + 1 if hits.size else len(kin.x)
-        pd = self.fused_pd(env, target, sc.ego.heading[:n], kin.x[:n], kin.y[:n])
-        return Trace(t=sc.ego.t[:n], x=kin.x[:n], y=kin.y[:n], pd=pd, ttc=kin.ttc[:n],
-                     headway=kin.headway[:n], distance=kin.distance[:n],
-                     ego_speed=sc.ego.speed[:n], heading=sc.ego.heading[:n],
-                     collided=bool(hits.size), duration_s=duration_s, rule=self.rule)
+        """Evaluate one generated scenario in ``env`` (a batch of one)."""
+        batch = ScenarioBatch.of(sc)
+        return self.evaluate_batch(batch, ["env"], {"env": env},
+                                   duration_s=duration_s).row(0)
 
 
-__all__ = ["DT_S", "Evaluator", "Kinematics", "Trace", "kinematics"]
+def _sun_directions(env: EnvironmentConfig, sun_deg: F64, heading: F64) -> F64 | None:
+    """(N, 3) vehicle-frame sun directions per point: the preset's sun, or a world-frame
+    sun (azimuth, elevation deg) per point where ``sun_deg`` is finite; NaN rows: none."""
+    base = Conditions.sun_directions(env, heading)
+    override = np.isfinite(sun_deg[:, 0])
+    if not override.any():
+        return base
+    visible = env.sun is not None and env.sun.visible
+    out = np.full((len(heading), 3), np.nan) if base is None else base.copy()
+    if not visible:
+        return None if base is None else out
+    az = np.radians(sun_deg[override, 0])
+    el = np.radians(sun_deg[override, 1])
+    a = 0.5 * math.pi - az - heading[override]
+    d = np.column_stack([np.cos(el) * np.cos(a), np.cos(el) * np.sin(a), np.sin(el)])
+    d[el <= 0.0] = np.nan
+    out[override] = d
+    return out
+
+
+__all__ = ["DT_S", "BatchTrace", "Evaluator", "Kinematics", "Trace", "kinematics",
+           "kinematics_arrays"]

@@ -29,7 +29,7 @@ import numpy as np
 from sensorgap.plugins import load_plugins
 from sensorgap.registry import Registry
 from sensorgap.scenarios.trajectory import DT_S
-from sensorgap.search.evaluate import Trace
+from sensorgap.search.evaluate import BatchTrace, Trace
 
 #: Time constant of the imminence weight of the risk, s.
 TAU_S = 2.0
@@ -69,6 +69,54 @@ def detection_index(tr: Trace) -> int | None:
     else:
         hit = np.flatnonzero(at_least_m_of_window(tr.pd, rule.m, rule.n) >= rule.threshold)
     return int(hit[0]) if hit.size else None
+
+
+def detection_index_batch(bt: BatchTrace) -> np.ndarray:
+    """(B,) ``detection_index`` of every row, -1 where never detected."""
+    rule = bt.rule
+    if rule.kind == "cumulative":
+        hit = (np.exp(bt.log_undetected) <= 1.0 - rule.threshold) & bt.valid
+    else:
+        hit = (at_least_m_of_window_batch(bt.pd, rule.m, rule.n) >= rule.threshold) & bt.valid
+    return np.where(hit.any(axis=1), np.argmax(hit, axis=1), -1)
+
+
+def at_least_m_of_window_batch(pd: np.ndarray, m: int, n: int) -> np.ndarray:
+    """Row-wise ``at_least_m_of_window`` of a (B, T) array (same recursion per row)."""
+    b, t = pd.shape
+    out = np.zeros((b, t))
+    for k in range(t):
+        lo = max(0, k - n + 1)
+        size = k + 1 - lo
+        if m > size:
+            continue
+        dist = np.zeros((b, size + 1))
+        dist[:, 0] = 1.0
+        for j in range(lo, k + 1):
+            p = pd[:, j:j + 1]
+            dist[:, 1:] = dist[:, 1:] * (1.0 - p) + dist[:, :-1] * p
+            dist[:, 0] *= 1.0 - p[:, 0]
+        out[:, k] = dist[:, m:].sum(axis=1)
+    return out
+
+
+def log10_risk_profile_batch(bt: BatchTrace) -> np.ndarray:
+    """(B, T) ``log10_risk_profile`` (floor beyond the valid steps)."""
+    finite = np.isfinite(bt.ttc)
+    ln = bt.log_undetected - np.where(finite, bt.ttc, 0.0) / TAU_S
+    out = np.where(finite & bt.valid, ln / math.log(10.0), LOG10_RISK_FLOOR)
+    return np.asarray(np.maximum(out, LOG10_RISK_FLOOR), dtype=np.float64)
+
+
+def corridor_batch(bt: BatchTrace, threshold: float = LOW_PD) -> tuple[np.ndarray, np.ndarray]:
+    """(B,) ``corridor`` of every row: [start, end) of the first longest low-Pd run."""
+    low = (bt.pd < threshold) & bt.valid
+    c = np.cumsum(low, axis=1)
+    run: np.ndarray = c - np.maximum.accumulate(np.where(low, 0, c), axis=1)
+    end = np.argmax(run, axis=1)
+    length: np.ndarray = run[np.arange(len(run)), end]
+    start = np.where(length > 0, end - length + 1, 0)
+    return start, np.where(length > 0, end + 1, 0)
 
 
 def risk_profile(tr: Trace) -> np.ndarray:
@@ -117,6 +165,11 @@ class Metric(ABC):
     def compute(self, tr: Trace) -> float:
         """The metric's value (finite)."""
 
+    def compute_batch(self, bt: BatchTrace) -> np.ndarray:
+        """(B,) values for a batch; default: ``compute`` per row (override for speed,
+        same values)."""
+        return np.array([self.compute(bt.row(i)) for i in range(len(bt))], dtype=np.float64)
+
 
 M = TypeVar("M", bound=type[Metric])
 
@@ -154,6 +207,33 @@ def compute_all(tr: Trace, names: list[str] | None = None) -> dict[str, float]:
     return out
 
 
+def compute_all_batch(bt: BatchTrace, names: list[str] | None = None
+                      ) -> dict[str, np.ndarray]:
+    """Every (or the named) metric of every row of a batch."""
+    out = {}
+    for n in names or metric_names():
+        v = np.asarray(get_metric(n).compute_batch(bt), dtype=np.float64)
+        if not np.all(np.isfinite(v)):
+            raise ValueError(f"metric {n} is not finite in some row")
+        out[n] = v
+    return out
+
+
+def _rows(bt: BatchTrace) -> np.ndarray:
+    return np.arange(len(bt))
+
+
+def _last(bt: BatchTrace, a: np.ndarray) -> np.ndarray:
+    return np.asarray(a[_rows(bt), bt.n - 1], dtype=np.float64)
+
+
+def _at_detection_batch(bt: BatchTrace, values: np.ndarray) -> np.ndarray:
+    k = detection_index_batch(bt)
+    worst = np.min(np.where(bt.valid, values, np.inf), axis=1)
+    at = values[_rows(bt), np.maximum(k, 0)]
+    return np.minimum(np.where(k >= 0, at, worst), CAP_S)
+
+
 @register_metric
 class Risk(Metric):
     name = "risk"
@@ -161,6 +241,10 @@ class Risk(Metric):
 
     def compute(self, tr: Trace) -> float:
         return float(np.max(risk_profile(tr)))
+
+    def compute_batch(self, bt: BatchTrace) -> np.ndarray:
+        prof = np.exp(bt.log_undetected) * np.exp(-bt.ttc / TAU_S)
+        return np.max(np.where(bt.valid, prof, 0.0), axis=1)
 
 
 @register_metric
@@ -172,6 +256,9 @@ class Log10Risk(Metric):
     def compute(self, tr: Trace) -> float:
         return float(np.max(log10_risk_profile(tr)))
 
+    def compute_batch(self, bt: BatchTrace) -> np.ndarray:
+        return np.max(log10_risk_profile_batch(bt), axis=1)
+
 
 @register_metric
 class PUndetectedEnd(Metric):
@@ -180,6 +267,9 @@ class PUndetectedEnd(Metric):
 
     def compute(self, tr: Trace) -> float:
         return float(tr.p_undetected[-1])
+
+    def compute_batch(self, bt: BatchTrace) -> np.ndarray:
+        return np.exp(_last(bt, bt.log_undetected))
 
 
 @register_metric
@@ -191,6 +281,9 @@ class Detected(Metric):
     def compute(self, tr: Trace) -> float:
         return 0.0 if detection_index(tr) is None else 1.0
 
+    def compute_batch(self, bt: BatchTrace) -> np.ndarray:
+        return (detection_index_batch(bt) >= 0).astype(np.float64)
+
 
 @register_metric
 class TimeToDetection(Metric):
@@ -201,6 +294,10 @@ class TimeToDetection(Metric):
     def compute(self, tr: Trace) -> float:
         k = detection_index(tr)
         return tr.duration_s if k is None else float(tr.t[k])
+
+    def compute_batch(self, bt: BatchTrace) -> np.ndarray:
+        k = detection_index_batch(bt)
+        return np.where(k >= 0, bt.t[np.maximum(k, 0)], bt.duration_s)
 
 
 def _at_detection(tr: Trace, values: np.ndarray, worst: str) -> float:
@@ -220,6 +317,9 @@ class TtcAtDetection(Metric):
     def compute(self, tr: Trace) -> float:
         return _at_detection(tr, tr.ttc, "min")
 
+    def compute_batch(self, bt: BatchTrace) -> np.ndarray:
+        return _at_detection_batch(bt, bt.ttc)
+
 
 @register_metric
 class HeadwayAtDetection(Metric):
@@ -230,6 +330,9 @@ class HeadwayAtDetection(Metric):
 
     def compute(self, tr: Trace) -> float:
         return _at_detection(tr, tr.headway, "min")
+
+    def compute_batch(self, bt: BatchTrace) -> np.ndarray:
+        return _at_detection_batch(bt, bt.headway)
 
 
 @register_metric
@@ -242,6 +345,9 @@ class DistanceAtDetection(Metric):
     def compute(self, tr: Trace) -> float:
         return _at_detection(tr, tr.distance, "min")
 
+    def compute_batch(self, bt: BatchTrace) -> np.ndarray:
+        return _at_detection_batch(bt, bt.distance)
+
 
 @register_metric
 class MinTtc(Metric):
@@ -253,6 +359,9 @@ class MinTtc(Metric):
     def compute(self, tr: Trace) -> float:
         return _cap(float(np.min(tr.ttc)))
 
+    def compute_batch(self, bt: BatchTrace) -> np.ndarray:
+        return np.minimum(np.min(bt.ttc, axis=1), CAP_S)
+
 
 @register_metric
 class MeanPd(Metric):
@@ -263,6 +372,9 @@ class MeanPd(Metric):
     def compute(self, tr: Trace) -> float:
         return float(np.mean(tr.pd))
 
+    def compute_batch(self, bt: BatchTrace) -> np.ndarray:
+        return np.sum(np.where(bt.valid, bt.pd, 0.0), axis=1) / bt.n
+
 
 @register_metric
 class CorridorDuration(Metric):
@@ -272,6 +384,10 @@ class CorridorDuration(Metric):
 
     def compute(self, tr: Trace) -> float:
         a, b = corridor(tr)
+        return (b - a) * DT_S
+
+    def compute_batch(self, bt: BatchTrace) -> np.ndarray:
+        a, b = corridor_batch(bt)
         return (b - a) * DT_S
 
 
@@ -288,6 +404,12 @@ class _CorridorPoint(Metric):
         k = a if self.index == 0 else b - 1
         return float((tr.x if self.coord == "x" else tr.y)[k])
 
+    def compute_batch(self, bt: BatchTrace) -> np.ndarray:
+        a, b = corridor_batch(bt)
+        k = a if self.index == 0 else np.maximum(b - 1, 0)
+        v = (bt.x if self.coord == "x" else bt.y)[_rows(bt), k]
+        return np.where(b > a, v, 0.0)
+
 
 @register_metric
 class CorridorT0(Metric):
@@ -298,6 +420,9 @@ class CorridorT0(Metric):
 
     def compute(self, tr: Trace) -> float:
         return float(tr.t[corridor(tr)[0]])
+
+    def compute_batch(self, bt: BatchTrace) -> np.ndarray:
+        return np.asarray(bt.t[corridor_batch(bt)[0]], dtype=np.float64)
 
 
 @register_metric

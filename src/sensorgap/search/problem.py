@@ -10,7 +10,9 @@ from __future__ import annotations
 
 import hashlib
 import json
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import NDArray
@@ -18,9 +20,8 @@ from numpy.typing import NDArray
 from sensorgap.config import EnvironmentConfig
 from sensorgap.errors import InputError
 from sensorgap.scenarios.family import Family, Param, ParamValue, Scenario
-from sensorgap.scenarios.trajectory import InfeasibleScenario
 from sensorgap.search.evaluate import Evaluator, Trace
-from sensorgap.search.metrics import compute_all, metric_names
+from sensorgap.search.metrics import compute_all_batch, metric_names
 
 F64 = NDArray[np.float64]
 
@@ -28,8 +29,54 @@ SUN_AZIMUTH = Param("sun_azimuth_deg", 0.0, 359.0, unit="deg")
 SUN_ELEVATION = Param("sun_elevation_deg", 2.0, 30.0, unit="deg")
 
 
+#: Smallest chunk worth a thread of its own, candidates.
+MIN_ROWS_PER_THREAD = 64
+#: Continuous parameters are rounded to this many decimals (their units: m, s, m/s), so
+#: stored and exported values are short and regenerate the evaluated scenario exactly.
+PARAM_DECIMALS = 4
+
+
 def _canon(v: ParamValue) -> ParamValue:
-    return v if isinstance(v, str) else float(f"{float(v):.6g}")
+    return v if isinstance(v, str) else float(np.round(float(v), PARAM_DECIMALS))
+
+
+def decode_column(p: Param, u: F64) -> NDArray[np.float64] | NDArray[np.str_]:
+    """Vectorised ``Param.decode`` (+ rounding of continuous values): (B,) unit values ->
+    (B,) parameter values."""
+    u = np.clip(np.asarray(u, dtype=np.float64), 0.0, 1.0)
+    if p.categorical:
+        k = np.minimum((u * len(p.choices)).astype(np.int64), len(p.choices) - 1)
+        return np.asarray(p.choices)[k]
+    return np.round(p.low + u * (p.high - p.low), PARAM_DECIMALS)
+
+
+@dataclass
+class Decoded:
+    """B decoded unit vectors of one problem: environment preset names, world-frame sun
+    (azimuth, elevation deg; NaN when the preset has no visible sun or the sun is not
+    searched) and the family's parameter columns."""
+
+    env_names: NDArray[np.str_]
+    sun_deg: F64
+    params: dict[str, NDArray[np.float64] | NDArray[np.str_]]
+
+    def __len__(self) -> int:
+        return len(self.env_names)
+
+    def take(self, rows: NDArray[np.intp]) -> Decoded:
+        """The selected rows."""
+        return Decoded(self.env_names[rows], self.sun_deg[rows],
+                       {k: v[rows] for k, v in self.params.items()})
+
+
+@dataclass
+class BatchOutcome:
+    """Metrics of B candidates: (B,) arrays per metric (0 for infeasible rows), the
+    feasibility and the reason of each infeasible row."""
+
+    metrics: dict[str, F64]
+    feasible: NDArray[np.bool_]
+    notes: list[str]
 
 
 @dataclass(frozen=True)
@@ -41,7 +88,7 @@ class Candidate:
     sun: tuple[float, float] | None
     params: dict[str, ParamValue]
 
-    @property
+    @cached_property
     def scenario_id(self) -> str:
         """Stable 12-hex id of (family, environment, sun, parameters)."""
         text = json.dumps([self.family, self.environment, self.sun,
@@ -120,6 +167,83 @@ class SearchProblem:
                   for p, v in zip(self.family.space, u[self._n_env:], strict=True)}
         return Candidate(self.family.name, env, sun, params)
 
+    def decode_batch(self, U: F64) -> Decoded:
+        """(B, dim) unit-cube rows -> decoded columns (same values as ``decode``)."""
+        U = np.asarray(U, dtype=np.float64).reshape(-1, self.dim)
+        names = decode_column(self.space[0], U[:, 0]).astype(str)
+        sun = np.full((len(U), 2), np.nan)
+        if self.sun_search:
+            visible = [n for n in self.env_names if self._visible_sun(n)]
+            rows = np.isin(names, np.asarray(visible, dtype=str))
+            az = np.round(self.space[1].low + np.clip(U[:, 1], 0, 1)
+                          * (self.space[1].high - self.space[1].low))
+            el = np.round(self.space[2].low + np.clip(U[:, 2], 0, 1)
+                          * (self.space[2].high - self.space[2].low))
+            sun[rows, 0], sun[rows, 1] = az[rows], el[rows]
+        params = {p.name: decode_column(p, U[:, self._n_env + j])
+                  for j, p in enumerate(self.family.space)}
+        return Decoded(names, sun, params)
+
+    def _visible_sun(self, name: str) -> bool:
+        sun = self.environments[name].sun
+        return sun is not None and sun.visible
+
+    def candidates(self, d: Decoded) -> list[Candidate]:
+        """Candidate objects of decoded rows (ids for the store and the ranking)."""
+        names = [p.name for p in self.family.space]
+        cols = [d.params[n].tolist() for n in names]
+        envs = d.env_names.tolist()
+        sun = d.sun_deg.tolist()
+        out = []
+        for i in range(len(d)):
+            s = None if sun[i][0] != sun[i][0] else (float(sun[i][0]), float(sun[i][1]))
+            out.append(Candidate(self.family.name, envs[i], s,
+                                 {n: c[i] for n, c in zip(names, cols, strict=True)}))
+        return out
+
+    def evaluate_decoded(self, d: Decoded, threads: int = 1) -> BatchOutcome:
+        """Generate and evaluate decoded rows; every metric per row. With ``threads`` > 1
+        the rows are split into contiguous chunks evaluated on that many threads (the
+        compiled kernels and numpy release the GIL); the result is identical."""
+        n = len(d)
+        if threads <= 1 or n < 2 * MIN_ROWS_PER_THREAD:
+            return self._evaluate_rows(d)
+        k = min(threads, n // MIN_ROWS_PER_THREAD)
+        bounds = np.linspace(0, n, k + 1).astype(int)
+        parts = [d.take(np.arange(a, b)) for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
+        for name in np.unique(d.env_names):  # build shared caches before the threads
+            self.evaluator.prepare(self.environments[str(name)],
+                                   self.evaluator.target(self.family.target_class))
+        with ThreadPoolExecutor(max_workers=k) as pool:
+            outs = list(pool.map(self._evaluate_rows, parts))
+        return BatchOutcome({m: np.concatenate([o.metrics[m] for o in outs])
+                             for m in outs[0].metrics},
+                            np.concatenate([o.feasible for o in outs]),
+                            [note for o in outs for note in o.notes])
+
+    def _evaluate_rows(self, d: Decoded) -> BatchOutcome:
+        batch = self.family.generate_batch(d.params)
+        ok = np.flatnonzero(batch.ok)
+        names = metric_names()
+        metrics = {m: np.zeros(len(d)) for m in names}
+        if ok.size:
+            bt = self.evaluator.evaluate_batch(batch, d.env_names, self.environments,
+                                               d.sun_deg, rows=ok,
+                                               duration_s=self.family.duration_s)
+            for m, v in compute_all_batch(bt, names).items():
+                metrics[m][ok] = v
+        return BatchOutcome(metrics, batch.ok.copy(), list(batch.notes))
+
+    def results(self, cands: list[Candidate], out: BatchOutcome) -> list[Result]:
+        """``Result`` objects of an evaluated batch."""
+        names = list(out.metrics)
+        cols = [out.metrics[n].tolist() for n in names]
+        feas = out.feasible.tolist()
+        return [Result(c, dict(zip(names, (col[i] for col in cols), strict=True))
+                       if feas[i] else {n: 0.0 for n in names}, bool(feas[i]),
+                       "" if feas[i] else out.notes[i])
+                for i, c in enumerate(cands)]
+
     def environment(self, cand: Candidate) -> EnvironmentConfig:
         """The environment of a candidate (the preset with its world-frame sun)."""
         env = self.environments[cand.environment]
@@ -134,10 +258,12 @@ class SearchProblem:
         return self.family.generate(cand.params)
 
     def evaluate(self, cand: Candidate, keep_trace: bool = False) -> Result:
-        """Generate, evaluate and compute every metric."""
-        try:
-            sc = self.scenario(cand)
-        except InfeasibleScenario as exc:
-            return Result(cand, {m: 0.0 for m in metric_names()}, False, str(exc))
-        tr = self.evaluator.trace(sc, self.environment(cand), self.family.duration_s)
-        return Result(cand, compute_all(tr), True, "", tr if keep_trace else None)
+        """Generate, evaluate and compute every metric (a batch of one)."""
+        sun = np.array([[np.nan, np.nan] if cand.sun is None else list(cand.sun)])
+        d = Decoded(np.array([cand.environment]), sun,
+                    {k: np.array([v]) for k, v in cand.params.items()})
+        r = self.results([cand], self.evaluate_decoded(d))[0]
+        if keep_trace and r.feasible:
+            r.trace = self.evaluator.trace(self.scenario(cand), self.environment(cand),
+                                           self.family.duration_s)
+        return r

@@ -105,6 +105,7 @@ def run_search(vehicle: str | Path, families: list[str], environments: list[str]
     results: list[Result] = []
     evaluated = reused = 0
     disable = (not sys.stderr.isatty()) if progress is None else not progress
+    resuming = store.count() > 0
     try:
         with tqdm(total=budget, disable=disable, desc="search", unit="cand") as bar:
             for i, (fam, share) in enumerate(zip(fams, shares, strict=True)):
@@ -112,30 +113,33 @@ def run_search(vehicle: str | Path, families: list[str], environments: list[str]
                 strat_cls = get_strategy(strategy)
                 assert strat_cls is not None
                 strat = strat_cls(prob.dim, prob.levels, share,
-                                  np.random.default_rng([seed, i]))
+                                  np.random.default_rng([seed, i]),
+                                  batch=strat_cls.batch_for(share))
                 idx = 0
                 while True:
                     X = strat.ask()
                     if len(X) == 0:
                         break
-                    batch: list[Result] = []
-                    new: list[tuple[int, Result]] = []
-                    for u in X:
-                        cand = prob.decode(u)
-                        r = store.get(fam.name, idx, cand.scenario_id)
-                        if r is None:
-                            r = prob.evaluate(cand)
-                            new.append((idx, r))
-                            evaluated += 1
-                        else:
-                            reused += 1
-                        batch.append(r)
-                        idx += 1
-                    if new:
-                        store.put(new)
-                    strat.tell(X, np.array([r.score for r in batch]))
-                    results.extend(batch)
-                    bar.update(len(batch))
+                    decoded = prob.decode_batch(X)
+                    cands = prob.candidates(decoded)
+                    batch: list[Result | None] = [
+                        store.get(fam.name, idx + j, c.scenario_id) if resuming else None
+                        for j, c in enumerate(cands)]
+                    todo = np.array([j for j, r in enumerate(batch) if r is None], dtype=int)
+                    reused += len(batch) - todo.size
+                    if todo.size:
+                        sub = decoded.take(todo)
+                        fresh = prob.results([cands[j] for j in todo],
+                                             prob.evaluate_decoded(sub))
+                        for j, r in zip(todo.tolist(), fresh, strict=True):
+                            batch[j] = r
+                        store.put([(idx + j, batch[j]) for j in todo.tolist()])
+                        evaluated += todo.size
+                    done = [r for r in batch if r is not None]
+                    strat.tell(X, np.array([r.score for r in done]))
+                    results.extend(done)
+                    idx += len(done)
+                    bar.update(len(done))
     finally:
         store.close()
     chosen = diverse_top(results, problems, top, min_distance)

@@ -36,6 +36,12 @@ class Strategy(ABC):
         self.batch = max(1, batch)
         self.asked = 0
 
+    @classmethod
+    def batch_for(cls, budget: int) -> int:
+        """Batch size for a budget (candidates are evaluated a batch at a time, so larger
+        batches are faster; adaptive strategies override it)."""
+        return max(1, min(budget, 2048))
+
     def ask(self) -> F64:
         """The next batch (never beyond the budget)."""
         n = min(self.batch, self.budget - self.asked)
@@ -127,6 +133,11 @@ class CrossEntropy(Strategy):
 
     name = "cem"
     description = "cross-entropy method (adaptive)"
+
+    @classmethod
+    def batch_for(cls, budget: int) -> int:
+        """About 40 generations per budget, 20..500 samples each."""
+        return max(20, min(500, budget // 40))
 
     def __init__(self, dim: int, levels: list[int | None], budget: int,
                  rng: np.random.Generator, batch: int = 20, elite: float = 0.2,

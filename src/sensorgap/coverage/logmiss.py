@@ -1,0 +1,303 @@
+"""Fused detection at many points in the log domain, with a per-point sun, exact or by map
+lookup: the evaluation core of the scenario search.
+
+Eq. 11 in the log domain: the fused miss probability at a point is
+``ln P_miss = sum_i ln(1 - Pd_i)`` with every ``Pd_i`` capped at ``1 - 2^-53``
+(``LOG_MISS_MIN`` = -36.7 per sensor), so a certain detection stays finite and sums of many
+steps never underflow.
+
+Glare: a scene is prepared without a sun direction; cameras that the direct sun can blind
+(``PreparedSensor.snr_db_glare``) are evaluated with their glare weight per point, computed
+from that point's vehicle-frame sun direction (``SensorModel.glare_weights``). A turning ego
+therefore sees the sun move through its cameras step by step, without quantising headings.
+
+Lookup (``LogMissMaps``): per-sensor ``ln(1 - Pd)`` maps without sun on a regular grid and
+their sum; bilinear interpolation is linear, so the interpolated sum equals the sum of the
+interpolated sensors. For glare-prone cameras the maps also hold the received signal (dB,
+``PreparedSensor.signal_db``) in the cells in view: where the sun glares a camera at a
+point, its layer is replaced by the ROC of ``snr_from_signal(interpolated signal, w)``; at
+the edge of its field of view (a corner cell out of view) and outside the map the point is
+evaluated exactly. The only approximation is the interpolation between cell centres (error
+measured in ``benchmarks/bench_search.py`` and ``sensorgap tradeoff``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+from sensorgap.coverage.grid import GridSpec, evaluate_grid
+from sensorgap.coverage.kernel import candidates, evaluate_offsets
+from sensorgap.coverage.scene import Scene
+from sensorgap.models.geometry import fov_mask, in_range, rotate_offsets, sensor_range, spherical
+from sensorgap.models.numerics import clip_snr_db
+from sensorgap.models.roc import detection_probability
+from sensorgap.models.system import Sensor
+
+F64 = NDArray[np.float64]
+F32 = NDArray[np.float32]
+IntArr = NDArray[np.intp]
+
+#: Largest per-sensor Pd used in the log domain (1 - 2^-53), and its ln(1 - Pd).
+ALMOST_ONE = float(np.nextafter(1.0, 0.0))
+LOG_MISS_MIN = math.log1p(-ALMOST_ONE)
+
+
+def log_miss_of(pd: F64) -> F64:
+    """ln(1 - Pd) with Pd capped at ``ALMOST_ONE`` (finite, <= 0)."""
+    return np.asarray(np.log1p(-np.minimum(pd, ALMOST_ONE)), dtype=np.float64)
+
+
+def glare_weights(sensor: Sensor, sun_dirs: F64 | None, index: IntArr) -> F64 | None:
+    """Glare weight per selected point (``None``: no sun, or the sensor is immune)."""
+    if sun_dirs is None or index.size == 0:
+        return None
+    w = sensor.model.glare_weights(sensor.mount, sun_dirs[index])
+    return w if bool(np.any(w > 0.0)) else None
+
+
+def sensor_pd(scene: Scene, sensor: Sensor, x: F64, y: F64, z: F64,
+              sun_dirs: F64 | None = None) -> tuple[IntArr, F64]:
+    """Pd of one sensor at flat vehicle-frame points (m) with a per-point sun.
+
+    ``sun_dirs``: (N, 3) unit vectors to the sun in the vehicle frame (rows of NaN: no
+    direct sun) or ``None``. ``scene`` must be prepared without a sun direction. Returns
+    ``(index, pd)`` for the points in view; every other point has Pd = 0.
+    """
+    m = sensor.mount
+    dx, dy, dz = x - m.x, y - m.y, z - m.z
+    idx = candidates(sensor, dx * dx + dy * dy + dz * dz)
+    if idx.size == 0:
+        return idx, np.empty(0)
+    ok, _, pd = evaluate_offsets(scene, sensor, dx[idx], dy[idx], dz[idx])
+    idx = idx[ok]
+    prepared = scene.prepared(sensor)
+    if prepared.snr_db_glare is None:
+        return idx, pd
+    w = glare_weights(sensor, sun_dirs, idx)
+    if w is None:
+        return idx, pd
+    g = np.flatnonzero(w > 0.0)
+    xs, ys, zs = rotate_offsets(m, dx[idx[g]], dy[idx[g]], dz[idx[g]])
+    r = sensor_range(xs, ys, zs)
+    _, az, el = spherical(xs, ys, zs)
+    snr = clip_snr_db(prepared.snr_db_glare(r, az, el, w[g]))
+    pd = pd.copy()
+    pd[g] = detection_probability(snr, sensor.roc, scene.roc_shift_db)
+    return idx, pd
+
+
+def exact_log_miss(scene: Scene, x: F64, y: F64, z: F64, sun_dirs: F64 | None = None,
+                   sensors: Sequence[Sensor] | None = None) -> F64:
+    """Fused ln P_miss at flat points (m), exact, per-point sun (see ``sensor_pd``)."""
+    out = np.zeros(len(x))
+    for s in scene.sensors if sensors is None else sensors:
+        idx, pd = sensor_pd(scene, s, x, y, z, sun_dirs)
+        if idx.size:
+            out[idx] += log_miss_of(pd)
+    return out
+
+
+def per_sensor_pd(scene: Scene, x: F64, y: F64, z: F64,
+                  sun_dirs: F64 | None = None) -> F64:
+    """(S, N) Pd of every sensor of the scene at flat points (m), exact, per-point sun."""
+    out = np.zeros((len(scene.sensors), len(x)))
+    for row, s in enumerate(scene.sensors):
+        idx, pd = sensor_pd(scene, s, x, y, z, sun_dirs)
+        out[row, idx] = pd
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _bilinear(img: F32, x0: float, y0: float, inv_res: float, xs: F64, ys: F64,
+              out: F64, inside: NDArray[np.bool_]) -> None:  # pragma: no cover - compiled
+    ny, nx = img.shape
+    for k in range(xs.size):
+        fx = (xs[k] - x0) * inv_res
+        fy = (ys[k] - y0) * inv_res
+        if not (fx >= 0.0 and fy >= 0.0 and fx <= nx - 1 and fy <= ny - 1):
+            inside[k] = False
+            out[k] = 0.0
+            continue
+        inside[k] = True
+        i = min(int(fx), nx - 2)
+        j = min(int(fy), ny - 2)
+        ax = fx - i
+        ay = fy - j
+        out[k] = ((1.0 - ay) * ((1.0 - ax) * img[j, i] + ax * img[j, i + 1])
+                  + ay * ((1.0 - ax) * img[j + 1, i] + ax * img[j + 1, i + 1]))
+
+
+@numba.njit(cache=True, nogil=True)
+def _bilinear_finite(img: F32, x0: float, y0: float, inv_res: float, xs: F64, ys: F64,
+                     out: F64, state: NDArray[np.int8]) -> None:  # pragma: no cover
+    """Bilinear interpolation of a map that is NaN out of view. ``state``: 1 = all four
+    corner cells in view (interpolated), 0 = none (out of view), 2 = some (the edge of the
+    field of view) or outside the map."""
+    ny, nx = img.shape
+    for k in range(xs.size):
+        fx = (xs[k] - x0) * inv_res
+        fy = (ys[k] - y0) * inv_res
+        out[k] = 0.0
+        if not (fx >= 0.0 and fy >= 0.0 and fx <= nx - 1 and fy <= ny - 1):
+            state[k] = 2
+            continue
+        i = min(int(fx), nx - 2)
+        j = min(int(fy), ny - 2)
+        a, b, c, d = img[j, i], img[j, i + 1], img[j + 1, i], img[j + 1, i + 1]
+        n_in = (int(np.isfinite(a)) + int(np.isfinite(b)) + int(np.isfinite(c))
+                + int(np.isfinite(d)))
+        if n_in == 0:
+            state[k] = 0
+            continue
+        if n_in < 4:
+            state[k] = 2
+            continue
+        ax = fx - i
+        ay = fy - j
+        out[k] = (1.0 - ay) * ((1.0 - ax) * a + ax * b) + ay * ((1.0 - ax) * c + ax * d)
+        state[k] = 1
+
+
+def signal_layer(scene: Scene, sensor: Sensor, grid: GridSpec) -> F32 | None:
+    """Received signal (dB) of a glare-prone sensor at the grid's cells in view (NaN
+    elsewhere), or ``None`` if the sensor has no ``signal_db``."""
+    prepared = scene.prepared(sensor)
+    if prepared.signal_db is None:
+        return None
+    xx, yy = np.meshgrid(grid.xs(), grid.ys())
+    m = sensor.mount
+    dx, dy = xx.ravel() - m.x, yy.ravel() - m.y
+    dz = np.full(dx.size, grid.height - m.z)
+    out = np.full(dx.size, np.nan, dtype=np.float32)
+    xs, ys, zs = rotate_offsets(m, dx, dy, dz)
+    r = sensor_range(xs, ys, zs)
+    ok = fov_mask(m, xs, ys, zs) & in_range(m, r) & (r > 0.0)
+    if ok.any():
+        _, az, el = spherical(xs[ok], ys[ok], zs[ok])
+        out[ok] = prepared.signal_db(r[ok], az, el)
+    return out.reshape(grid.ny, grid.nx)
+
+
+@dataclass
+class LogMissMaps:
+    """Per-sensor ln(1 - Pd) maps (no sun) of one scene and their sum.
+
+    Attributes:
+        grid: the grid (cell centres, m; height = the target's reference height).
+        sensor_ids: layer order (the system's sensor order).
+        layers: (S, ny, nx) float32 ln(1 - Pd_i), >= ``LOG_MISS_MIN``.
+        total: (ny, nx) float32, sum over the layers (summed in float64).
+        signal: glare-prone sensor index -> (ny, nx) float32 received signal, dB (NaN out
+            of view).
+    """
+
+    grid: GridSpec
+    sensor_ids: list[str]
+    layers: F32
+    total: F32
+    signal: dict[int, F32]
+
+    @classmethod
+    def build(cls, scene: Scene, grid: GridSpec, workers: int = 1) -> LogMissMaps:
+        """Evaluate the scene (which must have no sun direction) on ``grid``."""
+        if scene.conditions.sun_direction is not None:
+            raise ValueError("lookup maps are built without a sun direction")
+        cov = evaluate_grid(scene, grid, per_sensor=True, workers=workers)
+        ids = [s.id for s in scene.sensors]
+        layers = np.zeros((len(ids), grid.ny, grid.nx), dtype=np.float32)
+        total = np.zeros((grid.ny, grid.nx), dtype=np.float64)
+        for i, sid in enumerate(ids):
+            if sid in cov.pd:
+                lm = log_miss_of(np.asarray(cov.pd[sid], dtype=np.float64))
+                layers[i] = lm
+                total += lm
+        signal = {}
+        for i, s in enumerate(scene.sensors):
+            sig = signal_layer(scene, s, grid)
+            if sig is not None:
+                signal[i] = sig
+        return cls(grid, ids, layers, total.astype(np.float32), signal)
+
+    @property
+    def nbytes(self) -> int:
+        """Memory held by the maps, bytes."""
+        return int(self.layers.nbytes + self.total.nbytes
+                   + sum(v.nbytes for v in self.signal.values()))
+
+    def interpolate_signal(self, sensor: int, x: F64, y: F64
+                           ) -> tuple[F64, NDArray[np.int8]]:
+        """Bilinear received signal (dB) of a glare-prone sensor and the state of each
+        point (see ``_bilinear_finite``: 1 interpolated, 0 out of view, 2 edge)."""
+        g = self.grid
+        out = np.empty(len(x))
+        state = np.empty(len(x), dtype=np.int8)
+        _bilinear_finite(self.signal[sensor], g.xmin + 0.5 * g.resolution,
+                         g.ymin + 0.5 * g.resolution, 1.0 / g.resolution,
+                         np.ascontiguousarray(x, dtype=np.float64),
+                         np.ascontiguousarray(y, dtype=np.float64), out, state)
+        return out, state
+
+    def interpolate(self, layer: int | None, x: F64, y: F64) -> tuple[F64, NDArray[np.bool_]]:
+        """Bilinear value of one layer (``None``: the total) at vehicle-frame points (m),
+        and whether each point lies inside the map (outside: value 0)."""
+        g = self.grid
+        img = self.total if layer is None else self.layers[layer]
+        out = np.empty(len(x))
+        inside = np.empty(len(x), dtype=bool)
+        _bilinear(img, g.xmin + 0.5 * g.resolution, g.ymin + 0.5 * g.resolution,
+                  1.0 / g.resolution, np.ascontiguousarray(x, dtype=np.float64),
+                  np.ascontiguousarray(y, dtype=np.float64), out, inside)
+        return out, inside
+
+
+def lookup_log_miss(maps: LogMissMaps, scene: Scene, x: F64, y: F64, z: F64,
+                    sun_dirs: F64 | None = None) -> tuple[F64, int]:
+    """Fused ln P_miss at flat points (m) from the maps, exact where the maps cannot
+    answer (outside the map; glared cameras). Returns the values and how many point-sensor
+    pairs were evaluated exactly."""
+    total, inside = maps.interpolate(None, x, y)
+    n_exact = 0
+    out = np.where(inside, total, 0.0)
+    outside = np.flatnonzero(~inside)
+    if outside.size:
+        sd = None if sun_dirs is None else sun_dirs[outside]
+        out[outside] = exact_log_miss(scene, x[outside], y[outside], z[outside], sd)
+        n_exact += outside.size * len(scene.sensors)
+    if sun_dirs is None:
+        return out, n_exact
+    ins = np.flatnonzero(inside)
+    for row, s in enumerate(scene.sensors):
+        prepared = scene.prepared(s)
+        if prepared.snr_db_glare is None:
+            continue
+        w = s.model.glare_weights(s.mount, sun_dirs[ins])
+        g = ins[w > 0.0]
+        if g.size == 0:
+            continue
+        wg = w[w > 0.0]
+        layer, _ = maps.interpolate(row, x[g], y[g])
+        new = np.zeros(g.size)
+        if row in maps.signal and prepared.snr_from_signal is not None:
+            sig, state = maps.interpolate_signal(row, x[g], y[g])
+            ok = state == 1
+            if ok.any():
+                snr = clip_snr_db(prepared.snr_from_signal(sig[ok], wg[ok]))
+                new[ok] = log_miss_of(detection_probability(snr, s.roc, scene.roc_shift_db))
+        else:
+            state = np.full(g.size, 2, dtype=np.int8)
+        edge = np.flatnonzero(state == 2)
+        if edge.size:  # at the edge of the field of view: exact
+            ge = g[edge]
+            idx, pd = sensor_pd(scene, s, x[ge], y[ge], z[ge], sun_dirs[ge])
+            vals = np.zeros(edge.size)
+            vals[idx] = log_miss_of(pd)
+            new[edge] = vals
+            n_exact += edge.size
+        out[g] += new - layer
+    return out, n_exact

@@ -1,0 +1,102 @@
+"""Compiled (numba) loops of batch trajectory generation: uniform-table interpolation,
+states from sampled paths and the feasibility extremes, one pass over (B, T) each.
+
+Definitions (uniform time step ``dt``): velocity by central differences inside,
+one-sided differences at both ends (as ``numpy.gradient`` with ``edge_order=1``);
+speed ``|v|``; heading ``atan2(vy, vx)`` where the object moves (speed > 1e-6 m/s), else the
+fallback heading, taken on the fallback's branch (within pi of it) and unwrapped along time.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+F64 = NDArray[np.float64]
+
+#: Speed below which an object counts as standing still (heading from the fallback), m/s.
+STILL_M_S = 1e-6
+
+
+@numba.njit(cache=True, nogil=True)
+def table_poses(s: F64, step: float, n: int, tx: F64, ty: F64, th: F64,
+                ox: F64, oy: F64, oh: F64) -> None:  # pragma: no cover - compiled
+    """Linear interpolation of a table sampled every ``step`` from 0 (``n`` samples) at
+    flat ``s`` (clipped to the table)."""
+    last = n - 1
+    for k in range(s.size):
+        f = s[k] / step
+        if not f > 0.0:
+            f = 0.0
+        if f >= last:
+            f = float(last)
+        i = min(int(f), last - 1)
+        a = f - i
+        ox[k] = tx[i] + a * (tx[i + 1] - tx[i])
+        oy[k] = ty[i] + a * (ty[i + 1] - ty[i])
+        oh[k] = th[i] + a * (th[i + 1] - th[i])
+
+
+@numba.njit(cache=True, nogil=True)
+def path_states(x: F64, y: F64, fb: F64, dt: float, heading: F64,
+                speed: F64) -> None:  # pragma: no cover - compiled
+    """(B, T) positions (m) and fallback headings (rad) -> heading and speed."""
+    b, t = x.shape
+    two_pi = 2.0 * math.pi
+    for i in range(b):
+        prev = 0.0
+        for k in range(t):
+            if k == 0:
+                vx = (x[i, 1] - x[i, 0]) / dt
+                vy = (y[i, 1] - y[i, 0]) / dt
+            elif k == t - 1:
+                vx = (x[i, k] - x[i, k - 1]) / dt
+                vy = (y[i, k] - y[i, k - 1]) / dt
+            else:
+                vx = (x[i, k + 1] - x[i, k - 1]) / (2.0 * dt)
+                vy = (y[i, k + 1] - y[i, k - 1]) / (2.0 * dt)
+            v = math.sqrt(vx * vx + vy * vy)
+            speed[i, k] = v
+            f = fb[i, k]
+            h = math.atan2(vy, vx) if v > STILL_M_S else f
+            d = h - f  # onto the fallback's branch: (-pi, pi] around f
+            if d > math.pi or d <= -math.pi:
+                d = d - two_pi * math.floor((d + math.pi) / two_pi)
+            h = f + d
+            if k > 0:  # unwrap along time
+                j = h - prev
+                if j > math.pi or j < -math.pi:
+                    h = h - two_pi * math.floor((j + math.pi) / two_pi)
+            heading[i, k] = h
+            prev = h
+
+
+@numba.njit(cache=True, nogil=True)
+def track_extremes(heading: F64, speed: F64, dt: float,
+                   out: F64) -> None:  # pragma: no cover - compiled
+    """Per row: max speed (m/s), max |longitudinal acceleration| and max |lateral
+    acceleration| (speed x yaw rate), m/s2; differences as in ``path_states``."""
+    b, t = speed.shape
+    for i in range(b):
+        vmax = 0.0
+        amax = 0.0
+        lmax = 0.0
+        for k in range(t):
+            if k == 0:
+                j0, j1, h = 0, 1, dt
+            elif k == t - 1:
+                j0, j1, h = k - 1, k, dt
+            else:
+                j0, j1, h = k - 1, k + 1, 2.0 * dt
+            a = abs((speed[i, j1] - speed[i, j0]) / h)
+            yr = (heading[i, j1] - heading[i, j0]) / h
+            lat = abs(speed[i, k] * yr)
+            vmax = max(vmax, speed[i, k])
+            amax = max(amax, a)
+            lmax = max(lmax, lat)
+        out[i, 0] = vmax
+        out[i, 1] = amax
+        out[i, 2] = lmax
