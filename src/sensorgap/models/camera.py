@@ -94,28 +94,14 @@ class Camera(SensorModel):
     def glare_weights(self, mount: Mount, sun_directions: F64) -> F64:
         """Vectorised ``glare_weight`` for (N, 3) vehicle-frame sun unit vectors; rows of
         NaN (no direct sun) get 0."""
-        d = np.asarray(sun_directions, dtype=np.float64)
-        w = np.zeros(len(d))
         margin = math.radians(self.params.glare_margin_deg)
-        # cheap exact pre-filter: a direction glaring the camera lies within
-        # acos(cos(hfov/2 + margin) cos(vfov/2 + margin)) of the boresight
-        a = min(0.5 * mount.hfov + margin, math.pi)
-        b = min(0.5 * mount.vfov + margin, 0.5 * math.pi)
-        bore = mount.rotation()[:, 0]
-        cos_bound = math.cos(a) * math.cos(b) if a < 0.5 * math.pi else -2.0
-        with np.errstate(invalid="ignore"):
-            ok = (d @ bore) >= cos_bound - 1e-12  # NaN rows (no sun) compare False
-        if not ok.any():
-            return w
-        outside = angles_outside_fov(mount, d[ok])
-        if margin > 0.0:
-            frac = np.minimum(outside / margin, 1.0)
-            wk = np.where(outside <= 0.0, 1.0, np.cos(0.5 * math.pi * frac) ** 2)
-            wk = np.where((outside >= margin) | (wk <= 1e-9), 0.0, wk)
-        else:
-            wk = np.where(outside <= 0.0, 1.0, 0.0)
-        w[ok] = wk
-        return w
+        outside = angles_outside_fov(mount, sun_directions, limit=margin)
+        w = np.where(outside <= 0.0, 1.0, 0.0)
+        near = np.flatnonzero((outside > 0.0) & (outside < margin))
+        if near.size:
+            wn = np.cos(0.5 * math.pi * outside[near] / margin) ** 2
+            w[near] = np.where(wn > 1e-9, wn, 0.0)
+        return np.asarray(w, dtype=np.float64)
 
     def may_be_glared(self, mount: Mount, conditions: Conditions) -> bool:
         """True when the sun is in or within ``glare_margin_deg`` of the field of view."""

@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 from numpy.typing import NDArray
 
@@ -152,15 +153,36 @@ def angle_outside_fov(mount: Mount, direction: tuple[float, float, float]) -> fl
     return math.hypot(ex_h, ex_v)
 
 
-def angles_outside_fov(mount: Mount, directions: F64) -> F64:
+def angles_outside_fov(mount: Mount, directions: F64, limit: float = math.inf) -> F64:
     """Vectorised ``angle_outside_fov``: (N, 3) vehicle-frame unit directions -> how far
-    (rad) each lies outside the field of view (0 inside)."""
-    d = np.asarray(directions, dtype=np.float64) @ mount.rotation()
-    az = np.arctan2(d[:, 1], d[:, 0])
-    el = np.arctan2(d[:, 2], np.hypot(d[:, 0], d[:, 1]))
-    ex_h = np.maximum(0.0, np.abs(az) - 0.5 * mount.hfov)
-    ex_v = np.maximum(0.0, np.abs(el) - 0.5 * mount.vfov)
-    return np.asarray(np.hypot(ex_h, ex_v), dtype=np.float64)
+    (rad) each lies outside the field of view (0 inside; NaN rows give inf). With a finite
+    ``limit`` (rad), directions certainly farther than that from the field of view may be
+    reported as inf without computing the angles (a cheap bound on the boresight angle)."""
+    d = np.ascontiguousarray(directions, dtype=np.float64)
+    out = np.empty(len(d))
+    a = min(0.5 * mount.hfov + limit, math.pi)
+    b = min(0.5 * mount.vfov + limit, 0.5 * math.pi)
+    cos_bound = math.cos(a) * math.cos(b) if a < 0.5 * math.pi else -2.0
+    _outside_kernel(d, np.ascontiguousarray(mount.rotation()), 0.5 * mount.hfov,
+                    0.5 * mount.vfov, cos_bound, out)
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _outside_kernel(d: F64, rot: F64, half_h: float, half_v: float, cos_bound: float,
+                    out: F64) -> None:  # pragma: no cover - compiled
+    for k in range(d.shape[0]):
+        x = d[k, 0] * rot[0, 0] + d[k, 1] * rot[1, 0] + d[k, 2] * rot[2, 0]
+        if not x >= cos_bound:  # NaN (no sun) or certainly beyond the limit
+            out[k] = np.inf
+            continue
+        y = d[k, 0] * rot[0, 1] + d[k, 1] * rot[1, 1] + d[k, 2] * rot[2, 1]
+        z = d[k, 0] * rot[0, 2] + d[k, 1] * rot[1, 2] + d[k, 2] * rot[2, 2]
+        az = math.atan2(y, x)
+        el = math.atan2(z, math.hypot(x, y))
+        ex_h = max(0.0, abs(az) - half_h)
+        ex_v = max(0.0, abs(el) - half_v)
+        out[k] = math.hypot(ex_h, ex_v)
 
 
 def horizontal_reach_bbox(

@@ -142,6 +142,25 @@ class Kinematics:
     distance: F64
 
 
+def at_least_m_of_window_batch(pd: F64, m: int, n: int) -> F64:
+    """Row-wise ``at_least_m_of_window`` of a (B, T) array (same recursion per row)."""
+    b, t = pd.shape
+    out = np.zeros((b, t))
+    for k in range(t):
+        lo = max(0, k - n + 1)
+        size = k + 1 - lo
+        if m > size:
+            continue
+        dist = np.zeros((b, size + 1))
+        dist[:, 0] = 1.0
+        for j in range(lo, k + 1):
+            p = pd[:, j:j + 1]
+            dist[:, 1:] = dist[:, 1:] * (1.0 - p) + dist[:, :-1] * p
+            dist[:, 0] *= 1.0 - p[:, 0]
+        out[:, k] = dist[:, m:].sum(axis=1)
+    return out
+
+
 def kinematics_arrays(ego: Tracks | Scenario, target_tracks: Tracks | None,
                       system: System, target: TargetConfig) -> Kinematics:
     """Target position in the ego frame, TTC (longitudinal, in-path only) and headway,
@@ -213,6 +232,19 @@ class BatchTrace:
     def log_undetected(self) -> F64:
         """(B, T) ln P_undet(t_k), cumulative over the steps."""
         return np.cumsum(self.log_miss, axis=1)
+
+    @cached_property
+    def detection_index(self) -> NDArray[np.int64]:
+        """(B,) first step of reliable detection under ``rule`` (-1: never); computed once
+        for every metric that needs it."""
+        rule = self.rule
+        if rule.kind == "cumulative":
+            hit = (np.exp(self.log_undetected) <= 1.0 - rule.threshold) & self.valid
+        else:
+            hit = (at_least_m_of_window_batch(self.pd, rule.m, rule.n) >= rule.threshold
+                   ) & self.valid
+        return np.asarray(np.where(hit.any(axis=1), np.argmax(hit, axis=1), -1),
+                          dtype=np.int64)
 
     def row(self, i: int) -> Trace:
         """Scenario ``i`` as a ``Trace`` (its valid steps)."""

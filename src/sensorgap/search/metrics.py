@@ -72,32 +72,8 @@ def detection_index(tr: Trace) -> int | None:
 
 
 def detection_index_batch(bt: BatchTrace) -> np.ndarray:
-    """(B,) ``detection_index`` of every row, -1 where never detected."""
-    rule = bt.rule
-    if rule.kind == "cumulative":
-        hit = (np.exp(bt.log_undetected) <= 1.0 - rule.threshold) & bt.valid
-    else:
-        hit = (at_least_m_of_window_batch(bt.pd, rule.m, rule.n) >= rule.threshold) & bt.valid
-    return np.where(hit.any(axis=1), np.argmax(hit, axis=1), -1)
-
-
-def at_least_m_of_window_batch(pd: np.ndarray, m: int, n: int) -> np.ndarray:
-    """Row-wise ``at_least_m_of_window`` of a (B, T) array (same recursion per row)."""
-    b, t = pd.shape
-    out = np.zeros((b, t))
-    for k in range(t):
-        lo = max(0, k - n + 1)
-        size = k + 1 - lo
-        if m > size:
-            continue
-        dist = np.zeros((b, size + 1))
-        dist[:, 0] = 1.0
-        for j in range(lo, k + 1):
-            p = pd[:, j:j + 1]
-            dist[:, 1:] = dist[:, 1:] * (1.0 - p) + dist[:, :-1] * p
-            dist[:, 0] *= 1.0 - p[:, 0]
-        out[:, k] = dist[:, m:].sum(axis=1)
-    return out
+    """(B,) ``detection_index`` of every row, -1 where never detected (cached)."""
+    return bt.detection_index
 
 
 def log10_risk_profile_batch(bt: BatchTrace) -> np.ndarray:
