@@ -162,7 +162,7 @@ def cmd_search(args: argparse.Namespace) -> int:
         [e for e in args.environments.split(",") if e], args.budget, args.seed, args.top,
         Path(args.out), strategy=args.strategy, mode=args.pd, sun_search=not args.no_sun,
         environments_file=Path(args.environments_file) if args.environments_file else None,
-        detection=args.detection)
+        detection=args.detection, workers=args.workers)
     write_manifest(args.out)
     print(f"{args.out}: {outcome.evaluated} evaluated, {outcome.reused} reused, "
           f"best risk {outcome.summary['best_risk']:.3g}, {len(outcome.ranking)} ranked")
@@ -225,6 +225,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     """The default main job into --out."""
     from sensorgap.jobs import run_default
 
+    if not 1 <= args.workers <= 64:
+        raise InputError("--workers", "", f"must be 1..64, got {args.workers}")
     run_default(Path(args.out), workers=args.workers)
     write_manifest(args.out)
     return 0
@@ -304,6 +306,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-sun", action="store_true", help="do not search sun azimuth/elevation")
     p.add_argument("--detection", default="cumulative",
                    help="reliable detection: 'cumulative' (Pd >= 0.99) or M/N confirmation")
+    p.add_argument("--workers", type=int, default=2, help="threads per batch (default 2)")
     p.add_argument("--out", required=True, help="run folder (resumes if it exists)")
     p.set_defaults(func=cmd_search)
 

@@ -1,32 +1,132 @@
-"""The default main job (``make run``): grows with the pipeline."""
+"""The default main job (``make run``): the whole pipeline for one vehicle.
+
+``output/<system>/`` receives the coverage maps per environment preset (car), the near-field
+blind spots, the far-field (Table IV-style) profiles per environment, the critical-scenario
+search (``search.sqlite``, ``ranking.csv/json``), the exported catalog and the report, plus
+``run.json`` (settings, timings, peak memory) and ``manifest.json``. Time and peak memory
+are printed at the end (targets: 60 s, 1.5 GiB on 2 cores).
+"""
 
 from __future__ import annotations
 
+import resource
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
-from sensorgap.config import load_environment, load_target
+import numpy as np
+
+from sensorgap.analysis.farfield import LEVELS
+from sensorgap.analysis.farfield_outputs import write_farfield
+from sensorgap.analysis.nearfield import write_nearfield
+from sensorgap.analysis.paper import FarFieldSetup, run_farfield
+from sensorgap.config import load_environment, load_environments, load_target
+from sensorgap.config.presets import resolve_road
 from sensorgap.coverage import GridSpec, Scene
 from sensorgap.coverage.outputs import write_coverage
+from sensorgap.filesio import write_csv, write_json, write_manifest
 from sensorgap.models import Conditions, load_system
+from sensorgap.roads import read_opendrive
+from sensorgap.scenarios import family_presets
+from sensorgap.search.run import run_search
 
-DEFAULT_SYSTEMS = ("system_a", "system_b")
-DEFAULT_ENVIRONMENTS = ("clear", "glare_front_right")
+DEFAULT_SYSTEM = "system_a"
 DEFAULT_GRID = (-60.0, 260.0, -50.0, 50.0, 0.25)
+#: Default search: every family x every environment preset, CEM, lookup maps.
+DEFAULT_BUDGET = 100_000
+DEFAULT_TOP = 20
+DEFAULT_SEED = 1
+#: Targets of the default job on 2 cores.
+TARGET_TIME_S = 60.0
+TARGET_PEAK_MIB = 1536.0
 
 
-def run_default(out: Path, workers: int = 2) -> None:
-    """Coverage maps of System A and B (car, clear and glare) into ``out/<system>/``."""
+def peak_rss_mib() -> float:
+    """Peak resident set size of this process so far, MiB (Linux reports KiB)."""
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+class _Clock:
+    """Named wall-clock timings of the job's stages, s."""
+
+    def __init__(self) -> None:
+        self.t0 = time.perf_counter()
+        self.stages: dict[str, float] = {}
+
+    def stage(self, name: str, fn: Callable[[], Any]) -> Any:
+        t = time.perf_counter()
+        out = fn()
+        self.stages[name] = round(time.perf_counter() - t, 3)
+        print(f"  {name}: {self.stages[name]:.1f} s")
+        return out
+
+    @property
+    def total(self) -> float:
+        return time.perf_counter() - self.t0
+
+
+def _coverage(system_name: str, out: Path, workers: int) -> dict[str, Any]:
+    system = load_system(system_name)
     target = load_target("car")
     xmin, xmax, ymin, ymax, res = DEFAULT_GRID
-    for name in DEFAULT_SYSTEMS:
-        system = load_system(name)
-        for env_name in DEFAULT_ENVIRONMENTS:
-            t0 = time.perf_counter()
-            scene = Scene(system, target, Conditions.from_config(load_environment(env_name)))
-            grid = GridSpec(xmin, xmax, ymin, ymax, res, target.reference_height_m)
-            folder = out / name / "coverage" / f"{target.name}_{env_name}"
-            summary = write_coverage(scene, grid, folder, workers=workers)
-            area = summary["area_m2_by_level"]
-            print(f"{folder}: Pd=1 {area['pd=1.0']:.0f} m2, Pd>=0.5 {area['pd>=0.5']:.0f} m2, "
-                  f"Pd>0 {area['pd>0']:.0f} m2 ({time.perf_counter() - t0:.2f} s)")
+    areas = {}
+    for env_name in load_environments():
+        scene = Scene(system, target, Conditions.from_config(load_environment(env_name)))
+        grid = GridSpec(xmin, xmax, ymin, ymax, res, target.reference_height_m)
+        summary = write_coverage(scene, grid, out / "coverage" / f"{target.name}_{env_name}",
+                                 workers=workers)
+        areas[env_name] = summary["area_m2_by_level"]
+    return areas
+
+
+def _farfield(system_name: str, out: Path) -> None:
+    setup = FarFieldSetup()
+    net = read_opendrive(resolve_road(setup.road))
+    system = load_system(system_name)
+    envs, levels, metres = [], [], []
+    for env_name in load_environments():
+        scene, ff = run_farfield(system, env_name, setup, net)
+        write_farfield(scene, ff, out / "farfield" / env_name,
+                       f"{system.name}, {env_name}: car path in the right lane",
+                       extra={"setup": setup.__dict__})
+        for level, _ in LEVELS:
+            envs.append(env_name)
+            levels.append(level)
+            metres.append(round(ff.levels_m[level], 1))
+    write_csv(out / "farfield" / "table_iv.csv", ["environment", "level", "metres"],
+              [np.array(envs), np.array(levels), np.array(metres, dtype=np.float64)])
+
+
+def run_default(out: Path, workers: int = 2, system_name: str = DEFAULT_SYSTEM,
+                budget: int = DEFAULT_BUDGET, top: int = DEFAULT_TOP,
+                seed: int = DEFAULT_SEED) -> dict[str, Any]:
+    """The whole pipeline for ``system_name`` into ``out/<system>/``; returns run info."""
+    folder = out / system_name
+    folder.mkdir(parents=True, exist_ok=True)
+    clock = _Clock()
+    print(f"{folder}: default job for {system_name}")
+    clock.stage("coverage maps", lambda: _coverage(system_name, folder, workers))
+    clock.stage("near field", lambda: write_nearfield(load_system(system_name),
+                                                      folder / "nearfield"))
+    clock.stage("far field", lambda: _farfield(system_name, folder))
+    envs = list(load_environments())
+    outcome = clock.stage("search", lambda: run_search(
+        system_name, family_presets(), envs, budget, seed, top, folder, strategy="cem",
+        progress=False, workers=workers))
+    info = {
+        "command": ["sensorgap", "run", "--out", str(out), "--workers", str(workers)],
+        "vehicle": system_name,
+        "settings": {"budget": budget, "top": top, "seed": seed, "strategy": "cem",
+                     "pd": "lookup", "families": family_presets(), "environments": envs,
+                     "coverage_grid_m": list(DEFAULT_GRID)},
+        "candidates": outcome.summary["candidates"],
+        "timings_s": clock.stages,
+    }
+    total, peak = clock.total, peak_rss_mib()
+    write_json(folder / "job.json", info)
+    write_manifest(folder)
+    print(f"{folder}: {outcome.summary['candidates']:,} candidates, "
+          f"{len(outcome.ranking)} ranked; total {total:.1f} s (target {TARGET_TIME_S:.0f} s), "
+          f"peak memory {peak:.0f} MiB (target {TARGET_PEAK_MIB:.0f} MiB)")
+    return info

@@ -107,23 +107,25 @@ def test_bad_kind_and_unknown_family(tmp_path: Path) -> None:
         load_family(_write(tmp_path, BASE.replace("lane = -1", "lane = 5")))
 
 
-def _trace(pd: list[float], ttc: list[float] | None = None) -> Trace:
+def _trace(pd: list[float], ttc: list[float] | None = None, t0: float = 0.0) -> Trace:
     n = len(pd)
     arr = np.zeros(n)
-    return Trace(t=np.arange(n) * 0.05, x=arr, y=arr, pd=np.array(pd),
+    return Trace(t=t0 + np.arange(n) * 0.05, x=arr, y=arr, pd=np.array(pd),
                  ttc=np.array(ttc if ttc is not None else [np.inf] * n), headway=arr + np.inf,
                  distance=arr + 10.0, ego_speed=arr + 10.0, heading=arr, collided=False,
                  duration_s=(n - 1) * 0.05)
 
 
 def test_metrics_by_hand() -> None:
-    tr = _trace([0.0, 0.5, 0.5, 0.0, 0.0, 0.0, 0.99, 0.2], ttc=[9, 9, 9, 2, 2, 0.5, 0.4, 9])
+    # (a window after the 1 s lead-in: t = 1.00 .. 1.35 s)
+    tr = _trace([0.0, 0.5, 0.5, 0.0, 0.0, 0.0, 0.99, 0.2], ttc=[9, 9, 9, 2, 2, 0.5, 0.4, 9],
+                t0=1.0)
     assert tr.p_undetected[2] == pytest.approx(0.25)
     assert detection_index(tr) == 6
     assert corridor(tr) == (3, 6)
     m = compute_all(tr)
     assert m["risk"] == pytest.approx(0.25 * np.exp(-0.5 / 2.0))
-    assert m["t_detect_s"] == pytest.approx(0.30)
+    assert m["t_detect_s"] == pytest.approx(1.30)
     assert m["ttc_at_detect_s"] == pytest.approx(0.4)
     assert m["corridor_s"] == pytest.approx(0.15)
     assert set(metric_names()) <= set(m)
@@ -132,18 +134,40 @@ def test_metrics_by_hand() -> None:
     assert never["ttc_at_detect_s"] == 99.0
 
 
+def test_risk_is_not_assessed_during_the_lead_in() -> None:
+    """Steps before LEAD_IN_S count towards P_undet but not as the risk's maximum: an
+    undetected target at TTC 0.5 s at t = 0.5 s scores nothing; the same at t = 1.0 s
+    scores P_undet * exp(-0.25)."""
+    from sensorgap.search.metrics import LEAD_IN_S
+
+    assert LEAD_IN_S == 1.0
+    n = 25
+    ttc = [np.inf] * n
+    ttc[10] = 0.5  # t = 0.5 s, inside the lead-in
+    assert compute_all(_trace([0.0] * n, ttc))["risk"] == 0.0
+    ttc[20] = 0.5  # t = 1.0 s
+    pd = [0.0] * n
+    pd[3] = 0.5  # one half-chance detection during the lead-in still counts
+    assert compute_all(_trace(pd, ttc))["risk"] == pytest.approx(0.5 * np.exp(-0.25))
+
+
 def test_lookup_close_to_exact(system_b: System) -> None:
     fam = load_family("slow_ahead_curve")
     envs = {"clear": load_environment("clear")}
     p_look = SearchProblem(fam, envs, Evaluator(system_b, "lookup"))
     p_exact = SearchProblem(fam, envs, Evaluator(system_b, "exact"))
     rng = np.random.default_rng(0)
-    for _ in range(4):
+    checked = 0
+    while checked < 4:
         cand = p_look.decode(rng.random(p_look.dim))
-        a = p_look.evaluate(cand, keep_trace=True).trace
-        b = p_exact.evaluate(cand, keep_trace=True).trace
+        ra, rb = p_look.evaluate(cand, keep_trace=True), p_exact.evaluate(cand, keep_trace=True)
+        assert ra.feasible == rb.feasible
+        if not ra.feasible:
+            continue
+        a, b = ra.trace, rb.trace
         assert a is not None and b is not None
         assert np.max(np.abs(a.pd - b.pd)) < 0.1
+        checked += 1
 
 
 def test_strategies_registry_and_bounds() -> None:

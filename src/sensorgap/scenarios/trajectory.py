@@ -26,7 +26,7 @@ class OffRoad(InfeasibleScenario):
 def time_axis(duration_s: float) -> F64:
     """Sample times 0, 0.05, ..., duration (s) at ``RATE_HZ``."""
     n = round(duration_s * RATE_HZ) + 1
-    return np.arange(n, dtype=np.float64) * DT_S
+    return np.arange(n, dtype=np.float64) / RATE_HZ  # k / 20 is the nearest double to k dt
 
 
 @dataclass(frozen=True)

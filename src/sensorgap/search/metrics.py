@@ -6,7 +6,7 @@ a finite float (infinite TTC/headway are capped at ``CAP_S``).
 
 Risk (the ranking score)::
 
-    risk = max_k  P_undet(t_k) * exp(-TTC_k / TAU_S)
+    risk = max_{k: t_k >= LEAD_IN_S}  P_undet(t_k) * exp(-TTC_k / TAU_S)
 
 with ``P_undet(t_k) = prod_{j<=k} (1 - Pd_j)`` (independent steps at 20 Hz) and TTC the
 longitudinal time to collision of an in-path target (0 once the boxes overlap, inf when
@@ -33,6 +33,11 @@ from sensorgap.search.evaluate import BatchTrace, Trace
 
 #: Time constant of the imminence weight of the risk, s.
 TAU_S = 2.0
+#: Lead-in: the risk is assessed from this time on, s. Detections during the lead-in count
+#: (P_undet runs from t = 0), but a scenario is not scored on its first frames, where
+#: P_undet is a single miss of the initial placement rather than a failure to detect over
+#: time (20 sensor cycles at 20 Hz).
+LEAD_IN_S = 1.0
 #: Cumulative detection probability that counts as reliable detection (the default rule).
 RELIABLE_PD = 0.99
 #: Per-step Pd below which a step belongs to a low-detection corridor.
@@ -80,7 +85,8 @@ def log10_risk_profile_batch(bt: BatchTrace) -> np.ndarray:
     """(B, T) ``log10_risk_profile`` (floor beyond the valid steps)."""
     finite = np.isfinite(bt.ttc)
     ln = bt.log_undetected - np.where(finite, bt.ttc, 0.0) / TAU_S
-    out = np.where(finite & bt.valid, ln / math.log(10.0), LOG10_RISK_FLOOR)
+    assessed = finite & bt.valid & (bt.t >= LEAD_IN_S)[None, :]
+    out = np.where(assessed, ln / math.log(10.0), LOG10_RISK_FLOOR)
     return np.asarray(np.maximum(out, LOG10_RISK_FLOOR), dtype=np.float64)
 
 
@@ -96,8 +102,9 @@ def corridor_batch(bt: BatchTrace, threshold: float = LOW_PD) -> tuple[np.ndarra
 
 
 def risk_profile(tr: Trace) -> np.ndarray:
-    """P_undet(t_k) * exp(-TTC_k / TAU_S) per step."""
-    return np.asarray(tr.p_undetected * np.exp(-tr.ttc / TAU_S), dtype=np.float64)
+    """P_undet(t_k) * exp(-TTC_k / TAU_S) per step (0 during the lead-in)."""
+    prof = tr.p_undetected * np.exp(-tr.ttc / TAU_S)
+    return np.asarray(np.where(tr.t >= LEAD_IN_S, prof, 0.0), dtype=np.float64)
 
 
 #: log10 of the risk reported when the target never becomes a threat (no finite TTC).
@@ -109,7 +116,8 @@ def log10_risk_profile(tr: Trace) -> np.ndarray:
     it stays finite and ordered where the risk itself underflows (e.g. 1e-40); steps without
     a finite TTC sit at ``LOG10_RISK_FLOOR``."""
     ln = tr.log_undetected - np.where(np.isfinite(tr.ttc), tr.ttc, 0.0) / TAU_S
-    out = np.where(np.isfinite(tr.ttc), ln / math.log(10.0), LOG10_RISK_FLOOR)
+    assessed = np.isfinite(tr.ttc) & (tr.t >= LEAD_IN_S)
+    out = np.where(assessed, ln / math.log(10.0), LOG10_RISK_FLOOR)
     return np.asarray(np.maximum(out, LOG10_RISK_FLOOR), dtype=np.float64)
 
 
@@ -220,7 +228,8 @@ class Risk(Metric):
 
     def compute_batch(self, bt: BatchTrace) -> np.ndarray:
         prof = np.exp(bt.log_undetected) * np.exp(-bt.ttc / TAU_S)
-        return np.max(np.where(bt.valid, prof, 0.0), axis=1)
+        assessed = bt.valid & (bt.t >= LEAD_IN_S)[None, :]
+        return np.max(np.where(assessed, prof, 0.0), axis=1)
 
 
 @register_metric

@@ -29,6 +29,10 @@ SUN_AZIMUTH = Param("sun_azimuth_deg", 0.0, 359.0, unit="deg")
 SUN_ELEVATION = Param("sun_elevation_deg", 2.0, 30.0, unit="deg")
 
 
+#: A candidate must start non-critical: TTC at t = 0 at least this, s (about twice the
+#: risk's time constant). An encounter that begins at a smaller TTC measures its initial
+#: condition (a target placed close in front), not what the sensors saw while it developed.
+START_TTC_S = 4.0
 #: Smallest chunk worth a thread of its own, candidates.
 MIN_ROWS_PER_THREAD = 64
 #: Continuous parameters are rounded to this many decimals (their units: m, s, m/s), so
@@ -226,13 +230,21 @@ class SearchProblem:
         ok = np.flatnonzero(batch.ok)
         names = metric_names()
         metrics = {m: np.zeros(len(d)) for m in names}
+        feasible, notes = batch.ok.copy(), list(batch.notes)
         if ok.size:
             bt = self.evaluator.evaluate_batch(batch, d.env_names, self.environments,
                                                d.sun_deg, rows=ok,
                                                duration_s=self.family.duration_s)
             for m, v in compute_all_batch(bt, names).items():
                 metrics[m][ok] = v
-        return BatchOutcome(metrics, batch.ok.copy(), list(batch.notes))
+            for j in np.flatnonzero(bt.ttc[:, 0] < START_TTC_S):
+                i = ok[j]
+                feasible[i] = False
+                notes[i] = (f"starts critical: TTC {bt.ttc[j, 0]:.2f} s at t = 0 "
+                            f"(at least {START_TTC_S:g} s)")
+                for m in names:
+                    metrics[m][i] = 0.0
+        return BatchOutcome(metrics, feasible, notes)
 
     def results(self, cands: list[Candidate], out: BatchOutcome) -> list[Result]:
         """``Result`` objects of an evaluated batch."""

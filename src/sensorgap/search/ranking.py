@@ -5,7 +5,8 @@ is below ``min_distance`` (default 0.15). The distance is the RMS over dimension
 range-normalised parameter differences (choices: 0 if equal, 1 if not; sun azimuth: the
 circular difference / 180 deg; sun elevation: difference / 28 deg), so 0 = identical and
 1 = opposite corners of the box. The lower-risk one of a pair is dropped; candidates of
-different families or environment presets are never duplicates.
+different families or environment presets are never duplicates. At most ``MAX_PER_GROUP``
+(3) scenarios per (family, environment preset) enter the list while others remain.
 
 Reason: at the critical step (the one that sets the risk) each sensor is evaluated exactly
 in the scenario's environment, in the same environment without sun, and in a reference
@@ -32,6 +33,9 @@ from sensorgap.search.problem import Candidate, Result, SearchProblem
 
 #: Default near-duplicate distance.
 MIN_DISTANCE = 0.15
+#: Default cap of ranked scenarios per (family, environment preset), so the top N span the
+#: families and conditions instead of N variants of the single worst one.
+MAX_PER_GROUP = 3
 _EFFECT_ORDER = ("glare", "weather", "range")
 
 
@@ -49,19 +53,28 @@ def candidate_distance(problem: SearchProblem, a: Candidate, b: Candidate) -> fl
 
 
 def diverse_top(results: list[Result], problems: dict[str, SearchProblem], top: int,
-                min_distance: float = MIN_DISTANCE) -> list[Result]:
-    """The ``top`` highest-risk feasible results, near-duplicates collapsed (ties broken by
-    scenario id, so the order is deterministic)."""
+                min_distance: float = MIN_DISTANCE,
+                max_per_group: int = MAX_PER_GROUP) -> list[Result]:
+    """The ``top`` highest-risk feasible results, near-duplicates collapsed and at most
+    ``max_per_group`` per (family, environment preset) (ties broken by scenario id, so the
+    order is deterministic). When fewer than ``top`` remain, the cap is lifted for the rest
+    (the list is never shorter than it could be)."""
     ok = sorted((r for r in results if r.feasible),
                 key=lambda r: (-r.score, -r.risk, r.candidate.scenario_id))
     chosen: list[Result] = []
-    for r in ok:
-        prob = problems[r.candidate.family]
-        if all(candidate_distance(prob, r.candidate, c.candidate) >= min_distance
-               for c in chosen):
-            chosen.append(r)
+    for cap in (max_per_group, None):
+        groups = Counter((c.candidate.family, c.candidate.environment) for c in chosen)
+        for r in ok:
             if len(chosen) == top:
-                break
+                return chosen
+            key = (r.candidate.family, r.candidate.environment)
+            if r in chosen or (cap is not None and groups[key] >= cap):
+                continue
+            prob = problems[r.candidate.family]
+            if all(candidate_distance(prob, r.candidate, c.candidate) >= min_distance
+                   for c in chosen):
+                chosen.append(r)
+                groups[key] += 1
     return chosen
 
 

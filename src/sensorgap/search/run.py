@@ -66,10 +66,13 @@ def run_search(vehicle: str | Path, families: list[str], environments: list[str]
                mode: str = "lookup", sun_search: bool = True,
                environments_file: Path | None = None, progress: bool | None = None,
                min_distance: float = MIN_DISTANCE,
-               detection: str = "cumulative") -> SearchOutcome:
-    """Search, store every candidate, write the ranking; see the module docstring."""
+               detection: str = "cumulative", workers: int = 2) -> SearchOutcome:
+    """Search, store every candidate, write the ranking; see the module docstring.
+    ``workers``: threads evaluating each batch (the result does not depend on it)."""
     if not 1 <= budget <= MAX_BUDGET:
         raise InputError("--budget", "", f"must be within 1..{MAX_BUDGET}, got {budget}")
+    if not 1 <= workers <= 64:
+        raise InputError("--workers", "", f"must be 1..64, got {workers}")
     if top < 1:
         raise InputError("--top", "", f"must be >= 1, got {top}")
     if get_strategy(strategy) is None:
@@ -130,7 +133,7 @@ def run_search(vehicle: str | Path, families: list[str], environments: list[str]
                     if todo.size:
                         sub = decoded.take(todo)
                         fresh = prob.results([cands[j] for j in todo],
-                                             prob.evaluate_decoded(sub))
+                                             prob.evaluate_decoded(sub, threads=workers))
                         for j, r in zip(todo.tolist(), fresh, strict=True):
                             batch[j] = r
                         store.put([(idx + j, batch[j]) for j in todo.tolist()])
