@@ -169,6 +169,17 @@ def cmd_search(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_compare(args: argparse.Namespace) -> int:
+    """Cross-evaluate the critical scenarios of two search runs (A vs B)."""
+    from sensorgap.search.compare import write_comparison
+
+    rows = write_comparison(Path(args.run_a), Path(args.run_b), Path(args.out))
+    write_manifest(args.out)
+    who = sorted({str(r["critical_for"]) for r in rows})
+    print(f"{args.out}: {len(rows)} scenarios compared; critical for: {', '.join(who)}")
+    return 0
+
+
 def cmd_corridor(args: argparse.Namespace) -> int:
     """The least-detectable approach path into a critical zone (corridor search)."""
     from sensorgap.coverage import GridSpec, evaluate_grid
@@ -309,6 +320,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--workers", type=int, default=2, help="threads per batch (default 2)")
     p.add_argument("--out", required=True, help="run folder (resumes if it exists)")
     p.set_defaults(func=cmd_search)
+
+    p = sub.add_parser("compare", help="cross-evaluate two search runs (vehicle A vs B)")
+    p.add_argument("run_a", help="search run folder of the first vehicle")
+    p.add_argument("run_b", help="search run folder of the second vehicle")
+    p.add_argument("--out", required=True, help="output folder")
+    p.set_defaults(func=cmd_compare)
 
     p = sub.add_parser("corridor", help="least-detectable approach path (corridor search)")
     _add_scene_args(p)

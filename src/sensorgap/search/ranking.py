@@ -86,6 +86,7 @@ class Explanation:
     dominant: str
     step_t_s: float
     sensors: dict[str, str]
+    pd: dict[str, float] | None = None
 
 
 def reference_environment() -> EnvironmentConfig:
@@ -140,11 +141,12 @@ def explain(problem: SearchProblem, cand: Candidate) -> Explanation:
                   and sid not in {s for s, _, _, _ in low})
     seen = [sid for sid, e in effects.items() if e == "sees"]
     parts = [f"{dominant}: at t={tr.t[k]:.2f} s target at x={x[0]:.1f} y={y[0]:.1f} m, "
-             f"Pd={tr.pd[k]:.2f}, P_undet={tr.p_undetected[k]:.2f}"]
+             f"Pd={tr.pd[k]:.2f}, P_undet={tr.p_undetected[k]:.2g}"]
     if low:
         parts.append("low Pd: " + ", ".join(f"{sid} {e} {p:.2f} (else {b:.2f})"
                                             for sid, e, p, b in low[:4]))
     if seen:
         parts.append("sees: " + ", ".join(seen[:3]))
     parts.append(f"out of view: {out_fov} FOV, {out_rng} range")
-    return Explanation("; ".join(parts), dominant, float(tr.t[k]), effects)
+    pds = {s.id: float(pd_act[i]) for i, s in enumerate(problem.evaluator.system.sensors)}
+    return Explanation("; ".join(parts), dominant, float(tr.t[k]), effects, pds)

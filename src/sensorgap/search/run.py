@@ -98,6 +98,7 @@ def run_search(vehicle: str | Path, families: list[str], environments: list[str]
     evaluator = Evaluator(system, mode=mode, rule=rule)
     problems = {f.name: SearchProblem(f, envs, evaluator, sun_search) for f in fams}
     settings = {"vehicle": system.name, "vehicle_file": system.source.name,
+                "vehicle_ref": str(vehicle),
                 "families": [f.name for f in fams], "environments": list(envs),
                 "seed": seed, "strategy": strategy, "pd": mode, "sun_search": sun_search,
                 "detection": rule.label()}

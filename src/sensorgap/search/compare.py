@@ -1,0 +1,186 @@
+"""Compare two vehicles' critical scenarios (the paper's A-vs-B view) by cross-evaluation.
+
+Every scenario ranked for either vehicle is evaluated exactly for both (same trajectories,
+same environment and sun). A scenario is *critical for X only* when its log10 risk for X
+exceeds that for the other vehicle by at least ``MARGIN_DECADES``; the explanation then
+names, at X's critical step (same time, so the same target position in the ego frame), the
+sensors of X that miss the target and why (``ranking.explain``: glare, weather, range, FOV)
+and the sensors of the other vehicle that see it (Pd >= 0.5) with their type, so every
+difference is traced back to the two sensor setups.
+"""
+
+from __future__ import annotations
+
+import json
+from collections import Counter
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from sensorgap.atomic import atomic_write_bytes, atomic_write_text
+from sensorgap.config import load_environments
+from sensorgap.errors import InputError
+from sensorgap.filesio import write_json
+from sensorgap.models import System, load_system
+from sensorgap.scenarios import load_family
+from sensorgap.search.evaluate import Evaluator
+from sensorgap.search.problem import Candidate, SearchProblem
+from sensorgap.search.ranking import explain
+from sensorgap.search.run import ranking_csv
+
+#: log10-risk difference that makes a scenario critical for one vehicle only, decades.
+MARGIN_DECADES = 1.0
+#: Per-sensor Pd from which a sensor counts as seeing the target.
+SEES_PD = 0.5
+
+
+@dataclass
+class RunRanking:
+    """A search run folder's ranking and settings."""
+
+    folder: Path
+    vehicle: str
+    rows: list[dict[str, Any]]
+    settings: dict[str, Any]
+
+
+def read_run(folder: Path) -> RunRanking:
+    """``ranking.json`` of a search run folder; ``InputError`` naming the file if absent
+    or malformed."""
+    path = Path(folder) / "ranking.json"
+    if not path.is_file():
+        raise InputError(path, "", "not a search run folder (ranking.json is missing)")
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+        rows, settings = list(data["ranking"]), dict(data["settings"])
+        vehicle = str(settings.get("vehicle_ref")
+                      or Path(str(settings["vehicle_file"])).stem)
+    except (ValueError, KeyError, TypeError) as exc:
+        raise InputError(path, "", f"malformed ranking file: {exc}") from None
+    return RunRanking(Path(folder), vehicle, rows, settings)
+
+
+def candidate_of(row: dict[str, Any], problem: SearchProblem) -> Candidate:
+    """The candidate of a ranking row (preset, world-frame sun, parameters)."""
+    env = str(row["environment"]).split("@")[0]
+    sun = (None if row.get("sun_azimuth_deg") is None
+           else (float(row["sun_azimuth_deg"]), float(row["sun_elevation_deg"])))
+    params = {p.name: (str(row[f"p_{p.name}"]) if p.categorical
+                       else float(row[f"p_{p.name}"])) for p in problem.family.space}
+    return Candidate(problem.family.name, env, sun, params)
+
+
+def _sensor_type(system: System, sensor_id: str) -> str:
+    for s in system.sensors:
+        if s.id == sensor_id:
+            return type(s.model).__name__.lower()
+    return "?"
+
+
+class _Side:
+    """One vehicle: its problems per family (exact evaluation)."""
+
+    def __init__(self, run: RunRanking, environments: dict[str, Any]) -> None:
+        self.run = run
+        self.system = load_system(run.vehicle)
+        self.evaluator = Evaluator(self.system, mode="exact")
+        self.environments = environments
+        self.problems: dict[str, SearchProblem] = {}
+
+    @property
+    def name(self) -> str:
+        return self.system.name
+
+    def problem(self, family: str) -> SearchProblem:
+        if family not in self.problems:
+            self.problems[family] = SearchProblem(load_family(family), self.environments,
+                                                  self.evaluator)
+        return self.problems[family]
+
+
+def compare_runs(run_a: Path, run_b: Path,
+                 margin_decades: float = MARGIN_DECADES) -> list[dict[str, Any]]:
+    """Cross-evaluate the ranked scenarios of two runs (see the module docstring)."""
+    ra, rb = read_run(run_a), read_run(run_b)
+    presets = load_environments()
+    envs = {e: presets[e] for e in dict.fromkeys(
+        [*ra.settings.get("environments", []), *rb.settings.get("environments", [])])
+        if e in presets}
+    sides = [_Side(ra, envs), _Side(rb, envs)]
+    seen: dict[str, dict[str, Any]] = {}
+    for k, side in enumerate(sides):
+        for row in side.run.rows:
+            sid = str(row["scenario_id"])
+            entry = seen.setdefault(sid, {"row": row, "ranks": [None, None]})
+            entry["ranks"][k] = int(row["rank"])
+    out = []
+    for sid, entry in sorted(seen.items(), key=lambda kv: (
+            min(r for r in kv[1]["ranks"] if r is not None), kv[0])):
+        row = entry["row"]
+        scores, results = [], []
+        for side in sides:
+            prob = side.problem(str(row["family"]))
+            cand = candidate_of(row, prob)
+            res = prob.evaluate(cand)
+            results.append((prob, cand, res))
+            scores.append(res.score if res.feasible else -300.0)
+        diff = scores[0] - scores[1]
+        critical = ("both" if abs(diff) < margin_decades
+                    else sides[0].name if diff > 0 else sides[1].name)
+        worse = 0 if diff >= 0 else 1
+        better = 1 - worse
+        prob_w, cand_w, _ = results[worse]
+        ex = explain(prob_w, cand_w)
+        why = f"{sides[worse].name}: {ex.reason}"
+        sees: list[str] = []
+        if critical != "both":
+            prob_b, _, _ = results[better]
+            tr = prob_b.evaluator.trace(prob_b.scenario(cand_w), prob_b.environment(cand_w),
+                                        prob_b.family.duration_s)
+            k = int(np.argmin(np.abs(tr.t - ex.step_t_s)))
+            env = prob_b.environment(cand_w)
+            target = prob_b.evaluator.target(prob_b.family.target_class)
+            pd = prob_b.evaluator.per_sensor_pd(env, target, tr.heading[k:k + 1],
+                                                tr.x[k:k + 1], tr.y[k:k + 1])[:, 0]
+            sees = [f"{s.id} ({_sensor_type(sides[better].system, s.id)}, Pd {p:.2f})"
+                    for s, p in zip(sides[better].system.sensors, pd, strict=True)
+                    if p >= SEES_PD]
+            why += (f" | {sides[better].name} at the same moment sees it with "
+                    + ("; ".join(sees) if sees else "no sensor above Pd 0.5")
+                    + f" (log10 risk {scores[better]:.1f} vs {scores[worse]:.1f})")
+        out.append({
+            "scenario_id": sid, "family": row["family"], "environment": row["environment"],
+            f"rank_{sides[0].name}": entry["ranks"][0], f"rank_{sides[1].name}": entry["ranks"][1],
+            f"log10_risk_{sides[0].name}": scores[0], f"log10_risk_{sides[1].name}": scores[1],
+            "critical_for": critical, "dominant_effect": ex.dominant,
+            "other_sees": "; ".join(sees), "why": why,
+        })
+    return out
+
+
+def write_comparison(run_a: Path, run_b: Path, out: Path) -> list[dict[str, Any]]:
+    """``comparison.csv``, ``comparison.json`` and ``comparison.md`` into ``out``."""
+    rows = compare_runs(run_a, run_b)
+    out.mkdir(parents=True, exist_ok=True)
+    cols = list(rows[0]) if rows else ["scenario_id"]
+    atomic_write_bytes(out / "comparison.csv", ranking_csv(rows, cols))
+    write_json(out / "comparison.json", {"columns": cols, "rows": rows,
+                                         "margin_decades": MARGIN_DECADES})
+    counts = Counter((r["critical_for"], r["dominant_effect"]) for r in rows)
+    lines = ["# Critical scenarios: cross-evaluation of two vehicles", "",
+             f"Critical for one vehicle only: log10 risk higher by >= {MARGIN_DECADES:g} "
+             "decade(s). Each scenario ranked for either vehicle is evaluated exactly for "
+             "both.", "", "| critical for | dominant effect | scenarios |", "|---|---|---|"]
+    lines += [f"| {who} | {eff} | {n} |" for (who, eff), n in sorted(counts.items())]
+    lines += ["", "| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
+    for r in rows:
+        cells = []
+        for c in cols:
+            v = r[c]
+            cells.append("" if v is None else f"{v:.2f}" if isinstance(v, float)
+                         else str(v).replace("|", "/"))
+        lines.append("| " + " | ".join(cells) + " |")
+    atomic_write_text(out / "comparison.md", "\n".join(lines) + "\n")
+    return rows
