@@ -311,7 +311,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--budget", type=int, default=200, help="evaluations in total")
     p.add_argument("--seed", type=int, default=0, help="random seed")
     p.add_argument("--top", type=int, default=10, help="ranked scenarios to write")
-    p.add_argument("--strategy", default="cem", help="cem | lhs | random | grid (or a plugin)")
+    p.add_argument("--strategy", default="de",
+                   help="de | cem | lhs | random | grid (or a plugin)")
     p.add_argument("--pd", default="lookup", choices=["lookup", "exact"],
                    help="Pd per step from cached coverage maps or exact evaluation")
     p.add_argument("--no-sun", action="store_true", help="do not search sun azimuth/elevation")

@@ -33,7 +33,7 @@ from sensorgap.search.run import run_search
 
 DEFAULT_SYSTEM = "system_a"
 DEFAULT_GRID = (-60.0, 260.0, -50.0, 50.0, 0.25)
-#: Default search: every family x every environment preset, CEM, lookup maps.
+#: Default search: every family x every environment preset, differential evolution, lookup.
 DEFAULT_BUDGET = 100_000
 DEFAULT_TOP = 20
 DEFAULT_SEED = 1
@@ -112,12 +112,12 @@ def run_default(out: Path, workers: int = 2, system_name: str = DEFAULT_SYSTEM,
     clock.stage("far field", lambda: _farfield(system_name, folder))
     envs = list(load_environments())
     outcome = clock.stage("search", lambda: run_search(
-        system_name, family_presets(), envs, budget, seed, top, folder, strategy="cem",
+        system_name, family_presets(), envs, budget, seed, top, folder, strategy="de",
         progress=False, workers=workers))
     info = {
         "command": ["sensorgap", "run", "--out", str(out), "--workers", str(workers)],
         "vehicle": system_name,
-        "settings": {"budget": budget, "top": top, "seed": seed, "strategy": "cem",
+        "settings": {"budget": budget, "top": top, "seed": seed, "strategy": "de",
                      "pd": "lookup", "families": family_presets(), "environments": envs,
                      "coverage_grid_m": list(DEFAULT_GRID)},
         "candidates": outcome.summary["candidates"],

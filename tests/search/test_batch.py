@@ -155,5 +155,6 @@ def test_single_evaluate_equals_its_batch_row() -> None:
     for i, cand in enumerate(prob.candidates(d)):
         r = prob.evaluate(cand)
         assert r.feasible == bool(out.feasible[i])
-        for m, v in r.metrics.items():
-            assert v == out.metrics[m][i], m
+        assert out.objective is not None and r.objective == out.objective[i]
+        for m in out.metrics:
+            assert r.metrics[m] == out.metrics[m][i], m

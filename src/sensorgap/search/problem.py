@@ -21,7 +21,7 @@ from sensorgap.config import EnvironmentConfig
 from sensorgap.errors import InputError
 from sensorgap.scenarios.family import Family, Param, ParamValue, Scenario
 from sensorgap.search.evaluate import Evaluator, Trace
-from sensorgap.search.metrics import compute_all_batch, metric_names
+from sensorgap.search.metrics import LOG10_RISK_FLOOR, compute_all_batch, metric_names
 
 F64 = NDArray[np.float64]
 
@@ -76,11 +76,27 @@ class Decoded:
 @dataclass
 class BatchOutcome:
     """Metrics of B candidates: (B,) arrays per metric (0 for infeasible rows), the
-    feasibility and the reason of each infeasible row."""
+    feasibility and the reason of each infeasible row, and the search objective."""
 
     metrics: dict[str, F64]
     feasible: NDArray[np.bool_]
     notes: list[str]
+    objective: F64 | None = None
+
+
+#: Search objective of an infeasible candidate (below every feasible one).
+OBJECTIVE_INFEASIBLE = -1000.0
+#: Key of the search objective among a result's stored values (not a ranking column).
+OBJECTIVE_KEY = "search_objective"
+
+
+def search_objective(log10_risk: F64, min_distance_m: F64) -> F64:
+    """What the strategies maximise: ``log10_risk`` where the target becomes a threat
+    (a finite TTC after the lead-in); below that floor, ``floor - min distance (m)``, so
+    candidates that never become a threat are still graded by how close the target comes
+    and an adaptive strategy is led towards encounters instead of a flat plateau."""
+    return np.where(log10_risk > LOG10_RISK_FLOOR, log10_risk,
+                    LOG10_RISK_FLOOR - np.minimum(min_distance_m, 600.0))
 
 
 @dataclass(frozen=True)
@@ -123,8 +139,15 @@ class Result:
         return float(self.metrics.get("risk", 0.0)) if self.feasible else 0.0
 
     @property
+    def objective(self) -> float:
+        """What the strategies maximise (``search_objective``; stored with the metrics
+        under ``OBJECTIVE_KEY`` so a resumed search replays the same decisions)."""
+        return float(self.metrics.get(OBJECTIVE_KEY, self.score if self.feasible
+                                      else OBJECTIVE_INFEASIBLE))
+
+    @property
     def score(self) -> float:
-        """The ranking and search objective: log10 of the risk (-300 when infeasible)."""
+        """The ranking score: log10 of the risk (-300 when infeasible)."""
         if not self.feasible:
             return -300.0
         return float(self.metrics.get("log10_risk", -300.0))
@@ -223,7 +246,9 @@ class SearchProblem:
         return BatchOutcome({m: np.concatenate([o.metrics[m] for o in outs])
                              for m in outs[0].metrics},
                             np.concatenate([o.feasible for o in outs]),
-                            [note for o in outs for note in o.notes])
+                            [note for o in outs for note in o.notes],
+                            np.concatenate([o.objective for o in outs
+                                            if o.objective is not None]))
 
     def _evaluate_rows(self, d: Decoded) -> BatchOutcome:
         batch = self.family.generate_batch(d.params)
@@ -231,12 +256,15 @@ class SearchProblem:
         names = metric_names()
         metrics = {m: np.zeros(len(d)) for m in names}
         feasible, notes = batch.ok.copy(), list(batch.notes)
+        objective = np.full(len(d), OBJECTIVE_INFEASIBLE)
         if ok.size:
             bt = self.evaluator.evaluate_batch(batch, d.env_names, self.environments,
                                                d.sun_deg, rows=ok,
                                                duration_s=self.family.duration_s)
             for m, v in compute_all_batch(bt, names).items():
                 metrics[m][ok] = v
+            min_dist = np.min(np.where(bt.valid, bt.distance, np.inf), axis=1)
+            objective[ok] = search_objective(metrics["log10_risk"][ok], min_dist)
             for j in np.flatnonzero(bt.ttc[:, 0] < START_TTC_S):
                 i = ok[j]
                 feasible[i] = False
@@ -244,17 +272,23 @@ class SearchProblem:
                             f"(at least {START_TTC_S:g} s)")
                 for m in names:
                     metrics[m][i] = 0.0
-        return BatchOutcome(metrics, feasible, notes)
+                objective[i] = OBJECTIVE_INFEASIBLE
+        return BatchOutcome(metrics, feasible, notes, objective)
 
     def results(self, cands: list[Candidate], out: BatchOutcome) -> list[Result]:
         """``Result`` objects of an evaluated batch."""
         names = list(out.metrics)
         cols = [out.metrics[n].tolist() for n in names]
         feas = out.feasible.tolist()
-        return [Result(c, dict(zip(names, (col[i] for col in cols), strict=True))
-                       if feas[i] else {n: 0.0 for n in names}, bool(feas[i]),
-                       "" if feas[i] else out.notes[i])
-                for i, c in enumerate(cands)]
+        obj = (np.full(len(cands), OBJECTIVE_INFEASIBLE) if out.objective is None
+               else out.objective).tolist()
+        res = []
+        for i, c in enumerate(cands):
+            vals = (dict(zip(names, (col[i] for col in cols), strict=True)) if feas[i]
+                    else {n: 0.0 for n in names})
+            vals[OBJECTIVE_KEY] = obj[i]
+            res.append(Result(c, vals, bool(feas[i]), "" if feas[i] else out.notes[i]))
+        return res
 
     def environment(self, cand: Candidate) -> EnvironmentConfig:
         """The environment of a candidate (the preset with its world-frame sun)."""

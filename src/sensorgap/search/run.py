@@ -62,7 +62,7 @@ def ranking_csv(rows: list[dict[str, Any]], columns: list[str]) -> bytes:
 
 
 def run_search(vehicle: str | Path, families: list[str], environments: list[str],
-               budget: int, seed: int, top: int, out: Path, strategy: str = "cem",
+               budget: int, seed: int, top: int, out: Path, strategy: str = "de",
                mode: str = "lookup", sun_search: bool = True,
                environments_file: Path | None = None, progress: bool | None = None,
                min_distance: float = MIN_DISTANCE,
@@ -140,7 +140,7 @@ def run_search(vehicle: str | Path, families: list[str], environments: list[str]
                         store.put([(idx + j, batch[j]) for j in todo.tolist()])
                         evaluated += todo.size
                     done = [r for r in batch if r is not None]
-                    strat.tell(X, np.array([r.score for r in done]))
+                    strat.tell(X, np.array([r.objective for r in done]))
                     results.extend(done)
                     idx += len(done)
                     bar.update(len(done))
