@@ -5,3 +5,13 @@ Pipeline (data flows one way): ``config`` -> ``models`` -> ``coverage`` -> ``roa
 """
 
 __version__ = "0.1.0"
+
+
+def __getattr__(name: str) -> object:
+    """Lazy top-level access to ``sensorgap.CriticalScenarios`` (the scenariogeneration
+    generator of a search run's critical scenarios) without importing the pipeline."""
+    if name == "CriticalScenarios":
+        from sensorgap.export.generator import CriticalScenarios
+
+        return CriticalScenarios
+    raise AttributeError(f"module 'sensorgap' has no attribute {name!r}")

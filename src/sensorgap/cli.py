@@ -180,6 +180,33 @@ def cmd_compare(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_export(args: argparse.Namespace) -> int:
+    """OpenSCENARIO + OpenDRIVE catalog of a search run's ranked scenarios."""
+    from sensorgap.export import export_catalog
+
+    out = Path(args.out) if args.out else None
+    index = export_catalog(Path(args.run), out, osc_version=args.osc_version, top=args.top)
+    print(f"{out or args.run}: {len(index['scenarios'])} scenarios, OpenSCENARIO "
+          f"{args.osc_version}, every file XSD-valid")
+    return 0
+
+
+def cmd_simulate(args: argparse.Namespace) -> int:
+    """Run a catalog's scenarios in esmini; simulation.csv."""
+    from sensorgap.export.simulate import simulate_catalog
+
+    rows = simulate_catalog(Path(args.catalog), args.esmini, timeout_s=args.timeout,
+                            step_s=args.step)
+    write_manifest(args.catalog)
+    ok = sum(1 for r in rows if r.get("status") == "ok")
+    within = sum(1 for r in rows if r.get("within_0p5m") == "yes")
+    print(f"{args.catalog}: {ok}/{len(rows)} ran cleanly, {within} within 0.5 m of the plan")
+    for r in rows:
+        if r.get("status") != "ok":
+            print(f"  {r['scenario_id']}: {r['status']}: {r.get('message', '')}")
+    return 0
+
+
 def cmd_corridor(args: argparse.Namespace) -> int:
     """The least-detectable approach path into a critical zone (corridor search)."""
     from sensorgap.coverage import GridSpec, evaluate_grid
@@ -321,6 +348,21 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--workers", type=int, default=2, help="threads per batch (default 2)")
     p.add_argument("--out", required=True, help="run folder (resumes if it exists)")
     p.set_defaults(func=cmd_search)
+
+    p = sub.add_parser("export", help="OpenSCENARIO + OpenDRIVE catalog of a search run")
+    p.add_argument("--run", required=True, help="search run folder (ranking.json)")
+    p.add_argument("--out", help="catalog folder (default: the run folder)")
+    p.add_argument("--osc-version", default="1.2", choices=["1.0", "1.1", "1.2", "1.3"],
+                   help="OpenSCENARIO version (default 1.2)")
+    p.add_argument("--top", type=int, help="export only the first N ranked scenarios")
+    p.set_defaults(func=cmd_export)
+
+    p = sub.add_parser("simulate", help="run a catalog in esmini and compare the paths")
+    p.add_argument("--catalog", required=True, help="catalog folder (catalog.json)")
+    p.add_argument("--esmini", help="esmini executable (default: $SENSORGAP_ESMINI or PATH)")
+    p.add_argument("--timeout", type=float, default=60.0, help="hard limit per scenario, s")
+    p.add_argument("--step", type=float, default=0.05, help="fixed simulation step, s")
+    p.set_defaults(func=cmd_simulate)
 
     p = sub.add_parser("compare", help="cross-evaluate two search runs (vehicle A vs B)")
     p.add_argument("run_a", help="search run folder of the first vehicle")

@@ -239,6 +239,17 @@ class RoadNetwork:
             return float(wx[0]), float(wy[0])
         return wx.reshape(sb.shape), wy.reshape(sb.shape)
 
+    def off_road_m(self, x: ArrayLike, y: ArrayLike) -> F64:
+        """Distance (m) of world points outside the lanes of the road they project onto
+        (0 for points on a lane): how far a trajectory leaves the road."""
+        rid, lane, s, t = self.world_to_road(np.atleast_1d(x), np.atleast_1d(y))
+        out = np.zeros(len(s))
+        for i in np.flatnonzero(np.asarray(lane) == 0):
+            road = self.road(str(rid[i]))
+            left, right = self._extents(road, np.array([s[i]]))
+            out[i] = max(float(t[i] - left[0]), float(right[0] - t[i]), 0.0)
+        return out
+
     def _extents(self, road: Road, s: F64) -> tuple[F64, F64]:
         """t (m) of the outer border of the leftmost and of the rightmost lane."""
         off = eval_pieces(road.lane_offsets, s)[0]

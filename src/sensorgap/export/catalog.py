@@ -1,0 +1,153 @@
+"""The test catalog of a vehicle: one OpenSCENARIO file per ranked scenario plus its road.
+
+Layout of ``DIR`` (a search run folder, or ``--out``):
+
+* ``scenarios/<scenario_id>.xosc`` referencing ``../roads/<road>.xodr``;
+* ``roads/*.xodr`` (copies of the roads the scenarios run on);
+* ``coverage/<target>_<environment>.npz|.png``: the fused Pd maps (no sun) the search's
+  lookup used for each (environment, target) of the catalog;
+* ``ranking.csv``, ``ranking.json`` (copied when ``--out`` is another folder);
+* ``catalog.json``: the index: every file with its role, size and SHA-256, each scenario
+  with its rank, family, environment, target, risk, road and the validation results;
+* ``manifest.json``.
+
+Every file is validated against the official XSD of its version and by our semantic checks
+before the index is written; a failure is an error, not a warning.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import shutil
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from sensorgap.atomic import atomic_path, atomic_write_bytes
+from sensorgap.config import load_target
+from sensorgap.coverage import GridSpec, Scene, evaluate_grid
+from sensorgap.coverage.plot import coverage_figure, save_figure
+from sensorgap.errors import InputError
+from sensorgap.export.spec import ScenarioSpec, read_run, specs_of_run
+from sensorgap.export.validate import semantic_errors, xsd_errors
+from sensorgap.export.xosc import DEFAULT_VERSION, VERSIONS, build_scenario
+from sensorgap.filesio import write_json, write_manifest, write_npz
+from sensorgap.models import Conditions
+from sensorgap.roads import read_opendrive
+
+#: Grid of the coverage maps written into the catalog (vehicle frame, m).
+CATALOG_GRID = (-120.0, 260.0, -40.0, 40.0, 0.5)
+
+
+class ExportError(RuntimeError):
+    """An exported file failed validation (a bug, never bad input)."""
+
+
+def _sha(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def _lanes(spec: ScenarioSpec) -> dict[str, list[int]]:
+    st = spec.family.settings
+    lanes = [int(st[k]) for k in ("ego_lane", "target_lane", "lane") if k in st]
+    return {str(st["road_id"]): lanes}
+
+
+def _write_xosc(spec: ScenarioSpec, path: Path, road_rel: str, version: str) -> None:
+    sc = build_scenario(spec, road_rel, version)
+    with atomic_path(path) as tmp:
+        sc.write_xml(str(tmp), prettyprint=True)
+
+
+def _coverage_maps(specs: list[ScenarioSpec], out: Path) -> list[Path]:
+    written = []
+    xmin, xmax, ymin, ymax, res = CATALOG_GRID
+    done = set()
+    for sp in specs:
+        key = (sp.environment_name, sp.target.name)
+        if key in done:
+            continue
+        done.add(key)
+        env = sp.environment.model_copy(update={"sun": None})
+        target = load_target(sp.target.name)
+        grid = GridSpec(xmin, xmax, ymin, ymax, res, target.reference_height_m)
+        cov = evaluate_grid(Scene(sp.system, target, Conditions(env=env, sun_direction=None)),
+                            grid, workers=2)
+        stem = f"{target.name}_{sp.environment_name}"
+        write_npz(out / f"{stem}.npz", {"pd": cov.fused.astype(np.float32), "xs": grid.xs(),
+                                         "ys": grid.ys()})
+        fig = coverage_figure(cov, sp.system, f"{sp.system.name}: {target.name}, "
+                              f"{sp.environment_name} (no sun), Pd used by the search lookup")
+        save_figure(fig, out / f"{stem}.png")
+        written += [out / f"{stem}.npz", out / f"{stem}.png"]
+    return written
+
+
+def export_catalog(run_dir: Path, out_dir: Path | None = None,
+                   osc_version: str = DEFAULT_VERSION, top: int | None = None,
+                   coverage: bool = True) -> dict[str, Any]:
+    """Write the catalog of a search run (see the module docstring); returns the index."""
+    if osc_version not in VERSIONS:
+        raise InputError("--osc-version", "", f"must be one of {', '.join(VERSIONS)}, "
+                         f"got {osc_version!r}")
+    if top is not None and top < 1:
+        raise InputError("--top", "", f"must be >= 1, got {top}")
+    run = read_run(Path(run_dir))
+    out = Path(out_dir) if out_dir is not None else run.folder
+    specs = specs_of_run(run, top)
+    (out / "scenarios").mkdir(parents=True, exist_ok=True)
+    (out / "roads").mkdir(parents=True, exist_ok=True)
+    if out.resolve() != run.folder.resolve():
+        for name in ("ranking.csv", "ranking.json"):
+            if (run.folder / name).is_file():
+                atomic_write_bytes(out / name, (run.folder / name).read_bytes())
+    files: dict[str, dict[str, Any]] = {}
+    scenarios = []
+    nets = {}
+    for sp in specs:
+        road_src = sp.road_path
+        road_dst = out / "roads" / road_src.name
+        if road_src.name not in nets:
+            with atomic_path(road_dst) as tmp:
+                shutil.copyfile(road_src, tmp)
+            nets[road_src.name] = read_opendrive(road_dst)
+            errs = xsd_errors(road_dst)
+            if errs:
+                raise ExportError(f"{road_dst}: not valid OpenDRIVE 1.7: {errs[0]}")
+            files[f"roads/{road_src.name}"] = {"role": "road"}
+        path = out / "scenarios" / f"{sp.scenario_id}.xosc"
+        _write_xosc(sp, path, f"../roads/{road_src.name}", osc_version)
+        errs = xsd_errors(path, osc_version)
+        if errs:
+            raise ExportError(f"{path}: not valid OpenSCENARIO {osc_version}: {errs[0]}")
+        sem = semantic_errors(path, nets[road_src.name], _lanes(sp))
+        if sem:
+            raise ExportError(f"{path}: {sem[0]}")
+        files[f"scenarios/{path.name}"] = {"role": "scenario", "scenario_id": sp.scenario_id}
+        scenarios.append({
+            "rank": sp.rank, "scenario_id": sp.scenario_id, "family": sp.family.name,
+            "environment": sp.environment_name,
+            "sun_deg": None if sp.sun_deg is None else list(sp.sun_deg),
+            "target": sp.target.name, "risk": sp.metrics.get("risk", 0.0),
+            "log10_risk": sp.metrics.get("log10_risk", -300.0),
+            "file": f"scenarios/{path.name}", "road": f"roads/{road_src.name}",
+            "duration_s": sp.family.duration_s, "xsd": f"OpenSCENARIO {osc_version}: valid",
+            "semantic_checks": "passed", "reason": sp.reason,
+        })
+    if coverage:
+        for p in _coverage_maps(specs, out / "coverage"):
+            files[f"coverage/{p.name}"] = {"role": "coverage map"}
+    for name in ("ranking.csv", "ranking.json"):
+        if (out / name).is_file():
+            files[name] = {"role": "ranking"}
+    for rel, meta in files.items():
+        p = out / rel
+        meta.update({"bytes": p.stat().st_size, "sha256": _sha(p)})
+    index = {"vehicle": specs[0].system.name if specs else run.vehicle_ref,
+             "vehicle_ref": run.vehicle_ref, "osc_version": osc_version,
+             "scenarios": scenarios, "files": files,
+             "search_settings": run.settings}
+    write_json(out / "catalog.json", index)
+    write_manifest(out)
+    return index

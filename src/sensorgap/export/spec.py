@@ -1,0 +1,112 @@
+"""A ranked scenario rebuilt from a search run: everything an exporter needs.
+
+``ScenarioSpec.from_row`` takes a row of ``ranking.json`` and regenerates the evaluated
+trajectories with the family's generator (a batch of one, identical to the search), the
+environment (preset + world-frame sun) and the metrics, so every exported file traces back
+to one searched candidate.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from sensorgap.config import EnvironmentConfig, TargetConfig, load_environments, load_target
+from sensorgap.config.presets import resolve_road
+from sensorgap.errors import InputError
+from sensorgap.models import System, load_system
+from sensorgap.scenarios import Scenario, load_family
+from sensorgap.scenarios.family import Family, ParamValue
+from sensorgap.search.metrics import metric_names
+
+
+@dataclass
+class RunInfo:
+    """A search run folder: its ranking rows and settings."""
+
+    folder: Path
+    rows: list[dict[str, Any]]
+    settings: dict[str, Any]
+
+    @property
+    def vehicle_ref(self) -> str:
+        """The vehicle as given to the search (preset name or path)."""
+        return str(self.settings.get("vehicle_ref")
+                   or Path(str(self.settings.get("vehicle_file", "system_a"))).stem)
+
+
+def read_run(folder: Path) -> RunInfo:
+    """``ranking.json`` of a run folder; ``InputError`` naming the file otherwise."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise InputError(folder, "", "run folder does not exist")
+    path = folder / "ranking.json"
+    if not path.is_file():
+        raise InputError(path, "", "not a search run folder (ranking.json is missing); run "
+                         "`sensorgap search --out DIR` first")
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+        return RunInfo(folder, list(data["ranking"]), dict(data["settings"]))
+    except (ValueError, KeyError, TypeError) as exc:
+        raise InputError(path, "", f"malformed ranking file: {exc}") from None
+
+
+@dataclass
+class ScenarioSpec:
+    """One ranked scenario, regenerated."""
+
+    scenario_id: str
+    rank: int
+    family: Family
+    params: dict[str, ParamValue]
+    environment_name: str
+    environment: EnvironmentConfig
+    sun_deg: tuple[float, float] | None
+    scenario: Scenario
+    target: TargetConfig
+    system: System
+    metrics: dict[str, float]
+    reason: str
+
+    @property
+    def road_path(self) -> Path:
+        """The OpenDRIVE file of the family's road."""
+        return resolve_road(str(self.family.settings["road"]))
+
+    @classmethod
+    def from_row(cls, row: dict[str, Any], system: System,
+                 source: Path | str = "ranking.json") -> ScenarioSpec:
+        """Rebuild a ranking row (``InputError`` naming ``source`` if it is inconsistent)."""
+        try:
+            family = load_family(str(row["family"]))
+            params: dict[str, ParamValue] = {}
+            for p in family.space:
+                v = row[f"p_{p.name}"]
+                params[p.name] = str(v) if p.categorical else float(v)
+            env_name = str(row["environment"]).split("@")[0]
+            presets = load_environments()
+            if env_name not in presets:
+                raise KeyError(f"environment {env_name!r}")
+            env = presets[env_name]
+            sun = None
+            if row.get("sun_azimuth_deg") is not None and env.sun is not None:
+                sun = (float(row["sun_azimuth_deg"]), float(row["sun_elevation_deg"]))
+                env = env.model_copy(update={"sun": env.sun.model_copy(update={
+                    "azimuth_deg": sun[0], "elevation_deg": sun[1], "frame": "world"})})
+            scenario = family.generate(params)
+        except (KeyError, TypeError, ValueError) as exc:
+            raise InputError(source, f"ranking[{row.get('rank', '?')}]",
+                             f"cannot rebuild the scenario: {exc}") from None
+        metrics = {k: float(row[k]) for k in metric_names() if isinstance(row.get(k), int | float)}
+        return cls(str(row["scenario_id"]), int(row["rank"]), family, params, env_name, env,
+                   sun, scenario, load_target(scenario.target_class), system, metrics,
+                   str(row.get("reason", "")))
+
+
+def specs_of_run(run: RunInfo, top: int | None = None) -> list[ScenarioSpec]:
+    """Every (or the first ``top``) ranked scenario of a run, regenerated."""
+    system = load_system(run.vehicle_ref)
+    rows = run.rows if top is None else run.rows[:top]
+    return [ScenarioSpec.from_row(r, system, run.folder / "ranking.json") for r in rows]

@@ -1,0 +1,79 @@
+"""Validity of exported files: the official XSDs (as shipped by scenariogeneration) and
+semantic checks of our own (entities referenced exist, lanes exist, paths stay on the road).
+"""
+
+from __future__ import annotations
+
+import functools
+from pathlib import Path
+
+import numpy as np
+import scenariogeneration
+import xmlschema
+from lxml import etree
+
+from sensorgap.roads import RoadNetwork
+
+#: XSD file per OpenSCENARIO version, in scenariogeneration's ``schemas`` folder.
+OSC_XSD = {"1.0": "OpenSCENARIO_1_0.xsd", "1.1": "OpenSCENARIO_1_1.xsd",
+           "1.2": "OpenSCENARIO_1_2.xsd", "1.3": "OpenSCENARIO_1_3_1.xsd"}
+ODR_XSD = "opendrive_17_core.xsd"
+
+
+def schemas_dir() -> Path:
+    """The official schemas shipped with scenariogeneration."""
+    return Path(scenariogeneration.__file__).resolve().parent.parent / "schemas"
+
+
+@functools.cache
+def _schema(name: str) -> xmlschema.XMLSchema:
+    return xmlschema.XMLSchema(str(schemas_dir() / name))
+
+
+def xsd_errors(path: Path, version: str | None = None) -> list[str]:
+    """XSD violations of an .xosc (its own version) or .xodr file (first 5, one line each)."""
+    if path.suffix == ".xodr":
+        schema = _schema(ODR_XSD)
+    else:
+        if version is None:
+            header = etree.parse(str(path)).find("FileHeader")
+            version = f"1.{header.get('revMinor')}" if header is not None else "1.2"
+        schema = _schema(OSC_XSD[version])
+    return [str(e.reason or e.message).splitlines()[0]
+            for _, e in zip(range(5), schema.iter_errors(str(path)), strict=False)]
+
+
+def semantic_errors(xosc_path: Path, net: RoadNetwork, lanes: dict[str, list[int]],
+                    tolerance_m: float = 0.5) -> list[str]:
+    """Our own checks of a scenario file: every entity referenced by an action exists; the
+    declared lanes exist on the road; every trajectory vertex lies on the road (within
+    ``tolerance_m`` of its drivable width)."""
+    tree = etree.parse(str(xosc_path))
+    errors = []
+    names = {e.get("name") for e in tree.iter("ScenarioObject")}
+    for tag in ("PrivateAction", "Private", "Actors"):
+        for el in tree.iter(tag):
+            ref = el.get("entityRef")
+            if ref is not None and ref not in names:
+                errors.append(f"{tag} references unknown entity {ref!r}")
+    for el in tree.iter("EntityRef"):
+        if el.get("entityRef") not in names:
+            errors.append(f"EntityRef references unknown entity {el.get('entityRef')!r}")
+    for road_id, ids in lanes.items():
+        for lane in ids:
+            if not net.lane_exists(road_id, lane):
+                errors.append(f"lane {lane} does not exist on road {road_id}")
+    for traj in tree.iter("Trajectory"):
+        pts = [(float(p.get("x")), float(p.get("y"))) for p in traj.iter("WorldPosition")]
+        if not pts:
+            continue
+        xy = np.array(pts)
+        off = _off_road_m(net, xy)
+        if off > tolerance_m:
+            errors.append(f"trajectory {traj.get('name')} leaves the road by {off:.2f} m")
+    return errors
+
+
+def _off_road_m(net: RoadNetwork, xy: np.ndarray) -> float:
+    """Largest distance (m) of world points outside every road's drivable cross-section."""
+    return float(np.max(net.off_road_m(xy[:, 0], xy[:, 1]))) if len(xy) else 0.0

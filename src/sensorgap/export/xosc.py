@@ -1,0 +1,194 @@
+"""One ranked scenario as an OpenSCENARIO file (scenariogeneration objects, 1.0 to 1.3).
+
+Mapping (docs/export.md):
+
+* Entities: ``Ego`` (the vehicle's body from its vehicle file; reference point = rear-axle
+  centre on the ground, the sensorgap vehicle frame) and ``Target`` (car/truck: Vehicle,
+  bike: Vehicle of category bicycle, pedestrian: Pedestrian), bounding boxes from the
+  vehicle and target files; the target's reference point is its centre.
+* Init: TeleportAction to the first state (WorldPosition x, y, heading) and the initial
+  speed (AbsoluteTargetSpeed, step).
+* Manoeuvres: FollowTrajectoryAction with the evaluated 20 Hz states as a timed Polyline
+  (absolute timing, following mode ``position``) for both entities, so a player reproduces
+  exactly the evaluated paths. (A LaneChangeAction would only approximate the cosine /
+  quintic lane-change blends and the lane-table geometry, so it is not used.)
+* Environment: the evaluated conditions: Sun (world azimuth clockwise from north,
+  elevation; intensity = direct irradiance x 105 lm/W, an estimate of the luminous
+  efficacy of direct sunlight), Fog visualRange = visibility, Precipitation (rain or snow,
+  mm/h from 1.1 on; 1.0: intensity 0..1 = mm/h / 50, estimate), TimeOfDay (a fixed date;
+  the sun is given explicitly), RoadCondition friction 1.0 (dry) or 0.7 (wet; estimate).
+* ParameterDeclarations: every searched parameter with its value (re-sweep with
+  ``sensorgap.CriticalScenarios``), plus the environment and the sun.
+* StopTrigger: SimulationTime > duration. FileHeader: description with the metrics, a
+  fixed creation date (deterministic files), author ``sensorgap``.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import math
+
+from scenariogeneration import xosc
+from scenariogeneration.xosc.enumerations import VersionBase
+
+from sensorgap.export.spec import ScenarioSpec
+from sensorgap.scenarios.trajectory import Trajectory
+
+#: OpenSCENARIO versions written (minor of 1.x) and the default.
+VERSIONS = {"1.0": 0, "1.1": 1, "1.2": 2, "1.3": 3}
+DEFAULT_VERSION = "1.2"
+#: Luminous efficacy of direct sunlight, lm/W (estimate; ~93-105 lm/W, Darula & Kittler).
+SUN_LUMEN_PER_WATT = 105.0
+#: FileHeader creation date of every exported file (fixed: same inputs, same bytes).
+CREATION_DATE = dt.datetime(2026, 1, 1, 0, 0, 0)
+#: Ego body height when the vehicle file has none, m (estimate: passenger car).
+RAIN_FULL_SCALE_MM_H = 50.0
+WET_FRICTION = 0.7
+EGO = "Ego"
+TARGET = "Target"
+
+
+def _fmt(v: float) -> float:
+    """Round to 1 mm / 1e-6 rad: short, stable numbers in the XML."""
+    return float(round(v, 6))
+
+
+def _positions(tr: Trajectory) -> list[xosc.WorldPosition]:
+    return [xosc.WorldPosition(_fmt(x), _fmt(y), 0.0, _fmt(h))
+            for x, y, h in zip(tr.x.tolist(), tr.y.tolist(), tr.heading.tolist(), strict=True)]
+
+
+def _follow(name: str, tr: Trajectory) -> xosc.FollowTrajectoryAction:
+    traj = xosc.Trajectory(f"{name}_path", False)
+    traj.add_shape(xosc.Polyline([_fmt(t) for t in tr.t.tolist()], _positions(tr)))
+    return xosc.FollowTrajectoryAction(traj, xosc.FollowingMode.position,
+                                       xosc.ReferenceContext.absolute, 1.0, 0.0)
+
+
+def _ego_entity(spec: ScenarioSpec) -> xosc.Vehicle:
+    body = spec.system.config.vehicle
+    bb = xosc.BoundingBox(body.width_m, body.length_m, body.height_m,
+                          _fmt(0.5 * (body.x_front_m + body.x_rear_m)), 0.0,
+                          0.5 * body.height_m)
+    front = xosc.Axle(0.5, 0.65, _fmt(0.85 * body.width_m), _fmt(body.wheelbase_m), 0.33)
+    rear = xosc.Axle(0.0, 0.65, _fmt(0.85 * body.width_m), 0.0, 0.33)
+    return xosc.Vehicle(EGO, xosc.VehicleCategory.car, bb, front, rear,
+                        _fmt(body.max_speed_m_s), 10.0, 10.0)
+
+
+def _target_entity(spec: ScenarioSpec) -> xosc.Vehicle | xosc.Pedestrian:
+    t = spec.target
+    bb = xosc.BoundingBox(t.width_m, t.length_m, t.height_m, 0.0, 0.0, 0.5 * t.height_m)
+    if t.name == "pedestrian":
+        return xosc.Pedestrian(TARGET, 80.0, xosc.PedestrianCategory.pedestrian, bb,
+                               model="pedestrian")
+    category = {"bike": xosc.VehicleCategory.bicycle,
+                "truck": xosc.VehicleCategory.truck}.get(t.name, xosc.VehicleCategory.car)
+    wheel = 0.6 if t.name == "bike" else 0.8
+    front = xosc.Axle(0.5, wheel, _fmt(0.85 * t.width_m), _fmt(0.3 * t.length_m), wheel / 2)
+    rear = xosc.Axle(0.0, wheel, _fmt(0.85 * t.width_m), _fmt(-0.3 * t.length_m), wheel / 2)
+    return xosc.Vehicle(TARGET, category, bb, front, rear, _fmt(t.max_speed_m_s), 10.0, 10.0)
+
+
+def _environment(spec: ScenarioSpec, minor: int) -> xosc.Environment:
+    env = spec.environment
+    sun = env.sun
+    intensity = 0.0
+    az = el = 0.0
+    if sun is not None:
+        az = math.radians(sun.azimuth_deg % 360.0)
+        el = math.radians(max(sun.elevation_deg, 0.0))
+        if sun.visible and sun.elevation_deg > 0.0:
+            intensity = sun.direct_irradiance_w_m2 * SUN_LUMEN_PER_WATT
+    precip_type, mm_h = xosc.PrecipitationType.dry, 0.0
+    if env.snow_mm_h > 0.0:
+        precip_type, mm_h = xosc.PrecipitationType.snow, env.snow_mm_h
+    elif env.rain_mm_h > 0.0:
+        precip_type, mm_h = xosc.PrecipitationType.rain, env.rain_mm_h
+    intensity_p = min(mm_h / RAIN_FULL_SCALE_MM_H, 1.0) if minor == 0 else mm_h
+    cloud = (xosc.CloudState.free if minor < 2 else xosc.FractionalCloudCover.zeroOktas)
+    if sun is None or not sun.visible:
+        cloud = xosc.CloudState.overcast if minor < 2 else xosc.FractionalCloudCover.eightOktas
+    weather = xosc.Weather(
+        cloudstate=cloud,
+        atmosphericPressure=None if minor == 0 else _fmt(env.pressure_hpa * 100.0),
+        temperature=None if minor == 0 else _fmt(env.temperature_c + 273.15),
+        sun=xosc.Sun(_fmt(intensity), _fmt(az), _fmt(el)),
+        fog=xosc.Fog(int(round(min(env.visibility_m, 1.0e6)))),
+        precipitation=xosc.Precipitation(precip_type, _fmt(intensity_p)))
+    wet = mm_h > 0.0
+    return xosc.Environment(
+        f"{spec.environment_name}", xosc.TimeOfDay(False, 2026, 6, 21, 12, 0, 0), weather,
+        xosc.RoadCondition(WET_FRICTION if wet else 1.0))
+
+
+def description(spec: ScenarioSpec) -> str:
+    """FileHeader description: what, where, how critical (one line)."""
+    m = spec.metrics
+    keys = ("risk", "log10_risk", "t_detect_s", "ttc_at_detect_s", "min_ttc_s", "mean_pd",
+            "corridor_s")
+    vals = ", ".join(f"{k}={m[k]:.6g}" for k in keys if k in m)
+    sun = "" if spec.sun_deg is None else f", sun {spec.sun_deg[0]:g}/{spec.sun_deg[1]:g} deg"
+    return (f"sensorgap critical scenario {spec.scenario_id} (rank {spec.rank}) for "
+            f"{spec.system.name}: family {spec.family.name}, environment "
+            f"{spec.environment_name}{sun}, target {spec.target.name}; {vals}")
+
+
+def build_scenario(spec: ScenarioSpec, road_relpath: str,
+                   version: str = DEFAULT_VERSION) -> xosc.Scenario:
+    """The OpenSCENARIO object of one ranked scenario."""
+    minor = VERSIONS[version]
+    # scenariogeneration keeps the target version in a class attribute that its objects
+    # consult when built (enumerations of newer versions raise); set it before building
+    VersionBase().setVersion(1, minor)
+    params = xosc.ParameterDeclarations()
+    for name, value in spec.params.items():
+        if isinstance(value, str):
+            params.add_parameter(xosc.Parameter(name, xosc.ParameterType.string, value))
+        else:
+            params.add_parameter(xosc.Parameter(name, xosc.ParameterType.double,
+                                                repr(float(value))))
+    params.add_parameter(xosc.Parameter("environment", xosc.ParameterType.string,
+                                        spec.environment_name))
+    if spec.sun_deg is not None:
+        params.add_parameter(xosc.Parameter("sun_azimuth_deg", xosc.ParameterType.double,
+                                            repr(spec.sun_deg[0])))
+        params.add_parameter(xosc.Parameter("sun_elevation_deg", xosc.ParameterType.double,
+                                            repr(spec.sun_deg[1])))
+    entities = xosc.Entities()
+    entities.add_scenario_object(EGO, _ego_entity(spec))
+    entities.add_scenario_object(TARGET, _target_entity(spec))
+
+    init = xosc.Init()
+    init.add_global_action(xosc.EnvironmentAction(_environment(spec, minor)))
+    step = xosc.TransitionDynamics(xosc.DynamicsShapes.step, xosc.DynamicsDimension.time, 0.0)
+    for name, tr in ((EGO, spec.scenario.ego), (TARGET, spec.scenario.target)):
+        init.add_init_action(name, xosc.TeleportAction(xosc.WorldPosition(
+            _fmt(float(tr.x[0])), _fmt(float(tr.y[0])), 0.0, _fmt(float(tr.heading[0])))))
+        init.add_init_action(name, xosc.AbsoluteSpeedAction(_fmt(float(tr.speed[0])), step))
+
+    start = xosc.ValueTrigger("start", 0.0, xosc.ConditionEdge.none,
+                              xosc.SimulationTimeCondition(-1.0, xosc.Rule.greaterThan))
+    story = xosc.Story("critical_scenario")
+    act = xosc.Act("follow_evaluated_paths", start)
+    for name, tr in ((EGO, spec.scenario.ego), (TARGET, spec.scenario.target)):
+        event = xosc.Event(f"{name}_follow", xosc.Priority.override
+                           if minor >= 2 else xosc.Priority.overwrite)
+        event.add_action(f"{name}_trajectory", _follow(name, tr))
+        event.add_trigger(start)
+        man = xosc.Maneuver(f"{name}_maneuver")
+        man.add_event(event)
+        group = xosc.ManeuverGroup(f"{name}_group")
+        group.add_actor(name)
+        group.add_maneuver(man)
+        act.add_maneuver_group(group)
+    story.add_act(act)
+    stop = xosc.ValueTrigger(
+        "end", 0.0, xosc.ConditionEdge.rising,
+        xosc.SimulationTimeCondition(_fmt(spec.family.duration_s), xosc.Rule.greaterThan),
+        "stop")
+    sb = xosc.StoryBoard(init, stop)
+    sb.add_story(story)
+    return xosc.Scenario(description(spec), "sensorgap", params, entities, sb,
+                         xosc.RoadNetwork(roadfile=road_relpath), xosc.Catalog(),
+                         osc_minor_version=minor, creation_date=CREATION_DATE)
