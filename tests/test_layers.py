@@ -8,11 +8,12 @@ from pathlib import Path
 import sensorgap
 
 #: Pipeline order; a module may import its own layer and the layers before it.
-LAYERS = ["errors", "atomic", "filesio", "registry", "plugins", "config", "models",
+LAYERS = ["errors", "atomic", "filesio", "registry", "plugins", "provenance", "config",
+          "models",
           "coverage", "roads", "analysis", "scenarios", "search", "export", "report", "jobs",
           "cli"]
 #: Shared base modules count as one layer (they may import each other).
-_BASE = {"errors", "atomic", "filesio", "registry", "plugins"}
+_BASE = {"errors", "atomic", "filesio", "registry", "plugins", "provenance"}
 ROOT = Path(sensorgap.__file__).parent
 
 

@@ -207,6 +207,26 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_report(args: argparse.Namespace) -> int:
+    """The audit report of a run folder, or two runs side by side."""
+    if args.compare:
+        from sensorgap.report.compare import write_compare_report
+
+        a, b = (Path(p) for p in args.compare)
+        out = Path(args.out) if args.out else a.parent / f"compare_{a.name}_vs_{b.name}"
+        html_path, md_path = write_compare_report(a, b, out)
+        write_manifest(out)
+    else:
+        if not args.run:
+            raise InputError("--run", "", "give --run DIR or --compare RUN_A RUN_B")
+        from sensorgap.report import write_report
+
+        html_path, md_path = write_report(Path(args.run))
+        write_manifest(args.run)
+    print(f"{html_path} and {md_path}")
+    return 0
+
+
 def cmd_corridor(args: argparse.Namespace) -> int:
     """The least-detectable approach path into a critical zone (corridor search)."""
     from sensorgap.coverage import GridSpec, evaluate_grid
@@ -363,6 +383,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--timeout", type=float, default=60.0, help="hard limit per scenario, s")
     p.add_argument("--step", type=float, default=0.05, help="fixed simulation step, s")
     p.set_defaults(func=cmd_simulate)
+
+    p = sub.add_parser("report", help="audit report (report.html + report.md) of a run")
+    p.add_argument("--run", help="run folder (make run: output/system_a)")
+    p.add_argument("--compare", nargs=2, metavar=("RUN_A", "RUN_B"),
+                   help="two run folders side by side")
+    p.add_argument("--out", help="output folder of --compare (default: beside RUN_A)")
+    p.set_defaults(func=cmd_report)
 
     p = sub.add_parser("compare", help="cross-evaluate two search runs (vehicle A vs B)")
     p.add_argument("run_a", help="search run folder of the first vehicle")

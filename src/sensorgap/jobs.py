@@ -2,8 +2,10 @@
 
 ``output/<system>/`` receives the coverage maps per environment preset (car), the near-field
 blind spots, the far-field (Table IV-style) profiles per environment, the critical-scenario
-search (``search.sqlite``, ``ranking.csv/json``), the exported catalog and the report, plus
-``run.json`` (settings, timings, peak memory) and ``manifest.json``. Time and peak memory
+search (``search.sqlite``, ``ranking.csv/json``), the exported catalog (``scenarios/``,
+``roads/``, ``catalog.json``) and the report (``report.html``, ``report.md``), plus
+``run.json`` (command, versions, config hashes, settings), ``job.json`` (timings, peak
+memory; machine-dependent) and ``manifest.json``. Time and peak memory
 are printed at the end (targets: 60 s, 1.5 GiB on 2 cores).
 """
 
@@ -22,11 +24,14 @@ from sensorgap.analysis.farfield_outputs import write_farfield
 from sensorgap.analysis.nearfield import write_nearfield
 from sensorgap.analysis.paper import FarFieldSetup, run_farfield
 from sensorgap.config import load_environment, load_environments, load_target
-from sensorgap.config.presets import resolve_road
+from sensorgap.config.presets import resolve_road, roads_dir, templates_dir
 from sensorgap.coverage import GridSpec, Scene
 from sensorgap.coverage.outputs import write_coverage
+from sensorgap.export import export_catalog
 from sensorgap.filesio import write_csv, write_json, write_manifest
 from sensorgap.models import Conditions, load_system
+from sensorgap.provenance import write_run_info
+from sensorgap.report import write_report
 from sensorgap.roads import read_opendrive
 from sensorgap.scenarios import family_presets
 from sensorgap.search.run import run_search
@@ -114,18 +119,26 @@ def run_default(out: Path, workers: int = 2, system_name: str = DEFAULT_SYSTEM,
     outcome = clock.stage("search", lambda: run_search(
         system_name, family_presets(), envs, budget, seed, top, folder, strategy="de",
         progress=False, workers=workers))
-    info = {
-        "command": ["sensorgap", "run", "--out", str(out), "--workers", str(workers)],
-        "vehicle": system_name,
-        "settings": {"budget": budget, "top": top, "seed": seed, "strategy": "de",
-                     "pd": "lookup", "families": family_presets(), "environments": envs,
-                     "coverage_grid_m": list(DEFAULT_GRID)},
-        "candidates": outcome.summary["candidates"],
-        "timings_s": clock.stages,
-    }
+    clock.stage("export", lambda: export_catalog(folder))
+    settings = {"budget": budget, "top": top, "seed": seed, "strategy": "de", "pd": "lookup",
+                "families": family_presets(), "environments": envs,
+                "coverage_grid_m": list(DEFAULT_GRID), "workers": workers}
+    command = ["sensorgap", "run", "--out", str(out), "--workers", str(workers)]
+    system = load_system(system_name)
+    tdir = templates_dir()
+    files = [system.source, tdir / "environments.toml", tdir / "targets.toml",
+             *sorted((tdir / "scenarios").glob("*.toml")), *sorted(roads_dir().glob("*.xodr"))]
+    write_run_info(folder, command, system_name, files, settings,
+                   {"candidates": outcome.summary["candidates"]})
+    clock.stage("report", lambda: write_report(folder))
     total, peak = clock.total, peak_rss_mib()
-    write_json(folder / "job.json", info)
+    write_json(folder / "job.json", {"timings_s": clock.stages, "total_s": round(total, 1),
+                                     "peak_rss_mib": round(peak), "targets": {
+                                         "time_s": TARGET_TIME_S,
+                                         "peak_rss_mib": TARGET_PEAK_MIB}})
     write_manifest(folder)
+    info = {"settings": settings, "timings_s": clock.stages, "total_s": total,
+            "peak_rss_mib": peak}
     print(f"{folder}: {outcome.summary['candidates']:,} candidates, "
           f"{len(outcome.ranking)} ranked; total {total:.1f} s (target {TARGET_TIME_S:.0f} s), "
           f"peak memory {peak:.0f} MiB (target {TARGET_PEAK_MIB:.0f} MiB)")

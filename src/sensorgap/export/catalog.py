@@ -79,7 +79,7 @@ def _coverage_maps(specs: list[ScenarioSpec], out: Path) -> list[Path]:
                                          "ys": grid.ys()})
         fig = coverage_figure(cov, sp.system, f"{sp.system.name}: {target.name}, "
                               f"{sp.environment_name} (no sun), Pd used by the search lookup")
-        save_figure(fig, out / f"{stem}.png")
+        save_figure(fig, out / f"{stem}.png", dpi=80)
         written += [out / f"{stem}.npz", out / f"{stem}.png"]
     return written
 

@@ -9,7 +9,6 @@ from pathlib import Path
 
 import numpy as np
 import scenariogeneration
-import xmlschema
 from lxml import etree
 
 from sensorgap.roads import RoadNetwork
@@ -26,21 +25,28 @@ def schemas_dir() -> Path:
 
 
 @functools.cache
-def _schema(name: str) -> xmlschema.XMLSchema:
-    return xmlschema.XMLSchema(str(schemas_dir() / name))
+def _schema(name: str) -> etree.XMLSchema:
+    """The schema, compiled by libxml2 (lxml): ~100x faster than a pure-Python validator
+    on 2,000-vertex trajectories."""
+    return etree.XMLSchema(etree.parse(str(schemas_dir() / name)))
 
 
 def xsd_errors(path: Path, version: str | None = None) -> list[str]:
     """XSD violations of an .xosc (its own version) or .xodr file (first 5, one line each)."""
+    try:
+        doc = etree.parse(str(path))
+    except (OSError, etree.XMLSyntaxError) as exc:
+        return [f"not well-formed XML: {exc}"]
     if path.suffix == ".xodr":
         schema = _schema(ODR_XSD)
     else:
         if version is None:
-            header = etree.parse(str(path)).find("FileHeader")
+            header = doc.find("FileHeader")
             version = f"1.{header.get('revMinor')}" if header is not None else "1.2"
         schema = _schema(OSC_XSD[version])
-    return [str(e.reason or e.message).splitlines()[0]
-            for _, e in zip(range(5), schema.iter_errors(str(path)), strict=False)]
+    if schema.validate(doc):
+        return []
+    return [f"line {e.line}: {e.message}" for e in list(schema.error_log)[:5]]
 
 
 def semantic_errors(xosc_path: Path, net: RoadNetwork, lanes: dict[str, list[int]],

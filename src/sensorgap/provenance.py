@@ -1,0 +1,82 @@
+"""Provenance of a run: software versions, config hashes, the command (``run.json``).
+
+Everything here is deterministic except ``created_utc``, the one timestamp field of a run
+(``SOURCE_DATE_EPOCH`` fixes it, the reproducible-builds convention).
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import hashlib
+import os
+import platform
+import sys
+from collections.abc import Iterable
+from importlib import metadata
+from pathlib import Path
+from typing import Any
+
+from sensorgap.filesio import write_json
+
+#: Distributions whose versions a run records.
+PACKAGES = ("sensorgap", "numpy", "scipy", "pandas", "numba", "pydantic", "lxml", "networkx",
+            "scenariogeneration", "xmlschema", "shapely", "matplotlib", "tqdm")
+
+
+def versions() -> dict[str, str]:
+    """Python and the installed versions of ``PACKAGES``."""
+    out = {"python": platform.python_version()}
+    for name in PACKAGES:
+        try:
+            out[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            out[name] = "not installed"
+    return out
+
+
+def sha256_of(path: Path) -> str:
+    """SHA-256 of a file's bytes."""
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def config_hashes(paths: Iterable[Path], root: Path | None = None) -> dict[str, str]:
+    """SHA-256 per config file, keyed by its path relative to ``root`` (or its name)."""
+    out = {}
+    for p in sorted(set(Path(x) for x in paths)):
+        key = p.name
+        if root is not None:
+            try:
+                key = p.resolve().relative_to(root.resolve()).as_posix()
+            except ValueError:
+                key = p.name
+        out[key] = sha256_of(p)
+    return out
+
+
+def utc_now() -> str:
+    """The run's timestamp (ISO 8601, UTC; ``SOURCE_DATE_EPOCH`` when set)."""
+    epoch = os.environ.get("SOURCE_DATE_EPOCH")
+    t = (dt.datetime.fromtimestamp(int(epoch), dt.UTC) if epoch and epoch.isdigit()
+         else dt.datetime.now(dt.UTC))
+    return t.replace(microsecond=0).isoformat().replace("+00:00", "Z")
+
+
+def command_line(argv: list[str] | None = None) -> list[str]:
+    """The command as typed (``sensorgap`` + arguments)."""
+    args = sys.argv[1:] if argv is None else argv
+    return ["sensorgap", *args]
+
+
+def write_run_info(folder: Path, command: list[str], vehicle: str,
+                   files: Iterable[Path], settings: dict[str, Any],
+                   extra: dict[str, Any] | None = None) -> dict[str, Any]:
+    """``folder/run.json``: command, vehicle, versions, config hashes, settings (+ extra)."""
+    info: dict[str, Any] = {
+        "command": command, "vehicle": vehicle, "versions": versions(),
+        "config_sha256": config_hashes(files, Path.cwd()), "settings": settings,
+        "platform": f"{platform.system()} {platform.machine()}",
+        "created_utc": utc_now(),
+    }
+    info.update(extra or {})
+    write_json(Path(folder) / "run.json", info)
+    return info
