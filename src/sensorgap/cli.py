@@ -162,7 +162,7 @@ def cmd_search(args: argparse.Namespace) -> int:
         [e for e in args.environments.split(",") if e], args.budget, args.seed, args.top,
         Path(args.out), strategy=args.strategy, mode=args.pd, sun_search=not args.no_sun,
         environments_file=Path(args.environments_file) if args.environments_file else None,
-        detection=args.detection, workers=args.workers)
+        detection=args.detection, workers=args.workers, resume=args.resume)
     write_manifest(args.out)
     print(f"{args.out}: {outcome.evaluated} evaluated, {outcome.reused} reused, "
           f"best risk {outcome.summary['best_risk']:.3g}, {len(outcome.ranking)} ranked")
@@ -366,7 +366,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--detection", default="cumulative",
                    help="reliable detection: 'cumulative' (Pd >= 0.99) or M/N confirmation")
     p.add_argument("--workers", type=int, default=2, help="threads per batch (default 2)")
-    p.add_argument("--out", required=True, help="run folder (resumes if it exists)")
+    p.add_argument("--resume", action="store_true",
+                   help="continue the search stored in --out (same settings)")
+    p.add_argument("--out", required=True, help="run folder")
     p.set_defaults(func=cmd_search)
 
     p = sub.add_parser("export", help="OpenSCENARIO + OpenDRIVE catalog of a search run")

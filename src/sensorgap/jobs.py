@@ -118,7 +118,7 @@ def run_default(out: Path, workers: int = 2, system_name: str = DEFAULT_SYSTEM,
     envs = list(load_environments())
     outcome = clock.stage("search", lambda: run_search(
         system_name, family_presets(), envs, budget, seed, top, folder, strategy="de",
-        progress=False, workers=workers))
+        progress=False, workers=workers, resume=True))
     clock.stage("export", lambda: export_catalog(folder))
     settings = {"budget": budget, "top": top, "seed": seed, "strategy": "de", "pd": "lookup",
                 "families": family_presets(), "environments": envs,

@@ -228,11 +228,13 @@ def test_run_deterministic_and_resumes(tmp_path: Path) -> None:
     for col in ("rank", "scenario_id", "family", "environment", "risk", "reason",
                 "p_ego_speed_m_s", "t_detect_s"):
         assert col in header
-    again = run_search(out=tmp_path / "a", **kw)  # type: ignore[arg-type]
+    with pytest.raises(InputError, match="add --resume"):
+        run_search(out=tmp_path / "a", **kw)  # type: ignore[arg-type]
+    again = run_search(out=tmp_path / "a", resume=True, **kw)  # type: ignore[arg-type]
     assert again.evaluated == 0 and again.reused == 24
     assert (tmp_path / "a" / "ranking.csv").read_bytes() == csv_a
     with pytest.raises(InputError, match="different settings"):
-        run_search(out=tmp_path / "a", **{**kw, "seed": 8})  # type: ignore[arg-type]
+        run_search(out=tmp_path / "a", resume=True, **{**kw, "seed": 8})  # type: ignore[arg-type]
     assert all(r["reason"] for r in b.ranking)
 
 

@@ -66,7 +66,8 @@ def run_search(vehicle: str | Path, families: list[str], environments: list[str]
                mode: str = "lookup", sun_search: bool = True,
                environments_file: Path | None = None, progress: bool | None = None,
                min_distance: float = MIN_DISTANCE,
-               detection: str = "cumulative", workers: int = 2) -> SearchOutcome:
+               detection: str = "cumulative", workers: int = 2,
+               resume: bool = False) -> SearchOutcome:
     """Search, store every candidate, write the ranking; see the module docstring.
     ``workers``: threads evaluating each batch (the result does not depend on it)."""
     if not 1 <= budget <= MAX_BUDGET:
@@ -104,6 +105,11 @@ def run_search(vehicle: str | Path, families: list[str], environments: list[str]
                 "detection": rule.label()}
     out.mkdir(parents=True, exist_ok=True)
     store = Store(out / "search.sqlite", settings)
+    if store.count() and not resume:
+        n = store.count()
+        store.close()
+        raise InputError("--out", "", f"{out} already holds a search ({n} candidates "
+                         "stored); add --resume to continue it, or use another --out")
     shares = [budget // len(fams) + (1 if i < budget % len(fams) else 0)
               for i in range(len(fams))]
     results: list[Result] = []
