@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import signal
 import sys
 import traceback
 from collections.abc import Callable, Sequence
@@ -227,6 +228,25 @@ def cmd_report(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_verify(args: argparse.Namespace) -> int:
+    """Check a run folder against its manifest (nothing lost or changed)."""
+    from sensorgap.filesio import verify_manifest
+
+    folder = Path(args.folder)
+    manifest = folder / "manifest.json"
+    if not manifest.is_file():
+        raise InputError(manifest, "", "no manifest in this folder (not a sensorgap run)")
+    try:
+        problems = verify_manifest(folder)
+    except (ValueError, KeyError, TypeError) as exc:
+        raise InputError(manifest, "", f"malformed manifest: {exc}") from None
+    if problems:
+        more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""
+        raise InputError(manifest, "files", f"{problems[0]}{more}")
+    print(f"{folder}: every file of the manifest is present and unchanged")
+    return 0
+
+
 def cmd_corridor(args: argparse.Namespace) -> int:
     """The least-detectable approach path into a critical zone (corridor search)."""
     from sensorgap.coverage import GridSpec, evaluate_grid
@@ -393,6 +413,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", help="output folder of --compare (default: beside RUN_A)")
     p.set_defaults(func=cmd_report)
 
+    p = sub.add_parser("verify", help="check a run folder against its manifest.json")
+    p.add_argument("folder", help="run or catalog folder")
+    p.set_defaults(func=cmd_verify)
+
     p = sub.add_parser("compare", help="cross-evaluate two search runs (vehicle A vs B)")
     p.add_argument("run_a", help="search run folder of the first vehicle")
     p.add_argument("run_b", help="search run folder of the second vehicle")
@@ -432,10 +456,18 @@ def main(argv: Sequence[str] | None = None) -> int:
             argv[i - 1 : i + 1] = [f"{argv[i - 1]}={argv[i]}"]
     args = parser.parse_args(argv)
     func: Callable[[argparse.Namespace], int] = args.func
+    if hasattr(signal, "SIGXFSZ"):  # a file-size limit: a clean OSError, not a core dump
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
     try:
         return func(args)
     except InputError as exc:
         print(f"sensorgap: error: {exc.line()}", file=sys.stderr)
+        return EXIT_INPUT
+    except OSError as exc:  # disk full, file too large, permissions, a file as a folder
+        where = exc.filename or "output"
+        print(f"sensorgap: error: {where}: cannot write or read: "
+              f"{exc.strerror or type(exc).__name__} (no partial file was left)",
+              file=sys.stderr)
         return EXIT_INPUT
     except KeyboardInterrupt:
         print("sensorgap: interrupted", file=sys.stderr)

@@ -114,3 +114,29 @@ def write_manifest(folder: str | Path) -> Path:
         files[p.relative_to(root).as_posix()] = {
             "bytes": len(data), "sha256": hashlib.sha256(data).hexdigest()}
     return write_json(root / MANIFEST_NAME, {"algorithm": "sha256", "files": files})
+
+
+def verify_manifest(folder: str | Path) -> list[str]:
+    """Problems of a run folder against its ``manifest.json``: files missing, changed (size
+    or SHA-256) or not listed. Empty when the folder is intact."""
+    import hashlib
+
+    root = Path(folder)
+    data = json.loads((root / MANIFEST_NAME).read_text(encoding="utf-8"))
+    listed = data["files"]
+    problems = []
+    for rel, meta in sorted(listed.items()):
+        p = root / rel
+        if not p.is_file():
+            problems.append(f"{rel} is missing")
+            continue
+        raw = p.read_bytes()
+        if len(raw) != meta["bytes"] or hashlib.sha256(raw).hexdigest() != meta["sha256"]:
+            problems.append(f"{rel} was changed (size or SHA-256 differs)")
+    for p in sorted(root.rglob("*")):
+        rel = p.relative_to(root).as_posix()
+        if (p.is_file() and p.name != MANIFEST_NAME and rel not in listed
+                and not p.name.endswith(_MANIFEST_SKIP_SUFFIXES)
+                and not (p.name.startswith(".") and ".tmp" in p.name)):
+            problems.append(f"{rel} is not in the manifest")
+    return problems

@@ -30,7 +30,7 @@ from sensorgap.coverage import GridSpec, Scene, evaluate_grid
 from sensorgap.coverage.plot import coverage_figure, save_figure
 from sensorgap.errors import InputError
 from sensorgap.export.spec import ScenarioSpec, read_run, specs_of_run
-from sensorgap.export.validate import semantic_errors, xsd_errors
+from sensorgap.export.validate import FOOTWAY_M, semantic_errors, xsd_errors
 from sensorgap.export.xosc import DEFAULT_VERSION, VERSIONS, build_scenario
 from sensorgap.filesio import write_json, write_manifest, write_npz
 from sensorgap.models import Conditions
@@ -121,7 +121,9 @@ def export_catalog(run_dir: Path, out_dir: Path | None = None,
         errs = xsd_errors(path, osc_version)
         if errs:
             raise ExportError(f"{path}: not valid OpenSCENARIO {osc_version}: {errs[0]}")
-        sem = semantic_errors(path, nets[road_src.name], _lanes(sp))
+        vru = sp.target.name in ("pedestrian", "bike")
+        sem = semantic_errors(path, nets[road_src.name], _lanes(sp),
+                              tolerance_by_path={"Target_path": FOOTWAY_M} if vru else None)
         if sem:
             raise ExportError(f"{path}: {sem[0]}")
         files[f"scenarios/{path.name}"] = {"role": "scenario", "scenario_id": sp.scenario_id}

@@ -49,11 +49,18 @@ def xsd_errors(path: Path, version: str | None = None) -> list[str]:
     return [f"line {e.line}: {e.message}" for e in list(schema.error_log)[:5]]
 
 
+#: How far beside the outermost lane a vulnerable road user's path may run (a footway or
+#: verge where a crossing starts and ends), m (estimate: urban footway width).
+FOOTWAY_M = 5.0
+
+
 def semantic_errors(xosc_path: Path, net: RoadNetwork, lanes: dict[str, list[int]],
-                    tolerance_m: float = 0.5) -> list[str]:
+                    tolerance_m: float = 0.5,
+                    tolerance_by_path: dict[str, float] | None = None) -> list[str]:
     """Our own checks of a scenario file: every entity referenced by an action exists; the
     declared lanes exist on the road; every trajectory vertex lies on the road (within
-    ``tolerance_m`` of its drivable width)."""
+    ``tolerance_m`` of its lanes, or the trajectory's own tolerance in
+    ``tolerance_by_path``, e.g. ``FOOTWAY_M`` for a crossing pedestrian)."""
     tree = etree.parse(str(xosc_path))
     errors = []
     names = {e.get("name") for e in tree.iter("ScenarioObject")}
@@ -75,7 +82,7 @@ def semantic_errors(xosc_path: Path, net: RoadNetwork, lanes: dict[str, list[int
             continue
         xy = np.array(pts)
         off = _off_road_m(net, xy)
-        if off > tolerance_m:
+        if off > (tolerance_by_path or {}).get(str(traj.get("name")), tolerance_m):
             errors.append(f"trajectory {traj.get('name')} leaves the road by {off:.2f} m")
     return errors
 

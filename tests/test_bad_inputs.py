@@ -1,0 +1,146 @@
+"""Runs the bad-input corpus (tests/bad_inputs/cases.toml, format in its README): every
+case gives its one-line message on stderr and exit 2, no traceback, nothing half-written.
+Also: an internal error is exit 1 and says so, with a traceback only under --debug."""
+
+from __future__ import annotations
+
+import os
+import re
+import resource
+import shutil
+import subprocess
+import sys
+import tomllib
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+import sensorgap
+from sensorgap.cli import main
+
+HERE = Path(__file__).resolve().parent
+REPO = HERE.parent
+CASES: list[dict[str, Any]] = tomllib.loads(
+    (HERE / "bad_inputs" / "cases.toml").read_text(encoding="utf-8"))["case"]
+SRC = str(Path(sensorgap.__file__).resolve().parents[1])
+
+
+def test_corpus_is_large_and_unique() -> None:
+    names = [c["name"] for c in CASES]
+    assert len(names) >= 40 and len(set(names)) == len(names)
+    commands = {c["argv"][0] for c in CASES}
+    assert {"probe", "coverage", "nearfield", "farfield", "search", "corridor", "schema",
+            "run", "export", "simulate", "report", "compare", "verify"} <= commands
+
+
+@pytest.fixture(scope="module")
+def finished_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A small finished, exported search run with a near-field analysis and a manifest."""
+    out = tmp_path_factory.mktemp("run") / "run"
+    assert main(["search", "--vehicle", "system_a", "--families", "crossing_pedestrian",
+                 "--environments", "clear", "--budget", "40", "--top", "2", "--strategy",
+                 "lhs", "--out", str(out)]) == 0
+    assert main(["nearfield", "--vehicle", "system_a", "--resolution", "0.2", "--out",
+                 str(out / "nearfield")]) == 0
+    assert main(["export", "--run", str(out)]) == 0
+    return out
+
+
+def _write_files(case: dict[str, Any], folder: Path) -> None:
+    for name, spec in case.get("files", {}).items():
+        if isinstance(spec, str):
+            text = spec
+        else:
+            text = (REPO / spec["from"]).read_text(encoding="utf-8")
+            for old, new in spec.get("replace", []):
+                assert old in text, f"{case['name']}: {old!r} not in {spec['from']}"
+                text = text.replace(old, new)
+        (folder / name).write_text(text, encoding="utf-8")
+
+
+def _setup(case: dict[str, Any], folder: Path, out: Path, run: Path) -> None:
+    for step in case.get("setup", []):
+        if step == "out_parent_is_file":
+            out.write_text("a file where a folder is expected")
+        elif step == "sparse_huge_road":
+            with (folder / "huge.xodr").open("wb") as f:
+                f.truncate(300 * 2**20)  # sparse: costs no disk
+        elif step == "delete_first_scenario":
+            next((run / "scenarios").glob("*.xosc")).unlink()
+        elif step == "corrupt_nearfield":
+            (run / "nearfield" / "nearfield.json").write_text("{broken")
+        elif step == "existing_search":
+            assert main([*case["argv"][:-2], "--out", str(out)]) == 0
+        else:
+            raise AssertionError(f"unknown setup step {step!r}")
+
+
+def _files(folder: Path) -> set[str]:
+    return {p.relative_to(folder).as_posix() for p in folder.rglob("*") if p.is_file()} \
+        if folder.is_dir() else set()
+
+
+@pytest.mark.parametrize("case", CASES, ids=[c["name"] for c in CASES])
+def test_bad_input(case: dict[str, Any], tmp_path: Path, finished_run: Path,
+                   capsys: pytest.CaptureFixture[str]) -> None:
+    folder = tmp_path / "case"
+    folder.mkdir()
+    out = tmp_path / "out"
+    run = tmp_path / "run"
+    if any("{run}" in a for a in case["argv"]):
+        shutil.copytree(finished_run, run)
+    _write_files(case, folder)
+    _setup(case, folder, out, run)
+    before = _files(out)
+    subs = {"{dir}": str(folder), "{out}": str(out), "{run}": str(run),
+            "{templates}": str(REPO / "templates"), "{roads}": str(REPO / "roads")}
+    argv = [a for a in case["argv"]]
+    for i, a in enumerate(argv):
+        for k, v in subs.items():
+            a = a.replace(k, v)
+        argv[i] = a
+    if "rlimit_fsize" in case:
+        limit = int(case["rlimit_fsize"])
+
+        def cap() -> None:
+            resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+
+        proc = subprocess.run([sys.executable, "-m", "sensorgap", *argv], capture_output=True,
+                              env={**os.environ, "PYTHONPATH": SRC}, preexec_fn=cap,
+                              timeout=300, check=False)
+        code, err = proc.returncode, proc.stderr.decode("utf-8", "replace")
+    else:
+        try:
+            code = main(argv)
+        except SystemExit as exc:  # argparse errors
+            code = int(exc.code or 0)
+        err = capsys.readouterr().err
+    lines = err.strip().splitlines()
+    assert code == case["exit"], f"exit {code}: {err}"
+    assert len(lines) == 1, err
+    assert "Traceback" not in err
+    assert re.search(case["message"], lines[0]), lines[0]
+    after = _files(out)
+    assert not [f for f in after if ".tmp" in f], after
+    if code == 2:
+        assert after <= before, f"files written despite the error: {sorted(after - before)}"
+
+
+def test_internal_error_is_exit_1_without_traceback(monkeypatch: pytest.MonkeyPatch,
+                                                    capsys: pytest.CaptureFixture[str],
+                                                    tmp_path: Path) -> None:
+    import sensorgap.analysis.nearfield as nf
+
+    def boom(*_: Any, **__: Any) -> None:
+        raise RuntimeError("synthetic failure")
+
+    monkeypatch.setattr(nf, "write_nearfield", boom)
+    argv = ["nearfield", "--vehicle", "system_a", "--out", str(tmp_path / "o")]
+    assert main(argv) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "internal error" in err and "Traceback" not in err
+    assert "--debug" in err
+    assert main(["--debug", *argv]) == 1
+    err = capsys.readouterr().err
+    assert "Traceback" in err and "synthetic failure" in err
