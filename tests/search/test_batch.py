@@ -158,3 +158,28 @@ def test_single_evaluate_equals_its_batch_row() -> None:
         assert out.objective is not None and r.objective == out.objective[i]
         for m in out.metrics:
             assert r.metrics[m] == out.metrics[m][i], m
+
+
+@pytest.mark.parametrize("name", ["crossing_pedestrian", "crossing_cyclist"])
+def test_crossing_waits_on_the_footway_and_meets_its_timing(name: str) -> None:
+    """The target stays within the footway (2 m beyond the outermost lane), accelerates
+    within its limits, and reaches the ego lane's centre at cross_ahead / v_ego + offset."""
+    fam = load_family(name)
+    prob = _problem(name)
+    d = prob.decode_batch(np.random.default_rng(9).random((60, prob.dim)))
+    batch = fam.generate_batch(d.params)
+    net, rid = fam.network, str(fam.settings["road_id"])
+    lane = int(fam.settings["ego_lane"])
+    for i in np.flatnonzero(batch.ok):
+        p = {k: v[i] for k, v in d.params.items()}
+        xs, ys = batch.target.x[i], batch.target.y[i]
+        assert np.max(net.off_road_m(xs, ys)) <= 2.0 + 1e-6
+        _, lanes, _, t_road = net.world_to_road(xs, ys)
+        t_p = float(p["cross_ahead_m"]) / float(p["ego_speed_m_s"]) + float(
+            p["conflict_offset_s"])
+        s_c = float(np.mean(net.world_to_road(xs, ys)[2]))
+        inner, outer = net.lane_edges(rid, lane, np.array([s_c]))
+        centre = 0.5 * float(inner[0] + outer[0])
+        if 0.0 < t_p < batch.t[-1]:
+            k = int(round(t_p * 20))
+            assert abs(float(t_road[k]) - centre) <= float(p["target_speed_m_s"]) * 0.05 + 1e-6

@@ -12,6 +12,7 @@ import scenariogeneration
 from lxml import etree
 
 from sensorgap.roads import RoadNetwork
+from sensorgap.scenarios.kinds import FOOTWAY_M as CROSSING_FOOTWAY_M
 
 #: XSD file per OpenSCENARIO version, in scenariogeneration's ``schemas`` folder.
 OSC_XSD = {"1.0": "OpenSCENARIO_1_0.xsd", "1.1": "OpenSCENARIO_1_1.xsd",
@@ -50,8 +51,8 @@ def xsd_errors(path: Path, version: str | None = None) -> list[str]:
 
 
 #: How far beside the outermost lane a vulnerable road user's path may run (a footway or
-#: verge where a crossing starts and ends), m (estimate: urban footway width).
-FOOTWAY_M = 5.0
+#: verge where a crossing starts and ends): the crossing family's own bound, plus 0.5 m.
+FOOTWAY_M = CROSSING_FOOTWAY_M + 0.5
 
 
 def semantic_errors(xosc_path: Path, net: RoadNetwork, lanes: dict[str, list[int]],

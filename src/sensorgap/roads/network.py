@@ -239,6 +239,13 @@ class RoadNetwork:
             return float(wx[0]), float(wy[0])
         return wx.reshape(sb.shape), wy.reshape(sb.shape)
 
+    def road_extents(self, road_id: str | int, s: ArrayLike) -> tuple[F64, F64]:
+        """Lateral position t (m) of the outer border of the leftmost and of the rightmost
+        lane of road ``road_id`` at ``s`` (m, array)."""
+        road = self.road(road_id)
+        left, right = self._extents(road, self._s(road, s))
+        return left.reshape(np.shape(s)), right.reshape(np.shape(s))
+
     def off_road_m(self, x: ArrayLike, y: ArrayLike) -> F64:
         """Distance (m) of world points outside the lanes of the road they project onto
         (0 for points on a lane): how far a trajectory leaves the road."""

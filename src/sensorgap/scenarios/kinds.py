@@ -27,6 +27,16 @@ from sensorgap.scenarios.trajectory import InfeasibleScenario, time_axis
 
 F64 = NDArray[np.float64]
 
+#: How far beside the outermost lane a crossing pedestrian or cyclist may be (its footway or
+#: verge), m (estimate: urban footway width).
+FOOTWAY_M = 5.0
+#: Where a crossing target waits and where it stops: this far beyond the outermost lane, m
+#: (estimate: on the footway, clear of the kerb).
+CURB_OFFSET_M = 2.0
+#: Acceleration and deceleration of a crossing target, m/s2 (estimates: pedestrians start
+#: walking at ~1-1.5 m/s2, cyclists pull away at ~1.5-2.5 m/s2; both within LIMITS).
+CROSSING_ACCEL_M_S2 = {"pedestrian": 1.5, "bike": 2.0}
+
 _ROAD_SETTINGS = {"road": None, "road_id": None, "target": None, "duration_s": 10.0}
 
 
@@ -189,10 +199,12 @@ class SlowAhead(_LaneKind):
 
 @register_kind
 class Crossing(_LaneKind):
-    """A pedestrian or cyclist crosses the road ``cross_ahead_m`` ahead of the ego's start,
-    at constant speed, from the ego's ``side``; timed so that it reaches the ego lane's
-    centre ``conflict_offset_s`` after the ego's rear axle reaches the crossing line
-    (negative: before)."""
+    """A pedestrian or cyclist crosses the road ``cross_ahead_m`` ahead of the ego's start
+    from the ego's ``side``: it waits on the footway ``CURB_OFFSET_M`` beyond the outermost
+    lane, accelerates at ``CROSSING_ACCEL_M_S2`` to ``target_speed_m_s``, crosses, and stops
+    the same distance beyond the far side; timed so that it reaches the ego lane's centre
+    ``conflict_offset_s`` after the ego's rear axle reaches the crossing line (negative:
+    before). Targets that are already under way at t = 0 start on their path."""
 
     name = "crossing"
     description = "pedestrian or cyclist crossing in front of the ego"
@@ -221,8 +233,28 @@ class Crossing(_LaneKind):
         t_c = (0.5 * (inner + outer))[:, None]
         right = -tr  # the ego's right in road t: -t when driving along +s
         side = np.where(_is(cols, "side", "right"), right, -right).astype(np.float64)[:, None]
+        t_left, t_right = net.road_extents(rid, s_cc)
+        t_left, t_right = t_left[:, None], t_right[:, None]
+        # from the footway on `side` (road t on that side) to the one opposite
+        start = np.where(side > 0, t_left + CURB_OFFSET_M, t_right - CURB_OFFSET_M)
+        end = np.where(side > 0, t_right - CURB_OFFSET_M, t_left + CURB_OFFSET_M)
+        d_near, d_total = np.abs(start - t_c), np.abs(start - end)
+        a = CROSSING_ACCEL_M_S2.get(family.target_class, 1.5)
+        v = np.minimum(_col(cols, "target_speed_m_s"), np.sqrt(a * d_total))  # triangular
+        ta, da = v / a, v * v / (2.0 * a)
+        t_cruise = (d_total - 2.0 * da) / v
+        t_end = 2.0 * ta + t_cruise
+        # time after departure at which the lane centre is reached
+        tau_c = np.where(d_near <= da, np.sqrt(2.0 * d_near / a),
+                         np.where(d_near <= d_total - da, ta + (d_near - da) / v,
+                                  t_end - np.sqrt(np.maximum(2.0 * (d_total - d_near) / a,
+                                                             0.0))))
         t_p = _col(cols, "cross_ahead_m") / ve + _col(cols, "conflict_offset_s")
-        lat = t_c + side * _col(cols, "target_speed_m_s") * (t_p - t)
+        tau = np.clip(t - (t_p - tau_c), 0.0, t_end)
+        dist = np.where(tau <= ta, 0.5 * a * tau * tau,
+                        np.where(tau <= ta + t_cruise, da + v * (tau - ta),
+                                 d_total - 0.5 * a * (t_end - tau) ** 2))
+        lat = start - side * dist
         xr, yr, hr = net.reference_line(rid, s_cc)
         xr, yr, hr = xr[:, None], yr[:, None], hr[:, None]
         x, y = xr - lat * np.sin(hr), yr + lat * np.cos(hr)
