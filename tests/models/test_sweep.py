@@ -58,7 +58,8 @@ def test_range_sweep_finite_bounded_monotone(system_name: str, target: str) -> N
         assert np.all(np.isfinite(snr)) and np.all(np.isfinite(pd))
         assert np.all((snr >= SNR_FLOOR_DB) & (snr <= SNR_CEIL_DB))
         assert np.all((pd >= 0.0) & (pd <= 1.0))
-        far = RANGES >= max(1.0, s.mount.min_range)
+        lo = max(1.0, s.mount.min_range)
+        far = np.greater_equal(RANGES, lo)
         assert np.all(np.diff(pd[far]) <= 1e-12), f"{s.id}: Pd rises with range"
 
 
