@@ -15,11 +15,14 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 BENCHMARKS = {
     "coverage": "benchmarks.bench_coverage",
     "search": "benchmarks.bench_search",
+    "dask": "benchmarks.bench_dask",
+    "memory": "benchmarks.bench_memory",
+    "tradeoff": "benchmarks.bench_tradeoff",
 }
 
 
 def main(argv: list[str]) -> int:
-    names = argv or list(BENCHMARKS)
+    names = [a for a in argv if not a.startswith("--") and not a.isdigit()] or list(BENCHMARKS)
     unknown = [n for n in names if n not in BENCHMARKS]
     if unknown:
         print(f"unknown benchmark(s): {', '.join(unknown)}; have: {', '.join(BENCHMARKS)}",

@@ -163,7 +163,8 @@ def cmd_search(args: argparse.Namespace) -> int:
         [e for e in args.environments.split(",") if e], args.budget, args.seed, args.top,
         Path(args.out), strategy=args.strategy, mode=args.pd, sun_search=not args.no_sun,
         environments_file=Path(args.environments_file) if args.environments_file else None,
-        detection=args.detection, workers=args.workers, resume=args.resume)
+        detection=args.detection, workers=args.workers, resume=args.resume,
+        executor=args.executor, scheduler=args.scheduler)
     write_manifest(args.out)
     print(f"{args.out}: {outcome.evaluated} evaluated, {outcome.reused} reused, "
           f"best risk {outcome.summary['best_risk']:.3g}, {len(outcome.ranking)} ranked")
@@ -385,7 +386,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-sun", action="store_true", help="do not search sun azimuth/elevation")
     p.add_argument("--detection", default="cumulative",
                    help="reliable detection: 'cumulative' (Pd >= 0.99) or M/N confirmation")
-    p.add_argument("--workers", type=int, default=2, help="threads per batch (default 2)")
+    p.add_argument("--workers", type=int, default=2,
+                   help="threads per batch, or Dask worker processes (default 2)")
+    p.add_argument("--executor", default="local", choices=["local", "dask"],
+                   help="evaluate batches here (threads) or on Dask distributed")
+    p.add_argument("--scheduler", help="Dask scheduler address (default: a local cluster)")
     p.add_argument("--resume", action="store_true",
                    help="continue the search stored in --out (same settings)")
     p.add_argument("--out", required=True, help="run folder")

@@ -183,3 +183,28 @@ def test_crossing_waits_on_the_footway_and_meets_its_timing(name: str) -> None:
         if 0.0 < t_p < batch.t[-1]:
             k = int(round(t_p * 20))
             assert abs(float(t_road[k]) - centre) <= float(p["target_speed_m_s"]) * 0.05 + 1e-6
+
+
+def test_scene_limited_evaluation_is_identical_and_logged() -> None:
+    """Scoped exact evaluation (only sensors that can reach the batch's region) gives the
+    same metrics, bit for bit, as evaluating every sensor; the skipped sensors are logged
+    (the ultrasonic sensors on a motorway curve)."""
+    from sensorgap.search.problem import Decoded
+
+    n = 10
+    d = Decoded(np.array(["glare_front_right"] * n), np.column_stack(
+        [np.linspace(0, 350, n), np.full(n, 10.0)]), {
+        "ego_s0_m": np.linspace(450.0, 700.0, n), "ego_speed_m_s": np.full(n, 15.0),
+        "target_speed_m_s": np.full(n, 15.0), "gap0_m": np.linspace(100.0, 190.0, n)})
+    outs = []
+    for scoped in (True, False):
+        prob = _problem("slow_ahead_curve", mode="exact")
+        prob.evaluator.scoped = scoped
+        outs.append((prob.evaluate_decoded(d), prob.evaluator.scope_log))
+    (a, log_a), (b, log_b) = outs
+    for m in a.metrics:
+        np.testing.assert_array_equal(a.metrics[m], b.metrics[m])
+    assert log_b == {}
+    ultrasonic = {x.id for x in load_system("system_b").sensors if x.type_name == "ultrasonic"}
+    assert ultrasonic and ultrasonic <= set(log_a)
+    assert all("cannot reach" in v for v in log_a.values())

@@ -40,6 +40,7 @@ from sensorgap.coverage.logmiss import (
     lookup_log_miss,
     per_sensor_pd,
 )
+from sensorgap.coverage.scope import scene_scope
 from sensorgap.errors import InputError
 from sensorgap.models import Conditions, System
 from sensorgap.scenarios.batch import ScenarioBatch, Tracks
@@ -280,6 +281,10 @@ class Evaluator:
         self.sensor_ids = system.sensor_ids()
         #: point-sensor pairs evaluated exactly in lookup mode (glare, outside the map)
         self.exact_pairs = 0
+        #: evaluate only the sensors that can reach a batch's region (``coverage.scope``)
+        self.scoped = True
+        #: sensors left out of some exact evaluation, and why
+        self.scope_log: dict[str, str] = {}
         self._lock = threading.RLock()
 
     # -- caches ------------------------------------------------------------------------
@@ -332,7 +337,16 @@ class Evaluator:
         scene = self.scene(env, target)
         z = np.full(len(x), target.reference_height_m)
         if exact:
-            return exact_log_miss(scene, x, y, z, sun_dirs)
+            sensors = None
+            if self.scoped and len(x):
+                z0 = target.reference_height_m
+                scope = scene_scope(scene, np.array([x.min(), y.min(), z0]),
+                                    np.array([x.max(), y.max(), z0]))
+                sensors = scope.sensors
+                with self._lock:
+                    for sid, why in scope.skipped.items():
+                        self.scope_log[sid] = why
+            return exact_log_miss(scene, x, y, z, sun_dirs, sensors)
         out, n_exact = lookup_log_miss(self.maps(env, target), scene, x, y, z, sun_dirs)
         with self._lock:
             self.exact_pairs += n_exact

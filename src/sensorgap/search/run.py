@@ -25,6 +25,7 @@ from sensorgap.filesio import format_float, write_json
 from sensorgap.models import load_system
 from sensorgap.scenarios import load_families
 from sensorgap.search.evaluate import DetectionRule, Evaluator
+from sensorgap.search.executors import ProblemSpec, make_executor
 from sensorgap.search.metrics import metric_names
 from sensorgap.search.problem import Result, SearchProblem
 from sensorgap.search.ranking import MIN_DISTANCE, diverse_top, explain
@@ -67,9 +68,12 @@ def run_search(vehicle: str | Path, families: list[str], environments: list[str]
                environments_file: Path | None = None, progress: bool | None = None,
                min_distance: float = MIN_DISTANCE,
                detection: str = "cumulative", workers: int = 2,
-               resume: bool = False) -> SearchOutcome:
+               resume: bool = False, executor: str = "local",
+               scheduler: str | None = None) -> SearchOutcome:
     """Search, store every candidate, write the ranking; see the module docstring.
-    ``workers``: threads evaluating each batch (the result does not depend on it)."""
+    ``workers``: threads per batch (``executor="local"``) or Dask worker processes of a
+    local cluster (``"dask"`` without ``scheduler``); the result does not depend on either.
+    """
     if not 1 <= budget <= MAX_BUDGET:
         raise InputError("--budget", "", f"must be within 1..{MAX_BUDGET}, got {budget}")
     if not 1 <= workers <= 64:
@@ -98,6 +102,9 @@ def run_search(vehicle: str | Path, families: list[str], environments: list[str]
     rule = DetectionRule.parse(detection)
     evaluator = Evaluator(system, mode=mode, rule=rule)
     problems = {f.name: SearchProblem(f, envs, evaluator, sun_search) for f in fams}
+    spec = ProblemSpec(str(vehicle), tuple(families), tuple(envs),
+                       None if environments_file is None else str(environments_file), mode,
+                       rule.label(), sun_search)
     settings = {"vehicle": system.name, "vehicle_file": system.source.name,
                 "vehicle_ref": str(vehicle),
                 "families": [f.name for f in fams], "environments": list(envs),
@@ -116,6 +123,11 @@ def run_search(vehicle: str | Path, families: list[str], environments: list[str]
     evaluated = reused = 0
     disable = (not sys.stderr.isatty()) if progress is None else not progress
     resuming = store.count() > 0
+    try:
+        runner = make_executor(executor, scheduler, workers)
+    except InputError:
+        store.close()
+        raise
     try:
         with tqdm(total=budget, disable=disable, desc="search", unit="cand") as bar:
             for i, (fam, share) in enumerate(zip(fams, shares, strict=True)):
@@ -140,7 +152,7 @@ def run_search(vehicle: str | Path, families: list[str], environments: list[str]
                     if todo.size:
                         sub = decoded.take(todo)
                         fresh = prob.results([cands[j] for j in todo],
-                                             prob.evaluate_decoded(sub, threads=workers))
+                                             runner.evaluate(spec, prob, sub))
                         for j, r in zip(todo.tolist(), fresh, strict=True):
                             batch[j] = r
                         store.put([(idx + j, batch[j]) for j in todo.tolist()])
@@ -152,6 +164,7 @@ def run_search(vehicle: str | Path, families: list[str], environments: list[str]
                     bar.update(len(done))
     finally:
         store.close()
+        runner.close()
     chosen = diverse_top(results, problems, top, min_distance)
     params = sorted({p.name for f in fams for p in f.space})
     metrics = metric_names()

@@ -1,0 +1,157 @@
+"""Where search batches are evaluated: in this process (threads) or on Dask distributed.
+
+A batch of decoded candidates is split into chunks; each chunk is evaluated by
+``evaluate_chunk(spec, family, decoded)``, a top-level function a Dask worker can run: it
+rebuilds (and caches per worker process) the ``SearchProblem`` from a light, picklable
+``ProblemSpec`` (vehicle, families, environments, mode, detection rule, sun search). The
+chunks' results are concatenated in order, so the outcome does not depend on the executor
+or the number of workers (same seed -> same ranking; tested).
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from sensorgap.config import load_environments
+from sensorgap.errors import InputError
+from sensorgap.models import load_system
+from sensorgap.scenarios import load_families
+from sensorgap.search.evaluate import DetectionRule, Evaluator
+from sensorgap.search.problem import BatchOutcome, Decoded, SearchProblem
+
+#: Candidates per chunk sent to a Dask worker.
+DASK_CHUNK = 4096
+
+
+@dataclass(frozen=True)
+class ProblemSpec:
+    """Everything a worker needs to rebuild the search problems (hashable, picklable)."""
+
+    vehicle: str
+    families: tuple[str, ...]
+    environments: tuple[str, ...]
+    environments_file: str | None
+    mode: str
+    detection: str
+    sun_search: bool
+
+    def build(self) -> dict[str, SearchProblem]:
+        """The problems, one per family."""
+        all_envs = load_environments(Path(self.environments_file)
+                                     if self.environments_file else None)
+        envs = {e: all_envs[e] for e in self.environments}
+        evaluator = Evaluator(load_system(self.vehicle), mode=self.mode,
+                              rule=DetectionRule.parse(self.detection))
+        return {f.name: SearchProblem(f, envs, evaluator, self.sun_search)
+                for f in load_families(list(self.families))}
+
+
+_CACHE: dict[ProblemSpec, dict[str, SearchProblem]] = {}
+_LOCK = threading.Lock()
+
+
+def problems_for(spec: ProblemSpec) -> dict[str, SearchProblem]:
+    """The problems of ``spec``, built once per process."""
+    with _LOCK:
+        if spec not in _CACHE:
+            _CACHE.clear()
+            _CACHE[spec] = spec.build()
+        return _CACHE[spec]
+
+
+def evaluate_chunk(spec: ProblemSpec, family: str, decoded: Decoded,
+                   threads: int = 1) -> BatchOutcome:
+    """Evaluate decoded candidates of one family (runs on a worker)."""
+    return problems_for(spec)[family].evaluate_decoded(decoded, threads=threads)
+
+
+def _concat(outs: Sequence[BatchOutcome]) -> BatchOutcome:
+    if len(outs) == 1:
+        return outs[0]
+    return BatchOutcome({m: np.concatenate([o.metrics[m] for o in outs])
+                         for m in outs[0].metrics},
+                        np.concatenate([o.feasible for o in outs]),
+                        [n for o in outs for n in o.notes],
+                        np.concatenate([o.objective for o in outs if o.objective is not None]))
+
+
+class Executor:
+    """Evaluates batches in this process (``threads`` per batch)."""
+
+    name = "local"
+
+    def __init__(self, threads: int = 2) -> None:
+        self.threads = threads
+
+    def evaluate(self, spec: ProblemSpec, problem: SearchProblem,
+                 decoded: Decoded) -> BatchOutcome:
+        """The outcome of a batch (same order)."""
+        return problem.evaluate_decoded(decoded, threads=self.threads)
+
+    def close(self) -> None:
+        """Release resources."""
+
+    def __enter__(self) -> Executor:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+class DaskExecutor(Executor):
+    """Evaluates batches on Dask distributed: a scheduler at ``address``, or a local
+    cluster of ``workers`` processes (one thread each) when no address is given."""
+
+    name = "dask"
+
+    def __init__(self, address: str | None = None, workers: int = 2,
+                 timeout_s: float = 10.0) -> None:
+        super().__init__(threads=1)
+        try:
+            from distributed import Client, LocalCluster
+        except ImportError:
+            raise InputError("--executor", "", "dask is not installed: pip install "
+                             "'sensorgap[distributed]'") from None
+        self._cluster: Any = None
+        try:
+            if address:
+                self.client = Client(address, timeout=timeout_s)
+            else:
+                self._cluster = LocalCluster(n_workers=workers, threads_per_worker=1,
+                                             processes=True, dashboard_address=None)
+                self.client = Client(self._cluster)
+        except (OSError, TimeoutError) as exc:
+            raise InputError("--scheduler", "", f"cannot reach the Dask scheduler "
+                             f"{address!r}: {exc}") from None
+        self.workers = max(1, len(self.client.scheduler_info().get("workers", {})) or workers)
+
+    def evaluate(self, spec: ProblemSpec, problem: SearchProblem,
+                 decoded: Decoded) -> BatchOutcome:
+        n = len(decoded)
+        chunks = max(1, min(self.workers * 2, -(-n // 256)))
+        bounds = np.linspace(0, n, chunks + 1).astype(int)
+        parts = [decoded.take(np.arange(a, b)) for a, b in zip(bounds[:-1], bounds[1:],
+                                                                strict=True) if b > a]
+        futures = self.client.map(evaluate_chunk, [spec] * len(parts),
+                                  [problem.family.name] * len(parts), parts, pure=False)
+        return _concat(self.client.gather(futures))
+
+    def close(self) -> None:
+        self.client.close()
+        if self._cluster is not None:
+            self._cluster.close()
+
+
+def make_executor(name: str, scheduler: str | None = None, workers: int = 2) -> Executor:
+    """``local`` (threads) or ``dask``; ``InputError`` for anything else."""
+    if name == "local":
+        return Executor(threads=workers)
+    if name == "dask":
+        return DaskExecutor(scheduler, workers)
+    raise InputError("--executor", "", f"must be local or dask, got {name!r}")

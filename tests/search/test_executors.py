@@ -1,0 +1,35 @@
+"""Dask distributed: the same seed gives the same ranking as the local run (in-process
+scheduler with worker processes), an unreachable scheduler is one line, exit 2."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip("distributed", reason="the [distributed] extra is not installed")
+
+from sensorgap.cli import main  # noqa: E402
+from sensorgap.search.run import run_search  # noqa: E402
+
+KW = {"vehicle": "system_b", "families": ["cut_in_left", "crossing_pedestrian"],
+      "environments": ["clear", "glare_front_right"], "budget": 600, "seed": 3, "top": 6,
+      "strategy": "de"}
+
+
+def test_dask_gives_the_local_ranking(tmp_path: Path) -> None:
+    run_search(out=tmp_path / "local", **KW)  # type: ignore[arg-type]
+    run_search(out=tmp_path / "dask", executor="dask", workers=2,  # type: ignore[arg-type]
+               **KW)
+    for name in ("ranking.csv", "ranking.json"):
+        assert (tmp_path / "local" / name).read_bytes() == (tmp_path / "dask" / name).read_bytes()
+
+
+def test_unreachable_scheduler_is_one_line(tmp_path: Path,
+                                           capsys: pytest.CaptureFixture[str]) -> None:
+    code = main(["search", "--vehicle", "system_b", "--families", "crossing_pedestrian",
+                 "--environments", "clear", "--budget", "10", "--executor", "dask",
+                 "--scheduler", "tcp://127.0.0.1:9", "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and "cannot reach the Dask scheduler" in err
+    assert len(err.splitlines()) == 1
