@@ -248,6 +248,15 @@ def cmd_verify(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_tradeoff(args: argparse.Namespace) -> int:
+    """Measure speed against accuracy of every approximation."""
+    from sensorgap.tradeoff import run_tradeoff
+
+    rows = run_tradeoff(Path(args.out), quick=args.quick)
+    print(f"{args.out}: {len(rows)} measurements (tradeoff.csv, tradeoff.md, resolution.png)")
+    return 0
+
+
 def cmd_corridor(args: argparse.Namespace) -> int:
     """The least-detectable approach path into a critical zone (corridor search)."""
     from sensorgap.coverage import GridSpec, evaluate_grid
@@ -417,6 +426,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="two run folders side by side")
     p.add_argument("--out", help="output folder of --compare (default: beside RUN_A)")
     p.set_defaults(func=cmd_report)
+
+    p = sub.add_parser("tradeoff", help="measure speed against accuracy (grid, lookup, scope)")
+    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--quick", action="store_true", help="coarse settings (seconds)")
+    p.set_defaults(func=cmd_tradeoff)
 
     p = sub.add_parser("verify", help="check a run folder against its manifest.json")
     p.add_argument("folder", help="run or catalog folder")
