@@ -26,7 +26,7 @@ def _rate(spec: ProblemSpec, workers: int, n: int) -> float:
     problems = problems_for(spec)
     rng = np.random.default_rng(0)
     with DaskExecutor(None, workers) as ex:
-        for fam, prob in problems.items():  # warm-up: maps and numba in every worker
+        for prob in problems.values():  # warm-up: maps and numba in every worker
             ex.evaluate(spec, prob, prob.decode_batch(rng.random((256 * workers, prob.dim))))
         t0 = time.perf_counter()
         done = 0

@@ -10,8 +10,8 @@ import sensorgap
 #: Pipeline order; a module may import its own layer and the layers before it.
 LAYERS = ["errors", "atomic", "filesio", "registry", "plugins", "provenance", "config",
           "models",
-          "coverage", "roads", "analysis", "scenarios", "search", "tradeoff", "export", "report", "jobs",
-          "cli"]
+          "coverage", "roads", "analysis", "scenarios", "search", "tradeoff", "export", "report",
+          "jobs", "cli"]
 #: Shared base modules count as one layer (they may import each other).
 _BASE = {"errors", "atomic", "filesio", "registry", "plugins", "provenance"}
 ROOT = Path(sensorgap.__file__).parent

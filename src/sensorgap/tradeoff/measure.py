@@ -20,15 +20,16 @@ from typing import Any
 import numpy as np
 
 from sensorgap.analysis.nearfield import blind_spots, grid_blind_spots
-from sensorgap.atomic import atomic_write_text
+from sensorgap.atomic import atomic_write_bytes, atomic_write_text
 from sensorgap.config import load_environment, load_environments, load_target
 from sensorgap.coverage import GridSpec, Scene, evaluate_grid, evaluate_points
 from sensorgap.coverage.plot import save_figure
-from sensorgap.filesio import write_csv, write_manifest
+from sensorgap.filesio import write_manifest
 from sensorgap.models import Conditions, load_system
 from sensorgap.scenarios import load_family
 from sensorgap.search.evaluate import Evaluator
 from sensorgap.search.problem import SearchProblem
+from sensorgap.search.run import ranking_csv
 
 RESOLUTIONS = (0.5, 0.2, 0.1, 0.05, 0.02)
 
@@ -148,10 +149,7 @@ def run_tradeoff(out: Path, quick: bool = False) -> list[dict[str, Any]]:
     cols = ["study", "setting", "time_s", "error", "error_unit", "mean_error",
             "ms_per_candidate", "top10_overlap", "blind_spot_m2", "blind_spot_exact_m2",
             "path_grid_time_s", "path_exact_time_s", "path_max_abs_dpd", "path_mean_abs_dpd"]
-    data = [np.array(["" if r.get(c) is None else (round(r[c], 9) if isinstance(r[c], float)
-                                                   else r[c]) for r in rows], dtype=object)
-            for c in cols]
-    write_csv(out / "tradeoff.csv", cols, [np.array([str(v) for v in d]) for d in data])
+    atomic_write_bytes(out / "tradeoff.csv", ranking_csv(rows, cols))
     lines = ["# Speed vs accuracy (this machine, one run)", "",
              "| study | setting | time [s] | error | unit | extra |", "|---|---|---|---|---|---|"]
     for r in rows:
