@@ -3,7 +3,7 @@ and 2 local worker processes (one thread each), candidates/s and the speed-up, s
 ``python benchmarks/run.py dask [--candidates N]`` (default 1,000,000).
 
 Setup: System A, families cut_in_left + slow_ahead_curve + crossing_pedestrian, all
-environment presets, sun searched, lookup maps; random candidates in batches of 20,000.
+environment presets, sun searched, lookup maps; random candidates in batches of 60,000.
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ from sensorgap.config import load_environments
 from sensorgap.search.executors import DaskExecutor, ProblemSpec, problems_for
 
 N_DEFAULT = 1_000_000
-BATCH = 20_000
+BATCH = 60_000
 FAMILIES = ("cut_in_left", "slow_ahead_curve", "crossing_pedestrian")
 
 
