@@ -4,9 +4,9 @@
 blind spots, the far-field (Table IV-style) profiles per environment, the critical-scenario
 search (``search.sqlite``, ``ranking.csv/json``), the exported catalog (``scenarios/``,
 ``roads/``, ``catalog.json``) and the report (``report.html``, ``report.md``), plus
-``run.json`` (command, versions, config hashes, settings), ``job.json`` (timings, peak
-memory; machine-dependent) and ``manifest.json``. Time and peak memory
-are printed at the end (targets: 60 s, 1.5 GiB on 2 cores).
+``run.json`` (command, versions, config hashes, settings) and ``manifest.json``. Stage
+timings, the total time and the peak memory are printed at the end (targets: 60 s, 1.5 GiB
+on 2 cores; machine-dependent, so not written to a file).
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ from sensorgap.config.presets import resolve_road, roads_dir, templates_dir
 from sensorgap.coverage import GridSpec, Scene
 from sensorgap.coverage.outputs import write_coverage
 from sensorgap.export import export_catalog
-from sensorgap.filesio import write_csv, write_json, write_manifest
+from sensorgap.filesio import write_csv, write_manifest
 from sensorgap.models import Conditions, load_system
 from sensorgap.provenance import write_run_info
 from sensorgap.report import write_report
@@ -132,11 +132,7 @@ def run_default(out: Path, workers: int = 2, system_name: str = DEFAULT_SYSTEM,
                    {"candidates": outcome.summary["candidates"]})
     clock.stage("report", lambda: write_report(folder))
     total, peak = clock.total, peak_rss_mib()
-    write_json(folder / "job.json", {"timings_s": clock.stages, "total_s": round(total, 1),
-                                     "peak_rss_mib": round(peak), "targets": {
-                                         "time_s": TARGET_TIME_S,
-                                         "peak_rss_mib": TARGET_PEAK_MIB}})
-    write_manifest(folder)
+    write_manifest(folder)  # timings are printed, not written: files stay byte-identical
     info = {"settings": settings, "timings_s": clock.stages, "total_s": total,
             "peak_rss_mib": peak}
     print(f"{folder}: {outcome.summary['candidates']:,} candidates, "

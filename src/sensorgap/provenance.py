@@ -1,7 +1,8 @@
 """Provenance of a run: software versions, config hashes, the command (``run.json``).
 
-Everything here is deterministic except ``created_utc``, the one timestamp field of a run
-(``SOURCE_DATE_EPOCH`` fixes it, the reproducible-builds convention).
+``run.json`` is deterministic (no timestamp): the one timestamp of a run is the report's
+generation time (``utc_now``; ``SOURCE_DATE_EPOCH`` fixes it, the reproducible-builds
+convention).
 """
 
 from __future__ import annotations
@@ -75,7 +76,6 @@ def write_run_info(folder: Path, command: list[str], vehicle: str,
         "command": command, "vehicle": vehicle, "versions": versions(),
         "config_sha256": config_hashes(files, Path.cwd()), "settings": settings,
         "platform": f"{platform.system()} {platform.machine()}",
-        "created_utc": utc_now(),
     }
     info.update(extra or {})
     write_json(Path(folder) / "run.json", info)
