@@ -208,3 +208,21 @@ def test_scene_limited_evaluation_is_identical_and_logged() -> None:
     ultrasonic = {x.id for x in load_system("system_b").sensors if x.type_name == "ultrasonic"}
     assert ultrasonic and ultrasonic <= set(log_a)
     assert all("cannot reach" in v for v in log_a.values())
+
+
+def test_pieces_and_threads_give_identical_results(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Splitting a batch into pieces (any size, any number of threads) changes nothing."""
+    import sensorgap.search.problem as problem_module
+
+    prob = _problem("slow_ahead_curve", mode="lookup")
+    d = prob.decode_batch(np.random.default_rng(8).random((300, prob.dim)))
+    whole = prob.evaluate_decoded(d, threads=1)
+    monkeypatch.setattr(problem_module, "PIECE_ROWS", 37)
+    for threads in (1, 2):
+        got = prob.evaluate_decoded(d, threads=threads)
+        assert got.notes == whole.notes
+        np.testing.assert_array_equal(got.feasible, whole.feasible)
+        assert got.objective is not None and whole.objective is not None
+        np.testing.assert_array_equal(got.objective, whole.objective)
+        for m in whole.metrics:
+            np.testing.assert_array_equal(got.metrics[m], whole.metrics[m])

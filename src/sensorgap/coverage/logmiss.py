@@ -31,6 +31,12 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from sensorgap.coverage.fastlookup import (
+    SUN_NONE,
+    cone_cos_bound,
+    lookup_pass,
+    sun_directions_of,
+)
 from sensorgap.coverage.grid import GridSpec, evaluate_grid
 from sensorgap.coverage.kernel import candidates, evaluate_offsets
 from sensorgap.coverage.scene import Scene
@@ -224,6 +230,22 @@ class LogMissMaps:
                 signal[i] = sig
         return cls(grid, ids, layers, total.astype(np.float32), signal)
 
+    def signal_stack(self, sensors: tuple[int, ...]) -> tuple[F32, NDArray[np.bool_]]:
+        """The signal maps of ``sensors`` stacked (C, ny, nx) (all NaN for a sensor without
+        one) and which have one; cached per sensor tuple."""
+        cache: dict[tuple[int, ...], tuple[F32, NDArray[np.bool_]]] = self.__dict__.setdefault(
+            "_signal_stacks", {})
+        hit = cache.get(sensors)
+        if hit is None:
+            ny, nx = self.total.shape
+            stack = np.full((len(sensors), ny, nx), np.nan, dtype=np.float32)
+            has = np.zeros(len(sensors), dtype=bool)
+            for c, row in enumerate(sensors):
+                if row in self.signal:
+                    stack[c], has[c] = self.signal[row], True
+            hit = cache[sensors] = (stack, has)
+        return hit
+
     @property
     def nbytes(self) -> int:
         """Memory held by the maps, bytes."""
@@ -301,3 +323,130 @@ def lookup_log_miss(maps: LogMissMaps, scene: Scene, x: F64, y: F64, z: F64,
             n_exact += edge.size
         out[g] += new - layer
     return out, n_exact
+
+
+@dataclass(frozen=True)
+class _Cones:
+    """The glare cones of a scene's glare-prone cameras, stacked for ``lookup_pass``."""
+
+    sensors: tuple[int, ...]
+    rot: F64
+    half_h: F64
+    half_v: F64
+    margin: F64
+    cos_bound: F64
+    yaw: F64
+    level: NDArray[np.bool_]
+    mount_xy: F64
+    max_range: F64
+
+
+def _cones(scene: Scene) -> _Cones | None:
+    """The scene's glare cones, or ``None`` if a glare-prone sensor has no cone form."""
+    rows, cones = [], []
+    for row, s in enumerate(scene.sensors):
+        if scene.prepared(s).snr_db_glare is None:
+            continue
+        cone = s.model.glare_cone(s.mount)
+        if cone is None:
+            return None
+        rows.append(row)
+        cones.append(cone)
+    hh = np.array([c.half_h for c in cones], dtype=np.float64)
+    hv = np.array([c.half_v for c in cones], dtype=np.float64)
+    mg = np.array([c.margin for c in cones], dtype=np.float64)
+    return _Cones(tuple(rows),
+                  np.ascontiguousarray(np.array([c.rotation for c in cones],
+                                                dtype=np.float64).reshape(-1, 3, 3)),
+                  hh, hv, mg,
+                  np.array([cone_cos_bound(a, b, m) for a, b, m in zip(hh, hv, mg,
+                                                                       strict=True)]),
+                  np.array([c.yaw for c in cones], dtype=np.float64),
+                  np.array([c.pitch == 0.0 for c in cones], dtype=bool),
+                  np.array([[scene.sensors[r].mount.x, scene.sensors[r].mount.y]
+                            for r in rows], dtype=np.float64).reshape(-1, 2),
+                  np.array([scene.sensors[r].mount.max_range for r in rows],
+                           dtype=np.float64))
+
+
+def lookup_log_miss_tracks(maps: LogMissMaps, scene: Scene, x: F64, y: F64, heading: F64,
+                           n: NDArray[np.int64], rows: NDArray[np.int64], sun: F64,
+                           out: F64) -> int:
+    """``lookup_log_miss`` along (B, T) tracks in one compiled pass (``fastlookup``):
+    writes the fused ln P_miss of the first ``n[r]`` steps of each row r in ``rows`` into
+    ``out`` (B, T). ``x``, ``y``: vehicle-frame target positions (m); ``heading``: ego
+    heading (rad); ``sun`` (B, 3): per row (kind, azimuth rad, elevation rad), see
+    ``fastlookup.SUN_*``. The values equal ``lookup_log_miss`` at the same points (up to
+    rounding). Returns how many point-sensor pairs were evaluated exactly."""
+    x = np.ascontiguousarray(x, dtype=np.float64)
+    y = np.ascontiguousarray(y, dtype=np.float64)
+    heading = np.ascontiguousarray(heading, dtype=np.float64)
+    if not out.flags.c_contiguous:
+        raise ValueError("out must be C-contiguous")
+    z0 = maps.grid.height
+    cones = _cones(scene)
+    rows = np.ascontiguousarray(rows, dtype=np.int64)
+    if cones is None:  # a glare model without a cone form: the generic path
+        rr = np.repeat(rows, n[rows])
+        kk = np.arange(rr.size) - np.repeat(np.cumsum(n[rows]) - n[rows], n[rows])
+        dirs = sun_directions_of(sun[rr], heading[rr, kk])
+        has = bool(np.any(sun[rows, 0] != SUN_NONE))
+        vals, n_exact = lookup_log_miss(maps, scene, x[rr, kk], y[rr, kk],
+                                        np.full(rr.size, z0), dirs if has else None)
+        out[rr, kk] = vals
+        return n_exact
+    n_pts = int(np.sum(n[rows]))
+    n_cam = len(cones.sensors)
+    outside = np.empty(n_pts, dtype=np.int64)
+    glare_idx = np.empty((n_cam, n_pts), dtype=np.int64)
+    glare_w = np.empty((n_cam, n_pts), dtype=np.float64)
+    glare_state = np.empty((n_cam, n_pts), dtype=np.int8)
+    counts = np.zeros(1 + n_cam, dtype=np.int64)
+    g = maps.grid
+    signal, has_signal = maps.signal_stack(cones.sensors)
+    lookup_pass(maps.total, g.xmin + 0.5 * g.resolution, g.ymin + 0.5 * g.resolution,
+                1.0 / g.resolution, x, y, heading, np.ascontiguousarray(n, dtype=np.int64),
+                rows, np.ascontiguousarray(sun, dtype=np.float64), cones.rot, cones.half_h,
+                cones.half_v, cones.margin, cones.cos_bound, cones.yaw, cones.level,
+                cones.mount_xy, (cones.max_range + 1.5 * g.resolution) ** 2, signal,
+                has_signal, out, outside, glare_idx, glare_w, glare_state, counts)
+    xf, yf, hf, of = x.reshape(-1), y.reshape(-1), heading.reshape(-1), out.reshape(-1)
+    t = x.shape[1]
+    n_exact = 0
+
+    def dirs_at(flat: NDArray[np.int64]) -> F64:
+        return sun_directions_of(sun[flat // t], hf[flat])
+
+    if counts[0]:
+        o = outside[:counts[0]]
+        of[o] = exact_log_miss(scene, xf[o], yf[o], np.full(o.size, z0), dirs_at(o))
+        n_exact += o.size * len(scene.sensors)
+    for c, row in enumerate(cones.sensors):
+        m = int(counts[1 + c])
+        if m == 0:
+            continue
+        s = scene.sensors[row]
+        prepared = scene.prepared(s)
+        gi, wg = glare_idx[c, :m], glare_w[c, :m]
+        xs, ys = xf[gi], yf[gi]
+        layer, _ = maps.interpolate(row, xs, ys)
+        new = np.zeros(m)
+        state = glare_state[c, :m]
+        if has_signal[c] and prepared.snr_from_signal is not None:
+            ok = np.flatnonzero(state == 1)
+            if ok.size:
+                sig, _ = maps.interpolate_signal(row, xs[ok], ys[ok])
+                snr = clip_snr_db(prepared.snr_from_signal(sig, wg[ok]))
+                new[ok] = log_miss_of(detection_probability(snr, s.roc, scene.roc_shift_db))
+        else:
+            state = np.full(m, 2, dtype=np.int8)
+        edge = np.flatnonzero(state == 2)
+        if edge.size:  # at the edge of the field of view: exact
+            ge = gi[edge]
+            idx, pd = sensor_pd(scene, s, xf[ge], yf[ge], np.full(ge.size, z0), dirs_at(ge))
+            vals = np.zeros(edge.size)
+            vals[idx] = log_miss_of(pd)
+            new[edge] = vals
+            n_exact += edge.size
+        of[gi] += new - layer  # each point at most once per camera
+    return n_exact

@@ -87,6 +87,33 @@ class SensorModel(ABC):
         no direct sun); default: immune (zeros)."""
         return np.zeros(len(sun_directions))
 
+    def glare_cone(self, mount: Mount) -> GlareCone | None:
+        """The glare weight as a ``GlareCone`` (compiled lookups use it), or ``None`` when
+        the sensor is immune or its weight has another form (then ``glare_weights`` is
+        called)."""
+        return None
+
+
+@dataclass(frozen=True)
+class GlareCone:
+    """A glare weight of the standard form: 1 for sun directions inside the field of
+    view, ``cos^2(pi/2 * a / margin)`` at an angle ``a`` (rad) outside it (0 where that
+    falls to 1e-9 or below), 0 from ``margin`` on.
+
+    Attributes:
+        rotation: 3x3 sensor axes (columns) in the vehicle frame.
+        half_h, half_v: half the horizontal / vertical field of view, rad.
+        margin: rad (0: no fade).
+        yaw, pitch: the mount's, rad (``rotation`` = Rz(yaw) Ry(pitch)).
+    """
+
+    rotation: NDArray[np.float64]
+    half_h: float
+    half_v: float
+    margin: float
+    yaw: float = 0.0
+    pitch: float = 0.0
+
 
 def log10_range(r: F64) -> F64:
     """log10 of ranges (m) known to be > 0."""

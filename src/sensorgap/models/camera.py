@@ -29,7 +29,7 @@ from pydantic import Field
 
 from sensorgap.config.common import Strict
 from sensorgap.config.target import TargetConfig
-from sensorgap.models.base import F64, PreparedSensor, SensorModel
+from sensorgap.models.base import F64, GlareCone, PreparedSensor, SensorModel
 from sensorgap.models.conditions import Band, Conditions
 from sensorgap.models.constants import BOLTZMANN_J_K, PLANCK_J_S, SPEED_OF_LIGHT_M_S
 from sensorgap.models.geometry import (
@@ -102,6 +102,12 @@ class Camera(SensorModel):
             wn = np.cos(0.5 * math.pi * outside[near] / margin) ** 2
             w[near] = np.where(wn > 1e-9, wn, 0.0)
         return np.asarray(w, dtype=np.float64)
+
+    def glare_cone(self, mount: Mount) -> GlareCone:
+        """``glare_weights`` as a ``GlareCone`` (the same weight, for compiled lookups)."""
+        return GlareCone(np.ascontiguousarray(mount.rotation()), 0.5 * mount.hfov,
+                         0.5 * mount.vfov, math.radians(self.params.glare_margin_deg),
+                         mount.yaw, mount.pitch)
 
     def may_be_glared(self, mount: Mount, conditions: Conditions) -> bool:
         """True when the sun is in or within ``glare_margin_deg`` of the field of view."""

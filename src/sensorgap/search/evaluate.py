@@ -32,12 +32,14 @@ from numpy.typing import NDArray
 
 from sensorgap.config import EnvironmentConfig, TargetConfig, load_target
 from sensorgap.coverage import GridSpec, Scene
+from sensorgap.coverage.fastlookup import SUN_NONE, SUN_VEHICLE, SUN_WORLD
 from sensorgap.coverage.logmiss import (
     ALMOST_ONE,
     LogMissMaps,
     exact_log_miss,
     log_miss_of,
     lookup_log_miss,
+    lookup_log_miss_tracks,
     per_sensor_pd,
 )
 from sensorgap.coverage.scope import scene_scope
@@ -395,6 +397,13 @@ class Evaluator:
         for name in np.unique(names):
             env = presets[str(name)]
             g = np.flatnonzero(names == name)
+            if self.mode == "lookup":
+                n_exact = lookup_log_miss_tracks(
+                    self.maps(env, target), self.scene(env, target), kin.x, kin.y,
+                    ego.heading, n, g, _sun_rows(env, sun), log_miss)
+                with self._lock:
+                    self.exact_pairs += n_exact
+                continue
             vr, vc = np.nonzero(valid[g])
             gr = g[vr]
             dirs = _sun_directions(env, sun[gr], ego.heading[gr, vc])
@@ -412,6 +421,24 @@ class Evaluator:
         batch = ScenarioBatch.of(sc)
         return self.evaluate_batch(batch, ["env"], {"env": env},
                                    duration_s=duration_s).row(0)
+
+
+def _sun_rows(env: EnvironmentConfig, sun_deg: F64) -> F64:
+    """(B, 3) per-row sun (kind, azimuth rad, elevation rad; ``fastlookup.SUN_*``): the
+    world-frame ``sun_deg`` row where finite, else the preset's sun; none where the preset
+    has no visible sun or the sun is at or below the horizon (as ``_sun_directions``)."""
+    out = np.zeros((len(sun_deg), 3))
+    sun = env.sun
+    if sun is None or not sun.visible:
+        return out
+    if sun.elevation_deg > 0.0:
+        out[:, 0] = SUN_WORLD if sun.frame == "world" else SUN_VEHICLE
+        out[:, 1], out[:, 2] = sun.azimuth_rad, sun.elevation_rad
+    override = np.isfinite(sun_deg[:, 0])
+    out[override, 0] = np.where(sun_deg[override, 1] > 0.0, SUN_WORLD, SUN_NONE)
+    out[override, 1] = np.radians(sun_deg[override, 0])
+    out[override, 2] = np.radians(sun_deg[override, 1])
+    return out
 
 
 def _sun_directions(env: EnvironmentConfig, sun_deg: F64, heading: F64) -> F64 | None:

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 from abc import ABC, abstractmethod
+from dataclasses import dataclass
 from typing import ClassVar, Literal, TypeVar
 
 import numpy as np
@@ -30,6 +31,7 @@ from sensorgap.plugins import load_plugins
 from sensorgap.registry import Registry
 from sensorgap.scenarios.trajectory import DT_S
 from sensorgap.search.evaluate import BatchTrace, Trace
+from sensorgap.search.fastmetrics import COLUMNS, summarize
 
 #: Time constant of the imminence weight of the risk, s.
 TAU_S = 2.0
@@ -78,7 +80,7 @@ def detection_index(tr: Trace) -> int | None:
 
 def detection_index_batch(bt: BatchTrace) -> np.ndarray:
     """(B,) ``detection_index`` of every row, -1 where never detected (cached)."""
-    return bt.detection_index
+    return summary(bt).detection
 
 
 def log10_risk_profile_batch(bt: BatchTrace) -> np.ndarray:
@@ -92,6 +94,9 @@ def log10_risk_profile_batch(bt: BatchTrace) -> np.ndarray:
 
 def corridor_batch(bt: BatchTrace, threshold: float = LOW_PD) -> tuple[np.ndarray, np.ndarray]:
     """(B,) ``corridor`` of every row: [start, end) of the first longest low-Pd run."""
+    if threshold == LOW_PD:
+        sm = summary(bt)
+        return sm.corridor_start, sm.corridor_end
     low = (bt.pd < threshold) & bt.valid
     c = np.cumsum(low, axis=1)
     run: np.ndarray = c - np.maximum.accumulate(np.where(low, 0, c), axis=1)
@@ -203,19 +208,42 @@ def compute_all_batch(bt: BatchTrace, names: list[str] | None = None
     return out
 
 
+@dataclass(frozen=True)
+class BatchSummary:
+    """Every built-in metric's per-row ingredients of a batch, from one compiled pass
+    (``fastmetrics.summarize``): (B,) arrays."""
+
+    values: dict[str, np.ndarray]
+    detection: np.ndarray
+    corridor_start: np.ndarray
+    corridor_end: np.ndarray
+
+
+def summary(bt: BatchTrace) -> BatchSummary:
+    """The ``BatchSummary`` of a batch (computed once, cached on the batch)."""
+    hit = bt.__dict__.get("_summary")
+    if isinstance(hit, BatchSummary):
+        return hit
+    b = len(bt)
+    out = np.empty((b, len(COLUMNS)))
+    idx = np.empty((b, 3), dtype=np.int64)
+    rule = bt.rule
+    cumulative = rule.kind == "cumulative"
+    det = (np.zeros(b, dtype=np.int64) if cumulative
+           else np.ascontiguousarray(bt.detection_index, dtype=np.int64))
+    summarize(np.ascontiguousarray(bt.log_miss), np.ascontiguousarray(bt.ttc),
+              np.ascontiguousarray(bt.headway), np.ascontiguousarray(bt.distance),
+              np.ascontiguousarray(bt.t, dtype=np.float64),
+              np.ascontiguousarray(bt.n, dtype=np.int64), det, cumulative,
+              float(rule.threshold), LEAD_IN_S, TAU_S, LOW_PD, LOG10_RISK_FLOOR, out, idx)
+    res = BatchSummary({c: out[:, j] for j, c in enumerate(COLUMNS)}, idx[:, 0],
+                       idx[:, 1], idx[:, 2])
+    bt.__dict__["_summary"] = res
+    return res
+
+
 def _rows(bt: BatchTrace) -> np.ndarray:
     return np.arange(len(bt))
-
-
-def _last(bt: BatchTrace, a: np.ndarray) -> np.ndarray:
-    return np.asarray(a[_rows(bt), bt.n - 1], dtype=np.float64)
-
-
-def _at_detection_batch(bt: BatchTrace, values: np.ndarray) -> np.ndarray:
-    k = detection_index_batch(bt)
-    worst = np.min(np.where(bt.valid, values, np.inf), axis=1)
-    at = values[_rows(bt), np.maximum(k, 0)]
-    return np.minimum(np.where(k >= 0, at, worst), CAP_S)
 
 
 @register_metric
@@ -227,9 +255,7 @@ class Risk(Metric):
         return float(np.max(risk_profile(tr)))
 
     def compute_batch(self, bt: BatchTrace) -> np.ndarray:
-        prof = np.exp(bt.log_undetected) * np.exp(-bt.ttc / TAU_S)
-        assessed = bt.valid & (bt.t >= LEAD_IN_S)[None, :]
-        return np.max(np.where(assessed, prof, 0.0), axis=1)
+        return summary(bt).values["risk"]
 
 
 @register_metric
@@ -242,7 +268,7 @@ class Log10Risk(Metric):
         return float(np.max(log10_risk_profile(tr)))
 
     def compute_batch(self, bt: BatchTrace) -> np.ndarray:
-        return np.max(log10_risk_profile_batch(bt), axis=1)
+        return summary(bt).values["log10_risk"]
 
 
 @register_metric
@@ -254,7 +280,7 @@ class PUndetectedEnd(Metric):
         return float(tr.p_undetected[-1])
 
     def compute_batch(self, bt: BatchTrace) -> np.ndarray:
-        return np.exp(_last(bt, bt.log_undetected))
+        return summary(bt).values["p_undetected_end"]
 
 
 @register_metric
@@ -303,7 +329,7 @@ class TtcAtDetection(Metric):
         return _at_detection(tr, tr.ttc, "min")
 
     def compute_batch(self, bt: BatchTrace) -> np.ndarray:
-        return _at_detection_batch(bt, bt.ttc)
+        return np.minimum(summary(bt).values["ttc_at"], CAP_S)
 
 
 @register_metric
@@ -317,7 +343,7 @@ class HeadwayAtDetection(Metric):
         return _at_detection(tr, tr.headway, "min")
 
     def compute_batch(self, bt: BatchTrace) -> np.ndarray:
-        return _at_detection_batch(bt, bt.headway)
+        return np.minimum(summary(bt).values["headway_at"], CAP_S)
 
 
 @register_metric
@@ -331,7 +357,7 @@ class DistanceAtDetection(Metric):
         return _at_detection(tr, tr.distance, "min")
 
     def compute_batch(self, bt: BatchTrace) -> np.ndarray:
-        return _at_detection_batch(bt, bt.distance)
+        return np.minimum(summary(bt).values["distance_at"], CAP_S)
 
 
 @register_metric
@@ -345,7 +371,7 @@ class MinTtc(Metric):
         return _cap(float(np.min(tr.ttc)))
 
     def compute_batch(self, bt: BatchTrace) -> np.ndarray:
-        return np.minimum(np.min(bt.ttc, axis=1), CAP_S)
+        return np.minimum(summary(bt).values["min_ttc"], CAP_S)
 
 
 @register_metric
@@ -358,7 +384,7 @@ class MeanPd(Metric):
         return float(np.mean(tr.pd))
 
     def compute_batch(self, bt: BatchTrace) -> np.ndarray:
-        return np.sum(np.where(bt.valid, bt.pd, 0.0), axis=1) / bt.n
+        return summary(bt).values["mean_pd"]
 
 
 @register_metric

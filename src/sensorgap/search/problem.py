@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
+import threading
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -21,7 +23,7 @@ from sensorgap.config import EnvironmentConfig
 from sensorgap.errors import InputError
 from sensorgap.scenarios.family import Family, Param, ParamValue, Scenario
 from sensorgap.search.evaluate import Evaluator, Trace
-from sensorgap.search.metrics import LOG10_RISK_FLOOR, compute_all_batch, metric_names
+from sensorgap.search.metrics import LOG10_RISK_FLOOR, compute_all_batch, metric_names, summary
 
 F64 = NDArray[np.float64]
 
@@ -35,6 +37,23 @@ SUN_ELEVATION = Param("sun_elevation_deg", 2.0, 30.0, unit="deg")
 START_TTC_S = 4.0
 #: Smallest chunk worth a thread of its own, candidates.
 MIN_ROWS_PER_THREAD = 64
+#: Largest piece of a batch evaluated at once, candidates: 1,024 x 201 steps keeps each
+#: (B, T) float64 array at 1.6 MB, within the caches (``benchmarks/bench_search.py``).
+PIECE_ROWS = 1024
+
+_POOLS: dict[tuple[int, int], ThreadPoolExecutor] = {}
+_POOLS_LOCK = threading.Lock()
+
+
+def _pool(threads: int) -> ThreadPoolExecutor:
+    """A process-wide pool of ``threads`` worker threads (created once, reused)."""
+    key = (os.getpid(), threads)  # a forked child must not reuse its parent's threads
+    with _POOLS_LOCK:
+        pool = _POOLS.get(key)
+        if pool is None:
+            pool = _POOLS[key] = ThreadPoolExecutor(max_workers=threads,
+                                                    thread_name_prefix="sensorgap-eval")
+        return pool
 #: Continuous parameters are rounded to this many decimals (their units: m, s, m/s), so
 #: stored and exported values are short and regenerate the evaluated scenario exactly.
 PARAM_DECIMALS = 4
@@ -229,20 +248,25 @@ class SearchProblem:
         return out
 
     def evaluate_decoded(self, d: Decoded, threads: int = 1) -> BatchOutcome:
-        """Generate and evaluate decoded rows; every metric per row. With ``threads`` > 1
-        the rows are split into contiguous chunks evaluated on that many threads (the
-        compiled kernels and numpy release the GIL); the result is identical."""
+        """Generate and evaluate decoded rows; every metric per row. Rows are evaluated in
+        contiguous pieces of at most ``PIECE_ROWS`` (their (B, T) arrays stay in the CPU
+        caches), on ``threads`` threads when > 1 (the compiled kernels and numpy release
+        the GIL); every row's values are independent of the piece it is in, so the result
+        is identical for any ``threads``."""
         n = len(d)
-        if threads <= 1 or n < 2 * MIN_ROWS_PER_THREAD:
+        k = max(1, min(threads, n // MIN_ROWS_PER_THREAD))
+        n_pieces = max(k, -(-n // PIECE_ROWS))
+        if n_pieces == 1:
             return self._evaluate_rows(d)
-        k = min(threads, n // MIN_ROWS_PER_THREAD)
-        bounds = np.linspace(0, n, k + 1).astype(int)
+        bounds = np.linspace(0, n, n_pieces + 1).astype(int)
         parts = [d.take(np.arange(a, b)) for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
-        for name in np.unique(d.env_names):  # build shared caches before the threads
-            self.evaluator.prepare(self.environments[str(name)],
-                                   self.evaluator.target(self.family.target_class))
-        with ThreadPoolExecutor(max_workers=k) as pool:
-            outs = list(pool.map(self._evaluate_rows, parts))
+        if k > 1:
+            for name in np.unique(d.env_names):  # build shared caches before the threads
+                self.evaluator.prepare(self.environments[str(name)],
+                                       self.evaluator.target(self.family.target_class))
+            outs = list(_pool(k).map(self._evaluate_rows, parts))
+        else:
+            outs = [self._evaluate_rows(p) for p in parts]
         return BatchOutcome({m: np.concatenate([o.metrics[m] for o in outs])
                              for m in outs[0].metrics},
                             np.concatenate([o.feasible for o in outs]),
@@ -263,7 +287,7 @@ class SearchProblem:
                                                duration_s=self.family.duration_s)
             for m, v in compute_all_batch(bt, names).items():
                 metrics[m][ok] = v
-            min_dist = np.min(np.where(bt.valid, bt.distance, np.inf), axis=1)
+            min_dist = summary(bt).values["min_distance"]
             objective[ok] = search_objective(metrics["log10_risk"][ok], min_dist)
             for j in np.flatnonzero(bt.ttc[:, 0] < START_TTC_S):
                 i = ok[j]

@@ -1,0 +1,226 @@
+"""Compiled (numba) map lookup along tracks: one pass over the (B, T) target positions of
+a batch that interpolates the fused ln(1 - Pd) map, turns each row's sun into the vehicle
+frame at every step and finds the steps at which it can glare a camera.
+
+The pass only *finds* what needs more than the map: points outside the map (listed for an
+exact evaluation) and (point, camera) pairs with a glare weight > 0 (listed with their
+weight); ``logmiss.lookup_log_miss_tracks`` evaluates those. The glare weight is the
+``GlareCone`` form of ``Camera.glare_weights`` (tested equal to it), the sun direction the
+one of ``Conditions.sun_directions``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+F64 = NDArray[np.float64]
+F32 = NDArray[np.float32]
+I64 = NDArray[np.int64]
+
+#: Per-row sun encoding (column 0 of the ``sun`` array): no direct sun, a world-frame sun
+#: (azimuth clockwise from north, turned by the ego heading), a vehicle-frame sun.
+SUN_NONE, SUN_WORLD, SUN_VEHICLE = 0, 1, 2
+#: Glare weights at or below this count as none (as in ``Camera.glare_weights``).
+GLARE_W_MIN = 1e-9
+
+
+@numba.njit(cache=True, nogil=True)
+def fade(o: float, margin: float) -> float:  # pragma: no cover - compiled
+    """Glare weight at an angle ``o`` (rad) outside the field of view."""
+    if o <= 0.0:
+        return 1.0
+    if o >= margin:
+        return 0.0
+    w = math.cos(0.5 * math.pi * o / margin) ** 2
+    return w if w > GLARE_W_MIN else 0.0
+
+
+@numba.njit(cache=True, nogil=True)
+def glare_cone_weight(dx: float, dy: float, dz: float, rot: F64, half_h: float,
+                      half_v: float, margin: float,
+                      cos_bound: float) -> float:  # pragma: no cover - compiled
+    """Glare weight of one vehicle-frame sun unit vector for one ``GlareCone``."""
+    xx = dx * rot[0, 0] + dy * rot[1, 0] + dz * rot[2, 0]
+    if not xx >= cos_bound:  # certainly farther than the margin from the field of view
+        return 0.0
+    yy = dx * rot[0, 1] + dy * rot[1, 1] + dz * rot[2, 1]
+    zz = dx * rot[0, 2] + dy * rot[1, 2] + dz * rot[2, 2]
+    az = math.atan2(yy, xx)
+    el = math.atan2(zz, math.hypot(xx, yy))
+    return fade(math.hypot(max(0.0, abs(az) - half_h), max(0.0, abs(el) - half_v)), margin)
+
+
+def cone_cos_bound(half_h: float, half_v: float, margin: float) -> float:
+    """Cheap bound: a direction whose cosine to the boresight is below this lies farther
+    than ``margin`` from the field of view (as in ``geometry.angles_outside_fov``)."""
+    a = min(half_h + margin, math.pi)
+    b = min(half_v + margin, 0.5 * math.pi)
+    return math.cos(a) * math.cos(b) if a < 0.5 * math.pi else -2.0
+
+
+@numba.njit(cache=True, nogil=True)
+def lookup_pass(total: F32, x0: float, y0: float, inv_res: float, x: F64, y: F64,
+                heading: F64, n: I64, rows: I64, sun: F64, rot: F64, half_h: F64,
+                half_v: F64, margin: F64, cos_bound: F64, yaw: F64,
+                level: NDArray[np.bool_], mount_xy: F64, reach2: F64, signal: F32,
+                has_signal: NDArray[np.bool_], out: F64, outside: I64, glare_idx: I64,
+                glare_w: F64, glare_state: NDArray[np.int8],
+                counts: I64) -> None:  # pragma: no cover - compiled
+    """For each row r in ``rows`` and step k < n[r] of (B, T) vehicle-frame positions (m):
+    ``out[r, k]`` = bilinear ``total`` (0 outside the map); outside points go to
+    ``outside`` (flat index r * T + k, count in ``counts[0]``); for each camera c with a
+    glare weight w > 0 at an inside point that it may see, (flat index, w, state) go to
+    ``glare_idx[c]``, ``glare_w[c]``, ``glare_state[c]`` (count in ``counts[1 + c]``);
+    state 1: all four corner cells of its ``signal`` map (received signal, NaN out of
+    view) are in view, 2: some are, or it has no signal map (``has_signal``); points with
+    none in view are skipped (Pd = 0 there with or without glare), first by the squared
+    horizontal distance to the camera (``mount_xy``) against ``reach2``: (max range + a
+    cell diagonal)^2, beyond which no corner cell can be in range. ``sun[r]`` = (kind,
+    azimuth rad, elevation rad); ``heading`` (B, T) ego heading, rad. Level cameras
+    (``level``, pitch 0) get their weight analytically (sensor azimuth a - ``yaw``,
+    elevation the sun's), others through ``rot``."""
+    ny, nx = total.shape
+    t = x.shape[1]
+    n_cam = rot.shape[0]
+    # per camera and row: 0 never glared, 1 a constant weight wc, 2 a weight per step
+    mode = np.zeros(n_cam, dtype=np.int8)
+    wc = np.zeros(n_cam)
+    for q in range(rows.size):
+        r = rows[q]
+        kind = int(sun[r, 0])
+        el = sun[r, 2]
+        cel = math.cos(el)
+        sel = math.sin(el)
+        n_active = 0
+        if kind != SUN_NONE:
+            # Row-level culling: turning the ego by d rad moves the sun direction by at
+            # most d rad, so a camera whose boresight is farther than its bound plus the
+            # largest turn from step 0 at step 0 is never glared in this row; without a
+            # turn the weight is the same at every step.
+            turn = 0.0
+            if kind == SUN_WORLD:
+                for k in range(n[r]):
+                    turn = max(turn, abs(heading[r, k] - heading[r, 0]))
+                a0 = 0.5 * math.pi - sun[r, 1] - heading[r, 0]
+            else:
+                a0 = sun[r, 1]
+            dx0 = cel * math.cos(a0)
+            dy0 = cel * math.sin(a0)
+            for c in range(n_cam):
+                mode[c] = 2
+                if cos_bound[c] > -1.0:
+                    bx = dx0 * rot[c, 0, 0] + dy0 * rot[c, 1, 0] + sel * rot[c, 2, 0]
+                    ang = math.acos(min(1.0, max(-1.0, bx)))
+                    if ang - turn > math.acos(cos_bound[c]) + 1e-9:
+                        mode[c] = 0
+                if mode[c] != 0 and level[c]:
+                    # exact for a level camera: its sun azimuth is a - yaw, which moves by
+                    # at most `turn`; its sun elevation is the sun's
+                    d0 = _azimuth_off(a0, yaw[c])
+                    if el - half_v[c] >= margin[c] or d0 - turn - half_h[c] >= margin[c]:
+                        mode[c] = 0
+                    elif d0 + turn <= half_h[c] and el <= half_v[c]:
+                        mode[c] = 1  # inside the field of view at every step
+                        wc[c] = 1.0
+                if mode[c] == 2 and turn == 0.0:
+                    mode[c] = 1
+                    if level[c]:
+                        eh = max(0.0, _azimuth_off(a0, yaw[c]) - half_h[c])
+                        ev = max(0.0, el - half_v[c])
+                        wc[c] = fade(eh if ev == 0.0 else (ev if eh == 0.0
+                                                           else math.hypot(eh, ev)),
+                                     margin[c])
+                    else:
+                        wc[c] = glare_cone_weight(dx0, dy0, sel, rot[c], half_h[c],
+                                                  half_v[c], margin[c], cos_bound[c])
+                if mode[c] == 1 and not wc[c] > 0.0:
+                    mode[c] = 0
+                n_active += int(mode[c] != 0)
+        for k in range(n[r]):
+            fx = (x[r, k] - x0) * inv_res
+            fy = (y[r, k] - y0) * inv_res
+            if not (fx >= 0.0 and fy >= 0.0 and fx <= nx - 1 and fy <= ny - 1):
+                out[r, k] = 0.0
+                outside[counts[0]] = r * t + k
+                counts[0] += 1
+                continue
+            i = min(int(fx), nx - 2)
+            j = min(int(fy), ny - 2)
+            ax = fx - i
+            ay = fy - j
+            out[r, k] = ((1.0 - ay) * ((1.0 - ax) * total[j, i] + ax * total[j, i + 1])
+                         + ay * ((1.0 - ax) * total[j + 1, i] + ax * total[j + 1, i + 1]))
+            if n_active == 0:
+                continue
+            a = sun[r, 1]  # vehicle-frame azimuth of the sun, rad
+            if kind == SUN_WORLD:
+                a = 0.5 * math.pi - a - heading[r, k]
+            have_d = False
+            dx = 0.0
+            dy = 0.0
+            for c in range(n_cam):
+                if mode[c] == 0:
+                    continue
+                if mode[c] == 1:
+                    w = wc[c]
+                elif level[c]:  # pitch 0: sensor azimuth a - yaw, elevation the sun's
+                    eh = max(0.0, _azimuth_off(a, yaw[c]) - half_h[c])
+                    ev = max(0.0, el - half_v[c])
+                    w = fade(eh if ev == 0.0 else (ev if eh == 0.0 else math.hypot(eh, ev)),
+                             margin[c])
+                else:
+                    if not have_d:
+                        dx = cel * math.cos(a)
+                        dy = cel * math.sin(a)
+                        have_d = True
+                    # as glare_cone_weight (inlined: no array view per call)
+                    w = 0.0
+                    xx = dx * rot[c, 0, 0] + dy * rot[c, 1, 0] + sel * rot[c, 2, 0]
+                    if xx >= cos_bound[c]:
+                        yy = dx * rot[c, 0, 1] + dy * rot[c, 1, 1] + sel * rot[c, 2, 1]
+                        zz = dx * rot[c, 0, 2] + dy * rot[c, 1, 2] + sel * rot[c, 2, 2]
+                        o = math.hypot(max(0.0, abs(math.atan2(yy, xx)) - half_h[c]),
+                                       max(0.0, abs(math.atan2(zz, math.hypot(xx, yy)))
+                                           - half_v[c]))
+                        w = fade(o, margin[c])
+                if not w > 0.0:
+                    continue
+                st = 2
+                if has_signal[c]:  # which corner cells the camera sees
+                    ox = x[r, k] - mount_xy[c, 0]
+                    oy = y[r, k] - mount_xy[c, 1]
+                    if ox * ox + oy * oy > reach2[c]:  # every corner cell beyond its range
+                        continue
+                    sg = signal[c]
+                    n_in = (int(np.isfinite(sg[j, i])) + int(np.isfinite(sg[j, i + 1]))
+                            + int(np.isfinite(sg[j + 1, i]))
+                            + int(np.isfinite(sg[j + 1, i + 1])))
+                    if n_in == 0:  # out of its view: Pd = 0 with or without glare
+                        continue
+                    st = 1 if n_in == 4 else 2
+                m = counts[1 + c]
+                glare_idx[c, m] = r * t + k
+                glare_w[c, m] = w
+                glare_state[c, m] = st
+                counts[1 + c] = m + 1
+
+
+@numba.njit(cache=True, nogil=True)
+def _azimuth_off(a: float, yaw: float) -> float:  # pragma: no cover - compiled
+    """|a - yaw| wrapped to [0, pi], rad."""
+    d = a - yaw
+    return abs(d - 2.0 * math.pi * math.floor((d + math.pi) / (2.0 * math.pi)))
+
+
+def sun_directions_of(sun: F64, heading: F64) -> F64:
+    """(N, 3) vehicle-frame sun unit vectors (NaN rows: no direct sun) of N points with
+    per-point ``sun`` (kind, azimuth rad, elevation rad) rows and ego headings (rad)."""
+    kind, az, el = sun[:, 0], sun[:, 1], sun[:, 2]
+    a = np.where(kind == SUN_WORLD, 0.5 * math.pi - az - heading, az)
+    d = np.column_stack([np.cos(el) * np.cos(a), np.cos(el) * np.sin(a), np.sin(el)])
+    d[kind == SUN_NONE] = np.nan
+    return d

@@ -1,0 +1,93 @@
+"""Compiled (numba) per-row summary of a ``BatchTrace``: one pass over each row's steps
+gives every built-in metric (same definitions as the per-trace functions of
+``search.metrics``, which remain the reference; tested equal to 1e-12)."""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+F64 = NDArray[np.float64]
+I64 = NDArray[np.int64]
+
+#: Columns of the float output of ``summarize``.
+COLUMNS = ("risk", "log10_risk", "p_undetected_end", "mean_pd", "min_ttc", "ttc_at",
+           "headway_at", "distance_at", "min_distance")
+
+
+@numba.njit(cache=True, nogil=True)
+def summarize(log_miss: F64, ttc: F64, headway: F64, distance: F64, t: F64, n: I64,
+              det_given: I64, cumulative: bool, threshold: float, lead_in: float,
+              tau: float, low_pd: float, floor: float, out: F64,
+              idx: I64) -> None:  # pragma: no cover - compiled
+    """Per row i of (B, T) arrays, over its first ``n[i]`` steps:
+
+    ``idx[i]`` = (detection step or -1, corridor start, corridor end) where detection is
+    the first step with ``exp(cumsum(log_miss)) <= 1 - threshold`` (``cumulative``) or
+    ``det_given[i]``; the corridor the first longest run of steps with Pd < ``low_pd``,
+    [start, end), (0, 0) if none. ``out[i]`` = ``COLUMNS``: max over steps with
+    t >= ``lead_in`` of P_undet exp(-TTC / tau); the same in log10 over steps with a
+    finite TTC (``floor`` otherwise); P_undet at the last step; mean Pd; min TTC; TTC,
+    headway and distance at detection (their minimum over the steps if never detected);
+    min distance.
+    """
+    ln10 = math.log(10.0)
+    limit = 1.0 - threshold
+    for i in range(log_miss.shape[0]):
+        m = n[i]
+        lu = 0.0
+        det = -1 if cumulative else det_given[i]
+        risk = 0.0
+        lrisk = floor
+        sum_pd = 0.0
+        min_ttc = np.inf
+        min_hw = np.inf
+        min_dist = np.inf
+        run = 0
+        best = 0
+        best_end = 0
+        for k in range(m):
+            lu += log_miss[i, k]
+            if det < 0 and cumulative and math.exp(lu) <= limit:
+                det = k
+            pd = -math.expm1(log_miss[i, k]) + 0.0
+            sum_pd += pd
+            tk = ttc[i, k]
+            if t[k] >= lead_in:
+                r = math.exp(lu) * math.exp(-tk / tau)
+                if r > risk:
+                    risk = r
+                if math.isfinite(tk):
+                    v = (lu - tk / tau) / ln10
+                    if v > lrisk:
+                        lrisk = v
+            min_ttc = min(min_ttc, tk)
+            min_hw = min(min_hw, headway[i, k])
+            min_dist = min(min_dist, distance[i, k])
+            if pd < low_pd:
+                run += 1
+                if run > best:
+                    best = run
+                    best_end = k + 1
+            else:
+                run = 0
+        out[i, 0] = risk
+        out[i, 1] = lrisk
+        out[i, 2] = math.exp(lu)
+        out[i, 3] = sum_pd / m
+        out[i, 4] = min_ttc
+        if det >= 0:
+            out[i, 5] = ttc[i, det]
+            out[i, 6] = headway[i, det]
+            out[i, 7] = distance[i, det]
+        else:
+            out[i, 5] = min_ttc
+            out[i, 6] = min_hw
+            out[i, 7] = min_dist
+        out[i, 8] = min_dist
+        idx[i, 0] = det
+        idx[i, 1] = best_end - best if best > 0 else 0
+        idx[i, 2] = best_end if best > 0 else 0

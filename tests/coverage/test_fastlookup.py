@@ -1,0 +1,110 @@
+"""The compiled lookup along tracks (``fastlookup.lookup_pass`` via
+``logmiss.lookup_log_miss_tracks``) equals the point-wise lookup (``lookup_log_miss``) and
+its glare weights equal ``Camera.glare_weights``."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from sensorgap.config import load_environments, load_target
+from sensorgap.coverage import GridSpec, Scene
+from sensorgap.coverage.fastlookup import (
+    SUN_NONE,
+    SUN_VEHICLE,
+    SUN_WORLD,
+    cone_cos_bound,
+    glare_cone_weight,
+    sun_directions_of,
+)
+from sensorgap.coverage.logmiss import LogMissMaps, lookup_log_miss, lookup_log_miss_tracks
+from sensorgap.models import Conditions, load_system
+from sensorgap.models.camera import Camera
+from sensorgap.models.geometry import Mount
+
+ENVS = load_environments()
+
+
+@pytest.mark.parametrize("pitch_deg", [0.0, 20.0, 70.0])
+@pytest.mark.parametrize("margin_deg", [0.0, 10.0])
+def test_glare_cone_weight_equals_camera_glare_weights(pitch_deg: float,
+                                                       margin_deg: float) -> None:
+    system = load_system("system_a")
+    cam = next(s for s in system.sensors if isinstance(s.model, Camera))
+    model = cam.model
+    assert isinstance(model, Camera)
+    model = Camera(model.params.model_copy(update={"glare_margin_deg": margin_deg}))
+    mount = Mount(0.0, 0.0, 1.5, math.radians(30.0), math.radians(pitch_deg),
+                  math.radians(120.0), math.radians(60.0), 0.1, 100.0)
+    rng = np.random.default_rng(7)
+    az = rng.uniform(-math.pi, math.pi, 4000)
+    el = np.arcsin(rng.uniform(-1.0, 1.0, 4000))  # uniform on the sphere
+    d = np.column_stack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)])
+    want = model.glare_weights(mount, d)
+    cone = model.glare_cone(mount)
+    bound = cone_cos_bound(cone.half_h, cone.half_v, cone.margin)
+    got = np.array([glare_cone_weight(*v, cone.rotation, cone.half_h, cone.half_v,
+                                      cone.margin, bound) for v in d])
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-12)
+    assert 0 < np.count_nonzero(want == 1.0) < want.size  # inside and outside both hit
+    if margin_deg:
+        assert np.count_nonzero((want > 0) & (want < 1)) > 10  # the fade is exercised
+
+
+@pytest.mark.parametrize("system_name", ["system_a", "system_b"])
+def test_tracks_lookup_equals_point_lookup(system_name: str) -> None:
+    """Rows with a world-frame sun over turning headings, a vehicle-frame sun and none;
+    points inside and outside the map; level and pitched cameras (System A's fisheyes);
+    absolute agreement 1e-9 (the sensor azimuth of a level camera is computed as a
+    difference of angles instead of through atan2: a rounding difference)."""
+    env = ENVS["clear"]
+    system = load_system(system_name)
+    car = load_target("car")
+    scene = Scene(system, car, Conditions(env=env, sun_direction=None))
+    grid = GridSpec(-40.0, 90.0, -20.0, 20.0, 0.5, car.reference_height_m)
+    maps = LogMissMaps.build(scene, grid)
+    rng = np.random.default_rng(5)
+    b, t = 36, 41
+    x = rng.uniform(-50.0, 100.0, (b, t))  # some beyond the map: exact there
+    y = rng.uniform(-25.0, 25.0, (b, t))
+    heading = rng.uniform(-math.pi, math.pi, (b, 1)) + np.linspace(0.0, 0.8, t)[None, :]
+    sun = np.zeros((b, 3))
+    sun[:, 0] = np.resize([SUN_WORLD, SUN_VEHICLE, SUN_NONE], b)
+    sun[:, 1] = rng.uniform(0.0, 2 * math.pi, b)
+    sun[:, 2] = rng.uniform(math.radians(2.0), math.radians(40.0), b)
+    n = rng.integers(1, t + 1, b).astype(np.int64)
+    rows = np.arange(0, b, dtype=np.int64)[::-1].copy()  # any order, every row
+    out = np.full((b, t), 123.0)
+    lookup_log_miss_tracks(maps, scene, x, y, heading, n, rows, sun, out)
+    for r in range(b):
+        k = n[r]
+        dirs = sun_directions_of(np.repeat(sun[r:r + 1], k, axis=0), heading[r, :k])
+        want, _ = lookup_log_miss(maps, scene, x[r, :k], y[r, :k],
+                                  np.full(k, car.reference_height_m),
+                                  None if sun[r, 0] == SUN_NONE else dirs)
+        np.testing.assert_allclose(out[r, :k], want, rtol=0, atol=1e-9)
+        assert np.all(out[r, k:] == 123.0)  # steps beyond n are not written
+    assert np.all(np.isfinite(out))
+
+
+def test_sun_rows_match_the_preset_and_searched_suns() -> None:
+    """The per-row sun of the evaluator gives the directions of ``Conditions``."""
+    from sensorgap.search.evaluate import _sun_directions, _sun_rows
+
+    heading = np.linspace(-3.0, 3.0, 9)
+    for name in ("clear", "glare_front_right", "fog_50", "night"):
+        if name not in ENVS:
+            continue
+        env = ENVS[name]
+        sun_deg = np.full((9, 2), np.nan)
+        sun_deg[::2] = [[120.0, 15.0]] * 5
+        sun_deg[1] = [40.0, -3.0]  # below the horizon: no direct sun
+        rows = _sun_rows(env, sun_deg)
+        want = _sun_directions(env, sun_deg, heading)
+        got = sun_directions_of(rows, heading)
+        if want is None:
+            assert np.all(rows[:, 0] == SUN_NONE)
+        else:
+            np.testing.assert_allclose(got, want, rtol=0, atol=1e-12)
