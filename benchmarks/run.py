@@ -22,6 +22,9 @@ BENCHMARKS = {
 
 
 def main(argv: list[str]) -> int:
+    from sensorgap.runtime import tune_allocator
+
+    tune_allocator()  # as the command line does (sensorgap.runtime)
     names = [a for a in argv if not a.startswith("--") and not a.isdigit()] or list(BENCHMARKS)
     unknown = [n for n in names if n not in BENCHMARKS]
     if unknown:

@@ -8,12 +8,13 @@ from pathlib import Path
 import sensorgap
 
 #: Pipeline order; a module may import its own layer and the layers before it.
-LAYERS = ["errors", "atomic", "filesio", "registry", "plugins", "provenance", "config",
+LAYERS = ["errors", "atomic", "filesio", "registry", "plugins", "provenance", "runtime",
+          "config",
           "models",
           "coverage", "roads", "analysis", "scenarios", "search", "tradeoff", "export", "report",
           "jobs", "cli"]
 #: Shared base modules count as one layer (they may import each other).
-_BASE = {"errors", "atomic", "filesio", "registry", "plugins", "provenance"}
+_BASE = {"errors", "atomic", "filesio", "registry", "plugins", "provenance", "runtime"}
 ROOT = Path(sensorgap.__file__).parent
 
 

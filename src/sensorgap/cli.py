@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, NoReturn
 
 from sensorgap.errors import InputError
 from sensorgap.filesio import write_manifest
+from sensorgap.runtime import tune_allocator
 
 if TYPE_CHECKING:
     from sensorgap.coverage import Scene
@@ -477,6 +478,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     func: Callable[[argparse.Namespace], int] = args.func
     if hasattr(signal, "SIGXFSZ"):  # a file-size limit: a clean OSError, not a core dump
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+    tune_allocator()
     try:
         return func(args)
     except InputError as exc:

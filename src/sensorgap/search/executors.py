@@ -21,6 +21,7 @@ import numpy as np
 from sensorgap.config import load_environments
 from sensorgap.errors import InputError
 from sensorgap.models import load_system
+from sensorgap.runtime import tune_allocator
 from sensorgap.scenarios import load_families
 from sensorgap.search.evaluate import DetectionRule, Evaluator
 from sensorgap.search.problem import BatchOutcome, Decoded, SearchProblem
@@ -68,6 +69,7 @@ def problems_for(spec: ProblemSpec) -> dict[str, SearchProblem]:
 def evaluate_chunk(spec: ProblemSpec, family: str, decoded: Decoded,
                    threads: int = 1) -> BatchOutcome:
     """Evaluate decoded candidates of one family (runs on a worker)."""
+    tune_allocator()  # a Dask worker process: as the command line does
     return problems_for(spec)[family].evaluate_decoded(decoded, threads=threads)
 
 

@@ -15,7 +15,7 @@ I64 = NDArray[np.int64]
 
 #: Columns of the float output of ``summarize``.
 COLUMNS = ("risk", "log10_risk", "p_undetected_end", "mean_pd", "min_ttc", "ttc_at",
-           "headway_at", "distance_at", "min_distance")
+           "headway_at", "distance_at", "min_distance", "log10_risk_raw")
 
 
 @numba.njit(cache=True, nogil=True)
@@ -32,7 +32,7 @@ def summarize(log_miss: F64, ttc: F64, headway: F64, distance: F64, t: F64, n: I
     t >= ``lead_in`` of P_undet exp(-TTC / tau); the same in log10 over steps with a
     finite TTC (``floor`` otherwise); P_undet at the last step; mean Pd; min TTC; TTC,
     headway and distance at detection (their minimum over the steps if never detected);
-    min distance.
+    min distance; log10 risk without the floor (-inf without a finite TTC).
     """
     ln10 = math.log(10.0)
     limit = 1.0 - threshold
@@ -42,6 +42,7 @@ def summarize(log_miss: F64, ttc: F64, headway: F64, distance: F64, t: F64, n: I
         det = -1 if cumulative else det_given[i]
         risk = 0.0
         lrisk = floor
+        lraw = -np.inf
         sum_pd = 0.0
         min_ttc = np.inf
         min_hw = np.inf
@@ -64,6 +65,8 @@ def summarize(log_miss: F64, ttc: F64, headway: F64, distance: F64, t: F64, n: I
                     v = (lu - tk / tau) / ln10
                     if v > lrisk:
                         lrisk = v
+                    if v > lraw:
+                        lraw = v
             min_ttc = min(min_ttc, tk)
             min_hw = min(min_hw, headway[i, k])
             min_dist = min(min_dist, distance[i, k])
@@ -88,6 +91,7 @@ def summarize(log_miss: F64, ttc: F64, headway: F64, distance: F64, t: F64, n: I
             out[i, 6] = min_hw
             out[i, 7] = min_dist
         out[i, 8] = min_dist
+        out[i, 9] = lraw
         idx[i, 0] = det
         idx[i, 1] = best_end - best if best > 0 else 0
         idx[i, 2] = best_end if best > 0 else 0

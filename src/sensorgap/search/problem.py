@@ -23,7 +23,7 @@ from sensorgap.config import EnvironmentConfig
 from sensorgap.errors import InputError
 from sensorgap.scenarios.family import Family, Param, ParamValue, Scenario
 from sensorgap.search.evaluate import Evaluator, Trace
-from sensorgap.search.metrics import LOG10_RISK_FLOOR, compute_all_batch, metric_names, summary
+from sensorgap.search.metrics import compute_all_batch, metric_names, summary
 
 F64 = NDArray[np.float64]
 
@@ -103,19 +103,27 @@ class BatchOutcome:
     objective: F64 | None = None
 
 
+#: The search objective's floor for targets that become a threat, log10: far below any
+#: reachable log10 risk (201 steps x 40 sensors x ln(2^-53) / ln 10 = -1.3e5).
+OBJECTIVE_THREAT_FLOOR = -1.0e6
 #: Search objective of an infeasible candidate (below every feasible one).
-OBJECTIVE_INFEASIBLE = -1000.0
+OBJECTIVE_INFEASIBLE = -1.0e7
 #: Key of the search objective among a result's stored values (not a ranking column).
 OBJECTIVE_KEY = "search_objective"
 
 
-def search_objective(log10_risk: F64, min_distance_m: F64) -> F64:
-    """What the strategies maximise: ``log10_risk`` where the target becomes a threat
-    (a finite TTC after the lead-in); below that floor, ``floor - min distance (m)``, so
-    candidates that never become a threat are still graded by how close the target comes
-    and an adaptive strategy is led towards encounters instead of a flat plateau."""
-    return np.where(log10_risk > LOG10_RISK_FLOOR, log10_risk,
-                    LOG10_RISK_FLOOR - np.minimum(min_distance_m, 600.0))
+def search_objective(log10_risk_raw: F64, min_distance_m: F64) -> F64:
+    """What the strategies maximise: the log10 risk *without* the ranking's floor of -300
+    where the target becomes a threat (a finite TTC after the lead-in), so that among
+    well-detected encounters (risk 1e-300 and below) those closer to going undetected
+    still score higher and an adaptive strategy has a slope to climb; the risk and its
+    ranking are unchanged. Candidates that never become a threat score
+    ``OBJECTIVE_THREAT_FLOOR - min distance (m, at most 600)``: graded by how close the
+    target comes, so the search is led towards encounters instead of a flat plateau."""
+    raw = np.asarray(log10_risk_raw, dtype=np.float64)
+    threat = np.isfinite(raw)
+    return np.where(threat, np.maximum(np.where(threat, raw, 0.0), OBJECTIVE_THREAT_FLOOR),
+                    OBJECTIVE_THREAT_FLOOR - np.minimum(min_distance_m, 600.0))
 
 
 @dataclass(frozen=True)
@@ -287,8 +295,9 @@ class SearchProblem:
                                                duration_s=self.family.duration_s)
             for m, v in compute_all_batch(bt, names).items():
                 metrics[m][ok] = v
-            min_dist = summary(bt).values["min_distance"]
-            objective[ok] = search_objective(metrics["log10_risk"][ok], min_dist)
+            sm = summary(bt).values
+            min_dist, raw = sm["min_distance"], sm["log10_risk_raw"]
+            objective[ok] = search_objective(raw, min_dist)
             for j in np.flatnonzero(bt.ttc[:, 0] < START_TTC_S):
                 i = ok[j]
                 feasible[i] = False

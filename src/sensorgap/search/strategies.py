@@ -175,7 +175,13 @@ class DifferentialEvolution(Strategy):
     member, ``v = x_r1 + F (x_r2 - x_r3)`` crossed over with the member (rate ``cr``, one
     dimension always from ``v``), out-of-cube components reset between the member and the
     bound; a trial replaces its member when it scores at least as high. Better than CEM on
-    the multimodal, plateau-ridden risk landscapes of the families (benchmarks/bench_search)."""
+    the multimodal, plateau-ridden risk landscapes of the families (benchmarks/bench_search).
+
+    The crossover rate defaults to a low 0.2 (a trial changes about a fifth of the
+    dimensions): the risk landscapes are partly separable (the sun position acts on the
+    glare of whichever camera sees the target, whatever the trajectory), and on the
+    benchmark's ten problems x ten seeds 0.2 won 89 comparisons against random search
+    with ten times the evaluations, 0.9 won 81 (docs/search.md)."""
 
     name = "de"
     description = "differential evolution (adaptive, multimodal)"
@@ -186,7 +192,7 @@ class DifferentialEvolution(Strategy):
         return max(20, min(200, budget // 25))
 
     def __init__(self, dim: int, levels: list[int | None], budget: int,
-                 rng: np.random.Generator, batch: int = 40, f: float = 0.7, cr: float = 0.9,
+                 rng: np.random.Generator, batch: int = 40, f: float = 0.7, cr: float = 0.2,
                  **options: Any) -> None:
         super().__init__(dim, levels, budget, rng, batch, **options)
         self.f, self.cr = f, cr
