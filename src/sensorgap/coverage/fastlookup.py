@@ -40,18 +40,46 @@ def fade(o: float, margin: float) -> float:  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, nogil=True)
-def glare_cone_weight(dx: float, dy: float, dz: float, rot: F64, half_h: float,
-                      half_v: float, margin: float,
-                      cos_bound: float) -> float:  # pragma: no cover - compiled
-    """Glare weight of one vehicle-frame sun unit vector for one ``GlareCone``."""
-    xx = dx * rot[0, 0] + dy * rot[1, 0] + dz * rot[2, 0]
+def _azimuth_off(a: float, yaw: float) -> float:  # pragma: no cover - compiled
+    """|a - yaw| wrapped to [0, pi], rad."""
+    d = a - yaw
+    return abs(d - 2.0 * math.pi * math.floor((d + math.pi) / (2.0 * math.pi)))
+
+
+@numba.njit(cache=True, nogil=True)
+def _cone_weight(dx: float, dy: float, dz: float, rot: F64, c: int, half_h: float,
+                 half_v: float, margin: float,
+                 cos_bound: float) -> float:  # pragma: no cover - compiled
+    """Glare weight of a vehicle-frame sun unit vector for cone ``c`` of stacked (C, 3, 3)
+    rotations (indexed, not sliced: no array view per call in the hot loop)."""
+    xx = dx * rot[c, 0, 0] + dy * rot[c, 1, 0] + dz * rot[c, 2, 0]
     if not xx >= cos_bound:  # certainly farther than the margin from the field of view
         return 0.0
-    yy = dx * rot[0, 1] + dy * rot[1, 1] + dz * rot[2, 1]
-    zz = dx * rot[0, 2] + dy * rot[1, 2] + dz * rot[2, 2]
+    yy = dx * rot[c, 0, 1] + dy * rot[c, 1, 1] + dz * rot[c, 2, 1]
+    zz = dx * rot[c, 0, 2] + dy * rot[c, 1, 2] + dz * rot[c, 2, 2]
     az = math.atan2(yy, xx)
     el = math.atan2(zz, math.hypot(xx, yy))
     return fade(math.hypot(max(0.0, abs(az) - half_h), max(0.0, abs(el) - half_v)), margin)
+
+
+@numba.njit(cache=True, nogil=True)
+def _level_weight(a: float, el: float, yaw: float, half_h: float, half_v: float,
+                  margin: float) -> float:  # pragma: no cover - compiled
+    """Glare weight for a level camera (pitch 0): the sun's sensor azimuth is its
+    vehicle-frame azimuth ``a`` minus ``yaw``, its elevation ``el`` (rad)."""
+    eh = max(0.0, _azimuth_off(a, yaw) - half_h)
+    ev = max(0.0, el - half_v)
+    return fade(eh if ev == 0.0 else (ev if eh == 0.0 else math.hypot(eh, ev)), margin)
+
+
+@numba.njit(cache=True, nogil=True)
+def glare_cone_weight(dx: float, dy: float, dz: float, rot: F64, half_h: float,
+                      half_v: float, margin: float,
+                      cos_bound: float) -> float:  # pragma: no cover - compiled
+    """Glare weight of one vehicle-frame sun unit vector for one ``GlareCone`` (3x3
+    ``rot``)."""
+    return _cone_weight(dx, dy, dz, rot.reshape(1, 3, 3), 0, half_h, half_v, margin,
+                        cos_bound)
 
 
 def cone_cos_bound(half_h: float, half_v: float, margin: float) -> float:
@@ -129,14 +157,11 @@ def lookup_pass(total: F32, x0: float, y0: float, inv_res: float, x: F64, y: F64
                 if mode[c] == 2 and turn == 0.0:
                     mode[c] = 1
                     if level[c]:
-                        eh = max(0.0, _azimuth_off(a0, yaw[c]) - half_h[c])
-                        ev = max(0.0, el - half_v[c])
-                        wc[c] = fade(eh if ev == 0.0 else (ev if eh == 0.0
-                                                           else math.hypot(eh, ev)),
-                                     margin[c])
+                        wc[c] = _level_weight(a0, el, yaw[c], half_h[c], half_v[c],
+                                              margin[c])
                     else:
-                        wc[c] = glare_cone_weight(dx0, dy0, sel, rot[c], half_h[c],
-                                                  half_v[c], margin[c], cos_bound[c])
+                        wc[c] = _cone_weight(dx0, dy0, sel, rot, c, half_h[c], half_v[c],
+                                             margin[c], cos_bound[c])
                 if mode[c] == 1 and not wc[c] > 0.0:
                     mode[c] = 0
                 n_active += int(mode[c] != 0)
@@ -167,26 +192,15 @@ def lookup_pass(total: F32, x0: float, y0: float, inv_res: float, x: F64, y: F64
                     continue
                 if mode[c] == 1:
                     w = wc[c]
-                elif level[c]:  # pitch 0: sensor azimuth a - yaw, elevation the sun's
-                    eh = max(0.0, _azimuth_off(a, yaw[c]) - half_h[c])
-                    ev = max(0.0, el - half_v[c])
-                    w = fade(eh if ev == 0.0 else (ev if eh == 0.0 else math.hypot(eh, ev)),
-                             margin[c])
+                elif level[c]:
+                    w = _level_weight(a, el, yaw[c], half_h[c], half_v[c], margin[c])
                 else:
                     if not have_d:
                         dx = cel * math.cos(a)
                         dy = cel * math.sin(a)
                         have_d = True
-                    # as glare_cone_weight (inlined: no array view per call)
-                    w = 0.0
-                    xx = dx * rot[c, 0, 0] + dy * rot[c, 1, 0] + sel * rot[c, 2, 0]
-                    if xx >= cos_bound[c]:
-                        yy = dx * rot[c, 0, 1] + dy * rot[c, 1, 1] + sel * rot[c, 2, 1]
-                        zz = dx * rot[c, 0, 2] + dy * rot[c, 1, 2] + sel * rot[c, 2, 2]
-                        o = math.hypot(max(0.0, abs(math.atan2(yy, xx)) - half_h[c]),
-                                       max(0.0, abs(math.atan2(zz, math.hypot(xx, yy)))
-                                           - half_v[c]))
-                        w = fade(o, margin[c])
+                    w = _cone_weight(dx, dy, sel, rot, c, half_h[c], half_v[c], margin[c],
+                                     cos_bound[c])
                 if not w > 0.0:
                     continue
                 st = 2
@@ -207,13 +221,6 @@ def lookup_pass(total: F32, x0: float, y0: float, inv_res: float, x: F64, y: F64
                 glare_w[c, m] = w
                 glare_state[c, m] = st
                 counts[1 + c] = m + 1
-
-
-@numba.njit(cache=True, nogil=True)
-def _azimuth_off(a: float, yaw: float) -> float:  # pragma: no cover - compiled
-    """|a - yaw| wrapped to [0, pi], rad."""
-    d = a - yaw
-    return abs(d - 2.0 * math.pi * math.floor((d + math.pi) / (2.0 * math.pi)))
 
 
 def sun_directions_of(sun: F64, heading: F64) -> F64:

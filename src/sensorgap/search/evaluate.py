@@ -19,7 +19,6 @@ Collisions end a scenario: steps after the first overlap of the boxes are not ev
 
 from __future__ import annotations
 
-import math
 import threading
 from collections import OrderedDict
 from collections.abc import Mapping, Sequence
@@ -32,7 +31,7 @@ from numpy.typing import NDArray
 
 from sensorgap.config import EnvironmentConfig, TargetConfig, load_target
 from sensorgap.coverage import GridSpec, Scene
-from sensorgap.coverage.fastlookup import SUN_NONE, SUN_VEHICLE, SUN_WORLD
+from sensorgap.coverage.fastlookup import SUN_NONE, SUN_VEHICLE, SUN_WORLD, sun_directions_of
 from sensorgap.coverage.logmiss import (
     ALMOST_ONE,
     LogMissMaps,
@@ -443,22 +442,12 @@ def _sun_rows(env: EnvironmentConfig, sun_deg: F64) -> F64:
 
 def _sun_directions(env: EnvironmentConfig, sun_deg: F64, heading: F64) -> F64 | None:
     """(N, 3) vehicle-frame sun directions per point: the preset's sun, or a world-frame
-    sun (azimuth, elevation deg) per point where ``sun_deg`` is finite; NaN rows: none."""
-    base = Conditions.sun_directions(env, heading)
-    override = np.isfinite(sun_deg[:, 0])
-    if not override.any():
-        return base
-    visible = env.sun is not None and env.sun.visible
-    out = np.full((len(heading), 3), np.nan) if base is None else base.copy()
-    if not visible:
-        return None if base is None else out
-    az = np.radians(sun_deg[override, 0])
-    el = np.radians(sun_deg[override, 1])
-    a = 0.5 * math.pi - az - heading[override]
-    d = np.column_stack([np.cos(el) * np.cos(a), np.cos(el) * np.sin(a), np.sin(el)])
-    d[el <= 0.0] = np.nan
-    out[override] = d
-    return out
+    sun (azimuth, elevation deg) per point where ``sun_deg`` is finite; NaN rows: none;
+    ``None`` when no point has a direct sun."""
+    rows = _sun_rows(env, sun_deg)
+    if not np.any(rows[:, 0] != SUN_NONE):
+        return None
+    return sun_directions_of(rows, heading)
 
 
 __all__ = ["DT_S", "BatchTrace", "Evaluator", "Kinematics", "Trace", "kinematics",

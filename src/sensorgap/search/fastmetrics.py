@@ -41,7 +41,6 @@ def summarize(log_miss: F64, ttc: F64, headway: F64, distance: F64, t: F64, n: I
         lu = 0.0
         det = -1 if cumulative else det_given[i]
         risk = 0.0
-        lrisk = floor
         lraw = -np.inf
         sum_pd = 0.0
         min_ttc = np.inf
@@ -62,11 +61,7 @@ def summarize(log_miss: F64, ttc: F64, headway: F64, distance: F64, t: F64, n: I
                 if r > risk:
                     risk = r
                 if math.isfinite(tk):
-                    v = (lu - tk / tau) / ln10
-                    if v > lrisk:
-                        lrisk = v
-                    if v > lraw:
-                        lraw = v
+                    lraw = max(lraw, (lu - tk / tau) / ln10)
             min_ttc = min(min_ttc, tk)
             min_hw = min(min_hw, headway[i, k])
             min_dist = min(min_dist, distance[i, k])
@@ -78,7 +73,7 @@ def summarize(log_miss: F64, ttc: F64, headway: F64, distance: F64, t: F64, n: I
             else:
                 run = 0
         out[i, 0] = risk
-        out[i, 1] = lrisk
+        out[i, 1] = max(lraw, floor)
         out[i, 2] = math.exp(lu)
         out[i, 3] = sum_pd / m
         out[i, 4] = min_ttc

@@ -83,15 +83,6 @@ def detection_index_batch(bt: BatchTrace) -> np.ndarray:
     return summary(bt).detection
 
 
-def log10_risk_profile_batch(bt: BatchTrace) -> np.ndarray:
-    """(B, T) ``log10_risk_profile`` (floor beyond the valid steps)."""
-    finite = np.isfinite(bt.ttc)
-    ln = bt.log_undetected - np.where(finite, bt.ttc, 0.0) / TAU_S
-    assessed = finite & bt.valid & (bt.t >= LEAD_IN_S)[None, :]
-    out = np.where(assessed, ln / math.log(10.0), LOG10_RISK_FLOOR)
-    return np.asarray(np.maximum(out, LOG10_RISK_FLOOR), dtype=np.float64)
-
-
 def corridor_batch(bt: BatchTrace, threshold: float = LOW_PD) -> tuple[np.ndarray, np.ndarray]:
     """(B,) ``corridor`` of every row: [start, end) of the first longest low-Pd run."""
     if threshold == LOW_PD:

@@ -40,6 +40,10 @@ MIN_ROWS_PER_THREAD = 64
 #: Largest piece of a batch evaluated at once, candidates: 1,024 x 201 steps keeps each
 #: (B, T) float64 array at 1.6 MB, within the caches (``benchmarks/bench_search.py``).
 PIECE_ROWS = 1024
+#: Continuous parameters are rounded to this many decimals (their units: m, s, m/s), so
+#: stored and exported values are short and regenerate the evaluated scenario exactly.
+PARAM_DECIMALS = 4
+
 
 _POOLS: dict[tuple[int, int], ThreadPoolExecutor] = {}
 _POOLS_LOCK = threading.Lock()
@@ -54,9 +58,6 @@ def _pool(threads: int) -> ThreadPoolExecutor:
             pool = _POOLS[key] = ThreadPoolExecutor(max_workers=threads,
                                                     thread_name_prefix="sensorgap-eval")
         return pool
-#: Continuous parameters are rounded to this many decimals (their units: m, s, m/s), so
-#: stored and exported values are short and regenerate the evaluated scenario exactly.
-PARAM_DECIMALS = 4
 
 
 def _canon(v: ParamValue) -> ParamValue:
@@ -121,8 +122,7 @@ def search_objective(log10_risk_raw: F64, min_distance_m: F64) -> F64:
     ``OBJECTIVE_THREAT_FLOOR - min distance (m, at most 600)``: graded by how close the
     target comes, so the search is led towards encounters instead of a flat plateau."""
     raw = np.asarray(log10_risk_raw, dtype=np.float64)
-    threat = np.isfinite(raw)
-    return np.where(threat, np.maximum(np.where(threat, raw, 0.0), OBJECTIVE_THREAT_FLOOR),
+    return np.where(np.isfinite(raw), np.maximum(raw, OBJECTIVE_THREAT_FLOOR),
                     OBJECTIVE_THREAT_FLOOR - np.minimum(min_distance_m, 600.0))
 
 
