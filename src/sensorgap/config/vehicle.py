@@ -150,6 +150,10 @@ class VehicleConfig(Strict):
 
     schema_version: Literal[1] = 1
     vehicle: BodyConfig
+    reaction: str = Field(
+        default="fusion_any", min_length=1, max_length=200,
+        description="Reaction model of the vehicle under test: a preset of "
+                    "templates/reactions.toml or a path to a TOML file with one")
     roc: RocConfig = Field(default_factory=RocConfig)
     devices: dict[str, DeviceConfig]
     sensors: list[MountConfig] = Field(min_length=1)

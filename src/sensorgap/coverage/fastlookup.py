@@ -92,26 +92,31 @@ def cone_cos_bound(half_h: float, half_v: float, margin: float) -> float:
 
 @numba.njit(cache=True, nogil=True)
 def lookup_pass(total: F32, x0: float, y0: float, inv_res: float, x: F64, y: F64,
-                heading: F64, n: I64, rows: I64, sun: F64, rot: F64, half_h: F64,
+                heading: F64, psi: F64, n: I64, rows: I64, sun: F64, rot: F64, half_h: F64,
                 half_v: F64, margin: F64, cos_bound: F64, yaw: F64,
                 level: NDArray[np.bool_], mount_xy: F64, reach2: F64, signal: F32,
-                has_signal: NDArray[np.bool_], out: F64, outside: I64, glare_idx: I64,
+                has_signal: NDArray[np.bool_], keep_unseen: bool, out: F64, outside: I64,
+                glare_idx: I64,
                 glare_w: F64, glare_state: NDArray[np.int8],
                 counts: I64) -> None:  # pragma: no cover - compiled
     """For each row r in ``rows`` and step k < n[r] of (B, T) vehicle-frame positions (m):
-    ``out[r, k]`` = bilinear ``total`` (0 outside the map); outside points go to
+    ``out[r, k]`` = bilinear ``total[h]`` (``total``: (H, ny, nx) maps, one per bin of the
+    target's heading relative to the ego over a half turn, ``h = round(psi mod pi / (pi /
+    H)) mod H`` with ``psi[r, k]`` in rad; 0 outside the map); outside points go to
     ``outside`` (flat index r * T + k, count in ``counts[0]``); for each camera c with a
     glare weight w > 0 at an inside point that it may see, (flat index, w, state) go to
     ``glare_idx[c]``, ``glare_w[c]``, ``glare_state[c]`` (count in ``counts[1 + c]``);
     state 1: all four corner cells of its ``signal`` map (received signal, NaN out of
     view) are in view, 2: some are, or it has no signal map (``has_signal``); points with
-    none in view are skipped (Pd = 0 there with or without glare), first by the squared
+    none in view are skipped unless ``keep_unseen`` (a target body around the point may
+    reach the view; ``reach2`` then includes its radius), first by the squared
     horizontal distance to the camera (``mount_xy``) against ``reach2``: (max range + a
     cell diagonal)^2, beyond which no corner cell can be in range. ``sun[r]`` = (kind,
     azimuth rad, elevation rad); ``heading`` (B, T) ego heading, rad. Level cameras
     (``level``, pitch 0) get their weight analytically (sensor azimuth a - ``yaw``,
     elevation the sun's), others through ``rot``."""
-    ny, nx = total.shape
+    n_bins, ny, nx = total.shape[0], total.shape[1], total.shape[2]
+    bin_w = math.pi / n_bins
     t = x.shape[1]
     n_cam = rot.shape[0]
     # per camera and row: 0 never glared, 1 a constant weight wc, 2 a weight per step
@@ -177,8 +182,12 @@ def lookup_pass(total: F32, x0: float, y0: float, inv_res: float, x: F64, y: F64
             j = min(int(fy), ny - 2)
             ax = fx - i
             ay = fy - j
-            out[r, k] = ((1.0 - ay) * ((1.0 - ax) * total[j, i] + ax * total[j, i + 1])
-                         + ay * ((1.0 - ax) * total[j + 1, i] + ax * total[j + 1, i + 1]))
+            h = 0
+            if n_bins > 1:
+                h = int(round((psi[r, k] % math.pi) / bin_w)) % n_bins
+            tot = total[h]
+            out[r, k] = ((1.0 - ay) * ((1.0 - ax) * tot[j, i] + ax * tot[j, i + 1])
+                         + ay * ((1.0 - ax) * tot[j + 1, i] + ax * tot[j + 1, i + 1]))
             if n_active == 0:
                 continue
             a = sun[r, 1]  # vehicle-frame azimuth of the sun, rad
@@ -213,8 +222,8 @@ def lookup_pass(total: F32, x0: float, y0: float, inv_res: float, x: F64, y: F64
                     n_in = (int(np.isfinite(sg[j, i])) + int(np.isfinite(sg[j, i + 1]))
                             + int(np.isfinite(sg[j + 1, i]))
                             + int(np.isfinite(sg[j + 1, i + 1])))
-                    if n_in == 0:  # out of its view: Pd = 0 with or without glare
-                        continue
+                    if n_in == 0 and not keep_unseen:
+                        continue  # out of its view: Pd = 0 with or without glare
                     st = 1 if n_in == 4 else 2
                 m = counts[1 + c]
                 glare_idx[c, m] = r * t + k

@@ -24,7 +24,7 @@ measured in ``benchmarks/bench_search.py`` and ``sensorgap tradeoff``).
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numba
@@ -32,7 +32,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sensorgap.coverage.fastlookup import (
-    SUN_NONE,
     cone_cos_bound,
     lookup_pass,
     sun_directions_of,
@@ -67,35 +66,42 @@ def glare_weights(sensor: Sensor, sun_dirs: F64 | None, index: IntArr) -> F64 | 
     return w if bool(np.any(w > 0.0)) else None
 
 
-def sensor_pd(scene: Scene, sensor: Sensor, x: F64, y: F64, z: F64,
-              sun_dirs: F64 | None = None) -> tuple[IntArr, F64]:
-    """Pd of one sensor at flat vehicle-frame points (m) with a per-point sun.
+def sensor_snr(scene: Scene, sensor: Sensor, x: F64, y: F64, z: F64,
+               sun_dirs: F64 | None = None) -> tuple[IntArr, F64]:
+    """SNR (dB) of one sensor at flat vehicle-frame points (m) with a per-point sun.
 
     ``sun_dirs``: (N, 3) unit vectors to the sun in the vehicle frame (rows of NaN: no
     direct sun) or ``None``. ``scene`` must be prepared without a sun direction. Returns
-    ``(index, pd)`` for the points in view; every other point has Pd = 0.
+    ``(index, snr_db)`` for the points in view; every other point has Pd = 0.
     """
     m = sensor.mount
     dx, dy, dz = x - m.x, y - m.y, z - m.z
     idx = candidates(sensor, dx * dx + dy * dy + dz * dz)
     if idx.size == 0:
         return idx, np.empty(0)
-    ok, _, pd = evaluate_offsets(scene, sensor, dx[idx], dy[idx], dz[idx])
+    ok, snr, _ = evaluate_offsets(scene, sensor, dx[idx], dy[idx], dz[idx])
     idx = idx[ok]
     prepared = scene.prepared(sensor)
     if prepared.snr_db_glare is None:
-        return idx, pd
+        return idx, snr
     w = glare_weights(sensor, sun_dirs, idx)
     if w is None:
-        return idx, pd
+        return idx, snr
     g = np.flatnonzero(w > 0.0)
     xs, ys, zs = rotate_offsets(m, dx[idx[g]], dy[idx[g]], dz[idx[g]])
     r = sensor_range(xs, ys, zs)
     _, az, el = spherical(xs, ys, zs)
-    snr = clip_snr_db(prepared.snr_db_glare(r, az, el, w[g]))
-    pd = pd.copy()
-    pd[g] = detection_probability(snr, sensor.roc, scene.roc_shift_db)
-    return idx, pd
+    snr = snr.copy()
+    snr[g] = clip_snr_db(prepared.snr_db_glare(r, az, el, w[g]))
+    return idx, snr
+
+
+def sensor_pd(scene: Scene, sensor: Sensor, x: F64, y: F64, z: F64,
+              sun_dirs: F64 | None = None) -> tuple[IntArr, F64]:
+    """Pd of one sensor at flat vehicle-frame points (m) with a per-point sun (see
+    ``sensor_snr``). Returns ``(index, pd)`` for the points in view."""
+    idx, snr = sensor_snr(scene, sensor, x, y, z, sun_dirs)
+    return idx, detection_probability(snr, sensor.roc, scene.roc_shift_db)
 
 
 def exact_log_miss(scene: Scene, x: F64, y: F64, z: F64, sun_dirs: F64 | None = None,
@@ -246,11 +252,51 @@ class LogMissMaps:
             hit = cache[sensors] = (stack, has)
         return hit
 
+    def body_totals(self, outline_xy: F64, subset: tuple[int, ...], n_bins: int) -> F32:
+        """(H, ny, nx) fused ln(1 - Pd) of target *bodies* for ``n_bins`` relative headings
+        (bin h: h * pi / H rad; a box is symmetric under a half turn), over the sensor rows
+        ``subset``: per sensor, the best (smallest) ln(1 - Pd) of its layer over the body's
+        footprint outline ``outline_xy`` ((K, 2) m, target frame) rotated to the bin and
+        rounded to whole cells (a morphological erosion: any outline point seen), summed
+        over the sensors. A proposal for the search only: it ignores the facing side, the
+        height of the samples, the minimum visible fractions and the visible part's
+        cross-section, which the exact evaluation (``coverage.body``) applies (error
+        measured in ``sensorgap tradeoff``). Cached per (outline, subset, bins)."""
+        key = (outline_xy.tobytes(), subset, n_bins)
+        cache: dict[tuple[bytes, tuple[int, ...], int], F32] = self.__dict__.setdefault(
+            "_body_totals", {})
+        hit = cache.get(key)
+        if hit is not None:
+            return hit
+        ny, nx = self.total.shape
+        res = self.grid.resolution
+        out = np.zeros((n_bins, ny, nx), dtype=np.float64)
+        for h in range(n_bins):
+            a = h * math.pi / n_bins
+            ox = np.rint((math.cos(a) * outline_xy[:, 0] - math.sin(a) * outline_xy[:, 1])
+                         / res).astype(int)
+            oy = np.rint((math.sin(a) * outline_xy[:, 0] + math.cos(a) * outline_xy[:, 1])
+                         / res).astype(int)
+            offs = sorted(set(zip(ox.tolist(), oy.tolist(), strict=True)))
+            px = max(abs(v) for v in ox.tolist())
+            py = max(abs(v) for v in oy.tolist())
+            for row in subset:
+                padded = np.pad(self.layers[row], ((py, py), (px, px)))
+                best = np.zeros((ny, nx), dtype=np.float32)
+                for dx, dy in offs:
+                    np.minimum(best, padded[py + dy:py + dy + ny, px + dx:px + dx + nx],
+                               out=best)
+                out[h] += best
+        hit = cache[key] = out.astype(np.float32)
+        return hit
+
     @property
     def nbytes(self) -> int:
         """Memory held by the maps, bytes."""
+        extra = self.__dict__.get("_body_totals", {})
         return int(self.layers.nbytes + self.total.nbytes
-                   + sum(v.nbytes for v in self.signal.values()))
+                   + sum(v.nbytes for v in self.signal.values())
+                   + sum(v.nbytes for v in extra.values()))
 
     def interpolate_signal(self, sensor: int, x: F64, y: F64
                            ) -> tuple[F64, NDArray[np.int8]]:
@@ -341,10 +387,13 @@ class _Cones:
     max_range: F64
 
 
-def _cones(scene: Scene) -> _Cones | None:
-    """The scene's glare cones, or ``None`` if a glare-prone sensor has no cone form."""
+def _cones(scene: Scene, subset: frozenset[int] | None = None) -> _Cones | None:
+    """The scene's glare cones (of the sensor rows in ``subset``, default all), or ``None``
+    if a glare-prone sensor has no cone form."""
     rows, cones = [], []
     for row, s in enumerate(scene.sensors):
+        if subset is not None and row not in subset:
+            continue
         if scene.prepared(s).snr_db_glare is None:
             continue
         cone = s.model.glare_cone(s.mount)
@@ -369,34 +418,80 @@ def _cones(scene: Scene) -> _Cones | None:
                            dtype=np.float64))
 
 
+#: Evaluates points exactly: flat indices into the (B, T) tracks -> fused ln P_miss.
+ExactPoints = Callable[[NDArray[np.int64]], F64]
+#: Evaluates one camera exactly: (sensor row, flat indices) -> its ln(1 - Pd).
+ExactCamera = Callable[[int, NDArray[np.int64]], F64]
+
+
+@dataclass(frozen=True)
+class TrackLookup:
+    """What ``lookup_log_miss_tracks`` looks up besides the point maps: (H, ny, nx) fused
+    maps per bin of relative target heading (``totals``, see ``fastlookup.lookup_pass``)
+    with the (B, T) relative heading of every step (``psi``, rad), the sensor rows fused
+    (``subset``; their glare corrections only) and exact evaluators for points off the map
+    and glared cameras at the edge of their view."""
+
+    totals: F32
+    psi: F64
+    subset: frozenset[int] | None
+    exact_points: ExactPoints
+    exact_camera: ExactCamera
+    #: (K, 2) footprint outline of a target body (target frame, m); with it a glared
+    #: camera's layer is replaced over the outline (the best outline point, as the body
+    #: maps), and cameras whose view the outline may reach are listed too
+    outline: F64 | None = None
+
+
 def lookup_log_miss_tracks(maps: LogMissMaps, scene: Scene, x: F64, y: F64, heading: F64,
                            n: NDArray[np.int64], rows: NDArray[np.int64], sun: F64,
-                           out: F64) -> int:
+                           out: F64, how: TrackLookup | None = None) -> int:
     """``lookup_log_miss`` along (B, T) tracks in one compiled pass (``fastlookup``):
     writes the fused ln P_miss of the first ``n[r]`` steps of each row r in ``rows`` into
     ``out`` (B, T). ``x``, ``y``: vehicle-frame target positions (m); ``heading``: ego
     heading (rad); ``sun`` (B, 3): per row (kind, azimuth rad, elevation rad), see
-    ``fastlookup.SUN_*``. The values equal ``lookup_log_miss`` at the same points (up to
-    rounding). Returns how many point-sensor pairs were evaluated exactly."""
+    ``fastlookup.SUN_*``. Without ``how`` (point targets, every sensor) the values equal
+    ``lookup_log_miss`` at the same points (up to rounding); with it, the maps, sensors and
+    exact evaluators of ``how`` (target bodies, ``search.evaluate``). Returns how many
+    point-sensor pairs were evaluated exactly."""
     x = np.ascontiguousarray(x, dtype=np.float64)
     y = np.ascontiguousarray(y, dtype=np.float64)
     heading = np.ascontiguousarray(heading, dtype=np.float64)
     if not out.flags.c_contiguous:
         raise ValueError("out must be C-contiguous")
     z0 = maps.grid.height
-    cones = _cones(scene)
+    t = x.shape[1]
+    xf, yf, hf, of = x.reshape(-1), y.reshape(-1), heading.reshape(-1), out.reshape(-1)
+
+    def dirs_at(flat: NDArray[np.int64]) -> F64:
+        return sun_directions_of(sun[flat // t], hf[flat])
+
+    if how is None:
+        def exact_points(flat: NDArray[np.int64]) -> F64:
+            return exact_log_miss(scene, xf[flat], yf[flat], np.full(flat.size, z0),
+                                  dirs_at(flat))
+
+        def exact_camera(row: int, flat: NDArray[np.int64]) -> F64:
+            idx, pd = sensor_pd(scene, scene.sensors[row], xf[flat], yf[flat],
+                                np.full(flat.size, z0), dirs_at(flat))
+            vals = np.zeros(flat.size)
+            vals[idx] = log_miss_of(pd)
+            return vals
+
+        how = TrackLookup(maps.total[None], np.zeros(x.shape), None, exact_points,
+                          exact_camera)
+    cones = _cones(scene, how.subset)
     rows = np.ascontiguousarray(rows, dtype=np.int64)
-    if cones is None:  # a glare model without a cone form: the generic path
+    if cones is None:  # a glare model without a cone form: exact along the whole tracks
         rr = np.repeat(rows, n[rows])
         kk = np.arange(rr.size) - np.repeat(np.cumsum(n[rows]) - n[rows], n[rows])
-        dirs = sun_directions_of(sun[rr], heading[rr, kk])
-        has = bool(np.any(sun[rows, 0] != SUN_NONE))
-        vals, n_exact = lookup_log_miss(maps, scene, x[rr, kk], y[rr, kk],
-                                        np.full(rr.size, z0), dirs if has else None)
-        out[rr, kk] = vals
-        return n_exact
+        flat = rr * t + kk
+        of[flat] = how.exact_points(flat)
+        return int(flat.size * len(scene.sensors))
     n_pts = int(np.sum(n[rows]))
     n_cam = len(cones.sensors)
+    pad = 0.0 if how.outline is None else float(np.max(np.hypot(how.outline[:, 0],
+                                                                how.outline[:, 1])))
     outside = np.empty(n_pts, dtype=np.int64)
     glare_idx = np.empty((n_cam, n_pts), dtype=np.int64)
     glare_w = np.empty((n_cam, n_pts), dtype=np.float64)
@@ -404,22 +499,18 @@ def lookup_log_miss_tracks(maps: LogMissMaps, scene: Scene, x: F64, y: F64, head
     counts = np.zeros(1 + n_cam, dtype=np.int64)
     g = maps.grid
     signal, has_signal = maps.signal_stack(cones.sensors)
-    lookup_pass(maps.total, g.xmin + 0.5 * g.resolution, g.ymin + 0.5 * g.resolution,
-                1.0 / g.resolution, x, y, heading, np.ascontiguousarray(n, dtype=np.int64),
+    lookup_pass(how.totals, g.xmin + 0.5 * g.resolution, g.ymin + 0.5 * g.resolution,
+                1.0 / g.resolution, x, y, heading,
+                np.ascontiguousarray(how.psi, dtype=np.float64),
+                np.ascontiguousarray(n, dtype=np.int64),
                 rows, np.ascontiguousarray(sun, dtype=np.float64), cones.rot, cones.half_h,
                 cones.half_v, cones.margin, cones.cos_bound, cones.yaw, cones.level,
-                cones.mount_xy, (cones.max_range + 1.5 * g.resolution) ** 2, signal,
-                has_signal, out, outside, glare_idx, glare_w, glare_state, counts)
-    xf, yf, hf, of = x.reshape(-1), y.reshape(-1), heading.reshape(-1), out.reshape(-1)
-    t = x.shape[1]
+                cones.mount_xy, (cones.max_range + 1.5 * g.resolution + pad) ** 2, signal,
+                has_signal, pad > 0.0, out, outside, glare_idx, glare_w, glare_state, counts)
     n_exact = 0
-
-    def dirs_at(flat: NDArray[np.int64]) -> F64:
-        return sun_directions_of(sun[flat // t], hf[flat])
-
     if counts[0]:
         o = outside[:counts[0]]
-        of[o] = exact_log_miss(scene, xf[o], yf[o], np.full(o.size, z0), dirs_at(o))
+        of[o] = how.exact_points(o)
         n_exact += o.size * len(scene.sensors)
     for c, row in enumerate(cones.sensors):
         m = int(counts[1 + c])
@@ -429,6 +520,13 @@ def lookup_log_miss_tracks(maps: LogMissMaps, scene: Scene, x: F64, y: F64, head
         prepared = scene.prepared(s)
         gi, wg = glare_idx[c, :m], glare_w[c, :m]
         xs, ys = xf[gi], yf[gi]
+        if how.outline is not None:
+            # the body maps' camera part and this outline minimum differ slightly (whole
+            # cells at the bin's heading vs the exact pose): ln P_miss stays <= 0
+            of[gi] = np.minimum(of[gi] + _glared_outline(
+                maps, scene, row, gi, wg, xf, yf, how,
+                dirs_at(np.repeat(gi, len(how.outline))), z0), 0.0)
+            continue
         layer, _ = maps.interpolate(row, xs, ys)
         new = np.zeros(m)
         state = glare_state[c, :m]
@@ -442,11 +540,43 @@ def lookup_log_miss_tracks(maps: LogMissMaps, scene: Scene, x: F64, y: F64, head
             state = np.full(m, 2, dtype=np.int8)
         edge = np.flatnonzero(state == 2)
         if edge.size:  # at the edge of the field of view: exact
-            ge = gi[edge]
-            idx, pd = sensor_pd(scene, s, xf[ge], yf[ge], np.full(ge.size, z0), dirs_at(ge))
-            vals = np.zeros(edge.size)
-            vals[idx] = log_miss_of(pd)
-            new[edge] = vals
+            new[edge] = how.exact_camera(row, gi[edge])
             n_exact += edge.size
         of[gi] += new - layer  # each point at most once per camera
     return n_exact
+
+
+def _glared_outline(maps: LogMissMaps, scene: Scene, row: int, gi: NDArray[np.int64],
+                    wg: F64, xf: F64, yf: F64, how: TrackLookup, dirs: F64,
+                    z0: float) -> F64:
+    """Body lookup of a glared camera: the change of its ln(1 - Pd) when its no-sun layer
+    is replaced by the glared one, both taken as the best point of the body's outline (as
+    in ``LogMissMaps.body_totals``); outline points at the edge of its view exactly."""
+    assert how.outline is not None
+    s = scene.sensors[row]
+    prepared = scene.prepared(s)
+    k = len(how.outline)
+    psi = how.psi.reshape(-1)[gi]
+    c, sn = np.cos(psi)[:, None], np.sin(psi)[:, None]
+    ox, oy = how.outline[:, 0][None, :], how.outline[:, 1][None, :]
+    px = (xf[gi][:, None] + c * ox - sn * oy).ravel()
+    py = (yf[gi][:, None] + sn * ox + c * oy).ravel()
+    layer, _ = maps.interpolate(row, px, py)
+    new = np.zeros(px.size)
+    if row in maps.signal and prepared.snr_from_signal is not None:
+        sig, state = maps.interpolate_signal(row, px, py)
+        ok = np.flatnonzero(state == 1)
+        if ok.size:
+            snr = clip_snr_db(prepared.snr_from_signal(sig[ok], np.repeat(wg, k)[ok]))
+            new[ok] = log_miss_of(detection_probability(snr, s.roc, scene.roc_shift_db))
+    else:
+        state = np.full(px.size, 2, dtype=np.int8)
+    edge = np.flatnonzero(state == 2)
+    if edge.size:
+        idx, pd = sensor_pd(scene, s, px[edge], py[edge], np.full(edge.size, z0),
+                            dirs[edge])
+        vals = np.zeros(edge.size)
+        vals[idx] = log_miss_of(pd)
+        new[edge] = vals
+    return np.asarray(new.reshape(-1, k).min(axis=1) - layer.reshape(-1, k).min(axis=1),
+                      dtype=np.float64)

@@ -19,6 +19,7 @@ Collisions end a scenario: steps after the first overlap of the boxes are not ev
 
 from __future__ import annotations
 
+import math
 import threading
 from collections import OrderedDict
 from collections.abc import Mapping, Sequence
@@ -30,24 +31,35 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sensorgap.config import EnvironmentConfig, TargetConfig, load_target
+from sensorgap.config.reaction import ReactionConfig, load_friction, load_reaction, road_condition
 from sensorgap.coverage import GridSpec, Scene
+from sensorgap.coverage.body import body_per_sensor_pd, body_samples
 from sensorgap.coverage.fastlookup import SUN_NONE, SUN_VEHICLE, SUN_WORLD, sun_directions_of
 from sensorgap.coverage.logmiss import (
     ALMOST_ONE,
     LogMissMaps,
+    TrackLookup,
     exact_log_miss,
     log_miss_of,
-    lookup_log_miss,
     lookup_log_miss_tracks,
     per_sensor_pd,
+    sensor_pd,
 )
 from sensorgap.coverage.scope import scene_scope
 from sensorgap.errors import InputError
 from sensorgap.models import Conditions, System
+from sensorgap.models.system import Sensor
 from sensorgap.scenarios.batch import ScenarioBatch, Tracks
 from sensorgap.scenarios.family import Scenario
 from sensorgap.scenarios.trajectory import DT_S, Trajectory
 from sensorgap.search.fastkin import kinematics_kernel
+from sensorgap.search.outcome import (
+    G_M_S2,
+    Encounter,
+    Outcome,
+    encounter_geometry,
+    reaction_outcome,
+)
 
 F64 = NDArray[np.float64]
 
@@ -56,6 +68,8 @@ LATERAL_MARGIN_M = 0.2
 #: Map extent (vehicle frame, m) and cell size of the lookup maps.
 MAP_EXTENT = (-120.0, 260.0, -40.0, 40.0)
 MAP_RESOLUTION_M = 0.5
+#: Bins of the target's relative heading for the body lookup maps over a half turn (15 deg).
+HEADING_BINS = 12
 _ALMOST_ONE = ALMOST_ONE
 
 
@@ -118,6 +132,10 @@ class Trace:
     extra: dict[str, float] = field(default_factory=dict)
     rule: DetectionRule = field(default_factory=DetectionRule)
     log_miss: F64 | None = None
+    #: target heading relative to the ego's, rad (0: same direction)
+    psi: F64 | None = None
+    #: per-step Pd of the sensors that confirm a target for braking (None: ``pd``)
+    pd_confirm: F64 | None = None
 
     @cached_property
     def log_undetected(self) -> F64:
@@ -135,13 +153,15 @@ class Trace:
 
 @dataclass(frozen=True)
 class Kinematics:
-    """Ego-frame target position and criticality per step (before truncation)."""
+    """Ego-frame target position and criticality per step (before truncation); ``psi``:
+    the target's heading relative to the ego's, rad."""
 
     x: F64
     y: F64
     ttc: F64
     headway: F64
     distance: F64
+    psi: F64
 
 
 def at_least_m_of_window_batch(pd: F64, m: int, n: int) -> F64:
@@ -186,7 +206,8 @@ def kinematics_arrays(ego: Tracks | Scenario, target_tracks: Tracks | None,
                       target.width_m, 0.5 * body.width_m, body.x_front_m, body.x_rear_m,
                       LATERAL_MARGIN_M, *out)
     xr, yr, ttc, headway, dist = (a.reshape(shape) for a in out)
-    return Kinematics(xr, yr, ttc, headway, dist)
+    psi = np.asarray(g.heading, dtype=np.float64) - np.asarray(e.heading, dtype=np.float64)
+    return Kinematics(xr, yr, ttc, headway, dist, psi)
 
 
 def kinematics(sc: Scenario, system: System, target: TargetConfig) -> Kinematics:
@@ -216,9 +237,39 @@ class BatchTrace:
     collided: NDArray[np.bool_]
     duration_s: float
     rule: DetectionRule = field(default_factory=DetectionRule)
+    #: (B, T) target heading relative to the ego's, rad
+    psi: F64 | None = None
+    #: (B, T) fused ln P_miss of the sensors that confirm a target for braking (the
+    #: reaction model's ``confirm_with``); ``None``: the same as ``log_miss``
+    log_miss_confirm: F64 | None = None
+    #: the planned world-frame states (ego rear axle, target centre)
+    ego: Tracks | None = None
+    target: Tracks | None = None
+    #: per-row environment names
+    env_names: NDArray[np.str_] | None = None
+    #: the encounter geometry (path TTC, threat onset, overlap intervals) and what the
+    #: collision outcome needs: the reaction model and the reachable deceleration per row
+    encounter: Encounter | None = None
+    reaction: ReactionConfig | None = None
+    decel_m_s2: F64 | None = None
 
     def __len__(self) -> int:
         return len(self.n)
+
+    @cached_property
+    def outcome(self) -> Outcome:
+        """The collision outcome of every row (``search.outcome``)."""
+        if self.encounter is None or self.reaction is None or self.decel_m_s2 is None:
+            raise ValueError("this batch was evaluated without a reaction model")
+        r = self.reaction
+        return reaction_outcome(self.encounter, self.pd_confirm, self.n, r.confirm_m,
+                                r.confirm_n, r.latency_s, r.jerk_m_s3, self.decel_m_s2)
+
+    @cached_property
+    def pd_confirm(self) -> F64:
+        """(B, T) per-step Pd of the confirming sensors (0 beyond the valid steps)."""
+        lm = self.log_miss if self.log_miss_confirm is None else self.log_miss_confirm
+        return np.asarray(-np.expm1(lm) + 0.0, dtype=np.float64)
 
     @cached_property
     def valid(self) -> NDArray[np.bool_]:
@@ -256,7 +307,18 @@ class BatchTrace:
                      distance=self.distance[i, :k], ego_speed=self.ego_speed[i, :k],
                      heading=self.heading[i, :k], collided=bool(self.collided[i]),
                      duration_s=self.duration_s, rule=self.rule,
-                     log_miss=self.log_miss[i, :k])
+                     log_miss=self.log_miss[i, :k],
+                     psi=None if self.psi is None else self.psi[i, :k],
+                     pd_confirm=self.pd_confirm[i, :k],
+                     extra=self.outcome_row(i))
+
+    def outcome_row(self, i: int) -> dict[str, float]:
+        """Row ``i`` of the collision outcome by field name (empty without a reaction
+        model)."""
+        if self.reaction is None:
+            return {}
+        o = self.outcome
+        return {name: float(getattr(o, name)[i]) for name in o.__dataclass_fields__}
 
 
 def _env_weather_key(env: EnvironmentConfig) -> str:
@@ -268,11 +330,21 @@ class Evaluator:
 
     def __init__(self, system: System, mode: str = "lookup", max_maps: int = 32,
                  resolution_m: float = MAP_RESOLUTION_M,
-                 rule: DetectionRule | None = None) -> None:
+                 rule: DetectionRule | None = None, bodies: bool = True,
+                 reaction: ReactionConfig | None = None) -> None:
         if mode not in ("lookup", "exact"):
             raise ValueError(f"mode must be 'lookup' or 'exact', got {mode!r}")
         self.system = system
         self.mode = mode
+        #: targets are bodies (``coverage.body``); False: points (the paper's setting)
+        self.bodies = bodies
+        #: the vehicle's reaction model (its file's ``reaction``) and road friction
+        self.reaction = reaction or load_reaction(system.config.reaction)
+        self.friction = load_friction()
+        types = set(self.reaction.confirm_with)
+        #: sensor rows whose detections confirm a target for braking
+        self.confirm_rows: tuple[int, ...] = tuple(
+            i for i, sn in enumerate(system.sensors) if sn.type_name in types)
         self.rule = rule or DetectionRule()
         self.resolution_m = resolution_m
         self.max_maps = max_maps
@@ -330,42 +402,123 @@ class Evaluator:
                 self._maps.popitem(last=False)
             return maps
 
-    # -- points ------------------------------------------------------------------------
-    def log_miss(self, env: EnvironmentConfig, target: TargetConfig, x: F64, y: F64,
-                 sun_dirs: F64 | None, exact: bool | None = None) -> F64:
-        """Fused ln P_miss at vehicle-frame points (m) with per-point sun directions."""
-        exact = self.mode == "exact" if exact is None else exact
-        scene = self.scene(env, target)
-        z = np.full(len(x), target.reference_height_m)
-        if exact:
-            sensors = None
-            if self.scoped and len(x):
-                z0 = target.reference_height_m
-                scope = scene_scope(scene, np.array([x.min(), y.min(), z0]),
-                                    np.array([x.max(), y.max(), z0]))
-                sensors = scope.sensors
-                with self._lock:
-                    for sid, why in scope.skipped.items():
-                        self.scope_log[sid] = why
-            return exact_log_miss(scene, x, y, z, sun_dirs, sensors)
-        out, n_exact = lookup_log_miss(self.maps(env, target), scene, x, y, z, sun_dirs)
+    # -- points ----------------------------------------------------------------------
+    def _scoped(self, scene: Scene, x: F64, y: F64, reach: float) -> tuple[Sensor, ...]:
+        """The sensors that can reach the region of the points (all when not scoped)."""
+        if not (self.scoped and len(x)):
+            return scene.sensors
+        z0 = scene.target.reference_height_m
+        scope = scene_scope(scene, np.array([x.min() - reach, y.min() - reach, z0]),
+                            np.array([x.max() + reach, y.max() + reach, z0]))
         with self._lock:
-            self.exact_pairs += n_exact
-        return out
+            for sid, why in scope.skipped.items():
+                self.scope_log[sid] = why
+        return tuple(scope.sensors)
+
+    def _reach(self, target: TargetConfig) -> float:
+        """How far a body's outline reaches from its centre, m (0 for points)."""
+        if not self.bodies:
+            return 0.0
+        return 0.5 * math.hypot(target.length_m, target.width_m) + 0.5 * target.height_m
 
     def per_sensor_pd(self, env: EnvironmentConfig, target: TargetConfig, heading: F64,
-                      x: F64, y: F64, exact: bool | None = None) -> F64:
-        """(S, N) per-sensor Pd at vehicle-frame points x, y (m) for ego headings (rad),
-        always exact (used to explain a ranked scenario)."""
+                      x: F64, y: F64, exact: bool | None = None,
+                      psi: F64 | None = None) -> F64:
+        """(S, N) per-sensor Pd at vehicle-frame target centres x, y (m) for ego headings
+        (rad) and target headings ``psi`` relative to the ego (rad, default 0), always
+        exact; bodies or points as the evaluator is set (``bodies``)."""
         scene = self.scene(env, target)
+        dirs = Conditions.sun_directions(env, heading)
+        x = np.asarray(x, dtype=np.float64)
+        y = np.asarray(y, dtype=np.float64)
+        if self.bodies:
+            p = np.zeros(len(x)) if psi is None else np.asarray(psi, dtype=np.float64)
+            return body_per_sensor_pd(scene, x, y, p, dirs)[0]
         z = np.full(len(x), target.reference_height_m)
-        return per_sensor_pd(scene, x, y, z, Conditions.sun_directions(env, heading))
+        return per_sensor_pd(scene, x, y, z, dirs)
+
+    def visible_fraction(self, env: EnvironmentConfig, target: TargetConfig, x: F64,
+                         y: F64, psi: F64 | None = None) -> F64:
+        """(S, N) visible fraction of the target body's facing outline per sensor (points:
+        1 where the centre is in view, else 0)."""
+        scene = self.scene(env, target)
+        x = np.asarray(x, dtype=np.float64)
+        y = np.asarray(y, dtype=np.float64)
+        p = np.zeros(len(x)) if psi is None else np.asarray(psi, dtype=np.float64)
+        if self.bodies:
+            return body_per_sensor_pd(scene, x, y, p, None)[1]
+        z = np.full(len(x), target.reference_height_m)
+        out = np.zeros((len(scene.sensors), len(x)))
+        for i, sn in enumerate(scene.sensors):
+            idx, _ = sensor_pd(scene, sn, x, y, z, None)
+            out[i, idx] = 1.0
+        return out
+
+    def exact_per_sensor(self, scene: Scene, x: F64, y: F64, psi: F64,
+                         sun_dirs: F64 | None) -> tuple[tuple[int, ...], F64]:
+        """Exact per-sensor Pd of the sensors that can reach the points: (rows, (S', N))."""
+        sensors = self._scoped(scene, x, y, self._reach(scene.target))
+        rows = tuple(scene.sensors.index(sn) for sn in sensors)
+        if self.bodies:
+            return rows, body_per_sensor_pd(scene, x, y, psi, sun_dirs, sensors)[0]
+        z = np.full(len(x), scene.target.reference_height_m)
+        out = np.zeros((len(sensors), len(x)))
+        for i, sn in enumerate(sensors):
+            idx, pd = sensor_pd(scene, sn, x, y, z, sun_dirs)
+            out[i, idx] = pd
+        return rows, out
+
+    def log_miss(self, env: EnvironmentConfig, target: TargetConfig, x: F64, y: F64,
+                 sun_dirs: F64 | None, psi: F64 | None = None) -> F64:
+        """Fused ln P_miss of every sensor at vehicle-frame target centres (m) with
+        per-point sun directions and relative headings (rad, default 0), exact."""
+        scene = self.scene(env, target)
+        p = np.zeros(len(x)) if psi is None else psi
+        _, pd = self.exact_per_sensor(scene, x, y, p, sun_dirs)
+        return np.asarray(log_miss_of(pd).sum(axis=0), dtype=np.float64)
 
     def fused_pd(self, env: EnvironmentConfig, target: TargetConfig, heading: F64,
-                 x: F64, y: F64) -> F64:
-        """Fused Pd (eq. 11) at the points."""
-        lm = self.log_miss(env, target, x, y, Conditions.sun_directions(env, heading))
+                 x: F64, y: F64, psi: F64 | None = None) -> F64:
+        """Fused Pd (eq. 11) at the target centres, exact."""
+        lm = self.log_miss(env, target, x, y, Conditions.sun_directions(env, heading), psi)
         return np.asarray(-np.expm1(lm) + 0.0, dtype=np.float64)
+
+    def _track_lookup(self, maps: LogMissMaps, scene: Scene, kin: Kinematics,
+                      heading: F64, sun: F64) -> TrackLookup:
+        """The body maps and exact evaluators of one lookup pass over the confirming
+        sensors. Off the map and for glared cameras at the edge of their view the lookup
+        evaluates the target's centre exactly (a proposal: far targets and field-of-view
+        edges under glare; exact evaluation decides)."""
+        t = kin.x.shape[1]
+        xf, yf = kin.x.reshape(-1), kin.y.reshape(-1)
+        subset = self.confirm_rows
+        outline: F64 | None = None
+        if self.bodies:
+            body = body_samples(scene.target)
+            outline = np.asarray(np.unique(np.round(np.column_stack([body.x, body.y]), 6),
+                                           axis=0), dtype=np.float64)
+            totals = maps.body_totals(outline, subset, HEADING_BINS)
+        else:
+            totals = maps.body_totals(np.zeros((1, 2)), subset, 1)
+        sensors = tuple(scene.sensors[i] for i in subset)
+        z0 = scene.target.reference_height_m
+
+        def dirs_at(flat: NDArray[np.int64]) -> F64:
+            return sun_directions_of(sun[flat // t], heading.reshape(-1)[flat])
+
+        def exact_points(flat: NDArray[np.int64]) -> F64:
+            return exact_log_miss(scene, xf[flat], yf[flat], np.full(flat.size, z0),
+                                  dirs_at(flat), sensors)
+
+        def exact_camera(row: int, flat: NDArray[np.int64]) -> F64:
+            idx, p = sensor_pd(scene, scene.sensors[row], xf[flat], yf[flat],
+                               np.full(flat.size, z0), dirs_at(flat))
+            vals = np.zeros(flat.size)
+            vals[idx] = log_miss_of(p)
+            return vals
+
+        return TrackLookup(totals, kin.psi, frozenset(subset), exact_points, exact_camera,
+                           outline)
 
     # -- scenarios ---------------------------------------------------------------------
     def evaluate_batch(self, batch: ScenarioBatch, env_names: Sequence[str] | NDArray[np.str_],
@@ -375,7 +528,10 @@ class Evaluator:
         """Evaluate the ``rows`` (default: all) of a batch.
 
         ``env_names[i]``: the preset of row i; ``sun_deg[i]`` (azimuth, elevation), deg:
-        a world-frame sun replacing the preset's (NaN: keep the preset's sun).
+        a world-frame sun replacing the preset's (NaN: keep the preset's sun). In
+        ``exact`` mode every sensor is evaluated (``log_miss``) and the confirming ones
+        fused apart (``log_miss_confirm``); in ``lookup`` mode only the confirming sensors
+        are looked up (both fields hold them: the lookup proposes, ``exact`` decides).
         """
         target = self.target(batch.target_class)
         if rows is None or len(rows) == len(batch):
@@ -385,35 +541,58 @@ class Evaluator:
             ego, tgt = batch.ego.take(rows), batch.target.take(rows)
         kin = kinematics_arrays(ego, tgt, self.system, target)
         b, t = kin.x.shape
-        hit = kin.ttc <= 0.0
-        collided = np.asarray(hit.any(axis=1), dtype=bool)
-        n = np.where(collided, np.argmax(hit, axis=1) + 1, t).astype(np.int64)
+        body = self.system.config.vehicle
+        enc = encounter_geometry(ego.x, ego.y, ego.heading, ego.speed, tgt.x, tgt.y,
+                                 tgt.heading, tgt.speed, float(batch.t[1] - batch.t[0]),
+                                 (target.length_m, target.width_m),
+                                 (body.x_front_m, body.x_rear_m, body.width_m),
+                                 self.reaction.threat_margin_m,
+                                 self.reaction.threat_horizon_s)
+        collided = enc.collide_step >= 0
+        n = np.where(collided, enc.collide_step + 1, t).astype(np.int64)
         valid = np.arange(t)[None, :] < n[:, None]
         log_miss = np.zeros((b, t))
+        log_conf: F64 | None = None
         names = np.asarray(env_names)[rows]
         sun = (np.full((b, 2), np.nan) if sun_deg is None
                else np.asarray(sun_deg, dtype=np.float64)[rows])
+        if self.mode == "exact" and len(self.confirm_rows) < len(self.system.sensors):
+            log_conf = np.zeros((b, t))
         for name in np.unique(names):
             env = presets[str(name)]
             g = np.flatnonzero(names == name)
+            scene = self.scene(env, target)
             if self.mode == "lookup":
+                sun_rows = _sun_rows(env, sun)
+                maps = self.maps(env, target)
                 n_exact = lookup_log_miss_tracks(
-                    self.maps(env, target), self.scene(env, target), kin.x, kin.y,
-                    ego.heading, n, g, _sun_rows(env, sun), log_miss)
+                    maps, scene, kin.x, kin.y, ego.heading, n, g, sun_rows, log_miss,
+                    self._track_lookup(maps, scene, kin, ego.heading, sun_rows))
                 with self._lock:
                     self.exact_pairs += n_exact
                 continue
             vr, vc = np.nonzero(valid[g])
             gr = g[vr]
             dirs = _sun_directions(env, sun[gr], ego.heading[gr, vc])
-            log_miss[gr, vc] = self.log_miss(env, target, kin.x[gr, vc], kin.y[gr, vc], dirs)
-        ttc = np.where(valid, kin.ttc, np.inf)
+            srows, pd = self.exact_per_sensor(scene, kin.x[gr, vc], kin.y[gr, vc],
+                                              kin.psi[gr, vc], dirs)
+            lm = log_miss_of(pd)
+            log_miss[gr, vc] = lm.sum(axis=0)
+            if log_conf is not None:
+                keep = [i for i, r in enumerate(srows) if r in self.confirm_rows]
+                log_conf[gr, vc] = lm[keep].sum(axis=0)
+        ttc = np.where(valid, enc.ttc_path, np.inf)
         headway = np.where(valid, kin.headway, np.inf)
+        decel = np.array([min(self.reaction.decel_max_m_s2,
+                              self.friction[road_condition(presets[str(e)])] * G_M_S2)
+                          for e in names]) if b else np.zeros(0)
         return BatchTrace(t=batch.t, x=kin.x, y=kin.y, log_miss=log_miss, ttc=ttc,
                           headway=headway, distance=kin.distance, ego_speed=ego.speed,
                           heading=ego.heading, n=n, collided=collided,
                           duration_s=float(batch.t[-1]) if duration_s is None else duration_s,
-                          rule=self.rule)
+                          rule=self.rule, psi=kin.psi, log_miss_confirm=log_conf, ego=ego,
+                          target=tgt, env_names=names, encounter=enc,
+                          reaction=self.reaction, decel_m_s2=decel)
 
     def trace(self, sc: Scenario, env: EnvironmentConfig, duration_s: float) -> Trace:
         """Evaluate one generated scenario in ``env`` (a batch of one)."""

@@ -140,6 +140,8 @@ class Metric(ABC):
     unit: ClassVar[str] = ""
     better: ClassVar[Literal["higher", "lower", "none"]] = "higher"
     description: ClassVar[str] = ""
+    #: NaN is allowed and means "none" (written as an empty cell)
+    optional: ClassVar[bool] = False
 
     @abstractmethod
     def compute(self, tr: Trace) -> float:
@@ -180,8 +182,9 @@ def compute_all(tr: Trace, names: list[str] | None = None) -> dict[str, float]:
     """Every (or the named) metric of a trace."""
     out = {}
     for n in names or metric_names():
-        v = float(get_metric(n).compute(tr))
-        if not math.isfinite(v):
+        metric = get_metric(n)
+        v = float(metric.compute(tr))
+        if not math.isfinite(v) and not (metric.optional and math.isnan(v)):
             raise ValueError(f"metric {n} is not finite: {v}")
         out[n] = v
     return out
@@ -192,8 +195,12 @@ def compute_all_batch(bt: BatchTrace, names: list[str] | None = None
     """Every (or the named) metric of every row of a batch."""
     out = {}
     for n in names or metric_names():
-        v = np.asarray(get_metric(n).compute_batch(bt), dtype=np.float64)
-        if not np.all(np.isfinite(v)):
+        metric = get_metric(n)
+        v = np.asarray(metric.compute_batch(bt), dtype=np.float64)
+        bad = ~np.isfinite(v)
+        if metric.optional:
+            bad &= ~np.isnan(v)
+        if np.any(bad):
             raise ValueError(f"metric {n} is not finite in some row")
         out[n] = v
     return out
@@ -453,3 +460,83 @@ class CorridorY1(_CorridorPoint):
     index = 1
     coord = "y"
     description = "target y (ego frame) where the corridor ends"
+
+
+class _OutcomeMetric(Metric):
+    """A field of the collision outcome (``search.outcome``; ``BatchTrace.outcome``)."""
+
+    field: ClassVar[str] = ""
+
+    def compute(self, tr: Trace) -> float:
+        return float(tr.extra[self.field])
+
+    def compute_batch(self, bt: BatchTrace) -> np.ndarray:
+        return np.asarray(getattr(bt.outcome, self.field), dtype=np.float64)
+
+
+@register_metric
+class CollisionProbability(_OutcomeMetric):
+    name = field = "collision_probability"
+    better = "higher"
+    description = ("probability that the vehicle confirms the target too late to avoid the "
+                   "collision (M-of-N confirmation, latency, jerk-limited braking)")
+
+
+@register_metric
+class ImpactSpeed(_OutcomeMetric):
+    name = field = "impact_speed_kmh"
+    unit = "km/h"
+    better = "higher"
+    description = "expected relative impact speed given a collision"
+
+
+@register_metric
+class CollisionPerfect(_OutcomeMetric):
+    name = field = "collision_perfect"
+    better = "none"
+    description = "1 if a vehicle with perfect perception (same reaction) still collides"
+
+
+@register_metric
+class TimeSafe(_OutcomeMetric):
+    name = field = "t_safe_s"
+    unit = "s"
+    better = "none"
+    optional = True
+    description = ("latest time at which a confirmed detection still avoids the collision "
+                   "(empty: none does)")
+
+
+@register_metric
+class DetectionMargin(_OutcomeMetric):
+    name = field = "detection_margin_s"
+    unit = "s"
+    better = "lower"
+    optional = True
+    description = ("t_safe minus the median confirmation time (negative: too late; empty: "
+                   "no t_safe or confirmation less likely than 1/2)")
+
+
+@register_metric
+class ConfirmMedian(_OutcomeMetric):
+    name = field = "t_confirm_median_s"
+    unit = "s"
+    better = "higher"
+    optional = True
+    description = "median time of the first confirmation (empty: P(confirmed) < 1/2)"
+
+
+@register_metric
+class ThreatOnset(_OutcomeMetric):
+    name = field = "t_threat_s"
+    unit = "s"
+    better = "none"
+    optional = True
+    description = "when the target becomes a threat (enters the ego's planned path corridor)"
+
+
+@register_metric
+class NeverConfirmed(_OutcomeMetric):
+    name = field = "p_never_confirmed"
+    better = "higher"
+    description = "probability that the target is never confirmed before the end or impact"

@@ -22,7 +22,7 @@ from numpy.typing import NDArray
 from sensorgap.config import EnvironmentConfig
 from sensorgap.errors import InputError
 from sensorgap.scenarios.family import Family, Param, ParamValue, Scenario
-from sensorgap.search.evaluate import Evaluator, Trace
+from sensorgap.search.evaluate import BatchTrace, Evaluator, Trace
 from sensorgap.search.metrics import compute_all_batch, metric_names, summary
 
 F64 = NDArray[np.float64]
@@ -113,17 +113,63 @@ OBJECTIVE_INFEASIBLE = -1.0e7
 OBJECTIVE_KEY = "search_objective"
 
 
-def search_objective(log10_risk_raw: F64, min_distance_m: F64) -> F64:
-    """What the strategies maximise: the log10 risk *without* the ranking's floor of -300
-    where the target becomes a threat (a finite TTC after the lead-in), so that among
-    well-detected encounters (risk 1e-300 and below) those closer to going undetected
-    still score higher and an adaptive strategy has a slope to climb; the risk and its
-    ranking are unchanged. Candidates that never become a threat score
-    ``OBJECTIVE_THREAT_FLOOR - min distance (m, at most 600)``: graded by how close the
-    target comes, so the search is led towards encounters instead of a flat plateau."""
+#: Search objective of a candidate whose collision is unavoidable even with perfect
+#: perception (not a sensor weakness): below every avoidable threat.
+OBJECTIVE_UNAVOIDABLE = -2.0e6
+#: log10 of collision probabilities below which the graded risk takes over.
+LOG10_P_FLOOR = -300.0
+
+
+def search_objective(log10_risk_raw: F64, min_distance_m: F64,
+                     collision_probability: F64 | None = None,
+                     collision_perfect: F64 | None = None) -> F64:
+    """What the strategies maximise. With the collision outcome: ``log10`` of the
+    collision probability where it is above 1e-300; below that (or 0) the unfloored log10
+    risk minus 1000 (see below), so the strategies still climb towards encounters that
+    come close to going unconfirmed; unavoidable candidates (a collision even with perfect
+    perception) score ``OBJECTIVE_UNAVOIDABLE``. The graded part: the log10 risk *without*
+    the ranking's floor of -300 where the target becomes a threat (a finite path TTC after
+    the lead-in), else ``OBJECTIVE_THREAT_FLOOR - min distance (m, at most 600)``."""
     raw = np.asarray(log10_risk_raw, dtype=np.float64)
-    return np.where(np.isfinite(raw), np.maximum(raw, OBJECTIVE_THREAT_FLOOR),
-                    OBJECTIVE_THREAT_FLOOR - np.minimum(min_distance_m, 600.0))
+    graded = np.where(np.isfinite(raw), np.maximum(raw, OBJECTIVE_THREAT_FLOOR),
+                      OBJECTIVE_THREAT_FLOOR - np.minimum(min_distance_m, 600.0))
+    if collision_probability is None or collision_perfect is None:
+        return graded
+    p = np.asarray(collision_probability, dtype=np.float64)
+    with np.errstate(divide="ignore"):
+        lp = np.log10(np.maximum(p, 0.0))
+    out = np.where(lp > LOG10_P_FLOOR, lp, np.minimum(graded, 0.0) - 1000.0)
+    return np.where(np.asarray(collision_perfect) > 0.5, OBJECTIVE_UNAVOIDABLE, out)
+
+
+#: At the first open-loop contact the target's rear-most point must be ahead of the ego's
+#: front bumper less this tolerance, m (estimate: angled front-corner contacts); otherwise
+#: the target moved into the ego's side or rear, an impossible encounter for this search.
+CONTACT_TOLERANCE_M = 0.5
+
+
+def impossible_encounters(bt: BatchTrace, x_front: float, length: float,
+                          width: float) -> list[tuple[int, str]]:
+    """Rows whose bodies overlap at t = 0 or whose first open-loop contact is not with the
+    ego's front (the target moves into its side or rear): (row, note)."""
+    out: list[tuple[int, str]] = []
+    enc = bt.encounter
+    if enc is None:
+        return out
+    for j in np.flatnonzero(enc.collide_step >= 0):
+        k = int(enc.collide_step[j])
+        if k == 0:
+            out.append((int(j), "impossible encounter: the bodies overlap at t = 0"))
+            continue
+        psi = 0.0 if bt.psi is None else float(bt.psi[j, k])
+        x_min = float(bt.x[j, k]) - 0.5 * (abs(np.cos(psi)) * length
+                                            + abs(np.sin(psi)) * width)
+        if x_min < x_front - CONTACT_TOLERANCE_M:
+            where = "side" if float(bt.x[j, k]) > 0.0 else "rear"
+            out.append((int(j), f"impossible encounter: the target moves into the ego's "
+                                f"{where} at t = {bt.t[k]:.2f} s (first contact not with "
+                                "the ego's front)"))
+    return out
 
 
 @dataclass(frozen=True)
@@ -297,12 +343,20 @@ class SearchProblem:
                 metrics[m][ok] = v
             sm = summary(bt).values
             min_dist, raw = sm["min_distance"], sm["log10_risk_raw"]
-            objective[ok] = search_objective(raw, min_dist)
-            for j in np.flatnonzero(bt.ttc[:, 0] < START_TTC_S):
+            objective[ok] = search_objective(raw, min_dist, metrics["collision_probability"][ok],
+                                             metrics["collision_perfect"][ok])
+            target = self.evaluator.target(self.family.target_class)
+            body = self.evaluator.system.config.vehicle
+            bad = [(j, note) for j, note in impossible_encounters(
+                bt, body.x_front_m, target.length_m, target.width_m)]
+            bad += [(int(j), f"starts critical: TTC {bt.ttc[j, 0]:.2f} s at t = 0 "
+                             f"(at least {START_TTC_S:g} s)")
+                    for j in np.flatnonzero(bt.ttc[:, 0] < START_TTC_S)
+                    if j not in {b for b, _ in bad}]
+            for j, note in bad:
                 i = ok[j]
                 feasible[i] = False
-                notes[i] = (f"starts critical: TTC {bt.ttc[j, 0]:.2f} s at t = 0 "
-                            f"(at least {START_TTC_S:g} s)")
+                notes[i] = note
                 for m in names:
                     metrics[m][i] = 0.0
                 objective[i] = OBJECTIVE_INFEASIBLE
@@ -335,6 +389,16 @@ class SearchProblem:
     def scenario(self, cand: Candidate) -> Scenario:
         """Generate the candidate's trajectories (may raise ``InfeasibleScenario``)."""
         return self.family.generate(cand.params)
+
+    def evaluate_many(self, cands: list[Candidate], threads: int = 2) -> list[Result]:
+        """Evaluate candidates of this family (a batch; same values as ``evaluate``)."""
+        if not cands:
+            return []
+        sun = np.array([[np.nan, np.nan] if c.sun is None else list(c.sun) for c in cands])
+        d = Decoded(np.array([c.environment for c in cands]), sun,
+                    {p.name: np.array([c.params[p.name] for c in cands])
+                     for p in self.family.space})
+        return self.results(cands, self.evaluate_decoded(d, threads))
 
     def evaluate(self, cand: Candidate, keep_trace: bool = False) -> Result:
         """Generate, evaluate and compute every metric (a batch of one)."""

@@ -27,7 +27,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from sensorgap.config import EnvironmentConfig
-from sensorgap.models.geometry import fov_mask, rotate_offsets, sensor_range
+from sensorgap.models.geometry import rotate_offsets, sensor_range
+from sensorgap.scenarios.trajectory import DT_S
+from sensorgap.search.evaluate import Trace
 from sensorgap.search.metrics import critical_index
 from sensorgap.search.problem import Candidate, Result, SearchProblem
 
@@ -36,7 +38,7 @@ MIN_DISTANCE = 0.15
 #: Default cap of ranked scenarios per (family, environment preset), so the top N span the
 #: families and conditions instead of N variants of the single worst one.
 MAX_PER_GROUP = 3
-_EFFECT_ORDER = ("glare", "weather", "range")
+_EFFECT_ORDER = ("glare", "weather", "partly in view", "range")
 
 
 def candidate_distance(problem: SearchProblem, a: Candidate, b: Candidate) -> float:
@@ -94,59 +96,216 @@ def reference_environment() -> EnvironmentConfig:
     return EnvironmentConfig(name="reference")
 
 
+def named_step(tr: Trace) -> int:
+    """The step a scenario's reason names: with a collision outcome, the step of weakest
+    confirmation (lowest Pd of the confirming sensors, the last of equals) between the threat
+    onset and t_safe (the last moment a confirmation still avoids the collision; the end
+    when none is defined); otherwise the step that sets the risk."""
+    t_threat = tr.extra.get("t_threat_s", math.nan)
+    if not math.isfinite(t_threat):
+        return critical_index(tr)
+    k0 = int(round(t_threat / DT_S))
+    t_safe = tr.extra.get("t_safe_s", math.nan)
+    k1 = len(tr.t) - 1 if not math.isfinite(t_safe) else int(round(t_safe / DT_S))
+    k0, k1 = min(k0, len(tr.t) - 1), min(max(k1, k0), len(tr.t) - 1)
+    pd = (tr.pd if tr.pd_confirm is None else tr.pd_confirm)[k0:k1 + 1]
+    return k0 + int(len(pd) - 1 - np.argmin(pd[::-1]))  # the last of equals: nearest
+
+
 def explain(problem: SearchProblem, cand: Candidate) -> Explanation:
-    """Per-sensor reason at the critical step (exact evaluation)."""
+    """Per-sensor reason at the named step (``named_step``), exact evaluation of the
+    target's body; a sensor that sees the target (Pd >= 0.5) but cannot confirm it for
+    braking (the reaction model's ``confirm_with``) is listed as such."""
     ev = problem.evaluator
     sc = problem.scenario(cand)
     env = problem.environment(cand)
     tr = ev.trace(sc, env, problem.family.duration_s)
-    k = critical_index(tr)
+    k = named_step(tr)
     target = ev.target(sc.target_class)
     h, x, y = tr.heading[k:k + 1], tr.x[k:k + 1], tr.y[k:k + 1]
-    pd_act = ev.per_sensor_pd(env, target, h, x, y, exact=True)[:, 0]
+    psi = None if tr.psi is None else tr.psi[k:k + 1]
+    pd_act = ev.per_sensor_pd(env, target, h, x, y, psi=psi)[:, 0]
     pd_nosun = ev.per_sensor_pd(env.model_copy(update={"sun": None}), target, h, x, y,
-                                exact=True)[:, 0]
-    pd_ref = ev.per_sensor_pd(reference_environment(), target, h, x, y, exact=True)[:, 0]
-    z = target.reference_height_m
+                                psi=psi)[:, 0]
+    pd_ref = ev.per_sensor_pd(reference_environment(), target, h, x, y, psi=psi)[:, 0]
+    frac = ev.visible_fraction(env, target, x, y, psi)[:, 0]
+    confirm = set(ev.confirm_rows)
     effects: dict[str, str] = {}
     low: list[tuple[str, str, float, float]] = []
-    for i, s in enumerate(problem.evaluator.system.sensors):
+    for i, s in enumerate(ev.system.sensors):
         m = s.mount
-        xs, ys, zs = rotate_offsets(m, x - m.x, y - m.y, np.array([z - m.z]))
-        r = float(sensor_range(xs, ys, zs)[0])
-        in_range = m.min_range <= r <= m.max_range
-        if not (in_range and bool(fov_mask(m, xs, ys, zs)[0])):
-            effects[s.id] = "range" if not in_range else "FOV"
+        if frac[i] <= 0.0 and pd_ref[i] <= 0.0:
+            xs, ys, zs = rotate_offsets(m, x - m.x, y - m.y,
+                                        np.array([target.reference_height_m - m.z]))
+            r = float(sensor_range(xs, ys, zs)[0])
+            reach = 0.5 * math.hypot(target.length_m, target.width_m)
+            effects[s.id] = "range" if r - reach > m.max_range else "FOV"
             continue
         if pd_act[i] >= 0.5:
-            effects[s.id] = "sees"
+            effects[s.id] = "sees" if i in confirm else "sees (cannot confirm)"
             continue
         if pd_nosun[i] - pd_act[i] >= 0.2:
             eff, better = "glare", pd_nosun[i]
         elif pd_ref[i] - pd_nosun[i] >= 0.2:
             eff, better = "weather", pd_ref[i]
+        elif 0.0 < frac[i] < 1.0 and pd_ref[i] < 0.5:
+            eff, better = "partly in view", pd_ref[i]
         else:
             eff, better = "range", pd_ref[i]
         effects[s.id] = eff
-        low.append((s.id, eff, float(pd_act[i]), float(better)))
+        if i in confirm:
+            low.append((s.id, eff, float(pd_act[i]), float(better)))
     counts = Counter(e for _, e, _, _ in low)
     if counts:
         dominant = max(_EFFECT_ORDER, key=lambda e: (counts[e], -_EFFECT_ORDER.index(e)))
     elif any(e == "sees" for e in effects.values()):
         dominant = "none"
     else:
-        dominant = "FOV" if any(e == "FOV" for e in effects.values()) else "range"
-    out_fov = sum(1 for e in effects.values() if e == "FOV")
-    out_rng = sum(1 for sid, e in effects.items() if e == "range"
-                  and sid not in {s for s, _, _, _ in low})
+        dominant = ("FOV" if any(e == "FOV" for i, (sid, e) in enumerate(effects.items())
+                                 if i in confirm) else "range")
+    n_fov = sum(1 for i, e in enumerate(effects.values()) if e == "FOV" and i in confirm)
+    n_rng = sum(1 for i, e in enumerate(effects.values()) if e == "range" and i in confirm)
     seen = [sid for sid, e in effects.items() if e == "sees"]
-    parts = [f"{dominant}: at t={tr.t[k]:.2f} s target at x={x[0]:.1f} y={y[0]:.1f} m, "
-             f"Pd={tr.pd[k]:.2f}, P_undet={tr.p_undetected[k]:.2g}"]
+    support = [sid for sid, e in effects.items() if e == "sees (cannot confirm)"]
+    pc = tr.extra.get("collision_probability")
+    pdc = tr.pd if tr.pd_confirm is None else tr.pd_confirm
+    head = (f"{dominant}: at t={tr.t[k]:.2f} s the target is at x={x[0]:.1f} y={y[0]:.1f} m "
+            f"(ego frame), Pd of the confirming sensors {pdc[k]:.2f}")
+    parts = [head]
+    if pc is not None:
+        parts.append(f"P(collision) {pc:.2g}")
     if low:
-        parts.append("low Pd: " + ", ".join(f"{sid} {e} {p:.2f} (else {b:.2f})"
-                                            for sid, e, p, b in low[:4]))
+        parts.append("missing: " + ", ".join(
+            f"{sid} ({e}: Pd {p:.2f}, without it {b:.2f})" for sid, e, p, b in low[:4]))
     if seen:
-        parts.append("sees: " + ", ".join(seen[:3]))
-    parts.append(f"out of view: {out_fov} FOV, {out_rng} range")
-    pds = {s.id: float(pd_act[i]) for i, s in enumerate(problem.evaluator.system.sensors)}
+        parts.append("confirming: " + ", ".join(seen[:3]))
+    if support:
+        parts.append("seen but cannot confirm: " + ", ".join(support[:3]))
+    if n_fov or n_rng:
+        parts.append(f"confirming sensors not covering the target: {n_fov} by field of view, "
+                     f"{n_rng} by range")
+    pds = {s.id: float(pd_act[i]) for i, s in enumerate(ev.system.sensors)}
     return Explanation("; ".join(parts), dominant, float(tr.t[k]), effects, pds)
+
+
+#: Candidates re-evaluated exactly before ranking: the best by the search objective, at
+#: least this many (and at least ``POOL_PER_RANK`` per ranked row).
+POOL_MIN = 400
+POOL_PER_RANK = 25
+
+
+def classify(r: Result) -> str:
+    """``sensor-critical`` (a perfect-perception vehicle avoids the collision, this one
+    may not), ``unavoidable`` (collides even with perfect perception), ``not critical``
+    or ``infeasible``."""
+    if not r.feasible:
+        return "infeasible"
+    if r.metrics.get("collision_perfect", 0.0) > 0.5:
+        return "unavoidable"
+    if r.metrics.get("collision_probability", 0.0) > 0.0:
+        return "sensor-critical"
+    return "not critical"
+
+
+def reevaluate(results: list[Result], exact: dict[str, SearchProblem], pool: int
+               ) -> tuple[list[tuple[Result, Result]], dict[str, float]]:
+    """Re-evaluate the ``pool`` best feasible results (search objective) exactly with the
+    ``exact`` problems; returns (lookup result, exact result) pairs and the disagreement
+    of the two over them (what the lookup proposed vs what exact evaluation decides)."""
+    ok = sorted((r for r in results if r.feasible),
+                key=lambda r: (-r.objective, r.candidate.scenario_id))
+    seen: set[str] = set()
+    chosen = []
+    for r in ok:
+        if r.candidate.scenario_id not in seen:
+            seen.add(r.candidate.scenario_id)
+            chosen.append(r)
+        if len(chosen) == pool:
+            break
+    pairs: list[tuple[Result, Result]] = []
+    by_family: dict[str, list[Result]] = {}
+    for r in chosen:
+        by_family.setdefault(r.candidate.family, []).append(r)
+    for fam, rs in by_family.items():
+        for r, e in zip(rs, exact[fam].evaluate_many([r.candidate for r in rs]), strict=True):
+            pairs.append((r, e))
+    pairs.sort(key=lambda p: (-p[0].objective, p[0].candidate.scenario_id))
+    if not pairs:
+        return pairs, {"reevaluated": 0}
+    pl = np.array([p[0].metrics.get("collision_probability", 0.0) for p in pairs])
+    pe = np.array([p[1].metrics.get("collision_probability", 0.0) for p in pairs])
+    cl = {p[0].candidate.scenario_id for p in pairs if classify(p[0]) == "sensor-critical"}
+    ce = {p[1].candidate.scenario_id for p in pairs if classify(p[1]) == "sensor-critical"}
+    k = min(10, len(pairs))
+    top_l = {p[0].candidate.scenario_id for p in sorted(
+        pairs, key=lambda p: -p[0].metrics.get("collision_probability", 0.0))[:k]}
+    top_e = {p[1].candidate.scenario_id for p in sorted(
+        pairs, key=lambda p: -p[1].metrics.get("collision_probability", 0.0))[:k]}
+    return pairs, {
+        "reevaluated": len(pairs),
+        "mean_abs_diff_collision_probability": float(np.mean(np.abs(pl - pe))),
+        "max_abs_diff_collision_probability": float(np.max(np.abs(pl - pe))),
+        "sensor_critical_lookup": len(cl), "sensor_critical_exact": len(ce),
+        "sensor_critical_both": len(cl & ce),
+        f"top{k}_overlap": len(top_l & top_e),
+    }
+
+
+def rank_exact(pairs: list[tuple[Result, Result]], problems: dict[str, SearchProblem],
+               top: int, min_distance: float = MIN_DISTANCE,
+               max_per_group: int = MAX_PER_GROUP
+               ) -> tuple[list[tuple[Result, list[str], Explanation]],
+                          list[tuple[Result, list[str], Explanation]]]:
+    """The ranking from exact results: sensor-critical scenarios by collision probability,
+    then impact speed (then, to fill ``top``, the rest by log10 risk); near-duplicates of
+    a family and environment collapsed, at most ``max_per_group`` per (family,
+    environment); the same trajectory critical for the same reason (dominant effect) in
+    several environments is one row listing them. Returns (ranking, unavoidable), each row
+    (exact result, environment labels, explanation)."""
+    def key(r: Result) -> tuple[int, float, float, float, str]:
+        crit = classify(r) == "sensor-critical"
+        return (0 if crit else 1, -r.metrics.get("collision_probability", 0.0),
+                -r.metrics.get("impact_speed_kmh", 0.0), -r.score, r.candidate.scenario_id)
+
+    exact = [e for _, e in pairs if e.feasible]
+    unavoidable = sorted((e for e in exact if classify(e) == "unavoidable"), key=key)
+    rest = sorted((e for e in exact if classify(e) != "unavoidable"), key=key)
+    rows: list[tuple[Result, list[str], Explanation]] = []
+    groups: Counter[tuple[str, str]] = Counter()
+
+    def merged(r: Result, ex: Explanation, out: list[tuple[Result, list[str], Explanation]]
+               ) -> bool:
+        for row in out:
+            c, prob = row[0].candidate, problems[r.candidate.family]
+            if (c.family == r.candidate.family and row[2].dominant == ex.dominant
+                    and c.environment != r.candidate.environment
+                    and r.candidate.environment_label not in row[1]
+                    and prob.family.distance(c.params, r.candidate.params) < min_distance):
+                row[1].append(r.candidate.environment_label)
+                return True
+        return False
+
+    def fill(src: list[Result], out: list[tuple[Result, list[str], Explanation]],
+             limit: int, cap: int | None) -> None:
+        for r in src:
+            if len(out) >= limit:
+                return
+            gk = (r.candidate.family, r.candidate.environment)
+            if any(row[0] is r for row in out) or (cap is not None and groups[gk] >= cap):
+                continue
+            prob = problems[r.candidate.family]
+            if any(candidate_distance(prob, r.candidate, row[0].candidate) < min_distance
+                   for row in out):
+                continue
+            ex = explain(prob, r.candidate)
+            if merged(r, ex, out):
+                continue
+            out.append((r, [r.candidate.environment_label], ex))
+            groups[gk] += 1
+
+    for cap in (max_per_group, None):
+        fill(rest, rows, top, cap)
+    groups.clear()
+    unav: list[tuple[Result, list[str], Explanation]] = []
+    fill(unavoidable, unav, min(top, 10), None)
+    return rows, unav

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import csv
 import io
+import math
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -28,11 +29,28 @@ from sensorgap.search.evaluate import DetectionRule, Evaluator
 from sensorgap.search.executors import ProblemSpec, make_executor
 from sensorgap.search.metrics import metric_names
 from sensorgap.search.problem import Result, SearchProblem
-from sensorgap.search.ranking import MIN_DISTANCE, diverse_top, explain
+from sensorgap.search.ranking import (
+    MIN_DISTANCE,
+    POOL_MIN,
+    POOL_PER_RANK,
+    Explanation,
+    classify,
+    rank_exact,
+    reevaluate,
+)
 from sensorgap.search.store import Store
 from sensorgap.search.strategies import get_strategy, strategy_names
 
 MAX_BUDGET = 1_000_000
+#: The ranking's leading metric columns (collision terms), in this order.
+HEAD_METRICS = ("collision_probability", "impact_speed_kmh", "collision_perfect", "t_safe_s",
+                "detection_margin_s", "t_confirm_median_s", "t_threat_s",
+                "p_never_confirmed")
+
+
+def _finite_or_none(v: float) -> float | None:
+    """A metric value for the output files: None (an empty cell) where it is undefined."""
+    return None if not math.isfinite(v) else v
 
 
 @dataclass
@@ -165,35 +183,77 @@ def run_search(vehicle: str | Path, families: list[str], environments: list[str]
     finally:
         store.close()
         runner.close()
-    chosen = diverse_top(results, problems, top, min_distance)
+    exact_problems = problems if mode == "exact" else {
+        f.name: SearchProblem(f, envs, Evaluator(system, mode="exact", rule=rule), sun_search)
+        for f in fams}
+    pool = max(POOL_MIN, POOL_PER_RANK * top)
+    pairs, disagreement = reevaluate(results, exact_problems, pool)
+    if mode == "lookup" and pairs:
+        print(f"lookup vs exact over the {disagreement['reevaluated']} best candidates "
+              f"(re-evaluated exactly; every reported number is exact): mean |dP_collision| "
+              f"{disagreement['mean_abs_diff_collision_probability']:.3g}, max "
+              f"{disagreement['max_abs_diff_collision_probability']:.3g}; sensor-critical "
+              f"{disagreement['sensor_critical_lookup']} by lookup, "
+              f"{disagreement['sensor_critical_exact']} exactly, "
+              f"{disagreement['sensor_critical_both']} both", file=sys.stderr)
+    lookup_of = {lk.candidate.scenario_id: lk for lk, _ in pairs}
+    chosen, unavoidable = rank_exact(pairs, exact_problems, top, min_distance)
     params = sorted({p.name for f in fams for p in f.space})
     metrics = metric_names()
-    rows = []
-    for rank, r in enumerate(chosen, start=1):
+    head = [m for m in HEAD_METRICS if m in metrics]
+    columns = ["rank", "scenario_id", "class", "family", "environment", "environments",
+               "target", "sun_azimuth_deg", "sun_elevation_deg", *head, "dominant_effect",
+               "named_step_t_s", "lookup_collision_probability", "risk",
+               *[m for m in metrics if m not in head and m != "risk"],
+               *[f"p_{p}" for p in params], "reason"]
+
+    def row_of(rank: int, r: Result, env_labels: list[str], ex: Explanation
+               ) -> dict[str, Any]:
         c = r.candidate
-        ex = explain(problems[c.family], c)
+        lk = lookup_of.get(c.scenario_id)
         row: dict[str, Any] = {
-            "rank": rank, "scenario_id": c.scenario_id, "family": c.family,
-            "environment": c.environment_label, "target": problems[c.family].family.target_class,
+            "rank": rank, "scenario_id": c.scenario_id, "class": classify(r),
+            "family": c.family, "environment": c.environment_label,
+            "environments": ", ".join(env_labels),
+            "target": exact_problems[c.family].family.target_class,
             "sun_azimuth_deg": None if c.sun is None else c.sun[0],
             "sun_elevation_deg": None if c.sun is None else c.sun[1],
             "risk": r.risk, "dominant_effect": ex.dominant, "reason": ex.reason,
+            "named_step_t_s": ex.step_t_s,
+            "lookup_collision_probability": (None if lk is None or mode == "exact" else
+                                             lk.metrics.get("collision_probability")),
         }
-        row.update({m: r.metrics[m] for m in metrics})
+        row.update({m: _finite_or_none(r.metrics[m]) for m in metrics})
         row.update({f"p_{k}": v for k, v in c.params.items()})
-        rows.append(row)
-    columns = ["rank", "scenario_id", "family", "environment", "target", "sun_azimuth_deg",
-               "sun_elevation_deg", "risk", "dominant_effect",
-               *[m for m in metrics if m != "risk"], *[f"p_{p}" for p in params], "reason"]
+        return row
+
+    rows = [row_of(i, r, envs_, ex) for i, (r, envs_, ex) in enumerate(chosen, start=1)]
+    unav_rows = [row_of(i, r, envs_, ex)
+                 for i, (r, envs_, ex) in enumerate(unavoidable, start=1)]
     atomic_write_bytes(out / "ranking.csv", ranking_csv(rows, columns))
+    atomic_write_bytes(out / "unavoidable.csv", ranking_csv(unav_rows, columns))
     write_json(out / "ranking.json", {"columns": columns, "ranking": rows,
-                                      "settings": settings})
+                                      "unavoidable": unav_rows, "settings": settings,
+                                      "lookup_vs_exact": disagreement})
     n_ok = sum(r.feasible for r in results)
+    per_family = {}
+    for f, share in zip(fams, shares, strict=True):
+        rs = [r for r in results if r.candidate.family == f.name]
+        per_family[f.name] = {
+            "budget": share, "feasible": sum(r.feasible for r in rs),
+            "threats": sum(1 for r in rs if r.feasible and math.isfinite(
+                r.metrics.get("t_threat_s", math.nan))),
+            "sensor_critical_by_lookup": sum(1 for r in rs if classify(r) == "sensor-critical"),
+            "unavoidable_by_lookup": sum(1 for r in rs if classify(r) == "unavoidable"),
+        }
     summary = {"settings": {**settings, "budget": budget, "top": top,
                             "min_distance": min_distance},
                "candidates": len(results), "feasible": n_ok, "infeasible": len(results) - n_ok,
-               "best_risk": max((r.risk for r in results), default=0.0),
+               "best_collision_probability": max(
+                   (float(r.metrics.get("collision_probability", 0.0)) for _, r in pairs
+                    if classify(r) == "sensor-critical"), default=0.0),
                "best_log10_risk": max((r.score for r in results), default=-300.0),
-               "per_family": {f.name: s for f, s in zip(fams, shares, strict=True)}}
+               "lookup_vs_exact": disagreement,
+               "per_family": per_family}
     write_json(out / "summary.json", summary)
     return SearchOutcome(rows, results, evaluated, reused, summary)
