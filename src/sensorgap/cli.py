@@ -167,8 +167,35 @@ def cmd_search(args: argparse.Namespace) -> int:
         detection=args.detection, workers=args.workers, resume=args.resume,
         executor=args.executor, scheduler=args.scheduler)
     write_manifest(args.out)
+    crit = sum(1 for r in outcome.ranking if r["class"] == "sensor-critical")
+    d = outcome.summary["lookup_vs_exact"]
+    if args.pd == "lookup" and d.get("reevaluated"):
+        print(f"lookup vs exact over the {d['reevaluated']} best candidates (re-evaluated "
+              f"exactly; every reported number is exact): mean |dP_collision| "
+              f"{d['mean_abs_diff_collision_probability']:.3g}, max "
+              f"{d['max_abs_diff_collision_probability']:.3g}; sensor-critical "
+              f"{d['sensor_critical_lookup']} by lookup, {d['sensor_critical_exact']} "
+              f"exactly, {d['sensor_critical_both']} both")
     print(f"{args.out}: {outcome.evaluated} evaluated, {outcome.reused} reused, "
-          f"best risk {outcome.summary['best_risk']:.3g}, {len(outcome.ranking)} ranked")
+          f"{len(outcome.ranking)} ranked ({crit} sensor-critical), best collision "
+          f"probability {outcome.summary['best_collision_probability']:.3g}")
+    return 0
+
+
+def cmd_evaluate(args: argparse.Namespace) -> int:
+    """Evaluate one candidate exactly into --out (evaluation.json, trace.csv)."""
+    from sensorgap.search.whatif import evaluate_candidate, parse_sun
+
+    ev = evaluate_candidate(
+        args.vehicle, args.family, args.environment, parse_sun(args.sun), args.param or [],
+        Path(args.out),
+        Path(args.environments_file) if args.environments_file else None)
+    m = ev["metrics"]
+    if not ev["feasible"]:
+        print(f"{args.out}: infeasible: {ev['note']}")
+    else:
+        print(f"{args.out}: {ev['class']}, P(collision) {m['collision_probability']:.3g}, "
+              f"impact {m['impact_speed_kmh']:.1f} km/h")
     return 0
 
 
@@ -405,6 +432,17 @@ def build_parser() -> argparse.ArgumentParser:
                    help="continue the search stored in --out (same settings)")
     p.add_argument("--out", required=True, help="run folder")
     p.set_defaults(func=cmd_search)
+
+    p = sub.add_parser("evaluate", help="one candidate, exact: metrics and a per-step trace")
+    p.add_argument("--vehicle", required=True, help="preset name or .toml path")
+    p.add_argument("--family", required=True, help="family name or .toml path")
+    p.add_argument("--environment", required=True, help="environment preset")
+    p.add_argument("--environments-file", help="environments file (default: shipped presets)")
+    p.add_argument("--sun", help="AZ/EL: world-frame sun, deg (default: the preset's)")
+    p.add_argument("--param", action="append", metavar="NAME=VALUE",
+                   help="a family parameter (repeat for each)")
+    p.add_argument("--out", required=True, help="output folder")
+    p.set_defaults(func=cmd_evaluate)
 
     p = sub.add_parser("export", help="OpenSCENARIO + OpenDRIVE catalog of a search run")
     p.add_argument("--run", required=True, help="search run folder (ranking.json)")

@@ -19,7 +19,14 @@ from sensorgap.scenarios.trajectory import (
     time_axis,
 )
 from sensorgap.search.evaluate import Evaluator, Trace
-from sensorgap.search.metrics import compute_all, corridor, detection_index, metric_names
+from sensorgap.search.metrics import (
+    _OutcomeMetric,
+    compute_all,
+    corridor,
+    detection_index,
+    get_metric,
+    metric_names,
+)
 from sensorgap.search.problem import SearchProblem
 from sensorgap.search.run import run_search
 from sensorgap.search.strategies import get_strategy, strategy_names
@@ -123,13 +130,16 @@ def test_metrics_by_hand() -> None:
     assert tr.p_undetected[2] == pytest.approx(0.25)
     assert detection_index(tr) == 6
     assert corridor(tr) == (3, 6)
-    m = compute_all(tr)
+    # a hand-made trace has no reaction model: the collision-outcome metrics are tested
+    # in test_outcome.py
+    names = [n for n in metric_names() if not isinstance(get_metric(n), _OutcomeMetric)]
+    m = compute_all(tr, names)
     assert m["risk"] == pytest.approx(0.25 * np.exp(-0.5 / 2.0))
     assert m["t_detect_s"] == pytest.approx(1.30)
     assert m["ttc_at_detect_s"] == pytest.approx(0.4)
     assert m["corridor_s"] == pytest.approx(0.15)
-    assert set(metric_names()) <= set(m)
-    never = compute_all(_trace([0.0] * 5))
+    assert set(names) <= set(m)
+    never = compute_all(_trace([0.0] * 5), names)
     assert never["detected"] == 0.0 and never["t_detect_s"] == pytest.approx(0.2)
     assert never["ttc_at_detect_s"] == 99.0
 
@@ -144,11 +154,12 @@ def test_risk_is_not_assessed_during_the_lead_in() -> None:
     n = 25
     ttc = [np.inf] * n
     ttc[10] = 0.5  # t = 0.5 s, inside the lead-in
-    assert compute_all(_trace([0.0] * n, ttc))["risk"] == 0.0
+    assert compute_all(_trace([0.0] * n, ttc), ["risk"])["risk"] == 0.0
     ttc[20] = 0.5  # t = 1.0 s
     pd = [0.0] * n
     pd[3] = 0.5  # one half-chance detection during the lead-in still counts
-    assert compute_all(_trace(pd, ttc))["risk"] == pytest.approx(0.5 * np.exp(-0.25))
+    assert compute_all(_trace(pd, ttc), ["risk"])["risk"] == pytest.approx(
+        0.5 * np.exp(-0.25))
 
 
 def test_lookup_close_to_exact(system_b: System) -> None:
@@ -166,7 +177,13 @@ def test_lookup_close_to_exact(system_b: System) -> None:
             continue
         a, b = ra.trace, rb.trace
         assert a is not None and b is not None
-        assert np.max(np.abs(a.pd - b.pd)) < 0.1
+        # the lookup looks up the confirming sensors (System B: cameras) of target bodies
+        # from outline-eroded maps at the reference height (docs/search.md): per step it
+        # may differ where a camera's ROC is steep (glare at the edge of detection), on
+        # average it stays close
+        assert a.pd_confirm is not None and b.pd_confirm is not None
+        d = np.abs(a.pd_confirm - b.pd_confirm)
+        assert np.mean(d) < 0.02 and np.max(d) < 0.5
         checked += 1
 
 

@@ -252,19 +252,23 @@ class LogMissMaps:
             hit = cache[sensors] = (stack, has)
         return hit
 
-    def body_totals(self, outline_xy: F64, subset: tuple[int, ...], n_bins: int) -> F32:
+    def body_totals(self, outline_xy: F64, subset: tuple[int, ...], n_bins: int,
+                    order: tuple[int, ...] | None = None) -> F32:
         """(H, ny, nx) fused ln(1 - Pd) of target *bodies* for ``n_bins`` relative headings
         (bin h: h * pi / H rad; a box is symmetric under a half turn), over the sensor rows
-        ``subset``: per sensor, the best (smallest) ln(1 - Pd) of its layer over the body's
-        footprint outline ``outline_xy`` ((K, 2) m, target frame) rotated to the bin and
-        rounded to whole cells (a morphological erosion: any outline point seen), summed
-        over the sensors. A proposal for the search only: it ignores the facing side, the
-        height of the samples, the minimum visible fractions and the visible part's
-        cross-section, which the exact evaluation (``coverage.body``) applies (error
-        measured in ``sensorgap tradeoff``). Cached per (outline, subset, bins)."""
-        key = (outline_xy.tobytes(), subset, n_bins)
-        cache: dict[tuple[bytes, tuple[int, ...], int], F32] = self.__dict__.setdefault(
-            "_body_totals", {})
+        ``subset``: per sensor, the ``order[i]``-th best (0: the smallest) ln(1 - Pd) of
+        its layer over the body's footprint outline ``outline_xy`` ((K, 2) m, target frame)
+        rotated to the bin and rounded to whole cells (0 for every sensor: a morphological
+        erosion, any outline point seen; a higher order asks for that many outline points,
+        the lookup's stand-in for a minimum visible fraction), summed over the sensors. A
+        proposal for the search only: it ignores the facing side, the height of the
+        samples and the visible part's cross-section, which the exact evaluation
+        (``coverage.body``) applies (error measured in ``sensorgap tradeoff``). Cached
+        per (outline, subset, bins, order)."""
+        order = order or (0,) * len(subset)
+        key = (outline_xy.tobytes(), subset, n_bins, order)
+        cache: dict[tuple[bytes, tuple[int, ...], int, tuple[int, ...]], F32] = (
+            self.__dict__.setdefault("_body_totals", {}))
         hit = cache.get(key)
         if hit is not None:
             return hit
@@ -277,16 +281,21 @@ class LogMissMaps:
                          / res).astype(int)
             oy = np.rint((math.sin(a) * outline_xy[:, 0] + math.cos(a) * outline_xy[:, 1])
                          / res).astype(int)
-            offs = sorted(set(zip(ox.tolist(), oy.tolist(), strict=True)))
+            offs = list(zip(ox.tolist(), oy.tolist(), strict=True))
             px = max(abs(v) for v in ox.tolist())
             py = max(abs(v) for v in oy.tolist())
-            for row in subset:
+            for row, k in zip(subset, order, strict=True):
                 padded = np.pad(self.layers[row], ((py, py), (px, px)))
-                best = np.zeros((ny, nx), dtype=np.float32)
-                for dx, dy in offs:
-                    np.minimum(best, padded[py + dy:py + dy + ny, px + dx:px + dx + nx],
-                               out=best)
-                out[h] += best
+                if k == 0:
+                    best = np.zeros((ny, nx), dtype=np.float32)
+                    for dx, dy in set(offs):
+                        np.minimum(best, padded[py + dy:py + dy + ny, px + dx:px + dx + nx],
+                                   out=best)
+                    out[h] += best
+                    continue
+                stack = np.stack([padded[py + dy:py + dy + ny, px + dx:px + dx + nx]
+                                  for dx, dy in offs])
+                out[h] += np.partition(stack, k, axis=0)[k]
         hit = cache[key] = out.astype(np.float32)
         return hit
 
@@ -438,9 +447,11 @@ class TrackLookup:
     exact_points: ExactPoints
     exact_camera: ExactCamera
     #: (K, 2) footprint outline of a target body (target frame, m); with it a glared
-    #: camera's layer is replaced over the outline (the best outline point, as the body
-    #: maps), and cameras whose view the outline may reach are listed too
+    #: camera's layer is replaced over the outline (its ``order``-th best outline point,
+    #: as the body maps), and cameras whose view the outline may reach are listed too
     outline: F64 | None = None
+    #: sensor row -> order statistic over the outline (see ``LogMissMaps.body_totals``)
+    order: dict[int, int] | None = None
 
 
 def lookup_log_miss_tracks(maps: LogMissMaps, scene: Scene, x: F64, y: F64, heading: F64,
@@ -578,5 +589,6 @@ def _glared_outline(maps: LogMissMaps, scene: Scene, row: int, gi: NDArray[np.in
         vals = np.zeros(edge.size)
         vals[idx] = log_miss_of(pd)
         new[edge] = vals
-    return np.asarray(new.reshape(-1, k).min(axis=1) - layer.reshape(-1, k).min(axis=1),
-                      dtype=np.float64)
+    q = 0 if how.order is None else how.order.get(row, 0)
+    return np.asarray(np.partition(new.reshape(-1, k), q, axis=1)[:, q]
+                      - np.partition(layer.reshape(-1, k), q, axis=1)[:, q], dtype=np.float64)

@@ -133,21 +133,26 @@ class CutIn(_LaneKind):
 
 @register_kind
 class Overtake(_LaneKind):
-    """Target approaches from behind in ``target_lane`` (rear and side field), passes the
-    ego and, with ``merge = "yes"``, merges into the ego lane once its centre is
-    ``merge_gap_m`` ahead of the ego's rear axle."""
+    """Target approaches from behind in ``target_lane`` (rear and side field) at
+    ``speed_delta_m_s`` faster than the ego, passes, merges into the ego lane once its
+    centre is ``merge_gap_m`` ahead of the ego's rear axle (a cosine lane change of
+    ``merge_duration_s``) and, ``brake_delay_s`` after the merge, brakes at ``decel_m_s2``
+    to ``final_delta_m_s`` below the ego's speed (0 at most): the classic overtake-and-cut-
+    in-then-brake, so the ego closes in on a target that came out of its blind side."""
 
     name = "overtake"
-    description = "approach from behind and overtake, optionally merging in front"
+    description = "approach from behind, overtake, cut in ahead and brake"
     settings = {**_ROAD_SETTINGS, "ego_lane": None, "target_lane": None}
     parameters = (
         Param("ego_s0_m", 150.0, 700.0, unit="m"),
         Param("ego_speed_m_s", 15.0, 33.0, unit="m/s"),
         Param("speed_delta_m_s", 2.0, 15.0, unit="m/s"),
         Param("dx0_m", -80.0, -8.0, unit="m"),
-        Param("merge", choices=("no", "yes")),
-        Param("merge_gap_m", 6.0, 40.0, unit="m"),
+        Param("merge_gap_m", 8.0, 40.0, unit="m"),
         Param("merge_duration_s", 2.5, 5.0, unit="s"),
+        Param("brake_delay_s", 0.0, 2.0, unit="s"),
+        Param("decel_m_s2", 2.0, 7.0, unit="m/s2"),
+        Param("final_delta_m_s", 3.0, 20.0, unit="m/s"),
     )
 
     def generate_batch(self, family: Family, cols: Columns,
@@ -157,12 +162,20 @@ class Overtake(_LaneKind):
                        _col(cols, "dx0_m"))
         s0 = _col(cols, "ego_s0_m")
         s_e = s0 + tr * ve * t
-        s_t = s0 + tr * (dx0 + (ve + dv) * t)
+        t_m = (_col(cols, "merge_gap_m") - dx0) / dv
+        md = _col(cols, "merge_duration_s")
+        t_b = t_m + md + _col(cols, "brake_delay_s")
+        v0 = ve + dv
+        vf = np.maximum(ve - _col(cols, "final_delta_m_s"), 0.0)
+        a = _col(cols, "decel_m_s2")
+        td = (v0 - vf) / a
+        u = np.clip(t - t_b, 0.0, td)
+        travelled = (v0 * np.minimum(t, t_b) + v0 * u - 0.5 * a * u * u
+                     + vf * np.maximum(t - t_b - td, 0.0))
+        s_t = s0 + tr * (dx0 + travelled)
         length = net.road(rid).length
         checks = [off_road(s_e, length, rid, "ego"), off_road(s_t, length, rid, "target")]
-        t_m = (_col(cols, "merge_gap_m") - dx0) / dv
-        w = blend_batch(np.full(len(s0), "cosine"), (t - t_m) / _col(cols, "merge_duration_s"))
-        w = np.where(_is(cols, "merge", "yes")[:, None], w, 0.0)
+        w = blend_batch(np.full(len(s0), "cosine"), (t - t_m) / md)
         ego = self._follow(family, rid, lane, s_e, tr, t)
         tgt = self._changing(family, rid, int(family.settings["target_lane"]), lane, s_t, tr,
                              t, w)

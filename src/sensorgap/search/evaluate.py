@@ -33,7 +33,7 @@ from numpy.typing import NDArray
 from sensorgap.config import EnvironmentConfig, TargetConfig, load_target
 from sensorgap.config.reaction import ReactionConfig, load_friction, load_reaction, road_condition
 from sensorgap.coverage import GridSpec, Scene
-from sensorgap.coverage.body import body_per_sensor_pd, body_samples
+from sensorgap.coverage.body import body_per_sensor_pd, body_samples, min_visible_fraction
 from sensorgap.coverage.fastlookup import SUN_NONE, SUN_VEHICLE, SUN_WORLD, sun_directions_of
 from sensorgap.coverage.logmiss import (
     ALMOST_ONE,
@@ -493,11 +493,17 @@ class Evaluator:
         xf, yf = kin.x.reshape(-1), kin.y.reshape(-1)
         subset = self.confirm_rows
         outline: F64 | None = None
+        order: dict[int, int] | None = None
         if self.bodies:
             body = body_samples(scene.target)
             outline = np.asarray(np.unique(np.round(np.column_stack([body.x, body.y]), 6),
                                            axis=0), dtype=np.float64)
-            totals = maps.body_totals(outline, subset, HEADING_BINS)
+            # a minimum visible fraction f of the facing outline (about half of it): the
+            # ceil(f K / 2)-th best of the K outline points
+            order = {i: max(0, math.ceil(min_visible_fraction(scene.sensors[i])
+                                         * len(outline) / 2.0) - 1) for i in subset}
+            totals = maps.body_totals(outline, subset, HEADING_BINS,
+                                      tuple(order[i] for i in subset))
         else:
             totals = maps.body_totals(np.zeros((1, 2)), subset, 1)
         sensors = tuple(scene.sensors[i] for i in subset)
@@ -518,7 +524,7 @@ class Evaluator:
             return vals
 
         return TrackLookup(totals, kin.psi, frozenset(subset), exact_points, exact_camera,
-                           outline)
+                           outline, order)
 
     # -- scenarios ---------------------------------------------------------------------
     def evaluate_batch(self, batch: ScenarioBatch, env_names: Sequence[str] | NDArray[np.str_],

@@ -188,14 +188,6 @@ def run_search(vehicle: str | Path, families: list[str], environments: list[str]
         for f in fams}
     pool = max(POOL_MIN, POOL_PER_RANK * top)
     pairs, disagreement = reevaluate(results, exact_problems, pool)
-    if mode == "lookup" and pairs:
-        print(f"lookup vs exact over the {disagreement['reevaluated']} best candidates "
-              f"(re-evaluated exactly; every reported number is exact): mean |dP_collision| "
-              f"{disagreement['mean_abs_diff_collision_probability']:.3g}, max "
-              f"{disagreement['max_abs_diff_collision_probability']:.3g}; sensor-critical "
-              f"{disagreement['sensor_critical_lookup']} by lookup, "
-              f"{disagreement['sensor_critical_exact']} exactly, "
-              f"{disagreement['sensor_critical_both']} both", file=sys.stderr)
     lookup_of = {lk.candidate.scenario_id: lk for lk, _ in pairs}
     chosen, unavoidable = rank_exact(pairs, exact_problems, top, min_distance)
     params = sorted({p.name for f in fams for p in f.space})

@@ -1,0 +1,130 @@
+"""Target bodies (``coverage.body``): a box half inside a field of view, by hand; the
+culling changes nothing; the body of the issue's false weakness is seen."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import sensorgap.coverage.body as body_mod
+from sensorgap.config import EnvironmentConfig, load_target
+from sensorgap.coverage import Scene
+from sensorgap.coverage.body import body_per_sensor_pd, body_points, body_samples
+from sensorgap.coverage.logmiss import sensor_snr
+from sensorgap.models import Conditions, load_system
+from sensorgap.models.roc import detection_probability
+
+
+@pytest.fixture(scope="module")
+def scene_a() -> Scene:
+    return Scene(load_system("system_a"), load_target("car"),
+                 Conditions(env=EnvironmentConfig(name="clear"), sun_direction=None))
+
+
+def _row(scene: Scene, sid: str) -> int:
+    return [s.id for s in scene.sensors].index(sid)
+
+
+def _fraction_by_hand(s, px, py, pz, nx, ny) -> float:
+    """Facing samples inside a level, forward camera's view (|azimuth| <= HFOV/2,
+    |elevation| <= VFOV/2, range within limits), counted directly."""
+    m = s.mount
+    facing = nx * (m.x - px) + ny * (m.y - py) > 0
+    dx, dy, dz = px - m.x, py - m.y, pz - m.z
+    r = np.sqrt(dx * dx + dy * dy + dz * dz)
+    inside = ((np.abs(np.arctan2(dy, dx)) <= 0.5 * m.hfov)
+              & (np.abs(np.arctan2(dz, np.hypot(dx, dy))) <= 0.5 * m.vfov)
+              & (r >= m.min_range) & (r <= m.max_range))
+    return float((facing & inside).sum() / facing.sum())
+
+
+def test_box_partly_inside_the_windshield_camera(scene_a):
+    # cam_windshield: level, yaw 0, HFOV 50 deg. A car 40 m ahead, heading 0, moved
+    # sideways across the left edge of the view: the visible fraction of its facing outline
+    # is counted by hand; the camera detects it only from half on (MIN_VISIBLE_FRACTION),
+    # then with Pd = ROC(best visible sample's SNR + 10 log10(fraction)) (point model SNR)
+    s = scene_a.sensors[_row(scene_a, "cam_windshield")]
+    assert s.mount.pitch == 0.0 and s.mount.yaw == 0.0
+    b = body_samples(scene_a.target)
+    x_face = 40.0 - 2.25
+    edge = s.mount.y + math.tan(0.5 * s.mount.hfov) * (x_face - s.mount.x)
+    seen = {"below": False, "above": False}
+    for shift in np.linspace(-2.0, 4.0, 25):
+        yc = edge + shift
+        pd, frac = body_per_sensor_pd(scene_a, np.array([40.0]), np.array([yc]),
+                                      np.array([0.0]), sensors=(s,))
+        px, py, pz, nx, ny = body_points(b, np.array([40.0]), np.array([yc]),
+                                         np.array([0.0]))
+        f = _fraction_by_hand(s, px[0], py[0], pz[0], nx[0], ny[0])
+        assert frac[0, 0] == pytest.approx(f, abs=1e-12)
+        if 0.0 < f < 0.5:
+            seen["below"] = True
+            assert pd[0, 0] == 0.0
+        elif f >= 0.5:
+            seen["above"] = True
+            facing = nx[0] * (s.mount.x - px[0]) + ny[0] * (s.mount.y - py[0]) > 0
+            _, snr = sensor_snr(scene_a, s, px[0][facing], py[0][facing], pz[0][facing])
+            want = detection_probability(np.array([snr.max() + 10 * math.log10(f)]),
+                                         s.roc, scene_a.roc_shift_db)[0]
+            assert pd[0, 0] == pytest.approx(want, abs=1e-12)
+    assert seen == {"below": True, "above": True}
+
+
+def test_radar_needs_only_a_reflecting_part(scene_a):
+    # the same half-in-view pose for the front radar's field of view: any visible sample
+    # counts, with the cross-section scaled by the visible fraction (-10 log10(1/f) dB)
+    s = scene_a.sensors[_row(scene_a, "radar_front_center")]
+    x_face = 60.0 - 2.25
+    yc = s.mount.y + math.tan(0.5 * s.mount.hfov) * (x_face - s.mount.x)
+    pd, frac = body_per_sensor_pd(scene_a, np.array([60.0]), np.array([yc]),
+                                  np.array([0.0]), sensors=(s,))
+    assert 0.0 < frac[0, 0] < 1.0
+    b = body_samples(scene_a.target)
+    px, py, pz, nx, ny = body_points(b, np.array([60.0]), np.array([yc]), np.array([0.0]))
+    facing = (nx * (s.mount.x - px) + ny * (s.mount.y - py)) > 0
+    idx, snr = sensor_snr(scene_a, s, px[facing], py[facing], pz[facing])
+    assert frac[0, 0] == pytest.approx(idx.size / facing.sum(), abs=1e-12)
+    want = detection_probability(np.array([snr.max() + 10 * math.log10(frac[0, 0])]),
+                                 s.roc, scene_a.roc_shift_db)[0]
+    assert pd[0, 0] == pytest.approx(want, abs=1e-12)
+
+
+def test_culling_changes_nothing(scene_a, monkeypatch):
+    rng = np.random.default_rng(7)
+    x = rng.uniform(-30, 80, 400)
+    y = rng.uniform(-25, 25, 400)
+    psi = rng.uniform(-math.pi, math.pi, 400)
+    culled = body_per_sensor_pd(scene_a, x, y, psi)
+    monkeypatch.setattr(body_mod, "CULL", False)
+    full = body_per_sensor_pd(scene_a, x, y, psi)
+    np.testing.assert_array_equal(culled[0], full[0])
+    np.testing.assert_array_equal(culled[1], full[1])
+
+
+def test_issue_false_weakness_is_seen(scene_a):
+    # issue #13: centre (2.2, -2.3) in a side blind spot (Pd 0 as a point) while the body
+    # is plainly seen by the right mirror camera, the rear-right radar and ultrasonics
+    pd, _ = body_per_sensor_pd(scene_a, np.array([2.2]), np.array([-2.3]), np.array([0.0]))
+    fused = 1.0 - np.prod(1.0 - pd[:, 0])
+    assert fused > 0.99
+    assert pd[_row(scene_a, "cam_mirror_right"), 0] > 0.9
+
+
+def test_hidden_by_the_ego_body(scene_a):
+    # a lidar on the roof cannot see a low sample right beside the car through the roof:
+    # the segment from the mount to a point 0.2 m high just outside the right side passes
+    # through the ego's box when the lidar sits above the box's centre line
+    lid = scene_a.sensors[_row(scene_a, "lidar_front")]
+    lo, hi = body_mod._ego_box(scene_a)
+    inside = all(lo[a] < v < hi[a] for a, v in enumerate((lid.mount.x, lid.mount.y,
+                                                          lid.mount.z)))
+    cand = np.empty((1, 1), dtype=bool)
+    nf = np.empty(1, dtype=np.int64)
+    body_mod._visible_kernel(np.array([[1.0]]), np.array([[-1.5]]), np.array([[0.2]]),
+                             np.array([[0.0]]), np.array([[1.0]]), lid.mount.x,
+                             lid.mount.y, max(lid.mount.z, hi[2] + 0.1), lo, hi, True,
+                             cand, nf)
+    assert not inside or lid.mount.z < hi[2]  # where the preset puts it
+    assert nf[0] == 1 and not cand[0, 0]
