@@ -127,6 +127,7 @@ def run_default(out: Path, workers: int = 2, system_name: str = DEFAULT_SYSTEM,
     system = load_system(system_name)
     tdir = templates_dir()
     files = [system.source, tdir / "environments.toml", tdir / "targets.toml",
+             tdir / "reactions.toml",
              *sorted((tdir / "scenarios").glob("*.toml")), *sorted(roads_dir().glob("*.xodr"))]
     write_run_info(folder, command, system_name, files, settings,
                    {"candidates": outcome.summary["candidates"]})

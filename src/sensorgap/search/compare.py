@@ -1,12 +1,13 @@
 """Compare two vehicles' critical scenarios (the paper's A-vs-B view) by cross-evaluation.
 
 Every scenario ranked for either vehicle is evaluated exactly for both (same trajectories,
-same environment and sun). A scenario is *critical for X only* when its log10 risk for X
-exceeds that for the other vehicle by at least ``MARGIN_DECADES``; the explanation then
-names, at X's critical step (same time, so the same target position in the ego frame), the
-sensors of X that miss the target and why (``ranking.explain``: glare, weather, range, FOV)
-and the sensors of the other vehicle that see it (Pd >= 0.5) with their type, so every
-difference is traced back to the two sensor setups.
+same environment and sun), each with its own reaction model. A scenario is *critical for X
+only* when X's collision probability exceeds the other vehicle's by at least
+``MARGIN_P``; the explanation then names, at X's named step (same time, so the same target
+position in the ego frame), the sensors of X that miss the target and why
+(``ranking.explain``: glare, weather, range, FOV, partly in view) and the sensors of the
+other vehicle that see it (Pd >= 0.5) and may confirm it for braking, with their type, so
+every difference is traced back to the two sensor setups.
 """
 
 from __future__ import annotations
@@ -27,11 +28,11 @@ from sensorgap.models import System, load_system
 from sensorgap.scenarios import load_family
 from sensorgap.search.evaluate import Evaluator
 from sensorgap.search.problem import Candidate, SearchProblem
-from sensorgap.search.ranking import explain
+from sensorgap.search.ranking import classify, explain
 from sensorgap.search.run import ranking_csv
 
-#: log10-risk difference that makes a scenario critical for one vehicle only, decades.
-MARGIN_DECADES = 1.0
+#: Collision-probability difference that makes a scenario critical for one vehicle only.
+MARGIN_P = 0.1
 #: Per-sensor Pd from which a sensor counts as seeing the target.
 SEES_PD = 0.5
 
@@ -101,7 +102,7 @@ class _Side:
 
 
 def compare_runs(run_a: Path, run_b: Path,
-                 margin_decades: float = MARGIN_DECADES) -> list[dict[str, Any]]:
+                 margin_p: float = MARGIN_P) -> list[dict[str, Any]]:
     """Cross-evaluate the ranked scenarios of two runs (see the module docstring)."""
     ra, rb = read_run(run_a), read_run(run_b)
     presets = load_environments()
@@ -119,42 +120,56 @@ def compare_runs(run_a: Path, run_b: Path,
     for sid, entry in sorted(seen.items(), key=lambda kv: (
             min(r for r in kv[1]["ranks"] if r is not None), kv[0])):
         row = entry["row"]
-        scores, results = [], []
+        probs, speeds, classes, results = [], [], [], []
         for side in sides:
             prob = side.problem(str(row["family"]))
             cand = candidate_of(row, prob)
             res = prob.evaluate(cand)
             results.append((prob, cand, res))
-            scores.append(res.score if res.feasible else -300.0)
-        diff = scores[0] - scores[1]
-        critical = ("both" if abs(diff) < margin_decades
+            probs.append(float(res.metrics.get("collision_probability", 0.0))
+                         if res.feasible else 0.0)
+            speeds.append(float(res.metrics.get("impact_speed_kmh", 0.0))
+                          if res.feasible else 0.0)
+            classes.append(classify(res))
+        diff = probs[0] - probs[1]
+        critical = ("both" if abs(diff) < margin_p and min(probs) > 0.0
+                    else "neither" if abs(diff) < margin_p
                     else sides[0].name if diff > 0 else sides[1].name)
         worse = 0 if diff >= 0 else 1
         better = 1 - worse
-        prob_w, cand_w, _ = results[worse]
-        ex = explain(prob_w, cand_w)
-        why = f"{sides[worse].name}: {ex.reason}"
+        prob_w, cand_w, res_w = results[worse]
+        ex = explain(prob_w, cand_w) if res_w.feasible else None
+        why = (f"{sides[worse].name}: {ex.reason}" if ex is not None
+               else f"{sides[worse].name}: infeasible ({res_w.note})")
         sees: list[str] = []
-        if critical != "both":
+        if critical not in ("both", "neither") and ex is not None:
             prob_b, _, _ = results[better]
-            tr = prob_b.evaluator.trace(prob_b.scenario(cand_w), prob_b.environment(cand_w),
-                                        prob_b.family.duration_s)
+            ev_b = prob_b.evaluator
+            tr = ev_b.trace(prob_b.scenario(cand_w), prob_b.environment(cand_w),
+                            prob_b.family.duration_s)
             k = int(np.argmin(np.abs(tr.t - ex.step_t_s)))
             env = prob_b.environment(cand_w)
-            target = prob_b.evaluator.target(prob_b.family.target_class)
-            pd = prob_b.evaluator.per_sensor_pd(env, target, tr.heading[k:k + 1],
-                                                tr.x[k:k + 1], tr.y[k:k + 1])[:, 0]
-            sees = [f"{s.id} ({_sensor_type(sides[better].system, s.id)}, Pd {p:.2f})"
-                    for s, p in zip(sides[better].system.sensors, pd, strict=True)
-                    if p >= SEES_PD]
+            target = ev_b.target(prob_b.family.target_class)
+            pd = ev_b.per_sensor_pd(env, target, tr.heading[k:k + 1], tr.x[k:k + 1],
+                                    tr.y[k:k + 1],
+                                    psi=None if tr.psi is None else tr.psi[k:k + 1])[:, 0]
+            confirm = set(ev_b.confirm_rows)
+            sees = [f"{sn.id} ({_sensor_type(sides[better].system, sn.id)}, Pd {p:.2f}"
+                    f"{'' if i in confirm else ', cannot confirm'})"
+                    for i, (sn, p) in enumerate(zip(sides[better].system.sensors, pd,
+                                                    strict=True)) if p >= SEES_PD]
             why += (f" | {sides[better].name} at the same moment sees it with "
                     + ("; ".join(sees) if sees else "no sensor above Pd 0.5")
-                    + f" (log10 risk {scores[better]:.1f} vs {scores[worse]:.1f})")
+                    + f" (P(collision) {probs[better]:.2g} vs {probs[worse]:.2g})")
         out.append({
             "scenario_id": sid, "family": row["family"], "environment": row["environment"],
             f"rank_{sides[0].name}": entry["ranks"][0], f"rank_{sides[1].name}": entry["ranks"][1],
-            f"log10_risk_{sides[0].name}": scores[0], f"log10_risk_{sides[1].name}": scores[1],
-            "critical_for": critical, "dominant_effect": ex.dominant,
+            f"collision_probability_{sides[0].name}": probs[0],
+            f"collision_probability_{sides[1].name}": probs[1],
+            f"impact_speed_kmh_{sides[0].name}": speeds[0],
+            f"impact_speed_kmh_{sides[1].name}": speeds[1],
+            f"class_{sides[0].name}": classes[0], f"class_{sides[1].name}": classes[1],
+            "critical_for": critical, "dominant_effect": "" if ex is None else ex.dominant,
             "other_sees": "; ".join(sees), "why": why,
         })
     return out
@@ -167,12 +182,13 @@ def write_comparison(run_a: Path, run_b: Path, out: Path) -> list[dict[str, Any]
     cols = list(rows[0]) if rows else ["scenario_id"]
     atomic_write_bytes(out / "comparison.csv", ranking_csv(rows, cols))
     write_json(out / "comparison.json", {"columns": cols, "rows": rows,
-                                         "margin_decades": MARGIN_DECADES})
+                                         "margin_collision_probability": MARGIN_P})
     counts = Counter((r["critical_for"], r["dominant_effect"]) for r in rows)
     lines = ["# Critical scenarios: cross-evaluation of two vehicles", "",
-             f"Critical for one vehicle only: log10 risk higher by >= {MARGIN_DECADES:g} "
-             "decade(s). Each scenario ranked for either vehicle is evaluated exactly for "
-             "both.", "", "| critical for | dominant effect | scenarios |", "|---|---|---|"]
+             f"Critical for one vehicle only: collision probability higher by >= "
+             f"{MARGIN_P:g}. Each scenario ranked for either vehicle is evaluated exactly "
+             "for both, each vehicle with its own reaction model.", "",
+             "| critical for | dominant effect | scenarios |", "|---|---|---|"]
     lines += [f"| {who} | {eff} | {n} |" for (who, eff), n in sorted(counts.items())]
     lines += ["", "| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
     for r in rows:

@@ -127,7 +127,8 @@ def run_search(vehicle: str | Path, families: list[str], environments: list[str]
                 "vehicle_ref": str(vehicle),
                 "families": [f.name for f in fams], "environments": list(envs),
                 "seed": seed, "strategy": strategy, "pd": mode, "sun_search": sun_search,
-                "detection": rule.label()}
+                "detection": rule.label(), "reaction": evaluator.reaction.label(),
+                "target_model": "bodies"}
     out.mkdir(parents=True, exist_ok=True)
     store = Store(out / "search.sqlite", settings)
     if store.count() and not resume:
