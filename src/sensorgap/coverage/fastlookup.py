@@ -95,7 +95,8 @@ def lookup_pass(total: F32, x0: float, y0: float, inv_res: float, x: F64, y: F64
                 heading: F64, psi: F64, n: I64, rows: I64, sun: F64, rot: F64, half_h: F64,
                 half_v: F64, margin: F64, cos_bound: F64, yaw: F64,
                 level: NDArray[np.bool_], mount_xy: F64, reach2: F64, signal: F32,
-                has_signal: NDArray[np.bool_], keep_unseen: bool, out: F64, outside: I64,
+                has_signal: NDArray[np.bool_], keep_unseen: bool, pad: float, out: F64,
+                outside: I64,
                 glare_idx: I64,
                 glare_w: F64, glare_state: NDArray[np.int8],
                 counts: I64) -> None:  # pragma: no cover - compiled
@@ -108,8 +109,9 @@ def lookup_pass(total: F32, x0: float, y0: float, inv_res: float, x: F64, y: F64
     ``glare_idx[c]``, ``glare_w[c]``, ``glare_state[c]`` (count in ``counts[1 + c]``);
     state 1: all four corner cells of its ``signal`` map (received signal, NaN out of
     view) are in view, 2: some are, or it has no signal map (``has_signal``); points with
-    none in view are skipped unless ``keep_unseen`` (a target body around the point may
-    reach the view; ``reach2`` then includes its radius), first by the squared
+    none in view are skipped unless ``keep_unseen`` and some cell at a corner of the
+    square of half side ``pad`` (m, a target body's reach) around it is in view
+    (``reach2`` then includes ``pad``), first by the squared
     horizontal distance to the camera (``mount_xy``) against ``reach2``: (max range + a
     cell diagonal)^2, beyond which no corner cell can be in range. ``sun[r]`` = (kind,
     azimuth rad, elevation rad); ``heading`` (B, T) ego heading, rad. Level cameras
@@ -222,8 +224,21 @@ def lookup_pass(total: F32, x0: float, y0: float, inv_res: float, x: F64, y: F64
                     n_in = (int(np.isfinite(sg[j, i])) + int(np.isfinite(sg[j, i + 1]))
                             + int(np.isfinite(sg[j + 1, i]))
                             + int(np.isfinite(sg[j + 1, i + 1])))
-                    if n_in == 0 and not keep_unseen:
-                        continue  # out of its view: Pd = 0 with or without glare
+                    if n_in == 0:
+                        if not keep_unseen:
+                            continue  # out of its view: Pd = 0 with or without glare
+                        # a body around the point: is its view within the body's reach?
+                        # (the cells at the four corners of a square of half side pad)
+                        pc = int(pad * inv_res) + 1
+                        seen = False
+                        for qi in (i - pc, i + 1 + pc):
+                            for qj in (j - pc, j + 1 + pc):
+                                ci = min(max(qi, 0), nx - 1)
+                                cj = min(max(qj, 0), ny - 1)
+                                if np.isfinite(sg[cj, ci]):
+                                    seen = True
+                        if not seen:
+                            continue
                     st = 1 if n_in == 4 else 2
                 m = counts[1 + c]
                 glare_idx[c, m] = r * t + k

@@ -517,7 +517,8 @@ def lookup_log_miss_tracks(maps: LogMissMaps, scene: Scene, x: F64, y: F64, head
                 rows, np.ascontiguousarray(sun, dtype=np.float64), cones.rot, cones.half_h,
                 cones.half_v, cones.margin, cones.cos_bound, cones.yaw, cones.level,
                 cones.mount_xy, (cones.max_range + 1.5 * g.resolution + pad) ** 2, signal,
-                has_signal, pad > 0.0, out, outside, glare_idx, glare_w, glare_state, counts)
+                has_signal, pad > 0.0, pad, out, outside, glare_idx, glare_w, glare_state,
+                counts)
     n_exact = 0
     if counts[0]:
         o = outside[:counts[0]]
@@ -532,11 +533,22 @@ def lookup_log_miss_tracks(maps: LogMissMaps, scene: Scene, x: F64, y: F64, head
         gi, wg = glare_idx[c, :m], glare_w[c, :m]
         xs, ys = xf[gi], yf[gi]
         if how.outline is not None:
-            # the body maps' camera part and this outline minimum differ slightly (whole
-            # cells at the bin's heading vs the exact pose): ln P_miss stays <= 0
-            of[gi] = np.minimum(of[gi] + _glared_outline(
-                maps, scene, row, gi, wg, xf, yf, how,
-                dirs_at(np.repeat(gi, len(how.outline))), z0), 0.0)
+            # a body: where its centre is not well inside the camera's view, the glared
+            # layer is replaced over the outline; elsewhere at the centre (below). The body
+            # maps' camera part and these differ slightly: ln P_miss stays <= 0
+            st = glare_state[c, :m]
+            e = np.flatnonzero(st != 1)
+            if e.size:
+                of[gi[e]] = np.minimum(of[gi[e]] + _glared_outline(
+                    maps, scene, row, gi[e], wg[e], xf, yf, how, dirs_at, z0), 0.0)
+            keep = np.flatnonzero(st == 1)
+            if keep.size:
+                sig, _ = maps.interpolate_signal(row, xs[keep], ys[keep])
+                layer = _outline_layer(maps, row, gi[keep], xf, yf, how)
+                snr = clip_snr_db(prepared.snr_from_signal(sig, wg[keep])
+                                  if prepared.snr_from_signal is not None else sig)
+                new = log_miss_of(detection_probability(snr, s.roc, scene.roc_shift_db))
+                of[gi[keep]] = np.minimum(of[gi[keep]] + new - layer, 0.0)
             continue
         layer, _ = maps.interpolate(row, xs, ys)
         new = np.zeros(m)
@@ -558,8 +570,8 @@ def lookup_log_miss_tracks(maps: LogMissMaps, scene: Scene, x: F64, y: F64, head
 
 
 def _glared_outline(maps: LogMissMaps, scene: Scene, row: int, gi: NDArray[np.int64],
-                    wg: F64, xf: F64, yf: F64, how: TrackLookup, dirs: F64,
-                    z0: float) -> F64:
+                    wg: F64, xf: F64, yf: F64, how: TrackLookup,
+                    dirs_at: Callable[[NDArray[np.int64]], F64], z0: float) -> F64:
     """Body lookup of a glared camera: the change of its ln(1 - Pd) when its no-sun layer
     is replaced by the glared one, both taken as the best point of the body's outline (as
     in ``LogMissMaps.body_totals``); outline points at the edge of its view exactly."""
@@ -585,10 +597,26 @@ def _glared_outline(maps: LogMissMaps, scene: Scene, row: int, gi: NDArray[np.in
     edge = np.flatnonzero(state == 2)
     if edge.size:
         idx, pd = sensor_pd(scene, s, px[edge], py[edge], np.full(edge.size, z0),
-                            dirs[edge])
+                            dirs_at(gi[edge // k]))
         vals = np.zeros(edge.size)
         vals[idx] = log_miss_of(pd)
         new[edge] = vals
     q = 0 if how.order is None else how.order.get(row, 0)
     return np.asarray(np.partition(new.reshape(-1, k), q, axis=1)[:, q]
                       - np.partition(layer.reshape(-1, k), q, axis=1)[:, q], dtype=np.float64)
+
+
+def _outline_layer(maps: LogMissMaps, row: int, gi: NDArray[np.int64], xf: F64, yf: F64,
+                   how: TrackLookup) -> F64:
+    """A camera's no-sun ln(1 - Pd) of target bodies at flat track indices: its
+    ``how.order``-th best over the outline (what the body maps hold for it)."""
+    assert how.outline is not None
+    k = len(how.outline)
+    psi = how.psi.reshape(-1)[gi]
+    c, sn = np.cos(psi)[:, None], np.sin(psi)[:, None]
+    ox, oy = how.outline[:, 0][None, :], how.outline[:, 1][None, :]
+    px = (xf[gi][:, None] + c * ox - sn * oy).ravel()
+    py = (yf[gi][:, None] + sn * ox + c * oy).ravel()
+    layer, _ = maps.interpolate(row, px, py)
+    q = 0 if how.order is None else how.order.get(row, 0)
+    return np.asarray(np.partition(layer.reshape(-1, k), q, axis=1)[:, q], dtype=np.float64)

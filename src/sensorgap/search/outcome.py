@@ -88,8 +88,9 @@ class Encounter:
 def _geometry_kernel(ex: F64, ey: F64, eh: F64, v0: F64, tx: F64, ty: F64, th: F64,
                      length: float, width: float, x_front: float, x_rear: float,
                      half_w: float, margin: float, horizon: float, dt: float,
-                     lo: F64, hi: F64, progress: F64, collide: I64,
-                     threat: I64) -> None:  # pragma: no cover - compiled
+                     tv: F64, lo: F64, hi: F64, progress: F64, collide: I64,
+                     threat: I64, ttc: F64, vx: F64, vy: F64
+                     ) -> None:  # pragma: no cover - compiled
     b, t = ex.shape
     cl = np.empty(4)
     cw = np.empty(4)
@@ -121,6 +122,8 @@ def _geometry_kernel(ex: F64, ey: F64, eh: F64, v0: F64, tx: F64, ty: F64, th: F
             s = math.sin(eh[r, i])
             ct = math.cos(th[r, j])
             st = math.sin(th[r, j])
+            vx[r, j] = tv[r, j] * ct
+            vy[r, j] = tv[r, j] * st
             umin, umax, vmin, vmax = 1e300, -1e300, 1e300, -1e300
             for q in range(4):
                 px = tx[r, j] + ct * cl[q] - st * cw[q] - ex[r, i]
@@ -147,6 +150,12 @@ def _geometry_kernel(ex: F64, ey: F64, eh: F64, v0: F64, tx: F64, ty: F64, th: F
                 a1 = progress[r, j] + x_front + v0[r] * horizon
                 if s_i + umax >= a0 and s_i + umin <= a1:
                     threat[r] = j
+        c_step = collide[r]
+        for k in range(t):
+            if c_step < 0:
+                ttc[r, k] = np.inf
+            else:
+                ttc[r, k] = max(c_step - k, 0) * dt
 
 
 def encounter_geometry(ego_x: F64, ego_y: F64, ego_heading: F64, ego_speed: F64,
@@ -161,26 +170,21 @@ def encounter_geometry(ego_x: F64, ego_y: F64, ego_heading: F64, ego_speed: F64,
     b, t = ex.shape
     v0 = np.ascontiguousarray(np.asarray(ego_speed, dtype=np.float64)[:, 0])
     lo, hi, prog = np.empty((b, t)), np.empty((b, t)), np.empty((b, t))
+    ttc, vx, vy = np.empty((b, t)), np.empty((b, t)), np.empty((b, t))
     collide = np.empty(b, dtype=np.int64)
     threat = np.empty(b, dtype=np.int64)
     x_front, x_rear, width = ego_body
-    _geometry_kernel(ex, np.ascontiguousarray(ego_y, dtype=np.float64),
-                     np.ascontiguousarray(ego_heading, dtype=np.float64), v0,
+    eh = np.ascontiguousarray(ego_heading, dtype=np.float64)
+    _geometry_kernel(ex, np.ascontiguousarray(ego_y, dtype=np.float64), eh, v0,
                      np.ascontiguousarray(tgt_x, dtype=np.float64),
                      np.ascontiguousarray(tgt_y, dtype=np.float64),
                      np.ascontiguousarray(tgt_heading, dtype=np.float64),
                      float(target_size[0]), float(target_size[1]), float(x_front),
                      float(x_rear), 0.5 * float(width), float(threat_margin_m),
-                     float(threat_horizon_s), float(dt), lo, hi, prog, collide, threat)
-    steps = np.arange(t)[None, :]
-    ttc = np.where(collide[:, None] >= 0,
-                   np.maximum(collide[:, None] - steps, 0) * dt, np.inf)
-    ts = np.asarray(tgt_speed, dtype=np.float64)
-    th = np.asarray(tgt_heading, dtype=np.float64)
-    return Encounter(lo, hi, prog, v0, collide, threat, ttc,
-                     np.ascontiguousarray(ego_heading, dtype=np.float64),
-                     np.ascontiguousarray(ts * np.cos(th)),
-                     np.ascontiguousarray(ts * np.sin(th)), float(dt))
+                     float(threat_horizon_s), float(dt),
+                     np.ascontiguousarray(tgt_speed, dtype=np.float64), lo, hi, prog,
+                     collide, threat, ttc, vx, vy)
+    return Encounter(lo, hi, prog, v0, collide, threat, ttc, eh, vx, vy, float(dt))
 
 
 @numba.njit(cache=True, nogil=True)

@@ -349,10 +349,11 @@ class SearchProblem:
             body = self.evaluator.system.config.vehicle
             bad = [(j, note) for j, note in impossible_encounters(
                 bt, body.x_front_m, target.length_m, target.width_m)]
+            marked = {b for b, _ in bad}
             bad += [(int(j), f"starts critical: TTC {bt.ttc[j, 0]:.2f} s at t = 0 "
                              f"(at least {START_TTC_S:g} s)")
                     for j in np.flatnonzero(bt.ttc[:, 0] < START_TTC_S)
-                    if j not in {b for b, _ in bad}]
+                    if int(j) not in marked]
             for j, note in bad:
                 i = ok[j]
                 feasible[i] = False

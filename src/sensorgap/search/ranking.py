@@ -188,10 +188,14 @@ def explain(problem: SearchProblem, cand: Candidate) -> Explanation:
     return Explanation("; ".join(parts), dominant, float(tr.t[k]), effects, pds)
 
 
-#: Candidates re-evaluated exactly before ranking: the best by the search objective, at
-#: least this many (and at least ``POOL_PER_RANK`` per ranked row).
+#: Candidates re-evaluated exactly before ranking: the best by the search objective in
+#: every (family, environment preset) group, about this many in all (and at least
+#: ``POOL_PER_RANK`` per ranked row), at least ``POOL_GROUP_MIN`` per group, plus the
+#: ``UNAVOIDABLE_PER_GROUP`` highest-impact unavoidable ones per group.
 POOL_MIN = 400
 POOL_PER_RANK = 25
+POOL_GROUP_MIN = 5
+UNAVOIDABLE_PER_GROUP = 2
 
 
 def classify(r: Result) -> str:
@@ -209,19 +213,36 @@ def classify(r: Result) -> str:
 
 def reevaluate(results: list[Result], exact: dict[str, SearchProblem], pool: int
                ) -> tuple[list[tuple[Result, Result]], dict[str, float]]:
-    """Re-evaluate the ``pool`` best feasible results (search objective) exactly with the
-    ``exact`` problems; returns (lookup result, exact result) pairs and the disagreement
-    of the two over them (what the lookup proposed vs what exact evaluation decides)."""
-    ok = sorted((r for r in results if r.feasible),
-                key=lambda r: (-r.objective, r.candidate.scenario_id))
+    """Re-evaluate about ``pool`` of the best feasible results (search objective, spread
+    over the (family, environment) groups; see ``POOL_MIN``) exactly with the ``exact``
+    problems; returns (lookup result, exact result) pairs and the disagreement of the two
+    over them (what the lookup proposed vs what exact evaluation decides)."""
+    groups: dict[tuple[str, str], list[Result]] = {}
+    for r in results:
+        if r.feasible:
+            groups.setdefault((r.candidate.family, r.candidate.environment), []).append(r)
+    per_group = max(POOL_GROUP_MIN, -(-pool // max(len(groups), 1)))
     seen: set[str] = set()
     chosen = []
-    for r in ok:
-        if r.candidate.scenario_id not in seen:
-            seen.add(r.candidate.scenario_id)
-            chosen.append(r)
-        if len(chosen) == pool:
-            break
+
+    def take(rs: list[Result], n: int) -> None:
+        k = 0
+        for r in rs:
+            if k == n:
+                return
+            if r.candidate.scenario_id not in seen:
+                seen.add(r.candidate.scenario_id)
+                chosen.append(r)
+                k += 1
+
+    for key in sorted(groups):
+        rs = groups[key]
+        take(sorted(rs, key=lambda r: (-r.objective, r.candidate.scenario_id)), per_group)
+        # the most violent encounters that collide even with perfect perception (listed
+        # apart, never ranked)
+        take(sorted((r for r in rs if classify(r) == "unavoidable"),
+                    key=lambda r: (-r.metrics.get("impact_speed_kmh", 0.0),
+                                   r.candidate.scenario_id)), UNAVOIDABLE_PER_GROUP)
     pairs: list[tuple[Result, Result]] = []
     by_family: dict[str, list[Result]] = {}
     for r in chosen:
