@@ -22,7 +22,7 @@ COMMANDS = {
                  "--out", "{out}"],
     "corridor": ["corridor", "--vehicle", "system_b", "--environment", "rain_25", "--target",
                  "car", "--out", "{out}"],
-    "search+export+report": ["search", "--vehicle", "system_a", "--families",
+    "search+export+report": ["search", "--vehicle", "system_b", "--families",
                              "cut_in_right,crossing_cyclist", "--environments",
                              "clear,glare_front_right,fog_50", "--budget", "600", "--seed",
                              "4", "--top", "4", "--out", "{out}"],

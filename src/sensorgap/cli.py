@@ -9,7 +9,7 @@ import sys
 import traceback
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, NoReturn
+from typing import TYPE_CHECKING, Any, NoReturn
 
 from sensorgap.errors import InputError
 from sensorgap.filesio import write_manifest
@@ -62,12 +62,39 @@ def cmd_probe(args: argparse.Namespace) -> int:
 
     scene = _scene(args)
     pts = read_points_csv(Path(args.points), default_z=scene.target.reference_height_m)
-    data = probe_csv(evaluate_points(scene, pts))
+    if args.heading is None:
+        data = probe_csv(evaluate_points(scene, pts))
+    else:
+        data = _probe_bodies(scene, pts, args.heading)
     if args.out:
         atomic_write_bytes(args.out, data)
     else:
         sys.stdout.write(data.decode("utf-8"))
     return 0
+
+
+def _probe_bodies(scene: Scene, pts: Any, heading_deg: float) -> bytes:
+    """``probe --heading``: target bodies centred at the points' x, y (z is ignored: a body
+    stands on the ground) at a heading relative to the ego (deg): per sensor the visible
+    fraction of the facing outline and Pd, then the fused Pd (``coverage.body``)."""
+    import numpy as np
+
+    from sensorgap.coverage.body import body_per_sensor_pd
+    from sensorgap.filesio import csv_bytes
+
+    if not math.isfinite(heading_deg):
+        raise InputError("--heading", "", f"must be a finite angle in degrees, got "
+                         f"{heading_deg!r}")
+    x, y = pts[:, 0], pts[:, 1]
+    # the scene carries its sun (its SNRs include the glare of that sun)
+    pd, frac = body_per_sensor_pd(scene, x, y, np.full(len(x), math.radians(heading_deg)))
+    fused = -np.expm1(np.sum(np.log1p(-np.minimum(pd, np.nextafter(1.0, 0.0))), axis=0))
+    cols = ["x", "y", "heading_deg"]
+    data = [x, y, np.full(len(x), heading_deg)]
+    for i, sn in enumerate(scene.sensors):
+        cols += [f"{sn.id}.visible", f"{sn.id}.pd"]
+        data += [frac[i], pd[i]]
+    return csv_bytes([*cols, "pd"], [*data, fused + 0.0])
 
 
 def cmd_coverage(args: argparse.Namespace) -> int:
@@ -371,6 +398,9 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("probe", help="SNR and Pd per sensor at points from a CSV")
     _add_scene_args(p)
     p.add_argument("--points", required=True, help="CSV with columns x,y[,z] (vehicle frame, m)")
+    p.add_argument("--heading", type=float, default=None,
+                   help="evaluate target bodies centred at the points at this heading "
+                        "relative to the ego, deg (default: points)")
     p.add_argument("--out", help="output CSV (default: stdout)")
     p.set_defaults(func=cmd_probe)
 

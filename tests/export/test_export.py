@@ -28,7 +28,7 @@ ENVS = ["clear", "glare_front_right", "fog_50", "rain_25", "snow"]
 @pytest.fixture(scope="module")
 def run_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("run")
-    run_search("system_a", FAMILIES, ENVS, 500, 2, 6, out, strategy="lhs", progress=False)
+    run_search("system_b", FAMILIES, ENVS, 500, 2, 6, out, strategy="lhs", progress=False)
     return out
 
 

@@ -146,13 +146,13 @@ class Overtake(_LaneKind):
     parameters = (
         Param("ego_s0_m", 150.0, 700.0, unit="m"),
         Param("ego_speed_m_s", 15.0, 33.0, unit="m/s"),
-        Param("speed_delta_m_s", 2.0, 15.0, unit="m/s"),
-        Param("dx0_m", -80.0, -8.0, unit="m"),
-        Param("merge_gap_m", 8.0, 40.0, unit="m"),
+        Param("speed_delta_m_s", 4.0, 15.0, unit="m/s"),
+        Param("dx0_m", -40.0, -8.0, unit="m"),
+        Param("merge_gap_m", 8.0, 30.0, unit="m"),
         Param("merge_duration_s", 2.5, 5.0, unit="s"),
-        Param("brake_delay_s", 0.0, 2.0, unit="s"),
-        Param("decel_m_s2", 2.0, 7.0, unit="m/s2"),
-        Param("final_delta_m_s", 3.0, 20.0, unit="m/s"),
+        Param("brake_delay_s", 0.0, 1.5, unit="s"),
+        Param("decel_m_s2", 3.0, 7.0, unit="m/s2"),
+        Param("final_delta_m_s", 5.0, 25.0, unit="m/s"),
     )
 
     def generate_batch(self, family: Family, cols: Columns,

@@ -36,7 +36,9 @@ first-confirmation distribution; exact, no monotonicity assumed), ``impact_speed
 (``c`` for perfect perception: Pd = 1 every step, confirmed at step M - 1), ``t_safe_s``
 (the latest ``t_k`` such that confirmation at any step up to k avoids the collision; NaN if
 none does), ``detection_margin_s`` (``t_safe`` minus the median confirmation time; NaN
-when either is undefined), ``t_threat_s`` and ``t_confirm_median_s``.
+when either is undefined), ``t_threat_s`` and ``t_confirm_median_s``. An encounter without
+an open-loop collision has nothing to avoid: collision probability 0 (braking for a near
+miss, which could turn it into a collision, is left to the planner).
 """
 
 from __future__ import annotations
@@ -298,8 +300,10 @@ def _reaction_kernel(lo: F64, hi: F64, prog: F64, v0: F64, threat: I64, collide:
             dvx = v0[r] * math.cos(eh[r, j]) - tvx[r, j]
             dvy = v0[r] * math.sin(eh[r, j]) - tvy[r, j]
             v_never = math.sqrt(dvx * dvx + dvy * dvy)
-        if threat[r] < 0 or v0[r] < 0.1:
-            # never a threat (or nothing to brake): every onset gives the open-loop outcome
+        if not c_never or threat[r] < 0 or v0[r] < 0.1:
+            # no open-loop collision (nothing to avoid: braking for a near miss is the
+            # planner's choice, not a sensor's failure), never a threat, or nothing to
+            # brake: every onset gives the open-loop outcome
             p_col = 0.0
             if c_never:
                 p_col = 1.0

@@ -196,6 +196,9 @@ POOL_MIN = 400
 POOL_PER_RANK = 25
 POOL_GROUP_MIN = 5
 UNAVOIDABLE_PER_GROUP = 2
+#: Sensor-critical scenarios less likely than this to end in a collision are not ranked
+#: (counted in summary.json): a list of one-in-10^30 collisions helps no test engineer.
+RANK_MIN_P = 1e-6
 
 
 def classify(r: Result) -> str:
@@ -277,8 +280,8 @@ def rank_exact(pairs: list[tuple[Result, Result]], problems: dict[str, SearchPro
                max_per_group: int = MAX_PER_GROUP
                ) -> tuple[list[tuple[Result, list[str], Explanation]],
                           list[tuple[Result, list[str], Explanation]]]:
-    """The ranking from exact results: sensor-critical scenarios by collision probability,
-    then impact speed (then, to fill ``top``, the rest by log10 risk); near-duplicates of
+    """The ranking from exact results: sensor-critical scenarios (collision probability
+    at least ``RANK_MIN_P``) by collision probability, then impact speed; near-duplicates of
     a family and environment collapsed, at most ``max_per_group`` per (family,
     environment); the same trajectory critical for the same reason (dominant effect) in
     several environments is one row listing them. Returns (ranking, unavoidable), each row
@@ -290,7 +293,8 @@ def rank_exact(pairs: list[tuple[Result, Result]], problems: dict[str, SearchPro
 
     exact = [e for _, e in pairs if e.feasible]
     unavoidable = sorted((e for e in exact if classify(e) == "unavoidable"), key=key)
-    rest = sorted((e for e in exact if classify(e) != "unavoidable"), key=key)
+    rest = sorted((e for e in exact if classify(e) == "sensor-critical"
+                   and e.metrics.get("collision_probability", 0.0) >= RANK_MIN_P), key=key)
     rows: list[tuple[Result, list[str], Explanation]] = []
     groups: Counter[tuple[str, str]] = Counter()
 
@@ -299,10 +303,9 @@ def rank_exact(pairs: list[tuple[Result, Result]], problems: dict[str, SearchPro
         for row in out:
             c, prob = row[0].candidate, problems[r.candidate.family]
             if (c.family == r.candidate.family and row[2].dominant == ex.dominant
-                    and c.environment != r.candidate.environment
-                    and r.candidate.environment_label not in row[1]
                     and prob.family.distance(c.params, r.candidate.params) < min_distance):
-                row[1].append(r.candidate.environment_label)
+                if r.candidate.environment_label not in row[1]:
+                    row[1].append(r.candidate.environment_label)
                 return True
         return False
 
