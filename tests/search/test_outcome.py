@@ -131,3 +131,78 @@ def test_properties(pd, lat1, extra, gap, v0):
         assert o.impact_speed_kmh[0] <= 3.6 * v0 + 1e-9  # closing speed (target stands)
     assert b.collision_probability[0] >= a.collision_probability[0] - 1e-12
     assert perfect.collision_probability[0] <= a.collision_probability[0] + 1e-12
+
+
+def _sat(a: np.ndarray, b: np.ndarray) -> bool:
+    """Separating-axis test of two convex polygons (4, 2)."""
+    for poly in (a, b):
+        for i in range(4):
+            e = poly[(i + 1) % 4] - poly[i]
+            n = np.array([-e[1], e[0]])
+            pa, pb = a @ n, b @ n
+            if pa.max() < pb.min() or pb.max() < pa.min():
+                return False
+    return True
+
+
+def _box(x: float, y: float, h: float, front: float, rear: float, w: float) -> np.ndarray:
+    c, s = math.cos(h), math.sin(h)
+    pts = np.array([[front, w / 2], [front, -w / 2], [rear, -w / 2], [rear, w / 2]])
+    return np.column_stack([x + c * pts[:, 0] - s * pts[:, 1], y + s * pts[:, 0] + c * pts[:, 1]])
+
+
+def _brute_collides(ex, ey, eh, v0, tx, ty, th, k, kt, lat, jerk, amax) -> bool:
+    """Confirmation at step k: brake at max(k, kt) dt + latency, ego on its planned path
+    (pose interpolated at the braked progress), box overlap with the target at any step."""
+    tb = max(k, kt) * DT + lat
+    s_plan = v0 * np.arange(T) * DT
+    for j in range(T):
+        q = s_plan[j] - (lost_distance(j * DT - tb, v0, jerk, amax) if j * DT > tb else 0.0)
+        x, y = np.interp(q, s_plan, ex), np.interp(q, s_plan, ey)
+        h = np.interp(q, s_plan, eh)
+        if _sat(_box(x, y, h, X_FRONT, X_REAR, EGO_W),
+                _box(tx[j], ty[j], th[j], CAR_L / 2, -CAR_L / 2, CAR_W)):
+            return True
+    return False
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_interval_method_equals_brute_force_box_tests(seed: int) -> None:
+    """Straight and curved (R = 300 m) ego paths, a target cutting in or stopped/slow ahead;
+    for confirmation at sampled steps the kernel's collision equals a direct box-overlap
+    simulation of the braked ego (one-hot Pd with 1-of-1 confirmation)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(T) * DT
+    v0 = rng.uniform(15, 30)
+    radius = [np.inf, 300.0][seed % 2]
+    s = v0 * t
+    if math.isinf(radius):
+        ex, ey, eh = s, 0 * s, 0 * s
+    else:
+        ex, ey, eh = radius * np.sin(s / radius), radius * (1 - np.cos(s / radius)), s / radius
+    vt = rng.uniform(0, 0.4) * v0  # closing >= 9 m/s: a collision within 10 s
+    st = rng.uniform(40, 80) + vt * t
+    lane = 3.5 * np.clip((t - rng.uniform(0.2, 1.0)) / 2.0, 0, 1) if seed % 3 == 0 else 0 * t
+    off = 3.5 - lane if seed % 3 == 0 else 0 * t  # cut-in from the left lane
+    if math.isinf(radius):
+        tx, ty, th = st, off, 0 * t
+    else:
+        rr = radius - off
+        tx, ty, th = rr * np.sin(st / radius), radius - rr * np.cos(st / radius), st / radius
+    enc = encounter_geometry(ex[None], ey[None], eh[None], np.full((1, T), v0), tx[None],
+                             ty[None], th[None], np.full((1, T), vt), DT, (CAR_L, CAR_W),
+                             (X_FRONT, X_REAR, EGO_W), 0.5, 6.0)
+    kt = int(enc.threat_step[0])
+    n = int(enc.collide_step[0]) + 1 if enc.collide_step[0] >= 0 else T
+    assert enc.collide_step[0] > 0 and kt >= 0
+    checked = 0
+    for k in sorted({0, kt, (kt + n) // 2, n - 2, n - 1}):
+        if not 0 <= k < n:
+            continue
+        pd = np.zeros((1, T))
+        pd[0, k] = 1.0
+        o = reaction_outcome(enc, pd, np.array([n]), 1, 1, 0.3, 12.0, np.array([8.0]))
+        want = _brute_collides(ex, ey, eh, v0, tx, ty, th, k, kt, 0.3, 12.0, 8.0)
+        assert bool(o.collision_probability[0] > 0.5) == want, (k, kt, n)
+        checked += 1
+    assert checked >= 3

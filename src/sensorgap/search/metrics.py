@@ -523,7 +523,8 @@ class ConfirmMedian(_OutcomeMetric):
     unit = "s"
     better = "higher"
     optional = True
-    description = "median time of the first confirmation (empty: P(confirmed) < 1/2)"
+    description = ("median time of the first confirmation (empty: P(confirmed) < 1/2, or no "
+                   "collision to avoid)")
 
 
 @register_metric
@@ -539,4 +540,6 @@ class ThreatOnset(_OutcomeMetric):
 class NeverConfirmed(_OutcomeMetric):
     name = field = "p_never_confirmed"
     better = "higher"
-    description = "probability that the target is never confirmed before the end or impact"
+    optional = True
+    description = ("probability that the target is never confirmed before the end or impact "
+                   "(empty: no collision to avoid)")

@@ -36,7 +36,9 @@ first-confirmation distribution; exact, no monotonicity assumed), ``impact_speed
 (``c`` for perfect perception: Pd = 1 every step, confirmed at step M - 1), ``t_safe_s``
 (the latest ``t_k`` such that confirmation at any step up to k avoids the collision; NaN if
 none does), ``detection_margin_s`` (``t_safe`` minus the median confirmation time; NaN
-when either is undefined), ``t_threat_s`` and ``t_confirm_median_s``. An encounter without
+when either is undefined), ``t_threat_s``, ``t_confirm_median_s`` and
+``p_never_confirmed`` (the last two only where there is a collision to avoid: an open-loop
+collision after a threat onset; NaN elsewhere). An encounter without
 an open-loop collision has nothing to avoid: collision probability 0 (braking for a near
 miss, which could turn it into a collision, is left to the planner).
 """
@@ -283,6 +285,19 @@ def braked_speed(tau: float, v0: float, jerk: float, amax: float) -> float:  # p
 
 
 @numba.njit(cache=True, nogil=True)
+def _next_unset(nxt: I64, k: int) -> int:  # pragma: no cover - compiled
+    """The first index >= k with ``nxt[i] == i`` (path compression on the way)."""
+    root = k
+    while nxt[root] != root:
+        root = nxt[root]
+    while nxt[k] != root:
+        k2 = nxt[k]
+        nxt[k] = root
+        k = k2
+    return root
+
+
+@numba.njit(cache=True, nogil=True)
 def _reaction_kernel(lo: F64, hi: F64, prog: F64, v0: F64, threat: I64, collide: I64,
                      f: F64, eh: F64, tvx: F64, tvy: F64, dt: float, latency: float,
                      jerk: float, amax: F64, m: int, out_p: F64, out_v: F64,
@@ -291,6 +306,7 @@ def _reaction_kernel(lo: F64, hi: F64, prog: F64, v0: F64, threat: I64, collide:
     b, t = lo.shape
     lg = np.empty(t + 1)
     first = np.empty(t, dtype=np.int64)
+    nxt = np.empty(t + 1, dtype=np.int64)
     for r in range(b):
         # c_never / v_never: the open-loop collision
         c_never = collide[r] >= 0
@@ -320,6 +336,8 @@ def _reaction_kernel(lo: F64, hi: F64, prog: F64, v0: F64, threat: I64, collide:
             lg[mm] = lost_distance(mm * dt - latency, v0[r], jerk, amax[r])
         for k in range(t):
             first[k] = -1
+            nxt[k] = k
+        nxt[t] = t
         # for each step j with a lateral overlap: onset steps k' (>= kt) with
         # lg[j - k'] in [prog_j - hi_j, prog_j - lo_j] collide at j
         for j in range(t):
@@ -348,9 +366,13 @@ def _reaction_kernel(lo: F64, hi: F64, prog: F64, v0: F64, threat: I64, collide:
             m_hi = lo_i - 1
             if m_hi < m_lo:
                 continue
-            for kk in range(max(j - m_hi, 0), j - m_lo + 1):
-                if first[kk] < 0:
-                    first[kk] = j
+            # first collision step per onset: fill the unset onsets of [a, b] (nxt: next
+            # unset onset at or after k, path-compressed; each onset is set once)
+            kk = _next_unset(nxt, max(j - m_hi, 0))
+            while kk <= j - m_lo:
+                first[kk] = j
+                nxt[kk] = kk + 1
+                kk = _next_unset(nxt, kk + 1)
         # an onset after the open-loop collision comes too late: it collides there
         if collide[r] >= 0:
             for kk in range(collide[r] + 1, t):
@@ -410,7 +432,13 @@ def reaction_outcome(enc: Encounter, pd_confirm: F64, n_valid: I64, confirm_m: i
     first ``n_valid`` steps valid; ``decel_m_s2`` (B,): the reachable deceleration
     ``min(decel_max, mu g)`` per row, m/s2."""
     b, t = enc.lo.shape
-    f = first_confirmation(pd_confirm, n_valid, confirm_m, confirm_n)
+    # the confirmation distribution matters only where there is a collision to avoid;
+    # elsewhere its summaries are not computed (NaN)
+    rows = np.flatnonzero((enc.collide_step >= 0) & (enc.threat_step >= 0))
+    f = np.zeros((b, t + 1))
+    if rows.size:
+        f[rows] = first_confirmation(np.asarray(pd_confirm)[rows],
+                                     np.asarray(n_valid)[rows], confirm_m, confirm_n)
     out = [np.empty(b) for _ in range(5)]
     _reaction_kernel(enc.lo, enc.hi, enc.progress, enc.v0, enc.threat_step,
                      enc.collide_step, f, enc.ego_heading, enc.target_vx, enc.target_vy,
@@ -418,10 +446,13 @@ def reaction_outcome(enc: Encounter, pd_confirm: F64, n_valid: I64, confirm_m: i
                      np.ascontiguousarray(decel_m_s2, dtype=np.float64), int(confirm_m),
                      *out)
     p, v, perfect, safe, vperf = out
-    cum = np.cumsum(f[:, :t], axis=1)
-    reached = cum[:, -1] >= 0.5 if t else np.zeros(b, dtype=bool)
-    med = np.where(reached, np.argmax(cum >= 0.5, axis=1) * enc.dt, np.nan)
+    med = np.full(b, np.nan)
+    never = np.full(b, np.nan)
+    if rows.size:
+        cum = np.cumsum(f[rows, :t], axis=1)
+        reached = cum[:, -1] >= 0.5
+        med[rows] = np.where(reached, np.argmax(cum >= 0.5, axis=1) * enc.dt, np.nan)
+        never[rows] = f[rows, t]
     margin = safe - med
     return Outcome(p, 3.6 * v, perfect, 3.6 * vperf, safe, med, margin,
-                   np.where(enc.threat_step >= 0, enc.threat_step * enc.dt, np.nan),
-                   f[:, t].copy())
+                   np.where(enc.threat_step >= 0, enc.threat_step * enc.dt, np.nan), never)
