@@ -196,7 +196,8 @@ def body_sensor_pd(scene: Scene, sensor: Sensor, cx: F64, cy: F64, px: F64, py: 
         # and whose outline can reach the horizontal field of view (a pitched sensor's
         # azimuth differs from the vehicle-frame bearing by less than |pitch|: margin)
         dist = np.sqrt(d2)
-        off = np.abs(np.angle(np.exp(1j * (np.arctan2(cy - m.y, cx - m.x) - m.yaw))))
+        off = np.abs(np.mod(np.arctan2(cy - m.y, cx - m.x) - m.yaw + math.pi, 2.0 * math.pi)
+                     - math.pi)
         spread = np.arcsin(np.minimum(1.0, rad / np.maximum(dist, 1e-9)))
         near_mask &= (off - spread <= 0.5 * m.hfov + abs(m.pitch) + 0.05) | (dist <= rad)
     near = np.flatnonzero(near_mask)
@@ -222,12 +223,13 @@ def body_sensor_pd(scene: Scene, sensor: Sensor, cx: F64, cy: F64, px: F64, py: 
                           pz.ravel()[flat], sd)
     if idx.size == 0:
         return pd, frac
-    pose = flat[idx] // k
-    count = np.bincount(pose, minlength=near.size)
+    pose = flat[idx] // k  # ascending: samples are listed pose by pose
+    starts = np.flatnonzero(np.concatenate(([True], pose[1:] != pose[:-1])))
+    seen = pose[starts]
+    count = np.diff(np.append(starts, pose.size))
     best = np.full(near.size, -np.inf)
-    np.maximum.at(best, pose, snr)
-    seen = np.flatnonzero(count)
-    f = count[seen] / np.maximum(n_face[seen], 1)
+    best[seen] = np.maximum.reduceat(snr, starts)
+    f = count / np.maximum(n_face[seen], 1)
     frac[near[seen]] = f
     keep = f >= max(min_visible_fraction(sensor), 1e-12)
     ok = seen[keep]

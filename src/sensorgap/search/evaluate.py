@@ -457,7 +457,10 @@ class Evaluator:
     def exact_per_sensor(self, scene: Scene, x: F64, y: F64, psi: F64,
                          sun_dirs: F64 | None) -> tuple[tuple[int, ...], F64]:
         """Exact per-sensor Pd of the sensors that can reach the points: (rows, (S', N))."""
-        sensors = self._scoped(scene, x, y, self._reach(scene.target))
+        # bodies: each sensor culls the poses its range and field of view cannot reach
+        # (``coverage.body``), which subsumes the scene scope
+        sensors = (scene.sensors if self.bodies
+                   else self._scoped(scene, x, y, self._reach(scene.target)))
         rows = tuple(scene.sensors.index(sn) for sn in sensors)
         if self.bodies:
             return rows, body_per_sensor_pd(scene, x, y, psi, sun_dirs, sensors)[0]
