@@ -38,9 +38,10 @@ def test_corpus_is_large_and_unique() -> None:
 def finished_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A small finished, exported search run with a near-field analysis and a manifest."""
     out = tmp_path_factory.mktemp("run") / "run"
-    assert main(["search", "--vehicle", "system_a", "--families", "crossing_pedestrian",
-                 "--environments", "clear", "--budget", "40", "--top", "2", "--strategy",
-                 "lhs", "--out", str(out)]) == 0
+    # System B on a rural curve into the low sun: a sensor-critical scenario to export
+    assert main(["search", "--vehicle", "system_b", "--families", "stopped_rural_curve",
+                 "--environments", "glare_front_right", "--budget", "40", "--top", "2",
+                 "--strategy", "lhs", "--out", str(out)]) == 0
     assert main(["nearfield", "--vehicle", "system_a", "--resolution", "0.2", "--out",
                  str(out / "nearfield")]) == 0
     assert main(["export", "--run", str(out)]) == 0

@@ -100,6 +100,7 @@ def _geometry_kernel(ex: F64, ey: F64, eh: F64, v0: F64, tx: F64, ty: F64, th: F
     cw = np.empty(4)
     cl[0], cl[1], cl[2], cl[3] = 0.5 * length, 0.5 * length, -0.5 * length, -0.5 * length
     cw[0], cw[1], cw[2], cw[3] = 0.5 * width, -0.5 * width, -0.5 * width, 0.5 * width
+    half_diag = 0.5 * math.sqrt(length * length + width * width)
     for r in range(b):
         collide[r] = -1
         threat[r] = -1
@@ -128,6 +129,13 @@ def _geometry_kernel(ex: F64, ey: F64, eh: F64, v0: F64, tx: F64, ty: F64, th: F
             st = math.sin(th[r, j])
             vx[r, j] = tv[r, j] * ct
             vy[r, j] = tv[r, j] * st
+            # far beside the path (centre farther than the widths, margin and the box's
+            # half diagonal): neither overlap nor threat at this step
+            vc = -s * (tx[r, j] - ex[r, i]) + c * (ty[r, j] - ey[r, i])
+            if abs(vc) > half_w + margin + half_diag:
+                lo[r, j] = np.nan
+                hi[r, j] = np.nan
+                continue
             umin, umax, vmin, vmax = 1e300, -1e300, 1e300, -1e300
             for q in range(4):
                 px = tx[r, j] + ct * cl[q] - st * cw[q] - ex[r, i]
