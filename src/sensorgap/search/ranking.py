@@ -39,6 +39,8 @@ MIN_DISTANCE = 0.15
 #: families and conditions instead of N variants of the single worst one.
 MAX_PER_GROUP = 3
 _EFFECT_ORDER = ("glare", "weather", "partly in view", "range")
+_WITHOUT = {"glare": "without the sun", "weather": "in clear air",
+            "partly in view": "in clear air", "range": "in clear air"}
 
 
 def candidate_distance(problem: SearchProblem, a: Candidate, b: Candidate) -> float:
@@ -176,7 +178,7 @@ def explain(problem: SearchProblem, cand: Candidate) -> Explanation:
         parts.append(f"P(collision) {pc:.2g}")
     if low:
         parts.append("missing: " + ", ".join(
-            f"{sid} ({e}: Pd {p:.2f}, without it {b:.2f})" for sid, e, p, b in low[:4]))
+            f"{sid} ({e}: Pd {p:.2f}, {b:.2f} {_WITHOUT[e]})" for sid, e, p, b in low[:4]))
     if seen:
         parts.append("confirming: " + ", ".join(seen[:3]))
     if support:
@@ -309,6 +311,22 @@ def rank_exact(pairs: list[tuple[Result, Result]], problems: dict[str, SearchPro
                 return True
         return False
 
+    def same_outcome(r: Result, ex: Explanation,
+                     out: list[tuple[Result, list[str], Explanation]]) -> bool:
+        """The same encounter placed elsewhere on the road: same family, effect and
+        outcome (P(collision), impact speed, t_safe to 1e-9): joins the first row."""
+        def sig(x: Result) -> tuple[float, ...]:
+            return tuple(round(float(x.metrics.get(m, 0.0)), 9) for m in
+                         ("collision_probability", "impact_speed_kmh", "t_safe_s"))
+
+        for row in out:
+            if (row[0].candidate.family == r.candidate.family
+                    and row[2].dominant == ex.dominant and sig(row[0]) == sig(r)):
+                if r.candidate.environment_label not in row[1]:
+                    row[1].append(r.candidate.environment_label)
+                return True
+        return False
+
     def fill(src: list[Result], out: list[tuple[Result, list[str], Explanation]],
              limit: int, cap: int | None) -> None:
         for r in src:
@@ -322,13 +340,14 @@ def rank_exact(pairs: list[tuple[Result, Result]], problems: dict[str, SearchPro
                    for row in out):
                 continue
             ex = explain(prob, r.candidate)
-            if merged(r, ex, out):
+            if merged(r, ex, out) or same_outcome(r, ex, out):
                 continue
             out.append((r, [r.candidate.environment_label], ex))
             groups[gk] += 1
 
     for cap in (max_per_group, None):
         fill(rest, rows, top, cap)
+    rows.sort(key=lambda row: key(row[0]))  # the cap chose them; the list is by outcome
     groups.clear()
     unav: list[tuple[Result, list[str], Explanation]] = []
     fill(unavoidable, unav, min(top, 10), None)
