@@ -478,17 +478,7 @@ def lookup_log_miss_tracks(maps: LogMissMaps, scene: Scene, x: F64, y: F64, head
         return sun_directions_of(sun[flat // t], hf[flat])
 
     if how is None:
-        def exact_points(flat: NDArray[np.int64]) -> F64:
-            return exact_log_miss(scene, xf[flat], yf[flat], np.full(flat.size, z0),
-                                  dirs_at(flat))
-
-        def exact_camera(row: int, flat: NDArray[np.int64]) -> F64:
-            idx, pd = sensor_pd(scene, scene.sensors[row], xf[flat], yf[flat],
-                                np.full(flat.size, z0), dirs_at(flat))
-            vals = np.zeros(flat.size)
-            vals[idx] = log_miss_of(pd)
-            return vals
-
+        exact_points, exact_camera = point_evaluators(scene, xf, yf, z0, dirs_at)
         how = TrackLookup(maps.total[None], np.zeros(x.shape), None, exact_points,
                           exact_camera)
     cones = _cones(scene, how.subset)
@@ -569,21 +559,54 @@ def lookup_log_miss_tracks(maps: LogMissMaps, scene: Scene, x: F64, y: F64, head
     return n_exact
 
 
+def point_evaluators(scene: Scene, xf: F64, yf: F64, z0: float,
+                     dirs_at: Callable[[NDArray[np.int64]], F64],
+                     sensors: Sequence[Sensor] | None = None
+                     ) -> tuple[ExactPoints, ExactCamera]:
+    """Exact evaluators at the target centres of flat (B * T) tracks at height ``z0`` (m),
+    with per-point sun directions ``dirs_at(flat)``: the fused ln P_miss of ``sensors``
+    (default: all) and one camera's ln(1 - Pd)."""
+    def exact_points(flat: NDArray[np.int64]) -> F64:
+        return exact_log_miss(scene, xf[flat], yf[flat], np.full(flat.size, z0),
+                              dirs_at(flat), sensors)
+
+    def exact_camera(row: int, flat: NDArray[np.int64]) -> F64:
+        idx, pd = sensor_pd(scene, scene.sensors[row], xf[flat], yf[flat],
+                            np.full(flat.size, z0), dirs_at(flat))
+        vals = np.zeros(flat.size)
+        vals[idx] = log_miss_of(pd)
+        return vals
+
+    return exact_points, exact_camera
+
+
+def _outline_points(how: TrackLookup, gi: NDArray[np.int64], xf: F64, yf: F64
+                    ) -> tuple[F64, F64, int]:
+    """Flat (M * K) vehicle-frame outline points of the bodies at flat track indices."""
+    assert how.outline is not None
+    psi = how.psi.reshape(-1)[gi]
+    c, sn = np.cos(psi)[:, None], np.sin(psi)[:, None]
+    ox, oy = how.outline[:, 0][None, :], how.outline[:, 1][None, :]
+    px = (xf[gi][:, None] + c * ox - sn * oy).ravel()
+    py = (yf[gi][:, None] + sn * ox + c * oy).ravel()
+    return px, py, len(how.outline)
+
+
+def _order_stat(values: F64, k: int, how: TrackLookup, row: int) -> F64:
+    """Per body (rows of K outline values): the ``how.order[row]``-th smallest."""
+    q = 0 if how.order is None else how.order.get(row, 0)
+    return np.asarray(np.partition(values.reshape(-1, k), q, axis=1)[:, q], dtype=np.float64)
+
+
 def _glared_outline(maps: LogMissMaps, scene: Scene, row: int, gi: NDArray[np.int64],
                     wg: F64, xf: F64, yf: F64, how: TrackLookup,
                     dirs_at: Callable[[NDArray[np.int64]], F64], z0: float) -> F64:
     """Body lookup of a glared camera: the change of its ln(1 - Pd) when its no-sun layer
     is replaced by the glared one, both taken as the best point of the body's outline (as
     in ``LogMissMaps.body_totals``); outline points at the edge of its view exactly."""
-    assert how.outline is not None
     s = scene.sensors[row]
     prepared = scene.prepared(s)
-    k = len(how.outline)
-    psi = how.psi.reshape(-1)[gi]
-    c, sn = np.cos(psi)[:, None], np.sin(psi)[:, None]
-    ox, oy = how.outline[:, 0][None, :], how.outline[:, 1][None, :]
-    px = (xf[gi][:, None] + c * ox - sn * oy).ravel()
-    py = (yf[gi][:, None] + sn * ox + c * oy).ravel()
+    px, py, k = _outline_points(how, gi, xf, yf)
     layer, _ = maps.interpolate(row, px, py)
     new = np.zeros(px.size)
     if row in maps.signal and prepared.snr_from_signal is not None:
@@ -601,22 +624,13 @@ def _glared_outline(maps: LogMissMaps, scene: Scene, row: int, gi: NDArray[np.in
         vals = np.zeros(edge.size)
         vals[idx] = log_miss_of(pd)
         new[edge] = vals
-    q = 0 if how.order is None else how.order.get(row, 0)
-    return np.asarray(np.partition(new.reshape(-1, k), q, axis=1)[:, q]
-                      - np.partition(layer.reshape(-1, k), q, axis=1)[:, q], dtype=np.float64)
+    return _order_stat(new, k, how, row) - _order_stat(layer, k, how, row)
 
 
 def _outline_layer(maps: LogMissMaps, row: int, gi: NDArray[np.int64], xf: F64, yf: F64,
                    how: TrackLookup) -> F64:
     """A camera's no-sun ln(1 - Pd) of target bodies at flat track indices: its
     ``how.order``-th best over the outline (what the body maps hold for it)."""
-    assert how.outline is not None
-    k = len(how.outline)
-    psi = how.psi.reshape(-1)[gi]
-    c, sn = np.cos(psi)[:, None], np.sin(psi)[:, None]
-    ox, oy = how.outline[:, 0][None, :], how.outline[:, 1][None, :]
-    px = (xf[gi][:, None] + c * ox - sn * oy).ravel()
-    py = (yf[gi][:, None] + sn * ox + c * oy).ravel()
+    px, py, k = _outline_points(how, gi, xf, yf)
     layer, _ = maps.interpolate(row, px, py)
-    q = 0 if how.order is None else how.order.get(row, 0)
-    return np.asarray(np.partition(layer.reshape(-1, k), q, axis=1)[:, q], dtype=np.float64)
+    return _order_stat(layer, k, how, row)

@@ -39,10 +39,10 @@ from sensorgap.coverage.logmiss import (
     ALMOST_ONE,
     LogMissMaps,
     TrackLookup,
-    exact_log_miss,
     log_miss_of,
     lookup_log_miss_tracks,
     per_sensor_pd,
+    point_evaluators,
     sensor_pd,
 )
 from sensorgap.coverage.scope import scene_scope
@@ -515,17 +515,7 @@ class Evaluator:
         def dirs_at(flat: NDArray[np.int64]) -> F64:
             return sun_directions_of(sun[flat // t], heading.reshape(-1)[flat])
 
-        def exact_points(flat: NDArray[np.int64]) -> F64:
-            return exact_log_miss(scene, xf[flat], yf[flat], np.full(flat.size, z0),
-                                  dirs_at(flat), sensors)
-
-        def exact_camera(row: int, flat: NDArray[np.int64]) -> F64:
-            idx, p = sensor_pd(scene, scene.sensors[row], xf[flat], yf[flat],
-                               np.full(flat.size, z0), dirs_at(flat))
-            vals = np.zeros(flat.size)
-            vals[idx] = log_miss_of(p)
-            return vals
-
+        exact_points, exact_camera = point_evaluators(scene, xf, yf, z0, dirs_at, sensors)
         return TrackLookup(totals, kin.psi, frozenset(subset), exact_points, exact_camera,
                            outline, order)
 
