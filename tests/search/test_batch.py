@@ -187,9 +187,10 @@ def test_crossing_waits_on_the_footway_and_meets_its_timing(name: str) -> None:
 
 
 def test_scene_limited_evaluation_is_identical_and_logged() -> None:
-    """Scoped exact evaluation (only sensors that can reach the batch's region) gives the
-    same metrics, bit for bit, as evaluating every sensor; the skipped sensors are logged
-    (the ultrasonic sensors on a motorway curve)."""
+    """Scoped exact evaluation of point targets (only sensors that can reach the batch's
+    region) gives the same metrics, bit for bit, as evaluating every sensor; the skipped
+    sensors are logged (the ultrasonic sensors on a motorway curve). Bodies are culled per
+    sensor and pose instead (tests/coverage/test_body.py)."""
     from sensorgap.search.problem import Decoded
 
     n = 10
@@ -199,7 +200,9 @@ def test_scene_limited_evaluation_is_identical_and_logged() -> None:
         "target_speed_m_s": np.full(n, 15.0), "gap0_m": np.linspace(100.0, 190.0, n)})
     outs = []
     for scoped in (True, False):
-        prob = _problem("slow_ahead_curve", mode="exact")
+        prob = SearchProblem(load_family("slow_ahead_curve"),
+                             {k: ENVS[k] for k in ("clear", "glare_front_right", "fog_50")},
+                             Evaluator(load_system("system_b"), "exact", bodies=False))
         prob.evaluator.scoped = scoped
         outs.append((prob.evaluate_decoded(d), prob.evaluator.scope_log))
     (a, log_a), (b, log_b) = outs
