@@ -118,8 +118,14 @@ def cmd_coverage(args: argparse.Namespace) -> int:
         raise InputError("--resolution", "", f"grid of {cells} cells is too large "
                          "(at most 2e8); coarsen the resolution or shrink the extent")
     grid = GridSpec(xmin, xmax, ymin, ymax, res, height)
+    if args.heading is not None and not math.isfinite(args.heading):
+        raise InputError("--heading", "", f"must be a finite angle in degrees, got "
+                         f"{args.heading!r}")
+    if args.heading is not None and cells > 4_000_000:
+        raise InputError("--resolution", "", f"grid of {cells} cells is too large for "
+                         "target bodies (at most 4e6); coarsen the resolution")
     summary = write_coverage(scene, grid, Path(args.out), per_sensor=args.per_sensor,
-                             workers=args.workers)
+                             workers=args.workers, heading_deg=args.heading)
     write_manifest(args.out)
     lv = summary["area_m2_by_level"]
     print(f"{args.out}: {grid.nx}x{grid.ny} cells, area Pd=1 {lv['pd=1.0']:.0f} m2, "
@@ -410,6 +416,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--resolution", type=float, default=0.5, help="cell size, m")
     p.add_argument("--extent", default="-60,160,-40,40", help="XMIN,XMAX,YMIN,YMAX in m")
     p.add_argument("--per-sensor", action="store_true", help="also store each sensor's map")
+    p.add_argument("--heading", type=float, default=None,
+                   help="target bodies centred at the cells at this heading relative to the "
+                        "ego, deg (default: points at --height)")
     p.add_argument("--workers", type=int, default=2, help="threads")
     p.add_argument("--out", required=True, help="output folder")
     p.set_defaults(func=cmd_coverage)

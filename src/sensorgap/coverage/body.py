@@ -40,6 +40,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sensorgap.config.target import TargetConfig
+from sensorgap.coverage.grid import GridCoverage, GridSpec
 from sensorgap.coverage.logmiss import log_miss_of, sensor_snr
 from sensorgap.coverage.scene import Scene
 from sensorgap.models.roc import detection_probability
@@ -269,3 +270,27 @@ def body_log_miss(scene: Scene, x: F64, y: F64, psi: F64, sun_dirs: F64 | None =
     ``body_per_sensor_pd``)."""
     pd, _ = body_per_sensor_pd(scene, x, y, psi, sun_dirs, sensors)
     return np.asarray(log_miss_of(pd).sum(axis=0), dtype=np.float64)
+
+
+def body_grid(scene: Scene, grid: GridSpec, heading_rad: float, per_sensor: bool = False,
+              chunk: int = 20_000) -> GridCoverage:
+    """Coverage of target *bodies* centred at the grid's cells at one heading relative to
+    the ego (rad): fused Pd per cell (and per sensor), in chunks of ``chunk`` cells. The
+    grid's height is not used: a body stands on the ground."""
+    xs, ys = np.meshgrid(grid.xs(), grid.ys())
+    x, y = xs.ravel(), ys.ravel()
+    fused = np.zeros(x.size)
+    per = np.zeros((len(scene.sensors), x.size)) if per_sensor else None
+    for a in range(0, x.size, chunk):
+        sl = slice(a, min(a + chunk, x.size))
+        pd, _ = body_per_sensor_pd(scene, x[sl], y[sl], np.full(sl.stop - sl.start,
+                                                                heading_rad))
+        fused[sl] = -np.expm1(log_miss_of(pd).sum(axis=0))
+        if per is not None:
+            per[:, sl] = pd
+    shape = (grid.ny, grid.nx)
+    cov = GridCoverage(grid, fused.reshape(shape) + 0.0, [s.id for s in scene.sensors])
+    if per is not None:
+        for i, s in enumerate(scene.sensors):
+            cov.pd[s.id] = per[i].reshape(shape)
+    return cov

@@ -4,6 +4,7 @@ the per-point CSV of ``sensorgap probe``."""
 from __future__ import annotations
 
 import hashlib
+import math
 from pathlib import Path
 from typing import Any
 
@@ -47,26 +48,38 @@ def probe_csv(cov: PointCoverage) -> bytes:
 
 
 def write_coverage(
-    scene: Scene, grid: GridSpec, out_dir: Path, per_sensor: bool = False, workers: int = 1
+    scene: Scene, grid: GridSpec, out_dir: Path, per_sensor: bool = False, workers: int = 1,
+    heading_deg: float | None = None,
 ) -> dict[str, Any]:
     """Evaluate ``grid`` and write coverage.npz, coverage.png and summary.json to
-    ``out_dir``; returns the summary."""
-    cov: GridCoverage = evaluate_grid(scene, grid, per_sensor=per_sensor, workers=workers)
+    ``out_dir``; returns the summary. ``heading_deg``: evaluate target bodies centred at
+    the cells at this heading relative to the ego (``coverage.body``) instead of points."""
+    from sensorgap.coverage.body import body_grid
+
+    cov: GridCoverage = (
+        evaluate_grid(scene, grid, per_sensor=per_sensor, workers=workers)
+        if heading_deg is None else
+        body_grid(scene, grid, math.radians(heading_deg), per_sensor=per_sensor))
     arrays = {"x": grid.xs(), "y": grid.ys(), "pd": cov.fused,
               "height": np.array(grid.height), "resolution": np.array(grid.resolution)}
     for sid, pd in cov.pd.items():
         arrays[f"pd.{sid}"] = pd
-        arrays[f"snr_db.{sid}"] = cov.snr_db[sid]
+        if sid in cov.snr_db:
+            arrays[f"snr_db.{sid}"] = cov.snr_db[sid]
     out_dir.mkdir(parents=True, exist_ok=True)
     write_npz(out_dir / "coverage.npz", arrays)
+    model = (f"height {grid.height:g} m" if heading_deg is None
+             else f"bodies at heading {heading_deg:g} deg")
     title = (f"{scene.system.name}: {scene.target.name}, {scene.conditions.env.name}, "
-             f"height {grid.height:g} m, {grid.resolution:g} m grid")
+             f"{model}, {grid.resolution:g} m grid")
     save_figure(coverage_figure(cov, scene.system, title), out_dir / "coverage.png")
     summary = {
         **scene_provenance(scene),
         "grid": {"xmin": grid.xmin, "xmax": grid.xmax, "ymin": grid.ymin, "ymax": grid.ymax,
                  "resolution_m": grid.resolution, "height_m": grid.height,
                  "nx": grid.nx, "ny": grid.ny},
+        "target_model": ("point at the grid height" if heading_deg is None
+                         else f"body (coverage.body) at heading {heading_deg:g} deg"),
         "area_m2_by_level": pd_levels_area(cov),
         "sensors_evaluated": cov.evaluated,
         "skipped": list(scene.log["skipped"]),
