@@ -128,3 +128,33 @@ def test_hidden_by_the_ego_body(scene_a):
                              cand, nf)
     assert not inside or lid.mount.z < hi[2]  # where the preset puts it
     assert nf[0] == 1 and not cand[0, 0]
+
+
+def test_probe_and_coverage_with_heading(tmp_path, capsys):
+    """``probe --heading`` and ``coverage --heading`` evaluate bodies: the issue's car
+    beside the ego (centre in a side blind spot) is unseen as a point and seen as a body."""
+    import csv
+
+    from sensorgap.cli import main
+
+    pts = tmp_path / "p.csv"
+    pts.write_text("x,y\n2.2,-2.3\n")
+    assert main(["probe", "--vehicle", "system_a", "--environment", "clear", "--target",
+                 "car", "--points", str(pts), "--out", str(tmp_path / "point.csv")]) == 0
+    assert main(["probe", "--vehicle", "system_a", "--environment", "clear", "--target",
+                 "car", "--points", str(pts), "--heading", "0",
+                 "--out", str(tmp_path / "body.csv")]) == 0
+    point = next(csv.DictReader((tmp_path / "point.csv").open()))
+    body = next(csv.DictReader((tmp_path / "body.csv").open()))
+    assert float(point["pd"]) == 0.0
+    assert float(body["pd"]) > 0.99
+    assert float(body["cam_mirror_right.visible"]) > 0.0
+    out = tmp_path / "cov"
+    assert main(["coverage", "--vehicle", "system_a", "--environment", "clear", "--target",
+                 "car", "--resolution", "1", "--extent", "-10,20,-8,8", "--heading", "90",
+                 "--out", str(out)]) == 0
+    summary = (out / "summary.json").read_text()
+    assert "heading 90 deg" in summary
+    assert main(["coverage", "--vehicle", "system_a", "--environment", "clear", "--target",
+                 "car", "--resolution", "1", "--extent", "-10,20,-8,8", "--heading", "nan",
+                 "--out", str(tmp_path / "bad")]) == 2
