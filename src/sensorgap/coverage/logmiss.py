@@ -275,6 +275,13 @@ class LogMissMaps:
         ny, nx = self.total.shape
         res = self.grid.resolution
         out = np.zeros((n_bins, ny, nx), dtype=np.float64)
+        boxes: dict[int, tuple[int, int, int, int] | None] = {}
+        for row in subset:
+            rows_any = np.flatnonzero(np.any(self.layers[row] < 0.0, axis=1))
+            cols_any = np.flatnonzero(np.any(self.layers[row] < 0.0, axis=0))
+            boxes[row] = (None if rows_any.size == 0 else
+                          (int(rows_any[0]), int(rows_any[-1]) + 1, int(cols_any[0]),
+                           int(cols_any[-1]) + 1))
         for h in range(n_bins):
             a = h * math.pi / n_bins
             ox = np.rint((math.cos(a) * outline_xy[:, 0] - math.sin(a) * outline_xy[:, 1])
@@ -285,17 +292,25 @@ class LogMissMaps:
             px = max(abs(v) for v in ox.tolist())
             py = max(abs(v) for v in oy.tolist())
             for row, k in zip(subset, order, strict=True):
-                padded = np.pad(self.layers[row], ((py, py), (px, px)))
-                if k == 0:
-                    best = np.zeros((ny, nx), dtype=np.float32)
-                    for dx, dy in set(offs):
-                        np.minimum(best, padded[py + dy:py + dy + ny, px + dx:px + dx + nx],
-                                   out=best)
-                    out[h] += best
+                box = boxes[row]
+                if box is None:  # the sensor sees nothing on this map
                     continue
-                stack = np.stack([padded[py + dy:py + dy + ny, px + dx:px + dx + nx]
+                # the eroded layer can only be non-zero within the sensor's box of
+                # non-zero cells grown by the outline's reach: work on that crop
+                j0, j1 = max(box[0] - py, 0), min(box[1] + py, ny)
+                i0, i1 = max(box[2] - px, 0), min(box[3] + px, nx)
+                cy, cx = j1 - j0, i1 - i0
+                padded = np.pad(self.layers[row, j0:j1, i0:i1], ((py, py), (px, px)))
+                if k == 0:
+                    best = np.zeros((cy, cx), dtype=np.float32)
+                    for dx, dy in set(offs):
+                        np.minimum(best, padded[py + dy:py + dy + cy, px + dx:px + dx + cx],
+                                   out=best)
+                    out[h, j0:j1, i0:i1] += best
+                    continue
+                stack = np.stack([padded[py + dy:py + dy + cy, px + dx:px + dx + cx]
                                   for dx, dy in offs])
-                out[h] += np.partition(stack, k, axis=0)[k]
+                out[h, j0:j1, i0:i1] += np.partition(stack, k, axis=0)[k]
         hit = cache[key] = out.astype(np.float32)
         return hit
 
