@@ -40,7 +40,7 @@ def finished_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("run") / "run"
     # System B on a rural curve into the low sun: a sensor-critical scenario to export
     assert main(["search", "--vehicle", "system_b", "--families", "stopped_rural_curve",
-                 "--environments", "glare_front_right", "--budget", "40", "--top", "2",
+                 "--environments", "glare_front_right", "--budget", "60", "--top", "2",
                  "--strategy", "lhs", "--out", str(out)]) == 0
     assert main(["nearfield", "--vehicle", "system_a", "--resolution", "0.2", "--out",
                  str(out / "nearfield")]) == 0

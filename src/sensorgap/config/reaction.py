@@ -1,10 +1,32 @@
 """Reaction models of the vehicle under test (``templates/reactions.toml``) and the road
-friction per weather: the inputs of the collision outcome (``search.outcome``)."""
+friction per weather: the inputs of the collision outcome (``search.outcome``).
+
+File layout (the shipped presets or a file of the same layout)::
+
+    [reactions.<name>]
+    confirm_m = 3                     # M of ...
+    confirm_n = 5                     # ... the last N sensor cycles (20 Hz)
+    latency_s = 0.3                   # confirmation (or threat onset) to brake onset, s
+    jerk_m_s3 = 12.0                  # brake ramp, m/s3
+    decel_max_m_s2 = 9.0              # system limit before friction, m/s2
+    confirm_with = ["camera", "lidar"]
+    threat_margin_m = 0.5             # m
+    threat_horizon_s = 6.0            # s
+    [reactions.<name>.sources]        # one non-empty source per parameter
+    confirm_m = "..."
+
+    [friction]                        # peak tyre-road friction per road condition
+    dry = 0.9
+    wet = 0.6
+    snow = 0.2
+    [friction.sources]
+    dry = "..."
+"""
 
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
 from pydantic import Field, ValidationError
 
@@ -16,32 +38,46 @@ from sensorgap.errors import InputError
 
 SensorType = Literal["camera", "lidar", "radar", "ultrasonic"]
 RoadCondition = Literal["dry", "wet", "snow"]
-#: The reaction model a vehicle file that names none gets.
-DEFAULT_REACTION = "fusion_any"
+#: The reaction model ``load_reaction(None)`` gives.
+DEFAULT_REACTION = "ads_default"
+#: The road conditions of ``[friction]``, in this order.
+ROAD_CONDITIONS: tuple[RoadCondition, ...] = ("dry", "wet", "snow")
+#: Model fields that are not parameters (no source needed).
+_NOT_PARAMETERS = frozenset({"name", "description", "sources"})
 
 
 class ReactionConfig(Strict):
     """How the vehicle under test reacts to a target (see ``search.outcome``).
 
     Attributes:
-        confirm_m, confirm_n: M-of-N confirmation over sensor cycles (20 Hz).
+        confirm_m, confirm_n: M-of-N confirmation over sensor cycles (20 Hz): confirmed at
+            the first cycle with at least M detections among the last N.
         latency_s: confirmation (or threat onset, if later) to brake onset, s.
-        jerk_m_s3: brake ramp, m/s3. decel_max_m_s2: system limit before friction, m/s2.
-        confirm_with: sensor types whose detections confirm a target for braking.
+        jerk_m_s3: brake ramp, m/s3. decel_max_m_s2: system limit before friction, m/s2
+            (the outcome uses ``min(decel_max_m_s2, mu g)``).
+        confirm_with: sensor types whose detections can confirm a target for braking.
         threat_margin_m, threat_horizon_s: a target is a threat once its box, widened by
-            the margin (m), overlaps the ego's planned path over the horizon (s).
+            the margin (m) on each side of the ego's path, overlaps the ego's boxes along
+            its planned path over the horizon (s).
+        sources: one non-empty source per parameter (standard, paper, data sheet or
+            ``estimate: why``); ``load_reaction`` checks it.
     """
 
     name: str
     description: str = ""
-    confirm_m: int = Field(ge=1, le=20)
-    confirm_n: int = Field(ge=1, le=12)
-    latency_s: float = Field(ge=0.0, le=10.0, allow_inf_nan=False)
-    jerk_m_s3: Positive
-    decel_max_m_s2: float = Field(gt=0.0, le=20.0, allow_inf_nan=False)
-    confirm_with: tuple[SensorType, ...] = Field(min_length=1)
-    threat_margin_m: float = Field(ge=0.0, le=10.0, allow_inf_nan=False)
-    threat_horizon_s: float = Field(gt=0.0, le=30.0, allow_inf_nan=False)
+    confirm_m: int = Field(ge=1, le=12, description="M of the M-of-N confirmation, cycles")
+    confirm_n: int = Field(ge=1, le=12, description="N of the M-of-N confirmation, cycles")
+    latency_s: float = Field(ge=0.0, le=10.0, allow_inf_nan=False,
+                             description="Confirmation (or threat onset) to brake onset, s")
+    jerk_m_s3: Positive = Field(description="Brake ramp, m/s3")
+    decel_max_m_s2: float = Field(gt=0.0, le=20.0, allow_inf_nan=False,
+                                  description="Deceleration limit before friction, m/s2")
+    confirm_with: tuple[SensorType, ...] = Field(
+        min_length=1, description="Sensor types whose detections confirm a target")
+    threat_margin_m: float = Field(ge=0.0, le=10.0, allow_inf_nan=False,
+                                   description="Lateral widening of the threat test, m")
+    threat_horizon_s: float = Field(gt=0.0, le=30.0, allow_inf_nan=False,
+                                    description="Planned path ahead in the threat test, s")
     sources: dict[str, str] = Field(default_factory=dict)
 
     def label(self) -> str:
@@ -51,26 +87,39 @@ class ReactionConfig(Strict):
                 f"{self.decel_max_m_s2:g} m/s2 (jerk {self.jerk_m_s3:g} m/s3)")
 
 
-def _file() -> Path:
+def reactions_path() -> Path:
+    """The shipped reaction presets file (``templates/reactions.toml``)."""
     return templates_dir() / "reactions.toml"
 
 
-def load_reaction(name_or_path: str | Path | None = None) -> ReactionConfig:
-    """A reaction preset of ``templates/reactions.toml`` by name (None: the default), or
-    the first ``[reactions.<name>]`` of a TOML file; InputError naming the field."""
-    text = DEFAULT_REACTION if name_or_path is None else str(name_or_path)
-    if text.endswith(".toml") or "/" in text:
-        path, name = Path(text), None
-    else:
-        path, name = _file(), text
+def _tables(path: Path) -> dict[str, Any]:
     data = read_toml(path).get("reactions")
     if not isinstance(data, dict) or not data:
-        raise InputError(path, "reactions", "no [reactions.<name>] table")
+        raise InputError(path, "reactions", "expected a non-empty table [reactions.<name>]")
+    return data
+
+
+def reaction_presets() -> list[str]:
+    """Names of the shipped reaction models, in file order."""
+    return list(_tables(reactions_path()))
+
+
+def load_reaction(name_or_path: str | Path | None = None) -> ReactionConfig:
+    """A reaction model: None gives ``DEFAULT_REACTION``; a preset name of
+    ``templates/reactions.toml``; or a path to a TOML file of the same layout (its first
+    ``[reactions.<name>]`` table). Any problem (unknown name, bad value, M > N, a parameter
+    without a source) is an ``InputError`` naming the file and the field."""
+    text = DEFAULT_REACTION if name_or_path is None else str(name_or_path)
+    if isinstance(name_or_path, Path) or text.endswith(".toml") or "/" in text:
+        path, name = Path(text), None
+    else:
+        path, name = reactions_path(), text
+    data = _tables(path)
     if name is None:
         name = next(iter(data))
     if name not in data:
         raise InputError(path, "reactions", f"unknown reaction model {name!r}; presets: "
-                         f"{', '.join(data)}")
+                         f"{', '.join(data)} (or give a path to a .toml file)")
     raw = data[name]
     if not isinstance(raw, dict):
         raise InputError(path, f"reactions.{name}", "must be a table")
@@ -84,32 +133,54 @@ def load_reaction(name_or_path: str | Path | None = None) -> ReactionConfig:
     if cfg.confirm_m > cfg.confirm_n:
         raise InputError(path, f"reactions.{name}.confirm_m",
                          f"must be <= confirm_n ({cfg.confirm_n}), got {cfg.confirm_m}")
-    for key in raw:
-        if key in ("sources", "description"):
+    if len(set(cfg.confirm_with)) != len(cfg.confirm_with):
+        raise InputError(path, f"reactions.{name}.confirm_with", "lists a sensor type twice")
+    for key in ReactionConfig.model_fields:
+        if key in _NOT_PARAMETERS:
             continue
-        if not str(cfg.sources.get(key, "")).strip():
+        if not cfg.sources.get(key, "").strip():
             raise InputError(path, f"reactions.{name}.sources.{key}",
                              "missing source: name the standard, paper or data sheet, or "
                              "write 'estimate: <why>'")
+    unknown = sorted(set(cfg.sources) - set(ReactionConfig.model_fields))
+    if unknown:
+        raise InputError(path, f"reactions.{name}.sources.{unknown[0]}",
+                         "source for an unknown parameter")
     return cfg
 
 
-def load_friction() -> dict[str, float]:
-    """Peak tyre-road friction per road condition (``[friction]`` of reactions.toml)."""
-    path = _file()
-    data = read_toml(path).get("friction", {})
-    out = {}
-    for cond in ("dry", "wet", "snow"):
+def load_friction(path: Path | None = None) -> dict[str, float]:
+    """Peak tyre-road friction coefficient per road condition (``dry``, ``wet``, ``snow``)
+    from the ``[friction]`` table of ``reactions.toml`` (or ``path``); each value in (0, 2]
+    with a non-empty ``[friction.sources]`` entry, else ``InputError``."""
+    path = path or reactions_path()
+    data = read_toml(path).get("friction")
+    if not isinstance(data, dict):
+        raise InputError(path, "friction", "expected a table [friction] with dry, wet, snow")
+    sources = data.get("sources", {})
+    if not isinstance(sources, dict):
+        raise InputError(path, "friction.sources", "must be a table")
+    unknown = sorted(set(data) - {*ROAD_CONDITIONS, "sources"})
+    if unknown:
+        raise InputError(path, f"friction.{unknown[0]}",
+                         f"unknown road condition; allowed: {', '.join(ROAD_CONDITIONS)}")
+    out: dict[str, float] = {}
+    for cond in ROAD_CONDITIONS:
         v = data.get(cond)
-        if not isinstance(v, int | float) or not 0.0 < float(v) <= 2.0:
-            raise InputError(path, f"friction.{cond}", "must be a number in (0, 2]")
+        if isinstance(v, bool) or not isinstance(v, int | float) or not 0.0 < float(v) <= 2.0:
+            raise InputError(path, f"friction.{cond}",
+                             f"must be a number in (0, 2] (peak friction coefficient), got {v!r}")
+        src = sources.get(cond)
+        if not isinstance(src, str) or not src.strip():
+            raise InputError(path, f"friction.sources.{cond}",
+                             "missing source: name the reference, or write 'estimate: <why>'")
         out[cond] = float(v)
     return out
 
 
 def road_condition(env: EnvironmentConfig) -> RoadCondition:
-    """The road surface an environment implies: snow when it snows, wet when it rains,
-    else dry."""
+    """The road surface an environment implies: ``snow`` when it snows (``snow_mm_h > 0``),
+    else ``wet`` when it rains (``rain_mm_h > 0``), else ``dry``."""
     if env.snow_mm_h > 0.0:
         return "snow"
     if env.rain_mm_h > 0.0:

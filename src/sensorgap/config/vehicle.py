@@ -151,7 +151,7 @@ class VehicleConfig(Strict):
     schema_version: Literal[1] = 1
     vehicle: BodyConfig
     reaction: str = Field(
-        default="fusion_any", min_length=1, max_length=200,
+        default="ads_default", min_length=1, max_length=200,
         description="Reaction model of the vehicle under test: a preset of "
                     "templates/reactions.toml or a path to a TOML file with one")
     roc: RocConfig = Field(default_factory=RocConfig)

@@ -1,56 +1,90 @@
 """Criticality in collision terms: would the vehicle under test, with its sensors and its
 reaction model, confirm the target in time to brake and avoid the collision?
 
-Two stages over a batch of B candidates on one time axis (T steps of ``dt``):
+Pure numpy + numba (no I/O). Two stages over a batch of B candidates on one time axis (T
+steps of ``dt`` s); units: m, s, rad, m/s, m/s2, m/s3.
 
 1. **Encounter geometry** (``encounter_geometry``, sensor-independent). The ego drives its
-   planned path at its planned speed ``v0`` (open loop; the families keep it constant), so
-   its progress along the path is ``p_k = v0 t_k``. For every step j the target's box
-   (4 corners) is put into the frame of the nearest ego path sample: lateral offsets ``v``
-   and path-aligned offsets ``u``. When its lateral extent overlaps the ego's half width,
-   the ego's rear axle overlaps the target at step j for progress ``q`` in
-   ``[lo_j, hi_j] = [s + u_min - x_front, s + u_max - x_rear]`` (a box test in the path
-   frame: exact on straight roads, a chord approximation in curves). The open-loop
-   collision is the first step with ``p_j`` in that interval; the *path TTC* at step k is
-   the time from ``t_k`` to it (inf without one): TTC follows the paths (curves,
-   crossings). The *threat onset* is the first step at which the target's box, widened by
-   ``threat_margin_m`` each side, overlaps the ego's path swept over the next
-   ``threat_horizon_s`` (``[p_k + x_rear, p_k + x_front + v0 H]``).
+   planned path (rear-axle samples ``x, y, heading``) at its planned speed ``v0`` (open
+   loop; ``ego_speed[:, 0]`` is used: the families keep it constant, to within ~1 % where a
+   lane offset meets a curve), so its progress (arc length) along the path is
+   ``p_k = v0 t_k``. Its body is the box
+   ``[x_rear, x_front] x [-width/2, width/2]`` about the rear axle. For every step j the
+   target's box (centre, heading, length, width) is put into the frame of the nearest ego
+   path sample i (path-aligned ``u``, lateral ``v``) and clipped to the ego's lane band
+   ``|v| <= width/2``: the ego, moved along the path to rear-axle progress q, overlaps it
+   exactly when ``q`` is in ``[lo_j, hi_j] = [s_i + u_min - x_front, s_i + u_max - x_rear]``
+   (``u_min, u_max``: the u extent of the clipped box; an exact box-overlap test on
+   straight paths). On curved paths (largest curvature kappa of the row) one straight
+   frame errs laterally by up to ``delta = kappa (span + v0 dt)^2 / 2`` (span: the ego's
+   reach plus the target's half diagonal): a target surely inside the band (by delta) has
+   each end of its interval recomputed in the frame of the path sample at that end (the
+   ego's own pose there); one within delta of the band's edge is judged progress by
+   progress, each in the frame of its own path sample. What remains is the ego's pose
+   between samples taken along the sample's tangent: cm-level, tested against a direct
+   separating-axis simulation of the ego's interpolated poses (R >= 50 m: agreement except
+   grazing contacts within 5 cm). The open-loop collision is the first step j with ``p_j`` in
+   ``[lo_j, hi_j]``; the *path TTC* at step k is ``t_j - t_k`` (0 from the collision on, inf
+   without one). The *threat onset* ``k_threat`` is the first step at which the target's
+   box, widened by ``threat_margin_m`` on each side perpendicular to the ego's path
+   (equivalently, the ego's lane band widened by the margin), overlaps the ego's boxes along
+   its planned path over the next ``threat_horizon_s`` (rear-axle progress
+   ``[p_k, p_k + v0 H]``).
 
 2. **Reaction** (``reaction_outcome``). The target is *confirmed* at the first step at
-   which at least M of the last N sensor cycles detected it (per-step Pd of the confirming
-   sensors, independent cycles); the distribution of that first step is computed exactly
-   by a Markov chain over the last N - 1 detection bits. The vehicle brakes at
-   ``t_b = max(t_confirm, t_threat) + latency``: deceleration ramps up with jerk ``J`` to
-   ``A = min(decel_max, mu g)`` (``mu``: the road's friction) and holds until standstill;
-   it stays on its path, only its progress drops by ``L(tau) = v0 tau - d(tau)`` (``d``: the
-   closed-form jerk-limited braking distance). Confirmation at step k collides
-   (``c_k = 1``) when some step j has ``p_j - L(t_j - t_b)`` in ``[lo_j, hi_j]``: per step j
-   the onsets that collide there form one interval (L is monotone), found by bisection,
-   so all onsets cost O(T log T). Without confirmation the vehicle does not brake
-   (``c_never``: the open-loop collision).
+   which at least M of the last N sensor cycles detected it (fewer cycles at the start: M
+   of those available), with per-step probability ``pd_confirm`` of the confirming sensor
+   types (independent cycles) over the first ``n_valid`` steps. The distribution of that
+   first step, ``f[k]`` (k < T) and ``f[T]`` = P(never), is exact: a Markov chain over the
+   last N - 1 detection bits (``first_confirmation``; the reachable states, those with
+   fewer than M detections; only sums of non-negative terms, rows sum to 1 to rounding).
+   Confirmation at step k starts braking at ``t_b = max(t_k, t_threat) + latency_s``: the
+   deceleration ramps up with jerk J (``jerk_m_s3``) to ``A = min(decel_max, mu g)`` and
+   holds to standstill (speed never below 0); the ego stays on its planned path, only its
+   progress drops by the lost distance ``L(tau) = v0 tau - d(tau)``, ``d`` the closed-form
+   jerk-limited braking distance ``tau`` s after onset. Confirmation at k collides
+   (``c_k = 1``) if some step j has braked progress ``p_j - L(t_j - t_b)`` in ``[lo_j,
+   hi_j]`` (the target's planned states on the whole time axis, also after ``n_valid``).
+   Per step j the colliding onsets form one interval (L is monotone), found by a monotone
+   search (a walk from the last step's answer, else bisection); each onset keeps its first
+   colliding step (path-compressed fill), so all onsets of a candidate cost O(T log T).
+   Without confirmation the vehicle does not brake: ``c_never`` is the open-loop outcome.
 
-Per candidate: ``collision_probability = sum_k f_k c_k + f_never c_never`` (f: the
-first-confirmation distribution; exact, no monotonicity assumed), ``impact_speed_kmh``
-(expected relative speed at the first overlap given a collision), ``collision_perfect``
-(``c`` for perfect perception: Pd = 1 every step, confirmed at step M - 1), ``t_safe_s``
-(the latest ``t_k`` such that confirmation at any step up to k avoids the collision; NaN if
-none does), ``detection_margin_s`` (``t_safe`` minus the median confirmation time; NaN
-when either is undefined), ``t_threat_s``, ``t_confirm_median_s`` and
-``p_never_confirmed`` (the last two only where there is a collision to avoid: an open-loop
-collision after a threat onset; NaN elsewhere). An encounter without
-an open-loop collision has nothing to avoid: collision probability 0 (braking for a near
-miss, which could turn it into a collision, is left to the planner).
+Outputs (``Outcome``, (B,) arrays): ``collision_probability = sum_k f_k c_k + f_T c_never``
+(exact, no monotonicity in k assumed); ``impact_speed_kmh``: expected magnitude of the
+relative velocity (braked ego speed along its heading minus the target's velocity) at the
+first overlap, given a collision (0 without); ``collision_perfect`` (and its impact speed):
+``c`` for perfect perception (Pd = 1 every step: confirmed at step M - 1) with the same
+reaction; ``t_safe_s``: the latest ``t_k`` such that confirmation at every step <= k avoids
+the collision (NaN when confirmation at step 0 collides; the last step's time when nothing
+collides); ``t_confirm_median_s``: the first ``t_k`` with cumulative ``f >= 1/2``;
+``detection_margin_s = t_safe_s - t_confirm_median_s``; ``t_threat_s``;
+``p_never_confirmed = f_T``.
+
+Conventions of this project (deliberate): an encounter without an open-loop collision has
+nothing to avoid, so its collision probability is 0 (braking for a near miss, which could
+turn it into a rear-end or crossing collision, is the planner's choice, not a sensor's
+failure); the same holds for a target that never becomes a threat and for an ego slower
+than ``MIN_EGO_SPEED_M_S`` (braking cannot change the outcome: the open-loop one counts).
+The confirmation distribution and its summaries (``t_confirm_median_s``,
+``detection_margin_s``, ``p_never_confirmed``) are computed only where there is a collision
+to avoid (NaN elsewhere), which is also what keeps this stage fast. The path TTC is
+``Encounter.ttc_path`` (B, T).
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
+from typing import TYPE_CHECKING
 
 import numba
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
+
+if TYPE_CHECKING:
+    from sensorgap.config.reaction import ReactionConfig
 
 F64 = NDArray[np.float64]
 I64 = NDArray[np.int64]
@@ -59,208 +93,451 @@ I64 = NDArray[np.int64]
 G_M_S2 = 9.80665
 #: Below this planned ego speed braking cannot change the encounter, m/s.
 MIN_EGO_SPEED_M_S = 0.1
+#: Longest confirmation window (the chain has up to 2^(N-1) states).
+MAX_CONFIRM_N = 16
 
 
 @dataclass(frozen=True)
 class Encounter:
-    """Encounter geometry of B candidates (see the module docstring).
+    """Encounter geometry of B candidates on T steps (see the module docstring).
 
     Attributes:
-        lo, hi: (B, T) ego rear-axle progress (m) at which the ego would overlap the
-            target at step j (NaN where the target is not laterally in the ego's path).
-        progress: (B, T) planned ego progress p_k, m. v0: (B,) planned ego speed, m/s.
+        lo, hi: (B, T) ego rear-axle progress along its path, m, at which the ego would
+            overlap the target at step j (NaN where the target is not in the ego's lane
+            band at step j).
+        v0: (B,) planned ego speed, m/s (``progress``: the planned progress
+            ``p_k = v0 t_k``, m, (B, T)).
         collide_step: (B,) first open-loop overlap step (-1: none).
         threat_step: (B,) threat onset step (-1: never a threat).
         ttc_path: (B, T) time to the open-loop collision along the paths, s (inf: none;
             0 from the collision on).
+        ego_heading, target_heading: (B, T) planned headings, rad; target_speed: (B, T),
+            m/s (the impact speed needs them). dt: step, s.
     """
 
     lo: F64
     hi: F64
-    progress: F64
     v0: F64
     collide_step: I64
     threat_step: I64
     ttc_path: F64
     ego_heading: F64
-    target_vx: F64
-    target_vy: F64
+    target_heading: F64
+    target_speed: F64
     dt: float
+
+    @property
+    def progress(self) -> F64:
+        """(B, T) planned ego progress along its path ``p_k = v0 t_k``, m."""
+        return np.asarray(self.v0[:, None] * (self.dt * np.arange(self.lo.shape[1]))[None, :],
+                          dtype=np.float64)
+
+
+# --------------------------------------------------------------------------- geometry
+
+
+@numba.njit(cache=True, nogil=True)
+def _edge_band(ua: float, va: float, ub: float, vb: float, band: float, umin: float,
+               umax: float) -> tuple[float, float]:  # pragma: no cover - compiled
+    """Widen (umin, umax) by the points where edge a-b crosses the lines v = +-band."""
+    if (va - band) * (vb - band) < 0.0:
+        u = ua + (band - va) / (vb - va) * (ub - ua)
+        umin = min(umin, u)
+        umax = max(umax, u)
+    if (va + band) * (vb + band) < 0.0:
+        u = ua + (-band - va) / (vb - va) * (ub - ua)
+        umin = min(umin, u)
+        umax = max(umax, u)
+    return umin, umax
+
+
+@numba.njit(cache=True, nogil=True)
+def _band_u_range(uc: float, vc: float, cd: float, sd: float, hl: float, hw: float,
+                  band: float) -> tuple[float, float]:  # pragma: no cover - compiled
+    """u extent, m, of a box (centre ``uc, vc``; axis ``cd, sd`` = cos/sin of its heading
+    in this frame; half length ``hl``, half width ``hw``) clipped to ``|v| <= band``;
+    ``umin > umax`` when the box misses the band. Exact for a convex polygon: the extremes
+    lie on its corners inside the band or where its edges cross the band's lines."""
+    u0 = uc + cd * hl - sd * hw
+    v0 = vc + sd * hl + cd * hw
+    u1 = uc + cd * hl + sd * hw
+    v1 = vc + sd * hl - cd * hw
+    u2 = uc - cd * hl + sd * hw
+    v2 = vc - sd * hl - cd * hw
+    u3 = uc - cd * hl - sd * hw
+    v3 = vc - sd * hl + cd * hw
+    vmin = min(min(v0, v1), min(v2, v3))
+    vmax = max(max(v0, v1), max(v2, v3))
+    if vmin > band or vmax < -band:
+        return np.inf, -np.inf
+    if vmin >= -band and vmax <= band:
+        return min(min(u0, u1), min(u2, u3)), max(max(u0, u1), max(u2, u3))
+    umin, umax = np.inf, -np.inf
+    if -band <= v0 <= band:
+        umin, umax = min(umin, u0), max(umax, u0)
+    if -band <= v1 <= band:
+        umin, umax = min(umin, u1), max(umax, u1)
+    if -band <= v2 <= band:
+        umin, umax = min(umin, u2), max(umax, u2)
+    if -band <= v3 <= band:
+        umin, umax = min(umin, u3), max(umax, u3)
+    umin, umax = _edge_band(u0, v0, u1, v1, band, umin, umax)
+    umin, umax = _edge_band(u1, v1, u2, v2, band, umin, umax)
+    umin, umax = _edge_band(u2, v2, u3, v3, band, umin, umax)
+    umin, umax = _edge_band(u3, v3, u0, v0, band, umin, umax)
+    return umin, umax
+
+
+@numba.njit(cache=True, nogil=True)
+def _cos_sin(h: float, h0: float, c0: float, s0: float) -> tuple[float, float]:  # pragma: no cover
+    """cos/sin of angle h, rad, from those of a nearby angle h0 (angle addition with a
+    Taylor series of the small difference: error < 1e-18 for |h - h0| < 0.02 rad; sin/cos
+    otherwise)."""
+    d = h - h0
+    if abs(d) < 0.02:
+        d2 = d * d
+        sd = d * (1.0 - d2 / 6.0 * (1.0 - d2 / 20.0 * (1.0 - d2 / 42.0)))
+        cd = 1.0 - d2 / 2.0 * (1.0 - d2 / 12.0 * (1.0 - d2 / 30.0))
+        return c0 * cd - s0 * sd, s0 * cd + c0 * sd
+    return math.cos(h), math.sin(h)
+
+
+@numba.njit(cache=True, nogil=True)
+def _frame_range(exi: float, eyi: float, c: float, s: float, px: float, py: float,
+                 ct: float, st: float, hl: float, hw: float,
+                 band: float) -> tuple[float, float]:  # pragma: no cover - compiled
+    """The u extent of the target box (centre ``px, py``; heading cos/sin ``ct, st``) clipped
+    to the band, in the frame of the ego path sample at ``exi, eyi`` with heading cos/sin
+    ``c, s``."""
+    dx = px - exi
+    dy = py - eyi
+    return _band_u_range(c * dx + s * dy, -s * dx + c * dy, ct * c + st * s, st * c - ct * s,
+                         hl, hw, band)
+
+
+@numba.njit(cache=True, nogil=True)
+def _scan_interval(ex: F64, ey: F64, eh: F64, r: int, ia: int, ib: int, step: float,
+                   px: float, py: float, ct: float, st: float, hl: float, hw: float,
+                   x_front: float, x_rear: float, half_w: float, ec: F64, es: F64,
+                   done: NDArray[np.bool_]) -> tuple[float, float]:  # pragma: no cover
+    """The overlap interval of rear-axle progress on a curved path: every progress q is
+    judged in the frame of its own path sample (the cell ``s_i +- step/2``), samples ia..ib;
+    ``lo > hi`` when none overlaps."""
+    t = eh.shape[1]
+    lo = np.inf
+    hi = -np.inf
+    for i in range(ia, ib + 1):
+        if not done[i]:
+            ec[i] = math.cos(eh[r, i])
+            es[i] = math.sin(eh[r, i])
+            done[i] = True
+        u1, u2 = _frame_range(ex[r, i], ey[r, i], ec[i], es[i], px, py, ct, st, hl, hw,
+                              half_w)
+        if u1 > u2:
+            continue
+        s_i = step * i
+        a = s_i + u1 - x_front
+        z = s_i + u2 - x_rear
+        if i > 0:
+            a = max(a, s_i - 0.5 * step)
+        if i < t - 1:
+            z = min(z, s_i + 0.5 * step)
+        if a <= z:
+            lo = min(lo, a)
+            hi = max(hi, z)
+    return lo, hi
 
 
 @numba.njit(cache=True, nogil=True)
 def _geometry_kernel(ex: F64, ey: F64, eh: F64, v0: F64, tx: F64, ty: F64, th: F64,
-                     length: float, width: float, x_front: float, x_rear: float,
-                     half_w: float, margin: float, horizon: float, dt: float,
-                     tv: F64, lo: F64, hi: F64, progress: F64, collide: I64,
-                     threat: I64, ttc: F64, vx: F64, vy: F64
-                     ) -> None:  # pragma: no cover - compiled
+                     hl: float, hw: float, x_front: float, x_rear: float, half_w: float,
+                     margin: float, horizon: float, dt: float, lo: F64, hi: F64,
+                     collide: I64, threat: I64, ttc: F64) -> None:  # pragma: no cover
     b, t = ex.shape
-    cl = np.empty(4)
-    cw = np.empty(4)
-    cl[0], cl[1], cl[2], cl[3] = 0.5 * length, 0.5 * length, -0.5 * length, -0.5 * length
-    cw[0], cw[1], cw[2], cw[3] = 0.5 * width, -0.5 * width, -0.5 * width, 0.5 * width
-    half_diag = 0.5 * math.sqrt(length * length + width * width)
+    ec = np.empty(t)
+    es = np.empty(t)
+    done = np.empty(t, dtype=np.bool_)
+    # beyond this lateral offset of its centre the target box cannot reach the widened band
+    reach = half_w + margin + math.sqrt(hl * hl + hw * hw)
+    # how far along the path from the sample nearest the target the ego's box can touch it
+    span = max(x_front, -x_rear) + math.sqrt(hl * hl + hw * hw)
     for r in range(b):
         collide[r] = -1
         threat[r] = -1
         step = v0[r] * dt
+        kappa = 0.0  # largest path curvature of the row, 1/m
         for k in range(t):
-            progress[r, k] = v0[r] * dt * k
+            done[k] = False
+            if k > 0 and step > 0.0:
+                d = abs(eh[r, k] - eh[r, k - 1])
+                if d > 0.0:
+                    if d > math.pi:
+                        d = abs(d - 2.0 * math.pi * math.floor(d / (2.0 * math.pi) + 0.5))
+                    kappa = max(kappa, d / step)
+        # lateral error of a single straight frame over the span (0 on straight paths)
+        delta = 0.5 * kappa * (span + step) ** 2
+        lh = np.nan  # the last ego heading whose cos/sin were computed, and those
+        lc = 1.0
+        ls = 0.0
+        th_last = np.nan
+        ct = 1.0
+        st = 0.0
         i = 0
+        # the last exactly computed step (a target standing still repeats it)
+        cpx = np.nan
+        cpy = np.nan
+        cth = np.nan
+        ca = np.nan
+        cz = np.nan
+        cw1 = np.inf
+        cw2 = -np.inf
+        cs = 0.0
         for j in range(t):
-            # nearest ego path sample to the target centre (hill-climb from the last one)
-            best = (ex[r, i] - tx[r, j]) ** 2 + (ey[r, i] - ty[r, j]) ** 2
-            while i + 1 < t:
-                d = (ex[r, i + 1] - tx[r, j]) ** 2 + (ey[r, i + 1] - ty[r, j]) ** 2
-                if d >= best:
-                    break
-                best = d
-                i += 1
-            while i > 0:
-                d = (ex[r, i - 1] - tx[r, j]) ** 2 + (ey[r, i - 1] - ty[r, j]) ** 2
-                if d >= best:
-                    break
-                best = d
-                i -= 1
-            c = math.cos(eh[r, i])
-            s = math.sin(eh[r, i])
-            ct = math.cos(th[r, j])
-            st = math.sin(th[r, j])
-            vx[r, j] = tv[r, j] * ct
-            vy[r, j] = tv[r, j] * st
-            # far beside the path (centre farther than the widths, margin and the box's
-            # half diagonal): neither overlap nor threat at this step
-            vc = -s * (tx[r, j] - ex[r, i]) + c * (ty[r, j] - ey[r, i])
-            if abs(vc) > half_w + margin + half_diag:
-                lo[r, j] = np.nan
-                hi[r, j] = np.nan
-                continue
-            umin, umax, vmin, vmax = 1e300, -1e300, 1e300, -1e300
-            for q in range(4):
-                px = tx[r, j] + ct * cl[q] - st * cw[q] - ex[r, i]
-                py = ty[r, j] + st * cl[q] + ct * cw[q] - ey[r, i]
-                u = c * px + s * py
-                v = -s * px + c * py
-                umin = min(umin, u)
-                umax = max(umax, u)
-                vmin = min(vmin, v)
-                vmax = max(vmax, v)
-            # the path position of sample i: its planned progress (v0 dt per step); a
-            # stationary ego has one position
-            s_i = step * i
-            if vmax >= -half_w and vmin <= half_w:
-                lo[r, j] = s_i + umin - x_front
-                hi[r, j] = s_i + umax - x_rear
-                if collide[r] < 0 and lo[r, j] <= progress[r, j] <= hi[r, j]:
-                    collide[r] = j
+            px = tx[r, j]
+            py = ty[r, j]
+            a = np.nan  # the overlap interval of rear-axle progress at step j
+            z = np.nan
+            w1 = np.inf  # the target's u extent in the widened band (threat), frame i
+            w2 = -np.inf
+            s_i = 0.0
+            if px == cpx and py == cpy and th[r, j] == cth:
+                a, z, w1, w2, s_i = ca, cz, cw1, cw2, cs
             else:
-                lo[r, j] = np.nan
-                hi[r, j] = np.nan
-            if threat[r] < 0 and vmax >= -half_w - margin and vmin <= half_w + margin:
-                a0 = progress[r, j] + x_rear
-                a1 = progress[r, j] + x_front + v0[r] * horizon
-                if s_i + umax >= a0 and s_i + umin <= a1:
-                    threat[r] = j
-        c_step = collide[r]
+                exact = True
+                # nearest ego path sample to the target centre (hill-climb from the last)
+                best = (ex[r, i] - px) ** 2 + (ey[r, i] - py) ** 2
+                while i + 1 < t:
+                    d = (ex[r, i + 1] - px) ** 2 + (ey[r, i + 1] - py) ** 2
+                    if d >= best:
+                        break
+                    best = d
+                    i += 1
+                while i > 0:
+                    d = (ex[r, i - 1] - px) ** 2 + (ey[r, i - 1] - py) ** 2
+                    if d >= best:
+                        break
+                    best = d
+                    i -= 1
+                if not done[i]:  # cos/sin of the ego heading, once per sample
+                    if eh[r, i] != lh:
+                        lc, ls = _cos_sin(eh[r, i], lh, lc, ls)
+                        lh = eh[r, i]
+                    ec[i] = lc
+                    es[i] = ls
+                    done[i] = True
+                c = ec[i]
+                s = es[i]
+                dx = px - ex[r, i]
+                dy = py - ey[r, i]
+                vc = -s * dx + c * dy
+                if abs(vc) <= reach + delta:
+                    if th[r, j] != th_last:
+                        ct, st = _cos_sin(th[r, j], th_last, ct, st)
+                        th_last = th[r, j]
+                    cd = ct * c + st * s
+                    sd = st * c - ct * s
+                    ext_u = abs(cd) * hl + abs(sd) * hw  # the box's half extents here
+                    ext_v = abs(sd) * hl + abs(cd) * hw
+                    if abs(vc) - ext_v <= half_w + margin + delta:
+                        uc = c * dx + s * dy
+                        s_i = step * i
+                        if threat[r] < 0:
+                            w1, w2 = _band_u_range(uc, vc, cd, sd, hl, hw, half_w + margin)
+                        if delta == 0.0:  # straight: one frame is exact
+                            u1, u2 = _band_u_range(uc, vc, cd, sd, hl, hw, half_w)
+                            if u1 <= u2:
+                                a = s_i + u1 - x_front
+                                z = s_i + u2 - x_rear
+                        elif (s_i + uc - ext_u - x_front
+                              - kappa * (span + step) * (abs(uc) + abs(vc) + hl + hw)
+                              - delta > step * j):
+                            # the ego's reach at step j is still short of the target in
+                            # any frame: the straight frame's interval will do for now
+                            exact = False
+                            u1, u2 = _band_u_range(uc, vc, cd, sd, hl, hw, half_w)
+                            if u1 <= u2:
+                                a = s_i + u1 - x_front
+                                z = s_i + u2 - x_rear
+                        else:
+                            # surely in the band: each end of the interval in the frame of
+                            # the ego's own pose there
+                            sure = False
+                            if half_w > delta:
+                                u1, u2 = _band_u_range(uc, vc, cd, sd, hl, hw, half_w - delta)
+                                if u1 <= u2:
+                                    u1, u2 = _band_u_range(uc, vc, cd, sd, hl, hw, half_w)
+                                    il = min(max(int(math.floor((s_i + u1 - x_front) / step
+                                                                + 0.5)), 0), t - 1)
+                                    ih = min(max(int(math.floor((s_i + u2 - x_rear) / step
+                                                                + 0.5)), 0), t - 1)
+                                    for ii in (il, ih):
+                                        if not done[ii]:
+                                            if eh[r, ii] != lh:
+                                                lc, ls = _cos_sin(eh[r, ii], lh, lc, ls)
+                                                lh = eh[r, ii]
+                                            ec[ii] = lc
+                                            es[ii] = ls
+                                            done[ii] = True
+                                    a1, a2 = _frame_range(ex[r, il], ey[r, il], ec[il], es[il],
+                                                          px, py, ct, st, hl, hw, half_w)
+                                    z1, z2 = _frame_range(ex[r, ih], ey[r, ih], ec[ih], es[ih],
+                                                          px, py, ct, st, hl, hw, half_w)
+                                    if a1 <= a2 and z1 <= z2:
+                                        a = step * il + a1 - x_front
+                                        z = step * ih + z2 - x_rear
+                                        sure = True
+                            if not sure:
+                                # near the band's edge: every progress in its own frame
+                                u1, u2 = _band_u_range(uc, vc, cd, sd, hl, hw, half_w + delta)
+                                if u1 <= u2:
+                                    ia = min(max(int(math.floor(
+                                        (s_i + u1 - x_front - delta) / step)) - 1, 0), t - 1)
+                                    ib = min(max(int(math.ceil(
+                                        (s_i + u2 - x_rear + delta) / step)) + 1, 0), t - 1)
+                                    u1, u2 = _scan_interval(ex, ey, eh, r, ia, ib, step, px,
+                                                            py, ct, st, hl, hw, x_front,
+                                                            x_rear, half_w, ec, es, done)
+                                    if u1 <= u2:
+                                        a = u1
+                                        z = u2
+                if exact:
+                    cpx, cpy, cth = px, py, th[r, j]
+                    ca, cz, cw1, cw2, cs = a, z, w1, w2, s_i
+            lo[r, j] = a
+            hi[r, j] = z
+            pj = step * j
+            if collide[r] < 0 and a <= pj <= z:
+                collide[r] = j
+            if (threat[r] < 0 and w1 <= w2 and s_i + w2 >= pj + x_rear
+                    and s_i + w1 <= pj + x_front + v0[r] * horizon):
+                threat[r] = j
+        kc = collide[r]
+        if kc >= 0 and (threat[r] < 0 or threat[r] > kc):
+            threat[r] = kc  # an overlap is always a threat
         for k in range(t):
-            if c_step < 0:
-                ttc[r, k] = np.inf
-            else:
-                ttc[r, k] = max(c_step - k, 0) * dt
+            ttc[r, k] = np.inf if kc < 0 else max(kc - k, 0) * dt
 
 
-def encounter_geometry(ego_x: F64, ego_y: F64, ego_heading: F64, ego_speed: F64,
-                       tgt_x: F64, tgt_y: F64, tgt_heading: F64, tgt_speed: F64,
-                       dt: float, target_size: tuple[float, float],
+def encounter_geometry(ego_x: ArrayLike, ego_y: ArrayLike, ego_heading: ArrayLike,
+                       ego_speed: ArrayLike, tgt_x: ArrayLike, tgt_y: ArrayLike,
+                       tgt_heading: ArrayLike, tgt_speed: ArrayLike, dt: float,
+                       target_size: tuple[float, float],
                        ego_body: tuple[float, float, float], threat_margin_m: float,
                        threat_horizon_s: float) -> Encounter:
-    """Encounter geometry of (B, T) world-frame states (m, rad, m/s): ego rear axle and
-    target box centre. ``target_size`` = (length, width), m; ``ego_body`` = (x_front,
-    x_rear, width), m, relative to the rear axle (x_rear < 0)."""
+    """Encounter geometry of (B, T) world-frame planned states: ego rear axle (x, y in m,
+    heading in rad, speed in m/s; the speed is taken as constant, ``ego_speed[:, 0]``) and
+    target box centre (same units), on a time axis of step ``dt`` s.
+
+    ``target_size`` = (length, width), m; ``ego_body`` = (x_front, x_rear, width), m, the
+    bumpers relative to the rear axle (``x_rear < 0 < x_front``); ``threat_margin_m``, m,
+    and ``threat_horizon_s``, s, define the threat onset (module docstring)."""
     ex = np.ascontiguousarray(ego_x, dtype=np.float64)
+    if ex.ndim != 2 or ex.shape[1] < 2:
+        raise ValueError(f"expected (B, T >= 2) states, got shape {ex.shape}")
     b, t = ex.shape
-    v0 = np.ascontiguousarray(np.asarray(ego_speed, dtype=np.float64)[:, 0])
-    lo, hi, prog = np.empty((b, t)), np.empty((b, t)), np.empty((b, t))
-    ttc, vx, vy = np.empty((b, t)), np.empty((b, t)), np.empty((b, t))
+    x_front, x_rear, width = (float(v) for v in ego_body)
+    length, t_width = (float(v) for v in target_size)
+    if not (x_rear < 0.0 < x_front and width > 0.0 and length > 0.0 and t_width > 0.0):
+        raise ValueError("need x_rear < 0 < x_front and positive widths and target length")
+    if not (dt > 0.0 and threat_margin_m >= 0.0 and threat_horizon_s >= 0.0):
+        raise ValueError("need dt > 0, threat_margin_m >= 0 and threat_horizon_s >= 0")
+    arrays = [np.ascontiguousarray(a, dtype=np.float64)
+              for a in (ego_y, ego_heading, tgt_x, tgt_y, tgt_heading, tgt_speed)]
+    ey, eh, tx, ty, th, tv = arrays
+    if any(a.shape != (b, t) for a in arrays):
+        raise ValueError("all state arrays must have the same (B, T) shape")
+    v0 = np.ascontiguousarray(np.asarray(ego_speed, dtype=np.float64).reshape(b, t)[:, 0])
+    lo, hi, ttc = (np.empty((b, t)) for _ in range(3))
     collide = np.empty(b, dtype=np.int64)
     threat = np.empty(b, dtype=np.int64)
-    x_front, x_rear, width = ego_body
-    eh = np.ascontiguousarray(ego_heading, dtype=np.float64)
-    _geometry_kernel(ex, np.ascontiguousarray(ego_y, dtype=np.float64), eh, v0,
-                     np.ascontiguousarray(tgt_x, dtype=np.float64),
-                     np.ascontiguousarray(tgt_y, dtype=np.float64),
-                     np.ascontiguousarray(tgt_heading, dtype=np.float64),
-                     float(target_size[0]), float(target_size[1]), float(x_front),
-                     float(x_rear), 0.5 * float(width), float(threat_margin_m),
-                     float(threat_horizon_s), float(dt),
-                     np.ascontiguousarray(tgt_speed, dtype=np.float64), lo, hi, prog,
-                     collide, threat, ttc, vx, vy)
-    return Encounter(lo, hi, prog, v0, collide, threat, ttc, eh, vx, vy, float(dt))
+    _geometry_kernel(ex, ey, eh, v0, tx, ty, th, 0.5 * length, 0.5 * t_width, x_front,
+                     x_rear, 0.5 * width, float(threat_margin_m), float(threat_horizon_s),
+                     float(dt), lo, hi, collide, threat, ttc)
+    return Encounter(lo, hi, v0, collide, threat, ttc, eh, th, tv, float(dt))
+
+
+# ----------------------------------------------------------------------- confirmation
+
+
+@lru_cache(maxsize=64)
+def _chain_tables(m: int, n: int) -> tuple[I64, I64, I64]:
+    """Transitions of the M-of-N chain over the reachable states (the last N - 1 bits with
+    fewer than M detections, state 0 first): next state after a miss, after a detection
+    (-1: confirmed)."""
+    mask_s = (1 << (n - 1)) - 1
+    mask_n = (1 << n) - 1
+    states = [s for s in range(mask_s + 1) if bin(s).count("1") < m]
+    index = {s: i for i, s in enumerate(states)}
+    miss = np.array([index[(s << 1) & mask_s] for s in states], dtype=np.int64)
+    hit = np.array([-1 if bin(((s << 1) | 1) & mask_n).count("1") >= m
+                    else index[((s << 1) | 1) & mask_s] for s in states], dtype=np.int64)
+    return np.array(states, dtype=np.int64), miss, hit
 
 
 @numba.njit(cache=True, nogil=True)
-def first_confirmation_kernel(pd: F64, n_valid: I64, m: int, n: int,
-                              out: F64) -> None:  # pragma: no cover - compiled
-    """``out[r, k]`` = P(first M-of-N confirmation at step k), ``out[r, T]`` = P(none
-    within the first ``n_valid[r]`` steps); exact Markov chain over the last N - 1 bits."""
-    b, t = pd.shape
-    n_states = 1 << (n - 1)
-    mask_n = (1 << n) - 1
-    mask_s = n_states - 1
-    prob = np.empty(n_states)
-    nxt = np.empty(n_states)
-    for r in range(b):
-        for s in range(n_states):
+def _first_confirmation_kernel(pd: F64, n_valid: I64, rows: I64, miss: I64, hit: I64,
+                               out: F64) -> None:  # pragma: no cover - compiled
+    """``out[r, k]`` = P(first confirmation at step k), ``out[r, T]`` = P(none within the
+    first ``n_valid[r]`` steps), for the given rows (others untouched)."""
+    t = pd.shape[1]
+    ns = miss.shape[0]
+    prob = np.empty(ns)
+    nxt = np.empty(ns)
+    for r in rows:
+        for s in range(ns):
             prob[s] = 0.0
         prob[0] = 1.0
         for k in range(t + 1):
             out[r, k] = 0.0
-        for k in range(n_valid[r]):
+        for k in range(min(max(n_valid[r], 0), t)):
             p = min(max(pd[r, k], 0.0), 1.0)
-            for s in range(n_states):
+            q = 1.0 - p
+            for s in range(ns):
                 nxt[s] = 0.0
             f = 0.0
-            for s in range(n_states):
-                q = prob[s]
-                if q == 0.0:
+            for s in range(ns):
+                w = prob[s]
+                if w == 0.0:
                     continue
-                w = ((s << 1) | 1) & mask_n
-                cnt = 0
-                x = w
-                while x:
-                    cnt += x & 1
-                    x >>= 1
-                if cnt >= m:
-                    f += q * p
+                h = hit[s]
+                if h < 0:
+                    f += w * p
                 else:
-                    nxt[w & mask_s] += q * p
-                nxt[(s << 1) & mask_s] += q * (1.0 - p)
+                    nxt[h] += w * p
+                nxt[miss[s]] += w * q
             out[r, k] = f
-            for s in range(n_states):
+            for s in range(ns):
                 prob[s] = nxt[s]
         rest = 0.0
-        for s in range(n_states):
+        for s in range(ns):
             rest += prob[s]
         out[r, t] = rest
 
 
-def first_confirmation(pd: F64, n_valid: I64, m: int, n: int) -> F64:
-    """(B, T + 1) distribution of the first M-of-N confirmation step of (B, T) per-step
-    detection probabilities (independent cycles; only the first ``n_valid`` steps count);
-    the last column is P(never confirmed)."""
+def first_confirmation(pd: ArrayLike, n_valid: ArrayLike, m: int, n: int) -> F64:
+    """(B, T + 1) distribution of the first M-of-N confirmation step for (B, T) per-step
+    detection probabilities (independent cycles; only the first ``n_valid`` steps count;
+    fewer than N cycles at the start: M of those available): column k < T is P(first
+    confirmation at step k), column T is P(never confirmed). Rows sum to 1 (to rounding)."""
+    if not 1 <= m <= n <= MAX_CONFIRM_N:
+        raise ValueError(f"need 1 <= M <= N <= {MAX_CONFIRM_N}, got M = {m}, N = {n}")
     pd = np.ascontiguousarray(pd, dtype=np.float64)
-    out = np.empty((pd.shape[0], pd.shape[1] + 1))
-    first_confirmation_kernel(pd, np.ascontiguousarray(n_valid, dtype=np.int64), int(m),
-                              int(n), out)
+    out = np.zeros((pd.shape[0], pd.shape[1] + 1))
+    _, miss, hit = _chain_tables(int(m), int(n))
+    _first_confirmation_kernel(pd, np.ascontiguousarray(n_valid, dtype=np.int64),
+                               np.arange(pd.shape[0], dtype=np.int64), miss, hit, out)
     return out
+
+
+# --------------------------------------------------------------------------- braking
 
 
 @numba.njit(cache=True, nogil=True)
 def lost_distance(tau: float, v0: float, jerk: float, amax: float) -> float:  # pragma: no cover
-    """Distance (m) the braking ego falls behind its planned constant-speed progress
+    """Distance, m, the braking ego falls behind its planned constant-speed progress
     ``tau`` s after brake onset: ``v0 tau - d(tau)``, ``d`` the jerk-limited braking
-    distance (ramp at ``jerk`` to ``amax``, then constant until standstill)."""
+    distance (deceleration ramps at ``jerk`` m/s3 to ``amax`` m/s2, then constant until
+    standstill; ``v0`` m/s)."""
     if tau <= 0.0 or v0 <= 0.0:
         return 0.0
     t1 = amax / jerk
@@ -283,7 +560,8 @@ def lost_distance(tau: float, v0: float, jerk: float, amax: float) -> float:  # 
 
 @numba.njit(cache=True, nogil=True)
 def braked_speed(tau: float, v0: float, jerk: float, amax: float) -> float:  # pragma: no cover
-    """Speed (m/s) ``tau`` s after brake onset (jerk-limited, never below 0)."""
+    """Speed, m/s, ``tau`` s after brake onset from ``v0`` m/s (jerk-limited at ``jerk``
+    m/s3 up to ``amax`` m/s2, never below 0)."""
     if tau <= 0.0:
         return v0
     t1 = amax / jerk
@@ -292,135 +570,232 @@ def braked_speed(tau: float, v0: float, jerk: float, amax: float) -> float:  # p
     return max(0.0, v0 - 0.5 * jerk * t1 * t1 - amax * (tau - t1))
 
 
-@numba.njit(cache=True, nogil=True)
-def _next_unset(nxt: I64, k: int) -> int:  # pragma: no cover - compiled
-    """The first index >= k with ``nxt[i] == i`` (path compression on the way)."""
-    root = k
-    while nxt[root] != root:
-        root = nxt[root]
-    while nxt[k] != root:
-        k2 = nxt[k]
-        nxt[k] = root
-        k = k2
-    return root
+def stopping_distance(v0: float, latency_s: float, jerk: float, amax: float) -> float:
+    """Distance, m, travelled from confirmation to standstill: ``v0 latency`` plus the
+    jerk-limited braking distance from ``v0`` m/s (``jerk`` m/s3 up to ``amax`` m/s2)."""
+    big = latency_s + math.sqrt(2.0 * v0 / jerk) + v0 / amax + amax / jerk + 1.0
+    return v0 * big - float(lost_distance(big - latency_s, v0, jerk, amax))
 
 
 @numba.njit(cache=True, nogil=True)
-def _reaction_kernel(lo: F64, hi: F64, prog: F64, v0: F64, threat: I64, collide: I64,
-                     f: F64, eh: F64, tvx: F64, tvy: F64, dt: float, latency: float,
-                     jerk: float, amax: F64, m: int, out_p: F64, out_v: F64,
-                     out_perfect: F64, out_safe: F64, out_vperf: F64
-                     ) -> None:  # pragma: no cover - compiled
+def _rel_speed(vb: float, h: float, th: float, tv: float) -> float:  # pragma: no cover
+    """|ego velocity (speed ``vb`` along heading ``h``) - target velocity|, m/s."""
+    dvx = vb * math.cos(h) - tv * math.cos(th)
+    dvy = vb * math.sin(h) - tv * math.sin(th)
+    return math.sqrt(dvx * dvx + dvy * dvy)
+
+
+@numba.njit(cache=True, nogil=True)
+def _reaction_kernel(lo: F64, hi: F64, v0: F64, threat: I64, collide: I64, f: F64,
+                     eh: F64, th: F64, tv: F64, dt: float, latency: float, jerk: float,
+                     amax: F64, m: int, out_p: F64, out_v: F64, out_perfect: F64,
+                     out_safe: F64, out_vperf: F64, out_med: F64,
+                     out_never: F64) -> None:  # pragma: no cover - compiled
     b, t = lo.shape
     lg = np.empty(t + 1)
-    first = np.empty(t, dtype=np.int64)
-    nxt = np.empty(t + 1, dtype=np.int64)
+    first = np.empty(t + 1, dtype=np.int64)
+    nxt = np.empty(t + 2, dtype=np.int64)
     for r in range(b):
-        # c_never / v_never: the open-loop collision
-        c_never = collide[r] >= 0
-        v_never = 0.0
-        if c_never:
-            j = collide[r]
-            dvx = v0[r] * math.cos(eh[r, j]) - tvx[r, j]
-            dvy = v0[r] * math.sin(eh[r, j]) - tvy[r, j]
-            v_never = math.sqrt(dvx * dvx + dvy * dvy)
-        if not c_never or threat[r] < 0 or v0[r] < 0.1:
-            # no open-loop collision (nothing to avoid: braking for a near miss is the
-            # planner's choice, not a sensor's failure), never a threat, or nothing to
-            # brake: every onset gives the open-loop outcome
-            p_col = 0.0
-            if c_never:
-                p_col = 1.0
-            out_p[r] = p_col
-            out_v[r] = v_never if c_never else 0.0
-            out_perfect[r] = 1.0 if c_never else 0.0
-            out_vperf[r] = v_never if c_never else 0.0
-            out_safe[r] = np.nan if c_never else (t - 1) * dt
-            continue
+        kc = collide[r]
         kt = threat[r]
-        # onset of confirmation at step k: t_b = max(k, kt) * dt + latency; the lag of
-        # step j behind it is (j - max(k, kt)) * dt - latency: tabulate L on that grid
-        for mm in range(t + 1):
+        step = v0[r] * dt
+        v_never = 0.0
+        if kc >= 0:
+            v_never = _rel_speed(v0[r], eh[r, kc], th[r, kc], tv[r, kc])
+        out_med[r] = np.nan
+        out_never[r] = np.nan
+        if kc < 0 or kt < 0 or v0[r] < MIN_EGO_SPEED_M_S:
+            # nothing to avoid (no open-loop collision), never a threat, or nothing to
+            # brake: every onset gives the open-loop outcome
+            hit = 1.0 if kc >= 0 else 0.0
+            out_p[r] = hit
+            out_v[r] = v_never
+            out_perfect[r] = hit
+            out_vperf[r] = v_never
+            out_safe[r] = np.nan if kc >= 0 else (t - 1) * dt
+            continue
+        # lost distance of step j behind onset step ko: lg[j - ko] (onsets ko in [kt, kc])
+        n_lg = t - kt
+        for mm in range(n_lg):
             lg[mm] = lost_distance(mm * dt - latency, v0[r], jerk, amax[r])
-        for k in range(t):
+        for k in range(kt, kc + 1):
             first[k] = -1
             nxt[k] = k
-        nxt[t] = t
-        # for each step j with a lateral overlap: onset steps k' (>= kt) with
-        # lg[j - k'] in [prog_j - hi_j, prog_j - lo_j] collide at j
-        for j in range(t):
-            if np.isnan(lo[r, j]):
+        nxt[kc + 1] = kc + 1  # sentinel
+        unset = kc - kt + 1
+        g_lo = -1  # the last step's search results (starting guesses)
+        g_hi = -1
+        for j in range(kt, t):
+            if unset == 0:
+                break
+            a0 = lo[r, j]
+            if np.isnan(a0):
                 continue
-            a = prog[r, j] - hi[r, j]
-            bb = prog[r, j] - lo[r, j]
+            pj = step * j
+            bb = pj - a0  # lost distance at most this: the ego reaches the target's rear
             if bb < 0.0:
                 continue
-            # lg is non-decreasing in mm: mm range with lg in [a, bb]
-            lo_i, hi_i = 0, j + 1
-            while lo_i < hi_i:  # first mm with lg[mm] >= a
-                mid = (lo_i + hi_i) // 2
-                if lg[mid] >= a:
-                    hi_i = mid
+            a = pj - hi[r, j]  # and at least this: the ego is not yet past it
+            m_min = j - min(j, kc)
+            m_max = j - kt
+            if lg[m_max] < a or lg[m_min] > bb:
+                continue
+            # m_lo: the first mm in [m_min, m_max] with lg[mm] >= a (lg is non-decreasing);
+            # walk from the last step's answer + 1 (one more step of lag), else bisect
+            x = min(max(g_lo + 1, m_min), m_max + 1)
+            found = False
+            for _ in range(6):
+                if x > m_min and lg[x - 1] >= a:
+                    x -= 1
+                elif x <= m_max and lg[x] < a:
+                    x += 1
                 else:
-                    lo_i = mid + 1
-            m_lo = lo_i
-            lo_i, hi_i = 0, j + 1
-            while lo_i < hi_i:  # first mm with lg[mm] > bb
-                mid = (lo_i + hi_i) // 2
-                if lg[mid] > bb:
-                    hi_i = mid
+                    found = True
+                    break
+            if not found:
+                x0, x1 = m_min, m_max + 1
+                while x0 < x1:
+                    mid = (x0 + x1) // 2
+                    if lg[mid] >= a:
+                        x1 = mid
+                    else:
+                        x0 = mid + 1
+                x = x0
+            m_lo = x
+            g_lo = m_lo
+            # m_hi: the last mm in [m_lo, m_max] with lg[mm] <= bb
+            x = min(max(g_hi + 2, m_lo), m_max + 1)
+            found = False
+            for _ in range(6):
+                if x > m_lo and lg[x - 1] > bb:
+                    x -= 1
+                elif x <= m_max and lg[x] <= bb:
+                    x += 1
                 else:
-                    lo_i = mid + 1
-            m_hi = lo_i - 1
+                    found = True
+                    break
+            if not found:
+                x0, x1 = m_lo, m_max + 1
+                while x0 < x1:
+                    mid = (x0 + x1) // 2
+                    if lg[mid] > bb:
+                        x1 = mid
+                    else:
+                        x0 = mid + 1
+                x = x0
+            m_hi = x - 1
+            g_hi = m_hi
             if m_hi < m_lo:
                 continue
-            # first collision step per onset: fill the unset onsets of [a, b] (nxt: next
-            # unset onset at or after k, path-compressed; each onset is set once)
-            kk = _next_unset(nxt, max(j - m_hi, 0))
-            while kk <= j - m_lo:
+            # fill the unset onsets of [j - m_hi, j - m_lo] (nxt: the next unset onset at
+            # or after k, path-compressed: each onset is set once)
+            kk = j - m_hi
+            while True:
+                root = kk
+                while nxt[root] != root:
+                    root = nxt[root]
+                while nxt[kk] != root:
+                    k2 = nxt[kk]
+                    nxt[kk] = root
+                    kk = k2
+                kk = root
+                if kk > j - m_lo:
+                    break
                 first[kk] = j
+                unset -= 1
                 nxt[kk] = kk + 1
-                kk = _next_unset(nxt, kk + 1)
-        # an onset after the open-loop collision comes too late: it collides there
-        if collide[r] >= 0:
-            for kk in range(collide[r] + 1, t):
-                first[kk] = collide[r]
-        out_perfect[r] = 0.0
-        out_vperf[r] = 0.0
-        # outcome per confirmation step k (onset step max(k, kt))
+                kk += 1
+        # outcome per confirmation step k (onset step ko = max(k, kt)); onsets after the
+        # open-loop collision come too late and collide there
         p_col = 0.0
         v_sum = 0.0
         safe = -1
         still_safe = True
+        out_perfect[r] = 0.0
+        out_vperf[r] = 0.0
+        cum = 0.0
+        med = -1
+        v_ko = -1.0
+        ko_last = -1
+        # cos/sin of the last ego and target headings (nearby onsets: angle addition)
+        eh0, ec0, es0 = np.nan, 1.0, 0.0
+        th0, tc0, ts0 = np.nan, 1.0, 0.0
         for k in range(t):
+            fk = f[r, k]
+            if med < 0:
+                cum += fk
+                if cum >= 0.5:
+                    med = k
             ko = max(k, kt)
-            j = first[ko]
-            if j >= 0:
-                still_safe = False
-                tau = (j - ko) * dt - latency
-                vb = braked_speed(tau, v0[r], jerk, amax[r])
-                dvx = vb * math.cos(eh[r, j]) - tvx[r, j]
-                dvy = vb * math.sin(eh[r, j]) - tvy[r, j]
-                v = math.sqrt(dvx * dvx + dvy * dvy)
-                p_col += f[r, k]
-                v_sum += f[r, k] * v
-                if k == m - 1:
-                    out_perfect[r] = 1.0
-                    out_vperf[r] = v
-            else:
+            j = kc if ko > kc else first[ko]
+            if j < 0:
                 if still_safe:
                     safe = k
-        if c_never:
-            p_col += f[r, t]
-            v_sum += f[r, t] * v_never
+                continue
+            still_safe = False
+            if fk == 0.0 and k != m - 1:
+                continue
+            if ko > kc:
+                v = v_never
+            elif ko == ko_last:
+                v = v_ko
+            else:
+                tau = (j - ko) * dt - latency
+                vb = braked_speed(tau, v0[r], jerk, amax[r])
+                # the ego's heading at its braked progress (linear between samples)
+                x = (step * j - lg[j - ko]) / step
+                i0 = min(max(int(x), 0), t - 1)
+                h = eh[r, i0]
+                if x > 0.0 and i0 < t - 1:
+                    d = eh[r, i0 + 1] - h
+                    h += (x - i0) * (d - 2.0 * math.pi * math.floor(d / (2.0 * math.pi) + 0.5))
+                if h != eh0:
+                    ec0, es0 = _cos_sin(h, eh0, ec0, es0)
+                    eh0 = h
+                if th[r, j] != th0:
+                    tc0, ts0 = _cos_sin(th[r, j], th0, tc0, ts0)
+                    th0 = th[r, j]
+                dvx = vb * ec0 - tv[r, j] * tc0
+                dvy = vb * es0 - tv[r, j] * ts0
+                v = math.sqrt(dvx * dvx + dvy * dvy)
+                v_ko = v
+                ko_last = ko
+            p_col += fk
+            v_sum += fk * v
+            if k == m - 1:
+                out_perfect[r] = 1.0
+                out_vperf[r] = v
+        if m - 1 >= t:  # perfect perception cannot confirm on this time axis
+            out_perfect[r] = 1.0
+            out_vperf[r] = v_never
+        p_col += f[r, t]
+        v_sum += f[r, t] * v_never
         out_p[r] = min(max(p_col, 0.0), 1.0)
         out_v[r] = v_sum / p_col if p_col > 0.0 else 0.0
         out_safe[r] = safe * dt if safe >= 0 else np.nan
+        out_med[r] = med * dt if med >= 0 else np.nan
+        out_never[r] = f[r, t]
 
 
 @dataclass(frozen=True)
 class Outcome:
-    """Collision outcome of B candidates (see the module docstring), (B,) arrays."""
+    """Collision outcome of B candidates, (B,) float arrays (module docstring).
+
+    Attributes:
+        collision_probability: P(collision) over the first-confirmation distribution, 0..1.
+        impact_speed_kmh: expected relative impact speed given a collision, km/h (0 when
+            the collision probability is 0).
+        collision_perfect: 1 if perfect perception (Pd = 1) with the same reaction still
+            collides, else 0. impact_speed_perfect_kmh: its impact speed, km/h (0: none).
+        t_safe_s: latest confirmation time that (with every earlier one) avoids the
+            collision, s (NaN: even step 0 collides).
+        t_confirm_median_s: median first-confirmation time, s (NaN: P(confirmed) < 1/2,
+            or no collision to avoid).
+        detection_margin_s: ``t_safe_s - t_confirm_median_s``, s (NaN if either is).
+        t_threat_s: threat onset, s (NaN: never a threat).
+        p_never_confirmed: P(never confirmed within the valid steps), 0..1 (NaN: no
+            collision to avoid).
+    """
 
     collision_probability: F64
     impact_speed_kmh: F64
@@ -433,34 +808,58 @@ class Outcome:
     p_never_confirmed: F64
 
 
-def reaction_outcome(enc: Encounter, pd_confirm: F64, n_valid: I64, confirm_m: int,
-                     confirm_n: int, latency_s: float, jerk_m_s3: float,
-                     decel_m_s2: F64) -> Outcome:
-    """The collision outcome of an encounter for per-step confirming Pd (B, T), the
-    first ``n_valid`` steps valid; ``decel_m_s2`` (B,): the reachable deceleration
-    ``min(decel_max, mu g)`` per row, m/s2."""
+def reaction_outcome(enc: Encounter, pd_confirm: ArrayLike, n_valid: ArrayLike,
+                     confirm_m: int, confirm_n: int, latency_s: float, jerk_m_s3: float,
+                     decel_m_s2: ArrayLike) -> Outcome:
+    """The collision outcome of an encounter for (B, T) per-step Pd of the confirming
+    sensors (only the first ``n_valid`` (B,) steps count), M-of-N confirmation, latency
+    ``latency_s`` s, brake jerk ``jerk_m_s3`` m/s3 and ``decel_m_s2`` (B,) (or a scalar),
+    the reachable deceleration ``min(decel_max, mu g)`` per row, m/s2."""
     b, t = enc.lo.shape
-    # the confirmation distribution matters only where there is a collision to avoid;
-    # elsewhere its summaries are not computed (NaN)
-    rows = np.flatnonzero((enc.collide_step >= 0) & (enc.threat_step >= 0))
+    if not 1 <= confirm_m <= confirm_n <= MAX_CONFIRM_N:
+        raise ValueError(f"need 1 <= M <= N <= {MAX_CONFIRM_N}, got M = {confirm_m}, "
+                         f"N = {confirm_n}")
+    if not (latency_s >= 0.0 and jerk_m_s3 > 0.0):
+        raise ValueError("need latency_s >= 0 and jerk_m_s3 > 0")
+    decel = np.ascontiguousarray(np.broadcast_to(np.asarray(decel_m_s2, dtype=np.float64),
+                                                 (b,)))
+    if not np.all(decel > 0.0):
+        raise ValueError("the reachable deceleration must be > 0 (mu > 0)")
+    pd = np.ascontiguousarray(pd_confirm, dtype=np.float64)
+    if pd.shape != (b, t):
+        raise ValueError(f"pd_confirm has shape {pd.shape}, the encounter ({b}, {t})")
+    # the confirmation distribution matters only where there is a collision to avoid
+    rows = np.flatnonzero((enc.collide_step >= 0) & (enc.threat_step >= 0)
+                          & (enc.v0 >= MIN_EGO_SPEED_M_S)).astype(np.int64)
     f = np.zeros((b, t + 1))
     if rows.size:
-        f[rows] = first_confirmation(np.asarray(pd_confirm)[rows],
-                                     np.asarray(n_valid)[rows], confirm_m, confirm_n)
-    out = [np.empty(b) for _ in range(5)]
-    _reaction_kernel(enc.lo, enc.hi, enc.progress, enc.v0, enc.threat_step,
-                     enc.collide_step, f, enc.ego_heading, enc.target_vx, enc.target_vy,
-                     enc.dt, float(latency_s), float(jerk_m_s3),
-                     np.ascontiguousarray(decel_m_s2, dtype=np.float64), int(confirm_m),
-                     *out)
-    p, v, perfect, safe, vperf = out
-    med = np.full(b, np.nan)
-    never = np.full(b, np.nan)
-    if rows.size:
-        cum = np.cumsum(f[rows, :t], axis=1)
-        reached = cum[:, -1] >= 0.5
-        med[rows] = np.where(reached, np.argmax(cum >= 0.5, axis=1) * enc.dt, np.nan)
-        never[rows] = f[rows, t]
-    margin = safe - med
-    return Outcome(p, 3.6 * v, perfect, 3.6 * vperf, safe, med, margin,
-                   np.where(enc.threat_step >= 0, enc.threat_step * enc.dt, np.nan), never)
+        _, miss, hit = _chain_tables(int(confirm_m), int(confirm_n))
+        _first_confirmation_kernel(pd, np.ascontiguousarray(n_valid, dtype=np.int64), rows,
+                                   miss, hit, f)
+    out = [np.empty(b) for _ in range(7)]
+    _reaction_kernel(enc.lo, enc.hi, enc.v0, enc.threat_step, enc.collide_step, f,
+                     enc.ego_heading, enc.target_heading, enc.target_speed, enc.dt,
+                     float(latency_s), float(jerk_m_s3), decel, int(confirm_m), *out)
+    p, v, perfect, safe, vperf, med, never = out
+    t_threat = np.where(enc.threat_step >= 0, enc.threat_step * enc.dt, np.nan)
+    return Outcome(p, 3.6 * v, perfect, 3.6 * vperf, safe, med, safe - med, t_threat, never)
+
+
+def collision_outcome(ego_x: ArrayLike, ego_y: ArrayLike, ego_heading: ArrayLike,
+                      ego_speed: ArrayLike, tgt_x: ArrayLike, tgt_y: ArrayLike,
+                      tgt_heading: ArrayLike, tgt_speed: ArrayLike, dt: float,
+                      target_size: tuple[float, float],
+                      ego_body: tuple[float, float, float], pd_confirm: ArrayLike,
+                      n_valid: ArrayLike, reaction: ReactionConfig,
+                      mu: float | ArrayLike) -> tuple[Encounter, Outcome]:
+    """Both stages in one call: the encounter geometry of (B, T) planned states (see
+    ``encounter_geometry`` for units) and the collision outcome for the confirming Pd,
+    ``reaction`` (M-of-N, latency, jerk, decel_max, threat margin and horizon) and the
+    road's peak friction ``mu`` (scalar or (B,)): deceleration ``min(decel_max, mu g)``."""
+    enc = encounter_geometry(ego_x, ego_y, ego_heading, ego_speed, tgt_x, tgt_y,
+                             tgt_heading, tgt_speed, dt, target_size, ego_body,
+                             reaction.threat_margin_m, reaction.threat_horizon_s)
+    decel = np.minimum(reaction.decel_max_m_s2, np.asarray(mu, dtype=np.float64) * G_M_S2)
+    return enc, reaction_outcome(enc, pd_confirm, n_valid, reaction.confirm_m,
+                                 reaction.confirm_n, reaction.latency_s, reaction.jerk_m_s3,
+                                 decel)
