@@ -197,16 +197,17 @@ def kinematics_arrays(ego: Tracks | Scenario, target_tracks: Tracks | None,
     body = system.config.vehicle
     shape = np.shape(e.x)
 
-    def flat(a: F64) -> F64:
-        return np.ascontiguousarray(a, dtype=np.float64).reshape(-1)
+    def rows(a: F64) -> NDArray[np.float64]:
+        return np.ascontiguousarray(a, dtype=np.float64).reshape(-1, shape[-1] if shape
+                                                                 else 1)
 
-    out = [np.empty(int(np.prod(shape))) for _ in range(5)]
-    kinematics_kernel(flat(e.x), flat(e.y), flat(e.heading), flat(e.speed), flat(g.x),
-                      flat(g.y), flat(g.heading), flat(g.speed), target.length_m,
+    m = rows(np.asarray(e.x)).shape
+    out = [np.empty(m) for _ in range(6)]
+    kinematics_kernel(rows(e.x), rows(e.y), rows(e.heading), rows(e.speed), rows(g.x),
+                      rows(g.y), rows(g.heading), rows(g.speed), target.length_m,
                       target.width_m, 0.5 * body.width_m, body.x_front_m, body.x_rear_m,
                       LATERAL_MARGIN_M, *out)
-    xr, yr, ttc, headway, dist = (a.reshape(shape) for a in out)
-    psi = np.asarray(g.heading, dtype=np.float64) - np.asarray(e.heading, dtype=np.float64)
+    xr, yr, ttc, headway, dist, psi = (a.reshape(shape) for a in out)
     return Kinematics(xr, yr, ttc, headway, dist, psi)
 
 
@@ -523,7 +524,8 @@ class Evaluator:
     def evaluate_batch(self, batch: ScenarioBatch, env_names: Sequence[str] | NDArray[np.str_],
                        presets: Mapping[str, EnvironmentConfig],
                        sun_deg: F64 | None = None, rows: NDArray[np.intp] | None = None,
-                       duration_s: float | None = None) -> BatchTrace:
+                       duration_s: float | None = None,
+                       collisions_only: bool = False) -> BatchTrace:
         """Evaluate the ``rows`` (default: all) of a batch.
 
         ``env_names[i]``: the preset of row i; ``sun_deg[i]`` (azimuth, elevation), deg:
@@ -531,6 +533,10 @@ class Evaluator:
         ``exact`` mode every sensor is evaluated (``log_miss``) and the confirming ones
         fused apart (``log_miss_confirm``); in ``lookup`` mode only the confirming sensors
         are looked up (both fields hold them: the lookup proposes, ``exact`` decides).
+        ``collisions_only`` (lookup mode, the search's proposals): Pd is looked up only on
+        rows with an open-loop collision after t = 0, the only rows with a collision to
+        avoid; on the others it stays 0 (their collision probability is exactly 0 and,
+        their path TTC being infinite, so are the risk terms).
         """
         target = self.target(batch.target_class)
         if rows is None or len(rows) == len(batch):
@@ -562,6 +568,10 @@ class Evaluator:
             g = np.flatnonzero(names == name)
             scene = self.scene(env, target)
             if self.mode == "lookup":
+                if collisions_only:
+                    g = g[enc.collide_step[g] > 0]
+                    if not g.size:
+                        continue
                 sun_rows = _sun_rows(env, sun)
                 maps = self.maps(env, target)
                 n_exact = lookup_log_miss_tracks(
@@ -582,9 +592,10 @@ class Evaluator:
                 log_conf[gr, vc] = lm[keep].sum(axis=0)
         ttc = np.where(valid, enc.ttc_path, np.inf)
         headway = np.where(valid, kin.headway, np.inf)
-        decel = np.array([min(self.reaction.decel_max_m_s2,
-                              self.friction[road_condition(presets[str(e)])] * G_M_S2)
-                          for e in names]) if b else np.zeros(0)
+        decel = np.zeros(b)
+        for name in np.unique(names):  # per environment: its road's friction
+            decel[names == name] = min(self.reaction.decel_max_m_s2, self.friction[
+                road_condition(presets[str(name)])] * G_M_S2)
         return BatchTrace(t=batch.t, x=kin.x, y=kin.y, log_miss=log_miss, ttc=ttc,
                           headway=headway, distance=kin.distance, ego_speed=ego.speed,
                           heading=ego.heading, n=n, collided=collided,

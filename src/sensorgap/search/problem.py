@@ -156,19 +156,22 @@ def impossible_encounters(bt: BatchTrace, x_front: float, length: float,
     enc = bt.encounter
     if enc is None:
         return out
-    for j in np.flatnonzero(enc.collide_step >= 0):
-        k = int(enc.collide_step[j])
-        if k == 0:
-            out.append((int(j), "impossible encounter: the bodies overlap at t = 0"))
-            continue
-        psi = 0.0 if bt.psi is None else float(bt.psi[j, k])
-        x_min = float(bt.x[j, k]) - 0.5 * (abs(np.cos(psi)) * length
-                                            + abs(np.sin(psi)) * width)
-        if x_min < x_front - CONTACT_TOLERANCE_M:
-            where = "side" if float(bt.x[j, k]) > 0.0 else "rear"
-            out.append((int(j), f"impossible encounter: the target moves into the ego's "
-                                f"{where} at t = {bt.t[k]:.2f} s (first contact not with "
-                                "the ego's front)"))
+    rows = np.flatnonzero(enc.collide_step >= 0)
+    k = enc.collide_step[rows]
+    at_start = k == 0
+    psi = np.zeros(rows.size) if bt.psi is None else bt.psi[rows, k]
+    xc = bt.x[rows, k]
+    x_min = xc - 0.5 * (np.abs(np.cos(psi)) * length + np.abs(np.sin(psi)) * width)
+    side = ~at_start & (x_min < x_front - CONTACT_TOLERANCE_M)
+    for j, kk, x0, st, sd in zip(rows.tolist(), k.tolist(), xc.tolist(), at_start.tolist(),
+                                 side.tolist(), strict=True):
+        if st:
+            out.append((j, "impossible encounter: the bodies overlap at t = 0"))
+        elif sd:
+            where = "side" if x0 > 0.0 else "rear"
+            out.append((j, f"impossible encounter: the target moves into the ego's "
+                           f"{where} at t = {bt.t[kk]:.2f} s (first contact not with "
+                           "the ego's front)"))
     return out
 
 
@@ -338,7 +341,8 @@ class SearchProblem:
         if ok.size:
             bt = self.evaluator.evaluate_batch(batch, d.env_names, self.environments,
                                                d.sun_deg, rows=ok,
-                                               duration_s=self.family.duration_s)
+                                               duration_s=self.family.duration_s,
+                                               collisions_only=True)
             for m, v in compute_all_batch(bt, names).items():
                 metrics[m][ok] = v
             sm = summary(bt).values
