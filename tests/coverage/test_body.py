@@ -95,6 +95,7 @@ def test_culling_changes_nothing(scene_a, monkeypatch):
     rng = np.random.default_rng(7)
     x = rng.uniform(-30, 80, 400)
     y = rng.uniform(-25, 25, 400)
+    x[:100], y[:100] = rng.uniform(-6, 8, 100), rng.uniform(-4, 4, 100)  # beside the ego
     psi = rng.uniform(-math.pi, math.pi, 400)
     culled = body_per_sensor_pd(scene_a, x, y, psi)
     monkeypatch.setattr(body_mod, "CULL", False)
@@ -120,14 +121,21 @@ def test_hidden_by_the_ego_body(scene_a):
     lo, hi = body_mod._ego_box(scene_a)
     inside = all(lo[a] < v < hi[a] for a, v in enumerate((lid.mount.x, lid.mount.y,
                                                           lid.mount.z)))
-    cand = np.empty((1, 1), dtype=bool)
-    nf = np.empty(1, dtype=np.int64)
-    body_mod._visible_kernel(np.array([[1.0]]), np.array([[-1.5]]), np.array([[0.2]]),
-                             np.array([[0.0]]), np.array([[1.0]]), lid.mount.x,
-                             lid.mount.y, max(lid.mount.z, hi[2] + 0.1), lo, hi, True,
-                             cand, nf)
+    mz = max(lid.mount.z, hi[2] + 0.1)
+    assert body_mod._hidden_by_box(lid.mount.x, lid.mount.y, mz, 1.0, -1.5, 0.2, lo, hi)
+    # the same sample seen from beside the car, at its own height: not hidden
+    assert not body_mod._hidden_by_box(1.0, -3.0, 0.2, 1.0, -1.5, 0.2, lo, hi)
     assert not inside or lid.mount.z < hi[2]  # where the preset puts it
-    assert nf[0] == 1 and not cand[0, 0]
+    # and through the body model: the facing sample is counted, but not visible
+    flat = np.empty(1, dtype=np.int64)
+    nf = np.empty(1, dtype=np.int64)
+    mount = np.array([lid.mount.x, lid.mount.y, mz, 1.0, 0.0, 1.0, 0.0, -1.0, -1.0, 0.0,
+                      1e3, math.pi])
+    got = body_mod._view_kernel(np.array([[1.0]]), np.array([[-1.5]]), np.array([[0.2]]),
+                                np.array([[0.0]]), np.array([[1.0]]),
+                                np.array([0], dtype=np.int64), mount, lo, hi, True, True,
+                                flat, nf)
+    assert nf[0] == 1 and got == 0
 
 
 def test_probe_and_coverage_with_heading(tmp_path, capsys):

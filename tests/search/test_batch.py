@@ -204,10 +204,16 @@ def test_scene_limited_evaluation_is_identical_and_logged() -> None:
                              {k: ENVS[k] for k in ("clear", "glare_front_right", "fog_50")},
                              Evaluator(load_system("system_b"), "exact", bodies=False))
         prob.evaluator.scoped = scoped
-        outs.append((prob.evaluate_decoded(d), prob.evaluator.scope_log))
+        # every row (the search itself evaluates Pd only where there is a collision to
+        # avoid, and these keep their distance)
+        bt = prob.evaluator.evaluate_batch(prob.family.generate_batch(d.params),
+                                           d.env_names, prob.environments, d.sun_deg)
+        outs.append((bt, prob.evaluator.scope_log))
     (a, log_a), (b, log_b) = outs
-    for m in a.metrics:
-        np.testing.assert_array_equal(a.metrics[m], b.metrics[m])
+    assert np.all(a.log_miss < 0.0)
+    np.testing.assert_array_equal(a.log_miss, b.log_miss)
+    assert a.log_miss_confirm is not None and b.log_miss_confirm is not None
+    np.testing.assert_array_equal(a.log_miss_confirm, b.log_miss_confirm)
     assert log_b == {}
     ultrasonic = {x.id for x in load_system("system_b").sensors if x.type_name == "ultrasonic"}
     assert ultrasonic and ultrasonic <= set(log_a)

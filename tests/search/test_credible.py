@@ -38,7 +38,7 @@ def test_every_family_yields_threats_and_only_possible_encounters(name: str) -> 
     assert ok.mean() > 0.2
     assert np.any(out.objective[ok] > OBJECTIVE_THREAT_FLOOR), "no candidate is a threat"
     # every feasible row: no open-loop overlap at t = 0, and first contact (if any) with the
-    # ego's front: the bodies' relation at the collision step, recomputed here
+    # ego's front: the bodies' relation one step before the collision step, recomputed here
     batch = prob.family.generate_batch(d.params)
     rows = np.flatnonzero(ok)
     bt = prob.evaluator.evaluate_batch(batch, d.env_names, prob.environments, d.sun_deg,
@@ -49,8 +49,8 @@ def test_every_family_yields_threats_and_only_possible_encounters(name: str) -> 
     for j in np.flatnonzero(bt.encounter.collide_step >= 0):
         k = int(bt.encounter.collide_step[j])
         assert k > 0
-        psi = bt.psi[j, k]
-        rear = bt.x[j, k] - 0.5 * (abs(math.cos(psi)) * tgt.length_m
+        psi = bt.psi[j, k - 1]
+        rear = bt.x[j, k - 1] - 0.5 * (abs(math.cos(psi)) * tgt.length_m
                                    + abs(math.sin(psi)) * tgt.width_m)
         assert rear >= body.x_front_m - 0.5
 
@@ -66,6 +66,22 @@ def test_overlap_at_start_is_infeasible() -> None:
     r = prob.evaluate(Candidate("cut_in_right", "clear", None, p))
     assert not r.feasible
     assert "impossible encounter" in r.note and "side" in r.note
+
+
+@pytest.mark.parametrize("speed", [10.0, 20.0, 30.0])
+def test_rear_end_at_speed_is_possible(speed: float) -> None:
+    """Running into a stopped car in a curve is a front contact at any speed: at the
+    first overlapping step the bodies overlap by up to one step's closing distance (1.5 m
+    at 30 m/s), which must not read as the target moving into the ego's side."""
+    prob = SearchProblem(load_family("slow_ahead_curve"), {"clear": ENVS["clear"]},
+                         Evaluator(load_system("system_a"), "lookup"))
+    from sensorgap.search.problem import Candidate
+    for s0 in (450.0, 600.0, 700.0):
+        p = {"ego_s0_m": s0, "ego_speed_m_s": speed, "target_speed_m_s": 0.0,
+             "gap0_m": 5.0 * speed}
+        r = prob.evaluate(Candidate("slow_ahead_curve", "clear", None, p))
+        assert r.feasible, r.note
+        assert r.metrics["t_threat_s"] >= 0.0
 
 
 @pytest.mark.slow

@@ -128,39 +128,86 @@ def _ego_box(scene: Scene) -> tuple[F64, F64]:
 
 
 @numba.njit(cache=True, nogil=True)
-def _visible_kernel(px: F64, py: F64, pz: F64, nx: F64, ny: F64, mx: float, my: float,
-                    mz: float, lo: F64, hi: F64, check_ego: bool, cand: NDArray[np.bool_],
-                    n_face: NDArray[np.int64]) -> None:  # pragma: no cover - compiled
-    """(N, K) samples: ``cand`` = facing the mount and not behind the ego's box (slab test
-    of the segment mount -> sample), ``n_face`` = facing samples per pose."""
-    n, k = px.shape
-    o = (mx, my, mz)
-    for i in range(n):
+def _hidden_by_box(ox: float, oy: float, oz: float, px: float, py: float, pz: float,
+                   lo: F64, hi: F64) -> bool:  # pragma: no cover - compiled
+    """True when the segment from ``o`` (a sensor's mount) to ``p`` (a sample) passes
+    through the axis-aligned box ``lo``..``hi`` (the ego's own body; slab test), m."""
+    o = (ox, oy, oz)
+    p = (px, py, pz)
+    t0, t1 = 0.0, 1.0
+    for a in range(3):
+        d = p[a] - o[a]
+        if d == 0.0:
+            if o[a] <= lo[a] or o[a] >= hi[a]:
+                return False
+            continue
+        ta = (lo[a] - o[a]) / d
+        tb = (hi[a] - o[a]) / d
+        t0 = max(t0, min(ta, tb))
+        t1 = min(t1, max(ta, tb))
+    return t0 < t1
+
+
+@numba.njit(cache=True, nogil=True)
+def _view_kernel(px: F64, py: F64, pz: F64, nx: F64, ny: F64, near: NDArray[np.int64],
+                 mount: F64, lo: F64, hi: F64, check_ego: bool, prefilter: bool,
+                 flat: NDArray[np.int64],
+                 n_face: NDArray[np.int64]) -> int:  # pragma: no cover - compiled
+    """The samples of the ``near`` poses of (N, K) arrays that one sensor may see: facing
+    its mount, not behind the ego's box (``_hidden_by_box``) and passing a slightly loose
+    field-of-view and range test (the exact test follows in ``sensor_snr``; the slack only
+    keeps rounding from dropping a sample it would keep; ``prefilter`` False: no such
+    test). ``mount`` = (x, y, z, cos yaw, sin yaw, cos pitch, sin pitch, tan half hfov or
+    -1 (>= 90 deg), tan^2 half vfov or -1 (>= 90 deg), min range, max range, half hfov).
+    Writes flat indices (pose * K + sample) into ``flat`` and the facing count per near
+    pose into ``n_face``; returns how many were written."""
+    k = px.shape[1]
+    mx, my, mz = mount[0], mount[1], mount[2]
+    cy, sy, cp, sp = mount[3], mount[4], mount[5], mount[6]
+    tan_h, tan2_v = mount[7], mount[8]
+    rmin2 = (mount[9] * (1.0 - 1e-9)) ** 2
+    rmax2 = (mount[10] * (1.0 + 1e-9) + 1e-9) ** 2
+    half_h = mount[11]
+    tan_rear = math.tan(math.pi - half_h) if half_h > 0.5 * math.pi else 0.0
+    m = 0
+    for q in range(near.size):
+        i = near[q]
         nf = 0
         for j in range(k):
-            f = nx[i, j] * (mx - px[i, j]) + ny[i, j] * (my - py[i, j]) > 0.0
-            cand[i, j] = f
-            if not f:
+            ddx = px[i, j] - mx
+            ddy = py[i, j] - my
+            if nx[i, j] * (-ddx) + ny[i, j] * (-ddy) <= 0.0:
                 continue
             nf += 1
-            if not check_ego:
+            ddz = pz[i, j] - mz
+            r2 = ddx * ddx + ddy * ddy + ddz * ddz
+            if prefilter and (r2 > rmax2 or r2 < rmin2):
                 continue
-            t0, t1 = 0.0, 1.0
-            p = (px[i, j], py[i, j], pz[i, j])
-            for a in range(3):
-                d = p[a] - o[a]
-                if d == 0.0:
-                    if o[a] <= lo[a] or o[a] >= hi[a]:
-                        t0, t1 = 1.0, 0.0
-                        break
+            u = cy * ddx + sy * ddy
+            v = -sy * ddx + cy * ddy
+            xs = cp * u - sp * ddz
+            zs = sp * u + cp * ddz
+            slack = 1e-9 * (abs(xs) + abs(v) + abs(zs)) + 1e-12
+            if not prefilter:
+                pass
+            elif tan_h >= 0.0:
+                if not (xs > -slack and abs(v) <= xs * tan_h + slack):
                     continue
-                ta = (lo[a] - o[a]) / d
-                tb = (hi[a] - o[a]) / d
-                t0 = max(t0, min(ta, tb))
-                t1 = min(t1, max(ta, tb))
-            if t0 < t1:
-                cand[i, j] = False
-        n_face[i] = nf
+            elif half_h < math.pi and half_h > 0.5 * math.pi:
+                if xs < -slack and abs(v) < -xs * tan_rear - slack:
+                    continue
+            elif half_h == 0.5 * math.pi and xs < -slack:
+                continue
+            if prefilter and tan2_v >= 0.0 and (
+                    zs * zs > (xs * xs + v * v) * tan2_v * (1.0 + 1e-9) + slack):
+                continue
+            if check_ego and _hidden_by_box(mx, my, mz, px[i, j], py[i, j], pz[i, j],
+                                            lo, hi):
+                continue
+            flat[m] = q * k + j
+            m += 1
+        n_face[q] = nf
+    return m
 
 
 def body_points(body: BodySamples, x: F64, y: F64, psi: F64) -> tuple[F64, F64, F64, F64, F64]:
@@ -169,7 +216,7 @@ def body_points(body: BodySamples, x: F64, y: F64, psi: F64) -> tuple[F64, F64, 
     c, s = np.cos(psi)[:, None], np.sin(psi)[:, None]
     px = x[:, None] + c * body.x[None, :] - s * body.y[None, :]
     py = y[:, None] + s * body.x[None, :] + c * body.y[None, :]
-    pz = np.broadcast_to(body.z[None, :], px.shape)
+    pz = np.ascontiguousarray(np.broadcast_to(body.z[None, :], px.shape))
     nx = c * body.nx[None, :] - s * body.ny[None, :]
     ny = s * body.nx[None, :] + c * body.ny[None, :]
     return px, py, pz, nx, ny
@@ -204,24 +251,28 @@ def body_sensor_pd(scene: Scene, sensor: Sensor, cx: F64, cy: F64, px: F64, py: 
     near = np.flatnonzero(near_mask)
     if near.size == 0:
         return pd, frac
-    if near.size < n:
-        px, py, pz, nx, ny = px[near], py[near], pz[near], nx[near], ny[near]
-        if sun_dirs is not None:
-            sun_dirs = sun_dirs[near]
     lo, hi = _ego_box(scene)
     inside = bool(np.all(np.array([m.x, m.y, m.z]) > lo) and np.all(
         np.array([m.x, m.y, m.z]) < hi))
-    cand = np.empty(px.shape, dtype=bool)
-    n_face = np.empty(px.shape[0], dtype=np.int64)
-    _visible_kernel(np.ascontiguousarray(px), np.ascontiguousarray(py),
-                    np.ascontiguousarray(pz), np.ascontiguousarray(nx),
-                    np.ascontiguousarray(ny), m.x, m.y, m.z, lo, hi, not inside, cand, n_face)
-    flat = np.flatnonzero(cand.ravel())
-    if flat.size == 0:
+    half_h, half_v = 0.5 * m.hfov, 0.5 * m.vfov
+    mount = np.array([m.x, m.y, m.z, math.cos(m.yaw), math.sin(m.yaw), math.cos(m.pitch),
+                      math.sin(m.pitch),
+                      math.tan(half_h) if half_h < 0.5 * math.pi else -1.0,
+                      math.tan(half_v) ** 2 if half_v < 0.5 * math.pi else -1.0,
+                      m.min_range, m.max_range, half_h])
+    buf = np.empty(near.size * k, dtype=np.int64)
+    n_face = np.empty(near.size, dtype=np.int64)
+    cnt = _view_kernel(np.ascontiguousarray(px), np.ascontiguousarray(py),
+                       np.ascontiguousarray(pz), np.ascontiguousarray(nx),
+                       np.ascontiguousarray(ny), near.astype(np.int64), mount, lo, hi,
+                       not inside, CULL, buf, n_face)
+    if cnt == 0:
         return pd, frac
-    sd = None if sun_dirs is None else np.repeat(sun_dirs, k, axis=0)[flat]
-    idx, snr = sensor_snr(scene, sensor, px.ravel()[flat], py.ravel()[flat],
-                          pz.ravel()[flat], sd)
+    flat = buf[:cnt]  # (near pose q) * K + sample
+    src = near[flat // k] * k + flat % k  # into the full (N, K) arrays
+    sd = None if sun_dirs is None else sun_dirs[near[flat // k]]
+    idx, snr = sensor_snr(scene, sensor, px.ravel()[src], py.ravel()[src],
+                          pz.ravel()[src], sd)
     if idx.size == 0:
         return pd, frac
     pose = flat[idx] // k  # ascending: samples are listed pose by pose

@@ -533,10 +533,10 @@ class Evaluator:
         ``exact`` mode every sensor is evaluated (``log_miss``) and the confirming ones
         fused apart (``log_miss_confirm``); in ``lookup`` mode only the confirming sensors
         are looked up (both fields hold them: the lookup proposes, ``exact`` decides).
-        ``collisions_only`` (lookup mode, the search's proposals): Pd is looked up only on
-        rows with an open-loop collision after t = 0, the only rows with a collision to
-        avoid; on the others it stays 0 (their collision probability is exactly 0 and,
-        their path TTC being infinite, so are the risk terms).
+        ``collisions_only`` (the search's metrics): Pd is evaluated only on rows with an
+        open-loop collision after t = 0, the only rows with a collision to avoid; on the
+        others it stays 0 (their collision probability is exactly 0 and, their path TTC
+        being infinite, so are the risk terms; their Pd columns are never shown).
         """
         target = self.target(batch.target_class)
         if rows is None or len(rows) == len(batch):
@@ -566,12 +566,12 @@ class Evaluator:
         for name in np.unique(names):
             env = presets[str(name)]
             g = np.flatnonzero(names == name)
+            if collisions_only:
+                g = g[enc.collide_step[g] > 0]
+                if not g.size:
+                    continue
             scene = self.scene(env, target)
             if self.mode == "lookup":
-                if collisions_only:
-                    g = g[enc.collide_step[g] > 0]
-                    if not g.size:
-                        continue
                 sun_rows = _sun_rows(env, sun)
                 maps = self.maps(env, target)
                 n_exact = lookup_log_miss_tracks(

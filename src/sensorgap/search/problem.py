@@ -142,9 +142,11 @@ def search_objective(log10_risk_raw: F64, min_distance_m: F64,
     return np.where(np.asarray(collision_perfect) > 0.5, OBJECTIVE_UNAVOIDABLE, out)
 
 
-#: At the first open-loop contact the target's rear-most point must be ahead of the ego's
-#: front bumper less this tolerance, m (estimate: angled front-corner contacts); otherwise
-#: the target moved into the ego's side or rear, an impossible encounter for this search.
+#: One step before the first open-loop contact the target's rear-most point must be ahead
+#: of the ego's front bumper less this tolerance, m (estimate: angled front-corner
+#: contacts); otherwise the target moved into the ego's side or rear, an impossible
+#: encounter for this search. (The step before: at the contact step itself a rear-end
+#: overlaps by up to the closing distance of one step, 0.75 m at 15 m/s and 20 Hz.)
 CONTACT_TOLERANCE_M = 0.5
 
 
@@ -159,8 +161,9 @@ def impossible_encounters(bt: BatchTrace, x_front: float, length: float,
     rows = np.flatnonzero(enc.collide_step >= 0)
     k = enc.collide_step[rows]
     at_start = k == 0
-    psi = np.zeros(rows.size) if bt.psi is None else bt.psi[rows, k]
-    xc = bt.x[rows, k]
+    kb = np.maximum(k - 1, 0)  # the step before the contact
+    psi = np.zeros(rows.size) if bt.psi is None else bt.psi[rows, kb]
+    xc = bt.x[rows, kb]
     x_min = xc - 0.5 * (np.abs(np.cos(psi)) * length + np.abs(np.sin(psi)) * width)
     side = ~at_start & (x_min < x_front - CONTACT_TOLERANCE_M)
     for j, kk, x0, st, sd in zip(rows.tolist(), k.tolist(), xc.tolist(), at_start.tolist(),
