@@ -169,12 +169,21 @@ def cmd_farfield(args: argparse.Namespace) -> int:
             raise InputError(opt, "", f"lane {lane} does not exist on road {args.road_id} "
                              f"at s = {args.ego_s:g} m")
     system = load_system(args.vehicle)
-    scene, ff = run_farfield(system, args.environment, setup, net)
+    bodies = args.target_model == "body"
+    scene, ff = run_farfield(system, args.environment, setup, net, bodies=bodies)
     write_farfield(scene, ff, Path(args.out), f"{system.name}, {args.environment}: "
-                   f"{args.target} on lane {args.target_lane}", extra={"setup": setup.__dict__})
+                   f"{args.target} ({args.target_model}) on lane {args.target_lane}",
+                   extra={"setup": setup.__dict__, "target_model": _target_model(bodies)},
+                   bodies=bodies)
     write_manifest(args.out)
     print(", ".join(f"{k} {v:.0f} m" for k, v in ff.levels_m.items()))
     return 0
+
+
+def _target_model(bodies: bool) -> str:
+    """How a far-field target was modelled (for the summary)."""
+    return ("body (coverage.body), heading along the lane" if bodies
+            else "point at the target's reference height (the paper's setting)")
 
 
 def cmd_paper(args: argparse.Namespace) -> int:
@@ -439,6 +448,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--target-lane", type=int, default=-2, help="target lane id")
     p.add_argument("--target", default="car", help="pedestrian | bike | car | truck")
     p.add_argument("--length", type=float, default=303.0, help="path length ahead, m")
+    p.add_argument("--target-model", choices=("body", "point"), default="body",
+                   help="the target as its body heading along the lane, or as a point at "
+                   "its reference height (the paper's setting) (default: body)")
     p.add_argument("--out", required=True, help="output folder")
     p.set_defaults(func=cmd_farfield)
 

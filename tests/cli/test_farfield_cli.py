@@ -52,6 +52,27 @@ def test_farfield_straight_road_by_geometry(system_a: System) -> None:
     assert sum(ff.levels_m[k] for k in ("pd>0", "pd=0")) == pytest.approx(600.0)
 
 
+def test_farfield_bodies_on_a_straight_road(system_a: System) -> None:
+    """Bodies along a straight lane: heading along it (relative heading 0), Pd equal to
+    the body model at those poses; beyond every sensor's range plus the body's half
+    length, Pd = 0 exactly; in the near range (ahead, within the front cameras' and
+    radar's view) the body is seen with Pd 1 like the point."""
+    from sensorgap.coverage.body import body_per_sensor_pd
+
+    x = np.linspace(0.0, 2000.0, 4001)
+    path = np.column_stack([x, np.full_like(x, -3.75)])
+    scene = make_scene(system_a)
+    ff = farfield(scene, path, EgoPose(0.0, 0.0, 0.0), length_m=600.0, bodies=True)
+    pts = farfield(scene, path, EgoPose(0.0, 0.0, 0.0), length_m=600.0)
+    np.testing.assert_allclose(ff.vehicle, pts.vehicle)
+    pd, _ = body_per_sensor_pd(scene, ff.vehicle[:, 0], ff.vehicle[:, 1],
+                               np.zeros(len(ff.s)))
+    np.testing.assert_allclose(ff.pd, 1.0 - np.prod(1.0 - pd, axis=0), atol=1e-12)
+    assert np.all(ff.pd[ff.vehicle[:, 0] > 260.0 + 2.5] == 0.0)
+    near = (ff.vehicle[:, 0] > 20.0) & (ff.vehicle[:, 0] < 60.0)
+    assert np.all(ff.pd[near] == pytest.approx(1.0)) and np.all(pts.pd[near] == pytest.approx(1.0))
+
+
 def test_motorway_setup_matches_the_paper_geometry() -> None:
     net = read_opendrive(resolve_road("motorway_r500"))
     setup = FarFieldSetup()
@@ -71,6 +92,8 @@ def test_farfield_cli_files(tmp_path: Path) -> None:
         assert (out / name).is_file()
     levels = (out / "levels.csv").read_text().splitlines()
     assert levels[0] == "level,metres" and len(levels) == 6
+    import json
+    assert json.loads((out / "summary.json").read_text())["target_model"].startswith("body")
 
 
 HOSTILE = {

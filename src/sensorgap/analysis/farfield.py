@@ -115,12 +115,29 @@ def path_ahead(
 
 def farfield(
     scene: Scene, path_xy: F64, pose: EgoPose, length_m: float = 303.0, step_m: float = 0.1,
-    height_m: float | None = None,
+    height_m: float | None = None, bodies: bool = False,
 ) -> FarField:
-    """Pd along ``path_xy`` (world polyline, m) seen from ``pose`` (Table IV, Figs. 6-7)."""
+    """Pd along ``path_xy`` (world polyline, m) seen from ``pose`` (Table IV, Figs. 6-7).
+
+    ``bodies`` False (the paper's setting): the target is a point at ``height_m`` (default:
+    its reference height). True: the target is its body (``coverage.body``) centred on the
+    path, heading along it (the path's tangent)."""
     x_front = scene.system.config.vehicle.x_front_m
     world, s, ds = path_ahead(path_xy, pose, x_front, length_m, step_m)
     xv, yv = world_to_vehicle(pose, world[:, 0], world[:, 1])
+    if bodies:
+        from sensorgap.coverage.body import body_per_sensor_pd
+        from sensorgap.coverage.logmiss import log_miss_of
+
+        if len(world) > 1:
+            tangent = np.arctan2(np.gradient(world[:, 1]), np.gradient(world[:, 0]))
+        else:
+            tangent = np.full(len(world), pose.heading)
+        pd, _ = body_per_sensor_pd(scene, xv, yv, tangent - pose.heading)
+        fused = np.asarray(-np.expm1(log_miss_of(pd).sum(axis=0)) + 0.0, dtype=np.float64)
+        per = {sensor.id: pd[i] for i, sensor in enumerate(scene.sensors)}
+        return FarField(s=s, ds=ds, world=world, vehicle=np.column_stack([xv, yv]), pd=fused,
+                        per_sensor=per, levels_m=level_lengths(fused, ds))
     h = scene.target.reference_height_m if height_m is None else height_m
     cov = evaluate_points(scene, np.column_stack([xv, yv, np.full_like(xv, h)]))
     per = {sid: cov.pd[i] for i, sid in enumerate(cov.sensor_ids) if sid in cov.evaluated}

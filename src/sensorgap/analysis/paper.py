@@ -67,12 +67,14 @@ def target_path(net: RoadNetwork, setup: FarFieldSetup, step_m: float = 0.5) -> 
 
 
 def run_farfield(system: System, env_name: str, setup: FarFieldSetup,
-                 net: RoadNetwork) -> tuple[Scene, FarField]:
-    """The far-field profile of one system in one environment."""
+                 net: RoadNetwork, bodies: bool = False) -> tuple[Scene, FarField]:
+    """The far-field profile of one system in one environment (``bodies``: the target as
+    its body heading along the lane; False: a point, the paper's setting)."""
     pose = ego_pose(net, setup)
     env = load_environment(env_name)
     scene = Scene(system, load_target(setup.target), Conditions.from_config(env, pose.heading))
-    return scene, farfield(scene, target_path(net, setup), pose, setup.length_m)
+    return scene, farfield(scene, target_path(net, setup), pose, setup.length_m,
+                           bodies=bodies)
 
 
 def _md_table(header: list[str], rows: list[list[str]]) -> str:

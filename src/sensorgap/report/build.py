@@ -159,7 +159,8 @@ def _coverage_section(folder: Path) -> Section:
                      fmt(s.get("grid", {}).get("resolution_m"))])
         if (d / "coverage.png").is_file():
             subs.append(Section(f"coverage-{d.name}", d.name, [
-                Image(d / "coverage.png", f"Fused Pd, {d.name} (same colour scale in every "
+                Image(d / "coverage.png", f"Fused Pd, {d.name}: target "
+                      f"{s.get('target_model', 'point')} (same colour scale in every "
                       "map; vehicle outline and sensor fields of view drawn)",
                       f"coverage/{d.name}/coverage.png")]))
     return Section("coverage", "Far-field coverage maps per environment", [
