@@ -236,3 +236,23 @@ def test_pieces_and_threads_give_identical_results(monkeypatch: pytest.MonkeyPat
         np.testing.assert_array_equal(got.objective, whole.objective)
         for m in whole.metrics:
             np.testing.assert_array_equal(got.metrics[m], whole.metrics[m])
+
+
+def test_distance_at_detection_is_not_capped() -> None:
+    """issue #13: ``distance_at_detect_m`` was clipped to 99 (the TTC cap in seconds applied
+    to metres). A car held 150 m ahead at the ego's speed on the straight, detected in the
+    first frames: the distance at detection is about 150 m (rear axle to centre), per trace
+    and per batch alike."""
+    fam = load_family("slow_ahead_curve")
+    p = {"ego_s0_m": 100.0, "ego_speed_m_s": 20.0, "target_speed_m_s": 20.0, "gap0_m": 150.0}
+    sc = fam.generate(p)
+    ev = Evaluator(load_system("system_a"), "exact")
+    tr = ev.trace(sc, load_environments()["clear"], fam.duration_s)
+    m = get_metric("distance_at_detect_m")
+    assert m is not None
+    d = m.compute(tr)
+    assert 145.0 < d < 160.0
+    from sensorgap.scenarios.batch import ScenarioBatch
+    bt = ev.evaluate_batch(ScenarioBatch.of(sc), ["clear"], load_environments(),
+                           duration_s=fam.duration_s)
+    assert m.compute_batch(bt)[0] == pytest.approx(d, abs=1e-9)

@@ -309,11 +309,15 @@ class TimeToDetection(Metric):
         return np.where(k >= 0, bt.t[np.maximum(k, 0)], bt.duration_s)
 
 
-def _at_detection(tr: Trace, values: np.ndarray, worst: str) -> float:
+def _at_detection(tr: Trace, values: np.ndarray, worst: str, cap: bool = True) -> float:
+    """``values`` at the first reliable detection (the most critical value reached
+    undetected if never); times capped at ``CAP_S`` (``cap``), distances not."""
     k = detection_index(tr)
     if k is None:  # never detected: the most critical value reached undetected
-        return _cap(float(np.min(values)) if worst == "min" else float(np.max(values)))
-    return _cap(float(values[k]))
+        v = float(np.min(values)) if worst == "min" else float(np.max(values))
+    else:
+        v = float(values[k])
+    return _cap(v) if cap else v
 
 
 @register_metric
@@ -352,10 +356,10 @@ class DistanceAtDetection(Metric):
     description = "ego rear axle to target centre at detection (min distance if never)"
 
     def compute(self, tr: Trace) -> float:
-        return _at_detection(tr, tr.distance, "min")
+        return _at_detection(tr, tr.distance, "min", cap=False)
 
     def compute_batch(self, bt: BatchTrace) -> np.ndarray:
-        return np.minimum(summary(bt).values["distance_at"], CAP_S)
+        return np.asarray(summary(bt).values["distance_at"], dtype=np.float64)
 
 
 @register_metric
