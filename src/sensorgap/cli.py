@@ -17,6 +17,7 @@ from sensorgap.runtime import tune_allocator
 
 if TYPE_CHECKING:
     from sensorgap.coverage import Scene
+    from sensorgap.coverage.occluders import Occluder
 
 EXIT_INPUT = 2
 EXIT_INTERNAL = 1
@@ -124,13 +125,42 @@ def cmd_coverage(args: argparse.Namespace) -> int:
     if args.heading is not None and cells > 4_000_000:
         raise InputError("--resolution", "", f"grid of {cells} cells is too large for "
                          "target bodies (at most 4e6); coarsen the resolution")
+    occluders = [_occluder(text) for text in args.occluder]
+    if occluders and args.heading is None:
+        raise InputError("--occluder", "", "occluders hide parts of target bodies: add "
+                         "--heading DEG")
     summary = write_coverage(scene, grid, Path(args.out), per_sensor=args.per_sensor,
-                             workers=args.workers, heading_deg=args.heading)
+                             workers=args.workers, heading_deg=args.heading,
+                             occluders=occluders)
     write_manifest(args.out)
     lv = summary["area_m2_by_level"]
     print(f"{args.out}: {grid.nx}x{grid.ny} cells, area Pd=1 {lv['pd=1.0']:.0f} m2, "
           f"Pd>0 {lv['pd>0']:.0f} m2")
     return 0
+
+
+#: Largest occluder centre distance from the ego accepted by ``--occluder``, m.
+MAX_OCCLUDER_M = 1000.0
+
+
+def _occluder(text: str) -> Occluder:
+    """``KIND@X,Y,HEADING`` -> an occluder sized as the target class KIND."""
+    from sensorgap.config import load_target
+    from sensorgap.coverage.occluders import Occluder
+
+    kind, sep, rest = text.partition("@")
+    if not sep:
+        raise InputError("--occluder", "", f"must be KIND@X,Y,HEADING (e.g. truck@15,-3.5,0),"
+                         f" got {text!r}")
+    x, y, heading = _float_list(rest, 3, "--occluder")
+    if not (abs(x) <= MAX_OCCLUDER_M and abs(y) <= MAX_OCCLUDER_M and abs(heading) <= 360.0):
+        raise InputError("--occluder", "", f"X, Y within +-{MAX_OCCLUDER_M:g} m and HEADING "
+                         f"within +-360 deg, got {text!r}")
+    try:
+        target = load_target(kind.strip())
+    except InputError as e:
+        raise InputError("--occluder", "", f"unknown occluder kind {kind!r}: {e}") from None
+    return Occluder.of_target(target, x, y, math.radians(heading))
 
 
 def cmd_nearfield(args: argparse.Namespace) -> int:
@@ -428,6 +458,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--heading", type=float, default=None,
                    help="target bodies centred at the cells at this heading relative to the "
                         "ego, deg (default: points at --height)")
+    p.add_argument("--occluder", action="append", default=[], metavar="KIND@X,Y,HEADING",
+                   help="a road user standing still as an occluder (a target class of "
+                   "targets.toml sized box, centre X,Y m in the vehicle frame, HEADING deg "
+                   "relative to the ego); repeatable; needs --heading (target bodies)")
     p.add_argument("--workers", type=int, default=2, help="threads")
     p.add_argument("--out", required=True, help="output folder")
     p.set_defaults(func=cmd_coverage)

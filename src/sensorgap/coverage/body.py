@@ -42,6 +42,8 @@ from numpy.typing import NDArray
 from sensorgap.config.target import TargetConfig
 from sensorgap.coverage.grid import GridCoverage, GridSpec
 from sensorgap.coverage.logmiss import log_miss_of, sensor_snr
+from sensorgap.coverage.occluders import COLUMNS as OCC_COLUMNS
+from sensorgap.coverage.occluders import hidden_by_boxes
 from sensorgap.coverage.scene import Scene
 from sensorgap.models.roc import detection_probability
 from sensorgap.models.system import Sensor
@@ -151,16 +153,18 @@ def _hidden_by_box(ox: float, oy: float, oz: float, px: float, py: float, pz: fl
 @numba.njit(cache=True, nogil=True)
 def _view_kernel(px: F64, py: F64, pz: F64, nx: F64, ny: F64, near: NDArray[np.int64],
                  mount: F64, lo: F64, hi: F64, check_ego: bool, prefilter: bool,
-                 flat: NDArray[np.int64],
+                 occ: F64, flat: NDArray[np.int64],
                  n_face: NDArray[np.int64]) -> int:  # pragma: no cover - compiled
     """The samples of the ``near`` poses of (N, K) arrays that one sensor may see: facing
-    its mount, not behind the ego's box (``_hidden_by_box``) and passing a slightly loose
+    its mount, not behind the ego's box (``_hidden_by_box``), passing a slightly loose
     field-of-view and range test (the exact test follows in ``sensor_snr``; the slack only
     keeps rounding from dropping a sample it would keep; ``prefilter`` False: no such
-    test). ``mount`` = (x, y, z, cos yaw, sin yaw, cos pitch, sin pitch, tan half hfov or
-    -1 (>= 90 deg), tan^2 half vfov or -1 (>= 90 deg), min range, max range, half hfov).
-    Writes flat indices (pose * K + sample) into ``flat`` and the facing count per near
-    pose into ``n_face``; returns how many were written."""
+    test) and not hidden by an occluder (``occ``: (P, M, 7) rows of
+    ``occluders.COLUMNS``, P = 1 for all poses or one set per pose). ``mount`` = (x, y, z,
+    cos yaw, sin yaw, cos pitch, sin pitch, tan half hfov or -1 (>= 90 deg), tan^2 half
+    vfov or -1 (>= 90 deg), min range, max range, half hfov). Writes flat indices (pose * K
+    + sample) into ``flat`` and the facing count per near pose into ``n_face``; returns
+    how many were written."""
     k = px.shape[1]
     mx, my, mz = mount[0], mount[1], mount[2]
     cy, sy, cp, sp = mount[3], mount[4], mount[5], mount[6]
@@ -204,6 +208,9 @@ def _view_kernel(px: F64, py: F64, pz: F64, nx: F64, ny: F64, near: NDArray[np.i
             if check_ego and _hidden_by_box(mx, my, mz, px[i, j], py[i, j], pz[i, j],
                                             lo, hi):
                 continue
+            if occ.shape[1] and hidden_by_boxes(mx, my, mz, px[i, j], py[i, j], pz[i, j],
+                                                occ[i if occ.shape[0] > 1 else 0]):
+                continue
             flat[m] = q * k + j
             m += 1
         n_face[q] = nf
@@ -223,12 +230,14 @@ def body_points(body: BodySamples, x: F64, y: F64, psi: F64) -> tuple[F64, F64, 
 
 
 def body_sensor_pd(scene: Scene, sensor: Sensor, cx: F64, cy: F64, px: F64, py: F64,
-                   pz: F64, nx: F64, ny: F64, sun_dirs: F64 | None = None
-                   ) -> tuple[F64, F64]:
+                   pz: F64, nx: F64, ny: F64, sun_dirs: F64 | None = None,
+                   occluders: F64 | None = None) -> tuple[F64, F64]:
     """Pd of one sensor for N target bodies with centres ``cx``, ``cy`` (m) given as
     (N, K) samples (``body_points``) and the visible fraction of each body's facing
     outline; ``sun_dirs`` (N, 3) per pose (vehicle frame, NaN rows: no direct sun) or
-    ``None``. Returns (pd, fraction), (N,)."""
+    ``None``; ``occluders``: boxes hiding parts of the bodies (``coverage.occluders``):
+    (M, 7) for every pose or (N, M, 7) per pose; ``None``: an empty road. Returns
+    (pd, fraction), (N,)."""
     n, k = px.shape
     m = sensor.mount
     pd = np.zeros(n)
@@ -265,7 +274,7 @@ def body_sensor_pd(scene: Scene, sensor: Sensor, cx: F64, cy: F64, px: F64, py: 
     cnt = _view_kernel(np.ascontiguousarray(px), np.ascontiguousarray(py),
                        np.ascontiguousarray(pz), np.ascontiguousarray(nx),
                        np.ascontiguousarray(ny), near.astype(np.int64), mount, lo, hi,
-                       not inside, CULL, buf, n_face)
+                       not inside, CULL, _occ3(occluders, n), buf, n_face)
     if cnt == 0:
         return pd, frac
     flat = buf[:cnt]  # (near pose q) * K + sample
@@ -291,6 +300,18 @@ def body_sensor_pd(scene: Scene, sensor: Sensor, cx: F64, cy: F64, px: F64, py: 
     return pd, frac
 
 
+def _occ3(occluders: F64 | None, n: int) -> F64:
+    """Occluders as the kernel's (P, M, 7) array (P = 1: the same for every pose)."""
+    if occluders is None:
+        return np.zeros((1, 0, len(OCC_COLUMNS)))
+    occ = np.ascontiguousarray(occluders, dtype=np.float64)
+    if occ.ndim == 2:
+        occ = occ[None]
+    if occ.ndim != 3 or occ.shape[2] != len(OCC_COLUMNS) or occ.shape[0] not in (1, n):
+        raise ValueError(f"occluders must be (M, 7) or (N, M, 7), got {occ.shape}")
+    return occ
+
+
 def _radius(px: F64, py: F64, cx: F64, cy: F64) -> float:
     """Largest horizontal distance of a sample from its pose's centre, m."""
     if px.size == 0:
@@ -300,9 +321,11 @@ def _radius(px: F64, py: F64, cx: F64, cy: F64) -> float:
 
 def body_per_sensor_pd(scene: Scene, x: F64, y: F64, psi: F64,
                        sun_dirs: F64 | None = None,
-                       sensors: Sequence[Sensor] | None = None) -> tuple[F64, F64]:
+                       sensors: Sequence[Sensor] | None = None,
+                       occluders: F64 | None = None) -> tuple[F64, F64]:
     """(S, N) Pd and visible fraction of every sensor (default: the scene's) for N target
-    bodies at vehicle-frame centres x, y (m) and relative headings psi (rad)."""
+    bodies at vehicle-frame centres x, y (m) and relative headings psi (rad), with
+    ``occluders`` (see ``body_sensor_pd``; ``None``: none)."""
     body = body_samples(scene.target)
     x = np.asarray(x, dtype=np.float64)
     y = np.asarray(y, dtype=np.float64)
@@ -311,23 +334,26 @@ def body_per_sensor_pd(scene: Scene, x: F64, y: F64, psi: F64,
     pd = np.zeros((len(sens), len(x)))
     frac = np.zeros((len(sens), len(x)))
     for row, s in enumerate(sens):
-        pd[row], frac[row] = body_sensor_pd(scene, s, x, y, px, py, pz, nx, ny, sun_dirs)
+        pd[row], frac[row] = body_sensor_pd(scene, s, x, y, px, py, pz, nx, ny, sun_dirs,
+                                            occluders)
     return pd, frac
 
 
 def body_log_miss(scene: Scene, x: F64, y: F64, psi: F64, sun_dirs: F64 | None = None,
-                  sensors: Sequence[Sensor] | None = None) -> F64:
+                  sensors: Sequence[Sensor] | None = None,
+                  occluders: F64 | None = None) -> F64:
     """Fused ln P_miss (eq. 11 in the log domain) of N target bodies (see
     ``body_per_sensor_pd``)."""
-    pd, _ = body_per_sensor_pd(scene, x, y, psi, sun_dirs, sensors)
+    pd, _ = body_per_sensor_pd(scene, x, y, psi, sun_dirs, sensors, occluders)
     return np.asarray(log_miss_of(pd).sum(axis=0), dtype=np.float64)
 
 
 def body_grid(scene: Scene, grid: GridSpec, heading_rad: float, per_sensor: bool = False,
-              chunk: int = 20_000) -> GridCoverage:
+              chunk: int = 20_000, occluders: F64 | None = None) -> GridCoverage:
     """Coverage of target *bodies* centred at the grid's cells at one heading relative to
-    the ego (rad): fused Pd per cell (and per sensor), in chunks of ``chunk`` cells. The
-    grid's height is not used: a body stands on the ground."""
+    the ego (rad): fused Pd per cell (and per sensor), in chunks of ``chunk`` cells, with
+    static ``occluders`` ((M, 7), ``coverage.occluders``). The grid's height is not used:
+    a body stands on the ground."""
     xs, ys = np.meshgrid(grid.xs(), grid.ys())
     x, y = xs.ravel(), ys.ravel()
     fused = np.zeros(x.size)
@@ -335,7 +361,8 @@ def body_grid(scene: Scene, grid: GridSpec, heading_rad: float, per_sensor: bool
     for a in range(0, x.size, chunk):
         sl = slice(a, min(a + chunk, x.size))
         pd, _ = body_per_sensor_pd(scene, x[sl], y[sl], np.full(sl.stop - sl.start,
-                                                                heading_rad))
+                                                                heading_rad),
+                                   occluders=occluders)
         fused[sl] = -np.expm1(log_miss_of(pd).sum(axis=0))
         if per is not None:
             per[:, sl] = pd

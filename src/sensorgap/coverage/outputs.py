@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -12,6 +13,7 @@ import numpy as np
 
 from sensorgap import __version__
 from sensorgap.coverage.grid import GridCoverage, GridSpec, evaluate_grid
+from sensorgap.coverage.occluders import Occluder, occluder_array
 from sensorgap.coverage.plot import coverage_figure, pd_levels_area, save_figure
 from sensorgap.coverage.points import PointCoverage
 from sensorgap.coverage.scene import Scene
@@ -49,17 +51,21 @@ def probe_csv(cov: PointCoverage) -> bytes:
 
 def write_coverage(
     scene: Scene, grid: GridSpec, out_dir: Path, per_sensor: bool = False, workers: int = 1,
-    heading_deg: float | None = None,
+    heading_deg: float | None = None, occluders: Sequence[Occluder] = (),
 ) -> dict[str, Any]:
     """Evaluate ``grid`` and write coverage.npz, coverage.png and summary.json to
     ``out_dir``; returns the summary. ``heading_deg``: evaluate target bodies centred at
-    the cells at this heading relative to the ego (``coverage.body``) instead of points."""
+    the cells at this heading relative to the ego (``coverage.body``) instead of points;
+    ``occluders`` (bodies only): boxes hiding parts of them (``coverage.occluders``)."""
     from sensorgap.coverage.body import body_grid
 
+    if occluders and heading_deg is None:
+        raise ValueError("occluders need target bodies (a heading)")
     cov: GridCoverage = (
         evaluate_grid(scene, grid, per_sensor=per_sensor, workers=workers)
         if heading_deg is None else
-        body_grid(scene, grid, math.radians(heading_deg), per_sensor=per_sensor))
+        body_grid(scene, grid, math.radians(heading_deg), per_sensor=per_sensor,
+                  occluders=occluder_array(occluders) if occluders else None))
     arrays = {"x": grid.xs(), "y": grid.ys(), "pd": cov.fused,
               "height": np.array(grid.height), "resolution": np.array(grid.resolution)}
     for sid, pd in cov.pd.items():
@@ -72,7 +78,9 @@ def write_coverage(
              else f"bodies at heading {heading_deg:g} deg")
     title = (f"{scene.system.name}: {scene.target.name}, {scene.conditions.env.name}, "
              f"{model}, {grid.resolution:g} m grid")
-    save_figure(coverage_figure(cov, scene.system, title), out_dir / "coverage.png")
+    if occluders:
+        title += f", {len(occluders)} occluder{'s' if len(occluders) > 1 else ''}"
+    save_figure(coverage_figure(cov, scene.system, title, occluders), out_dir / "coverage.png")
     summary = {
         **scene_provenance(scene),
         "grid": {"xmin": grid.xmin, "xmax": grid.xmax, "ymin": grid.ymin, "ymax": grid.ymax,
@@ -80,6 +88,9 @@ def write_coverage(
                  "nx": grid.nx, "ny": grid.ny},
         "target_model": ("point at the grid height" if heading_deg is None
                          else f"body (coverage.body) at heading {heading_deg:g} deg"),
+        "occluders": [{"label": o.label, "x_m": o.x, "y_m": o.y,
+                       "heading_deg": math.degrees(o.heading), "length_m": o.length,
+                       "width_m": o.width, "height_m": o.height} for o in occluders],
         "area_m2_by_level": pd_levels_area(cov),
         "sensors_evaluated": cov.evaluated,
         "skipped": list(scene.log["skipped"]),

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from pathlib import Path
 
 import matplotlib
@@ -16,6 +17,7 @@ from matplotlib.patches import Polygon, Wedge  # noqa: E402
 
 from sensorgap.atomic import atomic_path  # noqa: E402
 from sensorgap.coverage.grid import GridCoverage  # noqa: E402
+from sensorgap.coverage.occluders import Occluder  # noqa: E402
 from sensorgap.models.system import System  # noqa: E402
 
 #: One colour scale for Pd in every figure sensorgap draws.
@@ -45,8 +47,10 @@ def draw_vehicle(ax: plt.Axes, system: System, fov: bool = True) -> None:
                            edgecolor=colour, linewidth=0.6, alpha=0.8, zorder=4))
 
 
-def coverage_figure(cov: GridCoverage, system: System, title: str) -> Figure:
-    """A heat map of the fused Pd with colour bar, axes in metres, vehicle and FOVs."""
+def coverage_figure(cov: GridCoverage, system: System, title: str,
+                    occluders: Sequence[Occluder] = ()) -> Figure:
+    """A heat map of the fused Pd with colour bar, axes in metres, vehicle and FOVs, and
+    the footprints of ``occluders`` (grey, labelled)."""
     g = cov.grid
     aspect = (g.ymax - g.ymin) / (g.xmax - g.xmin)
     fig, ax = plt.subplots(figsize=(10.0, max(3.0, min(10.0, 10.0 * aspect + 1.2))),
@@ -54,6 +58,15 @@ def coverage_figure(cov: GridCoverage, system: System, title: str) -> Figure:
     im = ax.imshow(cov.fused, origin="lower", extent=(g.xmin, g.xmax, g.ymin, g.ymax),
                    cmap=PD_CMAP, norm=PD_NORM, interpolation="nearest", aspect="equal")
     draw_vehicle(ax, system)
+    for i, occ in enumerate(occluders):
+        ax.add_patch(Polygon(occ.corners(), closed=True, facecolor="0.55", edgecolor="white",
+                             linewidth=0.8, zorder=5,
+                             label="occluder (its shadow: low Pd behind it)" if i == 0
+                             else None))
+        ax.annotate(f"{occ.label} {occ.height:g} m", (occ.x, occ.y), color="white",
+                    fontsize=7, ha="center", va="center", zorder=6)
+    if occluders:
+        ax.legend(loc="upper left", fontsize=8, framealpha=0.9)
     ax.set_xlim(g.xmin, g.xmax)
     ax.set_ylim(g.ymin, g.ymax)
     ax.set_xlabel("x (vehicle frame) [m]")
