@@ -108,6 +108,44 @@ def hidden_by_boxes(ox: float, oy: float, oz: float, px: float, py: float, pz: f
     return False
 
 
+def ego_frame_boxes(ex: F64, ey: F64, eh: F64, ox: F64, oy: F64, oh: F64,
+                    sizes: F64) -> F64:
+    """Occluder boxes in the ego's vehicle frame at every step: ego rear-axle states ``ex``,
+    ``ey`` (m), ``eh`` (rad), each (B, T); occluder centre states ``ox``, ``oy``, ``oh``,
+    each (M, B, T); ``sizes`` (M, 3) length, width, height (m). Returns (B, T, M, 7) rows
+    of ``COLUMNS``."""
+    m = ox.shape[0]
+    out = np.empty(ex.shape + (m, len(COLUMNS)))
+    c, s = np.cos(eh), np.sin(eh)
+    for j in range(m):
+        dx, dy = ox[j] - ex, oy[j] - ey
+        rel = oh[j] - eh
+        out[..., j, 0] = c * dx + s * dy
+        out[..., j, 1] = -s * dx + c * dy
+        out[..., j, 2] = np.cos(rel)
+        out[..., j, 3] = np.sin(rel)
+        out[..., j, 4] = 0.5 * sizes[j, 0]
+        out[..., j, 5] = 0.5 * sizes[j, 1]
+        out[..., j, 6] = sizes[j, 2]
+    return out
+
+
+def may_hide(boxes: F64, x: F64, y: F64, target_radius: float, mount_radius: float
+             ) -> NDArray[np.bool_]:
+    """(N,) whether any of the (N, M, 7) boxes may hide part of a target body centred at
+    ``x``, ``y`` (m, vehicle frame; ``target_radius``: its footprint's half diagonal, m)
+    from a sensor mounted within ``mount_radius`` (m) of the origin: a box whose footprint
+    circle comes within ``target_radius + mount_radius`` of the segment origin -> target
+    centre (a conservative test: it never misses a box that hides something)."""
+    bx, by = boxes[..., 0], boxes[..., 1]
+    r_box = np.hypot(boxes[..., 4], boxes[..., 5])
+    px, py = x[:, None], y[:, None]
+    ll = np.maximum(px * px + py * py, 1e-12)
+    u = np.clip((bx * px + by * py) / ll, 0.0, 1.0)
+    d = np.hypot(bx - u * px, by - u * py)
+    return np.asarray(np.any(d <= r_box + target_radius + mount_radius, axis=-1))
+
+
 def shadow_polygon(occ: Occluder, mount_xy: tuple[float, float], reach_m: float) -> F64:
     """(K, 2) ground-plane shadow of an occluder's footprint seen from a mount at
     ``mount_xy`` (m), extended to ``reach_m`` from the mount: the region behind the box
@@ -129,4 +167,5 @@ def shadow_polygon(occ: Occluder, mount_xy: tuple[float, float], reach_m: float)
     return np.asarray(np.vstack([a, b, far(b), far(a)]), dtype=np.float64)
 
 
-__all__ = ["COLUMNS", "Occluder", "hidden_by_boxes", "occluder_array", "shadow_polygon"]
+__all__ = ["COLUMNS", "Occluder", "ego_frame_boxes", "hidden_by_boxes", "may_hide",
+           "occluder_array", "shadow_polygon"]

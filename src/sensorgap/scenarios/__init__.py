@@ -1,10 +1,12 @@
 """Scenario families: parameterised ego/target trajectories on real roads.
 
 Importing this package registers the built-in kinds (``cut_in``, ``overtake``,
-``slow_ahead``, ``crossing``); families are the TOML files in ``templates/scenarios``.
+``slow_ahead``, ``crossing``, and with an occluder ``cut_in_behind_occluder``,
+``cut_out_reveal``, ``crossing_behind_parked``); families are the TOML files in
+``templates/scenarios``.
 """
 
-from sensorgap.scenarios import kinds  # noqa: F401  (registration)
+from sensorgap.scenarios import kinds, occluded  # noqa: F401  (registration)
 from sensorgap.scenarios.family import (
     Family,
     FamilyKind,

@@ -24,12 +24,26 @@ from sensorgap.scenarios.trajectory import Limits, Trajectory, blend
 
 
 @dataclass(frozen=True)
+class OccluderPath:
+    """A road user or object that only hides the target (issue #17): its centre's
+    trajectory and its box (``label``: e.g. the target class it is sized as)."""
+
+    label: str
+    path: Trajectory
+    length_m: float
+    width_m: float
+    height_m: float
+
+
+@dataclass(frozen=True)
 class Scenario:
-    """Generated trajectories: ego (rear axle) and target (centre), same time axis."""
+    """Generated trajectories: ego (rear axle) and target (centre), same time axis, and
+    the occluders of the scene (none: an empty road)."""
 
     ego: Trajectory
     target: Trajectory
     target_class: str
+    occluders: tuple[OccluderPath, ...] = ()
 
 F64 = NDArray[np.float64]
 Mask = NDArray[np.bool_]
@@ -58,6 +72,27 @@ class Tracks:
         return Tracks(self.x[rows], self.y[rows], self.heading[rows], self.speed[rows])
 
 
+@dataclass(frozen=True)
+class OccluderTracks:
+    """One occluder of every row of a batch: (B, T) centre states and its box, m."""
+
+    label: str
+    tracks: Tracks
+    length_m: float
+    width_m: float
+    height_m: float
+
+    def take(self, rows: NDArray[np.intp]) -> OccluderTracks:
+        """The selected rows."""
+        return OccluderTracks(self.label, self.tracks.take(rows), self.length_m,
+                              self.width_m, self.height_m)
+
+    def row(self, t: F64, i: int) -> OccluderPath:
+        """Row ``i`` as an ``OccluderPath``."""
+        return OccluderPath(self.label, self.tracks.row(t, i), self.length_m, self.width_m,
+                            self.height_m)
+
+
 @dataclass
 class ScenarioBatch:
     """B generated scenarios on one time axis.
@@ -67,6 +102,7 @@ class ScenarioBatch:
         ok: (B,) feasible and on the road; rows with ``ok`` False hold placeholder states
             (finite, not meaningful) and ``notes[i]`` says why.
         target_class: the target class (``targets.toml``).
+        occluders: road users and objects that only hide the target (issue #17).
     """
 
     t: F64
@@ -76,6 +112,7 @@ class ScenarioBatch:
     notes: list[str]
     target_class: str
     offroad: Mask | None = None
+    occluders: tuple[OccluderTracks, ...] = ()
 
     def __post_init__(self) -> None:
         if self.offroad is None:
@@ -92,7 +129,9 @@ class ScenarioBatch:
                           tr.speed[None, :])
 
         return cls(sc.ego.t, tracks(sc.ego), tracks(sc.target), np.ones(1, dtype=bool), [""],
-                   sc.target_class)
+                   sc.target_class, occluders=tuple(
+                       OccluderTracks(o.label, tracks(o.path), o.length_m, o.width_m,
+                                      o.height_m) for o in sc.occluders))
 
     def reject(self, mask: Mask, note: str | list[str], offroad: bool = False) -> None:
         """Mark rows infeasible (first reason kept); ``offroad``: they leave the road."""
@@ -106,7 +145,8 @@ class ScenarioBatch:
 
     def scenario(self, i: int) -> Scenario:
         """Row ``i`` as a ``Scenario``."""
-        return Scenario(self.ego.row(self.t, i), self.target.row(self.t, i), self.target_class)
+        return Scenario(self.ego.row(self.t, i), self.target.row(self.t, i), self.target_class,
+                        tuple(o.row(self.t, i) for o in self.occluders))
 
 
 class LaneTable:

@@ -122,6 +122,9 @@ def load_family(name_or_path: str) -> Family:
     if settings["target"] not in targets:
         raise InputError(path, "family.target", f"unknown target {settings['target']!r}; "
                          f"allowed: {', '.join(targets)}")
+    if "occluder" in settings and settings["occluder"] not in targets:
+        raise InputError(path, "family.occluder", f"unknown occluder class "
+                         f"{settings['occluder']!r}; known: {', '.join(sorted(targets))}")
     road_path = resolve_road(str(settings["road"]))
     if not road_path.is_file():
         raise InputError(path, "family.road", f"road file {road_path} not found")

@@ -152,7 +152,9 @@ def compare_runs(run_a: Path, run_b: Path,
             target = ev_b.target(prob_b.family.target_class)
             pd = ev_b.per_sensor_pd(env, target, tr.heading[k:k + 1], tr.x[k:k + 1],
                                     tr.y[k:k + 1],
-                                    psi=None if tr.psi is None else tr.psi[k:k + 1])[:, 0]
+                                    psi=None if tr.psi is None else tr.psi[k:k + 1],
+                                    occluders=None if tr.occluders is None
+                                    else tr.occluders[k:k + 1])[:, 0]
             confirm = set(ev_b.confirm_rows)
             sees = [f"{sn.id} ({_sensor_type(sides[better].system, sn.id)}, Pd {p:.2f}"
                     f"{'' if i in confirm else ', cannot confirm'})"

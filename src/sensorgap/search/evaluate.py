@@ -45,6 +45,7 @@ from sensorgap.coverage.logmiss import (
     point_evaluators,
     sensor_pd,
 )
+from sensorgap.coverage.occluders import ego_frame_boxes, may_hide
 from sensorgap.coverage.scope import scene_scope
 from sensorgap.errors import InputError
 from sensorgap.models import Conditions, System
@@ -134,6 +135,9 @@ class Trace:
     log_miss: F64 | None = None
     #: target heading relative to the ego's, rad (0: same direction)
     psi: F64 | None = None
+    #: (T, M, 7) occluder boxes in the ego frame per step, and their labels (issue #17)
+    occluders: F64 | None = None
+    occluder_labels: tuple[str, ...] = ()
     #: per-step Pd of the sensors that confirm a target for braking (None: ``pd``)
     pd_confirm: F64 | None = None
 
@@ -253,6 +257,10 @@ class BatchTrace:
     encounter: Encounter | None = None
     reaction: ReactionConfig | None = None
     decel_m_s2: F64 | None = None
+    #: (B, T, M, 7) occluder boxes in the ego frame per step (``coverage.occluders``)
+    occluders: F64 | None = None
+    #: occluder labels (M,)
+    occluder_labels: tuple[str, ...] = ()
 
     def __len__(self) -> int:
         return len(self.n)
@@ -311,7 +319,9 @@ class BatchTrace:
                      log_miss=self.log_miss[i, :k],
                      psi=None if self.psi is None else self.psi[i, :k],
                      pd_confirm=self.pd_confirm[i, :k],
-                     extra=self.outcome_row(i))
+                     extra=self.outcome_row(i),
+                     occluders=None if self.occluders is None else self.occluders[i, :k],
+                     occluder_labels=self.occluder_labels)
 
     def outcome_row(self, i: int) -> dict[str, float]:
         """Row ``i`` of the collision outcome by field name (empty without a reaction
@@ -359,6 +369,9 @@ class Evaluator:
         self.scoped = True
         #: sensors left out of some exact evaluation, and why
         self.scope_log: dict[str, str] = {}
+        #: occluders of a scene hide parts of the target body (issue #17); False: the
+        #: paper's empty road (occluders are ignored)
+        self.occlusion = True
         self._lock = threading.RLock()
 
     # -- caches ------------------------------------------------------------------------
@@ -404,8 +417,12 @@ class Evaluator:
             return maps
 
     # -- points ----------------------------------------------------------------------
-    def _scoped(self, scene: Scene, x: F64, y: F64, reach: float) -> tuple[Sensor, ...]:
-        """The sensors that can reach the region of the points (all when not scoped)."""
+    def _scoped(self, scene: Scene, x: F64, y: F64, reach: float,
+                pool: Sequence[Sensor] | None = None) -> tuple[Sensor, ...]:
+        """The sensors of ``pool`` (default: all) that can reach the region of the points
+        (all of them when not scoped)."""
+        if pool is not None and list(pool) != list(scene.sensors):
+            return tuple(pool)
         if not (self.scoped and len(x)):
             return scene.sensors
         z0 = scene.target.reference_height_m
@@ -424,17 +441,19 @@ class Evaluator:
 
     def per_sensor_pd(self, env: EnvironmentConfig, target: TargetConfig, heading: F64,
                       x: F64, y: F64, exact: bool | None = None,
-                      psi: F64 | None = None) -> F64:
+                      psi: F64 | None = None, occluders: F64 | None = None) -> F64:
         """(S, N) per-sensor Pd at vehicle-frame target centres x, y (m) for ego headings
         (rad) and target headings ``psi`` relative to the ego (rad, default 0), always
-        exact; bodies or points as the evaluator is set (``bodies``)."""
+        exact; bodies or points as the evaluator is set (``bodies``); ``occluders``: (N, M,
+        7) boxes per point (``coverage.occluders``; bodies only, when ``occlusion``)."""
         scene = self.scene(env, target)
         dirs = Conditions.sun_directions(env, heading)
         x = np.asarray(x, dtype=np.float64)
         y = np.asarray(y, dtype=np.float64)
         if self.bodies:
             p = np.zeros(len(x)) if psi is None else np.asarray(psi, dtype=np.float64)
-            return body_per_sensor_pd(scene, x, y, p, dirs)[0]
+            return body_per_sensor_pd(scene, x, y, p, dirs,
+                                      occluders=occluders if self.occlusion else None)[0]
         z = np.full(len(x), target.reference_height_m)
         return per_sensor_pd(scene, x, y, z, dirs)
 
@@ -456,15 +475,20 @@ class Evaluator:
         return out
 
     def exact_per_sensor(self, scene: Scene, x: F64, y: F64, psi: F64,
-                         sun_dirs: F64 | None) -> tuple[tuple[int, ...], F64]:
-        """Exact per-sensor Pd of the sensors that can reach the points: (rows, (S', N))."""
+                         sun_dirs: F64 | None, occluders: F64 | None = None,
+                         sensors: Sequence[Sensor] | None = None
+                         ) -> tuple[tuple[int, ...], F64]:
+        """Exact per-sensor Pd of the sensors (default: all) that can reach the points:
+        (rows, (S', N)); ``occluders`` (N, M, 7) per point (bodies, when ``occlusion``)."""
         # bodies: each sensor culls the poses its range and field of view cannot reach
         # (``coverage.body``), which subsumes the scene scope
-        sensors = (scene.sensors if self.bodies
-                   else self._scoped(scene, x, y, self._reach(scene.target)))
+        pool = scene.sensors if sensors is None else list(sensors)
+        sensors = (pool if self.bodies
+                   else self._scoped(scene, x, y, self._reach(scene.target), pool))
         rows = tuple(scene.sensors.index(sn) for sn in sensors)
         if self.bodies:
-            return rows, body_per_sensor_pd(scene, x, y, psi, sun_dirs, sensors)[0]
+            occ = occluders if self.occlusion else None
+            return rows, body_per_sensor_pd(scene, x, y, psi, sun_dirs, sensors, occ)[0]
         z = np.full(len(x), scene.target.reference_height_m)
         out = np.zeros((len(sensors), len(x)))
         for i, sn in enumerate(sensors):
@@ -542,9 +566,18 @@ class Evaluator:
         if rows is None or len(rows) == len(batch):
             rows = np.arange(len(batch))
             ego, tgt = batch.ego, batch.target
+            occ_tracks = batch.occluders
         else:
             ego, tgt = batch.ego.take(rows), batch.target.take(rows)
+            occ_tracks = tuple(o.take(rows) for o in batch.occluders)
         kin = kinematics_arrays(ego, tgt, self.system, target)
+        occ: F64 | None = None
+        if occ_tracks and self.bodies:
+            occ = ego_frame_boxes(
+                ego.x, ego.y, ego.heading, np.stack([o.tracks.x for o in occ_tracks]),
+                np.stack([o.tracks.y for o in occ_tracks]),
+                np.stack([o.tracks.heading for o in occ_tracks]),
+                np.array([[o.length_m, o.width_m, o.height_m] for o in occ_tracks]))
         b, t = kin.x.shape
         body = self.system.config.vehicle
         enc = encounter_geometry(ego.x, ego.y, ego.heading, ego.speed, tgt.x, tgt.y,
@@ -577,6 +610,9 @@ class Evaluator:
                 n_exact = lookup_log_miss_tracks(
                     maps, scene, kin.x, kin.y, ego.heading, n, g, sun_rows, log_miss,
                     self._track_lookup(maps, scene, kin, ego.heading, sun_rows))
+                if occ is not None and self.occlusion:
+                    n_exact += self._occluded_exact(scene, env, kin, ego.heading, sun, valid,
+                                                    g, occ, log_miss)
                 with self._lock:
                     self.exact_pairs += n_exact
                 continue
@@ -584,7 +620,8 @@ class Evaluator:
             gr = g[vr]
             dirs = _sun_directions(env, sun[gr], ego.heading[gr, vc])
             srows, pd = self.exact_per_sensor(scene, kin.x[gr, vc], kin.y[gr, vc],
-                                              kin.psi[gr, vc], dirs)
+                                              kin.psi[gr, vc], dirs,
+                                              None if occ is None else occ[gr, vc])
             lm = log_miss_of(pd)
             log_miss[gr, vc] = lm.sum(axis=0)
             if log_conf is not None:
@@ -602,7 +639,35 @@ class Evaluator:
                           duration_s=float(batch.t[-1]) if duration_s is None else duration_s,
                           rule=self.rule, psi=kin.psi, log_miss_confirm=log_conf, ego=ego,
                           target=tgt, env_names=names, encounter=enc,
-                          reaction=self.reaction, decel_m_s2=decel)
+                          reaction=self.reaction, decel_m_s2=decel,
+                          occluders=occ if self.occlusion else None,
+                          occluder_labels=tuple(o.label for o in occ_tracks)
+                          if self.occlusion else ())
+
+    def _occluded_exact(self, scene: Scene, env: EnvironmentConfig, kin: Kinematics,
+                        heading: F64, sun: F64, valid: NDArray[np.bool_],
+                        g: NDArray[np.intp], occ: F64, log_miss: F64) -> int:
+        """Lookup mode with occluders: at the valid steps of rows ``g`` where an occluder
+        may hide part of the target (``coverage.occluders.may_hide``), the confirming
+        sensors are evaluated exactly with the occluders, replacing the map's value (the
+        maps know no occluders). Returns how many point-sensor pairs were evaluated."""
+        vr, vc = np.nonzero(valid[g])
+        gr = g[vr]
+        if not gr.size:
+            return 0
+        target = scene.target
+        radius = 0.5 * math.hypot(target.length_m, target.width_m)
+        mount_r = max(math.hypot(s.mount.x, s.mount.y) for s in scene.sensors)
+        hit = may_hide(occ[gr, vc], kin.x[gr, vc], kin.y[gr, vc], radius, mount_r)
+        gr, vc = gr[hit], vc[hit]
+        if not gr.size:
+            return 0
+        dirs = _sun_directions(env, sun[gr], heading[gr, vc])
+        sensors = [scene.sensors[i] for i in self.confirm_rows]
+        _, pd = self.exact_per_sensor(scene, kin.x[gr, vc], kin.y[gr, vc], kin.psi[gr, vc],
+                                      dirs, occ[gr, vc], sensors)
+        log_miss[gr, vc] = log_miss_of(pd).sum(axis=0)
+        return int(gr.size * len(sensors))
 
     def trace(self, sc: Scenario, env: EnvironmentConfig, duration_s: float) -> Trace:
         """Evaluate one generated scenario in ``env`` (a batch of one)."""

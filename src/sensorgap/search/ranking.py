@@ -38,9 +38,10 @@ MIN_DISTANCE = 0.15
 #: Default cap of ranked scenarios per (family, environment preset), so the top N span the
 #: families and conditions instead of N variants of the single worst one.
 MAX_PER_GROUP = 3
-_EFFECT_ORDER = ("glare", "weather", "partly in view", "range")
-_WITHOUT = {"glare": "without the sun", "weather": "in clear air",
-            "partly in view": "in clear air", "range": "in clear air"}
+_EFFECT_ORDER = ("occlusion", "glare", "weather", "partly in view", "range")
+_WITHOUT = {"occlusion": "without the occluders", "glare": "without the sun",
+            "weather": "in clear air", "partly in view": "in clear air",
+            "range": "in clear air"}
 
 
 def candidate_distance(problem: SearchProblem, a: Candidate, b: Candidate) -> float:
@@ -126,7 +127,10 @@ def explain(problem: SearchProblem, cand: Candidate) -> Explanation:
     target = ev.target(sc.target_class)
     h, x, y = tr.heading[k:k + 1], tr.x[k:k + 1], tr.y[k:k + 1]
     psi = None if tr.psi is None else tr.psi[k:k + 1]
-    pd_act = ev.per_sensor_pd(env, target, h, x, y, psi=psi)[:, 0]
+    occ = None if tr.occluders is None else tr.occluders[k:k + 1]
+    pd_act = ev.per_sensor_pd(env, target, h, x, y, psi=psi, occluders=occ)[:, 0]
+    pd_open = (pd_act if occ is None
+               else ev.per_sensor_pd(env, target, h, x, y, psi=psi)[:, 0])
     pd_nosun = ev.per_sensor_pd(env.model_copy(update={"sun": None}), target, h, x, y,
                                 psi=psi)[:, 0]
     pd_ref = ev.per_sensor_pd(reference_environment(), target, h, x, y, psi=psi)[:, 0]
@@ -146,7 +150,9 @@ def explain(problem: SearchProblem, cand: Candidate) -> Explanation:
         if pd_act[i] >= 0.5:
             effects[s.id] = "sees" if i in confirm else "sees (cannot confirm)"
             continue
-        if pd_nosun[i] - pd_act[i] >= 0.2:
+        if pd_open[i] - pd_act[i] >= 0.2:
+            eff, better = "occlusion", pd_open[i]
+        elif pd_nosun[i] - pd_open[i] >= 0.2:
             eff, better = "glare", pd_nosun[i]
         elif pd_ref[i] - pd_nosun[i] >= 0.2:
             eff, better = "weather", pd_ref[i]
@@ -179,6 +185,9 @@ def explain(problem: SearchProblem, cand: Candidate) -> Explanation:
     if low:
         parts.append("missing: " + ", ".join(
             f"{sid} ({e}: Pd {p:.2f}, {b:.2f} {_WITHOUT[e]})" for sid, e, p, b in low[:4]))
+    if counts.get("occlusion") and tr.occluder_labels:
+        parts.append(f"hidden behind the {' / '.join(dict.fromkeys(tr.occluder_labels))} "
+                     "for " + ", ".join(sid for sid, e, _, _ in low if e == "occlusion"))
     if seen:
         parts.append("confirming: " + ", ".join(seen[:3]))
     if support:

@@ -126,7 +126,7 @@ def _trace_csv(prob: SearchProblem, cand: Candidate, ev: Evaluator) -> bytes:
     dirs = (Conditions.sun_directions(env, tr.heading) if cand.sun is None else
             _sun_directions(env, np.tile(np.array(cand.sun, dtype=np.float64), (k, 1)),
                             tr.heading))
-    rows, pd_s = ev.exact_per_sensor(scene, tr.x, tr.y, psi, dirs)
+    rows, pd_s = ev.exact_per_sensor(scene, tr.x, tr.y, psi, dirs, tr.occluders)
     per = np.zeros((len(ev.system.sensors), k))
     per[list(rows)] = pd_s
     pdc = tr.pd if tr.pd_confirm is None else tr.pd_confirm

@@ -1,0 +1,202 @@
+"""Family kinds where another road user hides the target (issue #17): a car pulling out
+from in front of a truck, a pedestrian stepping out between parked cars, and a lead
+vehicle cutting out to reveal a stopped car. The occluders are part of the scene
+(``ScenarioBatch.occluders``): they hide the target from the sensors (``coverage.
+occluders``) but are not collision partners of the ego in this open-loop search.
+"""
+
+from __future__ import annotations
+
+import math
+from functools import cache
+
+import numpy as np
+from numpy.typing import NDArray
+
+from sensorgap.config import TargetConfig, load_target
+from sensorgap.roads import RoadNetwork
+from sensorgap.scenarios.batch import OccluderTracks, ScenarioBatch, blend_batch, off_road
+from sensorgap.scenarios.family import Columns, Family, Param, register_kind
+from sensorgap.scenarios.kinds import (
+    _ROAD_SETTINGS,
+    Crossing,
+    _col,
+    _LaneKind,
+)
+
+F64 = NDArray[np.float64]
+
+#: Gap between a parked car's side and the outer edge of the outermost lane, m (estimate:
+#: parked at the kerb, wheels ~0.2 m off the lane marking).
+PARKED_CLEARANCE_M = 0.2
+
+
+@cache
+def _target(name: str) -> TargetConfig:
+    return load_target(name)
+
+
+def _occluder(family: Family, label: str, x: F64, y: F64, h: F64,
+              t: F64) -> OccluderTracks:
+    """An occluder of class ``family.settings['occluder']`` along (B, T) centre states."""
+    from sensorgap.scenarios.batch import tracks_from_path
+
+    cfg = _target(str(family.settings["occluder"]))
+    return OccluderTracks(label, tracks_from_path(t, x, y, h), float(cfg.length_m),
+                          float(cfg.width_m), float(cfg.height_m))
+
+
+@register_kind
+class CutInBehindTruck(_LaneKind):
+    """The ego overtakes a slower truck (class ``occluder``) in ``ego_lane``; a car (the
+    target) drives ``target_gap_m`` (rear to the truck's front) ahead of the truck in
+    ``target_lane``, hidden by it, ``speed_delta_m_s`` faster than the truck, and pulls out
+    into the ego lane (``lc_start_s``, ``lc_duration_s``, ``shape``) to pass the truck
+    itself: the ego meets a car that was behind the truck's silhouette until it moved."""
+
+    name = "cut_in_behind_occluder"
+    description = "car pulls out from in front of a truck into the ego lane"
+    settings = {**_ROAD_SETTINGS, "ego_lane": None, "target_lane": None, "occluder": "truck"}
+    parameters = (
+        Param("ego_s0_m", 50.0, 500.0, unit="m"),
+        Param("ego_speed_m_s", 22.0, 36.0, unit="m/s"),
+        Param("truck_speed_m_s", 15.0, 25.0, unit="m/s"),
+        Param("truck_dx_m", 10.0, 60.0, unit="m"),
+        Param("target_gap_m", 1.0, 15.0, unit="m"),
+        Param("speed_delta_m_s", 0.0, 6.0, unit="m/s"),
+        Param("lc_start_s", 0.5, 6.0, unit="s"),
+        Param("lc_duration_s", 2.5, 5.0, unit="s"),
+        Param("shape", choices=("cosine", "quintic")),
+    )
+
+    def generate_batch(self, family: Family, cols: Columns,
+                       net: RoadNetwork) -> ScenarioBatch:
+        rid, lane, tr, t = self._start(family, "ego_lane")
+        side_lane = int(family.settings["target_lane"])
+        truck = _target(str(family.settings["occluder"]))
+        car = _target(family.target_class)
+        s0 = _col(cols, "ego_s0_m")
+        s_e = s0 + tr * _col(cols, "ego_speed_m_s") * t
+        v_truck = _col(cols, "truck_speed_m_s")
+        s_k = s0 + tr * (_col(cols, "truck_dx_m") + v_truck * t)
+        ahead = 0.5 * truck.length_m + _col(cols, "target_gap_m") + 0.5 * car.length_m
+        s_t = s0 + tr * (_col(cols, "truck_dx_m") + ahead
+                         + (v_truck + _col(cols, "speed_delta_m_s")) * t)
+        length = net.road(rid).length
+        checks = [off_road(s_e, length, rid, "ego"), off_road(s_t, length, rid, "target"),
+                  off_road(s_k, length, rid, "truck")]
+        u = (t - _col(cols, "lc_start_s")) / _col(cols, "lc_duration_s")
+        w = blend_batch(np.asarray(cols["shape"]).astype(str), u)
+        ego = self._follow(family, rid, lane, s_e, tr, t)
+        tgt = self._changing(family, rid, side_lane, lane, s_t, tr, t, w)
+        kx, ky, kh = family.lane_table(rid, side_lane).poses(s_k, tr)
+        b = self._batch(t, ego, tgt, family, checks)
+        b.occluders = (_occluder(family, str(family.settings["occluder"]), kx, ky, kh, t),)
+        return b
+
+
+@register_kind
+class CutOutReveal(_LaneKind):
+    """A lead vehicle (class ``occluder``) drives ``lead_gap_m`` (centre to the ego's rear
+    axle) ahead in ``lane`` at the ego's speed, hiding a stopped or slow target further
+    ahead (``target_gap_m`` from the lead's centre); at ``cut_out_s`` it changes into
+    ``target_lane`` over ``lc_duration_s`` and reveals the target. Rows where the lead
+    would reach the target before leaving the lane are infeasible."""
+
+    name = "cut_out_reveal"
+    description = "lead vehicle cuts out and reveals a stopped vehicle ahead"
+    settings = {**_ROAD_SETTINGS, "lane": None, "target_lane": None, "occluder": "car"}
+    parameters = (
+        Param("ego_s0_m", 50.0, 500.0, unit="m"),
+        Param("ego_speed_m_s", 15.0, 33.0, unit="m/s"),
+        Param("lead_gap_m", 12.0, 50.0, unit="m"),
+        Param("target_gap_m", 20.0, 150.0, unit="m"),
+        Param("target_speed_m_s", 0.0, 8.0, unit="m/s"),
+        Param("cut_out_s", 0.5, 6.0, unit="s"),
+        Param("lc_duration_s", 2.0, 4.5, unit="s"),
+    )
+
+    def generate_batch(self, family: Family, cols: Columns,
+                       net: RoadNetwork) -> ScenarioBatch:
+        rid, lane, tr, t = self._start(family, "lane")
+        other = int(family.settings["target_lane"])
+        lead_cfg = _target(str(family.settings["occluder"]))
+        car = _target(family.target_class)
+        s0 = _col(cols, "ego_s0_m")
+        ve = _col(cols, "ego_speed_m_s")
+        s_e = s0 + tr * ve * t
+        s_l = s0 + tr * (_col(cols, "lead_gap_m") + ve * t)
+        d_t = _col(cols, "lead_gap_m") + _col(cols, "target_gap_m")
+        s_t = s0 + tr * (d_t + _col(cols, "target_speed_m_s") * t)
+        length = net.road(rid).length
+        checks = [off_road(s_e, length, rid, "ego"), off_road(s_t, length, rid, "target"),
+                  off_road(s_l, length, rid, "lead vehicle")]
+        u = (t - _col(cols, "cut_out_s")) / _col(cols, "lc_duration_s")
+        w = blend_batch(np.full(len(s0), "cosine"), u)
+        # the lead must be out of the lane (w = 1) before its front reaches the target's rear
+        gap = tr * (s_t - s_l) - 0.5 * (lead_cfg.length_m + car.length_m)
+        hit = np.any((gap <= 0.0) & (w < 1.0), axis=1)
+        ego = self._follow(family, rid, lane, s_e, tr, t)
+        tgt = self._follow(family, rid, lane, s_t, tr, t)
+        xa, ya, ha = family.lane_table(rid, lane).poses(s_l, tr)
+        xb, yb, _ = family.lane_table(rid, other).poses(s_l, tr)
+        lx, ly = (1.0 - w) * xa + w * xb, (1.0 - w) * ya + w * yb
+        b = self._batch(t, ego, tgt, family, checks)
+        b.reject(hit, "the lead vehicle would reach the target before leaving the lane")
+        b.occluders = (_occluder(family, "lead " + str(family.settings["occluder"]), lx, ly,
+                                 ha, t),)
+        return b
+
+
+@register_kind
+class CrossingBehindParked(_LaneKind):
+    """``crossing`` from the ego's right, stepping out between two cars (class
+    ``occluder``) parked at the kerb beside the outermost lane, ``parked_gap_m`` apart
+    (bumper to bumper) around the crossing line: the pedestrian or cyclist is hidden by
+    them until it steps into the lane (Euro NCAP's obstructed near-side crossing: public
+    anchor for the geometry and speeds, docs/search.md)."""
+
+    name = "crossing_behind_parked"
+    description = "pedestrian steps out between parked cars in front of the ego"
+    settings = {**Crossing.settings, "duration_s": 5.0, "occluder": "car"}
+    parameters = (
+        Param("ego_s0_m", 85.0, 98.0, unit="m"),
+        Param("ego_speed_m_s", 2.8, 16.7, unit="m/s"),
+        Param("cross_ahead_m", 15.0, 60.0, unit="m"),
+        Param("target_speed_m_s", 0.8, 2.5, unit="m/s"),
+        Param("conflict_offset_s", -1.0, 1.0, unit="s"),
+        Param("parked_gap_m", 0.8, 3.0, unit="m"),
+        Param("side", choices=("right",)),
+    )
+
+    def generate_batch(self, family: Family, cols: Columns,
+                       net: RoadNetwork) -> ScenarioBatch:
+        b = Crossing().generate_batch(family, cols, net)
+        rid = str(family.settings["road_id"])
+        tr = self._start(family, "ego_lane")[2]
+        t = b.t
+        parked = _target(str(family.settings["occluder"]))
+        s_c = (_col(cols, "ego_s0_m") + tr * _col(cols, "cross_ahead_m"))[:, 0]
+        s_c = np.clip(s_c, 0.0, net.road(rid).length)
+        t_left, t_right = net.road_extents(rid, s_c)
+        # the ego's right in road t is -t when driving along +s: that side's kerb
+        kerb = np.where(tr > 0, t_right, t_left)
+        out = -1.0 if tr > 0 else 1.0  # direction away from the road on that side
+        lat = kerb + out * (PARKED_CLEARANCE_M + 0.5 * parked.width_m)
+        half = 0.5 * _col(cols, "parked_gap_m")[:, 0] + 0.5 * parked.length_m
+        occs = []
+        for k, sign in enumerate((-1.0, 1.0)):
+            s_p = np.clip(s_c + sign * half, 0.0, net.road(rid).length)
+            xr, yr, hr = net.reference_line(rid, s_p)
+            x = xr - lat * np.sin(hr)
+            y = yr + lat * np.cos(hr)
+            h = hr + (0.0 if tr > 0 else math.pi)
+            shape = (len(s_c), len(t))
+            occs.append(_occluder(family, f"parked {parked.name} {k + 1}",
+                                  np.broadcast_to(x[:, None], shape),
+                                  np.broadcast_to(y[:, None], shape),
+                                  np.broadcast_to(h[:, None], shape), t))
+        # the pedestrian waits on the footway (``CURB_OFFSET_M`` beyond the lane) level with
+        # the parked cars' outer sides (clearance + width: 2.0 m for a 1.8 m car)
+        b.occluders = tuple(occs)
+        return b
