@@ -162,3 +162,26 @@ def test_coverage_cli_with_an_occluder(tmp_path) -> None:
     s = json.loads((tmp_path / "b" / "summary.json").read_text())
     assert s["occluders"][0]["label"] == "truck"
     assert (tmp_path / "b" / "coverage.png").stat().st_size > 10_000
+
+
+def test_may_hide_never_misses_a_hiding_box() -> None:
+    """Random boxes and bodies: wherever an occluder lowers some sensor's visible fraction,
+    the conservative footprint test ``may_hide`` says it may hide the target."""
+    from sensorgap.coverage.occluders import may_hide
+
+    scene = _scene()
+    rng = np.random.default_rng(11)
+    n = 4000
+    x, y = rng.uniform(-40, 80, n), rng.uniform(-20, 20, n)
+    psi = rng.uniform(-math.pi, math.pi, n)
+    boxes = np.stack([occluder_array([Occluder(rng.uniform(-30, 60), rng.uniform(-12, 12),
+                                               rng.uniform(0, math.pi), 6.0, 2.0, 2.5)])
+                      for _ in range(n)])
+    _, f0 = body_per_sensor_pd(scene, x, y, psi)
+    _, f1 = body_per_sensor_pd(scene, x, y, psi, occluders=boxes)
+    hidden = np.any(f1 < f0, axis=0)
+    mount_r = max(math.hypot(s.mount.x, s.mount.y) for s in scene.sensors)
+    flagged = may_hide(boxes, x, y, 0.5 * math.hypot(4.5, 1.8), mount_r)
+    assert hidden.sum() > 50
+    assert np.all(flagged[hidden])
+    assert flagged.mean() < 0.9  # and it does rule out boxes

@@ -263,12 +263,7 @@ def body_sensor_pd(scene: Scene, sensor: Sensor, cx: F64, cy: F64, px: F64, py: 
     lo, hi = _ego_box(scene)
     inside = bool(np.all(np.array([m.x, m.y, m.z]) > lo) and np.all(
         np.array([m.x, m.y, m.z]) < hi))
-    half_h, half_v = 0.5 * m.hfov, 0.5 * m.vfov
-    mount = np.array([m.x, m.y, m.z, math.cos(m.yaw), math.sin(m.yaw), math.cos(m.pitch),
-                      math.sin(m.pitch),
-                      math.tan(half_h) if half_h < 0.5 * math.pi else -1.0,
-                      math.tan(half_v) ** 2 if half_v < 0.5 * math.pi else -1.0,
-                      m.min_range, m.max_range, half_h])
+    mount = _mount_row(sensor)
     buf = np.empty(near.size * k, dtype=np.int64)
     n_face = np.empty(near.size, dtype=np.int64)
     cnt = _view_kernel(np.ascontiguousarray(px), np.ascontiguousarray(py),
@@ -298,6 +293,46 @@ def body_sensor_pd(scene: Scene, sensor: Sensor, cx: F64, cy: F64, px: F64, py: 
         snr_body = best[ok] + 10.0 * np.log10(f[keep])
         pd[near[ok]] = detection_probability(snr_body, sensor.roc, scene.roc_shift_db)
     return pd, frac
+
+
+def occlusion_changes(scene: Scene, x: F64, y: F64, psi: F64, occluders: F64,
+                      sensors: Sequence[Sensor] | None = None) -> NDArray[np.bool_]:
+    """(N,) whether the (N, M, 7) ``occluders`` hide any facing, in-view sample of the
+    target bodies at x, y (m), psi (rad) from any of ``sensors`` (default: all): geometry
+    only (no SNR), so a caller can keep an occlusion-free value where they hide nothing."""
+    body = body_samples(scene.target)
+    px, py, pz, nx, ny = body_points(body, x, y, psi)
+    n, k = px.shape
+    out = np.zeros(n, dtype=bool)
+    lo, hi = _ego_box(scene)
+    near = np.arange(n, dtype=np.int64)
+    none = np.zeros((1, 0, len(OCC_COLUMNS)))
+    occ = _occ3(occluders, n)
+    for sensor in scene.sensors if sensors is None else sensors:
+        m = sensor.mount
+        inside = bool(np.all(np.array([m.x, m.y, m.z]) > lo) and np.all(
+            np.array([m.x, m.y, m.z]) < hi))
+        mount = _mount_row(sensor)
+        counts = []
+        for boxes in (none, occ):
+            buf = np.empty(n * k, dtype=np.int64)
+            n_face = np.empty(n, dtype=np.int64)
+            cnt = _view_kernel(px, py, pz, nx, ny, near, mount, lo, hi, not inside, True,
+                               boxes, buf, n_face)
+            counts.append(np.bincount(buf[:cnt] // k, minlength=n))
+        out |= counts[1] < counts[0]
+    return out
+
+
+def _mount_row(sensor: Sensor) -> F64:
+    """A sensor's mount as the ``_view_kernel`` row."""
+    m = sensor.mount
+    half_h, half_v = 0.5 * m.hfov, 0.5 * m.vfov
+    return np.array([m.x, m.y, m.z, math.cos(m.yaw), math.sin(m.yaw), math.cos(m.pitch),
+                     math.sin(m.pitch),
+                     math.tan(half_h) if half_h < 0.5 * math.pi else -1.0,
+                     math.tan(half_v) ** 2 if half_v < 0.5 * math.pi else -1.0,
+                     m.min_range, m.max_range, half_h])
 
 
 def _occ3(occluders: F64 | None, n: int) -> F64:

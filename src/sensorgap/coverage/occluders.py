@@ -135,15 +135,17 @@ def may_hide(boxes: F64, x: F64, y: F64, target_radius: float, mount_radius: flo
     """(N,) whether any of the (N, M, 7) boxes may hide part of a target body centred at
     ``x``, ``y`` (m, vehicle frame; ``target_radius``: its footprint's half diagonal, m)
     from a sensor mounted within ``mount_radius`` (m) of the origin: a box whose footprint
-    circle comes within ``target_radius + mount_radius`` of the segment origin -> target
-    centre (a conservative test: it never misses a box that hides something)."""
+    circle comes within ``max(target_radius, mount_radius)`` of the segment origin ->
+    target centre. Conservative: a point ``(1 - u) m + u p`` of a ray from a mount ``m`` to a
+    sample ``p`` lies within ``(1 - u) |m| + u |p - c| <= max(...)`` of the point ``u c``
+    of that segment, so a box the ray passes through is never missed."""
     bx, by = boxes[..., 0], boxes[..., 1]
     r_box = np.hypot(boxes[..., 4], boxes[..., 5])
     px, py = x[:, None], y[:, None]
     ll = np.maximum(px * px + py * py, 1e-12)
     u = np.clip((bx * px + by * py) / ll, 0.0, 1.0)
     d = np.hypot(bx - u * px, by - u * py)
-    return np.asarray(np.any(d <= r_box + target_radius + mount_radius, axis=-1))
+    return np.asarray(np.any(d <= r_box + max(target_radius, mount_radius), axis=-1))
 
 
 def shadow_polygon(occ: Occluder, mount_xy: tuple[float, float], reach_m: float) -> F64:

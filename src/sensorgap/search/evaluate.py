@@ -33,7 +33,12 @@ from numpy.typing import NDArray
 from sensorgap.config import EnvironmentConfig, TargetConfig, load_target
 from sensorgap.config.reaction import ReactionConfig, load_friction, load_reaction, road_condition
 from sensorgap.coverage import GridSpec, Scene
-from sensorgap.coverage.body import body_per_sensor_pd, body_samples, min_visible_fraction
+from sensorgap.coverage.body import (
+    body_per_sensor_pd,
+    body_samples,
+    min_visible_fraction,
+    occlusion_changes,
+)
 from sensorgap.coverage.fastlookup import SUN_NONE, SUN_VEHICLE, SUN_WORLD, sun_directions_of
 from sensorgap.coverage.logmiss import (
     ALMOST_ONE,
@@ -662,8 +667,15 @@ class Evaluator:
         gr, vc = gr[hit], vc[hit]
         if not gr.size:
             return 0
-        dirs = _sun_directions(env, sun[gr], heading[gr, vc])
         sensors = [scene.sensors[i] for i in self.confirm_rows]
+        # where the occluders hide no sample from the confirming sensors the maps' value
+        # stands (geometry only, cheap)
+        hit = occlusion_changes(scene, kin.x[gr, vc], kin.y[gr, vc], kin.psi[gr, vc],
+                                occ[gr, vc], sensors)
+        gr, vc = gr[hit], vc[hit]
+        if not gr.size:
+            return 0
+        dirs = _sun_directions(env, sun[gr], heading[gr, vc])
         _, pd = self.exact_per_sensor(scene, kin.x[gr, vc], kin.y[gr, vc], kin.psi[gr, vc],
                                       dirs, occ[gr, vc], sensors)
         log_miss[gr, vc] = log_miss_of(pd).sum(axis=0)
