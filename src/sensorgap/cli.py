@@ -296,12 +296,11 @@ def cmd_verify(args: argparse.Namespace) -> int:
 
     folder = Path(args.folder)
     manifest = folder / "manifest.json"
-    if not manifest.is_file():
+    if not folder.is_dir():
+        raise InputError(folder, "", "folder does not exist")
+    if manifest.is_symlink() or not manifest.is_file():
         raise InputError(manifest, "", "no manifest in this folder (not a sensorgap run)")
-    try:
-        problems = verify_manifest(folder)
-    except (ValueError, KeyError, TypeError) as exc:
-        raise InputError(manifest, "", f"malformed manifest: {exc}") from None
+    problems = verify_manifest(folder)
     if problems:
         more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""
         raise InputError(manifest, "files", f"{problems[0]}{more}")
