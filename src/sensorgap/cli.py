@@ -20,18 +20,20 @@ if TYPE_CHECKING:
     from sensorgap.coverage import Scene
 
 EXIT_INPUT = 2
-# Input limits (docs/limits.md): the worst accepted input stays within ~4 GiB.
+# Input limits (docs/limits.md): the worst accepted input stays within ~4 GiB (measured:
+# benchmarks/bench_limits.py; a point grid peaks at ~100 B per cell, a --per-sensor map
+# cell at ~31 B).
 #: coverage: cells of a grid (points; bodies with --heading), cells x sensors with
 #: --per-sensor, extent coordinates (m) and the finest resolution (m).
-MAX_GRID_CELLS = 50_000_000
+MAX_GRID_CELLS = 30_000_000
 MAX_BODY_CELLS = 4_000_000
-MAX_PER_SENSOR_CELLS = 100_000_000
+MAX_PER_SENSOR_CELLS = 80_000_000
 MAX_EXTENT_M = 100_000.0
 MIN_RESOLUTION_M = 0.001
 #: probe --heading: a target body costs this many points' worth of memory.
 BODY_COST = 12
 #: nearfield: resolution range, m.
-NEARFIELD_RESOLUTION_M = (0.01, 1.0)
+NEARFIELD_RESOLUTION_M = (0.02, 1.0)
 #: farfield: path length range, m.
 MAX_FARFIELD_LENGTH_M = 10_000.0
 EXIT_INTERNAL = 1

@@ -14,10 +14,11 @@ from numpy.typing import NDArray
 from sensorgap.errors import InputError
 
 #: Input limits (docs/limits.md): points per file, file size, and points x sensors (the
-#: per-sensor SNR and Pd columns of ``probe``: ~60 bytes each, so <= ~3 GiB at the limit).
-MAX_POINTS = 1_000_000
+#: per-sensor columns of ``probe``: ~3.3 kB per point of System A's 23 sensors, measured by
+#: benchmarks/bench_limits.py, so <= ~2 GiB at the limit).
+MAX_POINTS = 500_000
 MAX_BYTES = 100_000_000
-MAX_POINT_SENSOR_VALUES = 50_000_000
+MAX_POINT_SENSOR_VALUES = 12_000_000
 #: Longest CSV field accepted, characters (a number needs far fewer).
 MAX_FIELD_CHARS = 1_000
 

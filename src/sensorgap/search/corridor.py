@@ -36,7 +36,7 @@ F64 = NDArray[np.float64]
 CERTAIN_COST = -math.log(1e-300)
 #: Input limits (docs/limits.md): lattice nodes (~1 kB each in the graph), start/goal x and
 #: lane bands, m.
-MAX_CORRIDOR_NODES = 1_000_000
+MAX_CORRIDOR_NODES = 500_000
 MAX_CORRIDOR_X_M = 2_000.0
 MAX_CORRIDOR_Y_M = 200.0
 
