@@ -173,3 +173,33 @@ def test_verify_malformed_manifest(tmp_path: Path, text: str) -> None:
     (run / "manifest.json").write_text(text)
     with pytest.raises(InputError, match="manifest.json"):
         verify_manifest(run)
+
+
+def test_relative_road_is_relative_to_the_family_file(tmp_path: Path,
+                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    import shutil
+
+    from sensorgap.config.presets import resolve_road, templates_dir
+    from sensorgap.scenarios import load_family
+
+    fam_dir = tmp_path / "families"
+    (fam_dir / "roads").mkdir(parents=True)
+    shutil.copy(resolve_road("motorway_r500"), fam_dir / "roads" / "m.xodr")
+    text = (templates_dir() / "scenarios" / "cut_in_left.toml").read_text()
+    (fam_dir / "f.toml").write_text(text.replace('road = "motorway_r500"',
+                                                 'road = "roads/m.xodr"'))
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    fam = load_family(str(fam_dir / "f.toml"))
+    assert fam.settings["road"] == str((fam_dir / "roads" / "m.xodr").resolve())
+
+
+def test_run_records_the_vehicle_file_absolute(tmp_path: Path,
+                                               monkeypatch: pytest.MonkeyPatch) -> None:
+    from sensorgap.search.run import _vehicle_ref
+
+    (tmp_path / "v.toml").write_text("")
+    monkeypatch.chdir(tmp_path)
+    assert _vehicle_ref("v.toml") == str(tmp_path.resolve() / "v.toml")
+    assert _vehicle_ref("system_a") == "system_a"
