@@ -18,6 +18,7 @@ BENCHMARKS = {
     "dask": "benchmarks.bench_dask",
     "memory": "benchmarks.bench_memory",
     "tradeoff": "benchmarks.bench_tradeoff",
+    "limits": "benchmarks.bench_limits",
 }
 
 

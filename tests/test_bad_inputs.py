@@ -4,10 +4,12 @@ Also: an internal error is exit 1 and says so, with a traceback only under --deb
 
 from __future__ import annotations
 
+import json
 import os
 import re
 import resource
 import shutil
+import sqlite3
 import subprocess
 import sys
 import tomllib
@@ -28,7 +30,7 @@ SRC = str(Path(sensorgap.__file__).resolve().parents[1])
 
 def test_corpus_is_large_and_unique() -> None:
     names = [c["name"] for c in CASES]
-    assert len(names) >= 40 and len(set(names)) == len(names)
+    assert len(names) >= 120 and len(set(names)) == len(names)
     commands = {c["argv"][0] for c in CASES}
     assert {"probe", "coverage", "nearfield", "farfield", "search", "corridor", "schema",
             "run", "export", "simulate", "report", "compare", "verify"} <= commands
@@ -48,8 +50,8 @@ def finished_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return out
 
 
-def _write_files(case: dict[str, Any], folder: Path) -> None:
-    for name, spec in case.get("files", {}).items():
+def _write_files(case: dict[str, Any], folder: Path, key: str = "files") -> None:
+    for name, spec in case.get(key, {}).items():
         if isinstance(spec, str):
             text = spec
         else:
@@ -57,10 +59,36 @@ def _write_files(case: dict[str, Any], folder: Path) -> None:
             for old, new in spec.get("replace", []):
                 assert old in text, f"{case['name']}: {old!r} not in {spec['from']}"
                 text = text.replace(old, new)
+        (folder / name).parent.mkdir(parents=True, exist_ok=True)
         (folder / name).write_text(text, encoding="utf-8")
 
 
-def _setup(case: dict[str, Any], folder: Path, out: Path, run: Path) -> None:
+def _edit_manifest(run: Path, entry: str) -> None:
+    manifest = json.loads((run / "manifest.json").read_text())
+    manifest["files"][entry] = {"bytes": 4, "sha256": "0" * 64}
+    (run / "manifest.json").write_text(json.dumps(manifest))
+
+
+def _sql(db: Path, script: str) -> None:
+    con = sqlite3.connect(db)
+    con.executescript(script)
+    con.close()
+
+
+def _many_geometries(path: Path, n: int) -> None:
+    geoms = "".join(f'<geometry s="{i}" x="{i}" y="0" hdg="0" length="1"><line/></geometry>'
+                    for i in range(n))
+    lanes = ('<lanes><laneSection s="0"><center><lane id="0" type="none"/></center><right>'
+             '<lane id="-1" type="driving"><width sOffset="0" a="3.5" b="0" c="0" d="0"/>'
+             "</lane></right></laneSection></lanes>")
+    path.write_text(f'<?xml version="1.0"?><OpenDRIVE><header revMajor="1" revMinor="6"/>'
+                    f'<road id="1" junction="-1" length="{n}"><planView>{geoms}</planView>'
+                    f"{lanes}</road></OpenDRIVE>")
+
+
+def _setup(case: dict[str, Any], argv: list[str], folder: Path, out: Path,
+           run: Path) -> None:
+    db = out / "search.sqlite"
     for step in case.get("setup", []):
         if step == "out_parent_is_file":
             out.write_text("a file where a folder is expected")
@@ -72,7 +100,37 @@ def _setup(case: dict[str, Any], folder: Path, out: Path, run: Path) -> None:
         elif step == "corrupt_nearfield":
             (run / "nearfield" / "nearfield.json").write_text("{broken")
         elif step == "existing_search":
-            assert main([*case["argv"][:-2], "--out", str(out)]) == 0
+            assert main([*argv[:-2], "--out", str(out)]) == 0
+            _write_files(case, folder, "files_after")
+        elif step == "store_garbage":
+            db.write_bytes(b"definitely not an SQLite database " * 200)
+        elif step == "store_truncated":
+            db.write_bytes(db.read_bytes()[:1500])
+        elif step == "store_wrong_schema":
+            _sql(db, "DROP TABLE candidates; CREATE TABLE candidates (x TEXT);")
+        elif step == "store_bad_json":
+            _sql(db, "UPDATE candidates SET params = '{not json' WHERE idx = 0;")
+        elif step == "many_geometries":
+            _many_geometries(folder / "many.xodr", 50_001)
+            argv[argv.index(str(folder / "r.xodr"))] = str(folder / "many.xodr")
+        elif step == "big_csv_field":
+            (folder / "p.csv").write_text("x,y\n1," + "1" * 200_000 + "\n")
+        elif step == "manifest_escape":
+            _edit_manifest(run, "../../etc/passwd")
+        elif step == "manifest_absolute":
+            _edit_manifest(run, "/etc/passwd")
+        elif step == "symlink_out":
+            (run / "etc_link").symlink_to("/etc")
+        elif step == "symlink_loop":
+            (run / "loop").symlink_to(run / "loop")
+        elif step == "journal_file":
+            (run / "search.sqlite-journal").write_bytes(b"journal")
+        elif step == "hidden_tmp":
+            (run / ".x.tmp.xosc").write_text("<half")
+        elif step == "unlisted_file":
+            (run / "extra.txt").write_text("not listed")
+        elif step == "manifest_symlink":
+            (folder / "manifest.json").symlink_to("/etc/hostname")
         else:
             raise AssertionError(f"unknown setup step {step!r}")
 
@@ -92,8 +150,6 @@ def test_bad_input(case: dict[str, Any], tmp_path: Path, finished_run: Path,
     if any("{run}" in a for a in case["argv"]):
         shutil.copytree(finished_run, run)
     _write_files(case, folder)
-    _setup(case, folder, out, run)
-    before = _files(out)
     subs = {"{dir}": str(folder), "{out}": str(out), "{run}": str(run),
             "{templates}": str(REPO / "templates"), "{roads}": str(REPO / "roads")}
     argv = [a for a in case["argv"]]
@@ -101,6 +157,8 @@ def test_bad_input(case: dict[str, Any], tmp_path: Path, finished_run: Path,
         for k, v in subs.items():
             a = a.replace(k, v)
         argv[i] = a
+    _setup(case, argv, folder, out, run)
+    before = _files(out)
     if "rlimit_fsize" in case:
         limit = int(case["rlimit_fsize"])
 

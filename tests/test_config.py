@@ -69,7 +69,10 @@ BAD = [
     ("hfov_deg = 50.0", "hfov_deg = 400.0", r"sensors\[0\]\.hfov_deg: .*less than or equal to 360"),
     ("hfov_deg = 50.0", "hfov_deg = nan", r"sensors\[0\]\.hfov_deg"),
     ("max_range_m = 120.0", "max_range_m = inf", r"sensors\[0\]\.max_range_m"),
-    ("max_range_m = 120.0", "max_range_m = -5.0", r"sensors\[0\]\.max_range_m: .*greater than 0"),
+    ("max_range_m = 120.0", "max_range_m = -5.0",
+     r"sensors\[0\]\.max_range_m: .*greater than or equal to 0\.01"),
+    ("max_range_m = 120.0", "max_range_m = 1e308",
+     r"sensors\[0\]\.max_range_m: .*less than or equal to 10000"),
     ("min_range_m = 0.5\nmax_range_m = 120.0", "min_range_m = 200.0\nmax_range_m = 120.0",
      r"sensors\[0\]: min_range_m \(200.0\) must be below max_range_m"),
     ('type = "lidar"', 'type = "sonar"', r"devices\.lidar_scanning\.type: unknown sensor type "

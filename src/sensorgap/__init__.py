@@ -4,7 +4,11 @@ Pipeline (data flows one way): ``config`` -> ``models`` -> ``coverage`` -> ``roa
 ``analysis`` -> (search, export, report) with a thin ``cli`` on top.
 """
 
+from sensorgap.runtime import configure_numba_cache as _configure_numba_cache
+
 __version__ = "0.1.0"
+
+_configure_numba_cache()  # a writable numba cache folder even when installed read-only
 
 
 def __getattr__(name: str) -> object:

@@ -8,7 +8,7 @@ from __future__ import annotations
 import os
 import tempfile
 from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from pathlib import Path
 from typing import IO
 
@@ -55,3 +55,29 @@ def atomic_write_with(path: str | Path, writer: Callable[[IO[bytes]], None]) -> 
     with atomic_path(path) as tmp, open(tmp, "wb") as fh:
         writer(fh)
     return Path(path)
+
+
+@contextmanager
+def removed_on_error(folder: str | Path) -> Iterator[None]:
+    """On an exception (not an interrupt), remove every file below ``folder`` that was not
+    there before, and the folders created, so a failed command leaves nothing half-written
+    (e.g. a coverage.npz without its png and summary). Files that existed are kept."""
+    root = Path(folder)
+    existed = root.is_dir()
+    before = {p for p in root.rglob("*")} if existed else set()
+    try:
+        yield
+    except Exception:
+        if root.is_dir():
+            new = sorted((p for p in root.rglob("*") if p not in before),
+                         key=lambda p: len(p.parts), reverse=True)
+            for p in new:
+                with suppress(OSError):
+                    if p.is_symlink() or p.is_file():
+                        p.unlink()
+                    elif p.is_dir():
+                        p.rmdir()
+            if not existed:
+                with suppress(OSError):
+                    root.rmdir()
+        raise

@@ -11,6 +11,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn
 
+from sensorgap.atomic import removed_on_error
 from sensorgap.errors import InputError
 from sensorgap.filesio import write_manifest
 from sensorgap.runtime import tune_allocator
@@ -20,6 +21,22 @@ if TYPE_CHECKING:
     from sensorgap.coverage.occluders import Occluder
 
 EXIT_INPUT = 2
+# Input limits (docs/limits.md): the worst accepted input stays within ~4 GiB (measured:
+# benchmarks/bench_limits.py; a point grid peaks at ~100 B per cell, a --per-sensor map
+# cell at ~31 B).
+#: coverage: cells of a grid (points; bodies with --heading), cells x sensors with
+#: --per-sensor, extent coordinates (m) and the finest resolution (m).
+MAX_GRID_CELLS = 30_000_000
+MAX_BODY_CELLS = 4_000_000
+MAX_PER_SENSOR_CELLS = 80_000_000
+MAX_EXTENT_M = 100_000.0
+MIN_RESOLUTION_M = 0.001
+#: probe --heading: a target body costs this many points' worth of memory.
+BODY_COST = 12
+#: nearfield: resolution range, m.
+NEARFIELD_RESOLUTION_M = (0.02, 1.0)
+#: farfield: path length range, m.
+MAX_FARFIELD_LENGTH_M = 10_000.0
 EXIT_INTERNAL = 1
 _GLUED_OPTIONS = {"--extent", "--height", "--ego-lane", "--target-lane", "--lanes",
                   "--start", "--goal"}
@@ -59,10 +76,16 @@ def cmd_probe(args: argparse.Namespace) -> int:
     from sensorgap.atomic import atomic_write_bytes
     from sensorgap.coverage import evaluate_points
     from sensorgap.coverage.outputs import probe_csv
-    from sensorgap.coverage.pointsio import read_points_csv
+    from sensorgap.coverage.pointsio import MAX_POINT_SENSOR_VALUES, read_points_csv
 
     scene = _scene(args)
     pts = read_points_csv(Path(args.points), default_z=scene.target.reference_height_m)
+    per_point = len(scene.sensors) * (1 if args.heading is None else BODY_COST)
+    if len(pts) * per_point > MAX_POINT_SENSOR_VALUES:
+        raise InputError(args.points, "", f"{len(pts)} points x {len(scene.sensors)} sensors "
+                         f"is too many (at most {MAX_POINT_SENSOR_VALUES // per_point} points "
+                         f"for this vehicle{' with --heading' if args.heading is not None else ''}"
+                         "); split the file")
     if args.heading is None:
         data = probe_csv(evaluate_points(scene, pts))
     else:
@@ -105,37 +128,57 @@ def cmd_coverage(args: argparse.Namespace) -> int:
 
     if not 1 <= args.workers <= 64:
         raise InputError("--workers", "", f"must be 1..64, got {args.workers}")
-    scene = _scene(args)
     xmin, xmax, ymin, ymax = _float_list(args.extent, 4, "--extent")
     if not (xmin < xmax and ymin < ymax):
         raise InputError("--extent", "", "must be XMIN,XMAX,YMIN,YMAX with XMIN < XMAX and "
                          f"YMIN < YMAX, got {args.extent!r}")
+    if max(abs(xmin), abs(xmax), abs(ymin), abs(ymax)) > MAX_EXTENT_M:
+        raise InputError("--extent", "", f"coordinates must be within +-{MAX_EXTENT_M:g} m, "
+                         f"got {args.extent!r}")
     res = _positive(args.resolution, "--resolution")
-    height = scene.target.reference_height_m if args.height is None else args.height
-    if not (math.isfinite(height) and -10.0 <= height <= 50.0):
-        raise InputError("--height", "", f"must be within -10..50 m, got {height!r}")
-    cells = round((xmax - xmin) / res) * round((ymax - ymin) / res)
-    if cells > 200_000_000:
-        raise InputError("--resolution", "", f"grid of {cells} cells is too large "
-                         "(at most 2e8); coarsen the resolution or shrink the extent")
-    grid = GridSpec(xmin, xmax, ymin, ymax, res, height)
+    if res < MIN_RESOLUTION_M:
+        raise InputError("--resolution", "", f"must be at least {MIN_RESOLUTION_M:g} m, got "
+                         f"{res!r}")
     if args.heading is not None and not math.isfinite(args.heading):
         raise InputError("--heading", "", f"must be a finite angle in degrees, got "
                          f"{args.heading!r}")
-    if args.heading is not None and cells > 4_000_000:
-        raise InputError("--resolution", "", f"grid of {cells} cells is too large for "
-                         "target bodies (at most 4e6); coarsen the resolution")
+    # whole cells only: the grid never reaches beyond the extent (clipped, and said so)
+    nx, ny = math.floor((xmax - xmin) / res + 1e-9), math.floor((ymax - ymin) / res + 1e-9)
+    if nx < 1 or ny < 1:
+        raise InputError("--resolution", "", f"{res:g} m cells do not fit the extent "
+                         f"{xmax - xmin:g} x {ymax - ymin:g} m; give a resolution at most "
+                         f"{min(xmax - xmin, ymax - ymin):g} m")
+    cells = nx * ny
+    limit = MAX_BODY_CELLS if args.heading is not None else MAX_GRID_CELLS
+    if cells > limit:
+        raise InputError("--resolution", "", f"grid of {cells:.3g} cells is too large (at "
+                         f"most {limit:.0e}{' with --heading' if args.heading is not None else ''}"
+                         "); coarsen the resolution or shrink the extent")
+    scene = _scene(args)
+    height = scene.target.reference_height_m if args.height is None else args.height
+    if not (math.isfinite(height) and -10.0 <= height <= 50.0):
+        raise InputError("--height", "", f"must be within -10..50 m, got {height!r}")
+    if args.per_sensor and cells * len(scene.sensors) > MAX_PER_SENSOR_CELLS:
+        raise InputError("--per-sensor", "", f"{cells:.3g} cells x {len(scene.sensors)} "
+                         f"sensors is too large (at most {MAX_PER_SENSOR_CELLS:.0e} maps "
+                         "cells); coarsen the resolution or shrink the extent")
+    clipped = (xmin + nx * res, ymin + ny * res)
+    grid = GridSpec(xmin, clipped[0], ymin, clipped[1], res, height)
     occluders = [_occluder(text) for text in args.occluder]
     if occluders and args.heading is None:
         raise InputError("--occluder", "", "occluders hide parts of target bodies: add "
                          "--heading DEG")
-    summary = write_coverage(scene, grid, Path(args.out), per_sensor=args.per_sensor,
-                             workers=args.workers, heading_deg=args.heading,
-                             occluders=occluders)
-    write_manifest(args.out)
+    with removed_on_error(args.out):
+        summary = write_coverage(scene, grid, Path(args.out), per_sensor=args.per_sensor,
+                                 workers=args.workers, heading_deg=args.heading,
+                                 occluders=occluders)
+        write_manifest(args.out)
     lv = summary["area_m2_by_level"]
+    note = ("" if clipped == (xmax, ymax) else
+            f" (extent clipped to whole cells: x {xmin:g}..{clipped[0]:g}, y {ymin:g}.."
+            f"{clipped[1]:g} m)")
     print(f"{args.out}: {grid.nx}x{grid.ny} cells, area Pd=1 {lv['pd=1.0']:.0f} m2, "
-          f"Pd>0 {lv['pd>0']:.0f} m2")
+          f"Pd>0 {lv['pd>0']:.0f} m2{note}")
     return 0
 
 
@@ -169,8 +212,13 @@ def cmd_nearfield(args: argparse.Namespace) -> int:
     from sensorgap.models import load_system
 
     res = _positive(args.resolution, "--resolution")
-    summary = write_nearfield(load_system(args.vehicle), Path(args.out), res)
-    write_manifest(args.out)
+    lo, hi = NEARFIELD_RESOLUTION_M
+    if not lo <= res <= hi:
+        raise InputError("--resolution", "", f"must be within {lo:g}..{hi:g} m, got {res!r}")
+    system = load_system(args.vehicle)
+    with removed_on_error(args.out):
+        summary = write_nearfield(system, Path(args.out), res)
+        write_manifest(args.out)
     bs = summary["blind_spot_m2"]
     print(f"{args.out}: blind spots {bs['exact']:.2f} m2 exact, {bs['grid']:.2f} m2 on the "
           f"{res:g} m grid")
@@ -186,6 +234,9 @@ def cmd_farfield(args: argparse.Namespace) -> int:
     from sensorgap.roads import read_opendrive
 
     length = _positive(args.length, "--length")
+    if length > MAX_FARFIELD_LENGTH_M:
+        raise InputError("--length", "", f"must be at most {MAX_FARFIELD_LENGTH_M:g} m, got "
+                         f"{length!r}")
     setup = FarFieldSetup(road=args.road, road_id=args.road_id, ego_lane=args.ego_lane,
                           target_lane=args.target_lane, ego_s_m=args.ego_s, length_m=length,
                           target=args.target)
@@ -200,12 +251,13 @@ def cmd_farfield(args: argparse.Namespace) -> int:
                              f"at s = {args.ego_s:g} m")
     system = load_system(args.vehicle)
     bodies = args.target_model == "body"
-    scene, ff = run_farfield(system, args.environment, setup, net, bodies=bodies)
-    write_farfield(scene, ff, Path(args.out), f"{system.name}, {args.environment}: "
-                   f"{args.target} ({args.target_model}) on lane {args.target_lane}",
-                   extra={"setup": setup.__dict__, "target_model": _target_model(bodies)},
-                   bodies=bodies)
-    write_manifest(args.out)
+    with removed_on_error(args.out):
+        scene, ff = run_farfield(system, args.environment, setup, net, bodies=bodies)
+        write_farfield(scene, ff, Path(args.out), f"{system.name}, {args.environment}: "
+                       f"{args.target} ({args.target_model}) on lane {args.target_lane}",
+                       extra={"setup": setup.__dict__, "target_model": _target_model(bodies)},
+                       bodies=bodies)
+        write_manifest(args.out)
     print(", ".join(f"{k} {v:.0f} m" for k, v in ff.levels_m.items()))
     return 0
 
@@ -275,8 +327,9 @@ def cmd_compare(args: argparse.Namespace) -> int:
     """Cross-evaluate the critical scenarios of two search runs (A vs B)."""
     from sensorgap.search.compare import write_comparison
 
-    rows = write_comparison(Path(args.run_a), Path(args.run_b), Path(args.out))
-    write_manifest(args.out)
+    with removed_on_error(args.out):
+        rows = write_comparison(Path(args.run_a), Path(args.run_b), Path(args.out))
+        write_manifest(args.out)
     who = sorted({str(r["critical_for"]) for r in rows})
     print(f"{args.out}: {len(rows)} scenarios compared; critical for: {', '.join(who)}")
     return 0
@@ -335,12 +388,11 @@ def cmd_verify(args: argparse.Namespace) -> int:
 
     folder = Path(args.folder)
     manifest = folder / "manifest.json"
-    if not manifest.is_file():
+    if not folder.is_dir():
+        raise InputError(folder, "", "folder does not exist")
+    if manifest.is_symlink() or not manifest.is_file():
         raise InputError(manifest, "", "no manifest in this folder (not a sensorgap run)")
-    try:
-        problems = verify_manifest(folder)
-    except (ValueError, KeyError, TypeError) as exc:
-        raise InputError(manifest, "", f"malformed manifest: {exc}") from None
+    problems = verify_manifest(folder)
     if problems:
         more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""
         raise InputError(manifest, "files", f"{problems[0]}{more}")
@@ -359,9 +411,6 @@ def cmd_tradeoff(args: argparse.Namespace) -> int:
 
 def cmd_corridor(args: argparse.Namespace) -> int:
     """The least-detectable approach path into a critical zone (corridor search)."""
-    from sensorgap.coverage import GridSpec, evaluate_grid
-    from sensorgap.coverage.plot import coverage_figure, save_figure
-    from sensorgap.filesio import write_csv, write_json
     from sensorgap.search.corridor import corridor_search
 
     lanes = []
@@ -369,15 +418,40 @@ def cmd_corridor(args: argparse.Namespace) -> int:
         lo_hi = _float_list(part.replace(":", ","), 2, "--lanes")
         lanes.append((lo_hi[0], lo_hi[1]))
     res = _positive(args.lateral_res, "--lateral-res")
+    for opt, v in (("--start", args.start), ("--goal", args.goal), ("--speed", args.speed)):
+        if not math.isfinite(v):
+            raise InputError(opt, "", f"must be a finite number, got {v!r}")
     scene = _scene(args)
-    c = corridor_search(scene, args.start, args.goal, lanes, args.speed, lateral_res=res)
+    try:
+        c = corridor_search(scene, args.start, args.goal, lanes, args.speed, lateral_res=res)
+    except InputError as exc:  # name the options of this command
+        flag = {"x_start/x_goal": "--start/--goal", "lanes": "--lanes",
+                "lateral_res": "--lateral-res"}.get(exc.field)
+        if exc.source == "corridor" and flag:
+            raise InputError(flag, "", exc.message) from None
+        raise
     out = Path(args.out)
+    with removed_on_error(out):
+        _write_corridor(args, scene, c, lanes, res, out)
+    print(f"{out}: P(undetected along the corridor) = {c.p_undetected:.3g} "
+          f"(log10 {c.log10_p_undetected:.1f}) over {c.t[-1]:.1f} s")
+    return 0
+
+
+def _write_corridor(args: argparse.Namespace, scene: Scene, c: Any,
+                    lanes: list[tuple[float, float]], res: float, out: Path) -> None:
+    from sensorgap.coverage import GridSpec, evaluate_grid
+    from sensorgap.coverage.plot import coverage_figure, save_figure
+    from sensorgap.filesio import write_csv, write_json
+
     out.mkdir(parents=True, exist_ok=True)
     write_csv(out / "corridor.csv", ["t", "x", "y", "heading", "pd"],
               [c.t, c.x, c.y, c.heading, c.pd])
     ys = [lo for lo, _ in lanes] + [hi for _, hi in lanes]
-    grid = GridSpec(min(args.start, -10.0) - 5.0, max(args.goal, 10.0) + 5.0,
-                    min(ys) - 10.0, max(ys) + 10.0, 0.25, scene.target.reference_height_m)
+    x0, x1 = min(args.start, -10.0) - 5.0, max(args.goal, 10.0) + 5.0
+    y0, y1 = min(ys) - 10.0, max(ys) + 10.0
+    plot_res = max(0.25, math.sqrt((x1 - x0) * (y1 - y0) / 4e6))  # background <= 4e6 cells
+    grid = GridSpec(x0, x1, y0, y1, plot_res, scene.target.reference_height_m)
     fig = coverage_figure(evaluate_grid(scene, grid, workers=2), scene.system,
                           f"{scene.system.name}: least-detectable {scene.target.name} path, "
                           f"{scene.conditions.env.name}, P_undet = {c.p_undetected:.3g}")
@@ -393,9 +467,6 @@ def cmd_corridor(args: argparse.Namespace) -> int:
         "min_pd": float(c.pd.min()), "max_pd": float(c.pd.max()),
         "files": ["corridor.csv", "corridor.png", "summary.json"]})
     write_manifest(out)
-    print(f"{out}: P(undetected along the corridor) = {c.p_undetected:.3g} "
-          f"(log10 {c.log10_p_undetected:.1f}) over {c.t[-1]:.1f} s")
-    return 0
 
 
 def cmd_schema(args: argparse.Namespace) -> int:

@@ -93,50 +93,147 @@ def write_npz(path: str | Path, arrays: Mapping[str, NDArray[Any]]) -> Path:
 
 
 MANIFEST_NAME = "manifest.json"
-_MANIFEST_SKIP_SUFFIXES = (".tmp", "-journal", "-wal", "-shm")
+_JOURNAL_SUFFIXES = ("-journal", "-wal", "-shm")
+_SHA256_HEX = frozenset("0123456789abcdef")
+
+
+def is_temporary(name: str) -> bool:
+    """Whether a file name is a temporary file of ``sensorgap.atomic`` (``.NAME.*.tmp*``)
+    or of an interrupted write (``*.tmp``), or an SQLite journal (``-journal``, ``-wal``,
+    ``-shm``): never part of a finished run folder."""
+    return ((name.startswith(".") and ".tmp" in name) or name.endswith(".tmp")
+            or name.endswith(_JOURNAL_SUFFIXES))
+
+
+def _walk(root: Path) -> list[tuple[str, str]]:
+    """Every entry below ``root`` as (relative POSIX path, kind): kind is ``file``,
+    ``dir``, ``link`` (a symbolic link, never followed) or ``other``; sorted."""
+    import os
+    import stat
+
+    out: list[tuple[str, str]] = []
+    for dirpath, dirnames, filenames in os.walk(root, followlinks=False):
+        for name in [*dirnames, *filenames]:
+            full = Path(dirpath) / name
+            mode = os.lstat(full).st_mode
+            kind = ("link" if stat.S_ISLNK(mode) else "dir" if stat.S_ISDIR(mode)
+                    else "file" if stat.S_ISREG(mode) else "other")
+            out.append((full.relative_to(root).as_posix(), kind))
+    return sorted(out)
+
+
+def _sha256_file(path: Path) -> tuple[int, str]:
+    import hashlib
+
+    h, size = hashlib.sha256(), 0
+    with open(path, "rb") as fh:
+        while chunk := fh.read(1 << 20):
+            h.update(chunk)
+            size += len(chunk)
+    return size, h.hexdigest()
 
 
 def write_manifest(folder: str | Path) -> Path:
-    """Write ``folder/manifest.json``: every file below ``folder`` (sorted relative POSIX
-    paths) with its size in bytes and SHA-256, so an assessor can verify that nothing was
-    changed or lost. Deterministic: no timestamps. Temporary and database journal files are
-    left out, and so is the manifest itself."""
-    import hashlib
-
+    """Write ``folder/manifest.json``: every regular file below ``folder`` (sorted relative
+    POSIX paths) with its size in bytes and SHA-256, so an assessor can verify that nothing
+    was changed or lost. Deterministic: no timestamps. Left-over temporary files of
+    ``sensorgap.atomic`` (from an interrupted earlier command) are removed; database
+    journals, symbolic links and the manifest itself are left out (``verify`` reports
+    all but the manifest)."""
     root = Path(folder)
     files = {}
-    for p in sorted(root.rglob("*")):
-        if not p.is_file() or p.name == MANIFEST_NAME or p.name.endswith(_MANIFEST_SKIP_SUFFIXES):
+    for rel, kind in _walk(root):
+        p = root / rel
+        if kind != "file" or rel == MANIFEST_NAME:
             continue
-        if p.name.startswith(".") and ".tmp" in p.name:
+        if is_temporary(p.name):
+            if not p.name.endswith(_JOURNAL_SUFFIXES):
+                p.unlink(missing_ok=True)
             continue
-        data = p.read_bytes()
-        files[p.relative_to(root).as_posix()] = {
-            "bytes": len(data), "sha256": hashlib.sha256(data).hexdigest()}
+        size, sha = _sha256_file(p)
+        files[rel] = {"bytes": size, "sha256": sha}
     return write_json(root / MANIFEST_NAME, {"algorithm": "sha256", "files": files})
 
 
-def verify_manifest(folder: str | Path) -> list[str]:
-    """Problems of a run folder against its ``manifest.json``: files missing, changed (size
-    or SHA-256) or not listed. Empty when the folder is intact."""
-    import hashlib
+def _bad_entry(rel: object) -> str | None:
+    """Why a manifest entry name is not a relative path inside the folder (None: fine)."""
+    if not isinstance(rel, str) or not rel:
+        return "must be a non-empty relative path"
+    parts = rel.split("/")
+    if rel.startswith("/") or "\\" in rel or (len(rel) > 1 and rel[1] == ":"):
+        return "must be a relative POSIX path inside the folder, not an absolute path"
+    if any(part in ("", ".", "..") for part in parts):
+        return "must be a normalised relative path inside the folder (no '..', '.' or '//')"
+    if "\x00" in rel:
+        return "must not contain NUL"
+    return None
 
+
+def read_manifest(folder: str | Path) -> dict[str, dict[str, Any]]:
+    """The ``files`` of ``folder/manifest.json``, checked: a JSON object whose ``files``
+    maps relative paths inside the folder to ``{"bytes": int, "sha256": hex}``. Anything
+    else -> ``InputError`` naming the manifest and the field."""
+    from sensorgap.errors import InputError
+
+    path = Path(folder) / MANIFEST_NAME
+    try:
+        if path.stat().st_size > 100_000_000:
+            raise InputError(path, "", "larger than 100 MB; not a sensorgap manifest")
+        data = json.loads(path.read_bytes().decode("utf-8"))
+    except (UnicodeDecodeError, ValueError) as exc:
+        raise InputError(path, "", f"malformed manifest: not JSON ({exc})") from None
+    except RecursionError:
+        raise InputError(path, "", "malformed manifest: nested too deeply") from None
+    if not isinstance(data, dict) or not isinstance(data.get("files"), dict):
+        raise InputError(path, "files", "malformed manifest: expected an object with "
+                         "'files' mapping each relative path to its bytes and sha256")
+    if data.get("algorithm", "sha256") != "sha256":
+        raise InputError(path, "algorithm", f"must be sha256, got {data.get('algorithm')!r}")
+    files: dict[str, dict[str, Any]] = data["files"]
+    for rel, meta in files.items():
+        why = _bad_entry(rel)
+        if why:
+            raise InputError(path, f"files[{rel!r}]", why)
+        ok = (isinstance(meta, dict) and isinstance(meta.get("bytes"), int)
+              and not isinstance(meta.get("bytes"), bool) and meta["bytes"] >= 0
+              and isinstance(meta.get("sha256"), str) and len(meta["sha256"]) == 64
+              and set(meta["sha256"]) <= _SHA256_HEX)
+        if not ok:
+            raise InputError(path, f"files[{rel!r}]", "expected {\"bytes\": a non-negative "
+                             "integer, \"sha256\": 64 lowercase hex digits}")
+    return files
+
+
+def verify_manifest(folder: str | Path) -> list[str]:
+    """Problems of a run folder against its ``manifest.json`` (checked with
+    ``read_manifest``): listed files missing, not regular files or changed (size or
+    SHA-256); symbolic links anywhere in the folder (never followed); files not listed,
+    left-over temporary files and database journals included. Empty when the folder is
+    intact. Reads only inside the folder."""
     root = Path(folder)
-    data = json.loads((root / MANIFEST_NAME).read_text(encoding="utf-8"))
-    listed = data["files"]
+    listed = read_manifest(root)
+    entries = dict(_walk(root))
     problems = []
+    for rel, kind in entries.items():
+        if kind == "link":
+            problems.append(f"{rel} is a symbolic link (not allowed in a run folder)")
     for rel, meta in sorted(listed.items()):
-        p = root / rel
-        if not p.is_file():
+        found = entries.get(rel)
+        if found is None:
             problems.append(f"{rel} is missing")
             continue
-        raw = p.read_bytes()
-        if len(raw) != meta["bytes"] or hashlib.sha256(raw).hexdigest() != meta["sha256"]:
+        if found != "file":
+            problems.append(f"{rel} is not a regular file")
+            continue
+        if meta["bytes"] != (root / rel).lstat().st_size \
+                or _sha256_file(root / rel) != (meta["bytes"], meta["sha256"]):
             problems.append(f"{rel} was changed (size or SHA-256 differs)")
-    for p in sorted(root.rglob("*")):
-        rel = p.relative_to(root).as_posix()
-        if (p.is_file() and p.name != MANIFEST_NAME and rel not in listed
-                and not p.name.endswith(_MANIFEST_SKIP_SUFFIXES)
-                and not (p.name.startswith(".") and ".tmp" in p.name)):
+    for rel, kind in entries.items():
+        if kind in ("dir", "link") or rel == MANIFEST_NAME or rel in listed:
+            continue
+        if is_temporary(rel.rsplit("/", 1)[-1]):
+            problems.append(f"{rel} is a left-over temporary or journal file (from an "
+                            "interrupted command; not in the manifest)")
+        else:
             problems.append(f"{rel} is not in the manifest")
     return problems

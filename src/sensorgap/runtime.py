@@ -9,13 +9,27 @@ map: measured on this project's 2-core machine, two threads evaluated candidates
 1 GiB, top pad 64 MiB; ``mallopt(3)``) brings that to 1.7-1.8x and changes no result. The
 price: freed memory stays with the process (its resident size stays near its peak) until
 it exits. Not glibc (macOS, musl, Windows): nothing is changed.
+
+``configure_numba_cache``: the compiled kernels are cached on disk (``cache=True``). By
+default numba writes the cache beside the source (``__pycache__``) or, when the package
+folder is read-only, under the user's home; without a writable package folder and without
+``HOME`` every compiling command failed ("no locator available"). On import, sensorgap
+points ``NUMBA_CACHE_DIR`` (unless already set) at a writable folder owned by the user:
+``$XDG_CACHE_HOME/sensorgap/numba``, ``~/.cache/sensorgap/numba`` or
+``<tmp>/sensorgap-numba-<uid>`` (created 0700), and only when the package folder is not
+writable.
 """
 
 from __future__ import annotations
 
 import ctypes
 import ctypes.util
+import os
+import stat
 import sys
+import tempfile
+from collections.abc import Callable, MutableMapping
+from pathlib import Path
 
 #: mallopt parameters (glibc <malloc.h>) and the values set, bytes.
 _M_TRIM_THRESHOLD, _M_TOP_PAD, _M_MMAP_THRESHOLD = -1, -2, -3
@@ -45,3 +59,61 @@ def tune_allocator() -> bool:
                  and mallopt(_M_TRIM_THRESHOLD, TRIM_THRESHOLD_B)
                  and mallopt(_M_TOP_PAD, TOP_PAD_B))
     return _done
+
+
+def _private_dir(path: Path) -> bool:
+    """Create ``path`` (0700) if needed; True if it is a directory owned by this user that
+    no one else may write (a shared temporary folder must not be pre-planted)."""
+    try:
+        path.mkdir(parents=True, exist_ok=True, mode=0o700)
+        st = os.lstat(path)
+    except OSError:
+        return False
+    if not stat.S_ISDIR(st.st_mode) or st.st_mode & (stat.S_IWGRP | stat.S_IWOTH):
+        return False
+    if hasattr(os, "getuid") and st.st_uid != os.getuid():
+        return False
+    return os.access(path, os.W_OK | os.X_OK)
+
+
+def numba_cache_dir(package_dir: Path, env: MutableMapping[str, str] | None = None,
+                    writable: Callable[[Path], bool] | None = None) -> str | None:
+    """Choose numba's cache folder and set ``NUMBA_CACHE_DIR`` in ``env`` (default
+    ``os.environ``): None (numba's default beside the source) when ``package_dir`` is
+    writable or ``NUMBA_CACHE_DIR`` is already set; else the first usable folder of
+    ``$XDG_CACHE_HOME/sensorgap/numba``, ``~/.cache/sensorgap/numba``,
+    ``<tmp>/sensorgap-numba-<uid>``, or a fresh temporary folder."""
+    env = os.environ if env is None else env
+    if env.get("NUMBA_CACHE_DIR"):
+        return None
+    can_write = writable or (lambda p: os.access(p, os.W_OK | os.X_OK))
+    folders = [package_dir, *(d for d in sorted(package_dir.iterdir())
+                              if d.is_dir() and (d / "__init__.py").is_file())]
+    if all(can_write(d / "__pycache__") or (not (d / "__pycache__").exists()
+                                            and can_write(d)) for d in folders):
+        return None
+    candidates = []
+    if env.get("XDG_CACHE_HOME"):
+        candidates.append(Path(env["XDG_CACHE_HOME"]) / "sensorgap" / "numba")
+    if env.get("HOME"):
+        candidates.append(Path(env["HOME"]) / ".cache" / "sensorgap" / "numba")
+    uid = os.getuid() if hasattr(os, "getuid") else 0
+    candidates.append(Path(tempfile.gettempdir()) / f"sensorgap-numba-{uid}")
+    chosen = next((str(c) for c in candidates if _private_dir(c)), None)
+    if chosen is None:
+        chosen = tempfile.mkdtemp(prefix="sensorgap-numba-")
+    env["NUMBA_CACHE_DIR"] = chosen
+    return chosen
+
+
+def configure_numba_cache() -> str | None:
+    """``numba_cache_dir`` for this package; also updates numba's config when numba was
+    imported first. Never raises: at worst numba falls back to its own behaviour."""
+    try:
+        chosen = numba_cache_dir(Path(__file__).resolve().parent)
+        config = sys.modules.get("numba.core.config")
+        if chosen is not None and config is not None:
+            config.CACHE_DIR = chosen  # type: ignore[attr-defined]
+        return chosen
+    except Exception:  # noqa: BLE001 - a cache folder must never stop a command
+        return None

@@ -7,7 +7,7 @@ from typing import Literal
 
 from pydantic import Field
 
-from sensorgap.config.common import Finite, NonNeg, Strict
+from sensorgap.config.common import Strict
 
 
 class SunConfig(Strict):
@@ -25,8 +25,8 @@ class SunConfig(Strict):
     visible: bool = Field(
         default=True, description="Sun disc visible (clear sky); False under overcast/fog"
     )
-    direct_irradiance_w_m2: NonNeg = Field(
-        default=480.0,
+    direct_irradiance_w_m2: float = Field(
+        default=480.0, ge=0.0, le=1.0e4, allow_inf_nan=False,
         description="Direct-normal irradiance in the camera band, W/m2 (for glare, eq. 10)",
     )
 
@@ -62,12 +62,12 @@ class EnvironmentConfig(Strict):
     pressure_hpa: float = Field(default=1013.25, ge=500.0, le=1100.0, allow_inf_nan=False,
                                 description="Total barometric pressure (roads: ~500-1100), hPa")
     water_vapour_g_m3: float = Field(default=7.5, ge=0.0, le=50.0, allow_inf_nan=False)
-    irradiance_w_m2: NonNeg = Field(
-        default=534.0,
+    irradiance_w_m2: float = Field(
+        default=534.0, ge=0.0, le=1.0e4, allow_inf_nan=False,
         description="Irradiance on objects in the camera band (E_sun of eq. 6), W/m2",
     )
-    roc_shift_db: Finite = Field(
-        default=0.0,
+    roc_shift_db: float = Field(
+        default=0.0, ge=-100.0, le=100.0, allow_inf_nan=False,
         description="SNR penalty of the ROC in this weather (paper: curves shifted), dB",
     )
     sun: SunConfig | None = None

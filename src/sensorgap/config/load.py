@@ -17,6 +17,26 @@ from sensorgap.errors import InputError
 M = TypeVar("M", bound=BaseModel)
 
 MAX_CONFIG_BYTES = 5_000_000
+#: Deepest nesting of tables and arrays accepted in a TOML file (docs/limits.md).
+MAX_TOML_DEPTH = 16
+
+
+def toml_depth(data: Any) -> int:
+    """Nesting depth of parsed TOML (a scalar is 0, ``{"a": 1}`` is 1); iterative."""
+    deepest, stack = 0, [(data, 0)]
+    while stack:
+        node, depth = stack.pop()
+        if isinstance(node, dict):
+            children = list(node.values())
+        elif isinstance(node, list):
+            children = node
+        else:
+            continue
+        deepest = max(deepest, depth + 1)
+        if deepest > MAX_TOML_DEPTH:
+            return deepest
+        stack.extend((c, depth + 1) for c in children)
+    return deepest
 
 
 def read_toml(path: Path) -> dict[str, Any]:
@@ -33,9 +53,15 @@ def read_toml(path: Path) -> dict[str, Any]:
     except OSError as exc:
         raise InputError(path, "", f"cannot read: {exc.strerror}") from None
     try:
-        return tomllib.loads(text)
+        data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise InputError(path, "", f"TOML syntax error: {exc}") from None
+    except RecursionError:
+        data = None
+    if data is None or toml_depth(data) > MAX_TOML_DEPTH:
+        raise InputError(path, "", f"tables and arrays nested too deeply; at most "
+                         f"{MAX_TOML_DEPTH} levels allowed")
+    return data
 
 
 def _loc(loc: tuple[int | str, ...]) -> str:

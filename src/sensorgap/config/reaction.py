@@ -30,7 +30,7 @@ from typing import Any, Literal
 
 from pydantic import Field, ValidationError
 
-from sensorgap.config.common import Positive, Strict
+from sensorgap.config.common import Strict
 from sensorgap.config.environment import EnvironmentConfig
 from sensorgap.config.load import read_toml, validation_to_input_error
 from sensorgap.config.presets import templates_dir
@@ -69,7 +69,8 @@ class ReactionConfig(Strict):
     confirm_n: int = Field(ge=1, le=12, description="N of the M-of-N confirmation, cycles")
     latency_s: float = Field(ge=0.0, le=10.0, allow_inf_nan=False,
                              description="Confirmation (or threat onset) to brake onset, s")
-    jerk_m_s3: Positive = Field(description="Brake ramp, m/s3")
+    jerk_m_s3: float = Field(ge=0.1, le=1000.0, allow_inf_nan=False,
+                             description="Brake ramp, m/s3")
     decel_max_m_s2: float = Field(gt=0.0, le=20.0, allow_inf_nan=False,
                                   description="Deceleration limit before friction, m/s2")
     confirm_with: tuple[SensorType, ...] = Field(

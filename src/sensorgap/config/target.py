@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pydantic import Field
 
-from sensorgap.config.common import NonNeg, Positive, Strict
+from sensorgap.config.common import Strict
 
 
 class TargetConfig(Strict):
@@ -17,19 +17,25 @@ class TargetConfig(Strict):
 
     name: str
     description: str = ""
-    rcs_m2: Positive = Field(description="Cross-section for active sensors, m2 (paper Sec. III)")
-    camera_cross_section_m2: Positive = Field(description="Geometric cross-section, m2 (paper)")
-    length_m: Positive
-    width_m: Positive
-    height_m: Positive
-    reference_height_m: NonNeg = Field(
+    rcs_m2: float = Field(
+        ge=1.0e-6, le=1.0e4, allow_inf_nan=False,
+        description="Cross-section for active sensors, m2 (paper Sec. III)")
+    camera_cross_section_m2: float = Field(
+        ge=1.0e-6, le=1.0e3, allow_inf_nan=False,
+        description="Geometric cross-section, m2 (paper)")
+    length_m: float = Field(ge=0.01, le=50.0, allow_inf_nan=False)
+    width_m: float = Field(ge=0.01, le=10.0, allow_inf_nan=False)
+    height_m: float = Field(ge=0.01, le=10.0, allow_inf_nan=False)
+    reference_height_m: float = Field(
+        ge=0.0, le=10.0, allow_inf_nan=False,
         description="Height at which coverage is evaluated for this class, m"
     )
     lidar_reflectance: float = Field(
-        gt=0.0, le=1.0, description="Diffuse reflectance at the lidar wavelength (extended law)"
+        ge=1.0e-6, le=1.0, description="Diffuse reflectance at the lidar wavelength (extended law)"
     )
     camera_reflectance: float = Field(
-        gt=0.0, le=1.0, description="Diffuse reflectance in the camera band (rho/pi term)"
+        ge=1.0e-6, le=1.0, description="Diffuse reflectance in the camera band (rho/pi term)"
     )
-    max_speed_m_s: Positive = Field(default=70.0, description="Upper bound for trajectories, m/s")
+    max_speed_m_s: float = Field(default=70.0, ge=0.1, le=150.0, allow_inf_nan=False,
+                                 description="Upper bound for trajectories, m/s")
     sources: dict[str, str] = Field(default_factory=dict)

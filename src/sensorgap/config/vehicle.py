@@ -12,7 +12,12 @@ from typing import Any, Literal
 
 from pydantic import ConfigDict, Field, field_validator, model_validator
 
-from sensorgap.config.common import Positive, Strict
+from sensorgap.config.common import Strict
+
+#: Upper limit of a mount's range, m (docs/limits.md).
+MAX_RANGE_M = 10_000.0
+#: At most this many sensors (mounts) and devices per vehicle (docs/limits.md).
+MAX_SENSORS = 128
 
 
 class RocConfig(Strict):
@@ -32,7 +37,7 @@ class RocConfig(Strict):
     snr50_db: float = Field(default=10.0, ge=-50.0, le=100.0, allow_inf_nan=False)
     floor_db: float = Field(default=0.0, ge=-300.0, le=100.0, allow_inf_nan=False)
     half_width_db: float = Field(default=6.0, gt=0.0, le=50.0, allow_inf_nan=False)
-    pfa: float = Field(default=1.0e-6, gt=0.0, lt=1.0, allow_inf_nan=False)
+    pfa: float = Field(default=1.0e-6, ge=1.0e-15, lt=1.0, allow_inf_nan=False)
     n_pulses: int = Field(default=1, ge=1, le=8096)
 
     @model_validator(mode="after")
@@ -75,8 +80,9 @@ class MountConfig(Strict):
     pitch_deg: float = Field(default=0.0, ge=-90.0, le=90.0, allow_inf_nan=False)
     hfov_deg: float = Field(ge=0.0, le=360.0, allow_inf_nan=False)
     vfov_deg: float = Field(ge=0.0, le=180.0, allow_inf_nan=False)
-    min_range_m: float = Field(default=0.0, ge=0.0, allow_inf_nan=False)
-    max_range_m: Positive
+    min_range_m: float = Field(default=0.0, ge=0.0, le=MAX_RANGE_M, allow_inf_nan=False)
+    max_range_m: float = Field(ge=0.01, le=MAX_RANGE_M, allow_inf_nan=False,
+                               description="Detection range limit, m (at most 10 km)")
     source: str = Field(description="Where pose, field of view and range come from")
 
     @field_validator("position_m")
@@ -126,7 +132,7 @@ class BodyConfig(Strict):
     height_m: float = Field(gt=0.5, le=6.0, allow_inf_nan=False)
     wheelbase_m: float = Field(gt=0.5, le=20.0, allow_inf_nan=False)
     rear_overhang_m: float = Field(ge=0.0, le=10.0, allow_inf_nan=False)
-    max_speed_m_s: Positive = 70.0
+    max_speed_m_s: float = Field(default=70.0, ge=0.1, le=150.0, allow_inf_nan=False)
     sources: dict[str, str] = Field(default_factory=dict)
 
     @property
@@ -155,8 +161,8 @@ class VehicleConfig(Strict):
         description="Reaction model of the vehicle under test: a preset of "
                     "templates/reactions.toml or a path to a TOML file with one")
     roc: RocConfig = Field(default_factory=RocConfig)
-    devices: dict[str, DeviceConfig]
-    sensors: list[MountConfig] = Field(min_length=1)
+    devices: dict[str, DeviceConfig] = Field(max_length=MAX_SENSORS)
+    sensors: list[MountConfig] = Field(min_length=1, max_length=MAX_SENSORS)
 
     @model_validator(mode="after")
     def _consistent(self) -> VehicleConfig:

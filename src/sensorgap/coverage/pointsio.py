@@ -6,14 +6,21 @@ import csv
 import io
 import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from sensorgap.errors import InputError
 
-MAX_POINTS = 10_000_000
-MAX_BYTES = 1_000_000_000
+#: Input limits (docs/limits.md): points per file, file size, and points x sensors (the
+#: per-sensor columns of ``probe``: ~3.3 kB per point of System A's 23 sensors, measured by
+#: benchmarks/bench_limits.py, so <= ~2 GiB at the limit).
+MAX_POINTS = 500_000
+MAX_BYTES = 100_000_000
+MAX_POINT_SENSOR_VALUES = 12_000_000
+#: Longest CSV field accepted, characters (a number needs far fewer).
+MAX_FIELD_CHARS = 1_000
 
 
 def read_points_csv(path: Path, default_z: float) -> NDArray[np.float64]:
@@ -28,7 +35,10 @@ def read_points_csv(path: Path, default_z: float) -> NDArray[np.float64]:
     except (UnicodeDecodeError, OSError) as exc:
         raise InputError(path, "", f"cannot read as UTF-8 text ({exc})") from None
     reader = csv.reader(io.StringIO(text))
-    header = next(reader, None)
+    try:
+        header = next(reader, None)
+    except csv.Error as exc:
+        raise InputError(path, "header", f"not CSV: {exc}") from None
     if not header:
         raise InputError(path, "header", "empty file; expected a header 'x,y' or 'x,y,z'")
     names = [h.strip().lower() for h in header]
@@ -39,6 +49,15 @@ def read_points_csv(path: Path, default_z: float) -> NDArray[np.float64]:
     ix, iy = names.index("x"), names.index("y")
     iz = names.index("z") if "z" in names else None
     rows: list[tuple[float, float, float]] = []
+    try:
+        return _rows(path, reader, ix, iy, iz, default_z, rows)
+    except csv.Error as exc:
+        raise InputError(path, f"line {reader.line_num}", f"not CSV ({exc}); fields are "
+                         f"numbers of at most {MAX_FIELD_CHARS} characters") from None
+
+
+def _rows(path: Path, reader: Any, ix: int, iy: int, iz: int | None, default_z: float,
+          rows: list[tuple[float, float, float]]) -> NDArray[np.float64]:
     for lineno, row in enumerate(reader, start=2):
         if not row or all(not c.strip() for c in row):
             continue
@@ -50,6 +69,9 @@ def read_points_csv(path: Path, default_z: float) -> NDArray[np.float64]:
                 vals.append(default_z)
                 continue
             cell = row[idx].strip() if idx < len(row) else ""
+            if len(cell) > MAX_FIELD_CHARS:
+                raise InputError(path, f"line {lineno}, column {name}", f"field of "
+                                 f"{len(cell)} characters; at most {MAX_FIELD_CHARS} allowed")
             try:
                 v = float(cell)
             except ValueError:

@@ -51,12 +51,12 @@ class CameraParams(Strict):
                                 description="Centre wavelength for h nu, m")
     pixels_h: int = Field(ge=1, le=100_000, description="Horizontal pixel count")
     pixels_v: int = Field(ge=1, le=100_000, description="Vertical pixel count")
-    pixel_pitch_m: float = Field(gt=0.0, le=1.0e-4, description="Pixel pitch, m")
+    pixel_pitch_m: float = Field(ge=1.0e-7, le=1.0e-4, description="Pixel pitch, m")
     f_number: float = Field(ge=0.5, le=64.0, description="Lens f-number N")
-    quantum_efficiency: float = Field(gt=0.0, le=1.0, description="QE")
-    integration_time_s: float = Field(gt=0.0, le=1.0, description="t_int, s")
-    noise_bandwidth_hz: float = Field(gt=0.0, le=1.0e12, description="B_n, Hz")
-    system_noise_temperature_k: float = Field(gt=0.0, le=1.0e7, description="T_sys, K")
+    quantum_efficiency: float = Field(ge=1.0e-6, le=1.0, description="QE")
+    integration_time_s: float = Field(ge=1.0e-7, le=1.0, description="t_int, s")
+    noise_bandwidth_hz: float = Field(ge=1.0, le=1.0e12, description="B_n, Hz")
+    system_noise_temperature_k: float = Field(ge=1.0, le=1.0e7, description="T_sys, K")
     system_loss_db: float = Field(default=0.0, ge=0.0, le=100.0,
                                   description="Lens/windscreen transmission loss, dB")
     fov_edge_loss_db: float = Field(default=3.0, ge=0.0, le=60.0,

@@ -33,11 +33,11 @@ class LidarParams(Strict):
     """Physical parameters of a pulsed direct-detection lidar (eq. 4-5)."""
 
     wavelength_m: float = Field(ge=2.0e-7, le=1.2e-5, description="Laser wavelength, m")
-    peak_power_w: float = Field(gt=0.0, le=1.0e5, description="Peak emitted power P_e, W")
-    beam_divergence_rad: float = Field(gt=0.0, le=0.2, description="Theta, rad")
-    receiver_diameter_m: float = Field(gt=0.0, le=1.0, description="Aperture diameter, m")
-    noise_bandwidth_hz: float = Field(gt=0.0, le=1.0e12, description="B_n ~ 1/tau, Hz")
-    system_noise_temperature_k: float = Field(gt=0.0, le=1.0e7, description="T_sys, K")
+    peak_power_w: float = Field(ge=1.0e-6, le=1.0e5, description="Peak emitted power P_e, W")
+    beam_divergence_rad: float = Field(ge=1.0e-6, le=0.2, description="Theta, rad")
+    receiver_diameter_m: float = Field(ge=1.0e-4, le=1.0, description="Aperture diameter, m")
+    noise_bandwidth_hz: float = Field(ge=1.0, le=1.0e12, description="B_n ~ 1/tau, Hz")
+    system_noise_temperature_k: float = Field(ge=1.0, le=1.0e7, description="T_sys, K")
     system_loss_db: float = Field(default=0.0, ge=0.0, le=100.0,
                                   description="Fixed losses (optics transmission), dB")
     fov_edge_loss_db: float = Field(default=0.0, ge=0.0, le=60.0,

@@ -25,9 +25,9 @@ class RadarParams(Strict):
     tx_power_dbm: float = Field(ge=-30.0, le=60.0, description="Transmit power P_e, dBm")
     tx_gain_dbi: float = Field(ge=-20.0, le=60.0, description="Boresight gain G_e, dBi")
     rx_gain_dbi: float = Field(ge=-20.0, le=60.0, description="Boresight gain G_r, dBi")
-    noise_bandwidth_hz: float = Field(gt=0.0, le=1.0e12, description="B_n ~ 1/tau, Hz")
+    noise_bandwidth_hz: float = Field(ge=1.0, le=1.0e12, description="B_n ~ 1/tau, Hz")
     noise_figure_db: float = Field(ge=0.0, le=40.0, description="Receiver noise figure F, dB")
-    antenna_temperature_k: float = Field(default=290.0, ge=0.0, le=1.0e4, description="K")
+    antenna_temperature_k: float = Field(default=290.0, ge=1.0, le=1.0e4, description="K")
     system_loss_db: float = Field(default=0.0, ge=0.0, le=100.0,
                                   description="Fixed two-way losses (fascia, cables), dB")
     fov_edge_loss_db: float = Field(default=3.0, ge=0.0, le=60.0,

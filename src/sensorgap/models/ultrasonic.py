@@ -26,8 +26,8 @@ class UltrasonicParams(Strict):
     tx_power_dbm: float = Field(ge=-60.0, le=60.0, description="Acoustic power P_e, dBm")
     tx_gain_dbi: float = Field(ge=-20.0, le=60.0, description="Directivity G_e, dBi")
     rx_gain_dbi: float = Field(ge=-20.0, le=60.0, description="Directivity G_r, dBi")
-    noise_bandwidth_hz: float = Field(gt=0.0, le=1.0e9, description="B_n ~ 1/tau, Hz")
-    system_noise_temperature_k: float = Field(gt=0.0, le=1.0e12,
+    noise_bandwidth_hz: float = Field(ge=1.0, le=1.0e9, description="B_n ~ 1/tau, Hz")
+    system_noise_temperature_k: float = Field(ge=1.0, le=1.0e12,
                                               description="Equivalent T_sys, K")
     system_loss_db: float = Field(default=0.0, ge=0.0, le=100.0, description="dB")
     fov_edge_loss_db: float = Field(default=3.0, ge=0.0, le=60.0,

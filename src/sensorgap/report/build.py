@@ -50,6 +50,36 @@ def read_json(path: Path) -> Any:
         raise InputError(path, "", f"unreadable JSON: {exc}") from None
 
 
+#: Fields of ``run.json`` the report reads, and the JSON type each must have.
+RUN_INFO_FIELDS: dict[str, type] = {"settings": dict, "vehicle": str, "versions": dict,
+                                    "command": list, "config_sha256": dict}
+
+
+def read_run_info(folder: Path) -> dict[str, Any]:
+    """``run.json`` of a run folder ({} when absent), its fields checked
+    (``RUN_INFO_FIELDS``): anything else -> ``InputError`` naming the file and field."""
+    path = Path(folder) / "run.json"
+    if not path.is_file():
+        return {}
+    try:
+        info = read_json(path)
+    except RecursionError:
+        raise InputError(path, "", "unreadable JSON: nested too deeply") from None
+    if not isinstance(info, dict):
+        raise InputError(path, "", "expected a JSON object")
+    for key, kind in RUN_INFO_FIELDS.items():
+        if key in info and not isinstance(info[key], kind):
+            want = "object" if kind is dict else "array" if kind is list else "string"
+            raise InputError(path, key, f"expected a JSON {want}, got "
+                             f"{type(info[key]).__name__}")
+    if not all(isinstance(c, str) for c in info.get("command", [])):
+        raise InputError(path, "command", "expected an array of strings")
+    for key in ("versions", "config_sha256"):
+        if not all(isinstance(v, str | int | float) for v in info.get(key, {}).values()):
+            raise InputError(path, key, "expected an object of names to strings")
+    return info
+
+
 def read_csv(path: Path) -> list[dict[str, str]]:
     """A CSV file of the run folder as rows."""
     try:
@@ -309,7 +339,7 @@ def build(folder: Path) -> tuple[str, list[str], list[Section]]:
     folder = Path(folder)
     if not folder.is_dir():
         raise InputError(folder, "", "run folder does not exist")
-    info = read_json(folder / "run.json") if (folder / "run.json").is_file() else {}
+    info = read_run_info(folder)
     settings = info.get("settings", {})
     if (folder / "ranking.json").is_file():
         run = read_run(folder)

@@ -43,6 +43,22 @@ WIDTH_TOLERANCE = 1e-6
 
 _GEOMETRY_KINDS = ("line", "arc", "spiral", "poly3", "paramPoly3")
 
+# Input limits (docs/limits.md), checked while reading, before any road is sampled:
+#: largest magnitude of any number in the file (coordinates, coefficients).
+MAX_ABS_VALUE = 1.0e8
+#: longest road (and planView geometry), m.
+MAX_ROAD_LENGTH_M = 100_000.0
+#: most roads, planView geometries, lane sections and lanes in one file.
+MAX_ROADS = 10_000
+MAX_GEOMETRIES = 50_000
+MAX_LANE_SECTIONS = 50_000
+MAX_LANES_PER_SIDE = 50
+#: largest curvature of arcs and spirals, 1/m (radius >= 0.1 m).
+MAX_CURVATURE = 10.0
+#: widest lane and largest lane offset anywhere along its record, m.
+MAX_LANE_WIDTH_M = 100.0
+MAX_LANE_OFFSET_M = 1000.0
+
 
 def _local(el: etree._Element) -> str:
     """Tag name without namespace; '' for comments and processing instructions."""
@@ -91,7 +107,15 @@ class _Reader:
             self.fail(f"{where}@{attr}", f"must be a number, got {raw!r}", el)
         if not math.isfinite(value):
             self.fail(f"{where}@{attr}", f"must be a finite number, got {raw!r}", el)
+        if abs(value) > MAX_ABS_VALUE:
+            self.fail(f"{where}@{attr}", f"must be within +-{MAX_ABS_VALUE:g}, got {raw!r}", el)
         return value
+
+    def count(self, n: int, limit: int, where: str, what: str,
+              el: etree._Element) -> None:
+        """At most ``limit`` elements of a kind (docs/limits.md)."""
+        if n > limit:
+            self.fail(where, f"{n} {what}; at most {limit} allowed", el)
 
     def integer(self, el: etree._Element, attr: str, where: str) -> int:
         raw = self.text(el, attr, where)
@@ -124,6 +148,13 @@ class _Reader:
         road_els = _kids(root, "road")
         if not road_els:
             self.fail("OpenDRIVE", "must contain at least one <road>", root)
+        self.count(len(road_els), MAX_ROADS, "OpenDRIVE", "roads", root)
+        self.count(sum(len(_kids(pv, "geometry")) for r in road_els
+                       for pv in _kids(r, "planView")), MAX_GEOMETRIES, "OpenDRIVE",
+                   "planView geometries", root)
+        self.count(sum(len(_kids(ls, "laneSection")) for r in road_els
+                       for ls in _kids(r, "lanes")), MAX_LANE_SECTIONS, "OpenDRIVE",
+                   "lane sections", root)
         roads: dict[str, Road] = {}
         lines: dict[str, int] = {}
         for i, rel in enumerate(road_els):
@@ -154,6 +185,9 @@ class _Reader:
         length = self.num(el, "length", where)
         if length <= 0.0:
             self.fail(f"{where}@length", f"must be > 0, got {length:g}", el)
+        if length > MAX_ROAD_LENGTH_M:
+            self.fail(f"{where}@length", f"must be at most {MAX_ROAD_LENGTH_M:g} m, got "
+                      f"{length:g}", el)
         junction = el.get("junction", "-1").strip() or "-1"
         rule = cast(Literal["RHT", "LHT"],
                     self.choice(el, "rule", where, ("RHT", "LHT"), default="RHT"))
@@ -196,6 +230,9 @@ class _Reader:
             glen = self.num(g, "length", w)
             if glen <= 0.0:
                 self.fail(f"{w}@length", f"must be > 0, got {glen:g}", g)
+            if glen > MAX_ROAD_LENGTH_M:
+                self.fail(f"{w}@length", f"must be at most {MAX_ROAD_LENGTH_M:g} m, got "
+                          f"{glen:g}", g)
             expected = geoms[-1].s + geoms[-1].length if geoms else 0.0
             if abs(s - expected) > S_TOLERANCE:
                 what = "a gap" if s > expected else "an overlap"
@@ -220,10 +257,10 @@ class _Reader:
         if kind == "line":
             return Line(s, x, y, hdg, length)
         if kind == "arc":
-            return Arc(s, x, y, hdg, length, self.num(k, "curvature", w))
+            return Arc(s, x, y, hdg, length, self.curvature(k, "curvature", w))
         if kind == "spiral":
-            return Spiral(s, x, y, hdg, length, self.num(k, "curvStart", w),
-                          self.num(k, "curvEnd", w))
+            return Spiral(s, x, y, hdg, length, self.curvature(k, "curvStart", w),
+                          self.curvature(k, "curvEnd", w))
         if kind == "poly3":
             a, b, c, d = (self.num(k, n, w) for n in ("a", "b", "c", "d"))
             return Poly3(s, x, y, hdg, length, a, b, c, d)
@@ -233,6 +270,24 @@ class _Reader:
                        self.choice(k, "pRange", w, ("arcLength", "normalized"), "normalized"))
         return ParamPoly3(s, x, y, hdg, length, a_u=au, b_u=bu, c_u=cu, d_u=du,
                           a_v=av, b_v=bv, c_v=cv, d_v=dv, p_range=p_range)
+
+    def curvature(self, k: etree._Element, attr: str, w: str) -> float:
+        value = self.num(k, attr, w)
+        if abs(value) > MAX_CURVATURE:
+            self.fail(f"{w}@{attr}", f"must be within +-{MAX_CURVATURE:g} 1/m (radius >= "
+                      f"{1.0 / MAX_CURVATURE:g} m), got {value:g}", k)
+        return value
+
+    def bounded_cubic(self, piece: CubicPiece, end: float, limit: float, where: str,
+                      what: str, el: etree._Element) -> None:
+        """``InputError`` if the cubic record exceeds ``limit`` in magnitude on its span."""
+        lo_at, lo = _cubic_min(piece, end)
+        hi_at, hi = _cubic_min(CubicPiece(piece.s, -piece.a, -piece.b, -piece.c, -piece.d),
+                               end)
+        at, worst = (lo_at, lo) if abs(lo) >= abs(hi) else (hi_at, -hi)
+        if not (math.isfinite(worst) and abs(worst) <= limit):
+            self.fail(where, f"{what} must stay within +-{limit:g} m, reaches {worst:.6g} m "
+                      f"at s {at:.6g}", el)
 
     # -- lanes -------------------------------------------------------------------------
     def lanes(self, el: etree._Element, where: str,
@@ -250,6 +305,10 @@ class _Reader:
             if offsets and piece.s < offsets[-1].s:
                 self.fail(f"{w}@s", f"must not decrease (previous {offsets[-1].s:g})", o)
             offsets.append(piece)
+        for i, piece in enumerate(offsets):
+            end = offsets[i + 1].s if i + 1 < len(offsets) else max(length, piece.s)
+            self.bounded_cubic(piece, end, MAX_LANE_OFFSET_M, f"{where}/lanes/laneOffset[{i}]",
+                               "the lane offset", el)
         sels = _kids(lel, "laneSection")
         if not sels:
             self.fail(f"{where}/lanes", "must contain at least one <laneSection>", lel)
@@ -280,6 +339,9 @@ class _Reader:
         sides: dict[str, tuple[Lane, ...]] = {}
         for side, sign in (("left", 1), ("right", -1)):
             sel = _kid(el, side)
+            if sel is not None:
+                self.count(len(_kids(sel, "lane")), MAX_LANES_PER_SIDE, f"{w}/{side}",
+                           "lanes", sel)
             lanes = ([] if sel is None else
                      [self.lane(ln, f"{w}/{side}", s_end - s) for ln in _kids(sel, "lane")])
             ids = sorted((ln.id for ln in lanes), key=abs)
@@ -329,6 +391,8 @@ class _Reader:
             if wmin < -WIDTH_TOLERANCE:
                 self.fail(f"{w}/width[{i}]", f"width must be >= 0, got {wmin:.6g} m at "
                           f"sOffset {at:.6g}", el)
+            self.bounded_cubic(piece, end, MAX_LANE_WIDTH_M, f"{w}/width[{i}]", "the width",
+                               el)
         return Lane(lid, ltype, tuple(widths), tuple(preds), tuple(succs), direction)
 
     # -- junctions ---------------------------------------------------------------------

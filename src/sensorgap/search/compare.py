@@ -13,6 +13,7 @@ every difference is traced back to the two sensor setups.
 from __future__ import annotations
 
 import json
+import math
 from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
@@ -55,21 +56,69 @@ def read_run(folder: Path) -> RunRanking:
         raise InputError(path, "", "not a search run folder (ranking.json is missing)")
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
-        rows, settings = list(data["ranking"]), dict(data["settings"])
-        vehicle = str(settings.get("vehicle_ref")
-                      or Path(str(settings["vehicle_file"])).stem)
-    except (ValueError, KeyError, TypeError) as exc:
-        raise InputError(path, "", f"malformed ranking file: {exc}") from None
+    except (ValueError, RecursionError) as exc:
+        raise InputError(path, "", f"malformed ranking file: not JSON ({exc})") from None
+    if not isinstance(data, dict):
+        raise InputError(path, "", "malformed ranking file: expected a JSON object")
+    rows, settings = data.get("ranking"), data.get("settings")
+    if not isinstance(rows, list):
+        raise InputError(path, "ranking", "malformed ranking file: expected a list of rows")
+    if not isinstance(settings, dict):
+        raise InputError(path, "settings", "malformed ranking file: expected an object")
+    vehicle = settings.get("vehicle_ref") or settings.get("vehicle_file")
+    if not isinstance(vehicle, str) or not vehicle:
+        raise InputError(path, "settings.vehicle_ref", "malformed ranking file: expected "
+                         "the vehicle (a preset name or a path)")
+    if not settings.get("vehicle_ref"):
+        vehicle = Path(vehicle).stem
+    envs = settings.get("environments", [])
+    if not (isinstance(envs, list) and all(isinstance(e, str) for e in envs)):
+        raise InputError(path, "settings.environments", "malformed ranking file: expected "
+                         "a list of environment names")
+    for i, row in enumerate(rows):
+        if not isinstance(row, dict):
+            raise InputError(path, f"ranking[{i}]", "malformed ranking file: expected an "
+                             "object")
+        for key in ROW_TEXT:
+            if not isinstance(row.get(key), str) or not row[key]:
+                raise InputError(path, f"ranking[{i}].{key}", "malformed ranking file: "
+                                 "missing or not a string")
+        rank = row.get("rank")
+        if not isinstance(rank, int) or isinstance(rank, bool) or rank < 1:
+            raise InputError(path, f"ranking[{i}].rank", "malformed ranking file: expected "
+                             f"a positive integer, got {rank!r}")
     return RunRanking(Path(folder), vehicle, rows, settings)
 
 
-def candidate_of(row: dict[str, Any], problem: SearchProblem) -> Candidate:
-    """The candidate of a ranking row (preset, world-frame sun, parameters)."""
+#: Text fields every ranking row must carry.
+ROW_TEXT = ("scenario_id", "family", "environment")
+
+
+def candidate_of(row: dict[str, Any], problem: SearchProblem,
+                 source: Path | str = "ranking.json") -> Candidate:
+    """The candidate of a ranking row (preset, world-frame sun, parameters); a missing or
+    malformed value -> ``InputError`` naming ``source`` and the field."""
     env = str(row["environment"]).split("@")[0]
-    sun = (None if row.get("sun_azimuth_deg") is None
-           else (float(row["sun_azimuth_deg"]), float(row["sun_elevation_deg"])))
-    params = {p.name: (str(row[f"p_{p.name}"]) if p.categorical
-                       else float(row[f"p_{p.name}"])) for p in problem.family.space}
+    field = "sun_azimuth_deg"
+    try:
+        sun = (None if row.get("sun_azimuth_deg") is None
+               else (float(row["sun_azimuth_deg"]), float(row["sun_elevation_deg"])))
+        params: dict[str, Any] = {}
+        for p in problem.family.space:
+            field = f"p_{p.name}"
+            value = row[field]
+            if p.categorical:
+                if value not in p.choices:
+                    raise ValueError(f"not one of {', '.join(p.choices)}")
+                params[p.name] = str(value)
+            else:
+                if isinstance(value, bool) or not isinstance(value, int | float) \
+                        or not math.isfinite(value):
+                    raise ValueError("not a finite number")
+                params[p.name] = float(value)
+    except (KeyError, TypeError, ValueError) as exc:
+        raise InputError(source, f"ranking[{row.get('scenario_id')}].{field}",
+                         f"missing or malformed value ({exc})") from None
     return Candidate(problem.family.name, env, sun, params)
 
 
@@ -114,7 +163,8 @@ def compare_runs(run_a: Path, run_b: Path,
     for k, side in enumerate(sides):
         for row in side.run.rows:
             sid = str(row["scenario_id"])
-            entry = seen.setdefault(sid, {"row": row, "ranks": [None, None]})
+            entry = seen.setdefault(sid, {"row": row, "ranks": [None, None],
+                                          "source": side.run.folder / "ranking.json"})
             entry["ranks"][k] = int(row["rank"])
     out = []
     for sid, entry in sorted(seen.items(), key=lambda kv: (
@@ -123,7 +173,7 @@ def compare_runs(run_a: Path, run_b: Path,
         probs, speeds, classes, results = [], [], [], []
         for side in sides:
             prob = side.problem(str(row["family"]))
-            cand = candidate_of(row, prob)
+            cand = candidate_of(row, prob, entry["source"])
             res = prob.evaluate(cand)
             results.append((prob, cand, res))
             probs.append(float(res.metrics.get("collision_probability", 0.0))

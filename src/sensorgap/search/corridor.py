@@ -34,6 +34,11 @@ from sensorgap.errors import InputError
 F64 = NDArray[np.float64]
 #: Cost of a cell where the target is detected with certainty (Pd = 1): -ln(1e-300).
 CERTAIN_COST = -math.log(1e-300)
+#: Input limits (docs/limits.md): lattice nodes (~1 kB each in the graph), start/goal x and
+#: lane bands, m.
+MAX_CORRIDOR_NODES = 500_000
+MAX_CORRIDOR_X_M = 2_000.0
+MAX_CORRIDOR_Y_M = 200.0
 
 
 @dataclass(frozen=True)
@@ -77,9 +82,25 @@ def corridor_search(
                          f"({x_start:g}) in the direction of motion")
     if not lanes or any(not (lo < hi) for lo, hi in lanes):
         raise InputError("--lanes", "", "need at least one lateral interval lo < hi (m)")
+    if max(abs(x_start), abs(x_goal)) > MAX_CORRIDOR_X_M:
+        raise InputError("corridor", "x_start/x_goal", f"must be within +-"
+                         f"{MAX_CORRIDOR_X_M:g} m, got {x_start:g} and {x_goal:g}")
+    if any(max(abs(lo), abs(hi)) > MAX_CORRIDOR_Y_M for lo, hi in lanes):
+        raise InputError("corridor", "lanes", f"lane bands must lie within +-"
+                         f"{MAX_CORRIDOR_Y_M:g} m of the ego")
+    if not (math.isfinite(lateral_res) and lateral_res > 0.0):
+        raise InputError("corridor", "lateral_res", f"must be > 0 m, got {lateral_res!r}")
     step = speed_rel * dt
-    n_cols = max(2, round((x_goal - x_start) / step) + 1)
     y_lo, y_hi = min(lo for lo, _ in lanes), max(hi for _, hi in lanes)
+    # the lattice size before anything is allocated (a graph node costs ~1 kB)
+    cols_est = (x_goal - x_start) / step + 1.0
+    rows_est = (y_hi - y_lo) / lateral_res + 1.0
+    if cols_est * rows_est > MAX_CORRIDOR_NODES:
+        raise InputError("corridor", "lateral_res", f"a lattice of {cols_est:.3g} columns x "
+                         f"{rows_est:.3g} rows is too large (at most {MAX_CORRIDOR_NODES:.0e} "
+                         "nodes); coarsen the lateral resolution, shorten the approach or "
+                         "raise the speed")
+    n_cols = max(2, round((x_goal - x_start) / step) + 1)
     h = scene.target.reference_height_m if height is None else height
     # columns at the cycle spacing, rows at lateral_res: the exact fused Pd per node
     xs = np.asarray(x_start + np.arange(n_cols) * step, dtype=np.float64)

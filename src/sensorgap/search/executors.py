@@ -10,6 +10,7 @@ or the number of workers (same seed -> same ranking; tested).
 
 from __future__ import annotations
 
+import re
 import threading
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -128,7 +129,7 @@ class DaskExecutor(Executor):
                 self._cluster = LocalCluster(n_workers=workers, threads_per_worker=1,
                                              processes=True, dashboard_address=None)
                 self.client = Client(self._cluster)
-        except (OSError, TimeoutError) as exc:
+        except (OSError, TimeoutError, ValueError) as exc:
             raise InputError("--scheduler", "", f"cannot reach the Dask scheduler "
                              f"{address!r}: {exc}") from None
         self.workers = max(1, len(self.client.scheduler_info().get("workers", {})) or workers)
@@ -148,6 +149,20 @@ class DaskExecutor(Executor):
         self.client.close()
         if self._cluster is not None:
             self._cluster.close()
+
+
+_ADDRESS = re.compile(r"^(?:(?:tcp|tls|ucx|ws|wss)://)?(?:\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+)"
+                      r":(\d{1,5})$")
+
+
+def check_scheduler_address(address: str) -> str:
+    """A Dask scheduler address ``[protocol://]host:port`` (protocol tcp, tls, ucx, ws or
+    wss; port 1..65535); anything else -> ``InputError`` before anything is started."""
+    m = _ADDRESS.match(address)
+    if m is None or not 1 <= int(m.group(1)) <= 65535:
+        raise InputError("--scheduler", "", f"expected a scheduler address like "
+                         f"tcp://host:8786, got {address!r}")
+    return address
 
 
 def make_executor(name: str, scheduler: str | None = None, workers: int = 2) -> Executor:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import csv
 import io
+import json
 import math
 import sys
 from dataclasses import dataclass, field
@@ -20,13 +21,14 @@ import numpy as np
 from tqdm import tqdm
 
 from sensorgap.atomic import atomic_write_bytes
-from sensorgap.config import load_environments
+from sensorgap.config import load_environments, load_targets
+from sensorgap.config.presets import resolve_road
 from sensorgap.errors import InputError
 from sensorgap.filesio import format_float, write_json
 from sensorgap.models import load_system
 from sensorgap.scenarios import load_families
 from sensorgap.search.evaluate import DetectionRule, Evaluator
-from sensorgap.search.executors import ProblemSpec, make_executor
+from sensorgap.search.executors import ProblemSpec, check_scheduler_address, make_executor
 from sensorgap.search.metrics import metric_names
 from sensorgap.search.problem import Result, SearchProblem
 from sensorgap.search.ranking import (
@@ -38,10 +40,11 @@ from sensorgap.search.ranking import (
     rank_exact,
     reevaluate,
 )
-from sensorgap.search.store import Store
+from sensorgap.search.store import Store, digest, file_digest
 from sensorgap.search.strategies import get_strategy, strategy_names
 
 MAX_BUDGET = 1_000_000
+MAX_SEED = 2**63 - 1
 #: The ranking's leading metric columns (collision terms), in this order.
 HEAD_METRICS = ("collision_probability", "impact_speed_kmh", "collision_perfect", "t_safe_s",
                 "detection_margin_s", "t_confirm_median_s", "t_threat_s",
@@ -80,6 +83,34 @@ def ranking_csv(rows: list[dict[str, Any]], columns: list[str]) -> bytes:
     return buf.getvalue().encode("utf-8")
 
 
+def _vehicle_ref(vehicle: str | Path) -> str:
+    """How the run records its vehicle: a preset name as given, a file as its absolute
+    path (so export, compare and report work from any working directory)."""
+    text = str(vehicle)
+    if text.endswith(".toml") or "/" in text or Path(text).exists():
+        return str(Path(text).resolve())
+    return text
+
+
+def _input_digests(vehicle_file: Path, evaluator: Evaluator, envs: dict[str, Any],
+                   fams: list[Any]) -> dict[str, str]:
+    """Content digests of every input the stored results depend on (``--resume`` refuses
+    when one changed): the vehicle file, its reaction model and friction, the
+    environments, the target classes and each family's file and road."""
+    out = {"vehicle": file_digest(vehicle_file),
+           "reaction": digest(json.dumps([evaluator.reaction.model_dump(mode="json"),
+                                          evaluator.friction], sort_keys=True)),
+           "environments": digest(json.dumps({k: v.model_dump(mode="json")
+                                              for k, v in envs.items()}, sort_keys=True)),
+           "targets": digest(json.dumps({k: v.model_dump(mode="json")
+                                         for k, v in load_targets().items()},
+                                        sort_keys=True))}
+    for f in fams:
+        out[f"family {f.name}"] = file_digest(Path(f.source))
+        out[f"road of {f.name}"] = file_digest(resolve_road(str(f.settings["road"])))
+    return out
+
+
 def run_search(vehicle: str | Path, families: list[str], environments: list[str],
                budget: int, seed: int, top: int, out: Path, strategy: str = "de",
                mode: str = "lookup", sun_search: bool = True,
@@ -103,6 +134,10 @@ def run_search(vehicle: str | Path, families: list[str], environments: list[str]
                          f"{', '.join(strategy_names())}")
     if mode not in ("lookup", "exact"):
         raise InputError("--pd", "", f"must be lookup or exact, got {mode!r}")
+    if isinstance(seed, bool) or not 0 <= seed <= MAX_SEED:
+        raise InputError("--seed", "", f"must be an integer within 0..{MAX_SEED}, got {seed}")
+    if scheduler is not None:
+        check_scheduler_address(scheduler)
     all_envs = load_environments(environments_file)
     if not environments:
         raise InputError("--environments", "", "give at least one environment; presets: "
@@ -124,13 +159,16 @@ def run_search(vehicle: str | Path, families: list[str], environments: list[str]
                        None if environments_file is None else str(environments_file), mode,
                        rule.label(), sun_search)
     settings = {"vehicle": system.name, "vehicle_file": system.source.name,
-                "vehicle_ref": str(vehicle),
+                "vehicle_ref": _vehicle_ref(vehicle),
                 "families": [f.name for f in fams], "environments": list(envs),
                 "seed": seed, "strategy": strategy, "pd": mode, "sun_search": sun_search,
                 "detection": rule.label(), "reaction": evaluator.reaction.label(),
                 "target_model": "bodies"}
+    inputs = _input_digests(system.source, evaluator, envs, fams)
+    db = out / "search.sqlite"
+    new_db = not db.exists()
     out.mkdir(parents=True, exist_ok=True)
-    store = Store(out / "search.sqlite", settings)
+    store = Store(db, settings, inputs)
     if store.count() and not resume:
         n = store.count()
         store.close()
@@ -146,6 +184,8 @@ def run_search(vehicle: str | Path, families: list[str], environments: list[str]
         runner = make_executor(executor, scheduler, workers)
     except InputError:
         store.close()
+        if new_db:  # nothing was stored: leave no empty database behind
+            db.unlink(missing_ok=True)
         raise
     try:
         with tqdm(total=budget, disable=disable, desc="search", unit="cand") as bar:

@@ -10,6 +10,7 @@ instead of evaluating it again.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import sqlite3
 from pathlib import Path
@@ -37,23 +38,94 @@ CREATE TABLE IF NOT EXISTS candidates (
 """
 
 
-class Store:
-    """The run's SQLite file."""
+#: The columns of each table, in order (a file with other columns is not a search store).
+COLUMNS = {"meta": ["key", "value"],
+           "candidates": ["family", "idx", "scenario_id", "environment", "sun_azimuth_deg",
+                          "sun_elevation_deg", "params", "metrics", "risk", "feasible",
+                          "note"]}
 
-    def __init__(self, path: Path, settings: dict[str, Any]) -> None:
+
+def digest(data: bytes | str) -> str:
+    """SHA-256 (hex) of bytes or of UTF-8 text."""
+    return hashlib.sha256(data.encode("utf-8") if isinstance(data, str) else data).hexdigest()
+
+
+def file_digest(path: Path) -> str:
+    """SHA-256 (hex) of a file's content; an unreadable file -> ``InputError``."""
+    try:
+        return digest(Path(path).read_bytes())
+    except OSError as exc:
+        raise InputError(path, "", f"cannot read: {exc.strerror}") from None
+
+
+def _damaged(path: Path, what: object) -> InputError:
+    return InputError(path, "", f"not a readable sensorgap search database ({what}); delete "
+                      "it or use another --out folder")
+
+
+class Store:
+    """The run's SQLite file.
+
+    ``settings`` must equal the stored settings; ``inputs`` (content digests of every
+    input file the results depend on, by name) must equal the stored ones once candidates
+    are stored. A damaged file, another schema or a row that cannot be read is one
+    ``InputError`` naming the file.
+    """
+
+    def __init__(self, path: Path, settings: dict[str, Any],
+                 inputs: dict[str, str] | None = None) -> None:
         self.path = path
         path.parent.mkdir(parents=True, exist_ok=True)
-        self.db = sqlite3.connect(path)
+        existed = path.is_file() and path.stat().st_size > 0
+        try:
+            self.db = sqlite3.connect(path)
+        except sqlite3.Error as exc:
+            raise InputError(path, "", f"cannot open: {exc}") from None
+        try:
+            self._open(settings, inputs or {}, existed)
+        except sqlite3.DatabaseError as exc:
+            self.db.close()
+            if isinstance(exc, sqlite3.OperationalError) and not existed:
+                raise InputError(path, "", f"cannot write: {exc}") from None
+            raise _damaged(path, exc) from None
+        except BaseException:
+            self.db.close()
+            raise
+
+    def _open(self, settings: dict[str, Any], inputs: dict[str, str], existed: bool) -> None:
+        path = self.path
+        if existed:
+            check = self.db.execute("PRAGMA quick_check").fetchone()
+            if not check or check[0] != "ok":
+                raise _damaged(path, f"integrity check: {check[0] if check else 'failed'}")
         self.db.executescript(SCHEMA)
+        for table, cols in COLUMNS.items():
+            have = [r[1] for r in self.db.execute(f"PRAGMA table_info({table})")]
+            if have != cols:
+                raise _damaged(path, f"table {table} has columns {', '.join(have)}")
         text = json.dumps(settings, sort_keys=True)
         row = self.db.execute("SELECT value FROM meta WHERE key = 'settings'").fetchone()
         if row is None:
             self.db.execute("INSERT INTO meta VALUES ('settings', ?)", (text,))
-            self.db.commit()
         elif row[0] != text:
-            self.db.close()
             raise InputError("--out", "", f"{path} holds a search with different settings; "
                              "use another --out folder (or delete it) to start a new search")
+        stored = self.db.execute("SELECT value FROM meta WHERE key = 'inputs'").fetchone()
+        old: Any = None
+        if stored is not None:
+            try:
+                old = json.loads(stored[0])
+            except (TypeError, ValueError):
+                raise _damaged(path, "meta row 'inputs' is not JSON") from None
+        if old != inputs and self.count():
+            changed = sorted(k for k in {*inputs, *(old if isinstance(old, dict) else {})}
+                             if not isinstance(old, dict) or old.get(k) != inputs.get(k))
+            raise InputError("--out", "", f"{path} holds results for other input files "
+                             f"(changed since they were stored: {', '.join(changed)}); "
+                             "use another --out folder (or delete it) to start a new search")
+        self.db.execute("INSERT OR REPLACE INTO meta VALUES ('inputs', ?)",
+                        (json.dumps(inputs, sort_keys=True),))
+        self.db.commit()
 
     def close(self) -> None:
         """Close the connection."""
@@ -61,19 +133,34 @@ class Store:
 
     def count(self) -> int:
         """Number of stored evaluations."""
-        return int(self.db.execute("SELECT COUNT(*) FROM candidates").fetchone()[0])
+        try:
+            return int(self.db.execute("SELECT COUNT(*) FROM candidates").fetchone()[0])
+        except sqlite3.DatabaseError as exc:
+            raise _damaged(self.path, exc) from None
 
     def get(self, family: str, idx: int, scenario_id: str) -> Result | None:
         """The stored result of evaluation ``idx`` of ``family`` if it is that candidate."""
-        row = self.db.execute(
-            "SELECT scenario_id, environment, sun_azimuth_deg, sun_elevation_deg, params, "
-            "metrics, feasible, note FROM candidates WHERE family = ? AND idx = ?",
-            (family, idx)).fetchone()
+        try:
+            row = self.db.execute(
+                "SELECT scenario_id, environment, sun_azimuth_deg, sun_elevation_deg, "
+                "params, metrics, feasible, note FROM candidates WHERE family = ? AND "
+                "idx = ?", (family, idx)).fetchone()
+        except sqlite3.DatabaseError as exc:
+            raise _damaged(self.path, exc) from None
         if row is None or row[0] != scenario_id:
             return None
-        sun = None if row[2] is None else (float(row[2]), float(row[3]))
-        cand = Candidate(family, row[1], sun, json.loads(row[4]))
-        return Result(cand, json.loads(row[5]), bool(row[6]), row[7])
+        try:
+            sun = None if row[2] is None else (float(row[2]), float(row[3]))
+            params, metrics = json.loads(row[4]), json.loads(row[5])
+            if not (isinstance(params, dict) and isinstance(metrics, dict)
+                    and isinstance(row[1], str) and isinstance(row[7], str)):
+                raise ValueError("not the stored layout")
+            cand = Candidate(family, row[1], sun, params)
+        except (TypeError, ValueError) as exc:
+            raise InputError(self.path, f"candidates[{family}, {idx}]",
+                             f"damaged row ({exc}); delete the file or use another --out "
+                             "folder") from None
+        return Result(cand, metrics, bool(row[6]), row[7])
 
     def put(self, rows: list[tuple[int, Result]]) -> None:
         """Insert (or replace) results and commit."""
@@ -86,17 +173,22 @@ class Store:
                          json.dumps(c.params, sort_keys=True),
                          json.dumps(r.metrics, sort_keys=True), r.risk, int(r.feasible),
                          r.note))
-        self.db.executemany("INSERT OR REPLACE INTO candidates VALUES "
-                            "(?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)", data)
-        self.db.commit()
+        try:
+            self.db.executemany("INSERT OR REPLACE INTO candidates VALUES "
+                                "(?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)", data)
+            self.db.commit()
+        except sqlite3.DatabaseError as exc:
+            raise InputError(self.path, "", f"cannot store results: {exc}") from None
 
     def all_results(self) -> list[Result]:
         """Every stored result (family, idx order)."""
         out = []
-        for fam, idx in self.db.execute(
-                "SELECT family, idx FROM candidates ORDER BY family, idx").fetchall():
-            sid = self.db.execute("SELECT scenario_id FROM candidates WHERE family = ? AND "
-                                  "idx = ?", (fam, idx)).fetchone()[0]
+        try:
+            keys = self.db.execute("SELECT family, idx, scenario_id FROM candidates "
+                                   "ORDER BY family, idx").fetchall()
+        except sqlite3.DatabaseError as exc:
+            raise _damaged(self.path, exc) from None
+        for fam, idx, sid in keys:
             r = self.get(fam, idx, sid)
             if r is not None:
                 out.append(r)

@@ -1,0 +1,205 @@
+"""Issue #18: the numba cache folder when the package is read-only, the search store
+under damage and changed inputs, and verify against a tampered folder (unit level; the
+CLI lines are in the bad-input corpus)."""
+
+from __future__ import annotations
+
+import os
+import sqlite3
+import stat
+from pathlib import Path
+
+import pytest
+
+from sensorgap.errors import InputError
+from sensorgap.filesio import verify_manifest, write_manifest
+from sensorgap.runtime import numba_cache_dir
+from sensorgap.search.store import Store
+
+
+def _pkg(tmp_path: Path) -> Path:
+    pkg = tmp_path / "pkg"
+    (pkg / "sub").mkdir(parents=True, exist_ok=True)
+    (pkg / "sub" / "__init__.py").write_text("")
+    return pkg
+
+
+def test_numba_cache_default_when_package_writable(tmp_path: Path) -> None:
+    env: dict[str, str] = {}
+    assert numba_cache_dir(_pkg(tmp_path), env) is None
+    assert "NUMBA_CACHE_DIR" not in env
+
+
+def test_numba_cache_moves_to_xdg_when_package_read_only(tmp_path: Path) -> None:
+    env = {"XDG_CACHE_HOME": str(tmp_path / "xdg")}
+    chosen = numba_cache_dir(_pkg(tmp_path), env, writable=lambda p: False)
+    assert chosen == str(tmp_path / "xdg" / "sensorgap" / "numba")
+    assert env["NUMBA_CACHE_DIR"] == chosen and Path(chosen).is_dir()
+
+
+def test_numba_cache_without_home_uses_a_private_temp_folder(tmp_path: Path,
+                                                             monkeypatch: pytest.MonkeyPatch
+                                                             ) -> None:
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    monkeypatch.setattr("tempfile.tempdir", str(tmp))
+    env: dict[str, str] = {}
+    chosen = numba_cache_dir(_pkg(tmp_path), env, writable=lambda p: False)
+    assert chosen is not None and Path(chosen).parent == tmp
+    mode = os.stat(chosen).st_mode
+    assert not mode & (stat.S_IWGRP | stat.S_IWOTH)
+    # a folder someone else could write is not used: a fresh one instead
+    os.chmod(chosen, 0o777)
+    env2: dict[str, str] = {}
+    other = numba_cache_dir(_pkg(tmp_path), env2, writable=lambda p: False)
+    assert other is not None and other != chosen and Path(other).is_dir()
+
+
+def test_numba_cache_respects_an_explicit_setting(tmp_path: Path) -> None:
+    env = {"NUMBA_CACHE_DIR": "/somewhere"}
+    assert numba_cache_dir(_pkg(tmp_path), env, writable=lambda p: False) is None
+    assert env["NUMBA_CACHE_DIR"] == "/somewhere"
+
+
+SETTINGS = {"seed": 0}
+
+
+def _store_with_row(path: Path, inputs: dict[str, str]) -> None:
+    store = Store(path, SETTINGS, inputs)
+    store.db.execute("INSERT INTO candidates VALUES ('f', 0, 'id', 'clear', NULL, NULL, "
+                     "'{}', '{}', 0.0, 1, '')")
+    store.db.commit()
+    store.close()
+
+
+def test_store_refuses_changed_inputs_once_results_are_stored(tmp_path: Path) -> None:
+    db = tmp_path / "search.sqlite"
+    _store_with_row(db, {"vehicle": "a", "family f": "b"})
+    Store(db, SETTINGS, {"vehicle": "a", "family f": "b"}).close()  # unchanged: fine
+    with pytest.raises(InputError, match=r"changed since they were stored: vehicle\)"):
+        Store(db, SETTINGS, {"vehicle": "X", "family f": "b"})
+    with pytest.raises(InputError, match="different settings"):
+        Store(db, {"seed": 1}, {"vehicle": "a", "family f": "b"})
+
+
+@pytest.mark.parametrize("damage", ["garbage", "truncated", "schema", "json"])
+def test_store_damage_is_one_input_error(tmp_path: Path, damage: str) -> None:
+    db = tmp_path / "search.sqlite"
+    _store_with_row(db, {})
+    if damage == "garbage":
+        db.write_bytes(b"this is not a database at all" * 100)
+    elif damage == "truncated":
+        db.write_bytes(db.read_bytes()[:1000])
+    elif damage == "schema":
+        con = sqlite3.connect(db)
+        con.executescript("DROP TABLE candidates; CREATE TABLE candidates (a TEXT);")
+        con.close()
+    else:
+        con = sqlite3.connect(db)
+        con.execute("UPDATE candidates SET params = '{broken'")
+        con.commit()
+        con.close()
+    with pytest.raises(InputError) as info:
+        store = Store(db, SETTINGS, {})
+        store.get("f", 0, "id")
+    assert str(db) in info.value.line() and "\n" not in info.value.line()
+
+
+def test_store_in_unwritable_place_is_one_input_error(tmp_path: Path,
+                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    def refuse(*_: object, **__: object) -> None:
+        raise sqlite3.OperationalError("unable to open database file")
+
+    monkeypatch.setattr(sqlite3, "connect", refuse)
+    with pytest.raises(InputError, match="cannot open"):
+        Store(tmp_path / "search.sqlite", SETTINGS, {})
+
+
+def _folder(tmp_path: Path) -> Path:
+    run = tmp_path / "run"
+    (run / "sub").mkdir(parents=True)
+    (run / "a.txt").write_text("a")
+    (run / "sub" / "b.txt").write_text("b")
+    write_manifest(run)
+    assert verify_manifest(run) == []
+    return run
+
+
+def test_verify_reports_links_temporaries_and_journals(tmp_path: Path) -> None:
+    run = _folder(tmp_path)
+    (run / "out").symlink_to("/etc")
+    (run / "loop").symlink_to(run / "loop")
+    (run / ".x.tmp.xosc").write_text("half")
+    (run / "search.sqlite-journal").write_text("j")
+    problems = verify_manifest(run)
+    assert "out is a symbolic link (not allowed in a run folder)" in problems
+    assert "loop is a symbolic link (not allowed in a run folder)" in problems
+    assert any(p.startswith(".x.tmp.xosc is a left-over temporary") for p in problems)
+    assert any(p.startswith("search.sqlite-journal is a left-over") for p in problems)
+
+
+def test_write_manifest_removes_leftover_temporaries_but_keeps_journals(tmp_path: Path
+                                                                        ) -> None:
+    run = _folder(tmp_path)
+    (run / ".a.txt.abc123.tmp.txt").write_text("half-written")
+    (run / "s.sqlite-journal").write_text("j")
+    write_manifest(run)
+    assert not (run / ".a.txt.abc123.tmp.txt").exists()
+    assert (run / "s.sqlite-journal").exists()
+
+
+@pytest.mark.parametrize(("entry", "pattern"), [
+    ("../../etc/passwd", "normalised relative path"),
+    ("/etc/passwd", "not an absolute path"),
+    ("sub/../a.txt", "normalised relative path"),
+    ("", "non-empty relative path"),
+])
+def test_verify_refuses_entries_outside_the_folder(tmp_path: Path, entry: str,
+                                                   pattern: str) -> None:
+    import json
+
+    run = _folder(tmp_path)
+    m = json.loads((run / "manifest.json").read_text())
+    m["files"][entry] = {"bytes": 4, "sha256": "0" * 64}
+    (run / "manifest.json").write_text(json.dumps(m))
+    with pytest.raises(InputError, match=pattern):
+        verify_manifest(run)
+
+
+@pytest.mark.parametrize("text", ['{"files": []}', "[]", "{broken", '{"files": {"a.txt": 3}}',
+                                  '{"files": {"a.txt": {"bytes": true, "sha256": "x"}}}'])
+def test_verify_malformed_manifest(tmp_path: Path, text: str) -> None:
+    run = _folder(tmp_path)
+    (run / "manifest.json").write_text(text)
+    with pytest.raises(InputError, match="manifest.json"):
+        verify_manifest(run)
+
+
+def test_relative_road_is_relative_to_the_family_file(tmp_path: Path,
+                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    import shutil
+
+    from sensorgap.config.presets import resolve_road, templates_dir
+    from sensorgap.scenarios import load_family
+
+    fam_dir = tmp_path / "families"
+    (fam_dir / "roads").mkdir(parents=True)
+    shutil.copy(resolve_road("motorway_r500"), fam_dir / "roads" / "m.xodr")
+    text = (templates_dir() / "scenarios" / "cut_in_left.toml").read_text()
+    (fam_dir / "f.toml").write_text(text.replace('road = "motorway_r500"',
+                                                 'road = "roads/m.xodr"'))
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    fam = load_family(str(fam_dir / "f.toml"))
+    assert fam.settings["road"] == str((fam_dir / "roads" / "m.xodr").resolve())
+
+
+def test_run_records_the_vehicle_file_absolute(tmp_path: Path,
+                                               monkeypatch: pytest.MonkeyPatch) -> None:
+    from sensorgap.search.run import _vehicle_ref
+
+    (tmp_path / "v.toml").write_text("")
+    monkeypatch.chdir(tmp_path)
+    assert _vehicle_ref("v.toml") == str(tmp_path.resolve() / "v.toml")
+    assert _vehicle_ref("system_a") == "system_a"
