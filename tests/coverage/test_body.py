@@ -134,7 +134,7 @@ def test_hidden_by_the_ego_body(scene_a):
     got = body_mod._view_kernel(np.array([[1.0]]), np.array([[-1.5]]), np.array([[0.2]]),
                                 np.array([[0.0]]), np.array([[1.0]]),
                                 np.array([0], dtype=np.int64), mount, lo, hi, True, True,
-                                flat, nf)
+                                np.zeros((1, 0, 7)), flat, nf)
     assert nf[0] == 1 and got == 0
 
 

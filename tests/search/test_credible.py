@@ -133,8 +133,8 @@ def test_ranked_rows_reproduce_with_evaluate_and_glare_headline(tmp_path: Path) 
 def test_system_a_ranked_bodies_are_unseen_at_the_named_step(tmp_path: Path) -> None:
     """Every family and environment preset for System A (a smaller budget than the default
     job, same settings otherwise): at the step each ranked reason names, no sensor sees the
-    target's body with Pd >= 0.9 (exact, recomputed here); the rows are possible encounters
-    (feasible: no overlap at t = 0, no side or rear contact)."""
+    target's body with Pd >= 0.9 (exact, recomputed here, with the scene's occluders); the
+    rows are possible encounters (feasible: no overlap at t = 0, no side or rear contact)."""
     from sensorgap.search.ranking import explain
 
     fams = family_presets()
@@ -153,6 +153,8 @@ def test_system_a_ranked_bodies_are_unseen_at_the_named_step(tmp_path: Path) -> 
         tr = ev.trace(prob.scenario(cand), prob.environment(cand), prob.family.duration_s)
         k = int(round(ex.step_t_s / 0.05))
         env = prob.environment(cand)
+        occ = None if tr.occluders is None else tr.occluders[k:k + 1]  # what hides it
         pd = ev.per_sensor_pd(env, ev.target(prob.family.target_class), tr.heading[k:k + 1],
-                              tr.x[k:k + 1], tr.y[k:k + 1], psi=tr.psi[k:k + 1])[:, 0]
+                              tr.x[k:k + 1], tr.y[k:k + 1], psi=tr.psi[k:k + 1],
+                              occluders=occ)[:, 0]
         assert pd.max() < 0.9, (row["rank"], row["reason"])

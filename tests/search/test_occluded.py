@@ -48,13 +48,20 @@ def test_occluders_stand_where_planned() -> None:
     assert bumper == pytest.approx(1.5, abs=1e-6)
 
     fam = load_family("cut_out_reveal")
-    p = {"ego_s0_m": 100.0, "ego_speed_m_s": 25.0, "lead_gap_m": 30.0, "target_gap_m": 120.0,
-         "target_speed_m_s": 0.0, "cut_out_s": 1.0, "lc_duration_s": 3.0}
+    p = {"ego_s0_m": 100.0, "ego_speed_m_s": 25.0, "lead_gap_m": 30.0, "cut_out_s": 1.0,
+         "target_speed_m_s": 0.0, "reveal_s": 1.0, "lc_duration_s": 3.0}
     sc = fam.generate(p)
     (lead,) = sc.occluders
     # at the end the lead is one lane (3.5 m) to the side of the ego's lane centre line
     lat = np.hypot(lead.path.x[-1] - sc.ego.x[-1], lead.path.y[-1] - sc.ego.y[-1])
     assert lat > 3.0
+    # the lead leaves the lane (t = 1 + 3 s) 1 s before it would reach the stopped car:
+    # then 25 m + half the two lengths behind it along the road, one lane over; a second
+    # later level with it (bumpers at the same s)
+    for t_s, along in ((4.0, 25.0 * 1.0 + 4.5), (5.0, 4.5)):
+        k = int(round(t_s / 0.05))
+        gap = np.hypot(sc.target.x[k] - lead.path.x[k], sc.target.y[k] - lead.path.y[k])
+        assert gap == pytest.approx(float(np.hypot(along, 3.5)), abs=0.3)
 
 
 @pytest.mark.parametrize("name", OCCLUDED)
