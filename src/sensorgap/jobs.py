@@ -28,7 +28,8 @@ from sensorgap.analysis.paper import FarFieldSetup, run_farfield
 from sensorgap.config import load_environment, load_environments, load_target
 from sensorgap.config.presets import resolve_road, roads_dir, templates_dir
 from sensorgap.coverage import GridSpec, Scene
-from sensorgap.coverage.outputs import write_coverage
+from sensorgap.coverage.grid import GridCoverage
+from sensorgap.coverage.outputs import compute_coverage, write_coverage
 from sensorgap.export import export_catalog
 from sensorgap.filesio import write_csv, write_manifest
 from sensorgap.models import Conditions, load_system
@@ -85,16 +86,22 @@ def _coverage(system_name: str, out: Path, workers: int) -> dict[str, Any]:
     target = load_target("car")
     xmin, xmax, ymin, ymax, res = DEFAULT_GRID
 
-    def one(env_name: str) -> dict[str, float]:
-        scene = Scene(system, target, Conditions.from_config(load_environment(env_name)))
-        grid = GridSpec(xmin, xmax, ymin, ymax, res, target.reference_height_m)
-        summary = write_coverage(scene, grid, out / "coverage" / f"{target.name}_{env_name}",
-                                 heading_deg=COVERAGE_HEADING_DEG)
-        return dict(summary["area_m2_by_level"])
-
+    grid = GridSpec(xmin, xmax, ymin, ymax, res, target.reference_height_m)
     names = list(load_environments())
+    scenes = {n: Scene(system, target, Conditions.from_config(load_environment(n)))
+              for n in names}
+
+    def one(env_name: str) -> GridCoverage:
+        return compute_coverage(scenes[env_name], grid, heading_deg=COVERAGE_HEADING_DEG)
+
     with ThreadPoolExecutor(max_workers=max(1, workers)) as pool:
-        return dict(zip(names, pool.map(one, names), strict=True))
+        covs = list(pool.map(one, names))
+    areas = {}
+    for name, cov in zip(names, covs, strict=True):  # figures on this thread (pyplot)
+        summary = write_coverage(scenes[name], grid, out / "coverage" / f"{target.name}_{name}",
+                                 heading_deg=COVERAGE_HEADING_DEG, cov=cov)
+        areas[name] = dict(summary["area_m2_by_level"])
+    return areas
 
 
 def _farfield(system_name: str, out: Path) -> None:

@@ -19,7 +19,7 @@ from sensorgap.filesio import write_csv, write_json
 
 MAX_PLOT_CELLS = 1_500_000
 #: Background cells when the map shows target bodies (each cell a body: ~1 s per 1e5).
-MAX_BODY_PLOT_CELLS = 200_000
+MAX_BODY_PLOT_CELLS = 80_000
 
 
 def farfield_figure_grid(ff: FarField, height: float,

@@ -49,23 +49,33 @@ def probe_csv(cov: PointCoverage) -> bytes:
     return csv_bytes(cols, data)
 
 
+def compute_coverage(scene: Scene, grid: GridSpec, per_sensor: bool = False,
+                     workers: int = 1, heading_deg: float | None = None,
+                     occluders: Sequence[Occluder] = ()) -> GridCoverage:
+    """The coverage ``write_coverage`` writes (points, or bodies at ``heading_deg`` with
+    ``occluders``), without writing anything: safe on worker threads (no figures)."""
+    from sensorgap.coverage.body import body_grid
+
+    if heading_deg is None:
+        return evaluate_grid(scene, grid, per_sensor=per_sensor, workers=workers)
+    return body_grid(scene, grid, math.radians(heading_deg), per_sensor=per_sensor,
+                     occluders=occluder_array(occluders) if occluders else None)
+
+
 def write_coverage(
     scene: Scene, grid: GridSpec, out_dir: Path, per_sensor: bool = False, workers: int = 1,
     heading_deg: float | None = None, occluders: Sequence[Occluder] = (),
+    cov: GridCoverage | None = None,
 ) -> dict[str, Any]:
     """Evaluate ``grid`` and write coverage.npz, coverage.png and summary.json to
     ``out_dir``; returns the summary. ``heading_deg``: evaluate target bodies centred at
     the cells at this heading relative to the ego (``coverage.body``) instead of points;
-    ``occluders`` (bodies only): boxes hiding parts of them (``coverage.occluders``)."""
-    from sensorgap.coverage.body import body_grid
-
+    ``occluders`` (bodies only): boxes hiding parts of them (``coverage.occluders``);
+    ``cov``: that coverage already computed (``compute_coverage``)."""
     if occluders and heading_deg is None:
         raise ValueError("occluders need target bodies (a heading)")
-    cov: GridCoverage = (
-        evaluate_grid(scene, grid, per_sensor=per_sensor, workers=workers)
-        if heading_deg is None else
-        body_grid(scene, grid, math.radians(heading_deg), per_sensor=per_sensor,
-                  occluders=occluder_array(occluders) if occluders else None))
+    if cov is None:
+        cov = compute_coverage(scene, grid, per_sensor, workers, heading_deg, occluders)
     arrays = {"x": grid.xs(), "y": grid.ys(), "pd": cov.fused,
               "height": np.array(grid.height), "resolution": np.array(grid.resolution)}
     for sid, pd in cov.pd.items():
