@@ -38,7 +38,14 @@ def scenario_figure(spec: ScenarioSpec, evaluator: Evaluator, tr: Trace, path: P
     y0, y1 = min(float(tr.y.min()), -6.0) - pad / 2, max(float(tr.y.max()), 6.0) + pad / 2
     x0, x1 = max(x0, g.xmin), min(x1, g.xmax)
     y0, y1 = max(y0, g.ymin), min(y1, g.ymax)
-    im = ax.imshow(pd_map, origin="lower", extent=(g.xmin, g.xmax, g.ymin, g.ymax),
+    # only the cells in view (the whole map would be resampled by the renderer)
+    i0 = max(int(np.floor((x0 - g.xmin) / g.resolution)), 0)
+    i1 = min(int(np.ceil((x1 - g.xmin) / g.resolution)), pd_map.shape[1])
+    j0 = max(int(np.floor((y0 - g.ymin) / g.resolution)), 0)
+    j1 = min(int(np.ceil((y1 - g.ymin) / g.resolution)), pd_map.shape[0])
+    im = ax.imshow(pd_map[j0:j1, i0:i1], origin="lower",
+                   extent=(g.xmin + i0 * g.resolution, g.xmin + i1 * g.resolution,
+                           g.ymin + j0 * g.resolution, g.ymin + j1 * g.resolution),
                    cmap=PD_CMAP, norm=PD_NORM, interpolation="nearest", aspect="equal")
     draw_vehicle(ax, spec.system)
     k = critical_index(tr)
