@@ -177,7 +177,12 @@ def test_bad_input(case: dict[str, Any], tmp_path: Path, finished_run: Path,
         err = capsys.readouterr().err
     lines = err.strip().splitlines()
     assert code == case["exit"], f"exit {code}: {err}"
-    assert len(lines) == 1, err
+    # one line per error found (every validation error is listed): as many as the case
+    # says, else at least one
+    if "lines" in case:
+        assert len(lines) == int(case["lines"]), err
+    assert lines, err
+    assert all(ln.startswith("sensorgap") and ": error: " in ln for ln in lines), err
     assert "Traceback" not in err
     assert re.search(case["message"], lines[0]), lines[0]
     after = _files(out)

@@ -65,8 +65,8 @@ def _scene(args: argparse.Namespace, ego_heading_rad: float = 0.0) -> Scene:
     from sensorgap.models import Conditions, load_system
 
     system = load_system(args.vehicle)
-    env = load_environment(args.environment, Path(args.environments) if args.environments
-                           else None)
+    env = load_environment(args.environment, Path(args.environments_file)
+                           if args.environments_file else None)
     target = load_target(args.target)
     return Scene(system, target, Conditions.from_config(env, ego_heading_rad))
 
@@ -283,9 +283,10 @@ def cmd_search(args: argparse.Namespace) -> int:
     """Search for critical scenarios into --out (SQLite store, ranking.csv/json)."""
     from sensorgap.search.run import run_search
 
+    env_file = Path(args.environments_file) if args.environments_file else None
     outcome = run_search(
-        args.vehicle, [f for f in args.families.split(",") if f],
-        [e for e in args.environments.split(",") if e], args.budget, args.seed, args.top,
+        args.vehicle, _families(args.families), _environments(args.environments, env_file),
+        args.budget, args.seed, args.top,
         Path(args.out), strategy=args.strategy, mode=args.pd, sun_search=not args.no_sun,
         environments_file=Path(args.environments_file) if args.environments_file else None,
         detection=args.detection, workers=args.workers, resume=args.resume,
@@ -304,6 +305,24 @@ def cmd_search(args: argparse.Namespace) -> int:
           f"{len(outcome.ranking)} ranked ({crit} sensor-critical), best collision "
           f"probability {outcome.summary['best_collision_probability']:.3g}")
     return 0
+
+
+def _families(text: str) -> list[str]:
+    """``all`` or a comma-separated list of family names / .toml paths."""
+    from sensorgap.scenarios import family_presets
+
+    if text.strip() == "all":
+        return family_presets()
+    return [f.strip() for f in text.split(",") if f.strip()]
+
+
+def _environments(text: str, env_file: Path | None) -> list[str]:
+    """``all`` (every preset of the environments file) or a comma-separated list."""
+    from sensorgap.config import load_environments
+
+    if text.strip() == "all":
+        return list(load_environments(env_file))
+    return [e.strip() for e in text.split(",") if e.strip()]
 
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
@@ -486,7 +505,13 @@ def cmd_run(args: argparse.Namespace) -> int:
 
     if not 1 <= args.workers <= 64:
         raise InputError("--workers", "", f"must be 1..64, got {args.workers}")
-    run_default(Path(args.out), workers=args.workers)
+    if not 1 <= args.budget <= 10_000_000:
+        raise InputError("--budget", "", f"must be 1..1e7 evaluations, got {args.budget}")
+    if not 0 <= args.seed < 2**63:
+        raise InputError("--seed", "", f"must be a non-negative integer, got {args.seed}")
+    run_default(Path(args.out), workers=args.workers, system_name=args.vehicle,
+                budget=args.budget, seed=args.seed, families=_families(args.families),
+                environments=_environments(args.environments, None))
     write_manifest(args.out)
     return 0
 
@@ -494,7 +519,8 @@ def cmd_run(args: argparse.Namespace) -> int:
 def _add_scene_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--vehicle", required=True, help="preset name (system_a) or .toml path")
     p.add_argument("--environment", required=True, help="environment preset name")
-    p.add_argument("--environments", help="environments file (default: shipped presets)")
+    p.add_argument("--environments-file",
+                   help="environments file defining the presets (default: the shipped ones)")
     p.add_argument("--target", required=True, help="pedestrian | bike | car | truck")
 
 
@@ -505,11 +531,19 @@ class _Parser(argparse.ArgumentParser):
         self.exit(EXIT_INPUT, f"{self.prog}: error: {message} (see --help)\n")
 
 
+class _HelpParser(_Parser):
+    """A subcommand's parser: one-line errors, and every default shown in ``--help``."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        kwargs.setdefault("formatter_class", argparse.ArgumentDefaultsHelpFormatter)
+        super().__init__(*args, **kwargs)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``sensorgap`` command."""
     parser = _Parser(prog="sensorgap", description=__doc__)
     parser.add_argument("--debug", action="store_true", help="show tracebacks")
-    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_HelpParser)
 
     p = sub.add_parser("probe", help="SNR and Pd per sensor at points from a CSV")
     _add_scene_args(p)
@@ -555,7 +589,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--length", type=float, default=303.0, help="path length ahead, m")
     p.add_argument("--target-model", choices=("body", "point"), default="body",
                    help="the target as its body heading along the lane, or as a point at "
-                   "its reference height (the paper's setting) (default: body)")
+                   "its reference height (the paper's setting)")
     p.add_argument("--out", required=True, help="output folder")
     p.set_defaults(func=cmd_farfield)
 
@@ -565,10 +599,13 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("search", help="search for critical scenarios (undetected and dangerous)")
     p.add_argument("--vehicle", required=True, help="preset name or .toml path")
-    p.add_argument("--families", required=True,
-                   help="comma-separated family names (templates/scenarios) or .toml paths")
-    p.add_argument("--environments", required=True, help="comma-separated environment presets")
-    p.add_argument("--environments-file", help="environments file (default: shipped presets)")
+    p.add_argument("--families", default="all",
+                   help="'all' (every family of templates/scenarios) or comma-separated "
+                   "family names or .toml paths")
+    p.add_argument("--environments", default="all",
+                   help="'all' (every preset) or comma-separated environment presets")
+    p.add_argument("--environments-file",
+                   help="environments file defining the presets (default: the shipped ones)")
     p.add_argument("--budget", type=int, default=200, help="evaluations in total")
     p.add_argument("--seed", type=int, default=0, help="random seed")
     p.add_argument("--top", type=int, default=10, help="ranked scenarios to write")
@@ -580,7 +617,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--detection", default="cumulative",
                    help="reliable detection: 'cumulative' (Pd >= 0.99) or M/N confirmation")
     p.add_argument("--workers", type=int, default=2,
-                   help="threads per batch, or Dask worker processes (default 2)")
+                   help="threads per batch, or Dask worker processes")
     p.add_argument("--executor", default="local", choices=["local", "dask"],
                    help="evaluate batches here (threads) or on Dask distributed")
     p.add_argument("--scheduler", help="Dask scheduler address (default: a local cluster)")
@@ -604,7 +641,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--run", required=True, help="search run folder (ranking.json)")
     p.add_argument("--out", help="catalog folder (default: the run folder)")
     p.add_argument("--osc-version", default="1.2", choices=["1.0", "1.1", "1.2", "1.3"],
-                   help="OpenSCENARIO version (default 1.2)")
+                   help="OpenSCENARIO version")
     p.add_argument("--top", type=int, help="export only the first N ranked scenarios")
     p.set_defaults(func=cmd_export)
 
@@ -653,8 +690,16 @@ def build_parser() -> argparse.ArgumentParser:
                    choices=["all", "vehicle", "environments", "targets"])
     p.set_defaults(func=cmd_schema)
 
-    p = sub.add_parser("run", help="the default main job")
+    p = sub.add_parser("run", help="the main job for a vehicle: coverage, near field, far "
+                       "field, search, export, report into OUT/<vehicle>/")
+    p.add_argument("--vehicle", default="system_a", help="preset name or .toml path")
     p.add_argument("--out", default="output", help="output folder")
+    p.add_argument("--budget", type=int, default=100_000, help="search evaluations in total")
+    p.add_argument("--seed", type=int, default=1, help="random seed of the search")
+    p.add_argument("--families", default="all",
+                   help="'all' or comma-separated family names or .toml paths")
+    p.add_argument("--environments", default="all",
+                   help="'all' or comma-separated environment presets")
     p.add_argument("--workers", type=int, default=2, help="threads")
     p.set_defaults(func=cmd_run)
     return parser
@@ -676,7 +721,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return func(args)
     except InputError as exc:
-        print(f"sensorgap: error: {exc.line()}", file=sys.stderr)
+        for text in exc.lines():  # every error found, one line each
+            print(f"sensorgap: error: {text}", file=sys.stderr)
         return EXIT_INPUT
     except OSError as exc:  # disk full, file too large, permissions, a file as a folder
         where = exc.filename or "output"

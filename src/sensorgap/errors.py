@@ -19,16 +19,23 @@ class InputError(Exception):
         message: what is wrong and what is allowed.
     """
 
-    def __init__(self, source: str | Path, field: str, message: str) -> None:
+    def __init__(self, source: str | Path, field: str, message: str,
+                 more: list[InputError] | None = None) -> None:
         self.source = str(source)
         self.field = field
         self.message = message
+        #: further errors found in the same input (each printed on its own line)
+        self.more: list[InputError] = list(more or [])
         super().__init__(self.line())
 
     def line(self) -> str:
-        """The single line the CLI prints on stderr."""
+        """The single line of this error (the first, when there are several)."""
         parts = [self.source]
         if self.field:
             parts.append(self.field)
         parts.append(self.message)
         return ": ".join(p.replace("\n", " ") for p in parts)
+
+    def lines(self) -> list[str]:
+        """Every error found: this one, then the others, one line each."""
+        return [self.line(), *(e.line() for e in self.more)]

@@ -30,6 +30,7 @@ from sensorgap.config.presets import resolve_road, roads_dir, templates_dir
 from sensorgap.coverage import GridSpec, Scene
 from sensorgap.coverage.grid import GridCoverage
 from sensorgap.coverage.outputs import compute_coverage, write_coverage
+from sensorgap.errors import InputError
 from sensorgap.export import export_catalog
 from sensorgap.filesio import write_csv, write_manifest
 from sensorgap.models import Conditions, load_system
@@ -79,7 +80,8 @@ class _Clock:
         return time.perf_counter() - self.t0
 
 
-def _coverage(system_name: str, out: Path, workers: int) -> dict[str, Any]:
+def _coverage(system_name: str, out: Path, workers: int,
+              environments: list[str]) -> dict[str, Any]:
     """Coverage maps of car bodies heading as the ego (``COVERAGE_HEADING_DEG``), one per
     environment preset, on ``workers`` threads (the body kernels release the GIL)."""
     system = load_system(system_name)
@@ -87,7 +89,7 @@ def _coverage(system_name: str, out: Path, workers: int) -> dict[str, Any]:
     xmin, xmax, ymin, ymax, res = DEFAULT_GRID
 
     grid = GridSpec(xmin, xmax, ymin, ymax, res, target.reference_height_m)
-    names = list(load_environments())
+    names = list(environments)
     scenes = {n: Scene(system, target, Conditions.from_config(load_environment(n)))
               for n in names}
 
@@ -104,12 +106,12 @@ def _coverage(system_name: str, out: Path, workers: int) -> dict[str, Any]:
     return areas
 
 
-def _farfield(system_name: str, out: Path) -> None:
+def _farfield(system_name: str, out: Path, environments: list[str]) -> None:
     setup = FarFieldSetup()
     net = read_opendrive(resolve_road(setup.road))
     system = load_system(system_name)
     envs, levels, metres = [], [], []
-    for env_name in load_environments():
+    for env_name in environments:
         scene, ff = run_farfield(system, env_name, setup, net, bodies=True)
         write_farfield(scene, ff, out / "farfield" / env_name,
                        f"{system.name}, {env_name}: car body along the right lane",
@@ -124,35 +126,55 @@ def _farfield(system_name: str, out: Path) -> None:
               [np.array(envs), np.array(levels), np.array(metres, dtype=np.float64)])
 
 
+def vehicle_ref(vehicle: str) -> tuple[str, str]:
+    """(folder name, reference to record) of a ``--vehicle``: a preset name as it is, a
+    .toml path by its stem and its absolute path (the run works from any folder)."""
+    if vehicle.endswith(".toml") or "/" in vehicle:
+        p = Path(vehicle).resolve()
+        return p.stem, str(p)
+    return vehicle, vehicle
+
+
 def run_default(out: Path, workers: int = 2, system_name: str = DEFAULT_SYSTEM,
                 budget: int = DEFAULT_BUDGET, top: int = DEFAULT_TOP,
-                seed: int = DEFAULT_SEED) -> dict[str, Any]:
-    """The whole pipeline for ``system_name`` into ``out/<system>/``; returns run info."""
-    folder = out / system_name
+                seed: int = DEFAULT_SEED, families: list[str] | None = None,
+                environments: list[str] | None = None) -> dict[str, Any]:
+    """The whole pipeline for a vehicle (preset name or .toml path) into
+    ``out/<vehicle>/``: coverage maps, near field, far field, search over ``families``
+    and ``environments`` (default: all), export and report; returns run info."""
+    name, ref = vehicle_ref(system_name)
+    system = load_system(ref)  # bad input is refused before anything is written
+    fams = family_presets() if families is None else list(families)
+    envs = list(load_environments()) if environments is None else list(environments)
+    all_envs = load_environments()
+    unknown = [e for e in envs if e not in all_envs]
+    if unknown:
+        raise InputError("--environments", "", f"unknown environment preset(s) "
+                         f"{', '.join(unknown)}; presets: {', '.join(all_envs)}")
+    folder = out / name
     folder.mkdir(parents=True, exist_ok=True)
     clock = _Clock()
-    print(f"{folder}: default job for {system_name}")
-    clock.stage("coverage maps", lambda: _coverage(system_name, folder, workers))
-    clock.stage("near field", lambda: write_nearfield(load_system(system_name),
-                                                      folder / "nearfield"))
-    clock.stage("far field", lambda: _farfield(system_name, folder))
-    envs = list(load_environments())
+    print(f"{folder}: main job for {system.name} ({ref})")
+    clock.stage("coverage maps", lambda: _coverage(ref, folder, workers, envs))
+    clock.stage("near field", lambda: write_nearfield(system, folder / "nearfield"))
+    clock.stage("far field", lambda: _farfield(ref, folder, envs))
     outcome = clock.stage("search", lambda: run_search(
-        system_name, family_presets(), envs, budget, seed, top, folder, strategy="de",
+        ref, fams, envs, budget, seed, top, folder, strategy="de",
         progress=False, workers=workers, resume=True))
     clock.stage("export", lambda: export_catalog(folder))
     settings = {"budget": budget, "top": top, "seed": seed, "strategy": "de", "pd": "lookup",
-                "families": family_presets(), "environments": envs,
+                "families": fams, "environments": envs,
                 "coverage_grid_m": list(DEFAULT_GRID),
                 "coverage_target": f"car bodies at heading {COVERAGE_HEADING_DEG:g} deg",
                 "farfield_target": "car body along the lane", "workers": workers}
-    command = ["sensorgap", "run", "--out", str(out), "--workers", str(workers)]
-    system = load_system(system_name)
+    command = ["sensorgap", "run", "--vehicle", ref, "--out", str(out), "--budget",
+               str(budget), "--seed", str(seed), "--families", ",".join(fams),
+               "--environments", ",".join(envs), "--workers", str(workers)]
     tdir = templates_dir()
     files = [system.source, tdir / "environments.toml", tdir / "targets.toml",
              tdir / "reactions.toml",
              *sorted((tdir / "scenarios").glob("*.toml")), *sorted(roads_dir().glob("*.xodr"))]
-    write_run_info(folder, command, system_name, files, settings,
+    write_run_info(folder, command, ref, files, settings,
                    {"candidates": outcome.summary["candidates"]})
     clock.stage("report", lambda: write_report(folder))
     total, peak = clock.total, peak_rss_mib()

@@ -70,7 +70,11 @@ def test_bad_vehicle_file_via_cli(tmp_path: Path) -> None:
     proc = run("probe", "--vehicle", str(bad), "--environment", "clear", "--target", "car",
                "--points", str(bad))
     assert proc.returncode == 2
-    assert str(bad) in proc.stderr and proc.stderr.count("\n") == 1
+    # every missing field listed, one line each, no traceback
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 7 and "Traceback" not in proc.stderr
+    assert all(ln.startswith(f"sensorgap: error: {bad}: ") for ln in lines)
+    assert any("sensors: Field required" in ln for ln in lines)
 
 
 def test_run_folders_carry_a_manifest(tmp_path: Path) -> None:

@@ -77,21 +77,23 @@ def _loc(loc: tuple[int | str, ...]) -> str:
 def validation_to_input_error(
     source: Path | str, exc: ValidationError, prefix: str = ""
 ) -> InputError:
-    """The first pydantic error as an ``InputError`` naming the field and what is allowed."""
-    err = exc.errors(include_url=False)[0]
-    field = _loc(tuple(err.get("loc", ())))
-    if prefix:
-        field = f"{prefix}.{field}" if field else prefix
-    msg = str(err.get("msg", "invalid value"))
-    msg = msg.removeprefix("Value error, ")
-    if "input" in err and err.get("type") not in ("missing", "model_type", "dict_type"):
-        value = err["input"]
-        if not isinstance(value, dict | list):
-            msg += f" (got {value!r})"
-    extra = len(exc.errors()) - 1
-    if extra:
-        msg += f" [+{extra} more error{'s' if extra > 1 else ''}]"
-    return InputError(source, field, msg)
+    """Every pydantic error as an ``InputError`` naming the field and what is allowed (the
+    first; the others in ``more``, one line each when printed)."""
+    found = []
+    for err in exc.errors(include_url=False):
+        field = _loc(tuple(err.get("loc", ())))
+        if prefix:
+            field = f"{prefix}.{field}" if field else prefix
+        msg = str(err.get("msg", "invalid value"))
+        msg = msg.removeprefix("Value error, ")
+        if "input" in err and err.get("type") not in ("missing", "model_type", "dict_type"):
+            value = err["input"]
+            if not isinstance(value, dict | list):
+                msg += f" (got {value!r})"
+        found.append(InputError(source, field, msg))
+    if not found:
+        return InputError(source, prefix, "invalid")
+    return InputError(found[0].source, found[0].field, found[0].message, found[1:])
 
 
 def parse_model(model: type[M], data: Any, source: Path | str, prefix: str = "") -> M:
