@@ -9,12 +9,13 @@ import sensorgap
 
 #: Pipeline order; a module may import its own layer and the layers before it.
 LAYERS = ["errors", "atomic", "filesio", "registry", "plugins", "provenance", "runtime",
-          "config",
+          "version", "config",
           "models",
           "coverage", "roads", "analysis", "scenarios", "search", "tradeoff", "export", "report",
-          "jobs", "cli"]
+          "jobs", "api", "cli"]
 #: Shared base modules count as one layer (they may import each other).
-_BASE = {"errors", "atomic", "filesio", "registry", "plugins", "provenance", "runtime"}
+_BASE = {"errors", "atomic", "filesio", "registry", "plugins", "provenance", "runtime",
+         "version"}
 ROOT = Path(sensorgap.__file__).parent
 
 
@@ -56,3 +57,24 @@ def test_no_import_goes_up_the_pipeline() -> None:
             if mod.split(".")[0] in LAYERS and _layer(mod) > _layer(own):
                 bad.append(f"{rel}: imports sensorgap.{mod}")
     assert not bad, "\n".join(bad)
+
+
+def test_nothing_imports_the_root_package() -> None:
+    """The root package is the facade on top of the pipeline: no module below imports it
+    (``from sensorgap import ...`` or ``import sensorgap``), so no hidden loop runs through
+    it; the root itself imports only base modules eagerly (the facade lazily)."""
+    bad = []
+    for path in sorted(ROOT.rglob("*.py")):
+        rel = path.relative_to(ROOT)
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ImportFrom) and node.module == "sensorgap" \
+                    and node.level == 0 and rel.as_posix() != "__init__.py":
+                bad.append(f"{rel}: from sensorgap import ...")
+            elif isinstance(node, ast.Import) and any(a.name == "sensorgap"
+                                                      for a in node.names):
+                bad.append(f"{rel}: import sensorgap")
+    assert not bad, "\n".join(bad)
+    root = ast.parse((ROOT / "__init__.py").read_text(encoding="utf-8"))
+    eager = [n.module for n in root.body if isinstance(n, ast.ImportFrom) and n.module]
+    assert all(_layer(m.removeprefix("sensorgap.")) == 0 for m in eager), eager

@@ -1,21 +1,39 @@
 """sensorgap: sensor-coverage gaps of automated vehicles turned into test scenarios.
 
 Pipeline (data flows one way): ``config`` -> ``models`` -> ``coverage`` -> ``roads`` ->
-``analysis`` -> (search, export, report) with a thin ``cli`` on top.
+``analysis`` -> (search, export, report) with a thin ``cli`` and this facade on top.
+
+Scripting (docs/api.md)::
+
+    import sensorgap
+    cov = sensorgap.coverage_grid("system_b", "glare_front_right", "car")
+    run = sensorgap.find_scenarios("system_b", "out/b", families=["cut_in_right"])
+
+The facade's names (``sensorgap.api``) are imported on first use, so ``import sensorgap``
+stays light.
 """
 
 from sensorgap.runtime import configure_numba_cache as _configure_numba_cache
-
-__version__ = "0.1.0"
+from sensorgap.version import __version__
 
 _configure_numba_cache()  # a writable numba cache folder even when installed read-only
 
+_API = ("Occluder", "coverage_grid", "evaluate_points", "export_catalog", "find_scenarios",
+        "load_vehicle", "scene", "write_report")
+
 
 def __getattr__(name: str) -> object:
-    """Lazy top-level access to ``sensorgap.CriticalScenarios`` (the scenariogeneration
-    generator of a search run's critical scenarios) without importing the pipeline."""
+    """The facade (``sensorgap.api``) and ``sensorgap.CriticalScenarios`` (the
+    scenariogeneration generator of a search run's critical scenarios), lazily."""
+    if name in _API:
+        from sensorgap import api
+
+        return getattr(api, name)
     if name == "CriticalScenarios":
         from sensorgap.export.generator import CriticalScenarios
 
         return CriticalScenarios
     raise AttributeError(f"module 'sensorgap' has no attribute {name!r}")
+
+
+__all__ = ["CriticalScenarios", "__version__", *_API]

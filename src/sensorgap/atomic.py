@@ -7,10 +7,9 @@ from __future__ import annotations
 
 import os
 import tempfile
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from contextlib import contextmanager, suppress
 from pathlib import Path
-from typing import IO
 
 
 @contextmanager
@@ -48,13 +47,6 @@ def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
 def atomic_write_text(path: str | Path, text: str) -> Path:
     """Write UTF-8 ``text`` with ``\\n`` line ends to ``path`` atomically; returns the path."""
     return atomic_write_bytes(path, text.encode("utf-8"))
-
-
-def atomic_write_with(path: str | Path, writer: Callable[[IO[bytes]], None]) -> Path:
-    """Call ``writer(binary_file_handle)`` on a temporary file, then rename onto ``path``."""
-    with atomic_path(path) as tmp, open(tmp, "wb") as fh:
-        writer(fh)
-    return Path(path)
 
 
 @contextmanager

@@ -11,7 +11,6 @@ import datetime as dt
 import hashlib
 import os
 import platform
-import sys
 from collections.abc import Iterable
 from importlib import metadata
 from pathlib import Path
@@ -60,12 +59,6 @@ def utc_now() -> str:
     t = (dt.datetime.fromtimestamp(int(epoch), dt.UTC) if epoch and epoch.isdigit()
          else dt.datetime.now(dt.UTC))
     return t.replace(microsecond=0).isoformat().replace("+00:00", "Z")
-
-
-def command_line(argv: list[str] | None = None) -> list[str]:
-    """The command as typed (``sensorgap`` + arguments)."""
-    args = sys.argv[1:] if argv is None else argv
-    return ["sensorgap", *args]
 
 
 def write_run_info(folder: Path, command: list[str], vehicle: str,

@@ -11,13 +11,13 @@ from typing import Any
 
 import numpy as np
 
-from sensorgap import __version__
 from sensorgap.coverage.grid import GridCoverage, GridSpec, evaluate_grid
 from sensorgap.coverage.occluders import Occluder, occluder_array
 from sensorgap.coverage.plot import coverage_figure, pd_levels_area, save_figure
 from sensorgap.coverage.points import PointCoverage
 from sensorgap.coverage.scene import Scene
 from sensorgap.filesio import csv_bytes, write_json, write_npz
+from sensorgap.version import __version__
 
 
 def file_sha256(path: Path) -> str:

@@ -114,7 +114,3 @@ class GlareCone:
     yaw: float = 0.0
     pitch: float = 0.0
 
-
-def log10_range(r: F64) -> F64:
-    """log10 of ranges (m) known to be > 0."""
-    return np.log10(r)

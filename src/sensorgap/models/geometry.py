@@ -61,11 +61,6 @@ def rotate_offsets(mount: Mount, dx: F64, dy: F64, dz: F64 | float) -> tuple[F64
     return cp * u - sp * w, v, sp * u + cp * w
 
 
-def to_sensor_frame(mount: Mount, x: F64, y: F64, z: F64) -> tuple[F64, F64, F64]:
-    """Vehicle-frame coordinates (m) of points -> sensor-frame coordinates (m)."""
-    return rotate_offsets(mount, x - mount.x, y - mount.y, z - mount.z)
-
-
 def spherical(xs: F64, ys: F64, zs: F64) -> tuple[F64, F64, F64]:
     """Sensor-frame Cartesian (m) -> range (m), azimuth (rad, (-pi, pi]), elevation (rad)."""
     rho2 = xs * xs + ys * ys

@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import NDArray
 
 #: Reported SNRs are clipped to this range, dB. Below -300 dB or above +300 dB every ROC
 #: is saturated (Pd = its floor or exactly 1), so the clip changes no probability.
@@ -29,20 +29,7 @@ def db(x: float) -> float:
     return 10.0 * math.log10(x)
 
 
-def db_array(x: ArrayLike) -> NDArray[np.float64]:
-    """10 log10(x) element-wise for positive values (caller guarantees x > 0)."""
-    return 10.0 * np.log10(np.asarray(x, dtype=np.float64))
-
-
 def clip_snr_db(snr_db: NDArray[np.float64]) -> NDArray[np.float64]:
     """Clip SNR (dB) to [SNR_FLOOR_DB, SNR_CEIL_DB] in place and return it."""
     return np.clip(snr_db, SNR_FLOOR_DB, SNR_CEIL_DB, out=snr_db)
 
-
-def sum_db(*terms_db: NDArray[np.float64] | float) -> NDArray[np.float64]:
-    """10 log10(sum_i 10^(t_i/10)) computed stably (log-sum-exp), dB."""
-    arrs = [np.asarray(t, dtype=np.float64) * LN10_OVER_10 for t in terms_db]
-    acc = arrs[0]
-    for a in arrs[1:]:
-        acc = np.logaddexp(acc, a)
-    return np.asarray(acc / LN10_OVER_10, dtype=np.float64)

@@ -31,7 +31,6 @@ import math
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import special, stats
 
 from sensorgap.config.vehicle import RocConfig
 from sensorgap.models.numerics import SNR_CEIL_DB, SNR_FLOOR_DB
@@ -71,6 +70,8 @@ def pd_swerling1(snr_db: F64, pfa: float) -> F64:
 
 def pd_swerling0(snr_db: F64, pfa: float) -> F64:
     """Exact single-pulse steady target: Marcum Q1(sqrt(2 SNR), sqrt(-2 ln Pfa))."""
+    from scipy import stats  # lazily: 0.7 s of import time, only for this exact curve
+
     snr = _lin(snr_db)
     threshold = -2.0 * math.log(pfa)
     pd = stats.ncx2.sf(threshold, 2.0, 2.0 * snr)
@@ -83,7 +84,9 @@ def pd_albersheim_raw(snr_db: F64, pfa: float, n_pulses: int) -> F64:
     a = math.log(0.62 / pfa)
     z = (snr_db + 5.0 * math.log10(n_pulses)) / (6.2 + 4.54 / math.sqrt(n_pulses + 0.44))
     b = (np.power(10.0, np.clip(z, -50.0, 50.0)) - a) / (1.7 + 0.12 * a)
-    return special.expit(b)
+    from scipy import special  # lazily (see pd_swerling0)
+
+    return np.asarray(special.expit(b), dtype=np.float64)
 
 
 def pd_albersheim(snr_db: F64, pfa: float, n_pulses: int) -> F64:
@@ -110,15 +113,6 @@ def detection_probability(snr_db: F64, roc: RocConfig, shift_db: float = 0.0) ->
     else:
         pd = pd_albersheim(s, roc.pfa, roc.n_pulses)
     return np.clip(pd, 0.0, 1.0)
-
-
-def snr_db_for_certain_detection(roc: RocConfig, shift_db: float = 0.0) -> float:
-    """The SNR (dB) from which Pd is exactly 1 (paper ROC) or 1 to double precision."""
-    if roc.kind == "smoothstep":
-        return roc.snr50_db + roc.half_width_db + shift_db
-    if roc.kind in ("swerling1", "paper"):
-        return SNR_CEIL_DB + shift_db
-    return _SATURATION_DB + shift_db
 
 
 def snr_db_for_zero_detection(roc: RocConfig, shift_db: float = 0.0) -> float | None:

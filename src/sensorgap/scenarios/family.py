@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 from abc import ABC
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, ClassVar, TypeVar
 
@@ -231,7 +231,3 @@ def get_kind(name: str) -> type[FamilyKind] | None:
     """The registered family kind, or ``None``."""
     return _KINDS.get(name)
 
-
-def registry_snapshot() -> Mapping[str, Callable[..., Any]]:
-    """Read-only view of the kinds (for docs and tests)."""
-    return _KINDS.snapshot()

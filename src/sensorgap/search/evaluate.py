@@ -41,7 +41,6 @@ from sensorgap.coverage.body import (
 )
 from sensorgap.coverage.fastlookup import SUN_NONE, SUN_VEHICLE, SUN_WORLD, sun_directions_of
 from sensorgap.coverage.logmiss import (
-    ALMOST_ONE,
     LogMissMaps,
     TrackLookup,
     log_miss_of,
@@ -76,7 +75,6 @@ MAP_EXTENT = (-120.0, 260.0, -40.0, 40.0)
 MAP_RESOLUTION_M = 0.5
 #: Bins of the target's relative heading for the body lookup maps over a half turn (15 deg).
 HEADING_BINS = 12
-_ALMOST_ONE = ALMOST_ONE
 
 
 @dataclass(frozen=True)

@@ -27,9 +27,6 @@ from sensorgap.scenarios import load_families
 from sensorgap.search.evaluate import DetectionRule, Evaluator
 from sensorgap.search.problem import BatchOutcome, Decoded, SearchProblem
 
-#: Candidates per chunk sent to a Dask worker.
-DASK_CHUNK = 4096
-
 
 @dataclass(frozen=True)
 class ProblemSpec:

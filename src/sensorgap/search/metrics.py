@@ -40,8 +40,6 @@ TAU_S = 2.0
 #: P_undet is a single miss of the initial placement rather than a failure to detect over
 #: time (20 sensor cycles at 20 Hz).
 LEAD_IN_S = 1.0
-#: Cumulative detection probability that counts as reliable detection (the default rule).
-RELIABLE_PD = 0.99
 #: Per-step Pd below which a step belongs to a low-detection corridor.
 LOW_PD = 0.5
 #: Cap for infinite TTC / headway, s.
