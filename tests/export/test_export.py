@@ -114,6 +114,41 @@ def test_scenario_content_matches_the_search(catalog: Path) -> None:
     assert float(stop.get("value")) > 0.0
 
 
+def test_vehicle_bodies_are_where_planned(catalog: Path) -> None:
+    """OpenSCENARIO puts a vehicle's origin at its rear axle (issue #15): a car target is
+    written with its rear axle at positionX 0, its front axle 0.6 L ahead and its bounding
+    box centre 0.3 L ahead of the origin; its first path vertex plus that offset along the
+    heading is the planned box centre (by hand, 1 mm: the XML rounds to 1 mm)."""
+    from sensorgap.config import load_target
+    from sensorgap.export.spec import ScenarioSpec, read_run
+    from sensorgap.models import load_system
+
+    run = read_run(catalog)
+    rows = json.loads((catalog / "ranking.json").read_text())["ranking"]
+    checked = 0
+    for row in rows:
+        tgt = load_target(row["target"]) if "target" in row else None
+        if tgt is None or tgt.name == "pedestrian":
+            continue
+        tree = etree.parse(str(catalog / "scenarios" / f"{row['scenario_id']}.xosc"))
+        target = next(o for o in tree.iter("ScenarioObject") if o.get("name") == "Target")
+        centre = target.find(".//BoundingBox/Center")
+        assert float(centre.get("x")) == pytest.approx(0.3 * tgt.length_m, abs=1e-6)
+        assert float(target.find(".//RearAxle").get("positionX")) == 0.0
+        assert float(target.find(".//FrontAxle").get("positionX")) == pytest.approx(
+            0.6 * tgt.length_m, abs=1e-6)
+        spec = ScenarioSpec.from_row(row, load_system(run.vehicle_ref))
+        poly = [p for p in tree.iter("FollowTrajectoryAction")
+                if "Target" in etree.tostring(p).decode()][0]
+        v0 = next(poly.iter("WorldPosition"))
+        x0, y0, h0 = (float(v0.get(k)) for k in ("x", "y", "h"))
+        cx = x0 + 0.3 * tgt.length_m * math.cos(h0)
+        cy = y0 + 0.3 * tgt.length_m * math.sin(h0)
+        assert math.hypot(cx - spec.scenario.target.x[0], cy - spec.scenario.target.y[0]) < 2e-3
+        checked += 1
+    assert checked >= 1
+
+
 def test_semantic_checks_catch_bad_references_and_off_road_paths(catalog: Path,
                                                                  tmp_path: Path) -> None:
     index = json.loads((catalog / "catalog.json").read_text())

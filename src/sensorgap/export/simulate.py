@@ -27,9 +27,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sensorgap.atomic import atomic_write_bytes
+from sensorgap.config import load_target
 from sensorgap.errors import InputError
 from sensorgap.export.spec import ScenarioSpec, read_run
-from sensorgap.export.xosc import EGO, TARGET
+from sensorgap.export.xosc import EGO, TARGET, origin_path, target_origin_offset
 from sensorgap.models import load_system
 from sensorgap.scenarios import Scenario, Trajectory
 from sensorgap.search.evaluate import Evaluator
@@ -108,8 +109,10 @@ def _simulated_scenario(sim: SimPaths, planned: Scenario) -> Scenario:
         return Trajectory(tt, np.interp(tt, t, x), np.interp(tt, t, y), np.interp(tt, t, h),
                           np.abs(np.interp(tt, t, v)))
 
-    return Scenario(traj(EGO, planned.ego), traj(TARGET, planned.target),
-                    planned.target_class)
+    # esmini logs each entity's origin: the target's rear axle -> back to its box centre
+    ahead = target_origin_offset(load_target(planned.target_class))
+    return Scenario(traj(EGO, planned.ego),
+                    origin_path(traj(TARGET, planned.target), -ahead), planned.target_class)
 
 
 def run_one(esmini: Path, xosc: Path, spec: ScenarioSpec, evaluator: Evaluator,
@@ -144,7 +147,9 @@ def run_one(esmini: Path, xosc: Path, spec: ScenarioSpec, evaluator: Evaluator,
             return {**row, "status": "bad log", "message": str(exc)[:300]}
     planned = spec.scenario
     dev_e = _deviation(planned.ego, *sim.states[EGO][:3])
-    dev_t = _deviation(planned.target, *sim.states[TARGET][:3])
+    # the target's logged origin is its rear axle (vehicles): compare with that point's plan
+    dev_t = _deviation(origin_path(planned.target, target_origin_offset(spec.target)),
+                       *sim.states[TARGET][:3])
     sc_sim = _simulated_scenario(sim, planned)
     tr_p = evaluator.trace(planned, spec.environment, spec.family.duration_s)
     tr_s = evaluator.trace(sc_sim, spec.environment, spec.family.duration_s)

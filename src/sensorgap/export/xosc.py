@@ -28,9 +28,11 @@ from __future__ import annotations
 import datetime as dt
 import math
 
+import numpy as np
 from scenariogeneration import xosc
 from scenariogeneration.xosc.enumerations import VersionBase
 
+from sensorgap.config import TargetConfig
 from sensorgap.export.spec import ScenarioSpec
 from sensorgap.scenarios.trajectory import Trajectory
 
@@ -46,6 +48,29 @@ RAIN_FULL_SCALE_MM_H = 50.0
 WET_FRICTION = 0.7
 EGO = "Ego"
 TARGET = "Target"
+
+
+#: Where a vehicle target's rear axle sits behind its box centre, as a fraction of its
+#: length (estimate: overhangs of about 20 % of the length at each end, the axles at 0.2 L
+#: and 0.8 L from the rear). OpenSCENARIO puts a vehicle's origin at its rear axle, so the
+#: exported paths are of that point and the bounding box centre lies this far ahead of it.
+REAR_AXLE_BEHIND_CENTRE = 0.3
+
+
+def target_origin_offset(target: TargetConfig) -> float:
+    """Distance (m) from a target's exported origin (its rear axle; pedestrians: the box
+    centre, the standard's reference point for them) forward to its box centre."""
+    return 0.0 if target.name == "pedestrian" else REAR_AXLE_BEHIND_CENTRE * target.length_m
+
+
+def origin_path(tr: Trajectory, ahead_m: float) -> Trajectory:
+    """The path of a point ``ahead_m`` (m) behind a trajectory's reference point along its
+    heading: box centres -> rear axles (negative: the other way)."""
+    if ahead_m == 0.0:
+        return tr
+    c, s = np.cos(tr.heading), np.sin(tr.heading)
+    return Trajectory(t=tr.t, x=tr.x - ahead_m * c, y=tr.y - ahead_m * s,
+                      heading=tr.heading, speed=tr.speed)
 
 
 def _fmt(v: float) -> float:
@@ -78,15 +103,16 @@ def _ego_entity(spec: ScenarioSpec) -> xosc.Vehicle:
 
 def _target_entity(spec: ScenarioSpec) -> xosc.Vehicle | xosc.Pedestrian:
     t = spec.target
-    bb = xosc.BoundingBox(t.width_m, t.length_m, t.height_m, 0.0, 0.0, 0.5 * t.height_m)
+    d = target_origin_offset(t)  # origin at the rear axle: the box centre is d ahead
+    bb = xosc.BoundingBox(t.width_m, t.length_m, t.height_m, _fmt(d), 0.0, 0.5 * t.height_m)
     if t.name == "pedestrian":
         return xosc.Pedestrian(TARGET, 80.0, xosc.PedestrianCategory.pedestrian, bb,
                                model="pedestrian")
     category = {"bike": xosc.VehicleCategory.bicycle,
                 "truck": xosc.VehicleCategory.truck}.get(t.name, xosc.VehicleCategory.car)
     wheel = 0.6 if t.name == "bike" else 0.8
-    front = xosc.Axle(0.5, wheel, _fmt(0.85 * t.width_m), _fmt(0.3 * t.length_m), wheel / 2)
-    rear = xosc.Axle(0.0, wheel, _fmt(0.85 * t.width_m), _fmt(-0.3 * t.length_m), wheel / 2)
+    front = xosc.Axle(0.5, wheel, _fmt(0.85 * t.width_m), _fmt(2.0 * d), wheel / 2)
+    rear = xosc.Axle(0.0, wheel, _fmt(0.85 * t.width_m), 0.0, wheel / 2)
     return xosc.Vehicle(TARGET, category, bb, front, rear, _fmt(t.max_speed_m_s), 10.0, 10.0)
 
 
@@ -162,7 +188,10 @@ def build_scenario(spec: ScenarioSpec, road_relpath: str,
     init = xosc.Init()
     init.add_global_action(xosc.EnvironmentAction(_environment(spec, minor)))
     step = xosc.TransitionDynamics(xosc.DynamicsShapes.step, xosc.DynamicsDimension.time, 0.0)
-    for name, tr in ((EGO, spec.scenario.ego), (TARGET, spec.scenario.target)):
+    # the ego's states are of its rear axle already; the target's of its box centre
+    paths = ((EGO, spec.scenario.ego),
+             (TARGET, origin_path(spec.scenario.target, target_origin_offset(spec.target))))
+    for name, tr in paths:
         init.add_init_action(name, xosc.TeleportAction(xosc.WorldPosition(
             _fmt(float(tr.x[0])), _fmt(float(tr.y[0])), 0.0, _fmt(float(tr.heading[0])))))
         init.add_init_action(name, xosc.AbsoluteSpeedAction(_fmt(float(tr.speed[0])), step))
@@ -171,7 +200,7 @@ def build_scenario(spec: ScenarioSpec, road_relpath: str,
                               xosc.SimulationTimeCondition(-1.0, xosc.Rule.greaterThan))
     story = xosc.Story("critical_scenario")
     act = xosc.Act("follow_evaluated_paths", start)
-    for name, tr in ((EGO, spec.scenario.ego), (TARGET, spec.scenario.target)):
+    for name, tr in paths:
         event = xosc.Event(f"{name}_follow", xosc.Priority.override
                            if minor >= 2 else xosc.Priority.overwrite)
         event.add_action(f"{name}_trajectory", _follow(name, tr))
