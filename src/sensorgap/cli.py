@@ -374,7 +374,9 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     write_manifest(args.catalog)
     ok = sum(1 for r in rows if r.get("status") == "ok")
     within = sum(1 for r in rows if r.get("within_0p5m") == "yes")
-    print(f"{args.catalog}: {ok}/{len(rows)} ran cleanly, {within} within 0.5 m of the plan")
+    coll = sum(1 for r in rows if r.get("collision_agrees") == "yes")
+    print(f"{args.catalog}: {ok}/{len(rows)} ran cleanly to the end, {within} within 0.5 m "
+          f"of the plan, {coll} with the plan's collision outcome (esmini --collision)")
     for r in rows:
         if r.get("status") != "ok":
             print(f"  {r['scenario_id']}: {r['status']}: {r.get('message', '')}")

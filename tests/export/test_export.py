@@ -231,6 +231,7 @@ def test_esmini_reproduces_the_planned_paths(catalog: Path, tmp_path: Path) -> N
     assert len(rows) == len(json.loads((work / "catalog.json").read_text())["scenarios"])
     for r in rows:
         assert r["status"] == "ok", r
+        assert r["ran_to_end"] == "yes" and r["collision_agrees"] == "yes", r
         assert float(r["max_dev_ego_m"]) <= MAX_DEVIATION_M
         assert float(r["max_dev_target_m"]) <= MAX_DEVIATION_M
         assert abs(float(r["mean_pd_planned"]) - float(r["mean_pd_simulated"])) < 0.02
@@ -294,3 +295,26 @@ def test_esmini_collides_when_the_plan_does(catalog: Path, tmp_path: Path) -> No
             assert abs(float(hit.group(1)) - float(tr.t[-1])) < 0.025
         else:
             assert hit is None, row["scenario_id"]
+
+
+@needs_esmini
+def test_simulate_reports_a_run_that_stops_early(catalog: Path, tmp_path: Path) -> None:
+    """A scenario whose StopTrigger was edited to 3 s is not 'ok' (issue #15: it used to
+    report ok, comparing only the logged times)."""
+    import csv
+
+    from lxml import etree as et
+
+    work = tmp_path / "cat"
+    shutil.copytree(catalog, work)
+    index = json.loads((work / "catalog.json").read_text())
+    first = work / index["scenarios"][0]["file"]
+    tree = et.parse(str(first))
+    cond = tree.find(".//StopTrigger//SimulationTimeCondition")
+    cond.set("value", "3.0")
+    tree.write(str(first))
+    assert main(["simulate", "--catalog", str(work), "--esmini", str(ESMINI)]) == 0
+    rows = {r["scenario_id"]: r for r in csv.DictReader((work / "simulation.csv").open())}
+    r = rows[index["scenarios"][0]["scenario_id"]]
+    assert r["status"] == "stopped early" and r["ran_to_end"] == "no", r
+    assert float(r["end_time_s"]) < 3.2

@@ -4,17 +4,19 @@ esmini is not on any package registry: the user installs it and passes ``--esmin
 (or puts ``esmini`` on PATH, or sets ``SENSORGAP_ESMINI``). Each scenario runs headless with
 a fixed step (``--fixed_timestep``, default 0.05 s = the sensor cycle) under a hard time
 limit enforced here (esmini has none), its CSV log (``--csv_logger``) is parsed, and
-``simulation.csv`` gets per scenario: whether it ran cleanly, the largest deviation of the
-simulated ego and target positions from the planned ones at the same times (target
-<= 0.5 m), and the fused Pd and risk re-evaluated along the simulated paths next to the
-planned values. One scenario's failure (missing file, crash, timeout) is reported in its
-row; the others still run.
+``simulation.csv`` gets per scenario: whether it ran cleanly and to the scenario's end,
+the largest deviation of the simulated ego and target positions from the planned ones at
+the same times (<= 0.5 m), esmini's first collision (``--collision``) next to the plan's
+(agreeing within one step), and the fused Pd and risk re-evaluated along the simulated
+paths next to the planned values. One scenario's failure (missing file, crash, timeout)
+is reported in its row; the others still run.
 """
 
 from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 import subprocess
 import tempfile
@@ -43,9 +45,10 @@ F64 = NDArray[np.float64]
 MAX_DEVIATION_M = 0.5
 DEFAULT_TIMEOUT_S = 60.0
 DEFAULT_STEP_S = 0.05
-COLUMNS = ["scenario_id", "rank", "status", "message", "max_dev_ego_m", "max_dev_target_m",
-           "within_0p5m", "mean_pd_planned", "mean_pd_simulated", "log10_risk_planned",
-           "log10_risk_simulated", "esmini_wall_s"]
+COLUMNS = ["scenario_id", "rank", "status", "message", "ran_to_end", "end_time_s",
+           "max_dev_ego_m", "max_dev_target_m", "within_0p5m", "collision_planned_s",
+           "collision_esmini_s", "collision_agrees", "mean_pd_planned", "mean_pd_simulated",
+           "log10_risk_planned", "log10_risk_simulated", "esmini_wall_s"]
 
 
 def find_esmini(path: str | None) -> Path:
@@ -115,15 +118,20 @@ def _simulated_scenario(sim: SimPaths, planned: Scenario) -> Scenario:
                     origin_path(traj(TARGET, planned.target), -ahead), planned.target_class)
 
 
+#: esmini's log line of the first contact of two entities (``--collision``).
+COLLISION_RE = re.compile(r"\[(\d+(?:\.\d+)?)\] \[\w+\] Collision between \w+ and \w+")
+
+
 def run_one(esmini: Path, xosc: Path, spec: ScenarioSpec, evaluator: Evaluator,
             timeout_s: float, step_s: float) -> dict[str, Any]:
     """Simulate one scenario; a row of ``simulation.csv``."""
     row: dict[str, Any] = {"scenario_id": spec.scenario_id, "rank": spec.rank}
     with tempfile.TemporaryDirectory(prefix="sensorgap-esmini-") as tmp:
         log = Path(tmp) / "log.csv"
+        text_log = Path(tmp) / "esmini.txt"
         cmd = [str(esmini), "--headless", "--osc", str(xosc.resolve()), "--fixed_timestep",
-               repr(step_s), "--csv_logger", str(log), "--disable_stdout", "--logfile_path",
-               str(Path(tmp) / "esmini.txt")]
+               repr(step_s), "--csv_logger", str(log), "--collision", "--disable_stdout",
+               "--logfile_path", str(text_log)]
         t0 = time.perf_counter()
         try:
             proc = subprocess.run(cmd, cwd=tmp, capture_output=True, timeout=timeout_s,
@@ -145,6 +153,8 @@ def run_one(esmini: Path, xosc: Path, spec: ScenarioSpec, evaluator: Evaluator,
                 raise ValueError(f"entities in the log: {', '.join(sim.states)}")
         except ValueError as exc:
             return {**row, "status": "bad log", "message": str(exc)[:300]}
+        hit = (COLLISION_RE.search(text_log.read_text(encoding="utf-8", errors="replace"))
+               if text_log.is_file() else None)
     planned = spec.scenario
     dev_e = _deviation(planned.ego, *sim.states[EGO][:3])
     # the target's logged origin is its rear axle (vehicles): compare with that point's plan
@@ -155,9 +165,24 @@ def run_one(esmini: Path, xosc: Path, spec: ScenarioSpec, evaluator: Evaluator,
     tr_s = evaluator.trace(sc_sim, spec.environment, spec.family.duration_s)
     m_p, m_s = compute_all(tr_p), compute_all(tr_s)
     ok = max(dev_e, dev_t) <= MAX_DEVIATION_M
-    return {**row, "status": "ok", "message": "" if ok else "path deviates by more than 0.5 m",
+    # ran to the end: the log reaches the scenario's duration (a StopTrigger that fires
+    # earlier, or a crash mid-run, is a failure)
+    t_end = float(sim.states[EGO][0][-1]) if len(sim.states[EGO][0]) else 0.0
+    to_end = t_end >= spec.family.duration_s - step_s - 1e-9
+    t_plan = float(tr_p.t[-1]) if tr_p.collided else None
+    t_sim = float(hit.group(1)) if hit else None
+    agree = (t_plan is None and t_sim is None) or (
+        t_plan is not None and t_sim is not None and abs(t_plan - t_sim) <= step_s + 1e-9)
+    msgs = [m for m, bad in (("path deviates by more than 0.5 m", not ok),
+                             (f"stopped at {t_end:g} s before the end", not to_end),
+                             ("collision differs from the plan", not agree)) if bad]
+    return {**row, "status": "ok" if to_end else "stopped early", "message": "; ".join(msgs),
+            "ran_to_end": "yes" if to_end else "no", "end_time_s": round(t_end, 3),
             "max_dev_ego_m": round(dev_e, 4), "max_dev_target_m": round(dev_t, 4),
             "within_0p5m": "yes" if ok else "no",
+            "collision_planned_s": "" if t_plan is None else round(t_plan, 3),
+            "collision_esmini_s": "" if t_sim is None else round(t_sim, 3),
+            "collision_agrees": "yes" if agree else "no",
             "mean_pd_planned": round(m_p["mean_pd"], 6),
             "mean_pd_simulated": round(m_s["mean_pd"], 6),
             "log10_risk_planned": round(m_p["log10_risk"], 4),
