@@ -169,6 +169,21 @@ def test_semantic_checks_catch_bad_references_and_off_road_paths(catalog: Path,
     assert any("lane 9" in e for e in semantic_errors(src, net, {"1": [9]}))
 
 
+def test_export_rewrites_the_catalog_completely(run_dir: Path, tmp_path: Path) -> None:
+    """A smaller export into a folder that held a larger one leaves no stale scenario: the
+    folder, catalog.json and the manifest agree, and verify passes (issue #18)."""
+    out = tmp_path / "cat"
+    export_catalog(run_dir, out)
+    n_full = len(list((out / "scenarios").glob("*.xosc")))
+    assert n_full >= 2
+    (out / "simulation.csv").write_text("stale\n")
+    index = export_catalog(run_dir, out, top=1)
+    files = sorted(p.name for p in (out / "scenarios").glob("*.xosc"))
+    assert files == [f"{index['scenarios'][0]['scenario_id']}.xosc"]
+    assert not (out / "simulation.csv").exists()
+    assert main(["verify", str(out)]) == 0
+
+
 def test_export_is_byte_identical(run_dir: Path, tmp_path: Path) -> None:
     a, b = tmp_path / "a", tmp_path / "b"
     export_catalog(run_dir, a)

@@ -137,6 +137,13 @@ def export_catalog(run_dir: Path, out_dir: Path | None = None,
             "duration_s": sp.family.duration_s, "xsd": f"OpenSCENARIO {osc_version}: valid",
             "semantic_checks": "passed", "reason": sp.reason,
         })
+    # the catalog folder holds this export only: scenario and road files of an earlier
+    # (larger) export and its simulation results are removed
+    for sub, pattern in (("scenarios", "*.xosc"), ("roads", "*.xodr")):
+        for old in (out / sub).glob(pattern):
+            if f"{sub}/{old.name}" not in files:
+                old.unlink()
+    (out / "simulation.csv").unlink(missing_ok=True)
     if coverage:
         for p in _coverage_maps(specs, out / "coverage"):
             files[f"coverage/{p.name}"] = {"role": "coverage map"}
