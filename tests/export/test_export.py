@@ -200,22 +200,24 @@ def test_critical_scenarios_generator(run_dir: Path, catalog: Path, tmp_path: Pa
 
     assert sensorgap.CriticalScenarios is CriticalScenarios
     gen = CriticalScenarios(run_dir)
-    gen.generate(str(tmp_path))
-    made = sorted((tmp_path / "xosc").glob("*.xosc"))
-    assert len(made) == _ranked(run_dir) >= 3
+    made, roads = gen.generate(str(tmp_path))
+    assert len(made) == _ranked(run_dir) >= 3 and roads
     ref = json.loads((catalog / "catalog.json").read_text())["scenarios"]
     for f, s in zip(made, ref, strict=True):
-        assert xsd_errors(f, "1.2") == []
-        ours = [v.attrib for v in etree.parse(str(catalog / s["file"])).iter("WorldPosition")]
-        theirs = [v.attrib for v in etree.parse(str(f)).iter("WorldPosition")]
-        assert ours == theirs
+        # the CLI's file, byte for byte: name, relative road path, content
+        assert Path(f).relative_to(tmp_path).as_posix() == s["file"]
+        assert Path(f).read_bytes() == (catalog / s["file"]).read_bytes()
+        assert xsd_errors(Path(f), "1.2") == []
+    for r in roads:
+        assert Path(r).read_bytes() == (catalog / "roads" / Path(r).name).read_bytes()
+    assert 'filepath="../roads/' in Path(made[0]).read_text()
     # a re-sweep of one parameter regenerates the trajectories
     gen2 = CriticalScenarios(run_dir, top=1)
     row = json.loads((run_dir / "ranking.json").read_text())["ranking"][0]
     speed = float(row["p_ego_speed_m_s"])
     gen2.parameters = {"rank": [1], "ego_speed_m_s": [speed, speed + 1.0]}
     gen2.generate(str(tmp_path / "sweep"))
-    files = sorted((tmp_path / "sweep" / "xosc").glob("*.xosc"))
+    files = sorted((tmp_path / "sweep" / "scenarios").glob("*.xosc"))
     assert len(files) == 2 and files[0].read_bytes() != files[1].read_bytes()
 
 

@@ -54,7 +54,9 @@ def _lanes(spec: ScenarioSpec) -> dict[str, list[int]]:
     return {str(st["road_id"]): lanes}
 
 
-def _write_xosc(spec: ScenarioSpec, path: Path, road_rel: str, version: str) -> None:
+def write_xosc(spec: ScenarioSpec, path: Path, road_rel: str, version: str) -> None:
+    """One scenario's OpenSCENARIO file (atomically), its road referenced as ``road_rel``
+    (relative to the file)."""
     sc = build_scenario(spec, road_rel, version)
     with atomic_path(path) as tmp:
         sc.write_xml(str(tmp), prettyprint=True)
@@ -117,7 +119,7 @@ def export_catalog(run_dir: Path, out_dir: Path | None = None,
                 raise ExportError(f"{road_dst}: not valid OpenDRIVE 1.7: {errs[0]}")
             files[f"roads/{road_src.name}"] = {"role": "road"}
         path = out / "scenarios" / f"{sp.scenario_id}.xosc"
-        _write_xosc(sp, path, f"../roads/{road_src.name}", osc_version)
+        write_xosc(sp, path, f"../roads/{road_src.name}", osc_version)
         errs = xsd_errors(path, osc_version)
         if errs:
             raise ExportError(f"{path}: not valid OpenSCENARIO {osc_version}: {errs[0]}")

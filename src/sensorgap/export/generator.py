@@ -1,20 +1,27 @@
 """``sensorgap.CriticalScenarios``: the ranked scenarios inside scenariogeneration workflows.
 
 A ``scenariogeneration.ScenarioGenerator`` whose parameter is the rank in a search run:
-``CriticalScenarios(run_dir).generate(folder)`` writes the same OpenSCENARIO files as
-``sensorgap export`` (the road is the family's OpenDRIVE file, referenced by scenariogeneration
-as a road file). Any searched parameter can be overridden for a re-sweep, e.g.
+``CriticalScenarios(run_dir).generate(folder)`` writes the same files as ``sensorgap
+export``, byte for byte: ``folder/scenarios/<scenario_id>.xosc`` referencing
+``../roads/<road>.xodr``, the roads copied beside them (relative paths: the folder can be
+moved). Any searched parameter can be overridden for a re-sweep, e.g.
 ``gen = CriticalScenarios(run); gen.parameters = {"rank": [1], "ego_speed_m_s": [20, 25]}``;
-the trajectories are then regenerated with the family's generator.
+the trajectories are then regenerated with the family's generator and the files named
+``<scenario_id>_<k>.xosc``. ``scenario(**params)`` returns the OpenSCENARIO object as
+any ScenarioGenerator does.
 """
 
 from __future__ import annotations
 
+import itertools
+import shutil
 from pathlib import Path
 from typing import Any
 
 from scenariogeneration import ScenarioGenerator, xosc
 
+from sensorgap.atomic import atomic_path
+from sensorgap.export.catalog import write_xosc
 from sensorgap.export.spec import ScenarioSpec, read_run
 from sensorgap.export.xosc import DEFAULT_VERSION, build_scenario
 from sensorgap.models import load_system
@@ -47,3 +54,35 @@ class CriticalScenarios(ScenarioGenerator):
         sp = self.spec(rank, **kwargs)
         self.road_file = str(sp.road_path)
         return build_scenario(sp, str(sp.road_path), self.osc_version)
+
+    def generate(self, generation_folder: str, override_parameters: Any = None,
+                 write_relative_road_path: bool = True) -> tuple[list[str], list[str]]:
+        """Write the scenarios (and their roads) into ``generation_folder`` in the CLI's
+        layout (``scenarios/``, ``roads/``, relative road paths; see the module docstring);
+        returns (scenario files, road files) as ScenarioGenerator does."""
+        params = self.parameters if override_parameters is None else override_parameters
+        if isinstance(params, dict):
+            keys = list(params)
+            combos = [dict(zip(keys, values, strict=True))
+                      for values in itertools.product(*(params[k] for k in keys))]
+        else:
+            combos = [dict(c) for c in params]
+        sweep = any(len(c) > 1 for c in combos)
+        out = Path(generation_folder)
+        (out / "scenarios").mkdir(parents=True, exist_ok=True)
+        (out / "roads").mkdir(parents=True, exist_ok=True)
+        scenario_files: list[str] = []
+        road_files: list[str] = []
+        for k, combo in enumerate(combos):
+            rank = combo.pop("rank")
+            sp = self.spec(rank, **combo)
+            road = out / "roads" / sp.road_path.name
+            if str(road) not in road_files:
+                with atomic_path(road) as tmp:
+                    shutil.copyfile(sp.road_path, tmp)
+                road_files.append(str(road))
+            name = f"{sp.scenario_id}_{k}" if sweep else sp.scenario_id
+            path = out / "scenarios" / f"{name}.xosc"
+            write_xosc(sp, path, f"../roads/{sp.road_path.name}", self.osc_version)
+            scenario_files.append(str(path))
+        return scenario_files, road_files
