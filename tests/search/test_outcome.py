@@ -522,3 +522,88 @@ def test_friction_needs_sources(tmp_path: Path) -> None:
                "[friction.sources]\ndry = 'a'\nwet = 'b'\n")
     with pytest.raises(InputError, match=r"friction\.sources\.snow: missing source"):
         load_friction(p)
+
+
+# ------------------------------------------------------------ predicted threat onset
+
+
+def _walker(v0: float, ahead: float, y0: float, vy: float,
+            predict: float) -> tuple[Encounter, F64]:
+    """Ego at v0 along the x axis; a 0.5 x 0.5 m pedestrian ``ahead`` m in front of the
+    ego's rear axle (standing in x), starting ``y0`` m to the right (y0 < 0) and walking
+    towards the ego's path at ``vy`` m/s. Returns the encounter and its y per step."""
+    t = np.arange(T) * DT
+    z = np.zeros((1, T))
+    ty = (y0 + vy * t)[None]
+    enc = encounter_geometry((v0 * t)[None], z, z, np.full((1, T), v0),
+                             np.full((1, T), ahead), ty, np.full((1, T), math.pi / 2),
+                             np.full((1, T), vy), DT, (0.5, 0.5), BODY, 0.5, 6.0, predict)
+    return enc, ty[0]
+
+
+@pytest.mark.parametrize(("vy", "predict"), [(1.4, 1.0), (2.5, 1.0), (1.0, 2.0), (1.4, 0.0)])
+def test_threat_onset_with_lateral_prediction_by_hand(vy: float, predict: float) -> None:
+    # Straight road, a pedestrian walking out from the right at vy. By hand: the threat
+    # band is |y| <= EGO_W / 2 + 0.5 m; the pedestrian (half width 0.25 m) is a threat at
+    # the first step k >= 1 (the lateral rate is a difference of two steps; at k = 0 it
+    # is judged where it is) with y_k + vy * predict + 0.25 >= -(0.95 + 0.5), i.e.
+    # y0 + vy (k dt + predict) >= -1.7 m. Exact up to rounding (vy dt is a difference of
+    # floats): the onset may fall one step either side only when the bound lands on a
+    # step within 1e-9 m.
+    y0 = -6.0
+    enc, ty = _walker(8.0, 40.0, y0, vy, predict)
+    bound = -(EGO_W / 2 + 0.5 + 0.25)
+    k_hand = next(k for k in range(T) if ty[k] + (vy * predict if k >= 1 else 0.0)
+                  >= bound - 1e-12)
+    assert enc.threat_step[0] == k_hand
+    if predict > 0.0:
+        # the prediction moves the onset earlier by predict / dt steps (give or take one)
+        k_plain = next(k for k in range(T) if ty[k] >= bound - 1e-12)
+        assert abs((k_plain - k_hand) - predict / DT) <= 1.0
+
+
+def test_prediction_ignores_targets_moving_along_or_away_from_the_path() -> None:
+    # A car in the next lane (3.5 m left) driving parallel, and one drifting away (left):
+    # no lateral rate towards the path, no earlier threat; the result equals the one
+    # without prediction, bit for bit.
+    t = np.arange(T) * DT
+    z = np.zeros((1, T))
+    for ty in (np.full(T, 3.5), 3.5 + 0.5 * t):
+        args = ((20.0 * t)[None], z, z, np.full((1, T), 20.0), (30.0 + 15.0 * t)[None],
+                ty[None], z, np.full((1, T), 15.0), DT, (CAR_L, CAR_W), BODY, 0.5, 6.0)
+        with_p = encounter_geometry(*args, 1.0)
+        without = encounter_geometry(*args, 0.0)
+        assert with_p.threat_step[0] == without.threat_step[0] == -1
+        np.testing.assert_array_equal(with_p.lo, without.lo)
+        np.testing.assert_array_equal(with_p.hi, without.hi)
+
+
+def test_prediction_on_a_curve_follows_the_path_not_a_straight_line() -> None:
+    # Ego on a circle of radius 200 m; a car 3.5 m outside it (next lane) at the same
+    # angular speed: constant lateral offset from the path, so no threat with or without
+    # prediction (a straight-line extrapolation in the world frame would drift it across
+    # the ego's lane within 1 s: 20 m of arc on R = 200 m bends 1 m).
+    t = np.arange(T) * DT
+    R, v = 200.0, 20.0
+    a = v * t / R
+    ex, ey, eh = R * np.sin(a), R - R * np.cos(a), a
+    ao = a + 30.0 / R
+    Ro = R - 3.5  # the left lane is inside the left-hand curve
+    tx, ty = Ro * np.sin(ao), R - Ro * np.cos(ao)
+    enc = encounter_geometry(ex[None], ey[None], eh[None], np.full((1, T), v), tx[None],
+                             ty[None], ao[None], np.full((1, T), v * Ro / R), DT,
+                             (CAR_L, CAR_W), BODY, 0.5, 6.0, 1.0)
+    assert enc.threat_step[0] == -1
+
+
+def test_reaction_presets_predict_and_files_without_the_field_do_not(tmp_path: Path) -> None:
+    for name in reaction_presets():
+        r = load_reaction(name)
+        assert r.threat_prediction_s == 1.0
+        assert r.sources["threat_prediction_s"].strip()
+    text = (Path(__file__).parents[2] / "templates" / "reactions.toml").read_text()
+    lines = [ln for ln in text.splitlines() if not ln.startswith("threat_prediction_s")]
+    f = tmp_path / "r.toml"
+    f.write_text("\n".join(lines) + "\n")
+    r = load_reaction(f)
+    assert r.threat_prediction_s == 0.0  # the former rule; no source needed for a default

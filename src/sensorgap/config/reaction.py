@@ -12,6 +12,7 @@ File layout (the shipped presets or a file of the same layout)::
     confirm_with = ["camera", "lidar"]
     threat_margin_m = 0.5             # m
     threat_horizon_s = 6.0            # s
+    threat_prediction_s = 1.0         # s (optional, default 0)
     [reactions.<name>.sources]        # one non-empty source per parameter
     confirm_m = "..."
 
@@ -59,6 +60,9 @@ class ReactionConfig(Strict):
         threat_margin_m, threat_horizon_s: a target is a threat once its box, widened by
             the margin (m) on each side of the ego's path, overlaps the ego's boxes along
             its planned path over the horizon (s).
+        threat_prediction_s: the target's lateral offset from the ego's path is predicted
+            this far ahead (s) at its current lateral rate in that test (0, the default of
+            a file that leaves it out: the target is judged where it is).
         sources: one non-empty source per parameter (standard, paper, data sheet or
             ``estimate: why``); ``load_reaction`` checks it.
     """
@@ -79,6 +83,8 @@ class ReactionConfig(Strict):
                                    description="Lateral widening of the threat test, m")
     threat_horizon_s: float = Field(gt=0.0, le=30.0, allow_inf_nan=False,
                                     description="Planned path ahead in the threat test, s")
+    threat_prediction_s: float = Field(0.0, ge=0.0, le=5.0, allow_inf_nan=False,
+                                       description="Lateral prediction in the threat test, s")
     sources: dict[str, str] = Field(default_factory=dict)
 
     def label(self) -> str:
@@ -137,8 +143,10 @@ def load_reaction(name_or_path: str | Path | None = None) -> ReactionConfig:
     if len(set(cfg.confirm_with)) != len(cfg.confirm_with):
         raise InputError(path, f"reactions.{name}.confirm_with", "lists a sensor type twice")
     for key in ReactionConfig.model_fields:
-        if key in _NOT_PARAMETERS:
-            continue
+        if key in _NOT_PARAMETERS or (key not in cfg.model_fields_set
+                                      and ReactionConfig.model_fields[key].default is not None
+                                      and not ReactionConfig.model_fields[key].is_required()):
+            continue  # an optional parameter left at its default needs no source
         if not cfg.sources.get(key, "").strip():
             raise InputError(path, f"reactions.{name}.sources.{key}",
                              "missing source: name the standard, paper or data sheet, or "

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from functools import cache
+from typing import ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -222,7 +223,7 @@ class Crossing(_LaneKind):
     name = "crossing"
     description = "pedestrian or cyclist crossing in front of the ego"
     settings = {**_ROAD_SETTINGS, "ego_lane": None, "duration_s": 6.0}
-    parameters = (
+    parameters: ClassVar[tuple[Param, ...]] = (
         Param("ego_s0_m", 85.0, 98.0, unit="m"),
         Param("ego_speed_m_s", 4.0, 13.0, unit="m/s"),
         Param("cross_ahead_m", 15.0, 60.0, unit="m"),
@@ -230,6 +231,12 @@ class Crossing(_LaneKind):
         Param("conflict_offset_s", -1.5, 1.5, unit="s"),
         Param("side", choices=("right", "left")),
     )
+
+    def footway_edges(self, net: RoadNetwork, rid: str, s: F64) -> tuple[F64, F64]:
+        """Road t (m) of the left and right edges the crossing starts and ends
+        ``CURB_OFFSET_M`` beyond, at road ``s`` (m): the outer borders of the road's
+        outermost lanes (footways included)."""
+        return net.road_extents(rid, s)
 
     def generate_batch(self, family: Family, cols: Columns,
                        net: RoadNetwork) -> ScenarioBatch:
@@ -246,7 +253,7 @@ class Crossing(_LaneKind):
         t_c = (0.5 * (inner + outer))[:, None]
         right = -tr  # the ego's right in road t: -t when driving along +s
         side = np.where(_is(cols, "side", "right"), right, -right).astype(np.float64)[:, None]
-        t_left, t_right = net.road_extents(rid, s_cc)
+        t_left, t_right = self.footway_edges(net, rid, s_cc)
         t_left, t_right = t_left[:, None], t_right[:, None]
         # from the footway on `side` (road t on that side) to the one opposite
         start = np.where(side > 0, t_left + CURB_OFFSET_M, t_right - CURB_OFFSET_M)

@@ -26,9 +26,26 @@ from sensorgap.scenarios.kinds import (
 
 F64 = NDArray[np.float64]
 
-#: Gap between a parked car's side and the outer edge of the outermost lane, m (estimate:
-#: parked at the kerb, wheels ~0.2 m off the lane marking).
+#: Gap between a parked car's side and the kerb (the outer edge of the outermost driving
+#: lane), m (estimate: parked at the kerb, wheels ~0.2 m off the lane marking).
 PARKED_CLEARANCE_M = 0.2
+
+
+def kerbs(net: RoadNetwork, rid: str, s: F64) -> tuple[F64, F64]:
+    """Road t (m) of the kerbs at road ``s`` (m): the outer border of the outermost lane
+    of type ``driving`` on the left and on the right (the road's extent on a side without
+    one)."""
+    road = net.road(rid)
+    left, right = (np.asarray(a, dtype=np.float64).copy() for a in net.road_extents(rid, s))
+    secs = road.section_index(s)
+    for i in np.unique(secs):
+        m = secs == i
+        sec = road.sections[int(i)]
+        for lanes, out in ((sec.left, left), (sec.right, right)):
+            ids = [ln.id for ln in lanes if ln.type == "driving"]
+            if ids:
+                out[m] = net.lane_edges(rid, max(ids, key=abs), s[m])[1]
+    return left, right
 
 
 @cache
@@ -151,7 +168,7 @@ class CutOutReveal(_LaneKind):
 
 
 @register_kind
-class CrossingBehindParked(_LaneKind):
+class CrossingBehindParked(Crossing):
     """``crossing`` from the ego's right, stepping out between two cars (class
     ``occluder``) parked at the kerb beside the outermost lane, ``parked_gap_m`` apart
     (bumper to bumper) around the crossing line: the pedestrian or cyclist is hidden by
@@ -161,6 +178,12 @@ class CrossingBehindParked(_LaneKind):
     name = "crossing_behind_parked"
     description = "pedestrian steps out between parked cars in front of the ego"
     settings = {**Crossing.settings, "duration_s": 5.0, "occluder": "car"}
+
+    def footway_edges(self, net: RoadNetwork, rid: str, s: F64) -> tuple[F64, F64]:
+        """The kerbs (``kerbs``): the pedestrian starts ``CURB_OFFSET_M`` (2 m) beyond
+        the kerb, level with the outer sides of the cars parked there (0.2 m clearance +
+        1.8 m width)."""
+        return kerbs(net, rid, s)
     parameters = (
         Param("ego_s0_m", 85.0, 98.0, unit="m"),
         Param("ego_speed_m_s", 2.8, 16.7, unit="m/s"),
@@ -173,14 +196,14 @@ class CrossingBehindParked(_LaneKind):
 
     def generate_batch(self, family: Family, cols: Columns,
                        net: RoadNetwork) -> ScenarioBatch:
-        b = Crossing().generate_batch(family, cols, net)
+        b = super().generate_batch(family, cols, net)
         rid = str(family.settings["road_id"])
         tr = self._start(family, "ego_lane")[2]
         t = b.t
         parked = _target(str(family.settings["occluder"]))
         s_c = (_col(cols, "ego_s0_m") + tr * _col(cols, "cross_ahead_m"))[:, 0]
         s_c = np.clip(s_c, 0.0, net.road(rid).length)
-        t_left, t_right = net.road_extents(rid, s_c)
+        t_left, t_right = kerbs(net, rid, s_c)
         # the ego's right in road t is -t when driving along +s: that side's kerb
         kerb = np.where(tr > 0, t_right, t_left)
         out = -1.0 if tr > 0 else 1.0  # direction away from the road on that side

@@ -588,7 +588,8 @@ class Evaluator:
                                  (target.length_m, target.width_m),
                                  (body.x_front_m, body.x_rear_m, body.width_m),
                                  self.reaction.threat_margin_m,
-                                 self.reaction.threat_horizon_s)
+                                 self.reaction.threat_horizon_s,
+                                 self.reaction.threat_prediction_s)
         collided = enc.collide_step >= 0
         n = np.where(collided, enc.collide_step + 1, t).astype(np.int64)
         valid = np.arange(t)[None, :] < n[:, None]

@@ -29,7 +29,13 @@ steps of ``dt`` s); units: m, s, rad, m/s, m/s2, m/s3.
    box, widened by ``threat_margin_m`` on each side perpendicular to the ego's path
    (equivalently, the ego's lane band widened by the margin), overlaps the ego's boxes along
    its planned path over the next ``threat_horizon_s`` (rear-axle progress
-   ``[p_k, p_k + v0 H]``).
+   ``[p_k, p_k + v0 H]``), with its lateral offset from the path predicted over the next
+   ``threat_prediction_s`` at its current lateral rate (a causal difference of the last two
+   steps; the predicted offset closest to the path counts, the box's heading and
+   longitudinal position kept): a target that is moving towards the ego's path (a
+   pedestrian walking out, a car starting a lane change) is a threat up to that long
+   before it reaches the widened band, while one moving along or away from the path is
+   judged where it is (0 s: no prediction).
 
 2. **Reaction** (``reaction_outcome``). The target is *confirmed* at the first step at
    which at least M of the last N sensor cycles detected it (fewer cycles at the start: M
@@ -251,8 +257,9 @@ def _scan_interval(ex: F64, ey: F64, eh: F64, r: int, ia: int, ib: int, step: fl
 @numba.njit(cache=True, nogil=True)
 def _geometry_kernel(ex: F64, ey: F64, eh: F64, v0: F64, tx: F64, ty: F64, th: F64,
                      hl: float, hw: float, x_front: float, x_rear: float, half_w: float,
-                     margin: float, horizon: float, dt: float, lo: F64, hi: F64,
-                     collide: I64, threat: I64, ttc: F64) -> None:  # pragma: no cover
+                     margin: float, horizon: float, predict: float, dt: float, lo: F64,
+                     hi: F64, collide: I64, threat: I64,
+                     ttc: F64) -> None:  # pragma: no cover
     b, t = ex.shape
     ec = np.empty(t)
     es = np.empty(t)
@@ -292,6 +299,9 @@ def _geometry_kernel(ex: F64, ey: F64, eh: F64, v0: F64, tx: F64, ty: F64, th: F
         cw1 = np.inf
         cw2 = -np.inf
         cs = 0.0
+        cvc = np.nan  # the cached step's lateral offset and lateral rate
+        cvd = 0.0
+        pvc = np.nan  # the previous step's lateral offset from the path, m
         for j in range(t):
             px = tx[r, j]
             py = ty[r, j]
@@ -300,8 +310,13 @@ def _geometry_kernel(ex: F64, ey: F64, eh: F64, v0: F64, tx: F64, ty: F64, th: F
             w1 = np.inf  # the target's u extent in the widened band (threat), frame i
             w2 = -np.inf
             s_i = 0.0
-            if px == cpx and py == cpy and th[r, j] == cth:
+            # the lateral rate is known once a previous step is (a causal difference)
+            vdot = 0.0
+            if predict > 0.0 and px == cpx and py == cpy and th[r, j] == cth and pvc == pvc:
+                vdot = (cvc - pvc) / dt
+            if px == cpx and py == cpy and th[r, j] == cth and vdot == cvd:
                 a, z, w1, w2, s_i = ca, cz, cw1, cw2, cs
+                pvc = cvc
             else:
                 exact = True
                 # nearest ego path sample to the target centre (hill-climb from the last)
@@ -330,7 +345,18 @@ def _geometry_kernel(ex: F64, ey: F64, eh: F64, v0: F64, tx: F64, ty: F64, th: F
                 dx = px - ex[r, i]
                 dy = py - ey[r, i]
                 vc = -s * dx + c * dy
-                if abs(vc) <= reach + delta:
+                # predicted lateral offset closest to the path over the prediction horizon
+                # (constant lateral rate relative to the path; = vc without prediction)
+                vp = vc
+                if predict > 0.0:
+                    vdot = 0.0 if pvc != pvc else (vc - pvc) / dt
+                    v1 = vc + vdot * predict
+                    if vc * v1 <= 0.0:
+                        vp = 0.0
+                    elif abs(v1) < abs(vc):
+                        vp = v1
+                pvc = vc
+                if abs(vc) <= reach + delta or abs(vp) <= reach + delta:
                     if th[r, j] != th_last:
                         ct, st = _cos_sin(th[r, j], th_last, ct, st)
                         th_last = th[r, j]
@@ -338,11 +364,13 @@ def _geometry_kernel(ex: F64, ey: F64, eh: F64, v0: F64, tx: F64, ty: F64, th: F
                     sd = st * c - ct * s
                     ext_u = abs(cd) * hl + abs(sd) * hw  # the box's half extents here
                     ext_v = abs(sd) * hl + abs(cd) * hw
+                    if threat[r] < 0 and abs(vp) - ext_v <= half_w + margin + delta:
+                        s_i = step * i
+                        w1, w2 = _band_u_range(c * dx + s * dy, vp, cd, sd, hl, hw,
+                                               half_w + margin)
                     if abs(vc) - ext_v <= half_w + margin + delta:
                         uc = c * dx + s * dy
                         s_i = step * i
-                        if threat[r] < 0:
-                            w1, w2 = _band_u_range(uc, vc, cd, sd, hl, hw, half_w + margin)
                         if delta == 0.0:  # straight: one frame is exact
                             u1, u2 = _band_u_range(uc, vc, cd, sd, hl, hw, half_w)
                             if u1 <= u2:
@@ -403,6 +431,7 @@ def _geometry_kernel(ex: F64, ey: F64, eh: F64, v0: F64, tx: F64, ty: F64, th: F
                 if exact:
                     cpx, cpy, cth = px, py, th[r, j]
                     ca, cz, cw1, cw2, cs = a, z, w1, w2, s_i
+                    cvc, cvd = vc, vdot
             lo[r, j] = a
             hi[r, j] = z
             pj = step * j
@@ -423,14 +452,15 @@ def encounter_geometry(ego_x: ArrayLike, ego_y: ArrayLike, ego_heading: ArrayLik
                        tgt_heading: ArrayLike, tgt_speed: ArrayLike, dt: float,
                        target_size: tuple[float, float],
                        ego_body: tuple[float, float, float], threat_margin_m: float,
-                       threat_horizon_s: float) -> Encounter:
+                       threat_horizon_s: float, threat_prediction_s: float = 0.0) -> Encounter:
     """Encounter geometry of (B, T) world-frame planned states: ego rear axle (x, y in m,
     heading in rad, speed in m/s; the speed is taken as constant, ``ego_speed[:, 0]``) and
     target box centre (same units), on a time axis of step ``dt`` s.
 
     ``target_size`` = (length, width), m; ``ego_body`` = (x_front, x_rear, width), m, the
     bumpers relative to the rear axle (``x_rear < 0 < x_front``); ``threat_margin_m``, m,
-    and ``threat_horizon_s``, s, define the threat onset (module docstring)."""
+    and ``threat_horizon_s``, s, define the threat onset, ``threat_prediction_s``, s, its
+    lateral prediction (0: none; module docstring)."""
     ex = np.ascontiguousarray(ego_x, dtype=np.float64)
     if ex.ndim != 2 or ex.shape[1] < 2:
         raise ValueError(f"expected (B, T >= 2) states, got shape {ex.shape}")
@@ -439,8 +469,9 @@ def encounter_geometry(ego_x: ArrayLike, ego_y: ArrayLike, ego_heading: ArrayLik
     length, t_width = (float(v) for v in target_size)
     if not (x_rear < 0.0 < x_front and width > 0.0 and length > 0.0 and t_width > 0.0):
         raise ValueError("need x_rear < 0 < x_front and positive widths and target length")
-    if not (dt > 0.0 and threat_margin_m >= 0.0 and threat_horizon_s >= 0.0):
-        raise ValueError("need dt > 0, threat_margin_m >= 0 and threat_horizon_s >= 0")
+    if not (dt > 0.0 and threat_margin_m >= 0.0 and threat_horizon_s >= 0.0
+            and threat_prediction_s >= 0.0):
+        raise ValueError("need dt > 0 and non-negative threat margin, horizon and prediction")
     arrays = [np.ascontiguousarray(a, dtype=np.float64)
               for a in (ego_y, ego_heading, tgt_x, tgt_y, tgt_heading, tgt_speed)]
     ey, eh, tx, ty, th, tv = arrays
@@ -452,7 +483,7 @@ def encounter_geometry(ego_x: ArrayLike, ego_y: ArrayLike, ego_heading: ArrayLik
     threat = np.empty(b, dtype=np.int64)
     _geometry_kernel(ex, ey, eh, v0, tx, ty, th, 0.5 * length, 0.5 * t_width, x_front,
                      x_rear, 0.5 * width, float(threat_margin_m), float(threat_horizon_s),
-                     float(dt), lo, hi, collide, threat, ttc)
+                     float(threat_prediction_s), float(dt), lo, hi, collide, threat, ttc)
     return Encounter(lo, hi, v0, collide, threat, ttc, eh, th, tv, float(dt))
 
 
@@ -858,7 +889,8 @@ def collision_outcome(ego_x: ArrayLike, ego_y: ArrayLike, ego_heading: ArrayLike
     road's peak friction ``mu`` (scalar or (B,)): deceleration ``min(decel_max, mu g)``."""
     enc = encounter_geometry(ego_x, ego_y, ego_heading, ego_speed, tgt_x, tgt_y,
                              tgt_heading, tgt_speed, dt, target_size, ego_body,
-                             reaction.threat_margin_m, reaction.threat_horizon_s)
+                             reaction.threat_margin_m, reaction.threat_horizon_s,
+                             reaction.threat_prediction_s)
     decel = np.minimum(reaction.decel_max_m_s2, np.asarray(mu, dtype=np.float64) * G_M_S2)
     return enc, reaction_outcome(enc, pd_confirm, n_valid, reaction.confirm_m,
                                  reaction.confirm_n, reaction.latency_s, reaction.jerk_m_s3,
