@@ -150,6 +150,45 @@ def _hidden_by_box(ox: float, oy: float, oz: float, px: float, py: float, pz: fl
     return t0 < t1
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def _sample_in_view(x: float, y: float, z: float, nx: float, ny: float, mount: F64,
+                    lo: F64, hi: F64, check_ego: bool,
+                    prefilter: bool) -> int:  # pragma: no cover - compiled
+    """One sample for one sensor (``_view_kernel``'s tests without the occluders): 0 not
+    facing the mount, 1 facing but out of view (loose field-of-view and range test, the
+    ego's own box), 2 facing and in view."""
+    mx, my, mz = mount[0], mount[1], mount[2]
+    ddx = x - mx
+    ddy = y - my
+    if nx * (-ddx) + ny * (-ddy) <= 0.0:
+        return 0
+    ddz = z - mz
+    if prefilter:
+        r2 = ddx * ddx + ddy * ddy + ddz * ddz
+        if r2 > (mount[10] * (1.0 + 1e-9) + 1e-9) ** 2 or r2 < (mount[9] * (1.0 - 1e-9)) ** 2:
+            return 1
+        cy, sy, cp, sp = mount[3], mount[4], mount[5], mount[6]
+        tan_h, tan2_v, half_h = mount[7], mount[8], mount[11]
+        u = cy * ddx + sy * ddy
+        v = -sy * ddx + cy * ddy
+        xs = cp * u - sp * ddz
+        zs = sp * u + cp * ddz
+        slack = 1e-9 * (abs(xs) + abs(v) + abs(zs)) + 1e-12
+        if tan_h >= 0.0:
+            if not (xs > -slack and abs(v) <= xs * tan_h + slack):
+                return 1
+        elif half_h < math.pi and half_h > 0.5 * math.pi:
+            if xs < -slack and abs(v) < -xs * math.tan(math.pi - half_h) - slack:
+                return 1
+        elif half_h == 0.5 * math.pi and xs < -slack:
+            return 1
+        if tan2_v >= 0.0 and zs * zs > (xs * xs + v * v) * tan2_v * (1.0 + 1e-9) + slack:
+            return 1
+    if check_ego and _hidden_by_box(mx, my, mz, x, y, z, lo, hi):
+        return 1
+    return 2
+
+
 @numba.njit(cache=True, nogil=True)
 def _view_kernel(px: F64, py: F64, pz: F64, nx: F64, ny: F64, near: NDArray[np.int64],
                  mount: F64, lo: F64, hi: F64, check_ego: bool, prefilter: bool,
@@ -167,46 +206,17 @@ def _view_kernel(px: F64, py: F64, pz: F64, nx: F64, ny: F64, near: NDArray[np.i
     how many were written."""
     k = px.shape[1]
     mx, my, mz = mount[0], mount[1], mount[2]
-    cy, sy, cp, sp = mount[3], mount[4], mount[5], mount[6]
-    tan_h, tan2_v = mount[7], mount[8]
-    rmin2 = (mount[9] * (1.0 - 1e-9)) ** 2
-    rmax2 = (mount[10] * (1.0 + 1e-9) + 1e-9) ** 2
-    half_h = mount[11]
-    tan_rear = math.tan(math.pi - half_h) if half_h > 0.5 * math.pi else 0.0
     m = 0
     for q in range(near.size):
         i = near[q]
         nf = 0
         for j in range(k):
-            ddx = px[i, j] - mx
-            ddy = py[i, j] - my
-            if nx[i, j] * (-ddx) + ny[i, j] * (-ddy) <= 0.0:
+            state = _sample_in_view(px[i, j], py[i, j], pz[i, j], nx[i, j], ny[i, j], mount,
+                                    lo, hi, check_ego, prefilter)
+            if state == 0:
                 continue
             nf += 1
-            ddz = pz[i, j] - mz
-            r2 = ddx * ddx + ddy * ddy + ddz * ddz
-            if prefilter and (r2 > rmax2 or r2 < rmin2):
-                continue
-            u = cy * ddx + sy * ddy
-            v = -sy * ddx + cy * ddy
-            xs = cp * u - sp * ddz
-            zs = sp * u + cp * ddz
-            slack = 1e-9 * (abs(xs) + abs(v) + abs(zs)) + 1e-12
-            if not prefilter:
-                pass
-            elif tan_h >= 0.0:
-                if not (xs > -slack and abs(v) <= xs * tan_h + slack):
-                    continue
-            elif half_h < math.pi and half_h > 0.5 * math.pi:
-                if xs < -slack and abs(v) < -xs * tan_rear - slack:
-                    continue
-            elif half_h == 0.5 * math.pi and xs < -slack:
-                continue
-            if prefilter and tan2_v >= 0.0 and (
-                    zs * zs > (xs * xs + v * v) * tan2_v * (1.0 + 1e-9) + slack):
-                continue
-            if check_ego and _hidden_by_box(mx, my, mz, px[i, j], py[i, j], pz[i, j],
-                                            lo, hi):
+            if state == 1:
                 continue
             if occ.shape[1] and hidden_by_boxes(mx, my, mz, px[i, j], py[i, j], pz[i, j],
                                                 occ[i if occ.shape[0] > 1 else 0]):
@@ -215,6 +225,27 @@ def _view_kernel(px: F64, py: F64, pz: F64, nx: F64, ny: F64, near: NDArray[np.i
             m += 1
         n_face[q] = nf
     return m
+
+
+@numba.njit(cache=True, nogil=True)
+def _changes_kernel(px: F64, py: F64, pz: F64, nx: F64, ny: F64, mount: F64, lo: F64,
+                    hi: F64, check_ego: bool, occ: F64,
+                    out: NDArray[np.bool_]) -> None:  # pragma: no cover - compiled
+    """Marks in ``out`` the poses (not yet marked) where an occluder of ``occ`` ((N, M, 7)
+    or (1, M, 7)) hides at least one sample that one sensor would otherwise see
+    (``_sample_in_view`` with the loose prefilter): one pass, stopping at the first."""
+    n, k = px.shape
+    mx, my, mz = mount[0], mount[1], mount[2]
+    for i in range(n):
+        if out[i]:
+            continue
+        boxes = occ[i if occ.shape[0] > 1 else 0]
+        for j in range(k):
+            if _sample_in_view(px[i, j], py[i, j], pz[i, j], nx[i, j], ny[i, j], mount,
+                               lo, hi, check_ego, True) == 2 and hidden_by_boxes(
+                    mx, my, mz, px[i, j], py[i, j], pz[i, j], boxes):
+                out[i] = True
+                break
 
 
 def body_points(body: BodySamples, x: F64, y: F64, psi: F64) -> tuple[F64, F64, F64, F64, F64]:
@@ -302,25 +333,17 @@ def occlusion_changes(scene: Scene, x: F64, y: F64, psi: F64, occluders: F64,
     only (no SNR), so a caller can keep an occlusion-free value where they hide nothing."""
     body = body_samples(scene.target)
     px, py, pz, nx, ny = body_points(body, x, y, psi)
-    n, k = px.shape
-    out = np.zeros(n, dtype=bool)
+    out = np.zeros(px.shape[0], dtype=bool)
     lo, hi = _ego_box(scene)
-    near = np.arange(n, dtype=np.int64)
-    none = np.zeros((1, 0, len(OCC_COLUMNS)))
-    occ = _occ3(occluders, n)
+    occ = _occ3(occluders, px.shape[0])
+    if occ.shape[1] == 0:
+        return out
     for sensor in scene.sensors if sensors is None else sensors:
         m = sensor.mount
         inside = bool(np.all(np.array([m.x, m.y, m.z]) > lo) and np.all(
             np.array([m.x, m.y, m.z]) < hi))
-        mount = _mount_row(sensor)
-        counts = []
-        for boxes in (none, occ):
-            buf = np.empty(n * k, dtype=np.int64)
-            n_face = np.empty(n, dtype=np.int64)
-            cnt = _view_kernel(px, py, pz, nx, ny, near, mount, lo, hi, not inside, True,
-                               boxes, buf, n_face)
-            counts.append(np.bincount(buf[:cnt] // k, minlength=n))
-        out |= counts[1] < counts[0]
+        _changes_kernel(px, py, pz, np.ascontiguousarray(nx), np.ascontiguousarray(ny),
+                        _mount_row(sensor), lo, hi, not inside, occ, out)
     return out
 
 
