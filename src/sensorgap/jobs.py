@@ -38,6 +38,12 @@ from sensorgap.provenance import write_run_info
 from sensorgap.report import write_report
 from sensorgap.roads import read_opendrive
 from sensorgap.scenarios import family_presets
+from sensorgap.search.anchors import (
+    NCAP_FAMILY,
+    evaluate_anchors,
+    ncap_obstructed_cases,
+    write_anchors,
+)
 from sensorgap.search.run import run_search
 
 DEFAULT_SYSTEM = "system_a"
@@ -141,7 +147,9 @@ def run_default(out: Path, workers: int = 2, system_name: str = DEFAULT_SYSTEM,
                 environments: list[str] | None = None) -> dict[str, Any]:
     """The whole pipeline for a vehicle (preset name or .toml path) into
     ``out/<vehicle>/``: coverage maps, near field, far field, search over ``families``
-    and ``environments`` (default: all), export and report; returns run info."""
+    and ``environments`` (default: all), the Euro NCAP anchor cases when their family is
+    searched (``search.anchors``: ``anchors/anchors.csv``), export and report; returns run
+    info."""
     name, ref = vehicle_ref(system_name)
     system = load_system(ref)  # bad input is refused before anything is written
     fams = family_presets() if families is None else list(families)
@@ -161,6 +169,10 @@ def run_default(out: Path, workers: int = 2, system_name: str = DEFAULT_SYSTEM,
     outcome = clock.stage("search", lambda: run_search(
         ref, fams, envs, budget, seed, top, folder, strategy="de",
         progress=False, workers=workers, resume=True))
+    if NCAP_FAMILY in fams:
+        clock.stage("anchors", lambda: write_anchors(evaluate_anchors(
+            system, ncap_obstructed_cases(system.config.vehicle.x_front_m),
+            vehicle_ref=ref), folder / "anchors"))
     clock.stage("export", lambda: export_catalog(folder))
     settings = {"budget": budget, "top": top, "seed": seed, "strategy": "de", "pd": "lookup",
                 "families": fams, "environments": envs,

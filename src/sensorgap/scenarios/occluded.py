@@ -187,9 +187,9 @@ class CrossingBehindParked(Crossing):
     parameters = (
         Param("ego_s0_m", 85.0, 98.0, unit="m"),
         Param("ego_speed_m_s", 2.8, 16.7, unit="m/s"),
-        Param("cross_ahead_m", 15.0, 60.0, unit="m"),
+        Param("cross_ahead_m", 15.0, 80.0, unit="m"),
         Param("target_speed_m_s", 0.8, 2.5, unit="m/s"),
-        Param("conflict_offset_s", -1.0, 1.0, unit="s"),
+        Param("conflict_offset_s", -1.5, 1.0, unit="s"),
         Param("parked_gap_m", 0.8, 3.0, unit="m"),
         Param("side", choices=("right",)),
     )
