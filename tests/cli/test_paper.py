@@ -60,3 +60,22 @@ def test_blind_spots_within_tolerance(paper: tuple[Path, dict[str, Any]]) -> Non
     for r in csv.DictReader((out / "nearfield.csv").open()):
         want = PAPER_BLIND_SPOT_M2[r["system"]]
         assert abs(float(r["blind_spot_m2"]) - want) <= NEARFIELD_TOLERANCE * want, r
+
+
+def test_sensitivity_table(paper: tuple[Path, dict[str, Any]]) -> None:
+    # Every calibrated parameter at both ends of its range: 7 x 2 rows in sensitivity.csv
+    # and paper.md; the detection floor at 0 dB must move some cell (it ends A's Pd > 0
+    # stretch); the near field never changes (no knob enters the fields of view); paper.md
+    # says plainly that agreement is reproduction, not prediction.
+    out, result = paper
+    rows = list(csv.DictReader((out / "sensitivity.csv").open()))
+    assert len(rows) == 14 == len(result["sensitivity"])
+    floor0 = next(r for r in rows if r["parameter"] == "radar/ultrasonic detection floor"
+                  and float(r["value"]) == 0.0)
+    assert abs(float(floor0["max_change_m"])) > 1.0
+    assert all(float(r["nearfield_change_m2"]) == 0.0 for r in rows)
+    gains = [r for r in rows if r["parameter"] == "System B radar antenna gains"]
+    assert all(r["used_by"] == "B" for r in gains)
+    md = (out / "paper.md").read_text()
+    assert "## Sensitivity to the calibrated parameters" in md
+    assert "can reproduce it with plausible parameters, not that it predicts it" in md
