@@ -79,3 +79,14 @@ def test_sensitivity_table(paper: tuple[Path, dict[str, Any]]) -> None:
     md = (out / "paper.md").read_text()
     assert "## Sensitivity to the calibrated parameters" in md
     assert "can reproduce it with plausible parameters, not that it predicts it" in md
+
+
+def test_printed_differences_add_up(paper: tuple[Path, dict[str, Any]]) -> None:
+    # every "ours / paper / diff" cell of paper.md: ours - paper == diff as printed
+    import re
+
+    md = (Path(paper[0]) / "paper.md").read_text()
+    cells = re.findall(r"(-?\d+) / (-?\d+) / ([+-]\d+)", md)
+    assert len(cells) == 20
+    for ours, ref, diff in cells:
+        assert int(ours) - int(ref) == int(diff), (ours, ref, diff)

@@ -210,7 +210,8 @@ def paper_markdown(ours: dict[tuple[str, str], dict[str, float]],
             d = o - p
             worst = max(worst, abs(d))
             flag = "" if abs(d) <= TABLE_IV_TOLERANCE_M else " (!)"
-            row.append(f"{o:.0f} / {p:.0f} / {d:+.0f}{flag}")
+            # the printed difference is that of the printed (rounded) values: they add up
+            row.append(f"{o:.0f} / {p:.0f} / {float(f'{o:.0f}') - p:+.0f}{flag}")
         rows.append(row)
     out += [_md_table(header, rows), "",
             f"Largest difference: {worst:.0f} m "
