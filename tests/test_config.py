@@ -110,7 +110,7 @@ def test_empty_sensor_list(tmp_path: Path) -> None:
 def test_missing_file_and_unknown_preset(tmp_path: Path) -> None:
     with pytest.raises(InputError, match="file not found"):
         load_system(tmp_path / "nope.toml")
-    with pytest.raises(InputError, match=r"--vehicle: unknown preset 'system_z'; presets: "):
+    with pytest.raises(InputError, match=r"^vehicle: unknown preset 'system_z'; presets: "):
         load_system("system_z")
 
 

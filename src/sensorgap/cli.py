@@ -713,6 +713,22 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _flag_sources(exc: InputError, parser: argparse.ArgumentParser) -> None:
+    """Name CLI options where the library names arguments: an error whose source is an
+    option's destination (``environments_file``) is reported as the option
+    (``--environments-file``); files and fields stay as they are."""
+    flags: dict[str, str] = {}
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for sub in action.choices.values():
+                for a in sub._actions:
+                    if a.option_strings and a.dest not in flags:
+                        flags[a.dest] = max(a.option_strings, key=len)
+    for e in (exc, *exc.more):
+        if e.source in flags:
+            e.source = flags[e.source]
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point: returns the exit code (0 ok, 2 bad input, 1 internal error)."""
     parser = build_parser()
@@ -729,6 +745,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return func(args)
     except InputError as exc:
+        _flag_sources(exc, parser)
         for text in exc.lines():  # every error found, one line each
             print(f"sensorgap: error: {text}", file=sys.stderr)
         return EXIT_INPUT

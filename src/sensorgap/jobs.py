@@ -157,7 +157,7 @@ def run_default(out: Path, workers: int = 2, system_name: str = DEFAULT_SYSTEM,
     all_envs = load_environments()
     unknown = [e for e in envs if e not in all_envs]
     if unknown:
-        raise InputError("--environments", "", f"unknown environment preset(s) "
+        raise InputError("environments", "", f"unknown environment preset(s) "
                          f"{', '.join(unknown)}; presets: {', '.join(all_envs)}")
     folder = out / name
     folder.mkdir(parents=True, exist_ok=True)

@@ -10,6 +10,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from sensorgap.cli import main
 
@@ -89,3 +90,19 @@ def test_run_folders_carry_a_manifest(tmp_path: Path) -> None:
     for name, entry in files.items():
         data = (out / name).read_bytes()
         assert entry == {"bytes": len(data), "sha256": hashlib.sha256(data).hexdigest()}
+
+
+def test_library_errors_name_arguments_and_the_cli_names_flags(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    # issue #16: a script calling the library is told about the argument
+    # (``load_target("horse")`` -> "target: ..."), the CLI user about the option
+    from sensorgap.config import load_target
+    from sensorgap.errors import InputError
+
+    with pytest.raises(InputError) as info:
+        load_target("horse")
+    assert info.value.line().startswith("target: unknown target 'horse'")
+    assert main(["search", "--vehicle", "system_b", "--families", "cut_in_right",
+                 "--environments", "clear", "--budget", "0", "--out", "unused"]) == 2
+    err = capsys.readouterr().err
+    assert "sensorgap: error: --budget: must be within" in err

@@ -43,5 +43,5 @@ def test_parse_ok(text: str) -> None:
 
 @pytest.mark.parametrize("text", ["5/3", "0/2", "x/y", "3-5", "60/60"])
 def test_parse_bad(text: str) -> None:
-    with pytest.raises(InputError, match="--detection"):
+    with pytest.raises(InputError, match="^detection: "):
         DetectionRule.parse(text)

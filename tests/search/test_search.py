@@ -219,7 +219,7 @@ def test_cem_concentrates_on_optimum() -> None:
 
 
 @pytest.mark.parametrize(("kw", "match"), [
-    ({"budget": 0}, "--budget"),
+    ({"budget": 0}, "^budget: must be within"),
     ({"environments": ["mars"]}, "unknown environment 'mars'"),
     ({"families": ["nope"]}, "unknown family"),
     ({"strategy": "magic"}, "unknown strategy"),

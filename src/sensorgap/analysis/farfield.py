@@ -95,7 +95,7 @@ def path_ahead(
     xv, _ = world_to_vehicle(pose, path_xy[:, 0], path_xy[:, 1])
     ahead = np.flatnonzero(xv >= x_front)
     if ahead.size == 0:
-        raise InputError("--target-lane", "", "no part of the target lane lies ahead of the ego")
+        raise InputError("target_lane", "", "no part of the target lane lies ahead of the ego")
     i0 = int(ahead[0])
     s0 = cum[i0]
     if i0 > 0:  # interpolate the exact crossing of the front-bumper line
@@ -103,7 +103,7 @@ def path_ahead(
         f = (x_front - a) / (b - a) if b != a else 0.0
         s0 = cum[i0 - 1] + f * seg_len[i0 - 1]
     if cum[-1] - s0 < length_m - 1e-6:
-        raise InputError("--target-lane", "", f"only {cum[-1] - s0:.1f} m of the target lane lie "
+        raise InputError("target_lane", "", f"only {cum[-1] - s0:.1f} m of the target lane lie "
                          f"ahead of the ego; {length_m:g} m needed (choose a smaller ego s)")
     n = max(1, round(length_m / step_m))
     ds = np.full(n, length_m / n, dtype=np.float64)

@@ -113,7 +113,7 @@ def resolve_vehicle_path(name_or_path: str | Path) -> Path:
     preset = templates_dir() / "vehicles" / f"{text}.toml"
     if not preset.is_file():
         raise InputError(
-            "--vehicle",
+            "vehicle",
             "",
             f"unknown preset {text!r}; presets: {', '.join(vehicle_presets())} "
             "(or give a path to a .toml file)",
@@ -159,7 +159,7 @@ def load_environment(name: str, path: Path | None = None) -> EnvironmentConfig:
     """One environment preset by name; unknown names list what is allowed."""
     envs = load_environments(path)
     if name not in envs:
-        raise InputError("--environment", "", f"unknown environment {name!r}; presets: "
+        raise InputError("environment", "", f"unknown environment {name!r}; presets: "
                          f"{', '.join(envs)}")
     return envs[name]
 
@@ -173,6 +173,6 @@ def load_target(name: str, path: Path | None = None) -> TargetConfig:
     """One target class by name."""
     targets = load_targets(path)
     if name not in targets:
-        raise InputError("--target", "", f"unknown target {name!r}; allowed: "
+        raise InputError("target", "", f"unknown target {name!r}; allowed: "
                          f"{', '.join(targets)}")
     return targets[name]

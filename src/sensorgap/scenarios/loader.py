@@ -105,7 +105,7 @@ def resolve_family_path(name_or_path: str) -> Path:
         return Path(name_or_path)
     path = scenarios_dir() / f"{name_or_path}.toml"
     if not path.is_file():
-        raise InputError("--families", "", f"unknown family {name_or_path!r}; families: "
+        raise InputError("families", "", f"unknown family {name_or_path!r}; families: "
                          f"{', '.join(family_presets())} (or a path to a .toml file)")
     return path
 
@@ -224,13 +224,13 @@ def check_fits(family: Family, path: Path | str) -> None:
 def load_families(names: list[str]) -> list[Family]:
     """Load several families (unique names, order kept)."""
     if not names:
-        raise InputError("--families", "", "give at least one family; families: "
+        raise InputError("families", "", "give at least one family; families: "
                          f"{', '.join(family_presets())}")
     families = [load_family(n) for n in dict.fromkeys(names)]
     seen: dict[str, str] = {}
     for f in families:
         if f.name in seen:
-            raise InputError("--families", "", f"two families named {f.name!r} ({seen[f.name]} "
+            raise InputError("families", "", f"two families named {f.name!r} ({seen[f.name]} "
                              f"and {f.source}); family names (file stems) must be unique")
         seen[f.name] = f.source
     return families

@@ -76,12 +76,12 @@ def corridor_search(
         lateral_res: row spacing, m. max_lateral_cells: rows per cycle at most.
     """
     if not (math.isfinite(speed_rel) and speed_rel > 0.0):
-        raise InputError("--speed", "", f"relative speed must be > 0 m/s, got {speed_rel!r}")
+        raise InputError("speed", "", f"relative speed must be > 0 m/s, got {speed_rel!r}")
     if not x_goal > x_start:
-        raise InputError("--goal", "", f"goal x ({x_goal:g}) must lie ahead of start x "
+        raise InputError("goal", "", f"goal x ({x_goal:g}) must lie ahead of start x "
                          f"({x_start:g}) in the direction of motion")
     if not lanes or any(not (lo < hi) for lo, hi in lanes):
-        raise InputError("--lanes", "", "need at least one lateral interval lo < hi (m)")
+        raise InputError("lanes", "", "need at least one lateral interval lo < hi (m)")
     if max(abs(x_start), abs(x_goal)) > MAX_CORRIDOR_X_M:
         raise InputError("corridor", "x_start/x_goal", f"must be within +-"
                          f"{MAX_CORRIDOR_X_M:g} m, got {x_start:g} and {x_goal:g}")
@@ -109,7 +109,7 @@ def corridor_search(
     for lo, hi in lanes:
         on_lane |= (ys >= lo) & (ys <= hi)
     if not on_lane.any():
-        raise InputError("--lanes", "", f"no row of {lateral_res:g} m fits the lanes")
+        raise InputError("lanes", "", f"no row of {lateral_res:g} m fits the lanes")
     rows = np.flatnonzero(on_lane)
     pd = _pd_nodes(scene, xs, ys[rows], h)
     with np.errstate(divide="ignore"):

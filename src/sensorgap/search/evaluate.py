@@ -102,7 +102,7 @@ class DetectionRule:
             m, n = int(parts[0]), int(parts[1])
             if 1 <= m <= n <= 50:
                 return cls(kind="m_of_n", m=m, n=n)
-        raise InputError("--detection", "", f"expected 'cumulative' or M/N with "
+        raise InputError("detection", "", f"expected 'cumulative' or M/N with "
                          f"1 <= M <= N <= 50 (e.g. 3/5), got {text!r}")
 
     def label(self) -> str:

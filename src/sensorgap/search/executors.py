@@ -116,7 +116,7 @@ class DaskExecutor(Executor):
         try:
             from distributed import Client, LocalCluster
         except ImportError:
-            raise InputError("--executor", "", "dask is not installed: pip install "
+            raise InputError("executor", "", "dask is not installed: pip install "
                              "'sensorgap[distributed]'") from None
         self._cluster: Any = None
         try:
@@ -127,7 +127,7 @@ class DaskExecutor(Executor):
                                              processes=True, dashboard_address=None)
                 self.client = Client(self._cluster)
         except (OSError, TimeoutError, ValueError) as exc:
-            raise InputError("--scheduler", "", f"cannot reach the Dask scheduler "
+            raise InputError("scheduler", "", f"cannot reach the Dask scheduler "
                              f"{address!r}: {exc}") from None
         self.workers = max(1, len(self.client.scheduler_info().get("workers", {})) or workers)
 
@@ -157,7 +157,7 @@ def check_scheduler_address(address: str) -> str:
     wss; port 1..65535); anything else -> ``InputError`` before anything is started."""
     m = _ADDRESS.match(address)
     if m is None or not 1 <= int(m.group(1)) <= 65535:
-        raise InputError("--scheduler", "", f"expected a scheduler address like "
+        raise InputError("scheduler", "", f"expected a scheduler address like "
                          f"tcp://host:8786, got {address!r}")
     return address
 
@@ -168,4 +168,4 @@ def make_executor(name: str, scheduler: str | None = None, workers: int = 2) -> 
         return Executor(threads=workers)
     if name == "dask":
         return DaskExecutor(scheduler, workers)
-    raise InputError("--executor", "", f"must be local or dask, got {name!r}")
+    raise InputError("executor", "", f"must be local or dask, got {name!r}")

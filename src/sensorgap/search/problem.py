@@ -238,7 +238,7 @@ class SearchProblem:
     def __init__(self, family: Family, environments: dict[str, EnvironmentConfig],
                  evaluator: Evaluator, sun_search: bool = True) -> None:
         if not environments:
-            raise InputError("--environments", "", "give at least one environment")
+            raise InputError("environments", "", "give at least one environment")
         self.family = family
         self.environments = environments
         self.evaluator = evaluator

@@ -124,31 +124,31 @@ def run_search(vehicle: str | Path, families: list[str], environments: list[str]
     local cluster (``"dask"`` without ``scheduler``); the result does not depend on either.
     """
     if not 1 <= budget <= MAX_BUDGET:
-        raise InputError("--budget", "", f"must be within 1..{MAX_BUDGET}, got {budget}")
+        raise InputError("budget", "", f"must be within 1..{MAX_BUDGET}, got {budget}")
     if not 1 <= workers <= 64:
-        raise InputError("--workers", "", f"must be 1..64, got {workers}")
+        raise InputError("workers", "", f"must be 1..64, got {workers}")
     if top < 1:
-        raise InputError("--top", "", f"must be >= 1, got {top}")
+        raise InputError("top", "", f"must be >= 1, got {top}")
     if get_strategy(strategy) is None:
-        raise InputError("--strategy", "", f"unknown strategy {strategy!r}; allowed: "
+        raise InputError("strategy", "", f"unknown strategy {strategy!r}; allowed: "
                          f"{', '.join(strategy_names())}")
     if mode not in ("lookup", "exact"):
-        raise InputError("--pd", "", f"must be lookup or exact, got {mode!r}")
+        raise InputError("pd", "", f"must be lookup or exact, got {mode!r}")
     if isinstance(seed, bool) or not 0 <= seed <= MAX_SEED:
-        raise InputError("--seed", "", f"must be an integer within 0..{MAX_SEED}, got {seed}")
+        raise InputError("seed", "", f"must be an integer within 0..{MAX_SEED}, got {seed}")
     if scheduler is not None:
         check_scheduler_address(scheduler)
     all_envs = load_environments(environments_file)
     if not environments:
-        raise InputError("--environments", "", "give at least one environment; presets: "
+        raise InputError("environments", "", "give at least one environment; presets: "
                          f"{', '.join(all_envs)}")
     for e in environments:
         if e not in all_envs:
-            raise InputError("--environments", "", f"unknown environment {e!r}; presets: "
+            raise InputError("environments", "", f"unknown environment {e!r}; presets: "
                              f"{', '.join(all_envs)}")
     fams = load_families(families)
     if budget < len(fams):
-        raise InputError("--budget", "", f"budget {budget} is smaller than the number of "
+        raise InputError("budget", "", f"budget {budget} is smaller than the number of "
                          f"families ({len(fams)}); give at least one evaluation per family")
     system = load_system(vehicle)
     envs = {e: all_envs[e] for e in dict.fromkeys(environments)}
@@ -172,7 +172,7 @@ def run_search(vehicle: str | Path, families: list[str], environments: list[str]
     if store.count() and not resume:
         n = store.count()
         store.close()
-        raise InputError("--out", "", f"{out} already holds a search ({n} candidates "
+        raise InputError("out", "", f"{out} already holds a search ({n} candidates "
                          "stored); add --resume to continue it, or use another --out")
     shares = [budget // len(fams) + (1 if i < budget % len(fams) else 0)
               for i in range(len(fams))]

@@ -108,7 +108,7 @@ class Store:
         if row is None:
             self.db.execute("INSERT INTO meta VALUES ('settings', ?)", (text,))
         elif row[0] != text:
-            raise InputError("--out", "", f"{path} holds a search with different settings; "
+            raise InputError("out", "", f"{path} holds a search with different settings; "
                              "use another --out folder (or delete it) to start a new search")
         stored = self.db.execute("SELECT value FROM meta WHERE key = 'inputs'").fetchone()
         old: Any = None
@@ -120,7 +120,7 @@ class Store:
         if old != inputs and self.count():
             changed = sorted(k for k in {*inputs, *(old if isinstance(old, dict) else {})}
                              if not isinstance(old, dict) or old.get(k) != inputs.get(k))
-            raise InputError("--out", "", f"{path} holds results for other input files "
+            raise InputError("out", "", f"{path} holds results for other input files "
                              f"(changed since they were stored: {', '.join(changed)}); "
                              "use another --out folder (or delete it) to start a new search")
         self.db.execute("INSERT OR REPLACE INTO meta VALUES ('inputs', ?)",

@@ -37,12 +37,12 @@ def parse_params(items: list[str], problem: SearchProblem) -> dict[str, ParamVal
     for item in items:
         name, sep, text = item.partition("=")
         if not sep or name not in space:
-            raise InputError("--param", "", f"expected NAME=VALUE with NAME one of "
+            raise InputError("param", "", f"expected NAME=VALUE with NAME one of "
                              f"{', '.join(space)}, got {item!r}")
         p = space[name]
         if p.categorical:
             if text not in p.choices:
-                raise InputError("--param", name, f"must be one of {', '.join(p.choices)}, "
+                raise InputError("param", name, f"must be one of {', '.join(p.choices)}, "
                                  f"got {text!r}")
             out[name] = text
             continue
@@ -51,11 +51,11 @@ def parse_params(items: list[str], problem: SearchProblem) -> dict[str, ParamVal
         except ValueError:
             v = math.nan
         if not math.isfinite(v):
-            raise InputError("--param", name, f"must be a finite number, got {text!r}")
+            raise InputError("param", name, f"must be a finite number, got {text!r}")
         out[name] = v
     missing = [n for n in space if n not in out]
     if missing:
-        raise InputError("--param", "", f"missing {', '.join(missing)} (the family "
+        raise InputError("param", "", f"missing {', '.join(missing)} (the family "
                          f"{problem.family.name!r} needs {', '.join(space)})")
     return out
 
@@ -71,7 +71,7 @@ def parse_sun(text: str | None) -> tuple[float, float] | None:
         az = el = math.nan
     if len(parts) != 2 or not (math.isfinite(az) and math.isfinite(el)) or not (
             0.0 <= az < 360.0 and -90.0 <= el <= 90.0):
-        raise InputError("--sun", "", f"expected AZ/EL in degrees with 0 <= AZ < 360 and "
+        raise InputError("sun", "", f"expected AZ/EL in degrees with 0 <= AZ < 360 and "
                          f"-90 <= EL <= 90, got {text!r}")
     return az, el
 
@@ -83,7 +83,7 @@ def evaluate_candidate(vehicle: str | Path, family: str, environment: str,
     into ``out``; returns the evaluation."""
     envs = load_environments(environments_file)
     if environment not in envs:
-        raise InputError("--environment", "", f"unknown environment {environment!r}; "
+        raise InputError("environment", "", f"unknown environment {environment!r}; "
                          f"presets: {', '.join(envs)}")
     fam = load_families([family])[0]
     system = load_system(vehicle)
@@ -91,7 +91,7 @@ def evaluate_candidate(vehicle: str | Path, family: str, environment: str,
     prob = SearchProblem(fam, {environment: envs[environment]}, ev)
     env_cfg = envs[environment]
     if sun is not None and (env_cfg.sun is None or not env_cfg.sun.visible):
-        raise InputError("--sun", "", f"environment {environment!r} has no visible sun")
+        raise InputError("sun", "", f"environment {environment!r} has no visible sun")
     cand = Candidate(fam.name, environment, sun, parse_params(params, prob))
     res = prob.evaluate(cand, keep_trace=True)
     metrics = {m: (None if not math.isfinite(res.metrics[m]) else res.metrics[m])
