@@ -13,7 +13,8 @@ F64 = NDArray[np.float64]
 
 
 @numba.njit(cache=True, nogil=True)
-def _cos_sin(h: float, h0: float, c0: float, s0: float) -> tuple[float, float]:  # pragma: no cover
+def cos_sin_near(h: float, h0: float, c0: float,
+                 s0: float) -> tuple[float, float]:  # pragma: no cover - compiled
     """cos/sin of angle h, rad, from those of a nearby angle h0 (angle addition with a
     Taylor series of the small difference: error < 1e-18 for |h - h0| < 0.02 rad; sin/cos
     otherwise). Headings change little from one 50 ms step to the next, so this replaces
@@ -47,10 +48,10 @@ def kinematics_kernel(ex: F64, ey: F64, eh: F64, ev: F64, tx: F64, ty: F64, th: 
         st = 0.0
         for k in range(t):
             if eh[r, k] != lh:
-                c, s = _cos_sin(eh[r, k], lh, c, s)
+                c, s = cos_sin_near(eh[r, k], lh, c, s)
                 lh = eh[r, k]
             if th[r, k] != lt:
-                ct, st = _cos_sin(th[r, k], lt, ct, st)
+                ct, st = cos_sin_near(th[r, k], lt, ct, st)
                 lt = th[r, k]
             dx = tx[r, k] - ex[r, k]
             dy = ty[r, k] - ey[r, k]

@@ -89,6 +89,8 @@ import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from sensorgap.search.fastkin import cos_sin_near
+
 if TYPE_CHECKING:
     from sensorgap.config.reaction import ReactionConfig
 
@@ -192,20 +194,6 @@ def _band_u_range(uc: float, vc: float, cd: float, sd: float, hl: float, hw: flo
     umin, umax = _edge_band(u2, v2, u3, v3, band, umin, umax)
     umin, umax = _edge_band(u3, v3, u0, v0, band, umin, umax)
     return umin, umax
-
-
-@numba.njit(cache=True, nogil=True)
-def _cos_sin(h: float, h0: float, c0: float, s0: float) -> tuple[float, float]:  # pragma: no cover
-    """cos/sin of angle h, rad, from those of a nearby angle h0 (angle addition with a
-    Taylor series of the small difference: error < 1e-18 for |h - h0| < 0.02 rad; sin/cos
-    otherwise)."""
-    d = h - h0
-    if abs(d) < 0.02:
-        d2 = d * d
-        sd = d * (1.0 - d2 / 6.0 * (1.0 - d2 / 20.0 * (1.0 - d2 / 42.0)))
-        cd = 1.0 - d2 / 2.0 * (1.0 - d2 / 12.0 * (1.0 - d2 / 30.0))
-        return c0 * cd - s0 * sd, s0 * cd + c0 * sd
-    return math.cos(h), math.sin(h)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -335,7 +323,7 @@ def _geometry_kernel(ex: F64, ey: F64, eh: F64, v0: F64, tx: F64, ty: F64, th: F
                     i -= 1
                 if not done[i]:  # cos/sin of the ego heading, once per sample
                     if eh[r, i] != lh:
-                        lc, ls = _cos_sin(eh[r, i], lh, lc, ls)
+                        lc, ls = cos_sin_near(eh[r, i], lh, lc, ls)
                         lh = eh[r, i]
                     ec[i] = lc
                     es[i] = ls
@@ -358,7 +346,7 @@ def _geometry_kernel(ex: F64, ey: F64, eh: F64, v0: F64, tx: F64, ty: F64, th: F
                 pvc = vc
                 if abs(vc) <= reach + delta or abs(vp) <= reach + delta:
                     if th[r, j] != th_last:
-                        ct, st = _cos_sin(th[r, j], th_last, ct, st)
+                        ct, st = cos_sin_near(th[r, j], th_last, ct, st)
                         th_last = th[r, j]
                     cd = ct * c + st * s
                     sd = st * c - ct * s
@@ -401,7 +389,7 @@ def _geometry_kernel(ex: F64, ey: F64, eh: F64, v0: F64, tx: F64, ty: F64, th: F
                                     for ii in (il, ih):
                                         if not done[ii]:
                                             if eh[r, ii] != lh:
-                                                lc, ls = _cos_sin(eh[r, ii], lh, lc, ls)
+                                                lc, ls = cos_sin_near(eh[r, ii], lh, lc, ls)
                                                 lh = eh[r, ii]
                                             ec[ii] = lc
                                             es[ii] = ls
@@ -781,10 +769,10 @@ def _reaction_kernel(lo: F64, hi: F64, v0: F64, threat: I64, collide: I64, f: F6
                     d = eh[r, i0 + 1] - h
                     h += (x - i0) * (d - 2.0 * math.pi * math.floor(d / (2.0 * math.pi) + 0.5))
                 if h != eh0:
-                    ec0, es0 = _cos_sin(h, eh0, ec0, es0)
+                    ec0, es0 = cos_sin_near(h, eh0, ec0, es0)
                     eh0 = h
                 if th[r, j] != th0:
-                    tc0, ts0 = _cos_sin(th[r, j], th0, tc0, ts0)
+                    tc0, ts0 = cos_sin_near(th[r, j], th0, tc0, ts0)
                     th0 = th[r, j]
                 dvx = vb * ec0 - tv[r, j] * tc0
                 dvy = vb * es0 - tv[r, j] * ts0
