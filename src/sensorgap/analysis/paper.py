@@ -142,12 +142,14 @@ def sensitivity_rows(systems: dict[str, System], setup: FarFieldSetup, net: Road
     """Each calibrated parameter (``analysis.sensitivity.KNOBS``) at both ends of its
     plausible range: the largest change of a Table IV cell against ``ours`` (m) and which
     cell, and the largest change of a blind-spot area (m2, grid of
-    ``nearfield_resolution_m``)."""
+    ``nearfield_resolution_m``; computed only where a knob changes a sensor's mount or
+    field of view, none of today's do: 0 otherwise)."""
     from sensorgap.analysis.nearfield import grid_blind_spots
     from sensorgap.analysis.sensitivity import KNOBS, varied_system
 
-    base_near = {k: grid_blind_spots(s, nearfield_resolution_m).area
-                 for k, s in systems.items()}
+    def base_near(key: str) -> float:
+        return grid_blind_spots(systems[key], nearfield_resolution_m).area
+
     rows: list[dict[str, Any]] = []
     for knob in KNOBS:
         for value in (knob.low, knob.high):
@@ -157,8 +159,10 @@ def sensitivity_rows(systems: dict[str, System], setup: FarFieldSetup, net: Road
                 if varied is None:
                     continue
                 users.append(key)
-                near_d = max(near_d, abs(grid_blind_spots(varied, nearfield_resolution_m)
-                                         .area - base_near[key]))
+                if [x.mount for x in varied.sensors] != [x.mount for x in system.sensors]:
+                    # the blind spots depend on the mounts and fields of view only
+                    near_d = max(near_d, abs(grid_blind_spots(
+                        varied, nearfield_resolution_m).area - base_near(key)))
                 for cond, env_name in CONDITIONS.items():
                     levels = run_farfield(varied, env_name, setup, net)[1].levels_m
                     for level, _ in LEVELS:
