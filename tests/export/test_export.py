@@ -39,8 +39,10 @@ def run_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 @pytest.fixture(scope="module")
 def catalog(run_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The replay-style catalog (timed polylines)."""
     out = tmp_path_factory.mktemp("catalog")
-    assert main(["export", "--run", str(run_dir), "--out", str(out)]) == 0
+    assert main(["export", "--run", str(run_dir), "--out", str(out), "--style",
+                 "replay"]) == 0
     return out
 
 
@@ -60,7 +62,8 @@ needs_esmini = pytest.mark.skipif(
 @pytest.mark.parametrize("version", ["1.0", "1.1", "1.2", "1.3"])
 def test_every_file_passes_its_official_xsd(run_dir: Path, tmp_path: Path,
                                             version: str) -> None:
-    index = export_catalog(run_dir, tmp_path, osc_version=version, coverage=False)
+    index = export_catalog(run_dir, tmp_path, osc_version=version, coverage=False,
+                           style="replay")
     files = sorted((tmp_path / "scenarios").glob("*.xosc"))
     assert len(files) == len(index["scenarios"]) == _ranked(run_dir) >= 3
     for f in files:
@@ -199,7 +202,7 @@ def test_critical_scenarios_generator(run_dir: Path, catalog: Path, tmp_path: Pa
     import sensorgap
 
     assert sensorgap.CriticalScenarios is CriticalScenarios
-    gen = CriticalScenarios(run_dir)
+    gen = CriticalScenarios(run_dir, style="replay")
     made, roads = gen.generate(str(tmp_path))
     assert len(made) == _ranked(run_dir) >= 3 and roads
     ref = json.loads((catalog / "catalog.json").read_text())["scenarios"]
