@@ -95,17 +95,15 @@ def origin_offset(cfg: TargetConfig) -> float:
     return target_origin_offset(cfg)
 
 
-def lane_speed_factor(spec: ScenarioSpec, lane: int, tr: int, s0: float, speed: float,
-                      ) -> float:
-    """Length of ``lane``'s centre line per metre of road s over the stretch an entity
-    starting at ``s0`` covers at ``speed`` (m/s of road s) in the scenario's duration.
-    The plan moves entities along the road's reference line s; OpenSCENARIO speeds are
-    along the lane, which in a curve is longer (outer side) or shorter: the exported speed
-    is the planned one times this factor, so the entity covers the planned s."""
+def lane_speed_factor(spec: ScenarioSpec, lane: int, s0: float, s1: float) -> float:
+    """Length of ``lane``'s centre line per metre of road s between road s ``s0`` and
+    ``s1`` (m). The plan moves entities along the road's reference line s; OpenSCENARIO
+    speeds are along the lane, which in a curve is longer (outer side) or shorter: the
+    exported speed is the planned one times this factor, so the entity covers the planned
+    s over that stretch (to the extent the curvature is uniform along it)."""
     rid = str(spec.family.settings["road_id"])
     length = float(spec.family.network.road(rid).length)
-    s1 = min(max(s0 + tr * speed * spec.family.duration_s, 0.0), length)
-    s0 = min(max(s0, 0.0), length)
+    s0, s1 = (min(max(v, 0.0), length) for v in (s0, s1))
     if abs(s1 - s0) < 1e-6:
         return 1.0
     n = max(2, math.ceil(abs(s1 - s0) / 0.5) + 1)
@@ -113,19 +111,29 @@ def lane_speed_factor(spec: ScenarioSpec, lane: int, tr: int, s0: float, speed: 
     return float(np.sum(np.hypot(np.diff(x), np.diff(y)))) / abs(s1 - s0)
 
 
-def _lane_start(b: _Build, name: str, lane: int, tr: int, ahead: str, speed: str) -> None:
+def _lane_speed(b: _Build, lane: int, speed: str, s0: float, s1: float) -> str | float:
+    """The expression of a planned speed ``speed`` (m/s of road s) as lane speed over the
+    stretch [s0, s1] (see ``lane_speed_factor``)."""
+    f = lane_speed_factor(b.spec, lane, s0, s1)
+    if abs(f - 1.0) < 5e-7:
+        return speed if speed.startswith("$") and " " not in speed else b.p.expr(speed)
+    return b.p.expr(f"({speed}) * {number(f)}")
+
+
+def _lane_start(b: _Build, name: str, lane: int, tr: int, ahead: str, speed: str,
+                until_s: float | None = None) -> float:
     """``name`` starts in ``lane`` ``ahead`` (expression) of the ego's start at ``speed``
-    (expression, m/s of road s; written as lane speed, see ``lane_speed_factor``)."""
+    (expression, m/s of road s; written as lane speed over the stretch it covers in this
+    lane until ``until_s``, default the duration); returns its start s, m."""
     rid = str(b.st["road_id"])
     s_text = f"$ego_s0_m {'+' if tr > 0 else '-'} ({ahead})"
-    f = lane_speed_factor(b.spec, lane, tr, b.p.value(s_text), b.p.value(speed))
-    if abs(f - 1.0) < 5e-7:
-        v: str | float = speed if speed.startswith("$") and " " not in speed else b.p.expr(speed)
-    else:
-        v = b.p.expr(f"({speed}) * {number(f)}")
+    s0 = b.p.value(s_text)
+    until = b.spec.family.duration_s if until_s is None else until_s
+    v = _lane_speed(b, lane, speed, s0, s0 + tr * b.p.value(speed) * until)
     b.init.append((name, xosc.TeleportAction(xosc.LanePosition(b.p.expr(s_text), 0.0, lane,
                                                                rid))))
     b.init.append((name, xosc.AbsoluteSpeedAction(v, _step())))
+    return s0
 
 
 def _step() -> xosc.TransitionDynamics:
@@ -159,14 +167,31 @@ def _gap_trigger(b: _Build, name: str, actor: str, reference: str, gap_expr: str
 
 def _lane_change(b: _Build, actor: str, name: str, lane: int | None, shape: str,
                  duration: str, trigger: xosc.EntityTrigger | xosc.ValueTrigger,
-                 time_s: float, reference: str) -> None:
+                 time_s: float, reference: str,
+                 speed: tuple[str, int, float, float] | None = None) -> None:
     """``actor`` changes into ``lane`` (None: the ego's lane) with ``shape`` over
-    ``duration`` (expression, s) when ``trigger`` fires (planned at ``time_s``)."""
+    ``duration`` (expression, s) when ``trigger`` fires (planned at ``time_s``); with
+    ``speed`` = (planned speed expression, new lane, stretch from s, to s) its lane speed
+    changes with the same shape to the new lane's over the same time."""
     dyn = xosc.TransitionDynamics(shape, xosc.DynamicsDimension.time, duration)
     action = (xosc.RelativeLaneChangeAction(0, EGO, dyn) if lane is None
               else xosc.AbsoluteLaneChangeAction(lane, dyn))
-    b.event(actor, name, action, trigger)
+    ev = b.event(actor, name, action, trigger)
+    if speed is not None:
+        v = _lane_speed(b, speed[1], speed[0], speed[2], speed[3])
+        ev.add_action(f"{name}_lane_speed", xosc.AbsoluteSpeedAction(
+            v, xosc.TransitionDynamics(shape, xosc.DynamicsDimension.time, duration)))
     b.triggers.append(PlannedTrigger(name, actor, reference, time_s))
+
+
+def _after_change(b: _Build, tr: int, s0: float, speed: str, t_start: float,
+                  t_end: float) -> tuple[float, float]:
+    """The road-s stretch an entity starting at ``s0`` at ``speed`` covers from the end of
+    its lane change (``t_start`` + duration = ``t_end``; the start if it ends after the
+    scenario) to the scenario's end."""
+    v, t_total = b.p.value(speed), b.spec.family.duration_s
+    t_from = t_end if t_end < t_total else t_start
+    return s0 + tr * v * t_from, s0 + tr * v * t_total
 
 
 def _declare_shape(b: _Build) -> str:
@@ -187,13 +212,15 @@ def _cut_in(b: _Build) -> None:
     sp, p = b.spec, b.spec.params
     tr = travel_direction(sp.family.network, str(b.st["road_id"]), int(b.st["ego_lane"]))
     off = number(origin_offset(sp.target))
-    _lane_start(b, TARGET, int(b.st["target_lane"]), tr, f"$dx0_m - {off}",
-                "$target_speed_m_s")
+    t_s, t_e = float(p["lc_start_s"]), float(p["lc_start_s"]) + float(p["lc_duration_s"])
+    s0 = _lane_start(b, TARGET, int(b.st["target_lane"]), tr, f"$dx0_m - {off}",
+                     "$target_speed_m_s", t_s)
     gap = f"$dx0_m - {off} + ($target_speed_m_s - $ego_speed_m_s) * $lc_start_s"
     dv = float(p["target_speed_m_s"]) - float(p["ego_speed_m_s"])
     trig = _gap_trigger(b, "cut_in_gap", TARGET, EGO, gap, dv)
     _lane_change(b, TARGET, "cut_in", None, _declare_shape(b), b.p.ref("lc_duration_s"),
-                 trig, float(p["lc_start_s"]), EGO)
+                 trig, t_s, EGO, ("$target_speed_m_s", int(b.st["ego_lane"]),
+                                  *_after_change(b, tr, s0, "$target_speed_m_s", t_s, t_e)))
 
 
 def _cut_in_behind_truck(b: _Build) -> None:
@@ -207,36 +234,43 @@ def _cut_in_behind_truck(b: _Build) -> None:
                 "$truck_speed_m_s")
     half = number(0.5 * truck.length_m + 0.5 * sp.target.length_m - origin_offset(sp.target))
     ahead = f"$truck_dx_m + $target_gap_m + {half}"
-    _lane_start(b, TARGET, side, tr, ahead, "$truck_speed_m_s + $speed_delta_m_s")
+    speed = "$truck_speed_m_s + $speed_delta_m_s"
+    t_s, t_e = float(p["lc_start_s"]), float(p["lc_start_s"]) + float(p["lc_duration_s"])
+    s0 = _lane_start(b, TARGET, side, tr, ahead, speed, t_s)
     gap = f"{ahead} + ($truck_speed_m_s + $speed_delta_m_s - $ego_speed_m_s) * $lc_start_s"
     dv = (float(p["truck_speed_m_s"]) + float(p["speed_delta_m_s"])
           - float(p["ego_speed_m_s"]))
     trig = _gap_trigger(b, "cut_in_gap", TARGET, EGO, gap, dv)
     _lane_change(b, TARGET, "cut_in", None, _declare_shape(b), b.p.ref("lc_duration_s"),
-                 trig, float(p["lc_start_s"]), EGO)
+                 trig, t_s, EGO, (speed, int(b.st["ego_lane"]),
+                                  *_after_change(b, tr, s0, speed, t_s, t_e)))
 
 
 def _overtake(b: _Build) -> None:
     sp, p = b.spec, b.spec.params
     tr = travel_direction(sp.family.network, str(b.st["road_id"]), int(b.st["ego_lane"]))
     off = number(origin_offset(sp.target))
-    _lane_start(b, TARGET, int(b.st["target_lane"]), tr, f"$dx0_m - {off}",
-                "$ego_speed_m_s + $speed_delta_m_s")
+    v0, lane = "$ego_speed_m_s + $speed_delta_m_s", int(b.st["ego_lane"])
+    t_m = (float(p["merge_gap_m"]) - float(p["dx0_m"])) / float(p["speed_delta_m_s"])
+    t_e = t_m + float(p["merge_duration_s"])
+    s0 = _lane_start(b, TARGET, int(b.st["target_lane"]), tr, f"$dx0_m - {off}", v0, t_m)
     trig = _gap_trigger(b, "merge_gap", TARGET, EGO, f"$merge_gap_m - {off}",
                         float(p["speed_delta_m_s"]))
-    t_m = (float(p["merge_gap_m"]) - float(p["dx0_m"])) / float(p["speed_delta_m_s"])
     b.p.values["lane_change_shape"] = "sinusoidal"
+    stretch = _after_change(b, tr, s0, v0, t_m, t_e)
     _lane_change(b, TARGET, "merge", None, b.p.ref("lane_change_shape"),
-                 b.p.ref("merge_duration_s"), trig, t_m, EGO)
+                 b.p.ref("merge_duration_s"), trig, t_m, EGO, (v0, lane, *stretch))
     vf = b.p.value("$ego_speed_m_s - $final_delta_m_s")
-    speed = b.p.expr("$ego_speed_m_s - $final_delta_m_s") if vf > 0.0 else 0.0
+    speed = (_lane_speed(b, lane, "$ego_speed_m_s - $final_delta_m_s", *stretch)
+             if vf > 0.0 else 0.0)
     brake = xosc.AbsoluteSpeedAction(speed, xosc.TransitionDynamics(
         xosc.DynamicsShapes.linear, xosc.DynamicsDimension.rate, b.p.ref("decel_m_s2")))
-    after = xosc.ValueTrigger("merge_done", b.p.ref("brake_delay_s"), xosc.ConditionEdge.none,
-                              xosc.StoryboardElementStateCondition(
-                                  xosc.StoryboardElementType.action, "merge_action",
-                                  xosc.StoryboardElementState.endTransition))
-    b.event(TARGET, "brake", brake, after)
+    # it brakes brake_delay_s after the merge, still at the overtaking speed: at the gap
+    # the merge's gap grows to in (merge_duration_s + brake_delay_s)
+    gap = f"$merge_gap_m - {off} + $speed_delta_m_s * ($merge_duration_s + $brake_delay_s)"
+    trig_b = _gap_trigger(b, "brake_gap", TARGET, EGO, gap, float(p["speed_delta_m_s"]))
+    b.event(TARGET, "brake", brake, trig_b)
+    b.triggers.append(PlannedTrigger("brake", TARGET, EGO, t_e + float(p["brake_delay_s"])))
 
 
 def _slow_ahead(b: _Build) -> None:
@@ -253,8 +287,9 @@ def _cut_out_reveal(b: _Build) -> None:
     lead = load_target(str(b.st["occluder"]))
     name = occluder_name(sp.scenario.occluders[0].label)
     b.entities.append((name, lead))
-    _lane_start(b, name, lane, tr, f"$lead_gap_m - {number(origin_offset(lead))}",
-                "$ego_speed_m_s")
+    t_s, t_e = float(p["cut_out_s"]), float(p["cut_out_s"]) + float(p["lc_duration_s"])
+    s_lead = _lane_start(b, name, lane, tr, f"$lead_gap_m - {number(origin_offset(lead))}",
+                         "$ego_speed_m_s", t_s)
     half = number(0.5 * (lead.length_m + sp.target.length_m) - origin_offset(sp.target))
     reveal = (f"($cut_out_s + $lc_duration_s + $reveal_s) * ($ego_speed_m_s - "
               f"$target_speed_m_s) + {half}")
@@ -266,7 +301,9 @@ def _cut_out_reveal(b: _Build) -> None:
     trig = _gap_trigger(b, "reveal_gap", TARGET, EGO, gap, closing)
     b.p.values["lane_change_shape"] = "sinusoidal"
     _lane_change(b, name, "cut_out", other, b.p.ref("lane_change_shape"),
-                 b.p.ref("lc_duration_s"), trig, float(p["cut_out_s"]), EGO)
+                 b.p.ref("lc_duration_s"), trig, t_s, EGO, (
+                     "$ego_speed_m_s", other,
+                     *_after_change(b, tr, s_lead, "$ego_speed_m_s", t_s, t_e)))
     # the triggering entity is the target (its distance to the ego); the action the lead's
     b.triggers[-1] = PlannedTrigger("cut_out", TARGET, EGO, float(p["cut_out_s"]))
 
@@ -313,7 +350,9 @@ def _crossing(b: _Build) -> None:
     last = min(last, len(path.t) - 1)
     b.init.append((TARGET, xosc.TeleportAction(road_pos(0))))
     b.init.append((TARGET, xosc.AbsoluteSpeedAction(_fmt(float(path.speed[0])), _step())))
-    if t_dep > 0.0 and math.isfinite(t_dep):
+    if math.isinf(t_dep) and t_dep > 0.0:
+        return  # it would leave the footway after the scenario's end: it waits there
+    if t_dep > 0.0:
         first = int(np.searchsorted(path.t, t_dep, side="right"))
         idx = list(range(first, last + 1))
         times = [0.0] + [_fmt(float(path.t[k]) - t_dep) for k in idx]
@@ -375,21 +414,27 @@ def supported(spec: ScenarioSpec) -> bool:
 
 
 def _ego(b: _Build) -> None:
-    """The ego: lane position and speed from the declared parameters; its controller is
-    activated (or left inactive: keep lane and speed) at the first step."""
+    """The ego: lane position from the declared parameters; its controller is activated
+    (or left inactive: keep lane and speed) at the first step."""
     lane = int(b.st.get("ego_lane", b.st.get("lane", 0)))
-    rid = str(b.st["road_id"])
-    tr = travel_direction(b.spec.family.network, rid, lane)
-    f = lane_speed_factor(b.spec, lane, tr, b.p.value("$ego_s0_m"),
-                          b.p.value("$ego_speed_m_s"))
-    speed = (b.p.ref("ego_speed_m_s") if abs(f - 1.0) < 5e-7
-             else b.p.expr(f"$ego_speed_m_s * {number(f)}"))
-    b.init.append((EGO, xosc.TeleportAction(xosc.LanePosition(b.p.ref("ego_s0_m"), 0.0,
-                                                              lane, rid))))
-    b.init.append((EGO, xosc.AbsoluteSpeedAction(speed, _step())))
+    b.init.append((EGO, xosc.TeleportAction(xosc.LanePosition(
+        b.p.ref("ego_s0_m"), 0.0, lane, str(b.st["road_id"])))))
     active = b.p.ref("ego_controller_active")
     b.event(EGO, "ego_controller", xosc.ActivateControllerAction(active, active),
             _after_start("ego_controller_start"))
+
+
+def _ego_speed(b: _Build) -> None:
+    """The ego's speed (after the kind's events are known): ``$ego_speed_m_s`` as lane
+    speed over the stretch up to the first relative trigger (the scenario's end if there
+    is none), so the ego is where the plan has it when the encounter starts."""
+    lane = int(b.st.get("ego_lane", b.st.get("lane", 0)))
+    tr = travel_direction(b.spec.family.network, str(b.st["road_id"]), lane)
+    s0, v = b.p.value("$ego_s0_m"), b.p.value("$ego_speed_m_s")
+    until = min([t.time_s for t in b.triggers if t.time_s > 0.0],
+                default=b.spec.family.duration_s)
+    speed = _lane_speed(b, lane, "$ego_speed_m_s", s0, s0 + tr * v * until)
+    b.init.insert(1, (EGO, xosc.AbsoluteSpeedAction(speed, _step())))
 
 
 def build_maneuver_scenario(spec: ScenarioSpec, road_relpath: str,
@@ -416,6 +461,7 @@ def build_maneuver_scenario(spec: ScenarioSpec, road_relpath: str,
     b.entities.append((TARGET, spec.target))
     _ego(b)
     KINDS[kind](b)
+    _ego_speed(b)
     extra = {k: v for k, v in b.p.values.items() if k not in spec.params}
     extra["ego_controller_active"] = False
 

@@ -187,13 +187,14 @@ def relative_deviation(spec: ScenarioSpec, sim: SimPaths) -> float:
     return worst
 
 
-def trigger_checks(spec: ScenarioSpec, sim: SimPaths, starts: dict[str, float]
-                   ) -> list[tuple[str, float, float]]:
-    """Per relative trigger of the maneuver style: (event, esmini's start minus the plan's,
-    s; distance of the triggering entity's position relative to the reference entity at
-    esmini's start from the plan's relative position at that time, m); an event that never
-    started: (event, inf, inf). (esmini starts an event at the first step its condition
-    holds: up to one step after the planned instant, which the time column shows.)"""
+def trigger_checks(spec: ScenarioSpec, sim: SimPaths, starts: dict[str, float],
+                   step_s: float = DEFAULT_STEP_S) -> list[tuple[str, float, float]]:
+    """Per relative trigger of the maneuver style: (event; esmini's start minus the
+    plan's, s; how far the triggering entity's position relative to the reference entity
+    passed from the plan's relative position at the planned trigger during the step in
+    which esmini's condition became true, m). esmini starts an event at the first step its
+    condition holds, up to one step after the instant it became true; that delay is in
+    the time, not in the geometry. An event that never started: (event, inf, inf)."""
     plans = planned_origins(spec)
     out = []
     for trig in maneuver_triggers(spec):
@@ -202,12 +203,17 @@ def trigger_checks(spec: ScenarioSpec, sim: SimPaths, starts: dict[str, float]
             out.append((trig.event, math.inf, math.inf))
             continue
         a, r = sim.states[trig.actor], sim.states[trig.reference]
-        rel_e = _relative(_pose_at(a[0], a[1], a[2], a[3], t_e),
-                          _pose_at(r[0], r[1], r[2], r[3], t_e))
+        r0, r1 = (_relative(_pose_at(a[0], a[1], a[2], a[3], t), _pose_at(r[0], r[1], r[2],
+                                                                          r[3], t))
+                  for t in (max(t_e - step_s, 0.0), t_e))
         pa, pr = plans[trig.actor], plans[trig.reference]
-        rel_p = _relative(_pose_at(pa.t, pa.x, pa.y, pa.heading, t_e),
-                          _pose_at(pr.t, pr.x, pr.y, pr.heading, t_e))
-        out.append((trig.event, t_e - trig.time_s, float(np.hypot(*(rel_e - rel_p)))))
+        rel_p = _relative(_pose_at(pa.t, pa.x, pa.y, pa.heading, trig.time_s),
+                          _pose_at(pr.t, pr.x, pr.y, pr.heading, trig.time_s))
+        seg = r1 - r0
+        lam = float(np.clip(np.dot(rel_p - r0, seg) / max(float(np.dot(seg, seg)), 1e-18),
+                            0.0, 1.0))
+        out.append((trig.event, t_e - trig.time_s,
+                    float(np.hypot(*(r0 + lam * seg - rel_p)))))
     return out
 
 
@@ -269,7 +275,7 @@ def run_one(esmini: Path, xosc: Path, spec: ScenarioSpec, evaluator: Evaluator,
     to_end = t_end >= end - step_s - 1e-9
     agree = (t_plan is None and t_sim is None) or (
         t_plan is not None and t_sim is not None and abs(t_plan - t_sim) <= step_s + 1e-9)
-    trig = trigger_checks(spec, sim, event_starts(text)) if style == "maneuver" else []
+    trig = trigger_checks(spec, sim, event_starts(text), step_s) if style == "maneuver" else []
     dt_max = max((abs(c[1]) for c in trig), default=0.0)
     rel_max = max((c[2] for c in trig), default=0.0)
     trig_ok = dt_max <= MAX_TRIGGER_DT_S + 1e-9 and rel_max <= MAX_TRIGGER_REL_M
