@@ -7,7 +7,9 @@ actions (docs/export.md, "maneuver style"):
   (``$ego_speed_m_s``), then no motion action: a simulator's default controller keeps lane
   and speed. It carries an ``ObjectController`` ``SystemUnderTest`` (property
   ``esminiController = $ego_controller``) that an event at the first step activates on
-  both domains when ``$ego_controller_active`` is true (default false).
+  the longitudinal and lateral domains given by ``$ego_controller_longitudinal`` and
+  ``$ego_controller_lateral`` (default false: the simulator's default controller keeps
+  lane and speed).
 * The target (and the occluders of issue #17) start at lane positions relative to the
   ego's start (expressions over the declared parameters) with their planned speeds; their
   behaviour is ``LaneChangeAction`` (the family's blend shape and duration),
@@ -43,6 +45,10 @@ SUT_CONTROLLER = "SystemUnderTest"
 DEFAULT_EGO_CONTROLLER = "ExternalController"
 #: OpenSCENARIO dynamics shape per lane-change blend (cosine is esmini's sinusoidal
 #: exactly; the quintic minimum-jerk blend has no counterpart: cubic is the closest).
+#: Declared parameters of the ego's controller (string values as written).
+EGO_CONTROLLER_PARAMETERS: dict[str, str | float] = {
+    "ego_controller": DEFAULT_EGO_CONTROLLER, "ego_controller_longitudinal": "false",
+    "ego_controller_lateral": "false"}
 LANE_CHANGE_SHAPE = {"cosine": "sinusoidal", "quintic": "cubic"}
 
 
@@ -419,8 +425,8 @@ def _ego(b: _Build) -> None:
     lane = int(b.st.get("ego_lane", b.st.get("lane", 0)))
     b.init.append((EGO, xosc.TeleportAction(xosc.LanePosition(
         b.p.ref("ego_s0_m"), 0.0, lane, str(b.st["road_id"])))))
-    active = b.p.ref("ego_controller_active")
-    b.event(EGO, "ego_controller", xosc.ActivateControllerAction(active, active),
+    b.event(EGO, "ego_controller", xosc.ActivateControllerAction(
+        b.p.ref("ego_controller_lateral"), b.p.ref("ego_controller_longitudinal")),
             _after_start("ego_controller_start"))
 
 
@@ -456,14 +462,14 @@ def build_maneuver_scenario(spec: ScenarioSpec, road_relpath: str,
                          f"{', '.join(sorted(KINDS))} (export it with --style replay)")
     minor = set_version(version)
     values: dict[str, str | float] = dict(spec.params)
-    values.update({"ego_controller": DEFAULT_EGO_CONTROLLER, "ego_controller_active": "false"})
+    values.update(EGO_CONTROLLER_PARAMETERS)
     b = _Build(spec, minor, Expressions(values, minor))
     b.entities.append((TARGET, spec.target))
     _ego(b)
     KINDS[kind](b)
     _ego_speed(b)
     extra = {k: v for k, v in b.p.values.items() if k not in spec.params}
-    extra["ego_controller_active"] = False
+    extra.update({"ego_controller_longitudinal": False, "ego_controller_lateral": False})
 
     entities = xosc.Entities()
     props = xosc.Properties()
@@ -511,7 +517,7 @@ def maneuver_triggers(spec: ScenarioSpec) -> list[PlannedTrigger]:
 
     minor = set_version("1.2")
     values: dict[str, str | float] = dict(spec.params)
-    values.update({"ego_controller": DEFAULT_EGO_CONTROLLER, "ego_controller_active": "false"})
+    values.update(EGO_CONTROLLER_PARAMETERS)
     b = _Build(spec, minor, Expressions(values, minor))
     KINDS[spec.family.kind.name](b)
     return b.triggers
