@@ -19,7 +19,7 @@ from lxml import etree
 from sensorgap.cli import main
 from sensorgap.errors import InputError
 from sensorgap.export import export_catalog
-from sensorgap.export.maneuver import planned_origins
+from sensorgap.export.maneuver import LANE_CHANGE_SHAPE, planned_origins
 from sensorgap.export.params import evaluate
 from sensorgap.export.simulate import (
     MAX_TRIGGER_DT_S,
@@ -184,8 +184,7 @@ def test_maneuver_structure(family_run: Path, family_maneuver: Path) -> None:
         if kind in ("cut_in", "cut_in_behind_occluder"):
             dyn = changes[0].find("LaneChangeActionDynamics")
             assert dyn.get("dynamicsShape") == "$lane_change_shape"
-            assert values["lane_change_shape"] == {"cosine": "sinusoidal",
-                                                   "quintic": "cubic"}[str(row["p_shape"])]
+            assert values["lane_change_shape"] == LANE_CHANGE_SHAPE[str(row["p_shape"])]
             assert dyn.get("value") == "$lc_duration_s"
         if kind in ("cut_in", "cut_in_behind_occluder", "overtake", "cut_out_reveal"):
             assert len(changes) == 1
