@@ -169,20 +169,21 @@ def _relative(actor: tuple[float, float, float],
 
 
 def relative_deviation(spec: ScenarioSpec, sim: SimPaths) -> float:
-    """Largest distance (m) of the target's position in the ego's frame, esmini vs plan,
-    at the logged times within the plan."""
+    """Largest distance (m) between esmini's and the plan's position of the target
+    relative to the ego, at the logged times within the plan (both in the planned ego's
+    frame, so a heading difference of a few mrad does not swing a distant target)."""
     plans = planned_origins(spec)
-    te, xe, ye, he = sim.states[EGO][:4]
+    pe, pt = plans[EGO], plans[TARGET]
+    te, xe, ye = sim.states[EGO][:3]
     tt, xt, yt = sim.states[TARGET][:3]
-    keep = te <= plans[EGO].t[-1] + 1e-9
+    keep = te <= pe.t[-1] + 1e-9
     worst = 0.0
     for k in np.flatnonzero(keep):
         t = float(te[k])
+        ego_p = _pose_at(pe.t, pe.x, pe.y, pe.heading, t)
         rel_e = _relative((float(np.interp(t, tt, xt)), float(np.interp(t, tt, yt)), 0.0),
-                          (float(xe[k]), float(ye[k]), float(he[k])))
-        pe, pt = plans[EGO], plans[TARGET]
-        rel_p = _relative(_pose_at(pt.t, pt.x, pt.y, pt.heading, t),
-                          _pose_at(pe.t, pe.x, pe.y, pe.heading, t))
+                          (float(xe[k]), float(ye[k]), ego_p[2]))
+        rel_p = _relative(_pose_at(pt.t, pt.x, pt.y, pt.heading, t), ego_p)
         worst = max(worst, float(np.hypot(*(rel_e - rel_p))))
     return worst
 
@@ -191,7 +192,8 @@ def trigger_checks(spec: ScenarioSpec, sim: SimPaths, starts: dict[str, float],
                    step_s: float = DEFAULT_STEP_S) -> list[tuple[str, float, float]]:
     """Per relative trigger of the maneuver style: (event; esmini's start minus the
     plan's, s; how far the triggering entity's position relative to the reference entity
-    passed from the plan's relative position at the planned trigger during the step in
+    (in the reference's own frame, as the condition sees it) passed from the plan's
+    relative position at the planned trigger during the step in
     which esmini's condition became true, m). esmini starts an event at the first step its
     condition holds, up to one step after the instant it became true; that delay is in
     the time, not in the geometry. An event that never started: (event, inf, inf)."""
