@@ -1,4 +1,6 @@
-"""The test catalog of a vehicle: one OpenSCENARIO file per ranked scenario plus its road.
+"""The test catalog of a vehicle: one OpenSCENARIO file per ranked scenario plus its road,
+in the ``maneuver`` style (default; ``export.maneuver``) or the ``replay`` style
+(``export.xosc``).
 
 Layout of ``DIR`` (a search run folder, or ``--out``):
 

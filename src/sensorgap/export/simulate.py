@@ -6,10 +6,12 @@ a fixed step (``--fixed_timestep``, default 0.05 s = the sensor cycle) under a h
 limit enforced here (esmini has none), its CSV log (``--csv_logger``) is parsed, and
 ``simulation.csv`` gets per scenario: whether it ran cleanly and to the scenario's end,
 the largest deviation of the simulated ego and target positions from the planned ones at
-the same times (<= 0.5 m), esmini's first collision (``--collision``) next to the plan's
-(agreeing within one step), and the fused Pd and risk re-evaluated along the simulated
-paths next to the planned values. One scenario's failure (missing file, crash, timeout)
-is reported in its row; the others still run.
+the same times (<= 0.5 m), esmini's first collision of ego and target (``--collision``)
+next to the plan's (agreeing within one step), for the maneuver style each relative
+trigger's start and relative geometry next to the plan's (<= 0.1 s, <= 0.5 m), and the
+fused Pd and risk re-evaluated along the simulated paths next to the planned values. One
+scenario's failure (missing file, crash, timeout) is reported in its row; the others still
+run.
 """
 
 from __future__ import annotations

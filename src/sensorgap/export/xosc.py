@@ -1,17 +1,19 @@
-"""One ranked scenario as an OpenSCENARIO file (scenariogeneration objects, 1.0 to 1.3).
+"""One ranked scenario as an OpenSCENARIO file (scenariogeneration objects, 1.0 to 1.3):
+the ``replay`` style, and the parts both styles share (entities, environment, parameter
+declarations, FileHeader); the ``maneuver`` style is ``export.maneuver``.
 
-Mapping (docs/export.md):
+Replay mapping (docs/export.md):
 
 * Entities: ``Ego`` (the vehicle's body from its vehicle file; reference point = rear-axle
   centre on the ground, the sensorgap vehicle frame) and ``Target`` (car/truck: Vehicle,
   bike: Vehicle of category bicycle, pedestrian: Pedestrian), bounding boxes from the
-  vehicle and target files; the target's reference point is its centre.
+  vehicle and target files; the target's origin is its rear axle (pedestrians: centre).
 * Init: TeleportAction to the first state (WorldPosition x, y, heading) and the initial
   speed (AbsoluteTargetSpeed, step).
 * Manoeuvres: FollowTrajectoryAction with the evaluated 20 Hz states as a timed Polyline
   (absolute timing, following mode ``position``) for both entities, so a player reproduces
-  exactly the evaluated paths. (A LaneChangeAction would only approximate the cosine /
-  quintic lane-change blends and the lane-table geometry, so it is not used.)
+  exactly the evaluated paths; the act starts at time > 0, after the init actions (an
+  earlier start overrides them: esmini's "conflicting domain" warnings).
 * Environment: the evaluated conditions: Sun (world azimuth clockwise from north,
   elevation; intensity = direct irradiance x 105 lm/W, an estimate of the luminous
   efficacy of direct sunlight), Fog visualRange = visibility, Precipitation (rain or snow,
