@@ -388,3 +388,25 @@ def test_a_builtin_controller_drives_the_ego(family_run: Path, family_maneuver: 
         assert ego[4].min() <= target[4].max() + 1.0  # ... down to the car's speed
         braked += 1
     assert braked >= 1
+
+
+def test_semantic_checks_see_a_crossing_path_off_the_road(family_run: Path,
+                                                          family_maneuver: Path,
+                                                          tmp_path: Path) -> None:
+    """The maneuver style's crossing path (road positions with expressions) is resolved
+    and checked against the road like the replay style's world positions."""
+    from sensorgap.export.validate import semantic_errors
+    from sensorgap.roads import read_opendrive
+
+    row = next(r for r in _rows(family_run) if r["family"] == "crossing_pedestrian")
+    src = family_maneuver / "scenarios" / f"{row['scenario_id']}.xosc"
+    tree = etree.parse(str(src))
+    assert tree.find(".//Trajectory//RoadPosition") is not None
+    net = read_opendrive(family_maneuver / "roads" / "urban_junction.xodr")
+    assert semantic_errors(src, net, {}, tolerance_by_path={"Target_crossing": 5.5}) == []
+    vertex = list(tree.find(".//Trajectory").iter("RoadPosition"))[-1]
+    vertex.set("t", str(float(vertex.get("t")) + 40.0))
+    tree.write(str(tmp_path / "off.xosc"))
+    errs = semantic_errors(tmp_path / "off.xosc", net, {},
+                           tolerance_by_path={"Target_crossing": 5.5})
+    assert any("Target_crossing leaves the road" in e for e in errs)

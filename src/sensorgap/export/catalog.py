@@ -143,7 +143,9 @@ def export_catalog(run_dir: Path, out_dir: Path | None = None,
             raise ExportError(f"{path}: not valid OpenSCENARIO {osc_version}: {errs[0]}")
         vru = sp.target.name in ("pedestrian", "bike")
         sem = semantic_errors(path, nets[road_src.name], _lanes(sp),
-                              tolerance_by_path={"Target_path": FOOTWAY_M} if vru else None)
+                              tolerance_by_path={"Target_path": FOOTWAY_M,
+                                                 "Target_crossing": FOOTWAY_M}
+                              if vru else None)
         if sem:
             raise ExportError(f"{path}: {sem[0]}")
         files[f"scenarios/{path.name}"] = {"role": "scenario", "scenario_id": sp.scenario_id}

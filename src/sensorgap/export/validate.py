@@ -78,8 +78,17 @@ def semantic_errors(xosc_path: Path, net: RoadNetwork, lanes: dict[str, list[int
         for lane in ids:
             if not net.lane_exists(road_id, lane):
                 errors.append(f"lane {lane} does not exist on road {road_id}")
+    values = declared_parameters(tree)
     for traj in tree.iter("Trajectory"):
         pts = [(float(p.get("x")), float(p.get("y"))) for p in traj.iter("WorldPosition")]
+        for rp in traj.iter("RoadPosition"):  # the maneuver style's crossings
+            try:
+                s = float(evaluate(str(rp.get("s")), values))
+                t = float(evaluate(str(rp.get("t")), values))
+                xr, yr, hr = net.reference_line(str(rp.get("roadId")), s)
+            except (ExpressionError, ValueError, KeyError):
+                continue  # reported by parameter_errors / the lane check
+            pts.append((xr - t * float(np.sin(hr)), yr + t * float(np.cos(hr))))
         if not pts:
             continue
         xy = np.array(pts)
