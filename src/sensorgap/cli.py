@@ -376,8 +376,13 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     ok = sum(1 for r in rows if r.get("status") == "ok")
     within = sum(1 for r in rows if r.get("within_0p5m") == "yes")
     coll = sum(1 for r in rows if r.get("collision_agrees") == "yes")
+    trig = [r for r in rows if r.get("trigger_agrees")]
+    trig_ok = sum(1 for r in trig if r["trigger_agrees"] == "yes")
+    triggers = (f", {trig_ok}/{len(trig)} with their relative triggers within 0.1 s / 0.5 m "
+                "of the plan" if trig else "")
     print(f"{args.catalog}: {ok}/{len(rows)} ran cleanly to the end, {within} within 0.5 m "
-          f"of the plan, {coll} with the plan's collision outcome (esmini --collision)")
+          f"of the plan, {coll} with the plan's collision outcome (esmini --collision)"
+          f"{triggers}")
     for r in rows:
         if r.get("status") != "ok":
             print(f"  {r['scenario_id']}: {r['status']}: {r.get('message', '')}")
