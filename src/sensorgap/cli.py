@@ -365,9 +365,10 @@ def cmd_export(args: argparse.Namespace) -> int:
     from sensorgap.export import export_catalog
 
     out = Path(args.out) if args.out else None
-    index = export_catalog(Path(args.run), out, osc_version=args.osc_version, top=args.top)
-    print(f"{out or args.run}: {len(index['scenarios'])} scenarios, OpenSCENARIO "
-          f"{args.osc_version}, every file XSD-valid")
+    index = export_catalog(Path(args.run), out, osc_version=args.osc_version, top=args.top,
+                           style=args.style)
+    print(f"{out or args.run}: {len(index['scenarios'])} scenarios, {args.style} style, "
+          f"OpenSCENARIO {args.osc_version}, every file XSD-valid")
     return 0
 
 
@@ -381,8 +382,13 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     ok = sum(1 for r in rows if r.get("status") == "ok")
     within = sum(1 for r in rows if r.get("within_0p5m") == "yes")
     coll = sum(1 for r in rows if r.get("collision_agrees") == "yes")
+    trig = [r for r in rows if r.get("trigger_agrees")]
+    trig_ok = sum(1 for r in trig if r["trigger_agrees"] == "yes")
+    triggers = (f", {trig_ok}/{len(trig)} with their relative triggers within 0.1 s / 0.5 m "
+                "of the plan" if trig else "")
     print(f"{args.catalog}: {ok}/{len(rows)} ran cleanly to the end, {within} within 0.5 m "
-          f"of the plan, {coll} with the plan's collision outcome (esmini --collision)")
+          f"of the plan, {coll} with the plan's collision outcome (esmini --collision)"
+          f"{triggers}")
     for r in rows:
         if r.get("status") != "ok":
             print(f"  {r['scenario_id']}: {r['status']}: {r.get('message', '')}")
@@ -651,6 +657,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--osc-version", default="1.2", choices=["1.0", "1.1", "1.2", "1.3"],
                    help="OpenSCENARIO version")
     p.add_argument("--top", type=int, help="export only the first N ranked scenarios")
+    p.add_argument("--style", default="maneuver", choices=["maneuver", "replay"],
+                   help="maneuver: actions started relative to the ego, for a system under "
+                   "test (default); replay: the evaluated paths as timed polylines")
     p.set_defaults(func=cmd_export)
 
     p = sub.add_parser("simulate", help="run a catalog in esmini and compare the paths")

@@ -15,14 +15,10 @@ from lxml import etree
 
 from sensorgap.cli import main
 from sensorgap.export import CriticalScenarios, export_catalog
-from sensorgap.export.simulate import MAX_DEVIATION_M, find_esmini
+from sensorgap.export.simulate import MAX_DEVIATION_M
 from sensorgap.export.validate import semantic_errors, xsd_errors
 from sensorgap.roads import read_opendrive
-from sensorgap.search.run import run_search
-
-FAMILIES = ["cut_in_left", "overtake_left", "slow_ahead_curve", "crossing_pedestrian",
-            "crossing_cyclist"]
-ENVS = ["clear", "glare_front_right", "fog_50", "rain_25", "snow"]
+from tests.export.conftest import ESMINI, needs_esmini
 
 
 def _ranked(run: Path) -> int:
@@ -30,37 +26,11 @@ def _ranked(run: Path) -> int:
     return len(json.loads((run / "ranking.json").read_text())["ranking"])
 
 
-@pytest.fixture(scope="module")
-def run_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    out = tmp_path_factory.mktemp("run")
-    run_search("system_b", FAMILIES, ENVS, 500, 2, 6, out, strategy="lhs", progress=False)
-    return out
-
-
-@pytest.fixture(scope="module")
-def catalog(run_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
-    out = tmp_path_factory.mktemp("catalog")
-    assert main(["export", "--run", str(run_dir), "--out", str(out)]) == 0
-    return out
-
-
-def _esmini() -> Path | None:
-    try:
-        return find_esmini(None)
-    except Exception:  # noqa: BLE001 - absent: the esmini tests skip
-        return None
-
-
-ESMINI = _esmini()
-needs_esmini = pytest.mark.skipif(
-    ESMINI is None, reason="esmini is not installed (set SENSORGAP_ESMINI or put esmini on "
-    "PATH); it is not on any package registry, CI has none")
-
-
 @pytest.mark.parametrize("version", ["1.0", "1.1", "1.2", "1.3"])
 def test_every_file_passes_its_official_xsd(run_dir: Path, tmp_path: Path,
                                             version: str) -> None:
-    index = export_catalog(run_dir, tmp_path, osc_version=version, coverage=False)
+    index = export_catalog(run_dir, tmp_path, osc_version=version, coverage=False,
+                           style="replay")
     files = sorted((tmp_path / "scenarios").glob("*.xosc"))
     assert len(files) == len(index["scenarios"]) == _ranked(run_dir) >= 3
     for f in files:
@@ -199,7 +169,7 @@ def test_critical_scenarios_generator(run_dir: Path, catalog: Path, tmp_path: Pa
     import sensorgap
 
     assert sensorgap.CriticalScenarios is CriticalScenarios
-    gen = CriticalScenarios(run_dir)
+    gen = CriticalScenarios(run_dir, style="replay")
     made, roads = gen.generate(str(tmp_path))
     assert len(made) == _ranked(run_dir) >= 3 and roads
     ref = json.loads((catalog / "catalog.json").read_text())["scenarios"]

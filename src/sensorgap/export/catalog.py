@@ -1,4 +1,6 @@
-"""The test catalog of a vehicle: one OpenSCENARIO file per ranked scenario plus its road.
+"""The test catalog of a vehicle: one OpenSCENARIO file per ranked scenario plus its road,
+in the ``maneuver`` style (default; ``export.maneuver``) or the ``replay`` style
+(``export.xosc``).
 
 Layout of ``DIR`` (a search run folder, or ``--out``):
 
@@ -29,6 +31,7 @@ from sensorgap.config import load_target
 from sensorgap.coverage import GridSpec, Scene, evaluate_grid
 from sensorgap.coverage.plot import coverage_figure, save_figure
 from sensorgap.errors import InputError
+from sensorgap.export.maneuver import build_maneuver_scenario, supported
 from sensorgap.export.spec import ScenarioSpec, read_run, specs_of_run
 from sensorgap.export.validate import FOOTWAY_M, semantic_errors, xsd_errors
 from sensorgap.export.xosc import DEFAULT_VERSION, VERSIONS, build_scenario
@@ -36,6 +39,10 @@ from sensorgap.filesio import write_json, write_manifest, write_npz
 from sensorgap.models import Conditions
 from sensorgap.roads import read_opendrive
 
+#: Export styles: ``maneuver`` (actions started relative to the ego, for a system under
+#: test; default) and ``replay`` (the evaluated 20 Hz states as timed polylines).
+STYLES = ("maneuver", "replay")
+DEFAULT_STYLE = "maneuver"
 #: Grid of the coverage maps written into the catalog (vehicle frame, m).
 CATALOG_GRID = (-120.0, 260.0, -40.0, 40.0, 0.5)
 
@@ -54,10 +61,12 @@ def _lanes(spec: ScenarioSpec) -> dict[str, list[int]]:
     return {str(st["road_id"]): lanes}
 
 
-def write_xosc(spec: ScenarioSpec, path: Path, road_rel: str, version: str) -> None:
-    """One scenario's OpenSCENARIO file (atomically), its road referenced as ``road_rel``
-    (relative to the file)."""
-    sc = build_scenario(spec, road_rel, version)
+def write_xosc(spec: ScenarioSpec, path: Path, road_rel: str, version: str,
+               style: str = DEFAULT_STYLE) -> None:
+    """One scenario's OpenSCENARIO file (atomically) in ``style``, its road referenced as
+    ``road_rel`` (relative to the file)."""
+    sc = (build_scenario(spec, road_rel, version) if style == "replay"
+          else build_maneuver_scenario(spec, road_rel, version)[0])
     with atomic_path(path) as tmp:
         sc.write_xml(str(tmp), prettyprint=True)
 
@@ -88,8 +97,11 @@ def _coverage_maps(specs: list[ScenarioSpec], out: Path) -> list[Path]:
 
 def export_catalog(run_dir: Path, out_dir: Path | None = None,
                    osc_version: str = DEFAULT_VERSION, top: int | None = None,
-                   coverage: bool = True) -> dict[str, Any]:
-    """Write the catalog of a search run (see the module docstring); returns the index."""
+                   coverage: bool = True, style: str = DEFAULT_STYLE) -> dict[str, Any]:
+    """Write the catalog of a search run in ``style`` (see the module docstring); returns
+    the index."""
+    if style not in STYLES:
+        raise InputError("--style", "", f"must be one of {', '.join(STYLES)}, got {style!r}")
     if osc_version not in VERSIONS:
         raise InputError("--osc-version", "", f"must be one of {', '.join(VERSIONS)}, "
                          f"got {osc_version!r}")
@@ -98,6 +110,12 @@ def export_catalog(run_dir: Path, out_dir: Path | None = None,
     run = read_run(Path(run_dir))
     out = Path(out_dir) if out_dir is not None else run.folder
     specs = specs_of_run(run, top)
+    if style == "maneuver":
+        for sp in specs:
+            if not supported(sp):
+                raise InputError("--style", "", f"family {sp.family.name} (kind "
+                                 f"{sp.family.kind.name}) has no maneuver form; use "
+                                 "--style replay")
     (out / "scenarios").mkdir(parents=True, exist_ok=True)
     (out / "roads").mkdir(parents=True, exist_ok=True)
     if out.resolve() != run.folder.resolve():
@@ -119,13 +137,15 @@ def export_catalog(run_dir: Path, out_dir: Path | None = None,
                 raise ExportError(f"{road_dst}: not valid OpenDRIVE 1.7: {errs[0]}")
             files[f"roads/{road_src.name}"] = {"role": "road"}
         path = out / "scenarios" / f"{sp.scenario_id}.xosc"
-        write_xosc(sp, path, f"../roads/{road_src.name}", osc_version)
+        write_xosc(sp, path, f"../roads/{road_src.name}", osc_version, style)
         errs = xsd_errors(path, osc_version)
         if errs:
             raise ExportError(f"{path}: not valid OpenSCENARIO {osc_version}: {errs[0]}")
         vru = sp.target.name in ("pedestrian", "bike")
         sem = semantic_errors(path, nets[road_src.name], _lanes(sp),
-                              tolerance_by_path={"Target_path": FOOTWAY_M} if vru else None)
+                              tolerance_by_path={"Target_path": FOOTWAY_M,
+                                                 "Target_crossing": FOOTWAY_M}
+                              if vru else None)
         if sem:
             raise ExportError(f"{path}: {sem[0]}")
         files[f"scenarios/{path.name}"] = {"role": "scenario", "scenario_id": sp.scenario_id}
@@ -156,7 +176,7 @@ def export_catalog(run_dir: Path, out_dir: Path | None = None,
         p = out / rel
         meta.update({"bytes": p.stat().st_size, "sha256": _sha(p)})
     index = {"vehicle": specs[0].system.name if specs else run.vehicle_ref,
-             "vehicle_ref": run.vehicle_ref, "osc_version": osc_version,
+             "vehicle_ref": run.vehicle_ref, "osc_version": osc_version, "style": style,
              "scenarios": scenarios, "files": files,
              "search_settings": run.settings}
     write_json(out / "catalog.json", index)

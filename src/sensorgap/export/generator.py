@@ -8,7 +8,8 @@ moved). Any searched parameter can be overridden for a re-sweep, e.g.
 ``gen = CriticalScenarios(run); gen.parameters = {"rank": [1], "ego_speed_m_s": [20, 25]}``;
 the trajectories are then regenerated with the family's generator and the files named
 ``<scenario_id>_<k>.xosc``. ``scenario(**params)`` returns the OpenSCENARIO object as
-any ScenarioGenerator does.
+any ScenarioGenerator does. ``style`` is the export style (``maneuver``, the default, or
+``replay``), as ``sensorgap export --style``.
 """
 
 from __future__ import annotations
@@ -21,7 +22,8 @@ from typing import Any
 from scenariogeneration import ScenarioGenerator, xosc
 
 from sensorgap.atomic import atomic_path
-from sensorgap.export.catalog import write_xosc
+from sensorgap.export.catalog import DEFAULT_STYLE, STYLES, write_xosc
+from sensorgap.export.maneuver import build_maneuver_scenario
 from sensorgap.export.spec import ScenarioSpec, read_run
 from sensorgap.export.xosc import DEFAULT_VERSION, build_scenario
 from sensorgap.models import load_system
@@ -31,8 +33,11 @@ class CriticalScenarios(ScenarioGenerator):
     """The critical scenarios of a search run as a scenariogeneration generator."""
 
     def __init__(self, run_dir: str | Path, osc_version: str = DEFAULT_VERSION,
-                 top: int | None = None) -> None:
+                 top: int | None = None, style: str = DEFAULT_STYLE) -> None:
         super().__init__()
+        if style not in STYLES:
+            raise ValueError(f"style must be one of {', '.join(STYLES)}, got {style!r}")
+        self.style = style
         self.run = read_run(Path(run_dir))
         self.system = load_system(self.run.vehicle_ref)
         rows = self.run.rows if top is None else self.run.rows[:top]
@@ -53,7 +58,9 @@ class CriticalScenarios(ScenarioGenerator):
         rank = kwargs.pop("rank")
         sp = self.spec(rank, **kwargs)
         self.road_file = str(sp.road_path)
-        return build_scenario(sp, str(sp.road_path), self.osc_version)
+        if self.style == "replay":
+            return build_scenario(sp, str(sp.road_path), self.osc_version)
+        return build_maneuver_scenario(sp, str(sp.road_path), self.osc_version)[0]
 
     def generate(self, generation_folder: str, override_parameters: Any = None,
                  write_relative_road_path: bool = True) -> tuple[list[str], list[str]]:
@@ -83,6 +90,7 @@ class CriticalScenarios(ScenarioGenerator):
                 road_files.append(str(road))
             name = f"{sp.scenario_id}_{k}" if sweep else sp.scenario_id
             path = out / "scenarios" / f"{name}.xosc"
-            write_xosc(sp, path, f"../roads/{sp.road_path.name}", self.osc_version)
+            write_xosc(sp, path, f"../roads/{sp.road_path.name}", self.osc_version,
+                       self.style)
             scenario_files.append(str(path))
         return scenario_files, road_files

@@ -6,22 +6,25 @@ a fixed step (``--fixed_timestep``, default 0.05 s = the sensor cycle) under a h
 limit enforced here (esmini has none), its CSV log (``--csv_logger``) is parsed, and
 ``simulation.csv`` gets per scenario: whether it ran cleanly and to the scenario's end,
 the largest deviation of the simulated ego and target positions from the planned ones at
-the same times (<= 0.5 m), esmini's first collision (``--collision``) next to the plan's
-(agreeing within one step), and the fused Pd and risk re-evaluated along the simulated
-paths next to the planned values. One scenario's failure (missing file, crash, timeout)
-is reported in its row; the others still run.
+the same times (<= 0.5 m), esmini's first collision of ego and target (``--collision``)
+next to the plan's (agreeing within one step), for the maneuver style each relative
+trigger's start and relative geometry next to the plan's (<= 0.1 s, <= 0.5 m), and the
+fused Pd and risk re-evaluated along the simulated paths next to the planned values. One
+scenario's failure (missing file, crash, timeout) is reported in its row; the others still
+run.
 """
 
 from __future__ import annotations
 
 import json
+import math
 import os
 import re
 import shutil
 import subprocess
 import tempfile
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -31,6 +34,7 @@ from numpy.typing import NDArray
 from sensorgap.atomic import atomic_write_bytes
 from sensorgap.config import load_target
 from sensorgap.errors import InputError
+from sensorgap.export.maneuver import maneuver_triggers, occluder_name, planned_origins
 from sensorgap.export.spec import ScenarioSpec, read_run
 from sensorgap.export.xosc import EGO, TARGET, origin_path, target_origin_offset
 from sensorgap.models import load_system
@@ -45,9 +49,15 @@ F64 = NDArray[np.float64]
 MAX_DEVIATION_M = 0.5
 DEFAULT_TIMEOUT_S = 60.0
 DEFAULT_STEP_S = 0.05
-COLUMNS = ["scenario_id", "rank", "status", "message", "ran_to_end", "end_time_s",
-           "max_dev_ego_m", "max_dev_target_m", "within_0p5m", "collision_planned_s",
-           "collision_esmini_s", "collision_agrees", "mean_pd_planned", "mean_pd_simulated",
+#: Largest acceptable difference of a maneuver-style trigger from the plan: its time, s,
+#: and the relative position (triggering entity in the reference entity's frame), m.
+MAX_TRIGGER_DT_S = 0.1
+MAX_TRIGGER_REL_M = 0.5
+COLUMNS = ["scenario_id", "rank", "style", "status", "message", "ran_to_end", "end_time_s",
+           "max_dev_ego_m", "max_dev_target_m", "max_dev_relative_m", "within_0p5m",
+           "collision_planned_s", "collision_esmini_s", "collision_agrees", "triggers",
+           "trigger_max_dt_s",
+           "trigger_max_rel_dev_m", "trigger_agrees", "mean_pd_planned", "mean_pd_simulated",
            "log10_risk_planned", "log10_risk_simulated", "esmini_wall_s"]
 
 
@@ -105,7 +115,11 @@ def _deviation(planned: Trajectory, t: F64, x: F64, y: F64) -> float:
     return float(np.max(np.hypot(x[keep] - px, y[keep] - py))) if keep.any() else float("inf")
 
 
-def _simulated_scenario(sim: SimPaths, planned: Scenario) -> Scenario:
+def _simulated_scenario(sim: SimPaths, planned: Scenario,
+                        occluder_class: str | None = None) -> Scenario:
+    """The scenario esmini played: ego and target (and the occluders the file has as
+    entities, the maneuver style) from the log at the planned times; occluders the file
+    does not have (the replay style) stay where the plan has them."""
     def traj(name: str, ref: Trajectory) -> Trajectory:
         t, x, y, h, v = sim.states[name]
         tt = ref.t
@@ -114,18 +128,104 @@ def _simulated_scenario(sim: SimPaths, planned: Scenario) -> Scenario:
 
     # esmini logs each entity's origin: the target's rear axle -> back to its box centre
     ahead = target_origin_offset(load_target(planned.target_class))
+    occs = []
+    for occ in planned.occluders:
+        name = occluder_name(occ.label)
+        if name in sim.states and occluder_class is not None:
+            back = target_origin_offset(load_target(occluder_class))
+            occ = replace(occ, path=origin_path(traj(name, occ.path), -back))
+        occs.append(occ)
     return Scenario(traj(EGO, planned.ego),
-                    origin_path(traj(TARGET, planned.target), -ahead), planned.target_class)
+                    origin_path(traj(TARGET, planned.target), -ahead), planned.target_class,
+                    tuple(occs))
 
 
-#: esmini's log line of the first contact of two entities (``--collision``).
-COLLISION_RE = re.compile(r"\[(\d+(?:\.\d+)?)\] \[\w+\] Collision between \w+ and \w+")
+#: esmini's log line of the first contact of the ego and the target (``--collision``;
+#: contacts with occluders are not collisions of the plan).
+COLLISION_RE = re.compile(r"\[(\d+(?:\.\d+)?)\] \[\w+\] Collision between "
+                          rf"(?:{EGO} and {TARGET}|{TARGET} and {EGO})\b")
+#: esmini's log line of an event starting.
+EVENT_START_RE = re.compile(r"^\[(-?\d+(?:\.\d+)?)\] \[\w+\] (\S+) standbyState -> "
+                            r"startTransition -> runningState", re.M)
+
+
+def event_starts(text: str) -> dict[str, float]:
+    """First start time (s) of every storyboard element in an esmini text log."""
+    out: dict[str, float] = {}
+    for m in EVENT_START_RE.finditer(text):
+        out.setdefault(m.group(2), float(m.group(1)))
+    return out
+
+
+def _pose_at(t: F64, x: F64, y: F64, h: F64, at: float) -> tuple[float, float, float]:
+    return (float(np.interp(at, t, x)), float(np.interp(at, t, y)),
+            float(np.interp(at, t, h)))
+
+
+def _relative(actor: tuple[float, float, float],
+              ref: tuple[float, float, float]) -> F64:
+    """``actor``'s position in ``ref``'s frame (longitudinal, lateral), m."""
+    dx, dy = actor[0] - ref[0], actor[1] - ref[1]
+    c, s = math.cos(ref[2]), math.sin(ref[2])
+    return np.array([c * dx + s * dy, -s * dx + c * dy])
+
+
+def relative_deviation(spec: ScenarioSpec, sim: SimPaths) -> float:
+    """Largest distance (m) between esmini's and the plan's position of the target
+    relative to the ego, at the logged times within the plan (both in the planned ego's
+    frame, so a heading difference of a few mrad does not swing a distant target)."""
+    plans = planned_origins(spec)
+    pe, pt = plans[EGO], plans[TARGET]
+    te, xe, ye = sim.states[EGO][:3]
+    tt, xt, yt = sim.states[TARGET][:3]
+    keep = te <= pe.t[-1] + 1e-9
+    worst = 0.0
+    for k in np.flatnonzero(keep):
+        t = float(te[k])
+        ego_p = _pose_at(pe.t, pe.x, pe.y, pe.heading, t)
+        rel_e = _relative((float(np.interp(t, tt, xt)), float(np.interp(t, tt, yt)), 0.0),
+                          (float(xe[k]), float(ye[k]), ego_p[2]))
+        rel_p = _relative(_pose_at(pt.t, pt.x, pt.y, pt.heading, t), ego_p)
+        worst = max(worst, float(np.hypot(*(rel_e - rel_p))))
+    return worst
+
+
+def trigger_checks(spec: ScenarioSpec, sim: SimPaths, starts: dict[str, float],
+                   step_s: float = DEFAULT_STEP_S) -> list[tuple[str, float, float]]:
+    """Per relative trigger of the maneuver style: (event; esmini's start minus the
+    plan's, s; how far the triggering entity's position relative to the reference entity
+    (in the reference's own frame, as the condition sees it) passed from the plan's
+    relative position at the planned trigger during the step in
+    which esmini's condition became true, m). esmini starts an event at the first step its
+    condition holds, up to one step after the instant it became true; that delay is in
+    the time, not in the geometry. An event that never started: (event, inf, inf)."""
+    plans = planned_origins(spec)
+    out = []
+    for trig in maneuver_triggers(spec):
+        t_e = starts.get(trig.event)
+        if t_e is None or trig.actor not in sim.states or trig.reference not in sim.states:
+            out.append((trig.event, math.inf, math.inf))
+            continue
+        a, r = sim.states[trig.actor], sim.states[trig.reference]
+        r0, r1 = (_relative(_pose_at(a[0], a[1], a[2], a[3], t), _pose_at(r[0], r[1], r[2],
+                                                                          r[3], t))
+                  for t in (max(t_e - step_s, 0.0), t_e))
+        pa, pr = plans[trig.actor], plans[trig.reference]
+        rel_p = _relative(_pose_at(pa.t, pa.x, pa.y, pa.heading, trig.time_s),
+                          _pose_at(pr.t, pr.x, pr.y, pr.heading, trig.time_s))
+        seg = r1 - r0
+        lam = float(np.clip(np.dot(rel_p - r0, seg) / max(float(np.dot(seg, seg)), 1e-18),
+                            0.0, 1.0))
+        out.append((trig.event, t_e - trig.time_s,
+                    float(np.hypot(*(r0 + lam * seg - rel_p)))))
+    return out
 
 
 def run_one(esmini: Path, xosc: Path, spec: ScenarioSpec, evaluator: Evaluator,
-            timeout_s: float, step_s: float) -> dict[str, Any]:
-    """Simulate one scenario; a row of ``simulation.csv``."""
-    row: dict[str, Any] = {"scenario_id": spec.scenario_id, "rank": spec.rank}
+            timeout_s: float, step_s: float, style: str = "replay") -> dict[str, Any]:
+    """Simulate one scenario of an export ``style``; a row of ``simulation.csv``."""
+    row: dict[str, Any] = {"scenario_id": spec.scenario_id, "rank": spec.rank,
+                           "style": style}
     with tempfile.TemporaryDirectory(prefix="sensorgap-esmini-") as tmp:
         log = Path(tmp) / "log.csv"
         text_log = Path(tmp) / "esmini.txt"
@@ -153,36 +253,53 @@ def run_one(esmini: Path, xosc: Path, spec: ScenarioSpec, evaluator: Evaluator,
                 raise ValueError(f"entities in the log: {', '.join(sim.states)}")
         except ValueError as exc:
             return {**row, "status": "bad log", "message": str(exc)[:300]}
-        hit = (COLLISION_RE.search(text_log.read_text(encoding="utf-8", errors="replace"))
-               if text_log.is_file() else None)
+        text = (text_log.read_text(encoding="utf-8", errors="replace")
+                if text_log.is_file() else "")
+        hit = COLLISION_RE.search(text)
     planned = spec.scenario
     dev_e = _deviation(planned.ego, *sim.states[EGO][:3])
     # the target's logged origin is its rear axle (vehicles): compare with that point's plan
     dev_t = _deviation(origin_path(planned.target, target_origin_offset(spec.target)),
                        *sim.states[TARGET][:3])
-    sc_sim = _simulated_scenario(sim, planned)
+    occ_class = spec.family.settings.get("occluder")
+    sc_sim = _simulated_scenario(sim, planned, None if occ_class is None else str(occ_class))
     tr_p = evaluator.trace(planned, spec.environment, spec.family.duration_s)
     tr_s = evaluator.trace(sc_sim, spec.environment, spec.family.duration_s)
     m_p, m_s = compute_all(tr_p), compute_all(tr_s)
-    ok = max(dev_e, dev_t) <= MAX_DEVIATION_M
+    dev_r = relative_deviation(spec, sim)
+    ok = max(dev_e, dev_t, dev_r) <= MAX_DEVIATION_M
     # ran to the end: the log reaches the scenario's duration (a StopTrigger that fires
-    # earlier, or a crash mid-run, is a failure)
+    # earlier, or a crash mid-run, is a failure); the maneuver style's StopTrigger ends the
+    # run at the ego's collision with the target, which is its end then
     t_end = float(sim.states[EGO][0][-1]) if len(sim.states[EGO][0]) else 0.0
-    to_end = t_end >= spec.family.duration_s - step_s - 1e-9
     t_plan = float(tr_p.t[-1]) if tr_p.collided else None
     t_sim = float(hit.group(1)) if hit else None
+    end = (t_sim if style == "maneuver" and t_sim is not None
+           else spec.family.duration_s)
+    to_end = t_end >= end - step_s - 1e-9
     agree = (t_plan is None and t_sim is None) or (
         t_plan is not None and t_sim is not None and abs(t_plan - t_sim) <= step_s + 1e-9)
+    trig = trigger_checks(spec, sim, event_starts(text), step_s) if style == "maneuver" else []
+    dt_max = max((abs(c[1]) for c in trig), default=0.0)
+    rel_max = max((c[2] for c in trig), default=0.0)
+    trig_ok = dt_max <= MAX_TRIGGER_DT_S + 1e-9 and rel_max <= MAX_TRIGGER_REL_M
     msgs = [m for m, bad in (("path deviates by more than 0.5 m", not ok),
                              (f"stopped at {t_end:g} s before the end", not to_end),
-                             ("collision differs from the plan", not agree)) if bad]
+                             ("collision differs from the plan", not agree),
+                             ("a trigger differs from the plan by more than 0.1 s / 0.5 m",
+                              not trig_ok)) if bad]
     return {**row, "status": "ok" if to_end else "stopped early", "message": "; ".join(msgs),
             "ran_to_end": "yes" if to_end else "no", "end_time_s": round(t_end, 3),
             "max_dev_ego_m": round(dev_e, 4), "max_dev_target_m": round(dev_t, 4),
+            "max_dev_relative_m": round(dev_r, 4),
             "within_0p5m": "yes" if ok else "no",
             "collision_planned_s": "" if t_plan is None else round(t_plan, 3),
             "collision_esmini_s": "" if t_sim is None else round(t_sim, 3),
             "collision_agrees": "yes" if agree else "no",
+            "triggers": " ".join(f"{e}:{dt:+.3f}s/{d:.3f}m" for e, dt, d in trig),
+            "trigger_max_dt_s": round(dt_max, 4) if trig else "",
+            "trigger_max_rel_dev_m": round(rel_max, 4) if trig else "",
+            "trigger_agrees": ("yes" if trig_ok else "no") if trig else "",
             "mean_pd_planned": round(m_p["mean_pd"], 6),
             "mean_pd_simulated": round(m_s["mean_pd"], 6),
             "log10_risk_planned": round(m_p["log10_risk"], 4),
@@ -226,6 +343,7 @@ def simulate_catalog(catalog: Path, esmini: str | None = None,
                          "message": "scenario not in ranking.json"})
             continue
         spec = ScenarioSpec.from_row(by_id[sid], system, catalog / "ranking.json")
-        rows.append(run_one(exe, xosc, spec, evaluator, timeout_s, step_s))
+        rows.append(run_one(exe, xosc, spec, evaluator, timeout_s, step_s,
+                            str(index.get("style", "replay"))))
     atomic_write_bytes(catalog / "simulation.csv", ranking_csv(rows, COLUMNS))
     return rows

@@ -11,6 +11,7 @@ import numpy as np
 import scenariogeneration
 from lxml import etree
 
+from sensorgap.export.params import ExpressionError, evaluate
 from sensorgap.roads import RoadNetwork
 from sensorgap.scenarios.kinds import FOOTWAY_M as CROSSING_FOOTWAY_M
 
@@ -63,7 +64,7 @@ def semantic_errors(xosc_path: Path, net: RoadNetwork, lanes: dict[str, list[int
     ``tolerance_m`` of its lanes, or the trajectory's own tolerance in
     ``tolerance_by_path``, e.g. ``FOOTWAY_M`` for a crossing pedestrian)."""
     tree = etree.parse(str(xosc_path))
-    errors = []
+    errors = parameter_errors(tree)
     names = {e.get("name") for e in tree.iter("ScenarioObject")}
     for tag in ("PrivateAction", "Private", "Actors"):
         for el in tree.iter(tag):
@@ -77,14 +78,47 @@ def semantic_errors(xosc_path: Path, net: RoadNetwork, lanes: dict[str, list[int
         for lane in ids:
             if not net.lane_exists(road_id, lane):
                 errors.append(f"lane {lane} does not exist on road {road_id}")
+    values = declared_parameters(tree)
     for traj in tree.iter("Trajectory"):
         pts = [(float(p.get("x")), float(p.get("y"))) for p in traj.iter("WorldPosition")]
+        for rp in traj.iter("RoadPosition"):  # the maneuver style's crossings
+            try:
+                s = float(evaluate(str(rp.get("s")), values))
+                t = float(evaluate(str(rp.get("t")), values))
+                xr, yr, hr = net.reference_line(str(rp.get("roadId")), s)
+            except (ExpressionError, ValueError, KeyError):
+                continue  # reported by parameter_errors / the lane check
+            pts.append((xr - t * float(np.sin(hr)), yr + t * float(np.cos(hr))))
         if not pts:
             continue
         xy = np.array(pts)
         off = _off_road_m(net, xy)
         if off > (tolerance_by_path or {}).get(str(traj.get("name")), tolerance_m):
             errors.append(f"trajectory {traj.get('name')} leaves the road by {off:.2f} m")
+    return errors
+
+
+def declared_parameters(tree: etree._ElementTree) -> dict[str, str]:
+    """The file's global ParameterDeclarations: name -> value (as written)."""
+    decl = tree.find("ParameterDeclarations")
+    return {str(p.get("name")): str(p.get("value"))
+            for p in ([] if decl is None else decl.iter("ParameterDeclaration"))}
+
+
+def parameter_errors(tree: etree._ElementTree) -> list[str]:
+    """Every ``$name`` reference and ``${...}`` expression in an attribute resolves with
+    the declared parameters (one line per attribute that does not)."""
+    values = declared_parameters(tree)
+    errors = []
+    for el in tree.iter():
+        if el.tag == "ParameterDeclaration" or not isinstance(el.tag, str):
+            continue
+        for key, value in el.attrib.items():
+            if "$" in value:
+                try:
+                    evaluate(value, values)
+                except ExpressionError as exc:
+                    errors.append(f"{el.tag}@{key}: {exc}")
     return errors
 
 

@@ -1,17 +1,19 @@
-"""One ranked scenario as an OpenSCENARIO file (scenariogeneration objects, 1.0 to 1.3).
+"""One ranked scenario as an OpenSCENARIO file (scenariogeneration objects, 1.0 to 1.3):
+the ``replay`` style, and the parts both styles share (entities, environment, parameter
+declarations, FileHeader); the ``maneuver`` style is ``export.maneuver``.
 
-Mapping (docs/export.md):
+Replay mapping (docs/export.md):
 
 * Entities: ``Ego`` (the vehicle's body from its vehicle file; reference point = rear-axle
   centre on the ground, the sensorgap vehicle frame) and ``Target`` (car/truck: Vehicle,
   bike: Vehicle of category bicycle, pedestrian: Pedestrian), bounding boxes from the
-  vehicle and target files; the target's reference point is its centre.
+  vehicle and target files; the target's origin is its rear axle (pedestrians: centre).
 * Init: TeleportAction to the first state (WorldPosition x, y, heading) and the initial
   speed (AbsoluteTargetSpeed, step).
 * Manoeuvres: FollowTrajectoryAction with the evaluated 20 Hz states as a timed Polyline
   (absolute timing, following mode ``position``) for both entities, so a player reproduces
-  exactly the evaluated paths. (A LaneChangeAction would only approximate the cosine /
-  quintic lane-change blends and the lane-table geometry, so it is not used.)
+  exactly the evaluated paths; the act starts at time > 0, after the init actions (an
+  earlier start overrides them: esmini's "conflicting domain" warnings).
 * Environment: the evaluated conditions: Sun (world azimuth clockwise from north,
   elevation; intensity = direct irradiance x 105 lm/W, an estimate of the luminous
   efficacy of direct sunlight), Fog visualRange = visibility, Precipitation (rain or snow,
@@ -90,7 +92,7 @@ def _follow(name: str, tr: Trajectory) -> xosc.FollowTrajectoryAction:
                                        xosc.ReferenceContext.absolute, 1.0, 0.0)
 
 
-def _ego_entity(spec: ScenarioSpec) -> xosc.Vehicle:
+def ego_entity(spec: ScenarioSpec) -> xosc.Vehicle:
     body = spec.system.config.vehicle
     bb = xosc.BoundingBox(body.width_m, body.length_m, body.height_m,
                           _fmt(0.5 * (body.x_front_m + body.x_rear_m)), 0.0,
@@ -101,22 +103,23 @@ def _ego_entity(spec: ScenarioSpec) -> xosc.Vehicle:
                         _fmt(body.max_speed_m_s), 10.0, 10.0)
 
 
-def _target_entity(spec: ScenarioSpec) -> xosc.Vehicle | xosc.Pedestrian:
-    t = spec.target
+def actor_entity(name: str, t: TargetConfig) -> xosc.Vehicle | xosc.Pedestrian:
+    """A target or occluder of class ``t`` as entity ``name``: its origin at the rear axle
+    (pedestrians: the box centre), the bounding box centre ``target_origin_offset`` ahead."""
     d = target_origin_offset(t)  # origin at the rear axle: the box centre is d ahead
     bb = xosc.BoundingBox(t.width_m, t.length_m, t.height_m, _fmt(d), 0.0, 0.5 * t.height_m)
     if t.name == "pedestrian":
-        return xosc.Pedestrian(TARGET, 80.0, xosc.PedestrianCategory.pedestrian, bb,
+        return xosc.Pedestrian(name, 80.0, xosc.PedestrianCategory.pedestrian, bb,
                                model="pedestrian")
     category = {"bike": xosc.VehicleCategory.bicycle,
                 "truck": xosc.VehicleCategory.truck}.get(t.name, xosc.VehicleCategory.car)
     wheel = 0.6 if t.name == "bike" else 0.8
     front = xosc.Axle(0.5, wheel, _fmt(0.85 * t.width_m), _fmt(2.0 * d), wheel / 2)
     rear = xosc.Axle(0.0, wheel, _fmt(0.85 * t.width_m), 0.0, wheel / 2)
-    return xosc.Vehicle(TARGET, category, bb, front, rear, _fmt(t.max_speed_m_s), 10.0, 10.0)
+    return xosc.Vehicle(name, category, bb, front, rear, _fmt(t.max_speed_m_s), 10.0, 10.0)
 
 
-def _environment(spec: ScenarioSpec, minor: int) -> xosc.Environment:
+def environment(spec: ScenarioSpec, minor: int) -> xosc.Environment:
     env = spec.environment
     sun = env.sun
     intensity = 0.0
@@ -160,13 +163,10 @@ def description(spec: ScenarioSpec) -> str:
             f"{spec.environment_name}{sun}, target {spec.target.name}; {vals}")
 
 
-def build_scenario(spec: ScenarioSpec, road_relpath: str,
-                   version: str = DEFAULT_VERSION) -> xosc.Scenario:
-    """The OpenSCENARIO object of one ranked scenario."""
-    minor = VERSIONS[version]
-    # scenariogeneration keeps the target version in a class attribute that its objects
-    # consult when built (enumerations of newer versions raise); set it before building
-    VersionBase().setVersion(1, minor)
+def declarations(spec: ScenarioSpec,
+                 extra: dict[str, str | float] | None = None) -> xosc.ParameterDeclarations:
+    """Every searched parameter with its value, the environment and the sun, then
+    ``extra`` (parameters of the maneuver style) in their order."""
     params = xosc.ParameterDeclarations()
     for name, value in spec.params.items():
         if isinstance(value, str):
@@ -181,12 +181,46 @@ def build_scenario(spec: ScenarioSpec, road_relpath: str,
                                             repr(spec.sun_deg[0])))
         params.add_parameter(xosc.Parameter("sun_elevation_deg", xosc.ParameterType.double,
                                             repr(spec.sun_deg[1])))
+    for name, value in (extra or {}).items():
+        if isinstance(value, bool):
+            params.add_parameter(xosc.Parameter(name, xosc.ParameterType.boolean,
+                                                str(value).lower()))
+        elif isinstance(value, str):
+            params.add_parameter(xosc.Parameter(name, xosc.ParameterType.string, value))
+        else:
+            params.add_parameter(xosc.Parameter(name, xosc.ParameterType.double,
+                                                repr(float(value))))
+    return params
+
+
+def set_version(version: str) -> int:
+    """Set scenariogeneration's target version (a class attribute its objects consult
+    when built: enumerations of newer versions raise) and return the minor."""
+    minor = VERSIONS[version]
+    VersionBase().setVersion(1, minor)
+    return minor
+
+
+def assemble(spec: ScenarioSpec, params: xosc.ParameterDeclarations,
+             entities: xosc.Entities, storyboard: xosc.StoryBoard, road_relpath: str,
+             minor: int) -> xosc.Scenario:
+    """The Scenario object with our FileHeader (description, author, fixed date)."""
+    return xosc.Scenario(description(spec), "sensorgap", params, entities, storyboard,
+                         xosc.RoadNetwork(roadfile=road_relpath), xosc.Catalog(),
+                         osc_minor_version=minor, creation_date=CREATION_DATE)
+
+
+def build_scenario(spec: ScenarioSpec, road_relpath: str,
+                   version: str = DEFAULT_VERSION) -> xosc.Scenario:
+    """The OpenSCENARIO object of one ranked scenario in the ``replay`` style."""
+    minor = set_version(version)
+    params = declarations(spec)
     entities = xosc.Entities()
-    entities.add_scenario_object(EGO, _ego_entity(spec))
-    entities.add_scenario_object(TARGET, _target_entity(spec))
+    entities.add_scenario_object(EGO, ego_entity(spec))
+    entities.add_scenario_object(TARGET, actor_entity(TARGET, spec.target))
 
     init = xosc.Init()
-    init.add_global_action(xosc.EnvironmentAction(_environment(spec, minor)))
+    init.add_global_action(xosc.EnvironmentAction(environment(spec, minor)))
     step = xosc.TransitionDynamics(xosc.DynamicsShapes.step, xosc.DynamicsDimension.time, 0.0)
     # the ego's states are of its rear axle already; the target's of its box centre
     paths = ((EGO, spec.scenario.ego),
@@ -197,7 +231,7 @@ def build_scenario(spec: ScenarioSpec, road_relpath: str,
         init.add_init_action(name, xosc.AbsoluteSpeedAction(_fmt(float(tr.speed[0])), step))
 
     start = xosc.ValueTrigger("start", 0.0, xosc.ConditionEdge.none,
-                              xosc.SimulationTimeCondition(-1.0, xosc.Rule.greaterThan))
+                              xosc.SimulationTimeCondition(0.0, xosc.Rule.greaterThan))
     story = xosc.Story("critical_scenario")
     act = xosc.Act("follow_evaluated_paths", start)
     for name, tr in paths:
@@ -218,6 +252,4 @@ def build_scenario(spec: ScenarioSpec, road_relpath: str,
         "stop")
     sb = xosc.StoryBoard(init, stop)
     sb.add_story(story)
-    return xosc.Scenario(description(spec), "sensorgap", params, entities, sb,
-                         xosc.RoadNetwork(roadfile=road_relpath), xosc.Catalog(),
-                         osc_minor_version=minor, creation_date=CREATION_DATE)
+    return assemble(spec, params, entities, sb, road_relpath, minor)
