@@ -83,12 +83,15 @@ def find_scenarios(vehicle: str | Path, out: str | Path, families: str | Sequenc
 
 
 def export_catalog(run: str | Path, out: str | Path | None = None, osc_version: str = "1.2",
-           top: int | None = None) -> dict[str, Any]:
-    """The OpenSCENARIO + OpenDRIVE catalog of a search run (XSD-validated); returns the
-    catalog index (``catalog.json``)."""
+                   top: int | None = None, style: str = "maneuver") -> dict[str, Any]:
+    """The OpenSCENARIO + OpenDRIVE catalog of a search run (XSD-validated) in ``style``
+    (``maneuver``: actions on triggers relative to the ego, a replaceable ego controller;
+    ``replay``: timed trajectories; docs/export.md); returns the catalog index
+    (``catalog.json``)."""
     from sensorgap.export import export_catalog as _export
 
-    return _export(Path(run), None if out is None else Path(out), osc_version, top)
+    return _export(Path(run), None if out is None else Path(out), osc_version, top,
+                   style=style)
 
 
 def write_report(run: str | Path) -> tuple[Path, Path]:

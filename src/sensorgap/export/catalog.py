@@ -101,19 +101,19 @@ def export_catalog(run_dir: Path, out_dir: Path | None = None,
     """Write the catalog of a search run in ``style`` (see the module docstring); returns
     the index."""
     if style not in STYLES:
-        raise InputError("--style", "", f"must be one of {', '.join(STYLES)}, got {style!r}")
+        raise InputError("style", "", f"must be one of {', '.join(STYLES)}, got {style!r}")
     if osc_version not in VERSIONS:
-        raise InputError("--osc-version", "", f"must be one of {', '.join(VERSIONS)}, "
+        raise InputError("osc_version", "", f"must be one of {', '.join(VERSIONS)}, "
                          f"got {osc_version!r}")
     if top is not None and top < 1:
-        raise InputError("--top", "", f"must be >= 1, got {top}")
+        raise InputError("top", "", f"must be >= 1, got {top}")
     run = read_run(Path(run_dir))
     out = Path(out_dir) if out_dir is not None else run.folder
     specs = specs_of_run(run, top)
     if style == "maneuver":
         for sp in specs:
             if not supported(sp):
-                raise InputError("--style", "", f"family {sp.family.name} (kind "
+                raise InputError("style", "", f"family {sp.family.name} (kind "
                                  f"{sp.family.kind.name}) has no maneuver form; use "
                                  "--style replay")
     (out / "scenarios").mkdir(parents=True, exist_ok=True)
