@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+BASH = shutil.which("bash") or "/bin/bash"
 #: Flags this machine needs (no sandbox in containers, no GPU, no network chatter).
 FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
          "--disable-background-networking", "--disable-component-update", "--disable-sync",
@@ -31,12 +32,15 @@ class Browser:
         to_r, to_w = os.pipe()      # we write commands, the browser reads fd 3
         from_r, from_w = os.pipe()  # the browser writes fd 4, we read replies
         self.timeout_s = timeout_s
-        # the shell puts the pipe ends on the descriptors Chromium expects (3 and 4)
-        self.proc = subprocess.Popen(
-            ["sh", "-c", f'exec "$0" "$@" 3<&{to_r} 4>&{from_w}', CHROMIUM, *FLAGS,
-             f"--user-data-dir={self.profile}", "--remote-debugging-pipe", "about:blank"],
-            stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-            pass_fds=(to_r, from_w))
+        # bash puts the pipe ends on the descriptors Chromium expects (3 and 4); dash
+        # (sh) cannot redirect descriptors above 9
+        self.log = Path(self.profile + ".log")
+        with self.log.open("wb") as log:
+            self.proc = subprocess.Popen(
+                [BASH, "-c", f'exec "$0" "$@" 3<&{to_r} 4>&{from_w}', CHROMIUM, *FLAGS,
+                 f"--user-data-dir={self.profile}", "--remote-debugging-pipe",
+                 "about:blank"],
+                stdin=subprocess.DEVNULL, stdout=log, stderr=log, pass_fds=(to_r, from_w))
         os.close(to_r)
         os.close(from_w)
         self._w = os.fdopen(to_w, "wb", buffering=0)
@@ -54,7 +58,9 @@ class Browser:
         while b"\0" not in self._buf:
             chunk = self._r.read(1 << 20)
             if not chunk:
-                raise RuntimeError("chromium closed the DevTools pipe")
+                tail = self.log.read_text(errors="replace").splitlines()[-15:]
+                raise RuntimeError("chromium closed the DevTools pipe; its last output:\n"
+                                   + "\n".join(tail))
             self._buf += chunk
         msg, self._buf = self._buf.split(b"\0", 1)
         out: dict[str, Any] = json.loads(msg)
@@ -133,6 +139,7 @@ class Browser:
         self._w.close()
         self._r.close()
         shutil.rmtree(self.profile, ignore_errors=True)
+        self.log.unlink(missing_ok=True)
 
     def __enter__(self) -> Browser:
         return self

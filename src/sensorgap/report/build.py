@@ -34,11 +34,16 @@ from sensorgap.report.document import (
     render_markdown,
 )
 from sensorgap.report.figures import scenario_figure, scenario_trace
-from sensorgap.report.summary import KMH, RankedScenario, summary_section, weakness_sentence
+from sensorgap.report.summary import (
+    KMH,
+    RankedScenario,
+    explain_spec,
+    summary_section,
+    weakness_sentence,
+)
 from sensorgap.search.evaluate import MAP_RESOLUTION_M, DetectionRule, Evaluator
 from sensorgap.search.metrics import metric_names
-from sensorgap.search.problem import START_TTC_S, Candidate, SearchProblem
-from sensorgap.search.ranking import explain
+from sensorgap.search.problem import START_TTC_S
 
 REPORT_DIR = "report"
 NOT_RUN = "Not part of this run."
@@ -307,10 +312,7 @@ def _scenarios_section(folder: Path, out_img: Path, search: dict[str, Any] | Non
         f = files.get(spec.scenario_id)
         # the reason's per-sensor causes, recomputed exactly as the search did (its text
         # is the row's reason; tested)
-        why = explain(SearchProblem(spec.family, {spec.environment_name: spec.environment},
-                                    exact, sun_search=False),
-                      Candidate(spec.family.name, spec.environment_name, None,
-                                dict(spec.params)))
+        why = explain_spec(spec, exact)
         item = RankedScenario(row, spec, tr, why, confirming,
                               {"file": str(f["file"]), "road": str(f["road"])}
                               if f and exported is not None else None)

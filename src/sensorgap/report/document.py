@@ -16,6 +16,7 @@ from __future__ import annotations
 import base64
 import html
 import io
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -110,7 +111,8 @@ p,li{overflow-wrap:anywhere}figure{margin:1em 0}img{max-width:100%;height:auto}
 figcaption{font-size:0.85em;color:#444}nav li{margin:0.1em 0}
 @page{size:A4;margin:10mm}
 @media print{body{max-width:none;margin:0;padding:0;font-size:10pt}h1{font-size:14pt}
-#summary{font-size:9pt}section.top{break-before:page}section.short{break-before:auto}
+#summary{font-size:9pt;break-before:auto}section.top{break-before:page}
+section.short{break-before:auto}
 nav{break-before:page}div.tw{overflow:visible}figure,tr{break-inside:avoid}
 h2,h3{break-after:avoid}a{color:#000}}
 """
@@ -135,6 +137,14 @@ def compact_png(data: bytes) -> bytes:
     return out if len(out) < len(data) else data
 
 
+_UNIT = re.compile(r"(\d) (?=(?:s|m|km|km/h|mm/h|m/s2|dB|deg|°)(?![\w/]))")
+
+
+def _prose(text: str) -> str:
+    """Escaped text with a number and its unit kept on one line (no-break space)."""
+    return html.escape(_UNIT.sub("\\1\u00a0", text))
+
+
 def _breakable(text: str) -> str:
     """Escaped text with optional line breaks after ``_`` and before ``@`` (long names such
     as ``pedestrian_behind_parked_cars`` or ``clear@sun302/24`` may wrap in a narrow
@@ -150,11 +160,11 @@ def _html_cell(c: Cell) -> str:
 
 def _html_block(b: Block) -> str:
     if isinstance(b, Para):
-        return f"<p>{html.escape(b.text)}</p>"
+        return f"<p>{_prose(b.text)}</p>"
     if isinstance(b, Bullets):
         tag = "ol" if b.ordered else "ul"
-        items = "".join(f"<li>{html.escape(t)}</li>" if isinstance(t, str) else
-                        f"<li><b>{html.escape(t[0])}</b> {html.escape(t[1])}</li>"
+        items = "".join(f"<li>{_prose(t)}</li>" if isinstance(t, str) else
+                        f"<li><b>{_prose(t[0])}</b> {_prose(t[1])}</li>"
                         for t in b.items)
         return f"<{tag}>{items}</{tag}>"
     if isinstance(b, Table):

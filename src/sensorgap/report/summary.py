@@ -26,8 +26,9 @@ from sensorgap.config import EnvironmentConfig
 from sensorgap.export.spec import ScenarioSpec
 from sensorgap.models import System
 from sensorgap.report.document import Block, Bullets, Link, Para, Section, Table
-from sensorgap.search.evaluate import Trace
-from sensorgap.search.ranking import Explanation, named_step
+from sensorgap.search.evaluate import Evaluator, Trace
+from sensorgap.search.problem import Candidate, SearchProblem
+from sensorgap.search.ranking import Explanation, explain, named_step
 
 #: Weaknesses (and "test these first" rows) on the summary page.
 MAX_WEAKNESSES = 4
@@ -59,6 +60,16 @@ class RankedScenario:
     def step(self) -> int:
         """Index of the named step in the trace (``search.ranking.named_step``)."""
         return named_step(self.trace)
+
+
+def explain_spec(spec: ScenarioSpec, evaluator: Evaluator) -> Explanation:
+    """Per-sensor causes at the named step of a ranked scenario, recomputed exactly as the
+    search did (``search.ranking.explain`` with an exact ``evaluator``; its text equals the
+    ranking row's reason for the same vehicle, reaction model and detection rule)."""
+    problem = SearchProblem(spec.family, {spec.environment_name: spec.environment},
+                            evaluator, sun_search=False)
+    return explain(problem, Candidate(spec.family.name, spec.environment_name, None,
+                                      dict(spec.params)))
 
 
 # --- the numbers of the ranking's reason (``search.ranking.explain``) ---------------------
@@ -123,19 +134,29 @@ def direction_words(azimuth_deg: float) -> str:
     return "straight behind"
 
 
+def sun_azimuth_deg(env: EnvironmentConfig, ego_heading_rad: float | None) -> float | None:
+    """The visible sun's azimuth seen from the vehicle (deg, counter-clockwise from straight
+    ahead, as ``Conditions.sun_directions``): a vehicle-frame sun as given, a world-frame
+    (compass) azimuth turned by the ego heading (rad, world frame). None without a visible
+    sun above the horizon or, for a world-frame sun, without a heading."""
+    sun = env.sun
+    if sun is None or not sun.visible or sun.elevation_deg <= 0.0:
+        return None
+    if sun.frame == "vehicle":
+        return sun.azimuth_deg
+    if ego_heading_rad is None:
+        return None
+    return 90.0 - sun.azimuth_deg - math.degrees(ego_heading_rad)
+
+
 def sun_words(env: EnvironmentConfig, ego_heading_rad: float | None) -> str:
-    """Where the sun is seen from the vehicle ("" when there is no visible sun); a
-    world-frame sun (compass azimuth) needs the ego's heading (rad, world frame)."""
+    """Where the sun is seen from the vehicle ("" when there is no visible sun)."""
     sun = env.sun
     if sun is None or not sun.visible or sun.elevation_deg <= 0.0:
         return ""
-    if sun.frame == "vehicle":
-        az = sun.azimuth_deg
-    elif ego_heading_rad is None:
-        return f"sun {sun.elevation_deg:.0f}° above the horizon"
-    else:
-        az = 90.0 - sun.azimuth_deg - math.degrees(ego_heading_rad)
-    return f"sun {sun.elevation_deg:.0f}° above the horizon, {direction_words(az)}"
+    az = sun_azimuth_deg(env, ego_heading_rad)
+    where = "" if az is None else f", {direction_words(az)}"
+    return f"sun {sun.elevation_deg:.0f}° above the horizon{where}"
 
 
 def condition_words(env: EnvironmentConfig, ego_heading_rad: float | None) -> str:
@@ -160,7 +181,8 @@ def _sensor_names(ids: list[str], types: dict[str, str]) -> str:
     if len(kinds) == 1:
         kind = kinds.pop()
         return f"the {kind if len(ids) == 1 else _PLURAL.get(kind, kind + 's')} {names}"
-    return " and ".join(f"{i} ({types.get(i, 'sensor')})" for i in ids)
+    named = [f"{i} ({types.get(i, 'sensor')})" for i in ids]
+    return ", ".join(named[:-1]) + " and " + named[-1]
 
 
 #: Effects of a confirming sensor in view with Pd < 0.5 (``search.ranking``).
@@ -175,11 +197,14 @@ def _low_words(effect: str, ids: list[str], pd: float, without: list[float | Non
              "weather": "in clear air", "partly in view": "in clear air",
              "range": "even in clear air"}[effect]
     nums = f"Pd {pd:.2f}"
-    if len(known) == len(without):
-        if len(set(known)) == 1:
-            nums += f"; {known[0]:.2f} {cause}"
-        else:
-            nums += f"; {cause} " + " and ".join(f"{w:.2f}" for w in known)
+    if known and len(known) == len(without) and len(set(known)) == 1:
+        nums += f"; {known[0]:.2f} {cause}"
+    elif len(known) == len(without):
+        nums += f"; {cause} " + " and ".join(f"{w:.2f}" for w in known)
+    elif known:  # the search itemised some of them only
+        nums += f"; {cause}: " + ", ".join(f"{i} {w:.2f}" for i, w in zip(ids, without,
+                                                                          strict=True)
+                                           if w is not None)
     if effect == "occlusion":
         verb = f"{'is' if one else 'are'} blocked by the {occluder}"
     elif effect == "glare":
