@@ -11,6 +11,7 @@ from typing import Any
 
 import pytest
 
+from sensorgap.report.summary import MAX_WEAKNESSES
 from tests.report.chromium import CHROMIUM, Browser
 
 pytestmark = pytest.mark.skipif(CHROMIUM is None, reason="headless Chromium is not installed "
@@ -110,12 +111,19 @@ def test_printed_pages(job: Path, search_only: Path, tmp_path: Path) -> None:
             b.open(folder / "report.html", A4_W, A4_H)
             b.call("Emulation.setEmulatedMedia", {"media": "print"})
             summary = b.eval(f"({_BOX})('#summary')")
+            items = b.eval("[...document.querySelectorAll('#weaknesses li')]"
+                           ".map(l => l.getBoundingClientRect().height)")
+            rows = b.eval("[...document.querySelectorAll('#test-first tbody tr')]"
+                          ".map(r => r.getBoundingClientRect().height)")
             nav = b.eval("getComputedStyle(document.querySelector('nav')).breakBefore")
             breaks = b.eval(breaks_js)
             pdf = b.pdf()
         (tmp_path / f"{name}.pdf").write_bytes(pdf)
         pages[name] = len(re.findall(rb"/Type\s*/Page\b", pdf))
         assert summary["bottom"] <= A4_H, (name, summary)
+        if items:  # room for the longest weakness up to the maximum number of them
+            more = (MAX_WEAKNESSES - len(items)) * (1.2 * max(items) + max(rows))
+            assert summary["bottom"] + more <= A4_H, (name, summary, items, rows)
         assert nav == "page"
         assert breaks[0] == ["summary", False, "auto"]
         for sid, short, brk in breaks[1:]:

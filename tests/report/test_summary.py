@@ -89,6 +89,8 @@ def test_weaknesses_are_true_to_the_ranking(job: Path) -> None:
         m = re.search(rf"the {row['target']} is (\d+) m (ahead|behind)", text)
         assert m and abs(int(m[1]) - abs(x)) <= 1 and (m[2] == "ahead") == (x > 0)
         assert "m/s" not in text.replace("m/s2", "")  # speeds in km/h
+        more = len(row["environments"].split(", ")) - 1
+        assert (f"critical for the same reason in {more} more condition" in text) == (more > 0)
 
 
 def test_explanation_is_the_rankings(job: Path) -> None:

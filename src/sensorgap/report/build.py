@@ -1,8 +1,10 @@
 """``sensorgap report --run DIR``: the audit report of one vehicle's run folder.
 
 Reads what the pipeline wrote (``run.json``, coverage, near field, far field, ranking,
-catalog) and writes ``DIR/report.html`` (one self-contained file) and ``DIR/report.md``
-(same content, PNGs in ``DIR/report/``). A part of the pipeline that was not run gives a
+summary, catalog) and writes ``DIR/report.html`` (one self-contained file) and
+``DIR/report.md`` (same content, PNGs in ``DIR/report/``): the summary page first
+(``report.summary``), then the detailed sections, the sensor and parameter-source tables in
+an appendix at the end. A part of the pipeline that was not run gives a
 one-line "not part of this run"; a file that is present but unreadable is bad input
 (``InputError`` naming it). The only non-deterministic field is the generation time
 (``SOURCE_DATE_EPOCH`` fixes it).

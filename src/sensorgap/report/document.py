@@ -111,7 +111,7 @@ p,li{overflow-wrap:anywhere}figure{margin:1em 0}img{max-width:100%;height:auto}
 figcaption{font-size:0.85em;color:#444}nav li{margin:0.1em 0}
 @page{size:A4;margin:10mm}
 @media print{body{max-width:none;margin:0;padding:0;font-size:10pt}h1{font-size:14pt}
-#summary{font-size:9pt;break-before:auto}section.top{break-before:page}
+#summary{font-size:8.5pt;break-before:auto}section.top{break-before:page}
 section.short{break-before:auto}
 nav{break-before:page}div.tw{overflow:visible}figure,tr{break-inside:avoid}
 h2,h3{break-after:avoid}a{color:#000}}

@@ -317,6 +317,11 @@ def weakness_parts(r: RankedScenario, types: dict[str, str]) -> tuple[str, str]:
             + (f", impact at {v_imp:.0f} km/h" if v_imp is not None else "")
             + f" (rank {row.get('rank')}).")
     out.append(end)
+    others = [e.strip() for e in str(row.get("environments") or "").split(",")][1:]
+    if others:
+        names = list(dict.fromkeys(e.split("@")[0] for e in others if e))
+        out.append(f"The same trajectory is critical for the same reason in {len(others)} "
+                   f"more condition{'s' if len(others) > 1 else ''} ({', '.join(names)}).")
     return out[0], " ".join(out[1:])
 
 
@@ -370,8 +375,8 @@ def _searched_para(settings: dict[str, Any], search: dict[str, Any] | None,
              f"({', '.join(fams)}) in {_count(len(envs), 'environment')} "
              f"({', '.join(envs)})"]
     if settings.get("sun_search"):
-        parts.append("with the sun position searched (2-30° above the horizon, any "
-                     "direction) where the sun is visible")
+        parts.append("with the sun searched where it is visible (2-30° high, any "
+                     "direction)")
     run = []
     if budget is not None:
         run.append(f"budget {int(budget):,} candidates")
