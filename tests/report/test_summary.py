@@ -21,6 +21,7 @@ from sensorgap.models import Conditions, load_system
 from sensorgap.report.summary import (
     KMH,
     MAX_WEAKNESSES,
+    blind_areas,
     direction_words,
     explain_spec,
     fmt_p,
@@ -200,3 +201,49 @@ def test_pd_without_reads_the_rankings_reason() -> None:
               "without the occluders), cam_main (glare: Pd 0.10, 0.93 without the sun)")
     assert pd_without(reason) == {"cam_windshield": 0.87, "radar_front_center": 0.92,
                                   "cam_main": 0.93}
+
+
+def test_blind_areas_by_direction(tmp_path: Path) -> None:
+    """Pd < 0.5 cells counted per 45-degree direction from the body's centre, outside the
+    body and within the radius (reduced to the map)."""
+    system = load_system("system_a")
+    body = system.config.vehicle
+    cx = 0.5 * (body.x_rear_m + body.x_front_m)
+    res = 0.5
+    x = np.arange(-60.0, 80.0, res) + res / 2
+    y = np.arange(-50.0, 50.0, res) + res / 2
+    pd = np.ones((len(y), len(x)), dtype=np.float32)
+
+    def blind(x0: float, y0: float, n: int = 2) -> None:  # n x n cells from (x0, y0)
+        i, j = np.searchsorted(x, x0), np.searchsorted(y, y0)
+        pd[j:j + n, i:i + n] = 0.2
+
+    blind(cx - 20.0, 10.0)          # behind-left: 1 m2
+    blind(cx + 20.0, -0.25, 4)      # ahead: 4 m2
+    blind(cx, -8.0)                 # right: 1 m2
+    blind(cx, 0.0)                  # inside the body: not counted
+    blind(cx - 55.0, 0.0)           # beyond 50 m: not counted
+    np.savez(tmp_path / "coverage.npz", pd=pd, x=x, y=y, resolution=np.array([res]),
+             height=np.array([0.75]))
+    r, areas = blind_areas(tmp_path / "coverage.npz", system)
+    assert r == 50.0
+    assert areas == {"ahead": 4.0, "ahead-left": 0.0, "left": 0.0, "behind-left": 1.0,
+                     "behind": 0.0, "behind-right": 0.0, "right": 1.0, "ahead-right": 0.0}
+    # a map reaching 30 m to the side: the circle shrinks to fit it
+    keep = np.abs(y) < 30.0
+    np.savez(tmp_path / "small.npz", pd=pd[keep], x=x, y=y[keep],
+             resolution=np.array([res]), height=np.array([0.75]))
+    r, areas = blind_areas(tmp_path / "small.npz", system)
+    assert r == 30.0 and areas["ahead"] == 4.0 and areas["behind-left"] == 1.0
+
+
+def test_summary_names_the_blind_spots(job: Path) -> None:
+    doc = _doc(job / "report.html")
+    text = " ".join(doc.get_element_by_id("summary").text_content().split())
+    near = json.loads((job / "nearfield" / "nearfield.json").read_text())
+    assert f"near field: {near['blind_spot_m2']['exact']:.2f} m² within 5 m" in text
+    _, areas = blind_areas(job / "coverage" / "car_clear" / "coverage.npz",
+                           load_system("system_a"))
+    assert (f"within 50 m of the vehicle a car (heading the same way; clear, "
+            f"coverage/car_clear) is detected with Pd < 0.5 over "
+            f"{sum(areas.values()):,.0f} m² outside the body") in text

@@ -198,8 +198,13 @@ def _nearfield_section(folder: Path) -> Section:
           fmt(bs.get("difference"))],
          ["uncovered at 0.1 m height", fmt(u.get("exact")), fmt(u.get("grid")),
           fmt(u.get("difference"))]],
-        f"Near field within {d.get('window', {}).get('radius_m', 5)} m of the body "
-        f"(method: {d.get('method', '')})")]
+        f"Near field within {d.get('window', {}).get('radius_m', 5)} m of the body")]
+    method = d.get("method")
+    if isinstance(method, dict):
+        blocks.append(Para("Method: " + "; ".join(f"{k.replace('_', ' ')}: {v}"
+                                                   for k, v in method.items()) + "."))
+    elif method:
+        blocks.append(Para(f"Method: {method}."))
     png = folder / "nearfield" / "nearfield.png"
     if png.is_file():
         blocks.append(Image(png, "Near-field coverage: blind spots (Fig. 5 style)",

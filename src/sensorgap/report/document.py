@@ -137,7 +137,7 @@ def compact_png(data: bytes) -> bytes:
     return out if len(out) < len(data) else data
 
 
-_UNIT = re.compile(r"(\d) (?=(?:s|m|km|km/h|mm/h|m/s2|dB|deg|°)(?![\w/]))")
+_UNIT = re.compile(r"(\d) (?=(?:s|m|m²|km|km/h|mm/h|m/s2|dB|deg|°)(?![\w/²]))")
 
 
 def _prose(text: str) -> str:

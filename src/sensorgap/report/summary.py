@@ -15,6 +15,7 @@ at most ``MAX_WEAKNESSES``: different failure mechanisms rather than variants of
 
 from __future__ import annotations
 
+import json
 import math
 import re
 from collections import Counter
@@ -22,7 +23,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from sensorgap.config import EnvironmentConfig
+from sensorgap.errors import InputError
 from sensorgap.export.spec import ScenarioSpec
 from sensorgap.models import System
 from sensorgap.report.document import Block, Bullets, Link, Para, Section, Table
@@ -348,6 +352,82 @@ def pick_weaknesses(ranked: list[RankedScenario], n: int = MAX_WEAKNESSES
     return out
 
 
+# --- coverage: where the vehicle is blind ------------------------------------------------
+
+#: Radius of the far-field blind-area count about the centre of the body (m): the largest
+#: circle inside the default coverage map (y from -50 to 50 m); smaller maps use their own.
+BLIND_RADIUS_M = 50.0
+#: Directions from the centre of the body, 45 deg each, counter-clockwise from straight
+#: ahead (a spot beside the doors is "left", not "ahead-left" as seen from the rear axle).
+SECTORS = ("ahead", "ahead-left", "left", "behind-left", "behind", "behind-right", "right",
+           "ahead-right")
+
+
+def blind_areas(path: Path, system: System, radius_m: float = BLIND_RADIUS_M
+                ) -> tuple[float, dict[str, float]]:
+    """Area (m2) per direction (``SECTORS``) where a coverage map (``coverage.npz``: exact
+    fused Pd at cell centres) has Pd < 0.5 within ``radius_m`` of the centre of the body,
+    outside the body; the radius is reduced to the largest circle inside the map. Returns
+    (radius, areas)."""
+    try:
+        with np.load(path) as z:
+            pd, x, y = z["pd"], z["x"], z["y"]
+            res = float(np.asarray(z["resolution"]).ravel()[0])
+    except (OSError, KeyError, ValueError) as exc:
+        raise InputError(path, "", f"unreadable coverage map: {exc}") from None
+    body = system.config.vehicle
+    cx = 0.5 * (body.x_rear_m + body.x_front_m)
+    r = min(radius_m, cx - (float(x.min()) - res / 2), float(x.max()) + res / 2 - cx,
+            -(float(y.min()) - res / 2), float(y.max()) + res / 2)
+    xx, yy = np.meshgrid(x, y)
+    inside = ((xx >= body.x_rear_m) & (xx <= body.x_front_m)
+              & (np.abs(yy) <= 0.5 * body.width_m))
+    blind = (np.hypot(xx - cx, yy) <= r) & (pd < 0.5) & ~inside
+    k = (np.floor((np.degrees(np.arctan2(yy, xx - cx)) + 22.5) / 45.0).astype(int)) % 8
+    counts = np.bincount(k[blind], minlength=8)
+    return r, {name: float(c) * res * res for name, c in zip(SECTORS, counts, strict=True)}
+
+
+def _coverage_para(folder: Path, system: System) -> Para | None:
+    cov = folder / "coverage"
+    maps = sorted(p.parent for p in cov.glob("*/coverage.npz")) if cov.is_dir() else []
+    if not maps and not (folder / "nearfield" / "nearfield.json").is_file():
+        return None
+    parts = []
+    if maps:
+        clear = [m for m in maps if m.name.endswith("_clear") or m.name == "clear"]
+        m = (clear or maps)[0]
+        r, areas = blind_areas(m / "coverage.npz", system)
+        env = m.name
+        if (m / "summary.json").is_file():
+            try:
+                env = str(json.loads((m / "summary.json").read_text(encoding="utf-8"))
+                          .get("environment", env))
+            except (OSError, ValueError, AttributeError):
+                raise InputError(m / "summary.json", "", "unreadable JSON") from None
+        where = sorted(((round(a), n) for n, a in areas.items() if round(a) >= 1),
+                       key=lambda t: -t[0])
+        text = (f"within {r:g} m of the vehicle a car (heading the same way; {env}, "
+                f"coverage/{m.name}) is detected with Pd < 0.5 over "
+                f"{sum(areas.values()):,.0f} m² outside the body")
+        if where:
+            text += ": " + ", ".join(f"{a:,} m² {n}" for a, n in where)
+        elif sum(areas.values()) >= 0.5:
+            text += " (less than 1 m² in each direction)"
+        parts.append(text)
+    nf = folder / "nearfield" / "nearfield.json"
+    if nf.is_file():
+        try:
+            d = json.loads(nf.read_text(encoding="utf-8"))
+            exact = float(d["blind_spot_m2"]["exact"])
+            radius = float(d.get("window", {}).get("radius_m", 5.0))
+        except (OSError, ValueError, KeyError, TypeError) as exc:
+            raise InputError(nf, "blind_spot_m2", f"unreadable: {exc}") from None
+        parts.append(f"near field: {exact:.2f} m² within {radius:g} m of the body seen by no "
+                     "sensor at any height")
+    return Para("Blind spots: " + "; ".join(parts) + ".")
+
+
 # --- the section ---------------------------------------------------------------------------
 
 def _count(n: int, word: str, plural: str | None = None) -> str:
@@ -470,6 +550,9 @@ def summary_section(folder: Path, system: System, settings: dict[str, Any],
                     lookup_vs_exact: dict[str, Any] | None, n_unavoidable: int) -> Section:
     """The summary page (``ranked`` None: no search in this run)."""
     blocks: list[Block] = [_vehicle_para(system, settings)]
+    cover = _coverage_para(folder, system)
+    if cover is not None:
+        blocks.append(cover)
     if ranked is None:
         blocks.append(Para("No search in this run: no weaknesses ranked (run `sensorgap run` "
                            f"or `sensorgap search --out {folder.name}`)."))
