@@ -323,7 +323,8 @@ def weakness_parts(r: RankedScenario, types: dict[str, str]) -> tuple[str, str]:
     out.append(end)
     others = [e.strip() for e in str(row.get("environments") or "").split(",")][1:]
     if others:
-        names = list(dict.fromkeys(e.split("@")[0] for e in others if e))
+        n = Counter(e.split("@")[0] for e in others if e)
+        names = [k if c == 1 else f"{k} with {c} sun positions" for k, c in n.items()]
         out.append(f"The same trajectory is critical for the same reason in {len(others)} "
                    f"more condition{'s' if len(others) > 1 else ''} ({', '.join(names)}).")
     return out[0], " ".join(out[1:])
