@@ -122,7 +122,7 @@ def test_printed_pages(job: Path, search_only: Path, tmp_path: Path) -> None:
         pages[name] = len(re.findall(rb"/Type\s*/Page\b", pdf))
         assert summary["bottom"] <= A4_H, (name, summary)
         if items:  # room for the longest weakness up to the maximum number of them
-            more = (MAX_WEAKNESSES - len(items)) * (1.2 * max(items) + max(rows))
+            more = (MAX_WEAKNESSES - len(items)) * (1.1 * max(items) + max(rows))
             assert summary["bottom"] + more <= A4_H, (name, summary, items, rows)
         assert nav == "page"
         assert breaks[0] == ["summary", False, "auto"]

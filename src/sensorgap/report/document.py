@@ -19,6 +19,7 @@ import io
 import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from functools import lru_cache
 from pathlib import Path
 
 
@@ -118,9 +119,11 @@ h2,h3{break-after:avoid}a{color:#000}}
 """
 
 
+@lru_cache(maxsize=64)
 def compact_png(data: bytes) -> bytes:
     """A PNG as at most 256 colours on white (median cut, no dithering, optimised), or the
-    original when that is not smaller. Deterministic."""
+    original when that is not smaller. Deterministic (cached per process: a report written
+    again reuses the figures it already reduced)."""
     from PIL import Image as PILImage
 
     with PILImage.open(io.BytesIO(data)) as im:

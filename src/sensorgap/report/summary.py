@@ -499,13 +499,16 @@ def _confidence(settings: dict[str, Any], search: dict[str, Any] | None,
     if per:
         never = [f for f, d in per.items() if not d.get("sensor_critical_by_lookup")]
         if never:
+            cands = sorted({int(per[f].get("budget", 0)) for f in never})
+            threats = sorted(int(per[f].get("threats", 0)) for f in never)
+            spread = (f"{threats[0]:,}" if threats[0] == threats[-1]
+                      else f"{threats[0]:,}-{threats[-1]:,}")
             items.append(
-                "No sensor-critical scenario at all in " + ", ".join(
-                    f"{f} ({d.get('budget', 0):,} candidates, "
-                    f"{d.get('threats', 0):,} threats)" for f, d in per.items()
-                    if f in never)
-                + ": with this budget the search found no case where the sensors fail "
-                "there, which does not prove that there is none.")
+                f"No sensor-critical scenario at all in {', '.join(never)} ("
+                + (f"{cands[0]:,}" if len(cands) == 1 else f"{cands[0]:,}-{cands[-1]:,}")
+                + f" candidates{' each' if len(never) > 1 else ''}, {spread} of them "
+                "threats): the search found no case where the sensors fail there, which "
+                "does not prove that there is none.")
         else:
             items.append("Every searched family produced sensor-critical scenarios.")
         fams = Counter(str(r.row.get("family")) for r in ranked)
