@@ -247,3 +247,14 @@ def test_summary_names_the_blind_spots(job: Path) -> None:
     assert (f"within 50 m of the vehicle a car (heading the same way; clear, "
             f"coverage/car_clear) is detected with Pd < 0.5 over "
             f"{sum(areas.values()):,.0f} m² outside the body") in text
+
+
+def test_unreadable_coverage_map_is_one_line_exit_2(tmp_path: Path,
+                                                    capsys: pytest.CaptureFixture[str]) -> None:
+    (tmp_path / "run.json").write_text(json.dumps({"vehicle": "system_a"}))
+    npz = tmp_path / "coverage" / "car_clear" / "coverage.npz"
+    npz.parent.mkdir(parents=True)
+    npz.write_bytes(b"PK\x03\x04 not a zip")
+    assert main(["report", "--run", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "coverage.npz" in err and len(err.splitlines()) == 1

@@ -18,6 +18,7 @@ from __future__ import annotations
 import json
 import math
 import re
+import zipfile
 from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
@@ -374,8 +375,12 @@ def blind_areas(path: Path, system: System, radius_m: float = BLIND_RADIUS_M
         with np.load(path) as z:
             pd, x, y = z["pd"], z["x"], z["y"]
             res = float(np.asarray(z["resolution"]).ravel()[0])
-    except (OSError, KeyError, ValueError) as exc:
-        raise InputError(path, "", f"unreadable coverage map: {exc}") from None
+    except (OSError, KeyError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+        raise InputError(path, "", "unreadable coverage map (expected the .npz of "
+                         f"`sensorgap coverage`: pd, x, y, resolution): {exc}") from None
+    if pd.shape != (len(y), len(x)):
+        raise InputError(path, "pd", f"expected shape (len(y), len(x)) = ({len(y)}, "
+                         f"{len(x)}), got {pd.shape}")
     body = system.config.vehicle
     cx = 0.5 * (body.x_rear_m + body.x_front_m)
     r = min(radius_m, cx - (float(x.min()) - res / 2), float(x.max()) + res / 2 - cx,
