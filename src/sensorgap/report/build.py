@@ -1,8 +1,10 @@
 """``sensorgap report --run DIR``: the audit report of one vehicle's run folder.
 
 Reads what the pipeline wrote (``run.json``, coverage, near field, far field, ranking,
-catalog) and writes ``DIR/report.html`` (one self-contained file) and ``DIR/report.md``
-(same content, PNGs in ``DIR/report/``). A part of the pipeline that was not run gives a
+summary, catalog) and writes ``DIR/report.html`` (one self-contained file) and
+``DIR/report.md`` (same content, PNGs in ``DIR/report/``): the summary page first
+(``report.summary``), then the detailed sections, the sensor and parameter-source tables in
+an appendix at the end. A part of the pipeline that was not run gives a
 one-line "not part of this run"; a file that is present but unreadable is bad input
 (``InputError`` naming it). The only non-deterministic field is the generation time
 (``SOURCE_DATE_EPOCH`` fixes it).
@@ -34,7 +36,14 @@ from sensorgap.report.document import (
     render_markdown,
 )
 from sensorgap.report.figures import scenario_figure, scenario_trace
-from sensorgap.search.evaluate import MAP_RESOLUTION_M, Evaluator
+from sensorgap.report.summary import (
+    KMH,
+    RankedScenario,
+    explain_spec,
+    summary_section,
+    weakness_sentence,
+)
+from sensorgap.search.evaluate import MAP_RESOLUTION_M, DetectionRule, Evaluator
 from sensorgap.search.metrics import metric_names
 from sensorgap.search.problem import START_TTC_S
 
@@ -100,7 +109,33 @@ def fmt(v: Any, digits: int = 4) -> str:
     return str(v)
 
 
+#: Where the reference notes cited as "physics.md" in parameter sources live.
+PHYSICS_NOTE = (
+    "Sources that cite \"physics.md\" refer to the project's reference notes on parameter "
+    "values and on numerical pitfalls of the paper's equations. They are not part of the "
+    "repository or of this report: they are kept beside the repository, in the development "
+    "workspace at shared/reference/physics.md. The pitfalls (\"physics.md pitfall N\") are "
+    "explained in docs/models.md; for a value, check the primary source named in the same "
+    "entry (a data sheet, a standard or a paper).")
+
+
 def _vehicle_section(system: System) -> Section:
+    kinds: dict[str, int] = {}
+    for s in system.sensors:
+        kinds[s.type_name] = kinds.get(s.type_name, 0) + 1
+    body = system.config.vehicle
+    return Section("vehicle", f"Vehicle: {system.name}", [
+        Para(f"Source: {system.source.name}. Body {body.length_m} m x {body.width_m} m x "
+             f"{body.height_m} m, wheelbase {body.wheelbase_m} m; vehicle frame ISO 8855 "
+             "(x forward, y left, z up), origin on the ground under the rear axle. "
+             f"{len(system.sensors)} sensors ("
+             + ", ".join(f"{n} {k}" for k, n in kinds.items())
+             + "); their mounts, fields of view, ranges and every physical parameter with "
+             "its source are in the appendix."),
+    ])
+
+
+def _sensor_setup_section(system: System) -> Section:
     mounts = []
     for s in system.sensors:
         m = s.mount
@@ -114,17 +149,15 @@ def _vehicle_section(system: System) -> Section:
             if isinstance(val, dict | list) or val is None:
                 continue
             params.append([name, dev.type, key, fmt(val, 6), dev.sources.get(key, "")])
-    body = system.config.vehicle
-    return Section("vehicle", f"Vehicle: {system.name}", [
-        Para(f"Source: {system.source.name}. Body {body.length_m} m x {body.width_m} m x "
-             f"{body.height_m} m, wheelbase {body.wheelbase_m} m; vehicle frame ISO 8855 "
-             "(x forward, y left, z up), origin on the ground under the rear axle."),
+    blocks: list[Block] = [
         Table(["sensor", "type", "position x, y, z [m]", "yaw [deg]", "pitch [deg]",
                "HFOV [deg]", "VFOV [deg]", "min range [m]", "max range [m]", "ROC"], mounts,
               "Sensor setup (as the paper's Table III)"),
         Table(["device", "type", "parameter", "value", "source"], params,
-              "Every physical parameter with its source"),
-    ])
+              "Every physical parameter with its source")]
+    if any("physics.md" in str(r[4]) for r in params):
+        blocks.append(Para(PHYSICS_NOTE))
+    return Section("sensor-setup", f"Sensor setup of {system.name}", blocks)
 
 
 def _environments_section(run: dict[str, Any]) -> Section:
@@ -165,8 +198,13 @@ def _nearfield_section(folder: Path) -> Section:
           fmt(bs.get("difference"))],
          ["uncovered at 0.1 m height", fmt(u.get("exact")), fmt(u.get("grid")),
           fmt(u.get("difference"))]],
-        f"Near field within {d.get('window', {}).get('radius_m', 5)} m of the body "
-        f"(method: {d.get('method', '')})")]
+        f"Near field within {d.get('window', {}).get('radius_m', 5)} m of the body")]
+    method = d.get("method")
+    if isinstance(method, dict):
+        blocks.append(Para("Method: " + "; ".join(f"{k.replace('_', ' ')}: {v}"
+                                                   for k, v in method.items()) + "."))
+    elif method:
+        blocks.append(Para(f"Method: {method}."))
     png = folder / "nearfield" / "nearfield.png"
     if png.is_file():
         blocks.append(Image(png, "Near-field coverage: blind spots (Fig. 5 style)",
@@ -221,23 +259,71 @@ def _farfield_section(folder: Path) -> Section:
     return Section("table-iv", "Table IV: Pd along the lane ahead", blocks, subs)
 
 
-def _scenarios_section(folder: Path, out_img: Path) -> tuple[Section, list[list[str]]]:
+def _per_family_table(search: dict[str, Any] | None, rows: list[dict[str, Any]]
+                      ) -> list[Block]:
+    per = (search or {}).get("per_family")
+    if not isinstance(per, dict) or not per:
+        return []
+    ranked: dict[str, int] = {}
+    for r in rows:
+        ranked[str(r.get("family"))] = ranked.get(str(r.get("family")), 0) + 1
+    return [Table(["family", "candidates", "feasible", "threats", "sensor-critical (lookup)",
+                   "unavoidable (lookup)", "ranked"],
+                  [[f, *(fmt(d.get(k)) for k in ("budget", "feasible", "threats",
+                                                 "sensor_critical_by_lookup",
+                                                 "unavoidable_by_lookup")),
+                    str(ranked.get(f, 0))] for f, d in per.items()],
+                  "Search per family (summary.json; counts of the lookup evaluation)")]
+
+
+def _param_rows(spec: ScenarioSpec) -> list[list[str]]:
+    rows = []
+    for k, v in spec.params.items():
+        text = fmt(v, 6)
+        if k.endswith("_m_s") and isinstance(v, float):
+            text += f" ({v * KMH:.1f} km/h)"
+        rows.append([k, text])
+    if spec.sun_deg is not None:
+        rows.append(["sun azimuth (compass, world frame) / elevation [deg]",
+                     f"{spec.sun_deg[0]:g} / {spec.sun_deg[1]:g}"])
+    return rows
+
+
+def _scenarios_section(folder: Path, out_img: Path, search: dict[str, Any] | None
+                       ) -> tuple[Section, list[list[str]], list[RankedScenario] | None]:
     if not (folder / "ranking.json").is_file():
-        return Section("scenarios", "Critical scenarios", [Para(NOT_RUN)]), []
+        return Section("scenarios", "Critical scenarios", [Para(NOT_RUN)]), [], None
     run = read_run(folder)
     catalog = folder / "catalog.json"
     exported = read_json(catalog) if catalog.is_file() else None
     files = {s["scenario_id"]: s for s in exported["scenarios"]} if exported else {}
     system = load_system(run.vehicle_ref)
     ev = Evaluator(system, mode="lookup")
-    exact = Evaluator(system, mode="exact")
+    try:
+        rule = DetectionRule.parse(str(run.settings.get("detection", "cumulative")))
+    except InputError:
+        raise InputError(folder / "ranking.json", "settings.detection", "expected "
+                         "'cumulative' or M/N (e.g. 3/5), got "
+                         f"{run.settings.get('detection')!r}") from None
+    exact = Evaluator(system, mode="exact", rule=rule)
+    confirming = tuple(system.sensors[i].id for i in exact.confirm_rows)
     metrics = metric_names()
     overview, subs, errors = [], [], []
+    ranked: list[RankedScenario] = []
+    types = {s.id: s.type_name for s in system.sensors}
     for row in run.rows:
         spec = ScenarioSpec.from_row(row, system, folder / "ranking.json")
         tr = scenario_trace(spec, exact)
         png = out_img / f"scenario_{spec.rank:03d}.png"
         scenario_figure(spec, ev, tr, png)
+        f = files.get(spec.scenario_id)
+        # the reason's per-sensor causes, recomputed exactly as the search did (its text
+        # is the row's reason; tested)
+        why = explain_spec(spec, exact)
+        item = RankedScenario(row, spec, tr, why, confirming,
+                              {"file": str(f["file"]), "road": str(f["road"])}
+                              if f and exported is not None else None)
+        ranked.append(item)
         p_look = row.get("lookup_collision_probability")
         p_exact = row.get("collision_probability")
         errors.append([str(spec.rank), spec.scenario_id, fmt(p_look), fmt(p_exact),
@@ -249,18 +335,15 @@ def _scenarios_section(folder: Path, out_img: Path) -> tuple[Section, list[list[
                          spec.target.name, fmt(p_exact), fmt(row.get("impact_speed_kmh")),
                          fmt(row.get("t_safe_s")), fmt(row.get("detection_margin_s")),
                          str(row.get("dominant_effect", ""))])
-        params = [[k, fmt(v, 6)] for k, v in spec.params.items()]
-        if spec.sun_deg is not None:
-            params.append(["sun azimuth / elevation [deg]",
-                           f"{spec.sun_deg[0]:g} / {spec.sun_deg[1]:g}"])
+        params = _param_rows(spec)
         mets = [[m, fmt(row.get(m), 6)] for m in metrics if m in row]
         blocks: list[Any] = [
-            Para(f"Why critical: {row.get('reason', '')}"),
+            Para(f"In words: {weakness_sentence(item, types)}"),
+            Para(f"Why critical (as the search recorded it): {row.get('reason', '')}"),
             Table(["parameter", "value"], params, "Parameters"),
             Table(["metric", "value"], mets, "Metrics (exact evaluation)"),
             Image(png, f"Rank {spec.rank}: target path over the Pd map (ego frame), Pd(t) "
                   "and probability still undetected", f"{REPORT_DIR}/{png.name}")]
-        f = files.get(spec.scenario_id)
         if f and exported is not None:
             blocks.append(Links([(f"{f['file']} (OpenSCENARIO {exported['osc_version']})",
                                   f["file"]), (f"{f['road']} (OpenDRIVE)", f["road"])]))
@@ -280,8 +363,9 @@ def _scenarios_section(folder: Path, out_img: Path) -> tuple[Section, list[list[
         f">= {START_TTC_S:g} s."),
             Table(["rank", "scenario", "class", "family", "environments", "target",
                    "P(collision)", "impact [km/h]", "t_safe [s]", "margin [s]",
-                   "dominant effect"], overview, "Ranking")]
-    return Section("scenarios", "Critical scenarios", head, subs), errors
+                   "dominant effect"], overview, "Ranking"),
+            *_per_family_table(search, run.rows)]
+    return Section("scenarios", "Critical scenarios", head, subs), errors, ranked
 
 
 def _accuracy_section(folder: Path, errors: list[list[str]]) -> Section:
@@ -334,8 +418,9 @@ def _paras(texts: list[str]) -> list[Block]:
     return [Para(t) for t in texts]
 
 
-def build(folder: Path) -> tuple[str, list[str], list[Section]]:
-    """Title, meta lines and sections of the report of ``folder``."""
+def build(folder: Path) -> tuple[str, list[str], Section, list[Section]]:
+    """Title, meta lines, the summary page and the sections of the report of
+    ``folder``."""
     folder = Path(folder)
     if not folder.is_dir():
         raise InputError(folder, "", "run folder does not exist")
@@ -353,11 +438,22 @@ def build(folder: Path) -> tuple[str, list[str], list[Section]]:
     system = load_system(vehicle)
     img = folder / REPORT_DIR
     img.mkdir(parents=True, exist_ok=True)
-    scen, errors = _scenarios_section(folder, img)
+    search = (read_json(folder / "summary.json") if (folder / "summary.json").is_file()
+              and (folder / "ranking.json").is_file() else None)
+    if search is not None and not isinstance(search, dict):
+        raise InputError(folder / "summary.json", "", "expected a JSON object")
+    scen, errors, ranked = _scenarios_section(folder, img, search)
+    lve, n_unavoidable = None, 0
+    if ranked is not None:
+        data = read_json(folder / "ranking.json")
+        lve = data.get("lookup_vs_exact") if isinstance(data, dict) else None
+        n_unavoidable = len(data.get("unavoidable") or []) if isinstance(data, dict) else 0
+    front = summary_section(folder, system, settings, ranked, search,
+                            lve if isinstance(lve, dict) else None, n_unavoidable)
     ver = info.get("versions") or versions()
     repro = info.get("command") or ["sensorgap", "report", "--run", str(folder)]
     sections = [
-        _vehicle_section(system), _environments_section(settings), _nearfield_section(folder),
+        _vehicle_section(system), _nearfield_section(folder),
         _coverage_section(folder), _farfield_section(folder), scen,
         Section("assumptions", "Model assumptions and limitations",
                 _paras(ASSUMPTIONS)),
@@ -372,16 +468,18 @@ def build(folder: Path) -> tuple[str, list[str], list[Section]]:
             Para("Reproduce with: " + " ".join(repro)),
             Para("Every file of the folder with its SHA-256: manifest.json."),
         ]),
+        Section("appendix", "Appendix: sensor setup, parameter sources, environments and "
+                "targets", [], [_sensor_setup_section(system), _environments_section(settings)]),
     ]
-    meta = [f"Run folder: {folder.name}. Vehicle: {system.name} ({vehicle}).",
+    meta = [f"Run folder: {folder.name}. Vehicle: {system.name} ({vehicle}). "
             f"Generated (UTC): {utc_now()}"]
-    return f"sensorgap audit report: {system.name}", meta, sections
+    return f"sensorgap audit report: {system.name}", meta, front, sections
 
 
 def write_report(folder: Path) -> tuple[Path, Path]:
     """``report.html`` and ``report.md`` into the run folder."""
-    title, meta, sections = build(Path(folder))
+    title, meta, front, sections = build(Path(folder))
     html_path, md_path = Path(folder) / "report.html", Path(folder) / "report.md"
-    atomic_write_text(html_path, render_html(title, meta, sections))
-    atomic_write_text(md_path, render_markdown(title, meta, sections))
+    atomic_write_text(html_path, render_html(title, meta, sections, front))
+    atomic_write_text(md_path, render_markdown(title, meta, sections, front))
     return html_path, md_path

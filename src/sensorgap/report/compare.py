@@ -1,10 +1,17 @@
 """``sensorgap report --compare RUN_A RUN_B``: two vehicles side by side (the paper's A-vs-B
 view): blind spots, coverage per Pd level and environment, Table IV, and which critical
 scenarios are critical for one vehicle and not the other (cross-evaluated, with the reason
-traced to the two sensor setups)."""
+traced to the two sensor setups).
+
+Layout: the cross-evaluation table holds the numbers only (11 short columns, readable in a
+1280 px window); each scenario's explanation follows as a list. Figures copied beside the
+report are named ``a_<vehicle>_...`` / ``b_<vehicle>_...`` with the vehicle name reduced to
+letters, digits, ``.``, ``_`` and ``-`` (Markdown links without spaces; two runs of
+vehicles with the same name do not overwrite each other's figures)."""
 
 from __future__ import annotations
 
+import re
 from collections import Counter
 from pathlib import Path
 
@@ -16,6 +23,7 @@ from sensorgap.provenance import utc_now
 from sensorgap.report.build import NOT_RUN, fmt, read_csv, read_json
 from sensorgap.report.document import (
     Block,
+    Bullets,
     Image,
     Para,
     Section,
@@ -23,7 +31,7 @@ from sensorgap.report.document import (
     render_html,
     render_markdown,
 )
-from sensorgap.search.compare import write_comparison
+from sensorgap.search.compare import MARGIN_P, write_comparison
 
 LEVELS = ("pd=1.0", "pd>=0.8", "pd>=0.5", "pd>0", "pd=0")
 
@@ -35,17 +43,23 @@ def _name(folder: Path) -> str:
         return folder.name
 
 
+def slug(name: str) -> str:
+    """A vehicle name as a file-name part (no spaces)."""
+    return re.sub(r"[^A-Za-z0-9._-]+", "_", name).strip("_").lower() or "vehicle"
+
+
 def _nearfield(a: Path, b: Path, na: str, nb: str) -> Section:
     rows, imgs = [], []
     vals = {}
-    for name, folder in ((na, a), (nb, b)):
+    for tag, name, folder in (("a", na, a), ("b", nb, b)):
         p = folder / "nearfield" / "nearfield.json"
         if p.is_file():
             d = read_json(p)
             vals[name] = (d["blind_spot_m2"]["exact"], d["uncovered_0p1m_m2"]["exact"])
             png = folder / "nearfield" / "nearfield.png"
             if png.is_file():
-                imgs.append(Image(png, f"{name}: near-field coverage", f"{name}_nearfield.png"))
+                imgs.append(Image(png, f"{name}: near-field coverage",
+                                  f"{tag}_{slug(name)}_nearfield.png"))
     if len(vals) < 2:
         return Section("nearfield", "Near-field blind spots", [Para(NOT_RUN)])
     rows.append(["blind spot (no sensor at any height) [m2]", fmt(vals[na][0]),
@@ -76,10 +90,10 @@ def _coverage(a: Path, b: Path, na: str, nb: str) -> Section:
     blocks: list[Block] = [Table(["map", "level", f"{na} [m2]", f"{nb} [m2]",
                                   f"{nb} - {na} [m2]"], rows, "Area per Pd level")]
     for k in common[:2]:
-        for name, folder in ((na, a), (nb, b)):
+        for tag, name, folder in (("a", na, a), ("b", nb, b)):
             png = folder / "coverage" / k / "coverage.png"
             if png.is_file():
-                blocks.append(Image(png, f"{name}: {k}", f"{name}_{k}.png"))
+                blocks.append(Image(png, f"{name}: {k}", f"{tag}_{slug(name)}_{k}.png"))
     return Section("coverage", "Coverage per Pd level", blocks)
 
 
@@ -98,15 +112,31 @@ def _scenarios(a: Path, b: Path, out: Path) -> Section:
     if not ((a / "ranking.json").is_file() and (b / "ranking.json").is_file()):
         return Section("scenarios", "Critical for one, not the other", [Para(NOT_RUN)])
     rows = write_comparison(a, b, out)
-    cols = [c for c in rows[0] if c != "why"] if rows else []
     counts = Counter((str(r["critical_for"]), str(r["dominant_effect"])) for r in rows)
+    cols = [("scenario_id", "scenario"), ("family", "family"),
+            ("environment", "environment")]
+    names = [k[len("rank_"):] for k in rows[0] if k.startswith("rank_")] if rows else []
+    for key, head in (("rank", "rank"), ("collision_probability", "P(collision)"),
+                      ("impact_speed_kmh", "impact [km/h]"), ("class", "class")):
+        cols += [(f"{key}_{n}", f"{head} {n}") for n in names]
+    cols += [("critical_for", "critical for"), ("dominant_effect", "dominant effect")]
+
+    def cell(key: str, v: object) -> str:
+        if key.startswith("impact_speed_kmh") and isinstance(v, int | float):
+            return f"{v:.0f}"
+        if key.startswith("class_"):
+            return str(v or "")
+        return fmt(v, 2) if isinstance(v, float) else fmt(v)
+
     return Section("scenarios", "Critical for one, not the other", [
         Para("Every scenario ranked for either vehicle, evaluated exactly for both. Critical "
-             "for one vehicle only: log10 risk higher by at least one decade."),
+             f"for one vehicle only: its collision probability higher by at least {MARGIN_P:g}."),
         Table(["critical for", "dominant effect", "scenarios"],
               [[w, e, str(n)] for (w, e), n in sorted(counts.items())], "Summary"),
-        Table([*cols, "why"], [[fmt(r[c]) for c in cols] + [str(r["why"])] for r in rows],
-              "Cross-evaluation (comparison.csv)"),
+        Table([h for _, h in cols], [[cell(k, r.get(k)) for k, _ in cols] for r in rows],
+              "Cross-evaluation (comparison.csv; why: below)"),
+        Bullets([(f"{r['scenario_id']} (critical for {r['critical_for']}):", str(r["why"]))
+                 for r in rows]),
     ])
 
 

@@ -1,12 +1,25 @@
 """A small document model rendered twice: one self-contained HTML file (figures embedded as
-data URIs, no network resources, a print stylesheet) and Markdown with linked PNGs, so both
-carry the same content (``report.html`` for assessors, ``report.md`` for review diffs)."""
+data URIs, no network resources, no scripts, a print stylesheet) and Markdown with linked
+PNGs, so both carry the same content (``report.html`` for assessors, ``report.md`` for
+review diffs).
+
+Figures are embedded in the HTML as 256-colour PNGs (median cut, no dithering; the maps use
+256-entry colour maps), about a third of the bytes of matplotlib's RGBA files; the Markdown
+links the full files. Layout (tested in headless Chromium): tables wrap their text and sit
+in a box that scrolls sideways only if they cannot fit, so the page never overflows a
+1280 px window; in print every top-level section starts a new page except short ones (no
+table, figure or subsection: e.g. "Not part of this run."), which follow on the same page.
+"""
 
 from __future__ import annotations
 
 import base64
 import html
+import io
+import re
+from collections.abc import Sequence
 from dataclasses import dataclass, field
+from functools import lru_cache
 from pathlib import Path
 
 
@@ -18,11 +31,23 @@ class Para:
 
 
 @dataclass
+class Link:
+    """A link to a file of the run folder (a table cell or list item)."""
+
+    text: str
+    href: str
+
+
+#: A table cell: text or a link.
+Cell = str | Link
+
+
+@dataclass
 class Table:
-    """A table of strings."""
+    """A table of text (or link) cells."""
 
     headers: list[str]
-    rows: list[list[str]]
+    rows: Sequence[Sequence[Cell]]
     caption: str = ""
 
 
@@ -42,7 +67,16 @@ class Links:
     items: list[tuple[str, str]]
 
 
-Block = Para | Table | Image | Links
+@dataclass
+class Bullets:
+    """A list of sentences (numbered when ``ordered``); an item may be (lead, text): the
+    lead in bold."""
+
+    items: Sequence[str | tuple[str, str]]
+    ordered: bool = False
+
+
+Block = Para | Table | Image | Links | Bullets
 
 
 @dataclass
@@ -54,32 +88,97 @@ class Section:
     blocks: list[Block] = field(default_factory=list)
     subsections: list[Section] = field(default_factory=list)
 
+    @property
+    def short(self) -> bool:
+        """No table, figure or subsection: printed without a page of its own."""
+        return not self.subsections and not any(isinstance(b, Table | Image)
+                                                for b in self.blocks)
+
 
 _CSS = """
-body{font-family:system-ui,-apple-system,'Segoe UI',sans-serif;margin:2em auto;max-width:1100px;
-line-height:1.4;color:#111;padding:0 1em}
-h1{border-bottom:2px solid #333}h2{border-bottom:1px solid #999;margin-top:2em}
+body{font-family:system-ui,-apple-system,'Segoe UI',sans-serif;margin:0.5em auto 2em;
+max-width:1100px;line-height:1.4;color:#111;padding:0 1em}
+h1{border-bottom:2px solid #333;font-size:1.6em;margin:0.3em 0}
+h2{border-bottom:1px solid #999;margin-top:2em}
+.meta{color:#555;font-size:0.85em;margin:0.2em 0}
+#summary h2{margin-top:0.6em}#summary h3{margin:0.7em 0 0.2em}
+#summary p,#summary li{margin:0.25em 0}#summary ol,#summary ul{margin:0.2em 0;padding-left:1.6em}
+div.tw{overflow-x:auto;max-width:100%}
 table{border-collapse:collapse;margin:0.8em 0;font-size:0.85em}
-th,td{border:1px solid #bbb;padding:2px 6px;text-align:left;vertical-align:top}
+th,td{border:1px solid #bbb;padding:2px 6px;text-align:left;vertical-align:top;
+overflow-wrap:break-word}
 th{background:#eee}caption{caption-side:top;text-align:left;font-style:italic}
-figure{margin:1em 0}img{max-width:100%;height:auto}figcaption{font-size:0.85em;color:#444}
-nav li{margin:0.1em 0}.meta{color:#555;font-size:0.9em}
-@media print{body{max-width:none;margin:0}section.top{page-break-before:always}
-nav{page-break-after:always}a{color:#000}}
+p,li{overflow-wrap:anywhere}figure{margin:1em 0}img{max-width:100%;height:auto}
+figcaption{font-size:0.85em;color:#444}nav li{margin:0.1em 0}
+@page{size:A4;margin:10mm}
+@media print{body{max-width:none;margin:0;padding:0;font-size:10pt}h1{font-size:14pt}
+#summary{font-size:8.5pt;break-before:auto}section.top{break-before:page}
+section.short{break-before:auto}
+nav{break-before:page}div.tw{overflow:visible}figure,tr{break-inside:avoid}
+h2,h3{break-after:avoid}a{color:#000}}
 """
+
+
+@lru_cache(maxsize=64)
+def compact_png(data: bytes) -> bytes:
+    """A PNG as at most 256 colours on white (median cut, no dithering, optimised), or the
+    original when that is not smaller. Deterministic (cached per process: a report written
+    again reuses the figures it already reduced)."""
+    from PIL import Image as PILImage
+
+    with PILImage.open(io.BytesIO(data)) as im:
+        rgb = im.convert("RGB")
+        if im.mode in ("RGBA", "LA", "P"):
+            rgba = im.convert("RGBA")
+            rgb = PILImage.new("RGB", im.size, "white")
+            rgb.paste(rgba, mask=rgba.getchannel("A"))
+        q = rgb.quantize(colors=256, method=PILImage.Quantize.MEDIANCUT,
+                         dither=PILImage.Dither.NONE)
+        buf = io.BytesIO()
+        q.save(buf, "PNG", optimize=True)
+    out = buf.getvalue()
+    return out if len(out) < len(data) else data
+
+
+_UNIT = re.compile(r"(\d) (?=(?:s|m|m²|km|km/h|mm/h|m/s2|dB|deg|°)(?![\w/²]))")
+
+
+def _prose(text: str) -> str:
+    """Escaped text with a number and its unit kept on one line (no-break space)."""
+    return html.escape(_UNIT.sub("\\1\u00a0", text))
+
+
+def _breakable(text: str) -> str:
+    """Escaped text with optional line breaks after ``_`` and before ``@`` (long names such
+    as ``pedestrian_behind_parked_cars`` or ``clear@sun302/24`` may wrap in a narrow
+    column; copied text is unchanged)."""
+    return html.escape(text).replace("_", "_<wbr>").replace("@", "<wbr>@")
+
+
+def _html_cell(c: Cell) -> str:
+    if isinstance(c, Link):
+        return f'<a href="{html.escape(c.href)}">{_breakable(c.text)}</a>'
+    return _breakable(c)
 
 
 def _html_block(b: Block) -> str:
     if isinstance(b, Para):
-        return f"<p>{html.escape(b.text)}</p>"
+        return f"<p>{_prose(b.text)}</p>"
+    if isinstance(b, Bullets):
+        tag = "ol" if b.ordered else "ul"
+        items = "".join(f"<li>{_prose(t)}</li>" if isinstance(t, str) else
+                        f"<li><b>{_prose(t[0])}</b> {_prose(t[1])}</li>"
+                        for t in b.items)
+        return f"<{tag}>{items}</{tag}>"
     if isinstance(b, Table):
         cap = f"<caption>{html.escape(b.caption)}</caption>" if b.caption else ""
-        head = "".join(f"<th>{html.escape(h)}</th>" for h in b.headers)
-        body = "".join("<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in r) + "</tr>"
+        head = "".join(f"<th>{_breakable(h)}</th>" for h in b.headers)
+        body = "".join("<tr>" + "".join(f"<td>{_html_cell(c)}</td>" for c in r) + "</tr>"
                        for r in b.rows)
-        return f"<table>{cap}<thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
+        return (f'<div class="tw"><table>{cap}<thead><tr>{head}</tr></thead>'
+                f"<tbody>{body}</tbody></table></div>")
     if isinstance(b, Image):
-        data = base64.b64encode(b.path.read_bytes()).decode("ascii")
+        data = base64.b64encode(compact_png(b.path.read_bytes())).decode("ascii")
         cap = html.escape(b.caption)
         return (f'<figure><img src="data:image/png;base64,{data}" alt="{cap}">'
                 f"<figcaption>{cap}</figcaption></figure>")
@@ -89,7 +188,9 @@ def _html_block(b: Block) -> str:
 
 
 def _html_section(s: Section, level: int) -> str:
-    cls = ' class="top"' if level == 2 else ""
+    cls = ""
+    if level == 2:
+        cls = ' class="top short"' if s.short else ' class="top"'
     parts = [f'<section id="{html.escape(s.id)}"{cls}>',
              f"<h{level}>{html.escape(s.title)}</h{level}>"]
     parts += [_html_block(b) for b in s.blocks]
@@ -98,25 +199,35 @@ def _html_section(s: Section, level: int) -> str:
     return "\n".join(parts)
 
 
-def render_html(title: str, meta: list[str], sections: list[Section]) -> str:
-    """One self-contained HTML page (no scripts, no external resources)."""
+def render_html(title: str, meta: list[str], sections: list[Section],
+                front: Section | None = None) -> str:
+    """One self-contained HTML page (no scripts, no external resources); ``front`` (the
+    summary) comes right after the title, before the table of contents."""
     toc = "".join(f'<li><a href="#{html.escape(s.id)}">{html.escape(s.title)}</a></li>'
                   for s in sections)
     metas = "".join(f'<p class="meta">{html.escape(m)}</p>' for m in meta)
+    head = "" if front is None else _html_section(front, 2)
     body = "\n".join(_html_section(s, 2) for s in sections)
     return ("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
+            "<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">"
             f"<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>"
-            f"<h1>{html.escape(title)}</h1>{metas}<nav><h2>Contents</h2><ol>{toc}</ol></nav>"
-            f"{body}</body></html>\n")
+            f"<h1>{html.escape(title)}</h1>{metas}{head}"
+            f"<nav><h2>Contents</h2><ol>{toc}</ol></nav>{body}</body></html>\n")
 
 
-def _md_cell(c: str) -> str:
+def _md_cell(c: Cell) -> str:
+    if isinstance(c, Link):
+        return f"[{_md_cell(c.text)}]({c.href})"
     return c.replace("|", "\\|").replace("\n", " ")
 
 
 def _md_block(b: Block) -> str:
     if isinstance(b, Para):
         return b.text
+    if isinstance(b, Bullets):
+        return "\n".join(f"{f'{i}.' if b.ordered else '-'} "
+                         + (t if isinstance(t, str) else f"**{t[0]}** {t[1]}")
+                         for i, t in enumerate(b.items, start=1))
     if isinstance(b, Table):
         lines = [f"*{b.caption}*", ""] if b.caption else []
         lines.append("| " + " | ".join(_md_cell(h) for h in b.headers) + " |")
@@ -135,7 +246,9 @@ def _md_section(s: Section, level: int) -> str:
     return "\n\n".join(parts)
 
 
-def render_markdown(title: str, meta: list[str], sections: list[Section]) -> str:
-    """The same content as Markdown with linked PNGs."""
+def render_markdown(title: str, meta: list[str], sections: list[Section],
+                    front: Section | None = None) -> str:
+    """The same content as Markdown with linked PNGs (``front`` first)."""
     head = [f"# {title}", *meta]
-    return "\n\n".join([*head, *(_md_section(s, 2) for s in sections)]) + "\n"
+    secs = ([front] if front is not None else []) + sections
+    return "\n\n".join([*head, *(_md_section(s, 2) for s in secs)]) + "\n"

@@ -1,0 +1,581 @@
+"""The report's first page: what was tested, the top weaknesses as sentences, what to test
+first, and how far to trust it.
+
+Every number comes from the run folder as the search wrote it: the ranking rows of
+``ranking.json`` (exact evaluation: collision probability, impact speed, t_safe,
+confirmation time, the reason with per-sensor Pd at the named step), its
+``lookup_vs_exact`` block and ``summary.json`` (candidates per family, sensor-critical
+counts). Only unit conversions are done here (m/s -> km/h; a world-frame sun azimuth ->
+the direction from the vehicle at the named step, with the ego heading of the report's
+exact trace of the same scenario).
+
+Weaknesses: the highest-ranked scenario of each (family, dominant effect), in rank order,
+at most ``MAX_WEAKNESSES``: different failure mechanisms rather than variants of the worst.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+import zipfile
+from collections import Counter
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from sensorgap.config import EnvironmentConfig
+from sensorgap.errors import InputError
+from sensorgap.export.spec import ScenarioSpec
+from sensorgap.models import System
+from sensorgap.report.document import Block, Bullets, Link, Para, Section, Table
+from sensorgap.search.evaluate import Evaluator, Trace
+from sensorgap.search.problem import Candidate, SearchProblem
+from sensorgap.search.ranking import Explanation, explain, named_step
+
+#: Weaknesses (and "test these first" rows) on the summary page.
+MAX_WEAKNESSES = 4
+#: km/h per m/s.
+KMH = 3.6
+#: Visibility below which the air counts as fog (WMO No. 8: fog below 1 km), m.
+FOG_VISIBILITY_M = 1000.0
+
+_PLURAL = {"ultrasonic": "ultrasonic sensors", "lidar": "lidars"}
+
+
+@dataclass
+class RankedScenario:
+    """One row of the ranking with what the report rebuilt for it."""
+
+    row: dict[str, Any]
+    spec: ScenarioSpec
+    #: the scenario evaluated exactly (the report's figure)
+    trace: Trace
+    #: per sensor, why it misses the target at the named step (``search.ranking.explain``,
+    #: exact evaluation; its text is the row's reason)
+    explanation: Explanation
+    #: the sensors that may confirm a target for braking (the vehicle's reaction model)
+    confirming: tuple[str, ...]
+    #: exported files relative to the run folder ({"file": .xosc, "road": .xodr}) or None
+    files: dict[str, str] | None
+
+    @property
+    def step(self) -> int:
+        """Index of the named step in the trace (``search.ranking.named_step``)."""
+        return named_step(self.trace)
+
+
+def explain_spec(spec: ScenarioSpec, evaluator: Evaluator) -> Explanation:
+    """Per-sensor causes at the named step of a ranked scenario, recomputed exactly as the
+    search did (``search.ranking.explain`` with an exact ``evaluator``; its text equals the
+    ranking row's reason for the same vehicle, reaction model and detection rule)."""
+    problem = SearchProblem(spec.family, {spec.environment_name: spec.environment},
+                            evaluator, sun_search=False)
+    return explain(problem, Candidate(spec.family.name, spec.environment_name, None,
+                                      dict(spec.params)))
+
+
+# --- the numbers of the ranking's reason (``search.ranking.explain``) ---------------------
+
+_MISSING = re.compile(r"(?P<sid>[\w.-]+) \((?P<eff>occlusion|glare|weather|partly in view|"
+                      r"range): Pd (?P<p>[\d.]+), (?P<b>[\d.]+) (?:without the occluders|"
+                      r"without the sun|in clear air)\)")
+
+
+def pd_without(reason: str) -> dict[str, float]:
+    """Per sensor itemised in a ranking row's reason (the first four confirming sensors in
+    view with Pd < 0.5), its Pd without the cause: without the occluders, without the sun,
+    or in clear air (as the search printed it, two decimals)."""
+    return {m["sid"]: float(m["b"]) for m in _MISSING.finditer(reason)}
+
+
+# --- words -------------------------------------------------------------------------------
+
+def _num(v: Any) -> float | None:
+    """A finite float of a JSON value, else None."""
+    if isinstance(v, bool) or not isinstance(v, int | float):
+        return None
+    return float(v) if math.isfinite(v) else None
+
+
+def fmt_p(p: float) -> str:
+    """A probability as text: two decimals, or two significant digits below 0.01."""
+    return f"{p:.2f}" if p >= 0.01 or p == 0.0 else f"{p:.1e}"
+
+
+def weather_words(env: EnvironmentConfig) -> str:
+    """The weather of an environment in words (snow, rain, fog with visibility)."""
+    parts = []
+    if env.snow_mm_h > 0:
+        parts.append(f"snowfall {env.snow_mm_h:g} mm/h")
+    if env.rain_mm_h > 0:
+        parts.append(f"rain {env.rain_mm_h:g} mm/h")
+    if env.visibility_m < FOG_VISIBILITY_M:
+        parts.append(f"fog with {env.visibility_m:g} m visibility")
+    return ", ".join(parts) or "clear air"
+
+
+def _weather_noun(env: EnvironmentConfig) -> str:
+    if env.visibility_m < FOG_VISIBILITY_M:
+        return "fog"
+    return "snow" if env.snow_mm_h > 0 else "rain" if env.rain_mm_h > 0 else "weather"
+
+
+def direction_words(azimuth_deg: float) -> str:
+    """A vehicle-frame azimuth (deg, counter-clockwise from straight ahead) in words."""
+    a = (azimuth_deg + 180.0) % 360.0 - 180.0
+    side = "left" if a > 0 else "right"
+    m = abs(a)
+    if m <= 5.0:
+        return "straight ahead"
+    if m < 85.0:
+        return f"{m:.0f}° to the {side} of straight ahead"
+    if m <= 95.0:
+        return f"to the {side}"
+    if m < 175.0:
+        return f"{180.0 - m:.0f}° to the {side} of straight behind"
+    return "straight behind"
+
+
+def sun_azimuth_deg(env: EnvironmentConfig, ego_heading_rad: float | None) -> float | None:
+    """The visible sun's azimuth seen from the vehicle (deg, counter-clockwise from straight
+    ahead, as ``Conditions.sun_directions``): a vehicle-frame sun as given, a world-frame
+    (compass) azimuth turned by the ego heading (rad, world frame). None without a visible
+    sun above the horizon or, for a world-frame sun, without a heading."""
+    sun = env.sun
+    if sun is None or not sun.visible or sun.elevation_deg <= 0.0:
+        return None
+    if sun.frame == "vehicle":
+        return sun.azimuth_deg
+    if ego_heading_rad is None:
+        return None
+    return 90.0 - sun.azimuth_deg - math.degrees(ego_heading_rad)
+
+
+def sun_words(env: EnvironmentConfig, ego_heading_rad: float | None) -> str:
+    """Where the sun is seen from the vehicle ("" when there is no visible sun)."""
+    sun = env.sun
+    if sun is None or not sun.visible or sun.elevation_deg <= 0.0:
+        return ""
+    az = sun_azimuth_deg(env, ego_heading_rad)
+    where = "" if az is None else f", {direction_words(az)}"
+    return f"sun {sun.elevation_deg:.0f}° above the horizon{where}"
+
+
+def condition_words(env: EnvironmentConfig, ego_heading_rad: float | None) -> str:
+    """Weather and sun of an environment in words."""
+    sun = sun_words(env, ego_heading_rad)
+    return weather_words(env) + (f", {sun}" if sun else "")
+
+
+def where_words(x_m: float, y_m: float) -> str:
+    """A position in the ego vehicle frame (x forward, y left, m) in words."""
+    parts = []
+    if abs(x_m) >= 0.5:
+        parts.append(f"{abs(x_m):.0f} m {'ahead' if x_m > 0 else 'behind'}")
+    if abs(y_m) >= 1.0:
+        parts.append(f"{abs(y_m):.0f} m to the {'left' if y_m > 0 else 'right'}")
+    return " and ".join(parts) or "beside the vehicle"
+
+
+def _sensor_names(ids: list[str], types: dict[str, str]) -> str:
+    kinds = {types.get(i, "sensor") for i in ids}
+    names = ids[0] if len(ids) == 1 else ", ".join(ids[:-1]) + " and " + ids[-1]
+    if len(kinds) == 1:
+        kind = kinds.pop()
+        return f"the {kind if len(ids) == 1 else _PLURAL.get(kind, kind + 's')} {names}"
+    named = [f"{i} ({types.get(i, 'sensor')})" for i in ids]
+    return ", ".join(named[:-1]) + " and " + named[-1]
+
+
+#: Effects of a confirming sensor in view with Pd < 0.5 (``search.ranking``).
+LOW_EFFECTS = ("occlusion", "glare", "weather", "partly in view", "range")
+
+
+def _low_words(effect: str, ids: list[str], pd: float, without: list[float | None],
+               occluder: str, env: EnvironmentConfig, types: dict[str, str]) -> str:
+    who, one = _sensor_names(ids, types), len(ids) == 1
+    known = [w for w in without if w is not None]
+    cause = {"occlusion": "without it", "glare": "without the sun",
+             "weather": "in clear air", "partly in view": "in clear air",
+             "range": "even in clear air"}[effect]
+    nums = f"Pd {pd:.2f}"
+    if known and len(known) == len(without) and len(set(known)) == 1:
+        nums += f"; {known[0]:.2f} {cause}"
+    elif len(known) == len(without):
+        nums += f"; {cause} " + " and ".join(f"{w:.2f}" for w in known)
+    elif known:  # the search itemised some of them only
+        nums += f"; {cause}: " + ", ".join(f"{i} {w:.2f}" for i, w in zip(ids, without,
+                                                                          strict=True)
+                                           if w is not None)
+    if effect == "occlusion":
+        verb = f"{'is' if one else 'are'} blocked by the {occluder}"
+    elif effect == "glare":
+        verb = f"{'is' if one else 'are'} blinded by the sun"
+    elif effect == "weather":
+        verb = f"{'loses' if one else 'lose'} it in the {_weather_noun(env)}"
+    elif effect == "partly in view":
+        verb = f"{'sees' if one else 'see'} too little of it"
+    else:
+        verb = f"{'is' if one else 'are'} too far from it"
+    return f"{who} {verb} ({nums})"
+
+
+def sensors_words(r: RankedScenario, types: dict[str, str]) -> str:
+    """Which sensors miss the target at the named step and why, as one clause: every
+    confirming sensor in view with Pd < 0.5 by name, with its effect and Pd (and its Pd
+    without the cause where the search's reason gives it), then how many confirming
+    sensors do not have it in view, and the sensors that see it but cannot confirm it."""
+    ex, env = r.explanation, r.spec.environment
+    pd = ex.pd or {}
+    without = pd_without(str(r.row.get("reason", "")))
+    occluder = " / ".join(dict.fromkeys(r.trace.occluder_labels)) or "another road user"
+    groups: dict[tuple[str, float], list[str]] = {}
+    n_fov = n_far = 0
+    seeing, support = [], []
+    for sid, effect in ex.sensors.items():
+        if effect == "sees (cannot confirm)":
+            support.append(sid)
+        if sid not in r.confirming:
+            continue
+        if effect == "sees":
+            seeing.append(sid)
+        elif effect == "FOV":
+            n_fov += 1
+        elif effect == "range" and sid not in without:
+            n_far += 1  # out of its range, or in view but too weak even in clear air
+        elif effect in LOW_EFFECTS:
+            groups.setdefault((effect, round(pd.get(sid, 0.0), 2)), []).append(sid)
+    parts = [_low_words(e, ids, p, [without.get(i) for i in ids], occluder, env, types)
+             for (e, p), ids in groups.items()]
+    if seeing:
+        parts.append(f"only {_sensor_names(seeing, types)} "
+                     f"{'detects' if len(seeing) == 1 else 'detect'} it")
+    cover = []
+    if n_far:
+        cover.append(f"{n_far} {'is' if n_far == 1 else 'are'} out of range")
+    if n_fov:
+        cover.append(f"{n_fov} {'looks' if n_fov == 1 else 'look'} elsewhere")
+    if cover and (parts or seeing):
+        parts.append(f"of the other confirming sensors {' and '.join(cover)}")
+    elif cover:
+        parts.append("no confirming sensor has it in view (" + ", ".join(cover) + ")")
+    if support:
+        parts.append(f"{_sensor_names(support, types)} {'sees' if len(support) == 1 else 'see'}"
+                     " it but cannot confirm it for braking")
+    return "; ".join(parts)
+
+
+def _heading(r: RankedScenario) -> float | None:
+    h = r.trace.heading
+    return float(h[min(r.step, len(h) - 1)]) if len(h) else None
+
+
+def weakness_sentence(r: RankedScenario, types: dict[str, str]) -> str:
+    """One ranked scenario in plain words (``weakness_parts`` as one text)."""
+    return " ".join(weakness_parts(r, types))
+
+
+def weakness_parts(r: RankedScenario, types: dict[str, str]) -> tuple[str, str]:
+    """One ranked scenario in plain words: (what: road user and manoeuvre, condition,
+    speeds; then where the target is at the named step, which sensors miss it and why, when
+    it is confirmed and the outcome: collision probability and impact speed of the
+    ranking)."""
+    row, spec, tr = r.row, r.spec, r.trace
+    target = spec.target.name
+    desc = spec.family.description or spec.family.name
+    first = f"{desc.rstrip('.')}, in {condition_words(spec.environment, _heading(r))}"
+    v_ego, v_tgt = _num(row.get("p_ego_speed_m_s")), _num(row.get("p_target_speed_m_s"))
+    if v_ego is not None:
+        speeds = f"ego at {v_ego * KMH:.0f} km/h"
+        if v_tgt is not None:
+            speeds += f", {target} at {v_tgt * KMH:.0f} km/h"
+        first += f" ({speeds})"
+    out = [first + "."]
+    k = r.step
+    t_k, t_safe = float(tr.t[k]), _num(row.get("t_safe_s"))
+    when = f"At {t_k:.2f} s"
+    if t_safe is not None and abs(t_safe - t_k) < 1e-6:
+        when += ", the last moment to confirm it in time,"
+    elif t_safe is not None:
+        when += f" (it must be confirmed by {t_safe:.2f} s)"
+    pdc = float((tr.pd if tr.pd_confirm is None else tr.pd_confirm)[k])
+    seen = ("no confirming sensor detects it" if pdc < 0.005 else
+            f"the confirming sensors detect it with Pd {pdc:.2f} per cycle")
+    clause = sensors_words(r, types)
+    out.append(f"{when} the {target} is {where_words(float(tr.x[k]), float(tr.y[k]))} and "
+               f"{seen}" + (f": {clause}." if clause else "."))
+    t_conf, margin = _num(row.get("t_confirm_median_s")), _num(row.get("detection_margin_s"))
+    p_never = _num(row.get("p_never_confirmed"))
+    if t_conf is not None:
+        late = f", {-margin:.2f} s too late" if margin is not None and margin < 0 else ""
+        end = f"The vehicle confirms it at {t_conf:.2f} s (median){late}:"
+    elif p_never is not None:
+        end = f"The vehicle never confirms it with probability {fmt_p(p_never)}:"
+    else:
+        end = "Outcome:"
+    p = _num(row.get("collision_probability"))
+    v_imp = _num(row.get("impact_speed_kmh"))
+    end += (f" P(collision) {fmt_p(p if p is not None else 0.0)}"
+            + (f", impact at {v_imp:.0f} km/h" if v_imp is not None else "")
+            + f" (rank {row.get('rank')}).")
+    out.append(end)
+    others = [e.strip() for e in str(row.get("environments") or "").split(",")][1:]
+    if others:
+        n = Counter(e.split("@")[0] for e in others if e)
+        names = [k if c == 1 else f"{k} with {c} sun positions" for k, c in n.items()]
+        out.append(f"The same trajectory is critical for the same reason in {len(others)} "
+                   f"more condition{'s' if len(others) > 1 else ''} ({', '.join(names)}).")
+    return out[0], " ".join(out[1:])
+
+
+def condition_label(r: RankedScenario) -> str:
+    """The scenario's condition, short (weather; the sun where it was searched)."""
+    text = weather_words(r.spec.environment)
+    if r.spec.sun_deg is not None:
+        text += ", " + sun_words(r.spec.environment, _heading(r))
+    return f"{text} ({r.spec.environment_name})"
+
+
+def pick_weaknesses(ranked: list[RankedScenario], n: int = MAX_WEAKNESSES
+                    ) -> list[RankedScenario]:
+    """The highest-ranked scenario of each (family, dominant effect), in rank order."""
+    seen: set[tuple[str, str]] = set()
+    out = []
+    for r in ranked:
+        key = (str(r.row.get("family")), str(r.row.get("dominant_effect")))
+        if key not in seen:
+            seen.add(key)
+            out.append(r)
+        if len(out) == n:
+            break
+    return out
+
+
+# --- coverage: where the vehicle is blind ------------------------------------------------
+
+#: Radius of the far-field blind-area count about the centre of the body (m): the largest
+#: circle inside the default coverage map (y from -50 to 50 m); smaller maps use their own.
+BLIND_RADIUS_M = 50.0
+#: Directions from the centre of the body, 45 deg each, counter-clockwise from straight
+#: ahead (a spot beside the doors is "left", not "ahead-left" as seen from the rear axle).
+SECTORS = ("ahead", "ahead-left", "left", "behind-left", "behind", "behind-right", "right",
+           "ahead-right")
+
+
+def blind_areas(path: Path, system: System, radius_m: float = BLIND_RADIUS_M
+                ) -> tuple[float, dict[str, float]]:
+    """Area (m2) per direction (``SECTORS``) where a coverage map (``coverage.npz``: exact
+    fused Pd at cell centres) has Pd < 0.5 within ``radius_m`` of the centre of the body,
+    outside the body; the radius is reduced to the largest circle inside the map. Returns
+    (radius, areas)."""
+    try:
+        with np.load(path) as z:
+            pd, x, y = z["pd"], z["x"], z["y"]
+            res = float(np.asarray(z["resolution"]).ravel()[0])
+    except (OSError, KeyError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+        raise InputError(path, "", "unreadable coverage map (expected the .npz of "
+                         f"`sensorgap coverage`: pd, x, y, resolution): {exc}") from None
+    if pd.shape != (len(y), len(x)):
+        raise InputError(path, "pd", f"expected shape (len(y), len(x)) = ({len(y)}, "
+                         f"{len(x)}), got {pd.shape}")
+    body = system.config.vehicle
+    cx = 0.5 * (body.x_rear_m + body.x_front_m)
+    r = min(radius_m, cx - (float(x.min()) - res / 2), float(x.max()) + res / 2 - cx,
+            -(float(y.min()) - res / 2), float(y.max()) + res / 2)
+    xx, yy = np.meshgrid(x, y)
+    inside = ((xx >= body.x_rear_m) & (xx <= body.x_front_m)
+              & (np.abs(yy) <= 0.5 * body.width_m))
+    blind = (np.hypot(xx - cx, yy) <= r) & (pd < 0.5) & ~inside
+    k = (np.floor((np.degrees(np.arctan2(yy, xx - cx)) + 22.5) / 45.0).astype(int)) % 8
+    counts = np.bincount(k[blind], minlength=8)
+    return r, {name: float(c) * res * res for name, c in zip(SECTORS, counts, strict=True)}
+
+
+def _coverage_para(folder: Path, system: System) -> Para | None:
+    cov = folder / "coverage"
+    maps = sorted(p.parent for p in cov.glob("*/coverage.npz")) if cov.is_dir() else []
+    if not maps and not (folder / "nearfield" / "nearfield.json").is_file():
+        return None
+    parts = []
+    if maps:
+        clear = [m for m in maps if m.name.endswith("_clear") or m.name == "clear"]
+        m = (clear or maps)[0]
+        r, areas = blind_areas(m / "coverage.npz", system)
+        env = m.name
+        if (m / "summary.json").is_file():
+            try:
+                env = str(json.loads((m / "summary.json").read_text(encoding="utf-8"))
+                          .get("environment", env))
+            except (OSError, ValueError, AttributeError):
+                raise InputError(m / "summary.json", "", "unreadable JSON") from None
+        where = sorted(((round(a), n) for n, a in areas.items() if round(a) >= 1),
+                       key=lambda t: -t[0])
+        text = (f"within {r:g} m of the vehicle a car (heading the same way; {env}, "
+                f"coverage/{m.name}) is detected with Pd < 0.5 over "
+                f"{sum(areas.values()):,.0f} m² outside the body")
+        if where:
+            text += ": " + ", ".join(f"{a:,} m² {n}" for a, n in where)
+        elif sum(areas.values()) >= 0.5:
+            text += " (less than 1 m² in each direction)"
+        parts.append(text)
+    nf = folder / "nearfield" / "nearfield.json"
+    if nf.is_file():
+        try:
+            d = json.loads(nf.read_text(encoding="utf-8"))
+            exact = float(d["blind_spot_m2"]["exact"])
+            radius = float(d.get("window", {}).get("radius_m", 5.0))
+        except (OSError, ValueError, KeyError, TypeError) as exc:
+            raise InputError(nf, "blind_spot_m2", f"unreadable: {exc}") from None
+        parts.append(f"near field: {exact:.2f} m² within {radius:g} m of the body seen by no "
+                     "sensor at any height")
+    return Para("Blind spots: " + "; ".join(parts) + ".")
+
+
+# --- the section ---------------------------------------------------------------------------
+
+def _count(n: int, word: str, plural: str | None = None) -> str:
+    return f"{n:,} {word if n == 1 else plural or word + 's'}"
+
+
+def _vehicle_para(system: System, settings: dict[str, Any]) -> Para:
+    kinds = Counter(s.type_name for s in system.sensors)
+    sensors = ", ".join(_count(n, k, _PLURAL.get(k)) for k, n in kinds.items())
+    body = system.config.vehicle
+    text = (f"Vehicle: {system.name} ({system.source.name}), {len(system.sensors)} sensors "
+            f"({sensors}); body {body.length_m:g} m x {body.width_m:g} m.")
+    if settings.get("reaction"):
+        text += f" Braking: {settings['reaction']}."
+    return Para(text)
+
+
+def _searched_para(settings: dict[str, Any], search: dict[str, Any] | None,
+                   n_ranked: int, n_unavoidable: int) -> Para:
+    fams = [str(f) for f in settings.get("families", [])]
+    envs = [str(e) for e in settings.get("environments", [])]
+    budget = (search or {}).get("settings", {}).get("budget", settings.get("budget"))
+    cand = (search or {}).get("candidates")
+    parts = [f"Searched: {_count(len(fams), 'scenario family', 'scenario families')} "
+             f"({', '.join(fams)}) in {_count(len(envs), 'environment')} "
+             f"({', '.join(envs)})"]
+    if settings.get("sun_search"):
+        parts.append("with the sun searched where it is visible (2-30° high, any "
+                     "direction)")
+    run = []
+    if budget is not None:
+        run.append(f"budget {int(budget):,} candidates")
+    if cand is not None and cand != budget:
+        run.append(f"{int(cand):,} evaluated")
+    if settings.get("strategy"):
+        run.append(f"strategy {settings['strategy']}")
+    if settings.get("seed") is not None:
+        run.append(f"seed {settings['seed']}")
+    text = " ".join(parts) + ("; " + ", ".join(run) if run else "") + ". "
+    text += (f"Found: {_count(n_ranked, 'sensor-critical scenario')} ranked (the vehicle "
+             "collides where one with perfect perception and the same braking does not)")
+    if n_unavoidable:
+        text += (f"; {n_unavoidable} more collide even with perfect perception (listed "
+                 "apart, unavoidable.csv)")
+    return Para(text + ".")
+
+
+def _test_first(picked: list[RankedScenario]) -> Table:
+    rows: list[list[str | Link]] = []
+    for r in picked:
+        p = _num(r.row.get("collision_probability"))
+        v = _num(r.row.get("impact_speed_kmh"))
+        files: list[str | Link] = (
+            [Link(Path(r.files["file"]).name, r.files["file"]),
+             Link(Path(r.files["road"]).name, r.files["road"])] if r.files
+            else ["not exported", ""])
+        rows.append([str(r.row.get("rank")), str(r.row.get("scenario_id")), r.spec.family.name,
+                     r.spec.environment_name, "" if p is None else fmt_p(p),
+                     "" if v is None else f"{v:.0f}", *files])
+    return Table(["rank", "scenario", "family", "environment", "P(collision)",
+                  "impact [km/h]", "OpenSCENARIO", "OpenDRIVE"], rows)
+
+
+def _confidence(settings: dict[str, Any], search: dict[str, Any] | None,
+                lve: dict[str, Any] | None, ranked: list[RankedScenario]) -> list[str]:
+    items = []
+    per = (search or {}).get("per_family", {})
+    if per:
+        never = [f for f, d in per.items() if not d.get("sensor_critical_by_lookup")]
+        if never:
+            cands = sorted({int(per[f].get("budget", 0)) for f in never})
+            threats = sorted(int(per[f].get("threats", 0)) for f in never)
+            spread = (f"{threats[0]:,}" if threats[0] == threats[-1]
+                      else f"{threats[0]:,}-{threats[-1]:,}")
+            items.append(
+                f"No sensor-critical scenario at all in {', '.join(never)} ("
+                + (f"{cands[0]:,}" if len(cands) == 1 else f"{cands[0]:,}-{cands[-1]:,}")
+                + f" candidates{' each' if len(never) > 1 else ''}, {spread} of them "
+                "threats): the search found no case where the sensors fail there, which "
+                "does not prove that there is none.")
+        else:
+            items.append("Every searched family produced sensor-critical scenarios.")
+        fams = Counter(str(r.row.get("family")) for r in ranked)
+        lower = [f for f, d in per.items() if d.get("sensor_critical_by_lookup")
+                 and f not in fams]
+        if fams:
+            text = ("The ranked scenarios come from " + ", ".join(
+                f"{f} ({n})" for f, n in fams.most_common()))
+            if lower:
+                text += (f"; {_count(len(lower), 'other family', 'other families')} had "
+                         "sensor-critical scenarios less likely to collide (see the "
+                         "per-family table)")
+            items.append(text + ".")
+    else:
+        items.append("Per-family counts: not available (summary.json of the search is "
+                     "missing).")
+    if lve and lve.get("reevaluated"):
+        key = next((k for k in lve if k.startswith("top") and k.endswith("_overlap")), None)
+        text = (f"Lookup vs exact: the search proposes with fast lookup maps; of "
+                f"{lve['reevaluated']:,} proposals re-evaluated exactly, "
+                f"{lve.get('sensor_critical_lookup', 0)} are sensor-critical by lookup, "
+                f"{lve.get('sensor_critical_exact', 0)} exactly, "
+                f"{lve.get('sensor_critical_both', 0)} by both; P(collision) differs by at "
+                f"most {fmt_p(float(lve.get('max_abs_diff_collision_probability', 0.0)))} "
+                f"(mean {fmt_p(float(lve.get('mean_abs_diff_collision_probability', 0.0)))})")
+        if key:
+            k = key[3:-8]
+            text += f"; top-{k} overlap {lve[key]} of {k}"
+        items.append(text + ".")
+    else:
+        items.append("Lookup vs exact evaluation: not measured in this run.")
+    seed = settings.get("seed")
+    items.append(
+        "Stability over seeds: not measured in this run (one search"
+        + (f", seed {seed}" if seed is not None else "") + "); the ranking can change with "
+        "the budget and the seed: rerun with two other seeds and compare the top 10 of "
+        "ranking.json.")
+    return items
+
+
+def summary_section(folder: Path, system: System, settings: dict[str, Any],
+                    ranked: list[RankedScenario] | None, search: dict[str, Any] | None,
+                    lookup_vs_exact: dict[str, Any] | None, n_unavoidable: int) -> Section:
+    """The summary page (``ranked`` None: no search in this run)."""
+    blocks: list[Block] = [_vehicle_para(system, settings)]
+    cover = _coverage_para(folder, system)
+    if cover is not None:
+        blocks.append(cover)
+    if ranked is None:
+        blocks.append(Para("No search in this run: no weaknesses ranked (run `sensorgap run` "
+                           f"or `sensorgap search --out {folder.name}`)."))
+        return Section("summary", "Summary", blocks)
+    blocks.append(_searched_para(settings, search, len(ranked), n_unavoidable))
+    types = {s.id: s.type_name for s in system.sensors}
+    picked = pick_weaknesses(ranked)
+    subs = [
+        Section("weaknesses", "Top weaknesses", [Bullets(
+            [weakness_parts(r, types) for r in picked], ordered=True)] if picked
+            else [Para("None found: no scenario in which the sensors make the difference.")]),
+    ]
+    if picked:
+        subs.append(Section("test-first", "Test these first", [_test_first(picked)]))
+    subs.append(Section("confidence", "Confidence", [Bullets(
+        _confidence(settings, search, lookup_vs_exact, ranked))]))
+    return Section("summary", "Summary", blocks, subs)

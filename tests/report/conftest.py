@@ -1,0 +1,48 @@
+"""Run folders shared by the report tests (made once per session): a small default job
+(coverage, near field, far field, search, export, report of System A), a search-only run of
+System B and the A-vs-B report of the two."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from sensorgap.cli import main
+from sensorgap.jobs import run_default
+from sensorgap.search.run import run_search
+
+
+@pytest.fixture(scope="session")
+def job(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """System A's default job, small: 1,400 candidates, the top 4 ranked and exported."""
+    out = tmp_path_factory.mktemp("job")
+    run_default(out, budget=1400, top=4)
+    return out / "system_a"
+
+
+@pytest.fixture(scope="session")
+def search_only(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A search run of System B with nothing else (no near field, coverage, far field,
+    export), its report written."""
+    out = tmp_path_factory.mktemp("search_only")
+    run_search("system_b", ["crossing_pedestrian"], ["clear"], 60, 1, 2, out,
+               strategy="lhs", progress=False)
+    assert main(["report", "--run", str(out)]) == 0
+    return out
+
+
+@pytest.fixture(scope="session")
+def compared(job: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """``report --compare`` of the job and a System B run with a search and a near field."""
+    from sensorgap.analysis.nearfield import write_nearfield
+    from sensorgap.models import load_system
+
+    base = tmp_path_factory.mktemp("compare")
+    b = base / "system_b"
+    run_search("system_b", ["crossing_pedestrian", "stopped_rural_curve"],
+               ["clear", "fog_50"], 300, 1, 4, b, strategy="lhs", progress=False)
+    write_nearfield(load_system("system_b"), b / "nearfield")
+    out = base / "cmp"
+    assert main(["report", "--compare", str(job), str(b), "--out", str(out)]) == 0
+    return out

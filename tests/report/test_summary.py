@@ -1,0 +1,260 @@
+"""The report's summary page: what it says is what the run's files say (ranking rows,
+summary.json, lookup_vs_exact), in km/h, m and s; and the words for directions, positions
+and weather."""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+from lxml import html as lhtml
+
+from sensorgap.cli import main
+from sensorgap.config import load_environments
+from sensorgap.config.environment import SunConfig
+from sensorgap.export.spec import ScenarioSpec, read_run
+from sensorgap.models import Conditions, load_system
+from sensorgap.report.summary import (
+    KMH,
+    MAX_WEAKNESSES,
+    blind_areas,
+    direction_words,
+    explain_spec,
+    fmt_p,
+    pd_without,
+    sun_azimuth_deg,
+    weather_words,
+    where_words,
+)
+from sensorgap.search.evaluate import DetectionRule, Evaluator
+
+
+def _doc(path: Path) -> lhtml.HtmlElement:
+    return lhtml.fromstring(path.read_bytes())
+
+
+def _ranking(folder: Path) -> dict:
+    return json.loads((folder / "ranking.json").read_text())
+
+
+def test_summary_comes_first_and_says_what_was_searched(job: Path) -> None:
+    doc = _doc(job / "report.html")
+    body = [e.tag for e in doc.find("body")]
+    assert body[:2] == ["h1", "p"] and body[2:4] == ["section", "nav"]
+    assert doc.find("body").findall("section")[0].get("id") == "summary"
+    text = doc.get_element_by_id("summary").text_content()
+    settings = _ranking(job)["settings"]
+    assert "Vehicle: System A (system_a.toml), 23 sensors" in text
+    fams, envs = settings["families"], settings["environments"]
+    assert f"{len(fams)} scenario families ({', '.join(fams)})" in text
+    assert f"{len(envs)} environments ({', '.join(envs)})" in text
+    assert "budget 1,400 candidates" in text and f"seed {settings['seed']}" in text
+    assert f"Found: {len(_ranking(job)['ranking'])} sensor-critical scenario" in text
+
+
+def test_weaknesses_are_true_to_the_ranking(job: Path) -> None:
+    doc = _doc(job / "report.html")
+    rows = {r["rank"]: r for r in _ranking(job)["ranking"]}
+    items = doc.get_element_by_id("weaknesses").findall(".//li")
+    # the first-ranked scenario of each (family, dominant effect), in rank order
+    first: dict[tuple[str, str], int] = {}
+    for rank in sorted(rows):
+        first.setdefault((rows[rank]["family"], rows[rank]["dominant_effect"]), rank)
+    want = sorted(first.values())[:MAX_WEAKNESSES]
+    got = [int(re.search(r"\(rank (\d+)\)\.$", li.text_content().strip())[1])
+           for li in items]
+    assert got == want and items
+    for li, rank in zip(items, got, strict=True):
+        row, text = rows[rank], " ".join(li.text_content().split())
+        assert li.find("b") is not None  # the lead (what and where) in bold
+        assert f"ego at {row['p_ego_speed_m_s'] * KMH:.0f} km/h" in text
+        if row.get("p_target_speed_m_s") is not None:
+            assert f"{row['target']} at {row['p_target_speed_m_s'] * KMH:.0f} km/h" in text
+        assert (f"P(collision) {fmt_p(row['collision_probability'])}, impact at "
+                f"{row['impact_speed_kmh']:.0f} km/h") in text
+        assert f"At {row['named_step_t_s']:.2f} s" in text
+        if row.get("t_confirm_median_s") is not None:
+            assert f"confirms it at {row['t_confirm_median_s']:.2f} s (median)" in text
+            if row["detection_margin_s"] < 0:
+                assert f"{-row['detection_margin_s']:.2f} s too late" in text
+        # every sensor the search itemised, with its Pd without the cause
+        for sid, better in pd_without(row["reason"]).items():
+            assert sid in text, sid
+            assert f"{better:.2f}" in text
+        # where the target is at that step, in metres ahead/behind (the reason's x)
+        x = float(re.search(r"at x=(-?[\d.]+) y=", row["reason"])[1])
+        m = re.search(rf"the {row['target']} is (\d+) m (ahead|behind)", text)
+        assert m and abs(int(m[1]) - abs(x)) <= 1 and (m[2] == "ahead") == (x > 0)
+        assert "m/s" not in text.replace("m/s2", "")  # speeds in km/h
+        more = len(row["environments"].split(", ")) - 1
+        assert (f"critical for the same reason in {more} more condition" in text) == (more > 0)
+
+
+def test_explanation_is_the_rankings(job: Path) -> None:
+    """The summary's per-sensor causes are recomputed exactly as the search did: same
+    text as the row's reason."""
+    run = read_run(job)
+    system = load_system(run.vehicle_ref)
+    ev = Evaluator(system, mode="exact", rule=DetectionRule.parse(run.settings["detection"]))
+    for row in run.rows:
+        spec = ScenarioSpec.from_row(row, system)
+        why = explain_spec(spec, ev)
+        assert why.reason == row["reason"]
+        assert why.dominant == row["dominant_effect"]
+
+
+def test_test_these_first_links_the_files(job: Path) -> None:
+    doc = _doc(job / "report.html")
+    sec = doc.get_element_by_id("test-first")
+    rows = sec.findall(".//tbody/tr")
+    weak = doc.get_element_by_id("weaknesses").findall(".//li")
+    assert len(rows) == len(weak)
+    ranking = {r["rank"]: r for r in _ranking(job)["ranking"]}
+    for tr in rows:
+        cells = tr.findall("td")
+        row = ranking[int(cells[0].text_content())]
+        assert cells[1].text_content() == row["scenario_id"]
+        hrefs = [a.get("href") for a in tr.findall(".//a")]
+        assert hrefs[0] == f"scenarios/{row['scenario_id']}.xosc"
+        for h in hrefs:
+            assert (job / h).is_file(), h
+    md = (job / "report.md").read_text()
+    assert "### Test these first" in md and f"](scenarios/{ranking[1]['scenario_id']}" in md
+
+
+def test_confidence_states_what_was_and_was_not_measured(job: Path) -> None:
+    doc = _doc(job / "report.html")
+    text = " ".join(doc.get_element_by_id("confidence").text_content().split())
+    summary = json.loads((job / "summary.json").read_text())
+    never = [f for f, d in summary["per_family"].items() if not d["sensor_critical_by_lookup"]]
+    for f in never:
+        assert f in text
+    if not never:
+        assert "Every searched family produced sensor-critical scenarios" in text
+    lve = _ranking(job)["lookup_vs_exact"]
+    assert f"of {lve['reevaluated']:,} proposals re-evaluated exactly" in text
+    assert f"{lve['sensor_critical_exact']} exactly" in text
+    assert f"at most {fmt_p(lve['max_abs_diff_collision_probability'])}" in text
+    assert f"top-10 overlap {lve['top10_overlap']} of 10" in text
+    # the top 10 over three seeds is not in a run folder: said plainly, no number invented
+    assert "Stability over seeds: not measured in this run (one search, seed 1)" in text
+
+
+def test_summary_without_a_search(tmp_path: Path) -> None:
+    (tmp_path / "run.json").write_text(json.dumps({"vehicle": "system_b"}))
+    assert main(["report", "--run", str(tmp_path)]) == 0
+    doc = _doc(tmp_path / "report.html")
+    sec = doc.get_element_by_id("summary")
+    assert "No search in this run" in sec.text_content()
+    assert "Vehicle: System B" in sec.text_content() and not sec.findall(".//section")
+
+
+def test_direction_words() -> None:
+    assert direction_words(0.0) == "straight ahead"
+    assert direction_words(360.0) == "straight ahead"
+    assert direction_words(-20.0) == "20° to the right of straight ahead"
+    assert direction_words(30.0) == "30° to the left of straight ahead"
+    assert direction_words(90.0) == "to the left"
+    assert direction_words(-90.0) == "to the right"
+    assert direction_words(150.0) == "30° to the left of straight behind"
+    assert direction_words(-179.0) == "straight behind"
+
+
+@pytest.mark.parametrize("heading_deg", [0.0, 37.0, 90.0, 200.0, -45.0])
+@pytest.mark.parametrize("azimuth_deg", [0.0, 100.0, 274.0])
+def test_sun_direction_is_the_models(heading_deg: float, azimuth_deg: float) -> None:
+    """The sun direction named in the summary is the one the sensor models use
+    (``Conditions.sun_directions``) for a world-frame (compass) sun and an ego heading."""
+    env = load_environments()["clear"].model_copy(update={"sun": SunConfig(
+        azimuth_deg=azimuth_deg, elevation_deg=12.0, frame="world")})
+    h = math.radians(heading_deg)
+    d = Conditions.sun_directions(env, np.array([h]))
+    assert d is not None
+    want = math.degrees(math.atan2(d[0, 1], d[0, 0]))
+    got = sun_azimuth_deg(env, h)
+    assert got is not None
+    assert (got - want + 180.0) % 360.0 - 180.0 == pytest.approx(0.0, abs=1e-9)
+
+
+def test_where_and_weather_words() -> None:
+    assert where_words(86.9, 0.0) == "87 m ahead"
+    assert where_words(190.5, 37.6) == "190 m ahead and 38 m to the left"
+    assert where_words(-3.2, -2.0) == "3 m behind and 2 m to the right"
+    assert where_words(0.2, 0.3) == "beside the vehicle"
+    envs = load_environments()
+    assert weather_words(envs["fog_50"]) == "fog with 50 m visibility"
+    assert weather_words(envs["rain_25"]) == "rain 25 mm/h"
+    assert weather_words(envs["snow"]) == "snowfall 5 mm/h"
+    assert weather_words(envs["clear"]) == "clear air"
+    assert sun_azimuth_deg(envs["glare_front_right"], None) == -20.0
+    assert sun_azimuth_deg(envs["rain_5"], 0.0) is None
+
+
+def test_pd_without_reads_the_rankings_reason() -> None:
+    reason = ("weather: at t=2.85 s the target is at x=86.9 y=0.0 m (ego frame), Pd of the "
+              "confirming sensors 0.00; P(collision) 1; missing: cam_windshield (weather: "
+              "Pd 0.00, 0.87 in clear air), radar_front_center (occlusion: Pd 0.00, 0.92 "
+              "without the occluders), cam_main (glare: Pd 0.10, 0.93 without the sun)")
+    assert pd_without(reason) == {"cam_windshield": 0.87, "radar_front_center": 0.92,
+                                  "cam_main": 0.93}
+
+
+def test_blind_areas_by_direction(tmp_path: Path) -> None:
+    """Pd < 0.5 cells counted per 45-degree direction from the body's centre, outside the
+    body and within the radius (reduced to the map)."""
+    system = load_system("system_a")
+    body = system.config.vehicle
+    cx = 0.5 * (body.x_rear_m + body.x_front_m)
+    res = 0.5
+    x = np.arange(-60.0, 80.0, res) + res / 2
+    y = np.arange(-50.0, 50.0, res) + res / 2
+    pd = np.ones((len(y), len(x)), dtype=np.float32)
+
+    def blind(x0: float, y0: float, n: int = 2) -> None:  # n x n cells from (x0, y0)
+        i, j = np.searchsorted(x, x0), np.searchsorted(y, y0)
+        pd[j:j + n, i:i + n] = 0.2
+
+    blind(cx - 20.0, 10.0)          # behind-left: 1 m2
+    blind(cx + 20.0, -0.25, 4)      # ahead: 4 m2
+    blind(cx, -8.0)                 # right: 1 m2
+    blind(cx, 0.0)                  # inside the body: not counted
+    blind(cx - 55.0, 0.0)           # beyond 50 m: not counted
+    np.savez(tmp_path / "coverage.npz", pd=pd, x=x, y=y, resolution=np.array([res]),
+             height=np.array([0.75]))
+    r, areas = blind_areas(tmp_path / "coverage.npz", system)
+    assert r == 50.0
+    assert areas == {"ahead": 4.0, "ahead-left": 0.0, "left": 0.0, "behind-left": 1.0,
+                     "behind": 0.0, "behind-right": 0.0, "right": 1.0, "ahead-right": 0.0}
+    # a map reaching 30 m to the side: the circle shrinks to fit it
+    keep = np.abs(y) < 30.0
+    np.savez(tmp_path / "small.npz", pd=pd[keep], x=x, y=y[keep],
+             resolution=np.array([res]), height=np.array([0.75]))
+    r, areas = blind_areas(tmp_path / "small.npz", system)
+    assert r == 30.0 and areas["ahead"] == 4.0 and areas["behind-left"] == 1.0
+
+
+def test_summary_names_the_blind_spots(job: Path) -> None:
+    doc = _doc(job / "report.html")
+    text = " ".join(doc.get_element_by_id("summary").text_content().split())
+    near = json.loads((job / "nearfield" / "nearfield.json").read_text())
+    assert f"near field: {near['blind_spot_m2']['exact']:.2f} m² within 5 m" in text
+    _, areas = blind_areas(job / "coverage" / "car_clear" / "coverage.npz",
+                           load_system("system_a"))
+    assert (f"within 50 m of the vehicle a car (heading the same way; clear, "
+            f"coverage/car_clear) is detected with Pd < 0.5 over "
+            f"{sum(areas.values()):,.0f} m² outside the body") in text
+
+
+def test_unreadable_coverage_map_is_one_line_exit_2(tmp_path: Path,
+                                                    capsys: pytest.CaptureFixture[str]) -> None:
+    (tmp_path / "run.json").write_text(json.dumps({"vehicle": "system_a"}))
+    npz = tmp_path / "coverage" / "car_clear" / "coverage.npz"
+    npz.parent.mkdir(parents=True)
+    npz.write_bytes(b"PK\x03\x04 not a zip")
+    assert main(["report", "--run", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "coverage.npz" in err and len(err.splitlines()) == 1
