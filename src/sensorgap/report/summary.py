@@ -33,10 +33,10 @@ from sensorgap.models import System
 from sensorgap.report.document import Block, Bullets, Link, Para, Section, Table
 from sensorgap.search.evaluate import Evaluator, Trace
 from sensorgap.search.problem import Candidate, SearchProblem
-from sensorgap.search.ranking import Explanation, explain, named_step
+from sensorgap.search.ranking import Explanation, explain, named_step, occluder_phrase
 
 #: Weaknesses (and "test these first" rows) on the summary page.
-MAX_WEAKNESSES = 4
+MAX_WEAKNESSES = 3
 #: km/h per m/s.
 KMH = 3.6
 #: Visibility below which the air counts as fog (WMO No. 8: fog below 1 km), m.
@@ -231,7 +231,7 @@ def sensors_words(r: RankedScenario, types: dict[str, str]) -> str:
     ex, env = r.explanation, r.spec.environment
     pd = ex.pd or {}
     without = pd_without(str(r.row.get("reason", "")))
-    occluder = " / ".join(dict.fromkeys(r.trace.occluder_labels)) or "another road user"
+    occluder = occluder_phrase(r.trace.occluder_labels) or "another road user"
     groups: dict[tuple[str, float], list[str]] = {}
     n_fov = n_far = 0
     seeing, support = [], []

@@ -21,6 +21,7 @@ target in view, ``FOV`` if some sensor has it within range, else ``range``.
 from __future__ import annotations
 
 import math
+import re
 from collections import Counter
 from dataclasses import dataclass
 
@@ -97,6 +98,17 @@ class Explanation:
 def reference_environment() -> EnvironmentConfig:
     """Clear air, no precipitation, no ROC shift, no sun."""
     return EnvironmentConfig(name="reference")
+
+
+def occluder_phrase(labels: tuple[str, ...] | list[str]) -> str:
+    """The occluders of a scene in words: numbered labels of one kind merge into a plural
+    (``parked car 1``, ``parked car 2`` -> ``parked cars``), kinds joined by ``and``."""
+    kinds: dict[str, int] = {}
+    for label in labels:
+        base = re.sub(r"\s+\d+$", "", label)
+        kinds[base] = kinds.get(base, 0) + 1
+    words = [k + ("s" if n > 1 else "") for k, n in kinds.items()]
+    return " and ".join(words)
 
 
 def named_step(tr: Trace) -> int:
@@ -186,7 +198,7 @@ def explain(problem: SearchProblem, cand: Candidate) -> Explanation:
         parts.append("missing: " + ", ".join(
             f"{sid} ({e}: Pd {p:.2f}, {b:.2f} {_WITHOUT[e]})" for sid, e, p, b in low[:4]))
     if counts.get("occlusion") and tr.occluder_labels:
-        parts.append(f"hidden behind the {' / '.join(dict.fromkeys(tr.occluder_labels))} "
+        parts.append(f"hidden behind the {occluder_phrase(tr.occluder_labels)} "
                      "for " + ", ".join(sid for sid, e, _, _ in low if e == "occlusion"))
     if seen:
         parts.append("confirming: " + ", ".join(seen[:3]))
