@@ -16,7 +16,7 @@ from lxml import html as lhtml
 
 from sensorgap.cli import main
 
-SECTIONS = ["summary", "vehicle", "nearfield", "coverage", "table-iv", "scenarios",
+SECTIONS = ["summary", "vehicle", "nearfield", "coverage", "table-iv", "scenarios", "anchors",
             "assumptions", "accuracy", "reproduce", "appendix"]
 #: report.html size budget (docs/report.md): per embedded figure (base64 bytes), for the
 #: text without figures, and in all for the default job (35 figures).
@@ -176,3 +176,24 @@ def test_compare_markdown_links_resolve(compared: Path) -> None:
     assert len(targets) >= 2
     for t in targets:
         assert " " not in t and (compared / t).is_file(), t
+
+
+def test_anchor_cases_in_the_report(job: Path, search_only: Path) -> None:
+    # issue #17: the default job evaluates the Euro NCAP obstructed crossing; the report
+    # lists every test speed with the exact P(collision) and impact speed of
+    # anchors/anchors.json (to the printed digits); a run without anchors says so in
+    # one line
+    rows = json.loads((job / "anchors" / "anchors.json").read_text())["anchors"]
+    assert [round(r["vut_kmh"]) for r in rows] == [10, 20, 30, 40, 50, 60]
+    md = (job / "report.md").read_text()
+    part = md.split("## Anchor cases", 1)[1].split("\n## ", 1)[0]
+    for r in rows:
+        line = next(ln for ln in part.splitlines()
+                    if ln.startswith(f"| {r['vut_kmh']:.0f} | 5 |"))
+        cells = [c.strip() for c in line.strip("|").split("|")]
+        assert cells[2] == r["class"]
+        assert cells[3] == format(r["collision_probability"], ".2g")
+        assert cells[4] == format(r["impact_speed_kmh"], ".1f")
+    assert "sensorgap evaluate --vehicle system_a --family pedestrian_behind_parked_cars" in part
+    other = (search_only / "report.md").read_text().split("## Anchor cases", 1)[1]
+    assert other.split("\n## ", 1)[0].strip().endswith("Not part of this run.")

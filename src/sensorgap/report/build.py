@@ -25,6 +25,7 @@ from sensorgap.errors import InputError
 from sensorgap.export.spec import ScenarioSpec, read_run
 from sensorgap.models import System, load_system
 from sensorgap.provenance import utc_now, versions
+from sensorgap.report.anchors import anchors_section
 from sensorgap.report.document import (
     Block,
     Image,
@@ -454,7 +455,7 @@ def build(folder: Path) -> tuple[str, list[str], Section, list[Section]]:
     repro = info.get("command") or ["sensorgap", "report", "--run", str(folder)]
     sections = [
         _vehicle_section(system), _nearfield_section(folder),
-        _coverage_section(folder), _farfield_section(folder), scen,
+        _coverage_section(folder), _farfield_section(folder), scen, anchors_section(folder),
         Section("assumptions", "Model assumptions and limitations",
                 _paras(ASSUMPTIONS)),
         _accuracy_section(folder, errors),
