@@ -16,6 +16,7 @@ from sensorgap.scenarios.batch import LaneTable
 from sensorgap.search.evaluate import DetectionRule, Evaluator, kinematics
 from sensorgap.search.metrics import compute_all_batch, get_metric, metric_names
 from sensorgap.search.problem import SearchProblem
+from tests.search.metric_oracles import oracle
 
 ENVS = load_environments()
 
@@ -133,8 +134,12 @@ def test_batch_metrics_equal_per_row_metrics(rule: DetectionRule) -> None:
     for i in range(len(ok)):
         tr = bt.row(i)
         for m in metric_names():
-            assert values[m][i] == pytest.approx(get_metric(m).compute(tr), rel=1e-12,
-                                                 abs=1e-12, nan_ok=True), m
+            # the compiled batch pass against the reference formulas (metric_oracles) and
+            # against the row as a batch of one (what compute_all of a trace evaluates)
+            want = oracle(m, tr)
+            assert values[m][i] == pytest.approx(want, rel=1e-12, abs=1e-12, nan_ok=True), m
+            assert get_metric(m).compute(tr) == pytest.approx(values[m][i], rel=1e-12,
+                                                             abs=1e-12, nan_ok=True), m
 
 
 def test_threads_give_identical_results() -> None:

@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 
 from sensorgap.errors import InputError
-from sensorgap.search.evaluate import DetectionRule, Trace
-from sensorgap.search.metrics import at_least_m_of_window, detection_index
+from sensorgap.search.evaluate import DetectionRule, Trace, at_least_m_of_window_batch
+from sensorgap.search.metrics import compute_all
+from tests.search.metric_oracles import at_least_m_of_window, detection_index
 
 
 def trace(pd: list[float], rule: DetectionRule) -> Trace:
@@ -24,6 +25,9 @@ def test_poisson_binomial_by_hand() -> None:
     # k=0: one cycle, cannot have 2; k=1: 0.5*0.5 = 0.25;
     # k=2: P(>=2 of {0.5,0.5,0.9}) = 0.25*0.1 + 2*0.5*0.5*0.9 + 0.25*0.9 = 0.7
     np.testing.assert_allclose(got, [0.0, 0.25, 0.7], atol=1e-15)
+    # the package's batch version (one implementation, row-wise) gives the same
+    np.testing.assert_allclose(at_least_m_of_window_batch(pd[None, :], 2, 3)[0],
+                               [0.0, 0.25, 0.7], atol=1e-15)
 
 
 def test_m_of_n_is_stricter_than_cumulative() -> None:
@@ -34,6 +38,11 @@ def test_m_of_n_is_stricter_than_cumulative() -> None:
     # P(>= 3 of 5 at 0.9) = 0.99144 (>= 0.99) first reached with a full window (k = 4)
     assert mn == 4
     assert detection_index(trace([0.5] * 10, DetectionRule(kind="m_of_n", m=3, n=5))) is None
+    # the package (compiled batch of one) detects at the same steps: t = 0.05 s and 0.20 s
+    assert compute_all(trace(pd, DetectionRule()), ["t_detect_s"])["t_detect_s"] == 0.05
+    mn3 = DetectionRule(kind="m_of_n", m=3, n=5)
+    assert compute_all(trace(pd, mn3), ["t_detect_s"])["t_detect_s"] == pytest.approx(0.20)
+    assert compute_all(trace([0.5] * 10, mn3), ["detected"])["detected"] == 0.0
 
 
 @pytest.mark.parametrize("text", ["3/5", "cumulative", "1/1"])

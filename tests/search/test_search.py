@@ -22,14 +22,13 @@ from sensorgap.search.evaluate import Evaluator, Trace
 from sensorgap.search.metrics import (
     _OutcomeMetric,
     compute_all,
-    corridor,
-    detection_index,
     get_metric,
     metric_names,
 )
 from sensorgap.search.problem import SearchProblem
 from sensorgap.search.run import run_search
 from sensorgap.search.strategies import get_strategy, strategy_names
+from tests.search.metric_oracles import corridor, detection_index
 
 FAST = ["cut_in_right", "crossing_pedestrian"]
 
@@ -128,7 +127,7 @@ def test_metrics_by_hand() -> None:
     tr = _trace([0.0, 0.5, 0.5, 0.0, 0.0, 0.0, 0.99, 0.2], ttc=[9, 9, 9, 2, 2, 0.5, 0.4, 9],
                 t0=1.0)
     assert tr.p_undetected[2] == pytest.approx(0.25)
-    assert detection_index(tr) == 6
+    assert detection_index(tr) == 6  # the reference formulas (tests/search/metric_oracles)
     assert corridor(tr) == (3, 6)
     # a hand-made trace has no reaction model: the collision-outcome metrics are tested
     # in test_outcome.py

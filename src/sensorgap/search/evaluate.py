@@ -157,6 +157,29 @@ class Trace:
         """P_undet(t_k) = prod_{j<=k} (1 - Pd_j)."""
         return np.exp(self.log_undetected)
 
+    def as_batch(self) -> BatchTrace:
+        """This trace as a batch of one row (what the metrics evaluate: one implementation
+        per metric, ``search.metrics``); cached."""
+        hit = self.__dict__.get("_batch")
+        if isinstance(hit, BatchTrace):
+            return hit
+
+        def row(a: F64) -> F64:
+            return np.ascontiguousarray(a, dtype=np.float64)[None, :]
+
+        lm = log_miss_of(self.pd) if self.log_miss is None else self.log_miss
+        bt = BatchTrace(
+            t=np.ascontiguousarray(self.t, dtype=np.float64), x=row(self.x), y=row(self.y),
+            log_miss=row(lm), ttc=row(self.ttc), headway=row(self.headway),
+            distance=row(self.distance), ego_speed=row(self.ego_speed),
+            heading=row(self.heading), n=np.array([len(self.t)], dtype=np.int64),
+            collided=np.array([self.collided]), duration_s=self.duration_s, rule=self.rule,
+            psi=None if self.psi is None else row(self.psi),
+            log_miss_confirm=None if self.pd_confirm is None
+            else row(log_miss_of(self.pd_confirm)))
+        self.__dict__["_batch"] = bt
+        return bt
+
 
 @dataclass(frozen=True)
 class Kinematics:

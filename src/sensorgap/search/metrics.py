@@ -21,7 +21,6 @@ which keeps scenarios ordered by how close they come to an undetected threat.
 from __future__ import annotations
 
 import math
-from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from typing import ClassVar, Literal, TypeVar
 
@@ -44,36 +43,6 @@ LEAD_IN_S = 1.0
 LOW_PD = 0.5
 #: Cap for infinite TTC / headway, s.
 CAP_S = 99.0
-
-
-def _cap(v: float) -> float:
-    return float(min(v, CAP_S))
-
-
-def at_least_m_of_window(pd: np.ndarray, m: int, n: int) -> np.ndarray:
-    """P(at least m detections among the last n cycles) at every step (Poisson-binomial
-    over the window of independent cycles; shorter windows at the start)."""
-    out = np.zeros(pd.size)
-    for k in range(pd.size):
-        window = pd[max(0, k - n + 1):k + 1]
-        dist = np.zeros(window.size + 1)  # dist[j] = P(j detections so far)
-        dist[0] = 1.0
-        for p in window:
-            dist[1:] = dist[1:] * (1.0 - p) + dist[:-1] * p
-            dist[0] *= 1.0 - p
-        out[k] = float(dist[m:].sum()) if m <= window.size else 0.0
-    return out
-
-
-def detection_index(tr: Trace) -> int | None:
-    """First step at which the target counts as reliably detected under ``tr.rule``
-    (cumulative Pd >= threshold, or M-of-N confirmation), or None."""
-    rule = tr.rule
-    if rule.kind == "cumulative":
-        hit = np.flatnonzero(tr.p_undetected <= 1.0 - rule.threshold)
-    else:
-        hit = np.flatnonzero(at_least_m_of_window(tr.pd, rule.m, rule.n) >= rule.threshold)
-    return int(hit[0]) if hit.size else None
 
 
 def detection_index_batch(bt: BatchTrace) -> np.ndarray:
@@ -120,19 +89,11 @@ def critical_index(tr: Trace) -> int:
     return int(np.argmax(log10_risk_profile(tr)))
 
 
-def corridor(tr: Trace, threshold: float = LOW_PD) -> tuple[int, int]:
-    """Longest contiguous run of steps with Pd < threshold: [start, end) (0, 0 if none)."""
-    low = np.concatenate([[False], tr.pd < threshold, [False]])
-    edges = np.flatnonzero(np.diff(low.astype(np.int8)))
-    if edges.size == 0:
-        return 0, 0
-    starts, ends = edges[0::2], edges[1::2]
-    i = int(np.argmax(ends - starts))
-    return int(starts[i]), int(ends[i])
-
-
-class Metric(ABC):
-    """One metric; subclasses set ``name``, ``unit``, ``better``, ``description``."""
+class Metric:
+    """One metric; subclasses set ``name``, ``unit``, ``better``, ``description`` and
+    implement ``compute_batch`` (the built-ins: one compiled pass, ``summary``) or
+    ``compute`` (one trace; a plug-in may do that): the other follows. One scenario is a
+    batch of one (``Trace.as_batch``), so a built-in metric has one implementation."""
 
     name: ClassVar[str]
     unit: ClassVar[str] = ""
@@ -141,13 +102,18 @@ class Metric(ABC):
     #: NaN is allowed and means "none" (written as an empty cell)
     optional: ClassVar[bool] = False
 
-    @abstractmethod
     def compute(self, tr: Trace) -> float:
-        """The metric's value (finite)."""
+        """The metric's value (finite) for one trace: its batch of one."""
+        if type(self).compute_batch is Metric.compute_batch:
+            raise TypeError(f"metric {self.name!r} implements neither compute nor "
+                            "compute_batch")
+        return float(np.asarray(self.compute_batch(tr.as_batch()), dtype=np.float64)[0])
 
     def compute_batch(self, bt: BatchTrace) -> np.ndarray:
-        """(B,) values for a batch; default: ``compute`` per row (override for speed,
-        same values)."""
+        """(B,) values for a batch; default: ``compute`` per row."""
+        if type(self).compute is Metric.compute:
+            raise TypeError(f"metric {self.name!r} implements neither compute nor "
+                            "compute_batch")
         return np.array([self.compute(bt.row(i)) for i in range(len(bt))], dtype=np.float64)
 
 
@@ -242,41 +208,38 @@ def _rows(bt: BatchTrace) -> np.ndarray:
     return np.arange(len(bt))
 
 
-@register_metric
-class Risk(Metric):
-    name = "risk"
-    description = "max_k P_undet(t_k) exp(-TTC_k / 2 s) (see module docstring)"
+class _SummaryMetric(Metric):
+    """A value of the compiled batch pass (``summary``), capped at ``CAP_S`` (``cap``)."""
 
-    def compute(self, tr: Trace) -> float:
-        return float(np.max(risk_profile(tr)))
+    key: ClassVar[str] = ""
+    cap: ClassVar[bool] = False
 
     def compute_batch(self, bt: BatchTrace) -> np.ndarray:
-        return summary(bt).values["risk"]
+        v = np.asarray(summary(bt).values[self.key], dtype=np.float64)
+        return np.minimum(v, CAP_S) if self.cap else v
 
 
-@register_metric
-class Log10Risk(Metric):
-    name = "log10_risk"
-    description = ("log10 of the risk, computed in the log domain: the ranking and search "
-                   "objective, graded even where the risk underflows (floor -300)")
-
-    def compute(self, tr: Trace) -> float:
-        return float(np.max(log10_risk_profile(tr)))
-
-    def compute_batch(self, bt: BatchTrace) -> np.ndarray:
-        return summary(bt).values["log10_risk"]
+def _declare(base: type[Metric], name: str, description: str, **attrs: object) -> None:
+    """Register a metric of ``base`` (a column of the compiled pass or a field of the
+    collision outcome) under ``name``: the class is only its declaration."""
+    cls = type("".join(w.title() for w in name.split("_")), (base,),
+               {"name": name, "description": description, **attrs})
+    register_metric(cls)
 
 
-@register_metric
-class PUndetectedEnd(Metric):
-    name = "p_undetected_end"
-    description = "probability the target is still undetected at the end (or at impact)"
+def _summary_metric(name: str, key: str, description: str, unit: str = "",
+                    better: Literal["higher", "lower", "none"] = "higher",
+                    cap: bool = False) -> None:
+    """Register a metric that is one column of the compiled batch pass."""
+    _declare(_SummaryMetric, name, description, key=key, unit=unit, better=better, cap=cap)
 
-    def compute(self, tr: Trace) -> float:
-        return float(tr.p_undetected[-1])
 
-    def compute_batch(self, bt: BatchTrace) -> np.ndarray:
-        return summary(bt).values["p_undetected_end"]
+_summary_metric("risk", "risk", "max_k P_undet(t_k) exp(-TTC_k / 2 s) (see module docstring)")
+_summary_metric("log10_risk", "log10_risk",
+                "log10 of the risk, computed in the log domain: the ranking and search "
+                "objective, graded even where the risk underflows (floor -300)")
+_summary_metric("p_undetected_end", "p_undetected_end",
+                "probability the target is still undetected at the end (or at impact)")
 
 
 @register_metric
@@ -284,9 +247,6 @@ class Detected(Metric):
     name = "detected"
     better = "lower"
     description = "1 if reliably detected (cumulative Pd >= 0.99) within the scenario"
-
-    def compute(self, tr: Trace) -> float:
-        return 0.0 if detection_index(tr) is None else 1.0
 
     def compute_batch(self, bt: BatchTrace) -> np.ndarray:
         return (detection_index_batch(bt) >= 0).astype(np.float64)
@@ -298,93 +258,24 @@ class TimeToDetection(Metric):
     unit = "s"
     description = "time of first reliable detection (scenario duration if never)"
 
-    def compute(self, tr: Trace) -> float:
-        k = detection_index(tr)
-        return tr.duration_s if k is None else float(tr.t[k])
-
     def compute_batch(self, bt: BatchTrace) -> np.ndarray:
         k = detection_index_batch(bt)
         return np.where(k >= 0, bt.t[np.maximum(k, 0)], bt.duration_s)
 
 
-def _at_detection(tr: Trace, values: np.ndarray, worst: str, cap: bool = True) -> float:
-    """``values`` at the first reliable detection (the most critical value reached
-    undetected if never); times capped at ``CAP_S`` (``cap``), distances not."""
-    k = detection_index(tr)
-    if k is None:  # never detected: the most critical value reached undetected
-        v = float(np.min(values)) if worst == "min" else float(np.max(values))
-    else:
-        v = float(values[k])
-    return _cap(v) if cap else v
-
-
-@register_metric
-class TtcAtDetection(Metric):
-    name = "ttc_at_detect_s"
-    unit = "s"
-    better = "lower"
-    description = "TTC at first reliable detection (min TTC if never detected; cap 99 s)"
-
-    def compute(self, tr: Trace) -> float:
-        return _at_detection(tr, tr.ttc, "min")
-
-    def compute_batch(self, bt: BatchTrace) -> np.ndarray:
-        return np.minimum(summary(bt).values["ttc_at"], CAP_S)
-
-
-@register_metric
-class HeadwayAtDetection(Metric):
-    name = "headway_at_detect_s"
-    unit = "s"
-    better = "lower"
-    description = "time headway at first reliable detection (min if never; cap 99 s)"
-
-    def compute(self, tr: Trace) -> float:
-        return _at_detection(tr, tr.headway, "min")
-
-    def compute_batch(self, bt: BatchTrace) -> np.ndarray:
-        return np.minimum(summary(bt).values["headway_at"], CAP_S)
-
-
-@register_metric
-class DistanceAtDetection(Metric):
-    name = "distance_at_detect_m"
-    unit = "m"
-    better = "lower"
-    description = "ego rear axle to target centre at detection (min distance if never)"
-
-    def compute(self, tr: Trace) -> float:
-        return _at_detection(tr, tr.distance, "min", cap=False)
-
-    def compute_batch(self, bt: BatchTrace) -> np.ndarray:
-        return np.asarray(summary(bt).values["distance_at"], dtype=np.float64)
-
-
-@register_metric
-class MinTtc(Metric):
-    name = "min_ttc_s"
-    unit = "s"
-    better = "lower"
-    description = "minimum TTC over the scenario (cap 99 s; 0 = collision)"
-
-    def compute(self, tr: Trace) -> float:
-        return _cap(float(np.min(tr.ttc)))
-
-    def compute_batch(self, bt: BatchTrace) -> np.ndarray:
-        return np.minimum(summary(bt).values["min_ttc"], CAP_S)
-
-
-@register_metric
-class MeanPd(Metric):
-    name = "mean_pd"
-    better = "lower"
-    description = "mean per-step fused Pd"
-
-    def compute(self, tr: Trace) -> float:
-        return float(np.mean(tr.pd))
-
-    def compute_batch(self, bt: BatchTrace) -> np.ndarray:
-        return summary(bt).values["mean_pd"]
+_summary_metric("ttc_at_detect_s", "ttc_at",
+                "TTC at first reliable detection (min TTC if never detected; cap 99 s)",
+                "s", "lower", cap=True)
+_summary_metric("headway_at_detect_s", "headway_at",
+                "time headway at first reliable detection (min if never; cap 99 s)", "s",
+                "lower", cap=True)
+_summary_metric("distance_at_detect_m", "distance_at",
+                "ego rear axle to target centre at detection (min distance if never)", "m",
+                "lower")
+_summary_metric("min_ttc_s", "min_ttc",
+                "minimum TTC over the scenario (cap 99 s; 0 = collision)", "s", "lower",
+                cap=True)
+_summary_metric("mean_pd", "mean_pd", "mean per-step fused Pd", better="lower")
 
 
 @register_metric
@@ -392,10 +283,6 @@ class CorridorDuration(Metric):
     name = "corridor_s"
     unit = "s"
     description = "longest contiguous stretch with Pd < 0.5, duration"
-
-    def compute(self, tr: Trace) -> float:
-        a, b = corridor(tr)
-        return (b - a) * DT_S
 
     def compute_batch(self, bt: BatchTrace) -> np.ndarray:
         a, b = corridor_batch(bt)
@@ -407,13 +294,6 @@ class _CorridorPoint(Metric):
     better = "none"
     index: ClassVar[int] = 0  # 0: start, 1: end
     coord: ClassVar[str] = "x"
-
-    def compute(self, tr: Trace) -> float:
-        a, b = corridor(tr)
-        if b == a:
-            return 0.0
-        k = a if self.index == 0 else b - 1
-        return float((tr.x if self.coord == "x" else tr.y)[k])
 
     def compute_batch(self, bt: BatchTrace) -> np.ndarray:
         a, b = corridor_batch(bt)
@@ -428,9 +308,6 @@ class CorridorT0(Metric):
     unit = "s"
     better = "none"
     description = "start time of the longest low-detection corridor"
-
-    def compute(self, tr: Trace) -> float:
-        return float(tr.t[corridor(tr)[0]])
 
     def compute_batch(self, bt: BatchTrace) -> np.ndarray:
         return np.asarray(bt.t[corridor_batch(bt)[0]], dtype=np.float64)
@@ -476,72 +353,53 @@ class _OutcomeMetric(Metric):
         return np.asarray(getattr(bt.outcome, self.field), dtype=np.float64)
 
 
-@register_metric
-class CollisionProbability(_OutcomeMetric):
-    name = field = "collision_probability"
-    better = "higher"
-    description = ("probability that the vehicle confirms the target too late to avoid the "
-                   "collision (M-of-N confirmation, latency, jerk-limited braking)")
+def _outcome_metric(name: str, description: str, unit: str = "",
+                    better: Literal["higher", "lower", "none"] = "higher",
+                    optional: bool = False) -> None:
+    """Register a metric that is a field of the collision outcome."""
+    _declare(_OutcomeMetric, name, description, field=name, unit=unit, better=better,
+             optional=optional)
 
 
-@register_metric
-class ImpactSpeed(_OutcomeMetric):
-    name = field = "impact_speed_kmh"
-    unit = "km/h"
-    better = "higher"
-    description = "expected relative impact speed given a collision"
+_outcome_metric("collision_probability",
+                "probability that the vehicle confirms the target too late to avoid the "
+                "collision (M-of-N confirmation, latency, jerk-limited braking)")
 
+_outcome_metric("impact_speed_kmh",
+                "expected relative impact speed given a collision",
+                unit="km/h")
 
-@register_metric
-class CollisionPerfect(_OutcomeMetric):
-    name = field = "collision_perfect"
-    better = "none"
-    description = "1 if a vehicle with perfect perception (same reaction) still collides"
+_outcome_metric("collision_perfect",
+                "1 if a vehicle with perfect perception (same reaction) still collides",
+                better="none")
 
+_outcome_metric("t_safe_s",
+                "latest time at which a confirmed detection still avoids the collision "
+                "(empty: none does)",
+                unit="s",
+                better="none",
+                optional=True)
 
-@register_metric
-class TimeSafe(_OutcomeMetric):
-    name = field = "t_safe_s"
-    unit = "s"
-    better = "none"
-    optional = True
-    description = ("latest time at which a confirmed detection still avoids the collision "
-                   "(empty: none does)")
+_outcome_metric("detection_margin_s",
+                "t_safe minus the median confirmation time (negative: too late; empty: "
+                "no t_safe or confirmation less likely than 1/2)",
+                unit="s",
+                better="lower",
+                optional=True)
 
+_outcome_metric("t_confirm_median_s",
+                "median time of the first confirmation (empty: P(confirmed) < 1/2, or no "
+                "collision to avoid)",
+                unit="s",
+                optional=True)
 
-@register_metric
-class DetectionMargin(_OutcomeMetric):
-    name = field = "detection_margin_s"
-    unit = "s"
-    better = "lower"
-    optional = True
-    description = ("t_safe minus the median confirmation time (negative: too late; empty: "
-                   "no t_safe or confirmation less likely than 1/2)")
+_outcome_metric("t_threat_s",
+                "when the target becomes a threat (enters the ego's planned path corridor)",
+                unit="s",
+                better="none",
+                optional=True)
 
-
-@register_metric
-class ConfirmMedian(_OutcomeMetric):
-    name = field = "t_confirm_median_s"
-    unit = "s"
-    better = "higher"
-    optional = True
-    description = ("median time of the first confirmation (empty: P(confirmed) < 1/2, or no "
-                   "collision to avoid)")
-
-
-@register_metric
-class ThreatOnset(_OutcomeMetric):
-    name = field = "t_threat_s"
-    unit = "s"
-    better = "none"
-    optional = True
-    description = "when the target becomes a threat (enters the ego's planned path corridor)"
-
-
-@register_metric
-class NeverConfirmed(_OutcomeMetric):
-    name = field = "p_never_confirmed"
-    better = "higher"
-    optional = True
-    description = ("probability that the target is never confirmed before the end or impact "
-                   "(empty: no collision to avoid)")
+_outcome_metric("p_never_confirmed",
+                "probability that the target is never confirmed before the end or impact "
+                "(empty: no collision to avoid)",
+                optional=True)
