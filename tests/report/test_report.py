@@ -197,3 +197,33 @@ def test_anchor_cases_in_the_report(job: Path, search_only: Path) -> None:
     assert "sensorgap evaluate --vehicle system_a --family pedestrian_behind_parked_cars" in part
     other = (search_only / "report.md").read_text().split("## Anchor cases", 1)[1]
     assert other.split("\n## ", 1)[0].strip().endswith("Not part of this run.")
+
+
+def test_scenario_figure_shows_the_named_step(job: Path, monkeypatch: pytest.MonkeyPatch,
+                                              tmp_path: Path) -> None:
+    # issue #14 item 6: the per-scenario figure draws the target's body at the step the
+    # reason names (with its exact Pd of the confirming sensors), the scene's occluders
+    # at that step, and over time the confirming Pd, P(confirmed), the path TTC and the
+    # threat onset / t_safe / median confirmation of the ranking row
+    from sensorgap.export.spec import read_run, specs_of_run
+    from sensorgap.report import figures
+    from sensorgap.search.evaluate import Evaluator
+    from sensorgap.search.ranking import named_step
+
+    run = read_run(job)
+    spec = next(s for s in specs_of_run(run) if s.scenario.occluders)
+    ev = Evaluator(spec.system, mode="exact")
+    tr = figures.scenario_trace(spec, ev)
+    captured = {}
+    monkeypatch.setattr(figures, "save_figure",
+                        lambda fig, path, dpi: captured.setdefault("fig", fig) and path)
+    figures.scenario_figure(spec, ev, tr, tmp_path / "f.png")
+    fig = captured["fig"]
+    labels = [t.get_text() for leg in fig.legends for t in leg.get_texts()]
+    k = named_step(tr)
+    pdc = tr.pd if tr.pd_confirm is None else tr.pd_confirm
+    assert f"target at t = {tr.t[k]:.2f} s (Pd {pdc[k]:.2f})" in labels
+    assert "occluders at that step" in labels
+    assert any(lab.startswith("P(confirmed") for lab in labels)
+    assert "path TTC [s] (cut at 10 s)" in labels
+    assert {"threat onset", "t_safe"} <= set(labels)

@@ -1,7 +1,9 @@
-"""Report figures: a ranked scenario over the coverage map, Pd(t) and P_undet(t)."""
+"""Report figures: a ranked scenario over the coverage map with the target's body,
+occluders and the sun at the named step; Pd, P(confirmed) and TTC over time."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import matplotlib
@@ -9,11 +11,14 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+from matplotlib.patches import Polygon  # noqa: E402
 
 from sensorgap.coverage.plot import PD_CMAP, PD_NORM, draw_vehicle, save_figure  # noqa: E402
 from sensorgap.export.spec import ScenarioSpec  # noqa: E402
+from sensorgap.report.summary import direction_words, sun_azimuth_deg  # noqa: E402
 from sensorgap.search.evaluate import Evaluator, Trace  # noqa: E402
-from sensorgap.search.metrics import critical_index  # noqa: E402
+from sensorgap.search.outcome import first_confirmation  # noqa: E402
+from sensorgap.search.ranking import named_step  # noqa: E402
 
 plt.rcParams["svg.hashsalt"] = "sensorgap"
 
@@ -23,16 +28,29 @@ def scenario_trace(spec: ScenarioSpec, evaluator: Evaluator) -> Trace:
     return evaluator.trace(spec.scenario, spec.environment, spec.family.duration_s)
 
 
+def _box(ax: plt.Axes, x: float, y: float, psi: float, length: float, width: float,
+         **kw: object) -> None:
+    """A box (centre x, y in m; heading psi in rad) in the ego frame."""
+    c, sn = math.cos(psi), math.sin(psi)
+    corners = [(x + c * u - sn * v, y + sn * u + c * v)
+               for u, v in ((length / 2, width / 2), (-length / 2, width / 2),
+                            (-length / 2, -width / 2), (length / 2, -width / 2))]
+    ax.add_patch(Polygon(corners, closed=True, **kw))
+
+
 def scenario_figure(spec: ScenarioSpec, evaluator: Evaluator, tr: Trace, path: Path) -> Path:
-    """Left: the target's path in the ego frame over the fused Pd map of the scenario's
-    weather (no sun; the lookup map of the search), vehicle and sensor fields of view, the
-    critical step marked. Right: Pd(t) and P_undet(t) (log scale), TTC on a second axis."""
+    """Left: the target's path in the ego frame over the fused Pd map of a car body in the
+    scenario's weather (the search's lookup map: no sun, no occluders), the vehicle and its
+    sensors' fields of view; at the step the reason names, the target's body coloured by
+    its exact Pd of the confirming sensors, the occluders of the scene, and the sun's
+    direction seen from the vehicle. Right: over time, that Pd, P(confirmed by then), the
+    path TTC, and the threat onset, t_safe and median confirmation."""
     maps = evaluator.maps(spec.environment, spec.target)
     g = maps.grid
     pd_map = -np.expm1(maps.total.astype(np.float64))
-    fig, (ax, bx) = plt.subplots(1, 2, figsize=(12.0, 4.4),
+    fig, (ax, bx) = plt.subplots(1, 2, figsize=(12.0, 5.0),
                                  gridspec_kw={"width_ratios": [1.6, 1.0]})
-    fig.subplots_adjust(left=0.06, right=0.93, bottom=0.12, top=0.92, wspace=0.35)
+    fig.subplots_adjust(left=0.06, right=0.93, bottom=0.27, top=0.92, wspace=0.42)
     pad = 15.0
     x0, x1 = min(float(tr.x.min()), -10.0) - pad, max(float(tr.x.max()), 10.0) + pad
     y0, y1 = min(float(tr.y.min()), -6.0) - pad / 2, max(float(tr.y.max()), 6.0) + pad / 2
@@ -48,33 +66,67 @@ def scenario_figure(spec: ScenarioSpec, evaluator: Evaluator, tr: Trace, path: P
                            g.ymin + j0 * g.resolution, g.ymin + j1 * g.resolution),
                    cmap=PD_CMAP, norm=PD_NORM, interpolation="nearest", aspect="equal")
     draw_vehicle(ax, spec.system)
-    k = critical_index(tr)
+    k = named_step(tr)
+    pdc = tr.pd if tr.pd_confirm is None else tr.pd_confirm
     ax.plot(tr.x, tr.y, color="white", linewidth=2.2, zorder=6)
-    ax.plot(tr.x, tr.y, color="crimson", linewidth=1.2, zorder=7, label="target (ego frame)")
+    ax.plot(tr.x, tr.y, color="crimson", linewidth=1.2, zorder=7, label="target path")
     ax.plot(tr.x[0], tr.y[0], "o", color="crimson", zorder=8, label="start")
-    ax.plot(tr.x[k], tr.y[k], "X", color="yellow", markeredgecolor="black", markersize=10,
-            zorder=9, label=f"critical step t={tr.t[k]:.2f} s")
+    if tr.occluders is not None:
+        for m, box in enumerate(tr.occluders[k]):
+            _box(ax, float(box[0]), float(box[1]), math.atan2(float(box[3]), float(box[2])),
+                 2.0 * float(box[4]), 2.0 * float(box[5]), facecolor="0.45",
+                 edgecolor="black", linewidth=0.8, zorder=8,
+                 label="occluders at that step" if m == 0 else None)
+    psi = 0.0 if tr.psi is None else float(tr.psi[k])
+    _box(ax, float(tr.x[k]), float(tr.y[k]), psi, spec.target.length_m, spec.target.width_m,
+         facecolor=plt.get_cmap(PD_CMAP)(PD_NORM(float(pdc[k]))), edgecolor="black",
+         linewidth=1.4,
+         zorder=9, label=f"target at t = {tr.t[k]:.2f} s (Pd {pdc[k]:.2f})")
+    az = sun_azimuth_deg(spec.environment, float(tr.heading[k]))
+    if az is not None:
+        span = 0.12 * (x1 - x0)
+        a = math.radians(az)
+        ax.annotate("", xy=(x0 + 0.14 * (x1 - x0) + span * math.cos(a) * 0.15,
+                            y1 - 0.2 * (y1 - y0) + span * math.sin(a) * 0.15),
+                    xytext=(x0 + 0.14 * (x1 - x0) + span * math.cos(a),
+                            y1 - 0.2 * (y1 - y0) + span * math.sin(a)),
+                    arrowprops={"arrowstyle": "->", "color": "orange", "lw": 2.0}, zorder=10)
+        ax.text(x0 + 0.02 * (x1 - x0), y0 + 0.05 * (y1 - y0),
+                f"sun: {direction_words(az)}, {spec.environment.sun.elevation_deg:.0f}° high"
+                if spec.environment.sun is not None else "", fontsize=7, color="darkorange",
+                zorder=10)
     ax.set_xlim(x0, x1)
     ax.set_ylim(y0, y1)
     ax.set_xlabel("x (ego vehicle frame) [m]")
     ax.set_ylabel("y (ego vehicle frame) [m]")
-    ax.legend(loc="upper right", fontsize=7)
-    fig.colorbar(im, ax=ax, label="detection probability $p_d$ (no sun)", shrink=0.85)
+    fig.legend(*ax.get_legend_handles_labels(), loc="lower left",
+               bbox_to_anchor=(0.06, 0.01), ncol=2, fontsize=7, frameon=False)
+    fig.colorbar(im, ax=ax, shrink=0.85,
+                 label=f"$p_d$ of a {spec.target.name} body, {spec.environment_name}: "
+                 "no sun, no occluders")
     ax.set_title(f"rank {spec.rank}: {spec.family.name}, {spec.environment_name}",
                  fontsize=9)
-    bx.plot(tr.t, tr.pd, color="tab:blue", label="fused $p_d$ per step")
+    r = evaluator.reaction
+    f = first_confirmation(pdc[None, :], np.array([len(pdc)]), r.confirm_m, r.confirm_n)[0]
+    bx.plot(tr.t, pdc, color="tab:blue", label="$p_d$ of the confirming sensors")
+    bx.plot(tr.t, np.cumsum(f[:len(pdc)]), color="tab:green",
+            label=f"P(confirmed {r.confirm_m} of {r.confirm_n}) by then")
     bx.set_ylim(-0.02, 1.02)
     bx.set_xlabel("time [s]")
-    bx.set_ylabel("$p_d$")
+    bx.set_ylabel("probability")
     cx = bx.twinx()
-    # log10 on a linear axis: P_undet spans hundreds of decades (a log axis would need
-    # hundreds of ticks)
-    lpu = np.maximum(tr.log_undetected / np.log(10.0), -300.0)
-    cx.plot(tr.t, lpu, color="tab:red", label="log10 P(still undetected)")
-    cx.set_ylabel("log10 P(still undetected)")
-    cx.set_ylim(min(float(lpu.min()) * 1.05 - 0.5, -1.0), 0.5)
-    bx.axvline(float(tr.t[k]), color="gray", linestyle=":", linewidth=1.0)
-    lines = bx.get_lines()[:1] + cx.get_lines()[:1]
-    bx.legend(lines, [str(ln.get_label()) for ln in lines], loc="center right", fontsize=7)
-    bx.set_title("detection over time (exact evaluation)", fontsize=9)
+    cx.plot(tr.t, np.minimum(tr.ttc, 10.0), color="tab:red", linewidth=1.0,
+            label="path TTC [s] (cut at 10 s)")
+    cx.set_ylabel("time to collision on the path [s]")
+    cx.set_ylim(0.0, 10.5)
+    for key, colour, text in (("t_threat_s", "0.4", "threat onset"),
+                              ("t_safe_s", "black", "t_safe"),
+                              ("t_confirm_median_s", "tab:green", "median confirmation")):
+        v = tr.extra.get(key)
+        if v is not None and math.isfinite(float(v)):
+            bx.axvline(float(v), color=colour, linestyle=":", linewidth=1.0, label=text)
+    lines = bx.get_lines() + cx.get_lines()
+    fig.legend(lines, [str(ln.get_label()) for ln in lines], loc="lower left",
+               bbox_to_anchor=(0.62, 0.01), ncol=2, fontsize=7, frameon=False)
+    bx.set_title("detection and confirmation over time (exact)", fontsize=9)
     return save_figure(fig, path, dpi=100)
