@@ -395,7 +395,8 @@ def open_run(folder: Path, ranking: bool = True) -> RunFolder:
     -> ``InputError`` naming the file and field."""
     folder = Path(folder)
     if not folder.is_dir():
-        raise InputError(folder, "", "run folder does not exist")
+        raise InputError(folder, "", "run folder does not exist"
+                         + (" (ranking.json is missing)" if ranking else ""))
     info = read_run_info(folder)
     rows: list[dict[str, Any]] = []
     settings: dict[str, Any] = {}
