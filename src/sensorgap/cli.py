@@ -338,7 +338,8 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     ev = evaluate_candidate(
         args.vehicle, args.family, args.environment, parse_sun(args.sun), args.param or [],
         Path(args.out),
-        Path(args.environments_file) if args.environments_file else None)
+        Path(args.environments_file) if args.environments_file else None,
+        Path(args.run) if args.run else None)
     m = ev["metrics"]
     if not ev["feasible"]:
         print(f"{args.out}: infeasible: {ev['note']}")
@@ -641,7 +642,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_search)
 
     p = sub.add_parser("evaluate", help="one candidate, exact: metrics and a per-step trace")
-    p.add_argument("--vehicle", required=True, help="preset name or .toml path")
+    p.add_argument("--vehicle", help="preset name or .toml path (or give --run)")
+    p.add_argument("--run", help="search run folder: use the vehicle, environments, "
+                   "families, targets and reaction model it recorded")
     p.add_argument("--family", required=True, help="family name or .toml path")
     p.add_argument("--environment", required=True, help="environment preset")
     p.add_argument("--environments-file", help="environments file (default: shipped presets)")

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import datetime as dt
 import hashlib
+import json
 import os
 import platform
 from collections.abc import Iterable
@@ -64,12 +65,22 @@ def utc_now() -> str:
 def write_run_info(folder: Path, command: list[str], vehicle: str,
                    files: Iterable[Path], settings: dict[str, Any],
                    extra: dict[str, Any] | None = None) -> dict[str, Any]:
-    """``folder/run.json``: command, vehicle, versions, config hashes, settings (+ extra)."""
+    """``folder/run.json``: command, vehicle, versions, config hashes, settings (+ extra).
+    The ``inputs`` a search recorded in an existing ``run.json`` (``search.runfolder``) are
+    kept."""
     info: dict[str, Any] = {
         "command": command, "vehicle": vehicle, "versions": versions(),
         "config_sha256": config_hashes(files, Path.cwd()), "settings": settings,
         "platform": f"{platform.system()} {platform.machine()}",
     }
     info.update(extra or {})
+    old = Path(folder) / "run.json"
+    if "inputs" not in info and old.is_file():
+        try:
+            prev = json.loads(old.read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            prev = None
+        if isinstance(prev, dict) and isinstance(prev.get("inputs"), dict):
+            info["inputs"] = prev["inputs"]
     write_json(Path(folder) / "run.json", info)
     return info

@@ -111,16 +111,19 @@ def reaction_presets() -> list[str]:
     return list(_tables(reactions_path()))
 
 
-def load_reaction(name_or_path: str | Path | None = None) -> ReactionConfig:
+def load_reaction(name_or_path: str | Path | None = None,
+                  presets: Path | None = None) -> ReactionConfig:
     """A reaction model: None gives ``DEFAULT_REACTION``; a preset name of
     ``templates/reactions.toml``; or a path to a TOML file of the same layout (its first
-    ``[reactions.<name>]`` table). Any problem (unknown name, bad value, M > N, a parameter
-    without a source) is an ``InputError`` naming the file and the field."""
+    ``[reactions.<name>]`` table). ``presets``: the file a name is looked up in instead of
+    the shipped presets (a run folder's recorded copy). Any problem (unknown name, bad
+    value, M > N, a parameter without a source) is an ``InputError`` naming the file and
+    the field."""
     text = DEFAULT_REACTION if name_or_path is None else str(name_or_path)
     if isinstance(name_or_path, Path) or text.endswith(".toml") or "/" in text:
         path, name = Path(text), None
     else:
-        path, name = reactions_path(), text
+        path, name = presets or reactions_path(), text
     data = _tables(path)
     if name is None:
         name = next(iter(data))

@@ -38,6 +38,7 @@ from sensorgap.export.xosc import DEFAULT_VERSION, VERSIONS, build_scenario
 from sensorgap.filesio import write_json, write_manifest, write_npz
 from sensorgap.models import Conditions
 from sensorgap.roads import read_opendrive
+from sensorgap.search.runfolder import copy_record
 
 #: Export styles: ``maneuver`` (actions started relative to the ego, for a system under
 #: test; default) and ``replay`` (the evaluated 20 Hz states as timed polylines).
@@ -122,6 +123,7 @@ def export_catalog(run_dir: Path, out_dir: Path | None = None,
         for name in ("ranking.csv", "ranking.json"):
             if (run.folder / name).is_file():
                 atomic_write_bytes(out / name, (run.folder / name).read_bytes())
+        copy_record(run.folder, out)  # run.json and inputs/: the catalog rebuilds alike
     files: dict[str, dict[str, Any]] = {}
     scenarios = []
     nets = {}

@@ -26,7 +26,6 @@ from sensorgap.export.catalog import DEFAULT_STYLE, STYLES, write_xosc
 from sensorgap.export.maneuver import build_maneuver_scenario
 from sensorgap.export.spec import ScenarioSpec, read_run
 from sensorgap.export.xosc import DEFAULT_VERSION, build_scenario
-from sensorgap.models import load_system
 
 
 class CriticalScenarios(ScenarioGenerator):
@@ -39,7 +38,7 @@ class CriticalScenarios(ScenarioGenerator):
             raise ValueError(f"style must be one of {', '.join(STYLES)}, got {style!r}")
         self.style = style
         self.run = read_run(Path(run_dir))
-        self.system = load_system(self.run.vehicle_ref)
+        self.system = self.run.system()
         rows = self.run.rows if top is None else self.run.rows[:top]
         self._rows = {int(r["rank"]): r for r in rows}
         self.osc_version = osc_version
@@ -51,7 +50,8 @@ class CriticalScenarios(ScenarioGenerator):
         row = dict(self._rows[int(rank)])
         for k, v in overrides.items():
             row[f"p_{k}"] = v
-        return ScenarioSpec.from_row(row, self.system, self.run.folder / "ranking.json")
+        return ScenarioSpec.from_row(row, self.system, self.run.folder / "ranking.json",
+                                     self.run)
 
     def scenario(self, **kwargs: Any) -> xosc.Scenario:
         """The OpenSCENARIO object for one permutation (``rank`` plus overrides)."""

@@ -8,7 +8,6 @@ to one searched candidate.
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -16,41 +15,17 @@ from typing import Any
 from sensorgap.config import EnvironmentConfig, TargetConfig, load_environments, load_target
 from sensorgap.config.presets import resolve_road
 from sensorgap.errors import InputError
-from sensorgap.models import System, load_system
+from sensorgap.models import System
 from sensorgap.scenarios import Scenario, load_family
 from sensorgap.scenarios.family import Family, ParamValue
 from sensorgap.search.metrics import metric_names
+from sensorgap.search.runfolder import RunFolder, read_run
+
+__all__ = ["RunInfo", "ScenarioSpec", "read_run", "specs_of_run"]
 
 
-@dataclass
-class RunInfo:
-    """A search run folder: its ranking rows and settings."""
-
-    folder: Path
-    rows: list[dict[str, Any]]
-    settings: dict[str, Any]
-
-    @property
-    def vehicle_ref(self) -> str:
-        """The vehicle as given to the search (preset name or path)."""
-        return str(self.settings.get("vehicle_ref")
-                   or Path(str(self.settings.get("vehicle_file", "system_a"))).stem)
-
-
-def read_run(folder: Path) -> RunInfo:
-    """``ranking.json`` of a run folder; ``InputError`` naming the file otherwise."""
-    folder = Path(folder)
-    if not folder.is_dir():
-        raise InputError(folder, "", "run folder does not exist")
-    path = folder / "ranking.json"
-    if not path.is_file():
-        raise InputError(path, "", "not a search run folder (ranking.json is missing); run "
-                         "`sensorgap search --out DIR` first")
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-        return RunInfo(folder, list(data["ranking"]), dict(data["settings"]))
-    except (ValueError, KeyError, TypeError) as exc:
-        raise InputError(path, "", f"malformed ranking file: {exc}") from None
+#: A run folder as export reads it (``search.runfolder``: the one reader of run folders).
+RunInfo = RunFolder
 
 
 @dataclass
@@ -77,16 +52,20 @@ class ScenarioSpec:
 
     @classmethod
     def from_row(cls, row: dict[str, Any], system: System,
-                 source: Path | str = "ranking.json") -> ScenarioSpec:
-        """Rebuild a ranking row (``InputError`` naming ``source`` if it is inconsistent)."""
+                 source: Path | str = "ranking.json",
+                 run: RunFolder | None = None) -> ScenarioSpec:
+        """Rebuild a ranking row (``InputError`` naming ``source`` if it is inconsistent)
+        from the inputs ``run`` recorded (family, its road, environments, targets); without
+        ``run``, from the shipped presets."""
         try:
-            family = load_family(str(row["family"]))
+            family = (run.family(str(row["family"])) if run is not None
+                      else load_family(str(row["family"])))
             params: dict[str, ParamValue] = {}
             for p in family.space:
                 v = row[f"p_{p.name}"]
                 params[p.name] = str(v) if p.categorical else float(v)
             env_name = str(row["environment"]).split("@")[0]
-            presets = load_environments()
+            presets = run.environments() if run is not None else load_environments()
             if env_name not in presets:
                 raise KeyError(f"environment {env_name!r}")
             env = presets[env_name]
@@ -100,13 +79,16 @@ class ScenarioSpec:
             raise InputError(source, f"ranking[{row.get('rank', '?')}]",
                              f"cannot rebuild the scenario: {exc}") from None
         metrics = {k: float(row[k]) for k in metric_names() if isinstance(row.get(k), int | float)}
+        targets = run.targets() if run is not None else None
+        target = (targets[scenario.target_class] if targets is not None
+                  and scenario.target_class in targets else load_target(scenario.target_class))
         return cls(str(row["scenario_id"]), int(row["rank"]), family, params, env_name, env,
-                   sun, scenario, load_target(scenario.target_class), system, metrics,
-                   str(row.get("reason", "")))
+                   sun, scenario, target, system, metrics, str(row.get("reason", "")))
 
 
-def specs_of_run(run: RunInfo, top: int | None = None) -> list[ScenarioSpec]:
-    """Every (or the first ``top``) ranked scenario of a run, regenerated."""
-    system = load_system(run.vehicle_ref)
+def specs_of_run(run: RunFolder, top: int | None = None) -> list[ScenarioSpec]:
+    """Every (or the first ``top``) ranked scenario of a run, regenerated from the inputs
+    the run recorded."""
+    system = run.system()
     rows = run.rows if top is None else run.rows[:top]
-    return [ScenarioSpec.from_row(r, system, run.folder / "ranking.json") for r in rows]
+    return [ScenarioSpec.from_row(r, system, run.folder / "ranking.json", run) for r in rows]

@@ -19,11 +19,10 @@ from pathlib import Path
 from typing import Any
 
 from sensorgap.atomic import atomic_write_text
-from sensorgap.config import load_environments, load_targets
 from sensorgap.config.presets import templates_dir
 from sensorgap.errors import InputError
-from sensorgap.export.spec import ScenarioSpec, read_run
-from sensorgap.models import System, load_system
+from sensorgap.export.spec import ScenarioSpec
+from sensorgap.models import System
 from sensorgap.provenance import utc_now, versions
 from sensorgap.report.anchors import anchors_section
 from sensorgap.report.document import (
@@ -44,9 +43,10 @@ from sensorgap.report.summary import (
     summary_section,
     weakness_sentence,
 )
-from sensorgap.search.evaluate import MAP_RESOLUTION_M, DetectionRule, Evaluator
+from sensorgap.search.evaluate import MAP_RESOLUTION_M, DetectionRule
 from sensorgap.search.metrics import metric_names
 from sensorgap.search.problem import START_TTC_S
+from sensorgap.search.runfolder import RunFolder, open_run
 
 REPORT_DIR = "report"
 NOT_RUN = "Not part of this run."
@@ -58,36 +58,6 @@ def read_json(path: Path) -> Any:
         return json.loads(path.read_text(encoding="utf-8"))
     except (OSError, ValueError) as exc:
         raise InputError(path, "", f"unreadable JSON: {exc}") from None
-
-
-#: Fields of ``run.json`` the report reads, and the JSON type each must have.
-RUN_INFO_FIELDS: dict[str, type] = {"settings": dict, "vehicle": str, "versions": dict,
-                                    "command": list, "config_sha256": dict}
-
-
-def read_run_info(folder: Path) -> dict[str, Any]:
-    """``run.json`` of a run folder ({} when absent), its fields checked
-    (``RUN_INFO_FIELDS``): anything else -> ``InputError`` naming the file and field."""
-    path = Path(folder) / "run.json"
-    if not path.is_file():
-        return {}
-    try:
-        info = read_json(path)
-    except RecursionError:
-        raise InputError(path, "", "unreadable JSON: nested too deeply") from None
-    if not isinstance(info, dict):
-        raise InputError(path, "", "expected a JSON object")
-    for key, kind in RUN_INFO_FIELDS.items():
-        if key in info and not isinstance(info[key], kind):
-            want = "object" if kind is dict else "array" if kind is list else "string"
-            raise InputError(path, key, f"expected a JSON {want}, got "
-                             f"{type(info[key]).__name__}")
-    if not all(isinstance(c, str) for c in info.get("command", [])):
-        raise InputError(path, "command", "expected an array of strings")
-    for key in ("versions", "config_sha256"):
-        if not all(isinstance(v, str | int | float) for v in info.get(key, {}).values()):
-            raise InputError(path, key, "expected an object of names to strings")
-    return info
 
 
 def read_csv(path: Path) -> list[dict[str, str]]:
@@ -161,9 +131,9 @@ def _sensor_setup_section(system: System) -> Section:
     return Section("sensor-setup", f"Sensor setup of {system.name}", blocks)
 
 
-def _environments_section(run: dict[str, Any]) -> Section:
-    envs = load_environments()
-    used = run.get("environments") or list(envs)
+def _environments_section(settings: dict[str, Any], run: RunFolder) -> Section:
+    envs = run.environments()
+    used = settings.get("environments") or list(envs)
     rows = []
     for name in used:
         e = envs.get(name)
@@ -177,14 +147,25 @@ def _environments_section(run: dict[str, Any]) -> Section:
     targets = [[t.name, fmt(t.rcs_m2), fmt(t.camera_cross_section_m2),
                 f"{t.length_m} x {t.width_m} x {t.height_m}", fmt(t.reference_height_m),
                 "; ".join(f"{k}: {v}" for k, v in sorted(t.sources.items()))]
-               for t in load_targets().values()]
+               for t in run.targets().values()]
     return Section("environments", "Environments and targets", [
         Table(["preset", "rain [mm/h]", "snow [mm/h]", "visibility [m]", "temperature [C]",
                "irradiance [W/m2]", "ROC shift [dB]", "sun"], rows,
-              f"Environment presets ({templates_dir().name}/environments.toml)"),
+              "Environments (" + _source(run, "environments") + ")"),
         Table(["target", "RCS [m2]", "camera cross-section [m2]", "l x w x h [m]",
-               "reference height [m]", "sources"], targets, "Target classes (targets.toml)"),
+               "reference height [m]", "sources"], targets,
+              "Target classes (" + _source(run, "targets") + ")"),
     ])
+
+
+def _source(run: RunFolder, key: str) -> str:
+    """Where an input of the report comes from: the run's recorded copy (with the original
+    file's name) or the shipped presets."""
+    p = run.input_path(key)
+    if p is None:
+        return f"shipped presets, {templates_dir().name}/{key}.toml"
+    orig = Path(str((run.info.get("inputs") or {}).get(key, {}).get("path", p.name)))
+    return f"recorded in the run: {p.relative_to(run.folder).as_posix()}, from {orig.name}"
 
 
 def _nearfield_section(folder: Path) -> Section:
@@ -290,30 +271,30 @@ def _param_rows(spec: ScenarioSpec) -> list[list[str]]:
     return rows
 
 
-def _scenarios_section(folder: Path, out_img: Path, search: dict[str, Any] | None
+def _scenarios_section(run: RunFolder, out_img: Path, search: dict[str, Any] | None
                        ) -> tuple[Section, list[list[str]], list[RankedScenario] | None]:
+    folder = run.folder
     if not (folder / "ranking.json").is_file():
         return Section("scenarios", "Critical scenarios", [Para(NOT_RUN)]), [], None
-    run = read_run(folder)
     catalog = folder / "catalog.json"
     exported = read_json(catalog) if catalog.is_file() else None
     files = {s["scenario_id"]: s for s in exported["scenarios"]} if exported else {}
-    system = load_system(run.vehicle_ref)
-    ev = Evaluator(system, mode="lookup")
+    system = run.system()
+    ev = run.evaluator("lookup")
     try:
         rule = DetectionRule.parse(str(run.settings.get("detection", "cumulative")))
     except InputError:
         raise InputError(folder / "ranking.json", "settings.detection", "expected "
                          "'cumulative' or M/N (e.g. 3/5), got "
                          f"{run.settings.get('detection')!r}") from None
-    exact = Evaluator(system, mode="exact", rule=rule)
+    exact = run.evaluator("exact", rule)
     confirming = tuple(system.sensors[i].id for i in exact.confirm_rows)
     metrics = metric_names()
     overview, subs, errors = [], [], []
     ranked: list[RankedScenario] = []
     types = {s.id: s.type_name for s in system.sensors}
     for row in run.rows:
-        spec = ScenarioSpec.from_row(row, system, folder / "ranking.json")
+        spec = ScenarioSpec.from_row(row, system, folder / "ranking.json", run)
         tr = scenario_trace(spec, exact)
         png = out_img / f"scenario_{spec.rank:03d}.png"
         scenario_figure(spec, ev, tr, png)
@@ -425,28 +406,24 @@ def build(folder: Path) -> tuple[str, list[str], Section, list[Section]]:
     folder = Path(folder)
     if not folder.is_dir():
         raise InputError(folder, "", "run folder does not exist")
-    info = read_run_info(folder)
-    settings = info.get("settings", {})
-    if (folder / "ranking.json").is_file():
-        run = read_run(folder)
-        vehicle = run.vehicle_ref
-        settings = {**run.settings, **settings}
-    else:
-        vehicle = str(info.get("vehicle", ""))
+    run = open_run(folder, ranking=False)
+    info = run.info
+    settings = {**run.settings, **info.get("settings", {})}
+    vehicle = run.vehicle_ref
     if not vehicle:
         raise InputError(folder, "", "neither run.json nor ranking.json says which vehicle "
                          "this run is for")
-    system = load_system(vehicle)
+    system = run.system()
     img = folder / REPORT_DIR
     img.mkdir(parents=True, exist_ok=True)
     search = (read_json(folder / "summary.json") if (folder / "summary.json").is_file()
               and (folder / "ranking.json").is_file() else None)
     if search is not None and not isinstance(search, dict):
         raise InputError(folder / "summary.json", "", "expected a JSON object")
-    scen, errors, ranked = _scenarios_section(folder, img, search)
+    scen, errors, ranked = _scenarios_section(run, img, search)
     lve, n_unavoidable = None, 0
     if ranked is not None:
-        data = read_json(folder / "ranking.json")
+        data = run.data
         lve = data.get("lookup_vs_exact") if isinstance(data, dict) else None
         n_unavoidable = len(data.get("unavoidable") or []) if isinstance(data, dict) else 0
     front = summary_section(folder, system, settings, ranked, search,
@@ -470,7 +447,8 @@ def build(folder: Path) -> tuple[str, list[str], Section, list[Section]]:
             Para("Every file of the folder with its SHA-256: manifest.json."),
         ]),
         Section("appendix", "Appendix: sensor setup, parameter sources, environments and "
-                "targets", [], [_sensor_setup_section(system), _environments_section(settings)]),
+                "targets", [], [_sensor_setup_section(system),
+                                  _environments_section(settings, run)]),
     ]
     meta = [f"Run folder: {folder.name}. Vehicle: {system.name} ({vehicle}). "
             f"Generated (UTC): {utc_now()}"]

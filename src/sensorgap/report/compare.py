@@ -17,8 +17,6 @@ from pathlib import Path
 
 from sensorgap.atomic import atomic_write_bytes, atomic_write_text
 from sensorgap.errors import InputError
-from sensorgap.export.spec import read_run
-from sensorgap.models import load_system
 from sensorgap.provenance import utc_now
 from sensorgap.report.build import NOT_RUN, fmt, read_csv, read_json
 from sensorgap.report.document import (
@@ -32,13 +30,15 @@ from sensorgap.report.document import (
     render_markdown,
 )
 from sensorgap.search.compare import MARGIN_P, write_comparison
+from sensorgap.search.runfolder import open_run
 
 LEVELS = ("pd=1.0", "pd>=0.8", "pd>=0.5", "pd>0", "pd=0")
 
 
 def _name(folder: Path) -> str:
+    """The vehicle's name as the run recorded it (the folder's name when it has none)."""
     try:
-        return load_system(read_run(folder).vehicle_ref).name
+        return open_run(folder, ranking=False).system().name
     except InputError:
         return folder.name
 

@@ -136,8 +136,9 @@ def _param(path: Path, default: Param, value: Any) -> Param:
     return Param(default.name, low, high, unit=default.unit)
 
 
-def load_family(name_or_path: str) -> Family:
-    """Load, validate and fit-check one family."""
+def load_family(name_or_path: str, road: Path | None = None) -> Family:
+    """Load, validate and fit-check one family. ``road``: the OpenDRIVE file to use instead
+    of the one the file's ``road`` setting names (a run folder's recorded copy)."""
     path = resolve_family_path(name_or_path)
     data = read_toml(path)
     unknown = sorted(set(data) - {"family", "parameters"})
@@ -172,7 +173,10 @@ def load_family(name_or_path: str) -> Family:
                          f"{settings['occluder']!r}; known: {', '.join(sorted(targets))}")
     road_text = str(settings["road"])
     road_path = resolve_road(road_text)
-    if road_text.endswith(".xodr") or "/" in road_text:
+    if road is not None:
+        road_path = Path(road).resolve()
+        settings["road"] = str(road_path)
+    elif road_text.endswith(".xodr") or "/" in road_text:
         # a path: relative to the family file's folder; recorded absolute (export, report)
         road_path = (path.parent / road_path).resolve()
         settings["road"] = str(road_path)

@@ -12,25 +12,24 @@ every difference is traced back to the two sensor setups.
 
 from __future__ import annotations
 
-import json
 import math
 from collections import Counter
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from sensorgap.atomic import atomic_write_bytes, atomic_write_text
-from sensorgap.config import load_environments
 from sensorgap.errors import InputError
 from sensorgap.filesio import write_json
-from sensorgap.models import System, load_system
-from sensorgap.scenarios import load_family
-from sensorgap.search.evaluate import Evaluator
+from sensorgap.models import System
 from sensorgap.search.problem import Candidate, SearchProblem
 from sensorgap.search.ranking import classify, explain
 from sensorgap.search.run import ranking_csv
+from sensorgap.search.runfolder import ROW_TEXT, RunFolder, read_run
+
+__all__ = ["ROW_TEXT", "RunRanking", "candidate_of", "compare_runs", "read_run",
+           "write_comparison"]
 
 #: Collision-probability difference that makes a scenario critical for one vehicle only.
 MARGIN_P = 0.1
@@ -38,60 +37,8 @@ MARGIN_P = 0.1
 SEES_PD = 0.5
 
 
-@dataclass
-class RunRanking:
-    """A search run folder's ranking and settings."""
-
-    folder: Path
-    vehicle: str
-    rows: list[dict[str, Any]]
-    settings: dict[str, Any]
-
-
-def read_run(folder: Path) -> RunRanking:
-    """``ranking.json`` of a search run folder; ``InputError`` naming the file if absent
-    or malformed."""
-    path = Path(folder) / "ranking.json"
-    if not path.is_file():
-        raise InputError(path, "", "not a search run folder (ranking.json is missing)")
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (ValueError, RecursionError) as exc:
-        raise InputError(path, "", f"malformed ranking file: not JSON ({exc})") from None
-    if not isinstance(data, dict):
-        raise InputError(path, "", "malformed ranking file: expected a JSON object")
-    rows, settings = data.get("ranking"), data.get("settings")
-    if not isinstance(rows, list):
-        raise InputError(path, "ranking", "malformed ranking file: expected a list of rows")
-    if not isinstance(settings, dict):
-        raise InputError(path, "settings", "malformed ranking file: expected an object")
-    vehicle = settings.get("vehicle_ref") or settings.get("vehicle_file")
-    if not isinstance(vehicle, str) or not vehicle:
-        raise InputError(path, "settings.vehicle_ref", "malformed ranking file: expected "
-                         "the vehicle (a preset name or a path)")
-    if not settings.get("vehicle_ref"):
-        vehicle = Path(vehicle).stem
-    envs = settings.get("environments", [])
-    if not (isinstance(envs, list) and all(isinstance(e, str) for e in envs)):
-        raise InputError(path, "settings.environments", "malformed ranking file: expected "
-                         "a list of environment names")
-    for i, row in enumerate(rows):
-        if not isinstance(row, dict):
-            raise InputError(path, f"ranking[{i}]", "malformed ranking file: expected an "
-                             "object")
-        for key in ROW_TEXT:
-            if not isinstance(row.get(key), str) or not row[key]:
-                raise InputError(path, f"ranking[{i}].{key}", "malformed ranking file: "
-                                 "missing or not a string")
-        rank = row.get("rank")
-        if not isinstance(rank, int) or isinstance(rank, bool) or rank < 1:
-            raise InputError(path, f"ranking[{i}].rank", "malformed ranking file: expected "
-                             f"a positive integer, got {rank!r}")
-    return RunRanking(Path(folder), vehicle, rows, settings)
-
-
-#: Text fields every ranking row must carry.
-ROW_TEXT = ("scenario_id", "family", "environment")
+#: A search run folder as compare reads it (``search.runfolder``).
+RunRanking = RunFolder
 
 
 def candidate_of(row: dict[str, Any], problem: SearchProblem,
@@ -130,40 +77,48 @@ def _sensor_type(system: System, sensor_id: str) -> str:
 
 
 class _Side:
-    """One vehicle: its problems per family (exact evaluation)."""
+    """One vehicle (its run's recorded vehicle, reaction model, friction and targets): its
+    problems per (run that ranked the scenario, family), exact evaluation."""
 
-    def __init__(self, run: RunRanking, environments: dict[str, Any]) -> None:
+    def __init__(self, run: RunFolder) -> None:
         self.run = run
-        self.system = load_system(run.vehicle)
-        self.evaluator = Evaluator(self.system, mode="exact")
-        self.environments = environments
-        self.problems: dict[str, SearchProblem] = {}
+        self.system = run.system()
+        self.evaluator = run.evaluator("exact")
+        self.problems: dict[tuple[Path, str], SearchProblem] = {}
 
     @property
     def name(self) -> str:
         return self.system.name
 
-    def problem(self, family: str) -> SearchProblem:
-        if family not in self.problems:
-            self.problems[family] = SearchProblem(load_family(family), self.environments,
-                                                  self.evaluator)
-        return self.problems[family]
+    def problem(self, source: RunFolder, family: str) -> SearchProblem:
+        """The problem of ``family`` as ``source`` (the run that ranked the scenario)
+        recorded it, with its environments, evaluated for this side's vehicle."""
+        key = (source.folder, family)
+        if key not in self.problems:
+            self.problems[key] = SearchProblem(source.family(family),
+                                               _environments(source), self.evaluator)
+        return self.problems[key]
+
+
+def _environments(run: RunFolder) -> dict[str, Any]:
+    """The environments a run searched (as it recorded them; all of its file when the
+    settings do not list them)."""
+    envs = run.environments()
+    names = [e for e in run.settings.get("environments", []) if e in envs]
+    return {e: envs[e] for e in names} if names else dict(envs)
 
 
 def compare_runs(run_a: Path, run_b: Path,
                  margin_p: float = MARGIN_P) -> list[dict[str, Any]]:
     """Cross-evaluate the ranked scenarios of two runs (see the module docstring)."""
     ra, rb = read_run(run_a), read_run(run_b)
-    presets = load_environments()
-    envs = {e: presets[e] for e in dict.fromkeys(
-        [*ra.settings.get("environments", []), *rb.settings.get("environments", [])])
-        if e in presets}
-    sides = [_Side(ra, envs), _Side(rb, envs)]
+    sides = [_Side(ra), _Side(rb)]
     seen: dict[str, dict[str, Any]] = {}
     for k, side in enumerate(sides):
         for row in side.run.rows:
             sid = str(row["scenario_id"])
             entry = seen.setdefault(sid, {"row": row, "ranks": [None, None],
+                                          "run": side.run,
                                           "source": side.run.folder / "ranking.json"})
             entry["ranks"][k] = int(row["rank"])
     out = []
@@ -172,7 +127,7 @@ def compare_runs(run_a: Path, run_b: Path,
         row = entry["row"]
         probs, speeds, classes, results = [], [], [], []
         for side in sides:
-            prob = side.problem(str(row["family"]))
+            prob = side.problem(entry["run"], str(row["family"]))
             cand = candidate_of(row, prob, entry["source"])
             res = prob.evaluate(cand)
             results.append((prob, cand, res))

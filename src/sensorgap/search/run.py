@@ -40,6 +40,7 @@ from sensorgap.search.ranking import (
     rank_exact,
     reevaluate,
 )
+from sensorgap.search.runfolder import record_inputs, write_search_record
 from sensorgap.search.store import Store, digest, file_digest
 from sensorgap.search.strategies import get_strategy, strategy_names
 
@@ -187,6 +188,9 @@ def run_search(vehicle: str | Path, families: list[str], environments: list[str]
         if new_db:  # nothing was stored: leave no empty database behind
             db.unlink(missing_ok=True)
         raise
+    # the run folder keeps its inputs: copies under inputs/, paths and SHA-256 in run.json
+    write_search_record(out, _vehicle_ref(vehicle), settings, record_inputs(
+        out, system.source, environments_file, system.config.reaction, fams))
     try:
         with tqdm(total=budget, disable=disable, desc="search", unit="cand") as bar:
             for i, (fam, share) in enumerate(zip(fams, shares, strict=True)):

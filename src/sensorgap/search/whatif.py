@@ -27,6 +27,7 @@ from sensorgap.search.metrics import metric_names
 from sensorgap.search.outcome import first_confirmation
 from sensorgap.search.problem import Candidate, SearchProblem
 from sensorgap.search.ranking import classify, explain
+from sensorgap.search.runfolder import open_run
 
 
 def parse_params(items: list[str], problem: SearchProblem) -> dict[str, ParamValue]:
@@ -76,18 +77,38 @@ def parse_sun(text: str | None) -> tuple[float, float] | None:
     return az, el
 
 
-def evaluate_candidate(vehicle: str | Path, family: str, environment: str,
+def evaluate_candidate(vehicle: str | Path | None, family: str, environment: str,
                        sun: tuple[float, float] | None, params: list[str], out: Path,
-                       environments_file: Path | None = None) -> dict[str, Any]:
+                       environments_file: Path | None = None,
+                       run: Path | None = None) -> dict[str, Any]:
     """Evaluate one candidate exactly and write ``evaluation.json`` and ``trace.csv``
-    into ``out``; returns the evaluation."""
-    envs = load_environments(environments_file)
+    into ``out``; returns the evaluation. ``run``: a search run folder whose recorded
+    inputs (vehicle, environments, family and road, targets, reaction model) are used
+    instead of ``vehicle``, ``environments_file`` and the presets."""
+    if run is not None:
+        if vehicle is not None or environments_file is not None:
+            raise InputError("run", "", "give --run alone: the run folder records the "
+                             "vehicle and the environments (no --vehicle, "
+                             "--environments-file)")
+        rf = open_run(run, ranking=False)
+        envs = rf.environments()
+    else:
+        if vehicle is None:
+            raise InputError("vehicle", "", "give --vehicle (a preset name or .toml path) "
+                             "or --run (a search run folder)")
+        given: str | Path = vehicle
+        envs = load_environments(environments_file)
     if environment not in envs:
         raise InputError("environment", "", f"unknown environment {environment!r}; "
                          f"presets: {', '.join(envs)}")
-    fam = load_families([family])[0]
-    system = load_system(vehicle)
-    ev = Evaluator(system, mode="exact")
+    if run is not None:
+        fam = rf.family(family)
+        system = rf.system()
+        ev = rf.evaluator("exact")
+    else:
+        fam = load_families([family])[0]
+        system = load_system(given)
+        ev = Evaluator(system, mode="exact")
     prob = SearchProblem(fam, {environment: envs[environment]}, ev)
     env_cfg = envs[environment]
     if sun is not None and (env_cfg.sun is None or not env_cfg.sun.visible):

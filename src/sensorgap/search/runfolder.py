@@ -1,0 +1,418 @@
+"""The run folder as a contract: the inputs a search used, recorded, and the one reader of
+a run folder (export, report, compare and evaluate rebuild everything from it).
+
+Recording (``record_inputs``, called by ``run_search``): every resolved input file is
+copied into ``inputs/`` and listed in ``run.json`` under ``inputs`` with its original
+(absolute) path and the SHA-256 of its bytes::
+
+    "inputs": {
+      "vehicle":      {"path": "/abs/my_car.toml", "sha256": "...",
+                       "copy": "inputs/vehicle/my_car.toml"},
+      "environments": {...}, "targets": {...},
+      "reaction":     {..., "name": "ads_default"},   # name: null = the file's first model
+      "friction":     {...},                          # the [friction] table's file
+      "families":     {"<family>": {..., "road": "<road key>"}},
+      "roads":        {"<road key>": {...}}
+    }
+
+Reading (``open_run``): ``RunFolder`` holds ``ranking.json`` (rows, settings) and
+``run.json`` and rebuilds the vehicle, environments, targets, reaction model, friction and
+families (on their recorded roads) from the recorded copies, never from a shipped preset of
+the same name. A recorded copy whose bytes no longer match its SHA-256 is bad input. When a
+recorded original still exists and its SHA-256 differs, one warning line on stderr names it
+(the recorded copy is used). A run folder without recorded inputs (older runs, hand-written
+rankings) falls back to the shipped presets with a one-line note.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from sensorgap.atomic import atomic_write_bytes
+from sensorgap.config import EnvironmentConfig, TargetConfig, load_environments, load_targets
+from sensorgap.config.load import environments_path
+from sensorgap.config.presets import resolve_road, templates_dir
+from sensorgap.config.reaction import (
+    ReactionConfig,
+    load_friction,
+    load_reaction,
+    reactions_path,
+)
+from sensorgap.errors import InputError
+from sensorgap.filesio import write_json
+from sensorgap.models import System, load_system
+from sensorgap.provenance import sha256_of, versions
+from sensorgap.scenarios import load_family
+from sensorgap.scenarios.family import Family
+from sensorgap.search.evaluate import DetectionRule, Evaluator
+
+INPUTS_DIR = "inputs"
+RUN_JSON = "run.json"
+RANKING_JSON = "ranking.json"
+#: Single-file inputs, in the order ``run.json`` lists them.
+SINGLE = ("vehicle", "environments", "targets", "reaction", "friction")
+#: Text fields every ranking row must carry.
+ROW_TEXT = ("scenario_id", "family", "environment")
+#: Fields of ``run.json`` a reader checks, and the JSON type each must have.
+RUN_INFO_FIELDS: dict[str, type] = {"settings": dict, "vehicle": str, "versions": dict,
+                                    "command": list, "config_sha256": dict,
+                                    "inputs": dict}
+
+#: Lines already printed in this process (each warning or note once per folder).
+_SAID: set[str] = set()
+
+
+def say(text: str) -> None:
+    """One line on stderr, once per process."""
+    if text not in _SAID:
+        _SAID.add(text)
+        print(f"sensorgap: {text}", file=sys.stderr)
+
+
+# -- recording -------------------------------------------------------------------------
+
+def reaction_source(reaction: str) -> tuple[Path, str | None]:
+    """(file, model name) of a vehicle file's ``reaction`` as ``load_reaction`` resolves
+    it: a path -> that file and its first model (None); a name -> the shipped presets."""
+    if reaction.endswith(".toml") or "/" in reaction:
+        return Path(reaction), None
+    return reactions_path(), reaction
+
+
+class _Recorder:
+    """Copies input files into ``folder/inputs`` (each original once, names unique)."""
+
+    def __init__(self, folder: Path) -> None:
+        self.folder = folder
+        self.by_path: dict[Path, dict[str, str]] = {}
+        self.used: set[str] = set()
+
+    def add(self, sub: str, path: Path, name: str | None = None) -> dict[str, str]:
+        src = Path(path).resolve()
+        if src in self.by_path:
+            return dict(self.by_path[src])
+        if not src.is_file():
+            raise InputError(src, "", "input file not found (cannot record it in the run "
+                             "folder)")
+        data = src.read_bytes()
+        base = name or src.name
+        rel = f"{INPUTS_DIR}/{sub}/{base}"
+        if rel in self.used:  # another file of the same name
+            stem, dot, ext = base.rpartition(".")
+            tag = hashlib.sha256(data).hexdigest()[:8]
+            rel = f"{INPUTS_DIR}/{sub}/{stem}-{tag}{dot}{ext}" if dot else f"{rel}-{tag}"
+        self.used.add(rel)
+        atomic_write_bytes(self.folder / rel, data)
+        entry = {"path": str(src), "sha256": hashlib.sha256(data).hexdigest(), "copy": rel}
+        self.by_path[src] = entry
+        return dict(entry)
+
+
+def record_inputs(folder: Path, vehicle_file: Path, environments_file: Path | None,
+                  reaction: str, families: list[Family]) -> dict[str, Any]:
+    """Copy every input of a search into ``folder/inputs`` and return the ``inputs``
+    record of ``run.json`` (see the module docstring). ``reaction``: the vehicle file's
+    ``reaction`` setting; each family's road is its resolved ``road`` setting."""
+    rec = _Recorder(Path(folder))
+    out: dict[str, Any] = {
+        "vehicle": rec.add("vehicle", vehicle_file),
+        "environments": rec.add("environments", environments_file or environments_path()),
+        "targets": rec.add("targets", templates_dir() / "targets.toml"),
+    }
+    r_path, r_name = reaction_source(reaction)
+    out["reaction"] = {**rec.add("reaction", r_path), "name": r_name}
+    out["friction"] = rec.add("reaction", reactions_path())
+    fams: dict[str, Any] = {}
+    roads: dict[str, Any] = {}
+    for f in families:
+        road = rec.add("roads", resolve_road(str(f.settings["road"])))
+        key = Path(road["copy"]).stem
+        roads[key] = road
+        fams[f.name] = {**rec.add("families", Path(f.source), f"{f.name}.toml"),
+                        "road": key}
+    out["families"] = fams
+    out["roads"] = roads
+    return out
+
+
+def write_search_record(folder: Path, vehicle_ref: str, settings: dict[str, Any],
+                        inputs: dict[str, Any]) -> dict[str, Any]:
+    """``folder/run.json`` after a search: the vehicle, settings, versions and the recorded
+    inputs; other fields of an existing ``run.json`` (``sensorgap run``'s command and
+    config hashes) are kept."""
+    path = Path(folder) / RUN_JSON
+    info: dict[str, Any] = {}
+    if path.is_file():
+        try:
+            old = json.loads(path.read_text(encoding="utf-8"))
+            info = old if isinstance(old, dict) else {}
+        except (OSError, ValueError):
+            info = {}
+    info.update({"vehicle": vehicle_ref, "settings": {**info.get("settings", {}),
+                                                      **settings},
+                 "versions": versions(), "inputs": inputs})
+    write_json(path, info)
+    return info
+
+
+def copy_record(src: Path, dst: Path) -> None:
+    """Copy ``run.json`` and the recorded inputs of run folder ``src`` into ``dst`` (a
+    catalog exported elsewhere keeps the inputs it was built from)."""
+    src, dst = Path(src), Path(dst)
+    info = read_run_info(src)
+    if not isinstance(info.get("inputs"), dict):
+        return
+    for _, e in _entries(info["inputs"]):
+        rel = str(e.get("copy", ""))
+        if rel and (src / rel).is_file() and ".." not in Path(rel).parts:
+            atomic_write_bytes(dst / rel, (src / rel).read_bytes())
+    atomic_write_bytes(dst / RUN_JSON, (src / RUN_JSON).read_bytes())
+
+
+# -- reading ---------------------------------------------------------------------------
+
+def read_json_file(path: Path) -> Any:
+    """A JSON file of a run folder (``InputError`` naming it when unreadable)."""
+    try:
+        return json.loads(Path(path).read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        raise InputError(path, "", f"unreadable JSON: {exc}") from None
+    except RecursionError:
+        raise InputError(path, "", "unreadable JSON: nested too deeply") from None
+
+
+def read_run_info(folder: Path) -> dict[str, Any]:
+    """``run.json`` of a run folder ({} when absent), its fields checked
+    (``RUN_INFO_FIELDS``): anything else -> ``InputError`` naming the file and field."""
+    path = Path(folder) / RUN_JSON
+    if not path.is_file():
+        return {}
+    info = read_json_file(path)
+    if not isinstance(info, dict):
+        raise InputError(path, "", "expected a JSON object")
+    for key, kind in RUN_INFO_FIELDS.items():
+        if key in info and not isinstance(info[key], kind):
+            want = "object" if kind is dict else "array" if kind is list else "string"
+            raise InputError(path, key, f"expected a JSON {want}, got "
+                             f"{type(info[key]).__name__}")
+    if not all(isinstance(c, str) for c in info.get("command", [])):
+        raise InputError(path, "command", "expected an array of strings")
+    for key in ("versions", "config_sha256"):
+        if not all(isinstance(v, str | int | float) for v in info.get(key, {}).values()):
+            raise InputError(path, key, "expected an object of names to strings")
+    return info
+
+
+def _read_ranking(folder: Path) -> tuple[list[dict[str, Any]], dict[str, Any],
+                                         dict[str, Any], str]:
+    """(rows, settings, the whole file, vehicle as given) of ``ranking.json``, checked."""
+    path = folder / RANKING_JSON
+    if not path.is_file():
+        raise InputError(path, "", "not a search run folder (ranking.json is missing); run "
+                         "`sensorgap search --out DIR` first")
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (ValueError, RecursionError) as exc:
+        raise InputError(path, "", f"malformed ranking file: not JSON ({exc})") from None
+    if not isinstance(data, dict):
+        raise InputError(path, "", "malformed ranking file: expected a JSON object")
+    rows, settings = data.get("ranking"), data.get("settings")
+    if not isinstance(rows, list):
+        raise InputError(path, "ranking", "malformed ranking file: expected a list of rows")
+    if not isinstance(settings, dict):
+        raise InputError(path, "settings", "malformed ranking file: expected an object")
+    vehicle = settings.get("vehicle_ref") or settings.get("vehicle_file")
+    if not isinstance(vehicle, str) or not vehicle:
+        raise InputError(path, "settings.vehicle_ref", "malformed ranking file: expected "
+                         "the vehicle (a preset name or a path)")
+    if not settings.get("vehicle_ref"):
+        vehicle = Path(vehicle).stem
+    envs = settings.get("environments", [])
+    if not (isinstance(envs, list) and all(isinstance(e, str) for e in envs)):
+        raise InputError(path, "settings.environments", "malformed ranking file: expected "
+                         "a list of environment names")
+    for i, row in enumerate(rows):
+        if not isinstance(row, dict):
+            raise InputError(path, f"ranking[{i}]", "malformed ranking file: expected an "
+                             "object")
+        for key in ROW_TEXT:
+            if not isinstance(row.get(key), str) or not row[key]:
+                raise InputError(path, f"ranking[{i}].{key}", "malformed ranking file: "
+                                 "missing or not a string")
+        rank = row.get("rank")
+        if not isinstance(rank, int) or isinstance(rank, bool) or rank < 1:
+            raise InputError(path, f"ranking[{i}].rank", "malformed ranking file: expected "
+                             f"a positive integer, got {rank!r}")
+    return rows, settings, data, vehicle
+
+
+@dataclass
+class RunFolder:
+    """A run folder: its ranking (rows, settings), ``run.json`` and recorded inputs."""
+
+    folder: Path
+    rows: list[dict[str, Any]]
+    settings: dict[str, Any]
+    info: dict[str, Any]
+    #: the vehicle as the search was given it (preset name or absolute path)
+    vehicle_ref: str
+    #: ``ranking.json`` as a whole ({} without a ranking)
+    data: dict[str, Any] = field(default_factory=dict)
+    _cache: dict[str, Any] = field(default_factory=dict, repr=False)
+
+    @property
+    def vehicle(self) -> str:
+        """Alias of ``vehicle_ref`` (the vehicle as given to the search)."""
+        return self.vehicle_ref
+
+    @property
+    def recorded(self) -> bool:
+        """True when ``run.json`` records the run's inputs."""
+        return isinstance(self.info.get("inputs"), dict)
+
+    def _entry(self, *keys: str) -> dict[str, Any] | None:
+        node: Any = self.info.get("inputs")
+        for k in keys:
+            if not isinstance(node, dict):
+                return None
+            node = node.get(k)
+        return node if isinstance(node, dict) else None
+
+    def input_path(self, *keys: str) -> Path | None:
+        """The recorded copy of an input (``"vehicle"``, ``"families", name``, ...), or
+        None when the run does not record it."""
+        e = self._entry(*keys)
+        return None if e is None else self.folder / str(e["copy"])
+
+    def _cached(self, key: str, make: Any) -> Any:
+        if key not in self._cache:
+            self._cache[key] = make()
+        return self._cache[key]
+
+    def system(self) -> System:
+        """The vehicle: the recorded copy, else the vehicle as given."""
+        p = self.input_path("vehicle")
+        return self._cached("system", lambda: load_system(p if p is not None
+                                                          else self.vehicle_ref))
+
+    def environments(self) -> dict[str, EnvironmentConfig]:
+        """Every environment of the run's environments file (recorded copy, else the
+        shipped presets)."""
+        p = self.input_path("environments")
+        return self._cached("envs", lambda: load_environments(p))
+
+    def targets(self) -> dict[str, TargetConfig]:
+        """The target classes (recorded copy, else the shipped ``targets.toml``)."""
+        p = self.input_path("targets")
+        return self._cached("targets", lambda: load_targets(p))
+
+    def reaction(self) -> ReactionConfig:
+        """The reaction model the search used (recorded copy, else as the vehicle file
+        names it)."""
+        e = self._entry("reaction")
+        if e is None:
+            return self._cached("reaction", lambda: load_reaction(
+                self.system().config.reaction))
+        copy = self.folder / str(e["copy"])
+        name = e.get("name")
+        return self._cached("reaction", lambda: load_reaction(copy) if name is None
+                            else load_reaction(str(name), presets=copy))
+
+    def friction(self) -> dict[str, float]:
+        """Peak road friction per condition (recorded copy, else the shipped presets)."""
+        p = self.input_path("friction")
+        return self._cached("friction", lambda: load_friction(p))
+
+    def family(self, name_or_path: str) -> Family:
+        """A family of the run: the recorded copy on its recorded road; a run without a
+        record of it loads it by name (shipped preset) or path."""
+        e = self._entry("families", name_or_path)
+        if e is None:
+            return self._cached(f"family {name_or_path}", lambda: load_family(name_or_path))
+        road = self.input_path("roads", str(e.get("road")))
+        copy = self.folder / str(e["copy"])
+        return self._cached(f"family {name_or_path}", lambda: load_family(str(copy),
+                                                                         road=road))
+
+    def evaluator(self, mode: str = "exact", rule: DetectionRule | None = None) -> Evaluator:
+        """An evaluator of the run's vehicle with its recorded reaction model, friction
+        and target classes."""
+        ev = Evaluator(self.system(), mode=mode, rule=rule, reaction=self.reaction())
+        ev.friction = self.friction()
+        ev._targets.update(self.targets())  # the cache Evaluator.target fills from presets
+        return ev
+
+    def check_inputs(self) -> None:
+        """Verify the recorded copies against their SHA-256 (a modified copy is bad
+        input) and warn, one line, about originals changed since the run."""
+        inputs = self.info.get("inputs")
+        if not isinstance(inputs, dict):
+            return
+        changed = []
+        for label, e in _entries(inputs):
+            if not all(isinstance(e.get(k), str) for k in ("path", "sha256", "copy")):
+                raise InputError(self.folder / RUN_JSON, f"inputs.{label}", "expected "
+                                 "path, sha256 and copy (strings)")
+            copy = (self.folder / e["copy"])
+            if ".." in Path(e["copy"]).parts or Path(e["copy"]).is_absolute():
+                raise InputError(self.folder / RUN_JSON, f"inputs.{label}.copy",
+                                 "must be a path inside the run folder")
+            if not copy.is_file():
+                raise InputError(copy, "", f"recorded input ({label}) is missing from the "
+                                 "run folder")
+            if sha256_of(copy) != e["sha256"]:
+                raise InputError(copy, "", f"recorded input ({label}) was modified: its "
+                                 "SHA-256 differs from run.json")
+            orig = Path(e["path"])
+            if orig.is_file() and orig.resolve() != copy.resolve() \
+                    and sha256_of(orig) != e["sha256"]:
+                changed.append(f"{label} {orig}")
+        if changed:
+            say(f"warning: {self.folder}: input changed since the run: "
+                + "; ".join(changed) + " (SHA-256 differs; using the recorded copy)")
+
+
+def _entries(inputs: dict[str, Any]) -> list[tuple[str, dict[str, Any]]]:
+    out = []
+    for k in SINGLE:
+        if isinstance(inputs.get(k), dict):
+            out.append((k, inputs[k]))
+    for group in ("families", "roads"):
+        sub = inputs.get(group)
+        if isinstance(sub, dict):
+            out += [(f"{group}.{n}", e) for n, e in sub.items() if isinstance(e, dict)]
+    return out
+
+
+def open_run(folder: Path, ranking: bool = True) -> RunFolder:
+    """Read a run folder (see the module docstring). ``ranking``: ``ranking.json`` is
+    required (else a folder without it reads as one with no ranked scenarios). Bad input
+    -> ``InputError`` naming the file and field."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise InputError(folder, "", "run folder does not exist"
+                         + (" (ranking.json is missing)" if ranking else ""))
+    info = read_run_info(folder)
+    rows: list[dict[str, Any]] = []
+    settings: dict[str, Any] = {}
+    data: dict[str, Any] = {}
+    vehicle = str(info.get("vehicle", ""))
+    if ranking or (folder / RANKING_JSON).is_file():
+        rows, settings, data, vehicle = _read_ranking(folder)
+    run = RunFolder(folder, rows, settings, info, vehicle, data)
+    if run.recorded:
+        run.check_inputs()
+    elif rows:
+        say(f"note: {folder} records no inputs (a run from before run.json kept them): "
+            "rebuilding from the shipped presets")
+    return run
+
+
+def read_run(folder: Path) -> RunFolder:
+    """A search run folder with its ranking (``open_run(folder, ranking=True)``)."""
+    return open_run(folder, ranking=True)

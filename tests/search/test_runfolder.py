@@ -1,0 +1,203 @@
+"""The run folder is a contract (issue #14 item 3): a search records its inputs, and
+export, report, compare and evaluate rebuild from them, not from presets of the same name.
+
+One small search (system_b, a custom family outside templates, a custom environments file
+whose ``clear`` is 50 m fog; 40 candidates) serves every test here."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import re
+import shutil
+from pathlib import Path
+
+import pytest
+
+from sensorgap.cli import main
+from sensorgap.config.presets import templates_dir
+from sensorgap.search.run import run_search
+from sensorgap.search.runfolder import open_run
+
+#: The custom family: a renamed copy of cut_in_left with narrower ranges (chosen so 40
+#: candidates find sensor-critical scenarios).
+NARROW = [("ego_s0_m = [50.0, 700.0]", "ego_s0_m = [100.0, 250.0]"),
+          ("ego_speed_m_s = [15.0, 36.0]", "ego_speed_m_s = [20.0, 26.0]"),
+          ("target_speed_m_s = [10.0, 36.0]", "target_speed_m_s = [12.0, 18.0]"),
+          ("dx0_m = [-15.0, 60.0]", "dx0_m = [35.0, 50.0]"),
+          ("lc_start_s = [0.5, 6.0]", "lc_start_s = [0.5, 1.5]"),
+          ("lc_duration_s = [2.5, 6.0]", "lc_duration_s = [4.5, 6.0]")]
+
+
+def _sha(p: Path) -> str:
+    return hashlib.sha256(p.read_bytes()).hexdigest()
+
+
+@pytest.fixture(scope="module")
+def custom(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """Custom inputs and the run folder searched with them (exported and reported)."""
+    base = tmp_path_factory.mktemp("custom")
+    text = (templates_dir() / "environments.toml").read_text(encoding="utf-8")
+    fog = re.sub(r"(\[environments\.clear\]\n(?:.*\n)*?)visibility_m = 23000\.0",
+                 r"\1visibility_m = 50.0", text, count=1)
+    assert fog != text
+    envs = base / "my_envs.toml"
+    envs.write_text(fog, encoding="utf-8")
+    fam = (templates_dir() / "scenarios" / "cut_in_left.toml").read_text(encoding="utf-8")
+    for old, new in NARROW:
+        assert old in fam
+        fam = fam.replace(old, new)
+    (base / "fams").mkdir()
+    family = base / "fams" / "my_cut_in.toml"
+    family.write_text(fam, encoding="utf-8")
+    run = base / "runs" / "run"
+    run_search("system_b", [str(family)], ["clear"], 40, 3, 3, run, strategy="lhs",
+               environments_file=envs, progress=False)
+    return {"base": base, "envs": envs, "family": family, "run": run}
+
+
+@pytest.fixture(scope="module")
+def exported(custom: dict[str, Path]) -> Path:
+    """The run exported (maneuver style) into itself."""
+    run = custom["run"]
+    assert main(["export", "--run", str(run)]) == 0
+    return run
+
+
+def test_search_records_every_input(custom: dict[str, Path]) -> None:
+    run = custom["run"]
+    info = json.loads((run / "run.json").read_text(encoding="utf-8"))
+    inputs = info["inputs"]
+    assert inputs["environments"]["path"] == str(custom["envs"].resolve())
+    assert inputs["families"]["my_cut_in"]["path"] == str(custom["family"].resolve())
+    assert inputs["families"]["my_cut_in"]["road"] == "motorway_r500"
+    assert inputs["vehicle"]["path"].endswith("system_b.toml")
+    assert inputs["reaction"]["name"]  # system_b names a preset of reactions.toml
+    for key in ("vehicle", "environments", "targets", "reaction", "friction"):
+        e = inputs[key]
+        copy = run / e["copy"]
+        assert copy.read_bytes() == Path(e["path"]).read_bytes()
+        assert _sha(copy) == e["sha256"] == _sha(Path(e["path"]))
+    road = inputs["roads"]["motorway_r500"]
+    assert (run / road["copy"]).read_bytes() == Path(road["path"]).read_bytes()
+    rows = json.loads((run / "ranking.json").read_text(encoding="utf-8"))["ranking"]
+    assert rows and {r["family"] for r in rows} == {"my_cut_in"}
+
+
+def test_export_uses_the_custom_environment_and_family(exported: Path) -> None:
+    files = sorted((exported / "scenarios").glob("*.xosc"))
+    assert files
+    for f in files:
+        fogs = re.findall(r'<Fog visualRange="([0-9.]+)"', f.read_text(encoding="utf-8"))
+        assert fogs == ["50"], f  # the custom clear, not the preset's 23000 m
+    index = json.loads((exported / "catalog.json").read_text(encoding="utf-8"))
+    assert {s["family"] for s in index["scenarios"]} == {"my_cut_in"}
+
+
+def test_report_uses_the_recorded_inputs(exported: Path,
+                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", "1700000000")
+    assert main(["report", "--run", str(exported)]) == 0
+    md = (exported / "report.md").read_text(encoding="utf-8")
+    assert "### 1. my_cut_in in clear" in md
+    assert "recorded in the run: inputs/environments/my_envs.toml" in md
+    clear = [ln for ln in md.splitlines() if ln.startswith("| clear |")]
+    assert clear and clear[0].split("|")[4].strip() == "50"  # visibility [m]
+
+
+def test_compare_and_evaluate_rebuild_the_ranked_numbers(custom: dict[str, Path],
+                                                         tmp_path: Path) -> None:
+    run = custom["run"]
+    rows = json.loads((run / "ranking.json").read_text(encoding="utf-8"))["ranking"]
+    assert main(["compare", str(run), str(run), "--out", str(tmp_path / "cmp")]) == 0
+    cmp = json.loads((tmp_path / "cmp" / "comparison.json").read_text(encoding="utf-8"))
+    p = {r["scenario_id"]: r["collision_probability_System B"] for r in cmp["rows"]}
+    assert {r["family"] for r in cmp["rows"]} == {"my_cut_in"}
+    for r in rows:  # exact numbers of the search, recomputed from the recorded inputs
+        assert p[r["scenario_id"]] == pytest.approx(r["collision_probability"], abs=1e-12)
+    r = rows[0]
+    argv = ["evaluate", "--run", str(run), "--family", "my_cut_in", "--environment",
+            "clear", "--out", str(tmp_path / "ev")]
+    if r.get("sun_azimuth_deg") is not None:
+        argv += ["--sun", f"{r['sun_azimuth_deg']!r}/{r['sun_elevation_deg']!r}"]
+    argv += [f"--param={k[2:]}={v}" for k, v in r.items()
+             if k.startswith("p_") and k[2:] not in ("never_confirmed", "undetected_end")]
+    assert main(argv) == 0
+    ev = json.loads((tmp_path / "ev" / "evaluation.json").read_text(encoding="utf-8"))
+    assert ev["scenario_id"] == r["scenario_id"]
+    assert ev["metrics"]["collision_probability"] == pytest.approx(
+        r["collision_probability"], abs=1e-12)
+
+
+def test_a_copied_run_rebuilds_identically_after_the_templates_changed(
+        exported: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", "1700000000")
+    assert main(["report", "--run", str(exported)]) == 0
+    copy = tmp_path / "elsewhere" / exported.name
+    shutil.copytree(exported, copy)
+    for name in ("scenarios", "roads", "report"):
+        shutil.rmtree(copy / name)
+    for name in ("catalog.json", "report.md", "report.html", "manifest.json"):
+        (copy / name).unlink(missing_ok=True)
+    # the shipped presets change after the run: vehicles, environments, targets, roads
+    tdir = tmp_path / "templates"
+    shutil.copytree(templates_dir(), tdir)
+    env = tdir / "environments.toml"
+    env.write_text(env.read_text(encoding="utf-8").replace("23000.0", "9000.0"),
+                   encoding="utf-8")
+    veh = tdir / "vehicles" / "system_b.toml"
+    veh.write_text(veh.read_text(encoding="utf-8") + "\n# changed\n", encoding="utf-8")
+    monkeypatch.setenv("SENSORGAP_TEMPLATES", str(tdir))
+    monkeypatch.setenv("SENSORGAP_ROADS", str(tmp_path / "no_roads"))  # none shipped
+    assert main(["export", "--run", str(copy)]) == 0
+    assert main(["report", "--run", str(copy)]) == 0
+    xosc = sorted(p.name for p in (exported / "scenarios").glob("*.xosc"))
+    assert xosc == sorted(p.name for p in (copy / "scenarios").glob("*.xosc"))
+    for name in xosc:
+        assert (copy / "scenarios" / name).read_bytes() == \
+            (exported / "scenarios" / name).read_bytes()
+    assert (copy / "roads" / "motorway_r500.xodr").read_bytes() == \
+        (exported / "roads" / "motorway_r500.xodr").read_bytes()
+
+    def text(folder: Path) -> str:  # the reproduce line names the folder's path
+        return (folder / "report.md").read_text(encoding="utf-8").replace(str(folder), "RUN")
+
+    assert text(copy) == text(exported)
+
+
+def test_a_changed_input_is_named_and_a_modified_copy_refused(
+        custom: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    copy = tmp_path / "run"
+    shutil.copytree(custom["run"], copy)
+    changed = tmp_path / "my_envs.toml"  # the "original" environments file, edited
+    changed.write_text(custom["envs"].read_text(encoding="utf-8") + "\n# edited\n",
+                       encoding="utf-8")
+    info = json.loads((copy / "run.json").read_text(encoding="utf-8"))
+    info["inputs"]["environments"]["path"] = str(changed)
+    (copy / "run.json").write_text(json.dumps(info), encoding="utf-8")
+    run = open_run(copy)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "input changed since the run" in err[0]
+    assert f"environments {changed}" in err[0] and "recorded copy" in err[0]
+    assert run.environments()["clear"].visibility_m == 50.0  # the recorded copy is used
+    (copy / "inputs" / "environments" / "my_envs.toml").write_text("x", encoding="utf-8")
+    assert main(["export", "--run", str(copy)]) == 2
+    err2 = capsys.readouterr().err.strip().splitlines()
+    assert len(err2) == 1 and "was modified" in err2[0] and "my_envs.toml" in err2[0]
+
+
+def test_a_run_without_recorded_inputs_falls_back_to_presets(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    folder = tmp_path / "old"
+    folder.mkdir()
+    (folder / "ranking.json").write_text(json.dumps(
+        {"ranking": [{"rank": 1, "scenario_id": "x", "family": "cut_in_left",
+                      "environment": "clear"}],
+         "settings": {"vehicle_ref": "system_a"}}), encoding="utf-8")
+    run = open_run(folder)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "records no inputs" in err[0] and "presets" in err[0]
+    assert not run.recorded
+    assert run.environments()["clear"].visibility_m == 23000.0
+    assert run.family("cut_in_left").source.endswith("templates/scenarios/cut_in_left.toml")
+    assert run.system().name == "System A"
