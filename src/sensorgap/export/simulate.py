@@ -247,40 +247,53 @@ def body_deviations(spec: ScenarioSpec, sim: SimPaths) -> dict[str, float]:
     return out
 
 
+def run_esmini(esmini: Path, xosc: Path, tmp: Path, timeout_s: float,
+               step_s: float) -> tuple[Path, str] | str:
+    """Run one scenario file in esmini (headless, fixed step ``step_s`` s, ``--collision``)
+    in the folder ``tmp`` under the hard limit ``timeout_s`` (s): (its CSV log, its text
+    log), or a one-line reason it failed (``timeout: ...``, ``error: ...``, ``crashed:
+    ...``)."""
+    log = tmp / "log.csv"
+    text_log = tmp / "esmini.txt"
+    cmd = [str(esmini), "--headless", "--osc", str(xosc.resolve()), "--fixed_timestep",
+           repr(step_s), "--csv_logger", str(log), "--collision", "--disable_stdout",
+           "--logfile_path", str(text_log)]
+    try:
+        proc = subprocess.run(cmd, cwd=tmp, capture_output=True, timeout=timeout_s,
+                              check=False)
+    except subprocess.TimeoutExpired:
+        return f"timeout: esmini did not finish within {timeout_s:g} s (killed)"
+    except OSError as exc:
+        return f"error: cannot run esmini: {exc}"
+    if proc.returncode != 0 or not log.is_file():
+        tail = (proc.stderr or proc.stdout).decode("utf-8", "replace").strip()
+        last = tail.splitlines()[-1] if tail else ""
+        return f"crashed: esmini exit code {proc.returncode}: {last}"[:300]
+    text = text_log.read_text(encoding="utf-8", errors="replace") if text_log.is_file() else ""
+    return log, text
+
+
 def run_one(esmini: Path, xosc: Path, spec: ScenarioSpec, evaluator: Evaluator,
             timeout_s: float, step_s: float, style: str = "replay") -> dict[str, Any]:
     """Simulate one scenario of an export ``style``; a row of ``simulation.csv``."""
     row: dict[str, Any] = {"scenario_id": spec.scenario_id, "rank": spec.rank,
                            "style": style}
     with tempfile.TemporaryDirectory(prefix="sensorgap-esmini-") as tmp:
-        log = Path(tmp) / "log.csv"
-        text_log = Path(tmp) / "esmini.txt"
-        cmd = [str(esmini), "--headless", "--osc", str(xosc.resolve()), "--fixed_timestep",
-               repr(step_s), "--csv_logger", str(log), "--collision", "--disable_stdout",
-               "--logfile_path", str(text_log)]
         t0 = time.perf_counter()
-        try:
-            proc = subprocess.run(cmd, cwd=tmp, capture_output=True, timeout=timeout_s,
-                                  check=False)
-        except subprocess.TimeoutExpired:
-            return {**row, "status": "timeout",
-                    "message": f"esmini did not finish within {timeout_s:g} s (killed)"}
-        except OSError as exc:
-            return {**row, "status": "error", "message": f"cannot run esmini: {exc}"}
+        res = run_esmini(esmini, xosc, Path(tmp), timeout_s, step_s)
+        if isinstance(res, str):
+            status, _, message = res.partition(": ")
+            if status != "timeout":
+                row["esmini_wall_s"] = round(time.perf_counter() - t0, 3)
+            return {**row, "status": status, "message": message}
         row["esmini_wall_s"] = round(time.perf_counter() - t0, 3)
-        if proc.returncode != 0 or not log.is_file():
-            tail = (proc.stderr or proc.stdout).decode("utf-8", "replace").strip()
-            last = tail.splitlines()[-1] if tail else ""
-            return {**row, "status": "crashed",
-                    "message": f"esmini exit code {proc.returncode}: {last}"[:300]}
+        log, text = res
         try:
             sim = parse_esmini_csv(log)
             if EGO not in sim.states or TARGET not in sim.states:
                 raise ValueError(f"entities in the log: {', '.join(sim.states)}")
         except ValueError as exc:
             return {**row, "status": "bad log", "message": str(exc)[:300]}
-        text = (text_log.read_text(encoding="utf-8", errors="replace")
-                if text_log.is_file() else "")
         hit = COLLISION_RE.search(text)
     planned = spec.scenario
     dev_e = _deviation(planned.ego, *sim.states[EGO][:3])
@@ -347,9 +360,11 @@ def run_one(esmini: Path, xosc: Path, spec: ScenarioSpec, evaluator: Evaluator,
 
 def simulate_catalog(catalog: Path, esmini: str | None = None,
                      timeout_s: float = DEFAULT_TIMEOUT_S,
-                     step_s: float = DEFAULT_STEP_S) -> list[dict[str, Any]]:
-    """Run every scenario of ``catalog`` (see the module docstring); writes
-    ``simulation.csv`` and returns its rows."""
+                     step_s: float = DEFAULT_STEP_S,
+                     ego_reaction: bool = False) -> list[dict[str, Any]]:
+    """Run every scenario of ``catalog`` (see the module docstring); with
+    ``ego_reaction`` also the reaction runs (``export.reaction``: columns ``react_*``);
+    writes ``simulation.csv`` and returns its rows."""
     catalog = Path(catalog)
     index_path = catalog / "catalog.json"
     if not catalog.is_dir():
@@ -382,7 +397,21 @@ def simulate_catalog(catalog: Path, esmini: str | None = None,
                          "message": "scenario not in ranking.json"})
             continue
         spec = ScenarioSpec.from_row(by_id[sid], system, catalog / "ranking.json")
-        rows.append(run_one(exe, xosc, spec, evaluator, timeout_s, step_s,
-                            str(index.get("style", "replay"))))
-    atomic_write_bytes(catalog / "simulation.csv", ranking_csv(rows, COLUMNS))
+        style = str(index.get("style", "replay"))
+        row = run_one(exe, xosc, spec, evaluator, timeout_s, step_s, style)
+        if ego_reaction:
+            from sensorgap.export.reaction import reaction_columns
+
+            cols, msgs = reaction_columns(
+                spec, evaluator, exe, style, str(index.get("osc_version", "1.2")),
+                catalog / str(entry.get("road", "")), timeout_s, step_s)
+            row.update(cols)
+            row["message"] = "; ".join(m for m in [row.get("message", ""), *msgs] if m)
+        rows.append(row)
+    columns = COLUMNS
+    if ego_reaction:
+        from sensorgap.export.reaction import COLUMNS as REACTION_COLUMNS
+
+        columns = COLUMNS + REACTION_COLUMNS
+    atomic_write_bytes(catalog / "simulation.csv", ranking_csv(rows, columns))
     return rows

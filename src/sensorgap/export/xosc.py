@@ -38,6 +38,7 @@ from scenariogeneration import xosc
 from scenariogeneration.xosc.enumerations import VersionBase
 
 from sensorgap.config import TargetConfig
+from sensorgap.export.brake import BrakeStep, brake_events
 from sensorgap.export.spec import ScenarioSpec
 from sensorgap.scenarios.trajectory import Trajectory
 
@@ -269,8 +270,13 @@ def assemble(spec: ScenarioSpec, params: xosc.ParameterDeclarations,
 
 
 def build_scenario(spec: ScenarioSpec, road_relpath: str,
-                   version: str = DEFAULT_VERSION) -> xosc.Scenario:
-    """The OpenSCENARIO object of one ranked scenario in the ``replay`` style."""
+                   version: str = DEFAULT_VERSION,
+                   ego_brake: list[BrakeStep] | None = None,
+                   step_s: float = 0.05) -> xosc.Scenario:
+    """The OpenSCENARIO object of one ranked scenario in the ``replay`` style. With
+    ``ego_brake`` (``simulate --ego-reaction``) the ego's path ends one ``step_s`` (s)
+    before the first brake step (the default controller keeps its lane and speed for that
+    step: no running action conflicts with the braking) and the brake steps follow."""
     minor = set_version(version)
     params = declarations(spec)
     entities = xosc.Entities()
@@ -281,7 +287,12 @@ def build_scenario(spec: ScenarioSpec, road_relpath: str,
     init.add_global_action(xosc.EnvironmentAction(environment(spec, minor)))
     step = xosc.TransitionDynamics(xosc.DynamicsShapes.step, xosc.DynamicsDimension.time, 0.0)
     # the ego's states are of its rear axle already; the target's of its box centre
-    paths = ((EGO, spec.scenario.ego),
+    ego = spec.scenario.ego
+    if ego_brake:
+        n = int(np.searchsorted(ego.t, ego_brake[0].start_s - step_s + 1e-9, side="right"))
+        n = max(n, 2)
+        ego = Trajectory(ego.t[:n], ego.x[:n], ego.y[:n], ego.heading[:n], ego.speed[:n])
+    paths = ((EGO, ego),
              (TARGET, origin_path(spec.scenario.target, target_origin_offset(spec.target))))
     for name, tr in paths:
         init.add_init_action(name, xosc.TeleportAction(xosc.WorldPosition(
@@ -303,6 +314,8 @@ def build_scenario(spec: ScenarioSpec, road_relpath: str,
         event.add_trigger(start)
         man = xosc.Maneuver(f"{name}_maneuver")
         man.add_event(event)
+        for ev in brake_events(ego_brake or [], minor, step_s):
+            man.add_event(ev)
         group = xosc.ManeuverGroup(f"{name}_group")
         group.add_actor(name)
         group.add_maneuver(man)
