@@ -158,12 +158,53 @@ def impact_kmh(sim: Any, t_hit: float) -> float | None:
     return 3.6 * math.hypot(ve[0][k] - vt[0][k], ve[1][k] - vt[1][k])
 
 
+@dataclass(frozen=True)
+class ReactionRun:
+    """One reaction run: the prediction next to esmini's outcome (collision time, s, and
+    impact speed, km/h; None: no collision) and whether they agree (``error``: esmini
+    failed, the reason)."""
+
+    prediction: Prediction
+    collision_s: float | None
+    impact_kmh: float | None
+    agrees: bool
+    error: str = ""
+
+
+def run_reaction(spec: ScenarioSpec, evaluator: Evaluator, bt: BatchTrace, k: int,
+                 esmini: Path, style: str, version: str, road: Path, timeout_s: float,
+                 step_s: float) -> ReactionRun:
+    """Confirmation at step ``k``: predict, brake the ego in esmini, compare."""
+    from sensorgap.export.simulate import COLLISION_RE, parse_esmini_csv, run_esmini
+
+    pred = predict(bt, evaluator, k)
+    brake = braking(spec, evaluator, bt, pred, style, step_s)
+    with tempfile.TemporaryDirectory(prefix="sensorgap-reaction-") as tmp:
+        xosc = Path(tmp) / f"{spec.scenario_id}_{k}.xosc"
+        write_reaction_file(spec, road, style, version, brake, xosc, step_s)
+        res = run_esmini(esmini, xosc, Path(tmp), timeout_s, step_s)
+        if isinstance(res, str):
+            return ReactionRun(pred, None, None, False, res)
+        log, text = res
+        try:
+            sim = parse_esmini_csv(log)
+        except ValueError as exc:
+            return ReactionRun(pred, None, None, False, str(exc)[:300])
+    hit = COLLISION_RE.search(text)
+    t_sim = float(hit.group(1)) if hit else None
+    if t_sim is not None and t_sim > spec.family.duration_s + 1e-9:
+        t_sim = None  # esmini's step past the duration (as the plain run)
+    v_sim = impact_kmh(sim, t_sim) if t_sim is not None else None
+    agree = (pred.collision_s is None and t_sim is None) or (
+        pred.collision_s is not None and v_sim is not None and pred.impact_kmh is not None
+        and abs(v_sim - pred.impact_kmh) <= MAX_IMPACT_DIFF_KMH)
+    return ReactionRun(pred, t_sim, v_sim, agree)
+
+
 def reaction_columns(spec: ScenarioSpec, evaluator: Evaluator, esmini: Path, style: str,
                      version: str, road: Path, timeout_s: float,
                      step_s: float) -> tuple[dict[str, Any], list[str]]:
     """The ``react_*`` columns of one scenario (module docstring) and messages."""
-    from sensorgap.export.simulate import COLLISION_RE, parse_esmini_csv, run_esmini
-
     bt = planned_batch(spec, evaluator)
     enc = bt.encounter
     assert enc is not None and bt.decel_m_s2 is not None
@@ -180,48 +221,32 @@ def reaction_columns(spec: ScenarioSpec, evaluator: Evaluator, esmini: Path, sty
             msgs.append(f"median confirmation {steps['median'] * enc.dt:g} s differs from "
                         f"the ranking's {ranked:g} s")
     for q, k in steps.items():
-        if k is None or (q == "median" and not math.isfinite(med)):
+        if k is None or not math.isfinite(med):
             msgs.append(f"{q}: no collision to avoid or not confirmed with that "
                         "probability (no run)")
             continue
-        pred = predict(bt, evaluator, k)
-        brake = braking(spec, evaluator, bt, pred, style, step_s)
-        with tempfile.TemporaryDirectory(prefix="sensorgap-reaction-") as tmp:
-            xosc = Path(tmp) / f"{spec.scenario_id}_{q}.xosc"
-            write_reaction_file(spec, road, style, version, brake, xosc, step_s)
-            res = run_esmini(esmini, xosc, Path(tmp), timeout_s, step_s)
-            if isinstance(res, str):
-                msgs.append(f"{q}: {res}")
-                continue
-            log, text = res
-            try:
-                sim = parse_esmini_csv(log)
-            except ValueError as exc:
-                msgs.append(f"{q}: {exc}")
-                continue
-        hit = COLLISION_RE.search(text)
-        t_sim = float(hit.group(1)) if hit else None
-        if t_sim is not None and t_sim > spec.family.duration_s + 1e-9:
-            t_sim = None  # esmini's step past the duration (as the plain run)
-        v_sim = impact_kmh(sim, t_sim) if t_sim is not None else None
-        agree = (pred.collision_s is None and t_sim is None) or (
-            pred.collision_s is not None and t_sim is not None and v_sim is not None
-            and pred.impact_kmh is not None
-            and abs(v_sim - pred.impact_kmh) <= MAX_IMPACT_DIFF_KMH)
+        run = run_reaction(spec, evaluator, bt, k, esmini, style, version, road, timeout_s,
+                           step_s)
+        pred = run.prediction
+        if run.error:
+            msgs.append(f"{q}: {run.error}")
         row.update({
             f"react_{q}_t_confirm_s": round(pred.t_confirm_s, 3),
             f"react_{q}_t_brake_s": round(pred.t_brake_s, 3),
             f"react_{q}_collision_predicted_s": ("" if pred.collision_s is None
                                                  else round(pred.collision_s, 3)),
-            f"react_{q}_collision_esmini_s": "" if t_sim is None else round(t_sim, 3),
+            f"react_{q}_collision_esmini_s": ("" if run.collision_s is None
+                                              else round(run.collision_s, 3)),
             f"react_{q}_impact_predicted_kmh": ("" if pred.impact_kmh is None
                                                 else round(pred.impact_kmh, 2)),
-            f"react_{q}_impact_esmini_kmh": "" if v_sim is None else round(v_sim, 2),
-            f"react_{q}_agrees": "yes" if agree else "no"})
-        if not agree:
+            f"react_{q}_impact_esmini_kmh": ("" if run.impact_kmh is None
+                                             else round(run.impact_kmh, 2)),
+            f"react_{q}_agrees": "yes" if run.agrees else "no"})
+        if not run.agrees and not run.error:
             msgs.append(f"{q}: esmini's reaction outcome differs from the prediction")
     return row, msgs
 
 
 __all__ = ["COLUMNS", "DEFAULT_VERSION", "MAX_IMPACT_DIFF_KMH", "Prediction", "QUANTILES",
-           "braking", "confirmation_steps", "predict", "reaction_columns"]
+           "ReactionRun", "braking", "confirmation_steps", "predict", "reaction_columns",
+           "run_reaction"]
