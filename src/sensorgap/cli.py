@@ -378,7 +378,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     from sensorgap.export.simulate import simulate_catalog
 
     rows = simulate_catalog(Path(args.catalog), args.esmini, timeout_s=args.timeout,
-                            step_s=args.step)
+                            step_s=args.step, ego_reaction=args.ego_reaction)
     write_manifest(args.catalog)
     ok = sum(1 for r in rows if r.get("status") == "ok")
     within = sum(1 for r in rows if r.get("within_0p5m") == "yes")
@@ -390,6 +390,22 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     print(f"{args.catalog}: {ok}/{len(rows)} ran cleanly to the end, {within} within 0.5 m "
           f"of the plan, {coll} with the plan's collision outcome (esmini --collision)"
           f"{triggers}")
+    if args.ego_reaction:
+        runs = [r[k] for r in rows for k in r if k.startswith("react_")
+                and k.endswith("_agrees") and r[k]]
+        same = sum(1 for r in rows for q in ("median", "p90")
+                   if r.get(f"react_{q}_agrees") == "yes"
+                   and r.get(f"react_{q}_collision_predicted_s", "") != ""
+                   and r.get(f"react_{q}_collision_esmini_s", "") != ""
+                   and abs(float(r[f"react_{q}_collision_predicted_s"])
+                           - float(r[f"react_{q}_collision_esmini_s"])) <= args.step + 1e-9)
+        hits = sum(1 for r in rows for q in ("median", "p90")
+                   if r.get(f"react_{q}_agrees") == "yes"
+                   and r.get(f"react_{q}_collision_predicted_s", "") != "")
+        print(f"  ego reaction (brake at the median / 90th-percentile confirmation): "
+              f"{runs.count('yes')}/{len(runs)} runs agree with the reaction model's "
+              f"prediction (collision or not, impact speed within 2 km/h); {same}/{hits} "
+              "of the agreeing collisions at the predicted step (one step)")
     for r in rows:
         if r.get("status") != "ok":
             print(f"  {r['scenario_id']}: {r['status']}: {r.get('message', '')}")
@@ -670,6 +686,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--esmini", help="esmini executable (default: $SENSORGAP_ESMINI or PATH)")
     p.add_argument("--timeout", type=float, default=60.0, help="hard limit per scenario, s")
     p.add_argument("--step", type=float, default=0.05, help="fixed simulation step, s")
+    p.add_argument("--ego-reaction", action="store_true",
+                   help="also run each scenario with the ego braking at the median and "
+                   "90th-percentile confirmation time (reaction model) and compare esmini's "
+                   "collision and impact speed with the prediction")
     p.set_defaults(func=cmd_simulate)
 
     p = sub.add_parser("report", help="audit report (report.html + report.md) of a run")

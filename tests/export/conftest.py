@@ -104,3 +104,25 @@ def encounter_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def family_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """One scenario of every shipped family (see ``write_family_run``)."""
     return write_family_run(tmp_path_factory.mktemp("families"))
+
+
+#: OpenSCENARIO versions and export styles the catalogs are written in.
+VERSIONS = ("1.0", "1.1", "1.2", "1.3")
+STYLES = ("maneuver", "replay")
+
+
+@pytest.fixture(scope="session")
+def family_catalogs(family_run: Path,
+                    tmp_path_factory: pytest.TempPathFactory) -> dict[tuple[str, str], Path]:
+    """The catalog of ``family_run`` (every family kind) in every style and version:
+    (style, version) -> folder (no coverage maps)."""
+    from sensorgap.export import export_catalog
+
+    out = {}
+    for style in STYLES:
+        for version in VERSIONS:
+            folder = tmp_path_factory.mktemp(f"family_{style}_{version.replace('.', '')}")
+            export_catalog(family_run, folder, osc_version=version, coverage=False,
+                           style=style)
+            out[(style, version)] = folder
+    return out

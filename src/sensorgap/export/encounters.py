@@ -155,7 +155,7 @@ def _crossing(b: Build) -> None:
     sp, p = b.spec, b.spec.params
     rid = str(b.st["road_id"])
     tr = travel_direction(sp.family.network, rid, int(b.st["ego_lane"]))
-    from sensorgap.export.xosc import origin_path
+    from sensorgap.export.xosc import filtered_vertices, origin_path
 
     path = origin_path(sp.scenario.target, origin_offset(sp.target))
     accel = CROSSING_ACCEL_M_S2.get(sp.target.name, 1.5)
@@ -181,9 +181,8 @@ def _crossing(b: Build) -> None:
         return  # it would leave the footway after the scenario's end: it waits there
     if t_dep > 0.0:
         first = int(np.searchsorted(path.t, t_dep, side="right"))
-        idx = list(range(first, last + 1))
-        times = [0.0] + [fmt(float(path.t[k]) - t_dep) for k in idx]
-        idx = [0, *idx]
+        idx = filtered_vertices(path.x, path.y, [0, *range(first, last + 1)])
+        times = [0.0] + [fmt(float(path.t[k]) - t_dep) for k in idx[1:]]
         # the ego's rear axle is cross_ahead - ego_speed * t_dep = ego_speed * (tau_c -
         # conflict_offset) before the crossing line, tau_c = time from departure to the
         # ego lane's centre
@@ -199,7 +198,7 @@ def _crossing(b: Build) -> None:
         timing = xosc.ReferenceContext.relative
         b.triggers.append(PlannedTrigger("cross", EGO, TARGET, t_dep))
     else:
-        idx = list(range(0, last + 1))
+        idx = filtered_vertices(path.x, path.y, list(range(0, last + 1)))
         times = [fmt(float(path.t[k])) for k in idx]
         trig = after_start("crossing_under_way")
         timing = xosc.ReferenceContext.absolute

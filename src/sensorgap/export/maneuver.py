@@ -44,6 +44,7 @@ from sensorgap.export.actions import (
     origin_offset,
     step_dynamics,
 )
+from sensorgap.export.brake import BrakeStep, brake_events
 from sensorgap.export.encounters import KINDS, supported
 from sensorgap.export.params import Expressions
 from sensorgap.export.spec import ScenarioSpec
@@ -79,10 +80,12 @@ def _ego_speed(b: Build) -> None:
     b.init.insert(1, (EGO, xosc.AbsoluteSpeedAction(speed, step_dynamics())))
 
 
-def build_maneuver_scenario(spec: ScenarioSpec, road_relpath: str,
-                            version: str) -> tuple[xosc.Scenario, list[PlannedTrigger]]:
+def build_maneuver_scenario(spec: ScenarioSpec, road_relpath: str, version: str,
+                            ego_brake: list[BrakeStep] | None = None,
+                            step_s: float = 0.05) -> tuple[xosc.Scenario, list[PlannedTrigger]]:
     """The OpenSCENARIO object of one ranked scenario in the ``maneuver`` style and its
-    relative triggers (see the module docstring)."""
+    relative triggers (see the module docstring); with ``ego_brake`` the ego brakes so
+    (``simulate --ego-reaction``; ``step_s``: the simulation step, s)."""
     from sensorgap.export.xosc import (
         actor_entity,
         assemble,
@@ -104,6 +107,8 @@ def build_maneuver_scenario(spec: ScenarioSpec, road_relpath: str,
     _ego(b)
     KINDS[kind](b)
     _ego_speed(b)
+    for ev in brake_events(ego_brake or [], minor, step_s):
+        b.events.setdefault(EGO, []).append(ev)
     extra = {k: v for k, v in b.p.values.items() if k not in spec.params}
     extra.update({"ego_controller_longitudinal": False, "ego_controller_lateral": False})
 
@@ -145,6 +150,18 @@ def build_maneuver_scenario(spec: ScenarioSpec, road_relpath: str,
     sb.add_story(story)
     sc = assemble(spec, declarations(spec, extra), entities, sb, road_relpath, minor)
     return sc, b.triggers
+
+
+def ego_speed_factor(spec: ScenarioSpec) -> float:
+    """The ego's exported lane speed per planned speed (``_ego_speed``'s factor)."""
+    from sensorgap.export.actions import lane_speed_factor
+
+    lane = int(spec.family.settings.get("ego_lane", spec.family.settings.get("lane", 0)))
+    tr = travel_direction(spec.family.network, str(spec.family.settings["road_id"]), lane)
+    s0, v = float(spec.params["ego_s0_m"]), float(spec.params["ego_speed_m_s"])
+    until = min([t.time_s for t in maneuver_triggers(spec) if t.time_s > 0.0],
+                default=spec.family.duration_s)
+    return lane_speed_factor(spec, lane, s0, s0 + tr * v * until)
 
 
 def maneuver_triggers(spec: ScenarioSpec) -> list[PlannedTrigger]:

@@ -24,7 +24,7 @@ import shutil
 import subprocess
 import tempfile
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -34,6 +34,7 @@ from numpy.typing import NDArray
 from sensorgap.atomic import atomic_write_bytes
 from sensorgap.config import load_target
 from sensorgap.errors import InputError
+from sensorgap.export.bodies import MAX_BODY_DEV_M, box_deviation, planned_boxes
 from sensorgap.export.maneuver import maneuver_triggers, occluder_name, planned_origins
 from sensorgap.export.spec import ScenarioSpec, read_run
 from sensorgap.export.xosc import EGO, TARGET, origin_path, target_origin_offset
@@ -55,6 +56,7 @@ MAX_TRIGGER_DT_S = 0.1
 MAX_TRIGGER_REL_M = 0.5
 COLUMNS = ["scenario_id", "rank", "style", "status", "message", "ran_to_end", "end_time_s",
            "max_dev_ego_m", "max_dev_target_m", "max_dev_relative_m", "within_0p5m",
+           "max_dev_body_m", "bodies", "bodies_within_0p05m",
            "collision_planned_s", "collision_esmini_s", "collision_agrees", "triggers",
            "trigger_max_dt_s",
            "trigger_max_rel_dev_m", "trigger_agrees", "mean_pd_planned", "mean_pd_simulated",
@@ -76,9 +78,13 @@ def find_esmini(path: str | None) -> Path:
 
 @dataclass
 class SimPaths:
-    """Simulated states per entity: t (s), x, y (m), heading (rad), speed (m/s)."""
+    """Simulated states per entity: t (s), x, y (m), heading (rad), speed (m/s); its
+    bounding box as esmini logs it: centre in the entity's frame bb_x, bb_y, and length,
+    width (m; empty when the log has no box columns); its velocity vx, vy (m/s, world)."""
 
     states: dict[str, tuple[F64, F64, F64, F64, F64]]
+    boxes: dict[str, tuple[F64, F64, F64, F64]] = field(default_factory=dict)
+    velocity: dict[str, tuple[F64, F64]] = field(default_factory=dict)
 
 
 def parse_esmini_csv(path: Path) -> SimPaths:
@@ -98,14 +104,23 @@ def parse_esmini_csv(path: Path) -> SimPaths:
     n_ent = max(int(c.split()[0][1:]) for c in cols if c.startswith("#"))
     rows = [[v.strip() for v in ln.split(",")] for ln in lines[head + 1:] if ln.strip()]
     t = np.array([float(r[1]) for r in rows])
-    out = {}
+    def floats(idx: list[int]) -> F64:
+        return np.array([[float(r[i]) for i in idx] for r in rows]).reshape(-1, len(idx))
+
+    out, boxes, vel = {}, {}, {}
     for k in range(1, n_ent + 1):
         name = rows[0][col(k, "Entity_Name")] if rows else f"#{k}"
-        idx = [col(k, "World_Position_X"), col(k, "World_Position_Y"),
-               col(k, "World_Heading_Angle"), col(k, "Current_Speed")]
-        arr = np.array([[float(r[i]) for i in idx] for r in rows]).reshape(-1, 4)
+        arr = floats([col(k, "World_Position_X"), col(k, "World_Position_Y"),
+                      col(k, "World_Heading_Angle"), col(k, "Current_Speed")])
         out[name] = (t, arr[:, 0], arr[:, 1], np.unwrap(arr[:, 2]), arr[:, 3])
-    return SimPaths(out)
+        try:
+            bb = floats([col(k, n) for n in ("bb_x", "bb_y", "bb_length", "bb_width")])
+            boxes[name] = (bb[:, 0], bb[:, 1], bb[:, 2], bb[:, 3])
+            v = floats([col(k, "Vel_X"), col(k, "Vel_Y")])
+            vel[name] = (v[:, 0], v[:, 1])
+        except ValueError:
+            pass  # an esmini without these columns: the box and velocity checks say so
+    return SimPaths(out, boxes, vel)
 
 
 def _deviation(planned: Trajectory, t: F64, x: F64, y: F64) -> float:
@@ -221,46 +236,73 @@ def trigger_checks(spec: ScenarioSpec, sim: SimPaths, starts: dict[str, float],
     return out
 
 
+def body_deviations(spec: ScenarioSpec, sim: SimPaths) -> dict[str, float]:
+    """Per entity of the plan that esmini logged with its box: the largest distance (m)
+    of the logged box's centre or corners from the planned box's (``export.bodies``)."""
+    out = {}
+    for name, plan in planned_boxes(spec).items():
+        if name in sim.states and name in sim.boxes:
+            t, x, y, h, _ = sim.states[name]
+            out[name] = box_deviation(plan, t, x, y, h, *sim.boxes[name])
+    return out
+
+
+def run_esmini(esmini: Path, xosc: Path, tmp: Path, timeout_s: float,
+               step_s: float) -> tuple[Path, str] | str:
+    """Run one scenario file in esmini (headless, fixed step ``step_s`` s, ``--collision``)
+    in the folder ``tmp`` under the hard limit ``timeout_s`` (s): (its CSV log, its text
+    log), or a one-line reason it failed (``timeout: ...``, ``error: ...``, ``crashed:
+    ...``)."""
+    log = tmp / "log.csv"
+    text_log = tmp / "esmini.txt"
+    cmd = [str(esmini), "--headless", "--osc", str(xosc.resolve()), "--fixed_timestep",
+           repr(step_s), "--csv_logger", str(log), "--collision", "--disable_stdout",
+           "--logfile_path", str(text_log)]
+    try:
+        proc = subprocess.run(cmd, cwd=tmp, capture_output=True, timeout=timeout_s,
+                              check=False)
+    except subprocess.TimeoutExpired:
+        return f"timeout: esmini did not finish within {timeout_s:g} s (killed)"
+    except OSError as exc:
+        return f"error: cannot run esmini: {exc}"
+    if proc.returncode != 0 or not log.is_file():
+        tail = (proc.stderr or proc.stdout).decode("utf-8", "replace").strip()
+        last = tail.splitlines()[-1] if tail else ""
+        return f"crashed: esmini exit code {proc.returncode}: {last}"[:300]
+    text = text_log.read_text(encoding="utf-8", errors="replace") if text_log.is_file() else ""
+    return log, text
+
+
 def run_one(esmini: Path, xosc: Path, spec: ScenarioSpec, evaluator: Evaluator,
             timeout_s: float, step_s: float, style: str = "replay") -> dict[str, Any]:
     """Simulate one scenario of an export ``style``; a row of ``simulation.csv``."""
     row: dict[str, Any] = {"scenario_id": spec.scenario_id, "rank": spec.rank,
                            "style": style}
     with tempfile.TemporaryDirectory(prefix="sensorgap-esmini-") as tmp:
-        log = Path(tmp) / "log.csv"
-        text_log = Path(tmp) / "esmini.txt"
-        cmd = [str(esmini), "--headless", "--osc", str(xosc.resolve()), "--fixed_timestep",
-               repr(step_s), "--csv_logger", str(log), "--collision", "--disable_stdout",
-               "--logfile_path", str(text_log)]
         t0 = time.perf_counter()
-        try:
-            proc = subprocess.run(cmd, cwd=tmp, capture_output=True, timeout=timeout_s,
-                                  check=False)
-        except subprocess.TimeoutExpired:
-            return {**row, "status": "timeout",
-                    "message": f"esmini did not finish within {timeout_s:g} s (killed)"}
-        except OSError as exc:
-            return {**row, "status": "error", "message": f"cannot run esmini: {exc}"}
+        res = run_esmini(esmini, xosc, Path(tmp), timeout_s, step_s)
+        if isinstance(res, str):
+            status, _, message = res.partition(": ")
+            if status != "timeout":
+                row["esmini_wall_s"] = round(time.perf_counter() - t0, 3)
+            return {**row, "status": status, "message": message}
         row["esmini_wall_s"] = round(time.perf_counter() - t0, 3)
-        if proc.returncode != 0 or not log.is_file():
-            tail = (proc.stderr or proc.stdout).decode("utf-8", "replace").strip()
-            last = tail.splitlines()[-1] if tail else ""
-            return {**row, "status": "crashed",
-                    "message": f"esmini exit code {proc.returncode}: {last}"[:300]}
+        log, text = res
         try:
             sim = parse_esmini_csv(log)
             if EGO not in sim.states or TARGET not in sim.states:
                 raise ValueError(f"entities in the log: {', '.join(sim.states)}")
         except ValueError as exc:
             return {**row, "status": "bad log", "message": str(exc)[:300]}
-        text = (text_log.read_text(encoding="utf-8", errors="replace")
-                if text_log.is_file() else "")
         hit = COLLISION_RE.search(text)
     planned = spec.scenario
     dev_e = _deviation(planned.ego, *sim.states[EGO][:3])
     # the target's logged origin is its rear axle (vehicles): compare with that point's plan
     dev_t = _deviation(origin_path(planned.target, target_origin_offset(spec.target)),
                        *sim.states[TARGET][:3])
+    bodies = body_deviations(spec, sim)
+    dev_b = max(bodies.values(), default=math.inf)
+    bodies_ok = dev_b <= MAX_BODY_DEV_M
     occ_class = spec.family.settings.get("occluder")
     sc_sim = _simulated_scenario(sim, planned, None if occ_class is None else str(occ_class))
     tr_p = evaluator.trace(planned, spec.environment, spec.family.duration_s)
@@ -291,6 +333,8 @@ def run_one(esmini: Path, xosc: Path, spec: ScenarioSpec, evaluator: Evaluator,
                              ("collision differs from the plan", not agree),
                              ("a trigger differs from the plan by more than 0.1 s / 0.5 m",
                               not trig_ok),
+                             ("a body is more than 0.05 m from the plan",
+                              style == "replay" and not bodies_ok),
                              ("esmini's first collision is after the planned duration (not "
                               "compared)", late)) if bad]
     return {**row, "status": "ok" if to_end else "stopped early", "message": "; ".join(msgs),
@@ -298,6 +342,9 @@ def run_one(esmini: Path, xosc: Path, spec: ScenarioSpec, evaluator: Evaluator,
             "max_dev_ego_m": round(dev_e, 4), "max_dev_target_m": round(dev_t, 4),
             "max_dev_relative_m": round(dev_r, 4),
             "within_0p5m": "yes" if ok else "no",
+            "max_dev_body_m": round(dev_b, 4) if bodies else "",
+            "bodies": " ".join(f"{n}:{d:.4f}" for n, d in bodies.items()),
+            "bodies_within_0p05m": ("yes" if bodies_ok else "no") if bodies else "",
             "collision_planned_s": "" if t_plan is None else round(t_plan, 3),
             "collision_esmini_s": "" if t_sim is None else round(t_sim, 3),
             "collision_agrees": "yes" if agree else "no",
@@ -313,9 +360,11 @@ def run_one(esmini: Path, xosc: Path, spec: ScenarioSpec, evaluator: Evaluator,
 
 def simulate_catalog(catalog: Path, esmini: str | None = None,
                      timeout_s: float = DEFAULT_TIMEOUT_S,
-                     step_s: float = DEFAULT_STEP_S) -> list[dict[str, Any]]:
-    """Run every scenario of ``catalog`` (see the module docstring); writes
-    ``simulation.csv`` and returns its rows."""
+                     step_s: float = DEFAULT_STEP_S,
+                     ego_reaction: bool = False) -> list[dict[str, Any]]:
+    """Run every scenario of ``catalog`` (see the module docstring); with
+    ``ego_reaction`` also the reaction runs (``export.reaction``: columns ``react_*``);
+    writes ``simulation.csv`` and returns its rows."""
     catalog = Path(catalog)
     index_path = catalog / "catalog.json"
     if not catalog.is_dir():
@@ -348,7 +397,21 @@ def simulate_catalog(catalog: Path, esmini: str | None = None,
                          "message": "scenario not in ranking.json"})
             continue
         spec = ScenarioSpec.from_row(by_id[sid], system, catalog / "ranking.json")
-        rows.append(run_one(exe, xosc, spec, evaluator, timeout_s, step_s,
-                            str(index.get("style", "replay"))))
-    atomic_write_bytes(catalog / "simulation.csv", ranking_csv(rows, COLUMNS))
+        style = str(index.get("style", "replay"))
+        row = run_one(exe, xosc, spec, evaluator, timeout_s, step_s, style)
+        if ego_reaction:
+            from sensorgap.export.reaction import reaction_columns
+
+            cols, msgs = reaction_columns(
+                spec, evaluator, exe, style, str(index.get("osc_version", "1.2")),
+                catalog / str(entry.get("road", "")), timeout_s, step_s)
+            row.update(cols)
+            row["message"] = "; ".join(m for m in [row.get("message", ""), *msgs] if m)
+        rows.append(row)
+    columns = COLUMNS
+    if ego_reaction:
+        from sensorgap.export.reaction import COLUMNS as REACTION_COLUMNS
+
+        columns = COLUMNS + REACTION_COLUMNS
+    atomic_write_bytes(catalog / "simulation.csv", ranking_csv(rows, columns))
     return rows

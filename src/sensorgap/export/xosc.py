@@ -8,12 +8,15 @@ Replay mapping (docs/export.md):
   centre on the ground, the sensorgap vehicle frame) and ``Target`` (car/truck: Vehicle,
   bike: Vehicle of category bicycle, pedestrian: Pedestrian), bounding boxes from the
   vehicle and target files; the target's origin is its rear axle (pedestrians: centre).
-* Init: TeleportAction to the first state (WorldPosition x, y, heading) and the initial
-  speed (AbsoluteTargetSpeed, step).
+* Init: TeleportAction to the first state (WorldPosition x, y, heading); the ego's initial
+  speed (AbsoluteTargetSpeed, step), the target's FollowTrajectoryAction.
 * Manoeuvres: FollowTrajectoryAction with the evaluated 20 Hz states as a timed Polyline
-  (absolute timing, following mode ``position``) for both entities, so a player reproduces
-  exactly the evaluated paths; the act starts at time > 0, after the init actions (an
-  earlier start overrides them: esmini's "conflicting domain" warnings).
+  (absolute timing, following mode ``position``; vertices that esmini's vertex filter
+  would merge are left out, ``filtered_vertices``), so a player reproduces the evaluated
+  paths. The target's starts in the init (else esmini's default controller moves it along
+  the road in the first step: a crossing cyclist 0.05 m off); the ego's in an act that
+  starts at time > 0, after its init speed action (an earlier start overrides it: esmini's
+  "conflicting domain" warnings).
 * Environment: the evaluated conditions: Sun (world azimuth clockwise from north,
   elevation; intensity = direct irradiance x 105 lm/W, an estimate of the luminous
   efficacy of direct sunlight), Fog visualRange = visibility, Precipitation (rain or snow,
@@ -35,6 +38,7 @@ from scenariogeneration import xosc
 from scenariogeneration.xosc.enumerations import VersionBase
 
 from sensorgap.config import TargetConfig
+from sensorgap.export.brake import BrakeStep, brake_events
 from sensorgap.export.spec import ScenarioSpec
 from sensorgap.scenarios.trajectory import Trajectory
 
@@ -75,19 +79,74 @@ def origin_path(tr: Trajectory, ahead_m: float) -> Trajectory:
                       heading=tr.heading, speed=tr.speed)
 
 
+#: esmini merges consecutive trajectory vertices closer than this (its ``--traj_filter``
+#: default, m; playerbase.cpp) and turns a slow motion (< 0.1 m in more than 1 s) into a
+#: stand-still followed by a jump: a target creeping at 0.04 m/s stood still for 2.9 s and
+#: then jumped 0.1 m. ``filtered_vertices`` keeps only vertices it leaves alone.
+ESMINI_TRAJ_FILTER_M = 0.1
+#: Spacing kept between vertices above that radius (rounding of the XML, 1e-6 m), m.
+_FILTER_MARGIN_M = 1e-3
+
+
+def filtered_vertices(x: np.ndarray, y: np.ndarray, idx: list[int] | None = None) -> list[int]:
+    """The samples (of ``idx``, default all) to write as trajectory vertices so that
+    esmini's default vertex filter keeps every one: the first and last samples, the first
+    and last sample of every stand-still (samples at the same position: esmini keeps such
+    a pair when the stand-still lasts 1 s or more; one at the start is only its last
+    sample: the body is placed at the first sample and waits for the first vertex's
+    time) and, between those, samples at least
+    ``ESMINI_TRAJ_FILTER_M`` (+1 mm) from the previous vertex and from the next
+    stand-still or end. A player interpolates the samples left out linearly in time: off
+    by at most a quarter of the spacing (0.025-0.035 m at 20 Hz) for a start from or a
+    stop to rest at constant acceleration, by 0 at constant speed."""
+    idx = list(range(len(x))) if idx is None else list(idx)
+    if len(idx) <= 2:
+        return idx
+    gap = ESMINI_TRAJ_FILTER_M + _FILTER_MARGIN_M
+
+    def dist(i: int, j: int) -> float:
+        return float(np.hypot(x[i] - x[j], y[i] - y[j]))
+
+    anchors = [idx[0]]
+    for prev, k, nxt in zip(idx, idx[1:], idx[2:], strict=False):
+        still_before = dist(prev, k) <= 1e-9
+        still_after = dist(k, nxt) <= 1e-9
+        if still_before != still_after:  # a stand-still starts or ends here
+            anchors.append(k)
+    anchors.append(idx[-1])
+    if len(anchors) > 2 and dist(anchors[0], anchors[1]) <= 1e-9:
+        # a stand-still at the start: the body is placed there (init) and waits until
+        # the first vertex, its end (esmini drops a stand-still shorter than 1 s)
+        anchors = anchors[1:]
+    pos = {k: i for i, k in enumerate(idx)}
+    keep = [anchors[0]]
+    for u, v in zip(anchors, anchors[1:], strict=False):
+        between = [k for k in idx[pos[u] + 1:pos[v]] if dist(k, keep[-1]) >= gap]
+        picked: list[int] = []
+        for k in between:
+            if dist(k, picked[-1] if picked else keep[-1]) >= gap:
+                picked.append(k)
+        # towards a stand-still or the end: the sample nearest to it at the spacing
+        last = next((k for k in reversed(between) if dist(k, v) >= gap), None)
+        while picked and (last is None or dist(picked[-1], last) < gap
+                          or pos[picked[-1]] >= pos[last]):
+            picked.pop()
+        keep += [*picked, *([] if last is None else [last]), v]
+    return keep
+
+
 def _fmt(v: float) -> float:
     """Round to 1 mm / 1e-6 rad: short, stable numbers in the XML."""
     return float(round(v, 6))
 
 
-def _positions(tr: Trajectory) -> list[xosc.WorldPosition]:
-    return [xosc.WorldPosition(_fmt(x), _fmt(y), 0.0, _fmt(h))
-            for x, y, h in zip(tr.x.tolist(), tr.y.tolist(), tr.heading.tolist(), strict=True)]
-
-
 def _follow(name: str, tr: Trajectory) -> xosc.FollowTrajectoryAction:
+    keep = filtered_vertices(tr.x, tr.y)
     traj = xosc.Trajectory(f"{name}_path", False)
-    traj.add_shape(xosc.Polyline([_fmt(t) for t in tr.t.tolist()], _positions(tr)))
+    traj.add_shape(xosc.Polyline(
+        [_fmt(float(tr.t[k])) for k in keep],
+        [xosc.WorldPosition(_fmt(float(tr.x[k])), _fmt(float(tr.y[k])), 0.0,
+                            _fmt(float(tr.heading[k]))) for k in keep]))
     return xosc.FollowTrajectoryAction(traj, xosc.FollowingMode.position,
                                        xosc.ReferenceContext.absolute, 1.0, 0.0)
 
@@ -211,8 +270,13 @@ def assemble(spec: ScenarioSpec, params: xosc.ParameterDeclarations,
 
 
 def build_scenario(spec: ScenarioSpec, road_relpath: str,
-                   version: str = DEFAULT_VERSION) -> xosc.Scenario:
-    """The OpenSCENARIO object of one ranked scenario in the ``replay`` style."""
+                   version: str = DEFAULT_VERSION,
+                   ego_brake: list[BrakeStep] | None = None,
+                   step_s: float = 0.05) -> xosc.Scenario:
+    """The OpenSCENARIO object of one ranked scenario in the ``replay`` style. With
+    ``ego_brake`` (``simulate --ego-reaction``) the ego's path ends one ``step_s`` (s)
+    before the first brake step (the default controller keeps its lane and speed for that
+    step: no running action conflicts with the braking) and the brake steps follow."""
     minor = set_version(version)
     params = declarations(spec)
     entities = xosc.Entities()
@@ -223,24 +287,35 @@ def build_scenario(spec: ScenarioSpec, road_relpath: str,
     init.add_global_action(xosc.EnvironmentAction(environment(spec, minor)))
     step = xosc.TransitionDynamics(xosc.DynamicsShapes.step, xosc.DynamicsDimension.time, 0.0)
     # the ego's states are of its rear axle already; the target's of its box centre
-    paths = ((EGO, spec.scenario.ego),
+    ego = spec.scenario.ego
+    if ego_brake:
+        n = int(np.searchsorted(ego.t, ego_brake[0].start_s - step_s + 1e-9, side="right"))
+        n = max(n, 2)
+        ego = Trajectory(ego.t[:n], ego.x[:n], ego.y[:n], ego.heading[:n], ego.speed[:n])
+    paths = ((EGO, ego),
              (TARGET, origin_path(spec.scenario.target, target_origin_offset(spec.target))))
     for name, tr in paths:
         init.add_init_action(name, xosc.TeleportAction(xosc.WorldPosition(
             _fmt(float(tr.x[0])), _fmt(float(tr.y[0])), 0.0, _fmt(float(tr.heading[0])))))
-        init.add_init_action(name, xosc.AbsoluteSpeedAction(_fmt(float(tr.speed[0])), step))
+        if name == EGO:
+            init.add_init_action(name, xosc.AbsoluteSpeedAction(_fmt(float(tr.speed[0])),
+                                                                step))
+        else:  # from the first step on: not moved along the road by a default controller
+            init.add_init_action(name, _follow(name, tr))
 
     start = xosc.ValueTrigger("start", 0.0, xosc.ConditionEdge.none,
                               xosc.SimulationTimeCondition(0.0, xosc.Rule.greaterThan))
     story = xosc.Story("critical_scenario")
     act = xosc.Act("follow_evaluated_paths", start)
-    for name, tr in paths:
+    for name, tr in paths[:1]:
         event = xosc.Event(f"{name}_follow", xosc.Priority.override
                            if minor >= 2 else xosc.Priority.overwrite)
         event.add_action(f"{name}_trajectory", _follow(name, tr))
         event.add_trigger(start)
         man = xosc.Maneuver(f"{name}_maneuver")
         man.add_event(event)
+        for ev in brake_events(ego_brake or [], minor, step_s):
+            man.add_event(ev)
         group = xosc.ManeuverGroup(f"{name}_group")
         group.add_actor(name)
         group.add_maneuver(man)
