@@ -316,3 +316,32 @@ def test_simulate_reports_a_run_that_stops_early(catalog: Path, tmp_path: Path) 
     r = rows[index["scenarios"][0]["scenario_id"]]
     assert r["status"] == "stopped early" and r["ran_to_end"] == "no", r
     assert float(r["end_time_s"]) < 3.2
+
+
+@pytest.mark.parametrize("bad", ["../../escaped", "<b>x</b>", ""])
+def test_scenario_id_cannot_name_a_path(run_dir: Path, tmp_path: Path, bad: str,
+                                        capsys: pytest.CaptureFixture[str]) -> None:
+    # held-out hostile review (#18): a ranking row whose scenario_id is a path or markup
+    # wrote scenarios/../../escaped.xosc outside --out; now one line, exit 2, nothing
+    run = Path(shutil.copytree(run_dir, tmp_path / "run"))
+    data = json.loads((run / "ranking.json").read_text())
+    data["ranking"][0]["scenario_id"] = bad
+    (run / "ranking.json").write_text(json.dumps(data))
+    out = tmp_path / "deep" / "out"
+    assert main(["export", "--run", str(run), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len([ln for ln in err if ln.startswith("sensorgap: error:")]) == 1
+    assert "scenario_id" in err[-1]
+    assert not list(tmp_path.rglob("escaped*")) and not out.exists()
+
+
+@pytest.mark.parametrize(("flag", "value"), [("--timeout", "inf"), ("--timeout", "0"),
+                                             ("--step", "nan"), ("--step", "5")])
+def test_simulate_bounds_are_one_line(catalog: Path, flag: str, value: str,
+                                      capsys: pytest.CaptureFixture[str]) -> None:
+    # held-out review (#18): --timeout inf was an OverflowError (exit 1); checked before
+    # esmini is looked for
+    assert main(["simulate", "--catalog", str(catalog), "--esmini", "/bin/true", flag,
+                 value]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"sensorgap: error: {flag}: must be within")

@@ -372,8 +372,10 @@ def simulate_catalog(catalog: Path, esmini: str | None = None,
     if not index_path.is_file():
         raise InputError(index_path, "", "not a catalog (catalog.json is missing); run "
                          "`sensorgap export` first")
-    if not (timeout_s > 0.0 and step_s > 0.0):
-        raise InputError("timeout", "", "timeout and step must be > 0 s")
+    if not (0.0 < timeout_s <= 86_400.0):
+        raise InputError("timeout", "", f"must be within 0..86400 s, got {timeout_s!r}")
+    if not (0.0 < step_s <= 1.0):
+        raise InputError("step", "", f"must be within 0..1 s, got {step_s!r}")
     exe = find_esmini(esmini)
     try:
         index = json.loads(index_path.read_text(encoding="utf-8"))

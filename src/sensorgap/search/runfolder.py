@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import re
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -58,6 +59,8 @@ RANKING_JSON = "ranking.json"
 SINGLE = ("vehicle", "environments", "targets", "reaction", "friction")
 #: Text fields every ranking row must carry.
 ROW_TEXT = ("scenario_id", "family", "environment")
+#: What a scenario id may be (it names the exported files).
+SCENARIO_ID = re.compile(r"[A-Za-z0-9_-]{1,64}")
 #: Fields of ``run.json`` a reader checks, and the JSON type each must have.
 RUN_INFO_FIELDS: dict[str, type] = {"settings": dict, "vehicle": str, "versions": dict,
                                     "command": list, "config_sha256": dict,
@@ -244,6 +247,11 @@ def _read_ranking(folder: Path) -> tuple[list[dict[str, Any]], dict[str, Any],
             if not isinstance(row.get(key), str) or not row[key]:
                 raise InputError(path, f"ranking[{i}].{key}", "malformed ranking file: "
                                  "missing or not a string")
+        if not SCENARIO_ID.fullmatch(row["scenario_id"]):
+            # it names files (scenarios/<id>.xosc): no path separators, no markup
+            raise InputError(path, f"ranking[{i}].scenario_id", "malformed ranking file: "
+                             "expected 1-64 letters, digits, '_' or '-', got "
+                             f"{row['scenario_id'][:80]!r}")
         rank = row.get("rank")
         if not isinstance(rank, int) or isinstance(rank, bool) or rank < 1:
             raise InputError(path, f"ranking[{i}].rank", "malformed ranking file: expected "
