@@ -106,3 +106,18 @@ def test_library_errors_name_arguments_and_the_cli_names_flags(
                  "--environments", "clear", "--budget", "0", "--out", "unused"]) == 2
     err = capsys.readouterr().err
     assert "sensorgap: error: --budget: must be within" in err
+
+
+def test_vehicle_name_with_mathtext_is_drawn_as_written(tmp_path: Path) -> None:
+    # held-out review (#18): a name like "A $x^{$" was parsed as matplotlib math in the
+    # figure titles (internal error); names are drawn as written
+    from sensorgap.config.presets import templates_dir
+
+    text = (templates_dir() / "vehicles" / "system_a.toml").read_text()
+    v = tmp_path / "v.toml"
+    v.write_text(text.replace('name = "System A"', 'name = "A $x^{$"', 1))
+    assert main(["coverage", "--vehicle", str(v), "--environment", "clear", "--target", "car",
+                 "--resolution", "1", "--extent", "0,10,0,10", "--out", str(tmp_path / "c")]) == 0
+    assert main(["nearfield", "--vehicle", str(v), "--out", str(tmp_path / "n"),
+                 "--resolution", "0.25"]) == 0
+    assert (tmp_path / "c" / "coverage.png").is_file()

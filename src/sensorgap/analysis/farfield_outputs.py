@@ -13,7 +13,7 @@ import numpy as np
 from sensorgap.analysis.farfield import LEVELS, FarField
 from sensorgap.coverage.grid import GridSpec, evaluate_grid
 from sensorgap.coverage.outputs import scene_provenance
-from sensorgap.coverage.plot import PD_CMAP, PD_NORM, draw_vehicle, save_figure
+from sensorgap.coverage.plot import PD_CMAP, PD_NORM, draw_vehicle, plain_text, save_figure
 from sensorgap.coverage.scene import Scene
 from sensorgap.filesio import write_csv, write_json
 
@@ -68,8 +68,8 @@ def write_farfield(scene: Scene, ff: FarField, out_dir: Path, title: str,
     ax.set_ylim(g.ymin, g.ymax)
     ax.set_xlabel("x (vehicle frame) [m]")
     ax.set_ylabel("y (vehicle frame) [m]")
-    ax.set_title(f"{title}\nmap: {'car bodies heading as the ego' if bodies else 'points'}"
-                 f", {g.resolution:g} m cells", fontsize=10)
+    kind = "car bodies heading as the ego" if bodies else "points"
+    ax.set_title(f"{plain_text(title)}\nmap: {kind}, {g.resolution:g} m cells", fontsize=10)
     ax.legend(loc="upper left", fontsize=8, framealpha=0.9)
     fig.colorbar(im, ax=ax, label="detection probability $p_d$", shrink=0.8)
     ax2.plot(ff.s, ff.pd, color="black", linewidth=1.5, label="fused Pd")

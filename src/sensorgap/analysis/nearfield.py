@@ -688,7 +688,7 @@ def nearfield_figure(system: System, window: Polygon, footprints: dict[str, Area
     from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
 
-    from sensorgap.coverage.plot import draw_vehicle
+    from sensorgap.coverage.plot import draw_vehicle, plain_text
 
     xmin, ymin, xmax, ymax = window.bounds
     aspect = (ymax - ymin) / (xmax - xmin)
@@ -720,7 +720,7 @@ def nearfield_figure(system: System, window: Polygon, footprints: dict[str, Area
     ax.set_xlabel("x (vehicle frame) [m]")
     ax.set_ylabel("y (vehicle frame) [m]")
     area = sum(sp.area for sp in spots)
-    ax.set_title(f"{system.name}: blind spots {area:.2f} m$^2$ (blue), not covered at "
+    ax.set_title(f"{plain_text(system.name)}: blind spots {area:.2f} m$^2$ (blue), not covered at "
                  f"{z:g} m (green)", fontsize=10)
     handles: list[Any] = [
         Patch(facecolor="tab:blue", edgecolor="navy", label="blind spot (no sensor, any height)"),

@@ -28,6 +28,12 @@ _TYPE_COLOURS = {"camera": "tab:orange", "radar": "tab:red", "lidar": "tab:cyan"
                  "ultrasonic": "tab:pink"}
 
 
+def plain_text(text: str) -> str:
+    """User-given text (vehicle, family, environment names) for a matplotlib label: every
+    ``$`` escaped, so a name like ``A $x^{$`` is drawn as written, not parsed as math."""
+    return text.replace("$", r"\$")
+
+
 def draw_vehicle(ax: plt.Axes, system: System, fov: bool = True) -> None:
     """Vehicle footprint and (optionally) each sensor's horizontal field of view."""
     body = system.config.vehicle
@@ -71,7 +77,7 @@ def coverage_figure(cov: GridCoverage, system: System, title: str,
     ax.set_ylim(g.ymin, g.ymax)
     ax.set_xlabel("x (vehicle frame) [m]")
     ax.set_ylabel("y (vehicle frame) [m]")
-    ax.set_title(title, fontsize=10)
+    ax.set_title(plain_text(title), fontsize=10)
     fig.colorbar(im, ax=ax, label="detection probability $p_d$", shrink=0.9)
     return fig
 

@@ -13,7 +13,13 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.patches import Polygon  # noqa: E402
 
-from sensorgap.coverage.plot import PD_CMAP, PD_NORM, draw_vehicle, save_figure  # noqa: E402
+from sensorgap.coverage.plot import (  # noqa: E402
+    PD_CMAP,
+    PD_NORM,
+    draw_vehicle,
+    plain_text,
+    save_figure,
+)
 from sensorgap.export.spec import ScenarioSpec  # noqa: E402
 from sensorgap.report.summary import direction_words, sun_azimuth_deg  # noqa: E402
 from sensorgap.search.evaluate import Evaluator, Trace  # noqa: E402
@@ -104,7 +110,7 @@ def scenario_figure(spec: ScenarioSpec, evaluator: Evaluator, tr: Trace, path: P
     fig.colorbar(im, ax=ax, shrink=0.85,
                  label=f"$p_d$ of a {spec.target.name} body, {spec.environment_name}: "
                  "no sun, no occluders")
-    ax.set_title(f"rank {spec.rank}: {spec.family.name}, {spec.environment_name}",
+    ax.set_title(plain_text(f"rank {spec.rank}: {spec.family.name}, {spec.environment_name}"),
                  fontsize=9)
     r = evaluator.reaction
     f = first_confirmation(pdc[None, :], np.array([len(pdc)]), r.confirm_m, r.confirm_n)[0]
