@@ -9,9 +9,8 @@ from pathlib import Path
 from typing import Any
 
 from sensorgap.errors import InputError
-from sensorgap.report.document import Para, Section, Table
+from sensorgap.report.document import NOT_RUN, Para, Section, Table
 
-NOT_RUN = "Not part of this run."
 TITLE = "Anchor cases: Euro NCAP obstructed near-side crossing"
 
 

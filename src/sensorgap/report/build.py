@@ -26,6 +26,7 @@ from sensorgap.models import System
 from sensorgap.provenance import utc_now, versions
 from sensorgap.report.anchors import anchors_section
 from sensorgap.report.document import (
+    NOT_RUN,
     Block,
     Image,
     Links,
@@ -49,7 +50,6 @@ from sensorgap.search.problem import START_TTC_S
 from sensorgap.search.runfolder import RunFolder, open_run
 
 REPORT_DIR = "report"
-NOT_RUN = "Not part of this run."
 
 
 def read_json(path: Path) -> Any:

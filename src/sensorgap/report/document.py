@@ -22,6 +22,9 @@ from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
 
+#: What a section says when its part of the pipeline was not run (one line).
+NOT_RUN = "Not part of this run."
+
 
 @dataclass
 class Para:
