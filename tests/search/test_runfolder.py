@@ -101,8 +101,11 @@ def test_report_uses_the_recorded_inputs(exported: Path,
     md = (exported / "report.md").read_text(encoding="utf-8")
     assert "### 1. my_cut_in in clear" in md
     assert "recorded in the run: inputs/environments/my_envs.toml" in md
-    clear = [ln for ln in md.splitlines() if ln.startswith("| clear |")]
+    rows = [ln for ln in md.splitlines() if ln.startswith("| clear |")]
+    clear = [ln for ln in rows if "StVO" not in ln]  # the environment table
     assert clear and clear[0].split("|")[4].strip() == "50"  # visibility [m]
+    # the lawful-speed table: the recorded 50 m 'clear' bounds the ego speed, not 23 km
+    assert any("StVO" in ln and "visibility 50 m" in ln for ln in rows)
 
 
 def test_compare_and_evaluate_rebuild_the_ranked_numbers(custom: dict[str, Path],

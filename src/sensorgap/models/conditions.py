@@ -34,6 +34,11 @@ class Band:
     wavelength_m: float = 0.0
 
 
+#: The reference wavelength of meteorological visibility, 550 nm (WMO No. 8, 2018, vol. I
+#: ch. 9: the luminous flux of an incandescent lamp at 2700 K, peak eye sensitivity).
+VISIBLE_BAND = Band("optical", wavelength_m=550e-9)
+
+
 @dataclass
 class Conditions:
     """An environment preset resolved for one ego heading.
@@ -93,6 +98,18 @@ class Conditions:
         if self.env.visibility_m >= att.FOG_VISIBILITY_LIMIT_M:
             return 0.0
         return att.fog_lwc_from_visibility_g_m3(self.env.visibility_m)
+
+    def meteorological_visibility_m(self) -> float:
+        """Meteorological optical range of this weather, m: Koschmieder's law at 2 %
+        contrast, ``V = 3.912 / beta``, with ``beta`` the total optical extinction (fog or
+        haze from ``visibility_m``, plus rain and snow) at 550 nm, the wavelength of the
+        definition (WMO No. 8, 2018, vol. I ch. 9). Equals ``visibility_m`` without rain
+        and snow; rounded to 0.1 m (so 50 m fog gives exactly 50.0, not 49.999...)."""
+        gamma = self.attenuation_db_km(VISIBLE_BAND)  # dB/km, one way
+        beta_per_m = gamma * math.log(10.0) / 10.0 / 1000.0
+        if beta_per_m <= 0.0:
+            return math.inf
+        return round(att.KOSCHMIEDER_2PCT / beta_per_m, 1)
 
     def attenuation_db_km(self, band: Band) -> float:
         """One-way specific attenuation for ``band`` in this environment, dB/km."""

@@ -258,6 +258,20 @@ def _per_family_table(search: dict[str, Any] | None, rows: list[dict[str, Any]]
                   "Search per family (summary.json; counts of the lookup evaluation)")]
 
 
+def _speed_limit_table(search: dict[str, Any] | None) -> list[Block]:
+    lims = (search or {}).get("speed_limits")
+    if not isinstance(lims, dict) or not lims:
+        return []
+    rows = [[str(e), "not bounded" if not isinstance(d, dict) or d.get("speed_kmh") is None
+             else fmt(d.get("speed_kmh")),
+             fmt(d.get("visibility_m")) if isinstance(d, dict) else "",
+             str(d.get("rule", "")) if isinstance(d, dict) else ""]
+            for e, d in lims.items()]
+    return [Table(["environment", "highest ego speed [km/h]", "visibility [m]", "rule"], rows,
+                  "Lawful ego speed per environment (StVO 3(1), driving within sight; "
+                  "docs/search.md 'Speed within sight'): the search never drove faster")]
+
+
 def _param_rows(spec: ScenarioSpec) -> list[list[str]]:
     rows = []
     for k, v in spec.params.items():
@@ -346,7 +360,7 @@ def _scenarios_section(run: RunFolder, out_img: Path, search: dict[str, Any] | N
             Table(["rank", "scenario", "class", "family", "environments", "target",
                    "P(collision)", "impact [km/h]", "t_safe [s]", "margin [s]",
                    "dominant effect"], overview, "Ranking"),
-            *_per_family_table(search, run.rows)]
+            *_per_family_table(search, run.rows), *_speed_limit_table(search)]
     return Section("scenarios", "Critical scenarios", head, subs), errors, ranked
 
 

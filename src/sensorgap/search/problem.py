@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import os
 import threading
 from concurrent.futures import ThreadPoolExecutor
@@ -24,11 +25,14 @@ from sensorgap.errors import InputError
 from sensorgap.scenarios.family import Family, Param, ParamValue, Scenario
 from sensorgap.search.evaluate import BatchTrace, Evaluator, Trace
 from sensorgap.search.metrics import compute_all_batch, metric_names, summary
+from sensorgap.search.speedlimit import SpeedLimit, speed_limit
 
 F64 = NDArray[np.float64]
 
 SUN_AZIMUTH = Param("sun_azimuth_deg", 0.0, 359.0, unit="deg")
 SUN_ELEVATION = Param("sun_elevation_deg", 2.0, 30.0, unit="deg")
+#: The family parameter bounded by the environment's lawful speed (``search.speedlimit``).
+EGO_SPEED = "ego_speed_m_s"
 
 
 #: A candidate must start non-critical: TTC at t = 0 at least this, s (about twice the
@@ -250,6 +254,34 @@ class SearchProblem:
             dims += [SUN_AZIMUTH, SUN_ELEVATION]
         self.space: tuple[Param, ...] = (*dims, *family.space)
         self._n_env = len(dims)
+        #: per environment: the lawful ego speed bound (driving within sight); the ego
+        #: speed dimension spans ``[low, min(high, bound)]`` in each environment, and a row
+        #: above the bound (``evaluate`` with given values) is infeasible
+        self.speed_limits: dict[str, SpeedLimit] = {
+            n: speed_limit(e, evaluator.reaction, evaluator.friction)
+            for n, e in environments.items()}
+        self._ego_speed = next((p for p in family.space if p.name == EGO_SPEED), None)
+
+    def ego_speed_range(self, env: str) -> tuple[float, float]:
+        """The ego speed range searched in environment ``env``, m/s: the family's range cut
+        at the environment's lawful speed (empty, ``high < low``, when the bound is below
+        the family's lowest speed)."""
+        p = self._ego_speed
+        if p is None:
+            raise InputError("family", self.family.name, f"has no {EGO_SPEED} parameter")
+        bound = self.speed_limits[env].speed_m_s
+        if bound >= p.high:
+            return p.low, p.high
+        scale = 10.0 ** PARAM_DECIMALS  # cut down to the rounding grid: decoded <= bound
+        return p.low, math.floor(bound * scale) / scale
+
+    def _speed_highs(self, names: NDArray[np.str_]) -> F64:
+        """(B,) upper ends of the ego speed dimension per row's environment, m/s (at least
+        the family's low end, so the decoded value stays in the family's range)."""
+        assert self._ego_speed is not None
+        highs = {n: max(self._ego_speed.low, self.ego_speed_range(n)[1])
+                 for n in self.env_names}
+        return np.array([highs[str(n)] for n in names], dtype=np.float64)
 
     @property
     def dim(self) -> int:
@@ -271,7 +303,18 @@ class SearchProblem:
                    float(round(float(self.space[2].decode(float(u[2]))))))
         params = {p.name: _canon(p.decode(float(v)))
                   for p, v in zip(self.family.space, u[self._n_env:], strict=True)}
+        if self._ego_speed is not None:
+            j = self._n_env + self.family.space.index(self._ego_speed)
+            params[EGO_SPEED] = self._decode_speed(np.array([u[j]]), np.array([env]))[0]
         return Candidate(self.family.name, env, sun, params)
+
+    def _decode_speed(self, u: F64, names: NDArray[np.str_]) -> F64:
+        """Ego speed column of unit values ``u`` in each row's environment, m/s (rounded
+        like every continuous parameter)."""
+        assert self._ego_speed is not None
+        low = self._ego_speed.low
+        high = self._speed_highs(names)
+        return np.round(low + np.clip(u, 0.0, 1.0) * (high - low), PARAM_DECIMALS)
 
     def decode_batch(self, U: F64) -> Decoded:
         """(B, dim) unit-cube rows -> decoded columns (same values as ``decode``)."""
@@ -288,6 +331,9 @@ class SearchProblem:
             sun[rows, 0], sun[rows, 1] = az[rows], el[rows]
         params = {p.name: decode_column(p, U[:, self._n_env + j])
                   for j, p in enumerate(self.family.space)}
+        if self._ego_speed is not None:
+            j = self._n_env + self.family.space.index(self._ego_speed)
+            params[EGO_SPEED] = self._decode_speed(U[:, j], names)
         return Decoded(names, sun, params)
 
     def _visible_sun(self, name: str) -> bool:
@@ -340,6 +386,15 @@ class SearchProblem:
         names = metric_names()
         metrics = {m: np.zeros(len(d)) for m in names}
         feasible, notes = batch.ok.copy(), list(batch.notes)
+        if self._ego_speed is not None:  # above the environment's lawful speed
+            speed = np.asarray(d.params[EGO_SPEED], dtype=np.float64)
+            bound = np.array([self.speed_limits[str(n)].speed_m_s for n in d.env_names])
+            for i in np.flatnonzero(feasible & (speed > bound + 1e-9)):
+                feasible[i] = False
+                lim = self.speed_limits[str(d.env_names[i])]
+                notes[i] = (f"ego speed {speed[i] * 3.6:.0f} km/h above the lawful speed in "
+                            f"{d.env_names[i]}: {lim.rule}")
+            ok = np.flatnonzero(feasible)
         objective = np.full(len(d), OBJECTIVE_INFEASIBLE)
         if ok.size:
             bt = self.evaluator.evaluate_batch(batch, d.env_names, self.environments,

@@ -112,6 +112,16 @@ def _input_digests(vehicle_file: Path, evaluator: Evaluator, envs: dict[str, Any
     return out
 
 
+def _speed_limits(prob: SearchProblem) -> dict[str, dict[str, Any]]:
+    """Per environment: the lawful ego speed bound the search used (``search.speedlimit``),
+    km/h (None: not bounded), the visibility it came from, m, and the rule in words."""
+    return {n: {"speed_kmh": (None if math.isinf(lim.speed_m_s)
+                              else round(lim.speed_m_s * 3.6, 1)),
+                "visibility_m": (None if math.isinf(lim.visibility_m) else lim.visibility_m),
+                "rule": lim.rule}
+            for n, lim in prob.speed_limits.items()}
+
+
 def run_search(vehicle: str | Path, families: list[str], environments: list[str],
                budget: int, seed: int, top: int, out: Path, strategy: str = "de",
                mode: str = "lookup", sun_search: bool = True,
@@ -291,6 +301,7 @@ def run_search(vehicle: str | Path, families: list[str], environments: list[str]
                     if classify(r) == "sensor-critical"), default=0.0),
                "best_log10_risk": max((r.score for r in results), default=-300.0),
                "lookup_vs_exact": disagreement,
-               "per_family": per_family}
+               "per_family": per_family,
+               "speed_limits": _speed_limits(next(iter(problems.values())))}
     write_json(out / "summary.json", summary)
     return SearchOutcome(rows, results, evaluated, reused, summary)

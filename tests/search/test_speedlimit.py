@@ -1,0 +1,102 @@
+"""Driving within sight (search/speedlimit.py): the ego speed a family may use in an
+environment, checked against closed-form answers computed here independently."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from sensorgap.config import load_environments
+from sensorgap.config.reaction import load_friction, load_reaction
+from sensorgap.models import load_system
+from sensorgap.models.conditions import Conditions
+from sensorgap.scenarios import load_family
+from sensorgap.search.evaluate import Evaluator
+from sensorgap.search.problem import EGO_SPEED, SearchProblem
+from sensorgap.search.speedlimit import FOG_RULE_SPEED_M_S, sight_speed_m_s, speed_limit
+
+ENVS = load_environments()
+G = 9.80665
+
+
+def _closed_form_sight_speed(vis: float, latency: float, jerk: float, a: float) -> float:
+    """Positive root of the stopping distance = vis, written out by hand: latency, then a
+    brake ramp of t1 = a / jerk (distance v t1 - jerk t1^3 / 6, speed lost a t1 / 2), then
+    constant deceleration a: d(v) = v (latency + t1) - jerk t1^3 / 6 + (v - a t1 / 2)^2 / 2a.
+    As v^2 + p v + q = 0 (valid while v > a t1 / 2, i.e. the car is still moving after the
+    ramp)."""
+    t1 = a / jerk
+    c = a * t1 / 2.0
+    k = jerk * t1**3 / 6.0
+    p = 2.0 * a * (latency + t1) - 2.0 * c
+    q = c * c - 2.0 * a * k - 2.0 * a * vis
+    return (-p + math.sqrt(p * p - 4.0 * q)) / 2.0
+
+
+@pytest.mark.parametrize("vis,latency,jerk,a", [(50.0, 0.3, 12.0, 0.9 * G),
+                                                (328.8, 0.3, 12.0, 0.2 * G),
+                                                (120.0, 1.0, 8.0, 0.6 * G)])
+def test_sight_speed_is_the_closed_form_stopping_answer(vis: float, latency: float,
+                                                         jerk: float, a: float) -> None:
+    """Bisection on the outcome's stopping model equals the hand-solved quadratic (1e-5
+    m/s: the bisection stops at 1e-6)."""
+    got = sight_speed_m_s(vis, latency, jerk, a)
+    assert got == pytest.approx(_closed_form_sight_speed(vis, latency, jerk, a), abs=1e-5)
+
+
+def test_visibility_adds_rain_and_snow_extinction() -> None:
+    """Meteorological visibility (Koschmieder 2 %, 550 nm): the preset's visibility when
+    dry; with snow, 3.912 / (beta_haze + beta_snow), beta_snow from ITU-R P.1817-1 dry snow
+    at 550 nm written out here."""
+    assert Conditions.from_config(ENVS["fog_50"]).meteorological_visibility_m() == 50.0
+    assert Conditions.from_config(ENVS["clear"]).meteorological_visibility_m() == 23000.0
+    snow = ENVS["snow"]
+    gamma = (5.42e-5 * 550.0 + 5.4958776) * snow.snow_mm_h**1.38  # dB/km
+    beta = gamma * math.log(10) / 10 + 3.912 / (snow.visibility_m / 1000)  # 1/km
+    want = 1000 * 3.912 / beta
+    assert Conditions.from_config(snow).meteorological_visibility_m() == pytest.approx(
+        want, abs=0.06)
+    assert want < 400  # heavy snow really limits sight
+
+
+def test_the_fifty_kmh_rule_below_fifty_metres() -> None:
+    """StVO 3(1): at 30 m fog the bound is 50 km/h (the sight rule alone would allow
+    more), at 50 m the sight rule binds (not 'below 50 m'), in clear weather nothing."""
+    react, fr = load_reaction("ads_default"), load_friction()
+    fog30 = ENVS["fog_50"].model_copy(update={"visibility_m": 30.0})
+    lim = speed_limit(fog30, react, fr)
+    assert lim.speed_m_s == FOG_RULE_SPEED_M_S
+    assert sight_speed_m_s(30.0, react.latency_s, react.jerk_m_s3,
+                           min(react.decel_max_m_s2, fr["dry"] * G)) > FOG_RULE_SPEED_M_S
+    lim50 = speed_limit(ENVS["fog_50"], react, fr)
+    assert lim50.speed_m_s == pytest.approx(_closed_form_sight_speed(
+        50.0, react.latency_s, react.jerk_m_s3, min(react.decel_max_m_s2, fr["dry"] * G)),
+        abs=1e-5)
+    assert "within sight" in lim50.rule
+    assert math.isinf(speed_limit(ENVS["clear"], react, fr).speed_m_s)
+
+
+def test_search_never_drives_above_the_lawful_speed() -> None:
+    """Decoded candidates in 50 m fog stay at or below the bound (the whole unit interval
+    maps into [low, bound]); in clear weather the family's full range is used; a given
+    speed above the bound is an infeasible row whose note names the rule."""
+    prob = SearchProblem(load_family("cut_in_right"),
+                         {"clear": ENVS["clear"], "fog_50": ENVS["fog_50"]},
+                         Evaluator(load_system("system_a"), "lookup"))
+    bound = prob.speed_limits["fog_50"].speed_m_s
+    assert 15.0 < bound < 36.0
+    u = np.random.default_rng(3).random((4000, prob.dim))
+    d = prob.decode_batch(u)
+    v = np.asarray(d.params[EGO_SPEED], dtype=float)
+    fog = d.env_names == "fog_50"
+    assert v[fog].max() <= bound and v[fog].max() > bound - 0.1
+    assert v[~fog].max() > 35.9
+    one = prob.decode(u[np.flatnonzero(fog)[0]])
+    assert one.params[EGO_SPEED] == v[np.flatnonzero(fog)[0]]
+    cand = prob.candidates(d.take(np.flatnonzero(fog)[:1]))[0]
+    cand.params[EGO_SPEED] = 30.0
+    res = prob.evaluate(cand)
+    assert not res.feasible
+    assert "lawful speed in fog_50" in res.note and "within sight" in res.note
