@@ -228,7 +228,7 @@ def run_search(vehicle: str | Path, families: list[str], environments: list[str]
                                              runner.evaluate(spec, prob, sub))
                         for j, r in zip(todo.tolist(), fresh, strict=True):
                             batch[j] = r
-                        store.put([(idx + j, batch[j]) for j in todo.tolist()])
+                        store.put_async([(idx + j, batch[j]) for j in todo.tolist()])
                         evaluated += todo.size
                     done = [r for r in batch if r is not None]
                     strat.tell(X, np.array([r.objective for r in done]))

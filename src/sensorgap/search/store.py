@@ -3,7 +3,9 @@
 Table ``candidates``: one row per evaluation, keyed by (family, idx) where ``idx`` counts
 the family's evaluations in the strategy's order; parameters and metrics as sorted JSON,
 risk and feasibility as columns for SQL queries. Table ``meta`` holds the run settings.
-Each batch is committed at once, so an interrupted run loses at most one batch; rerunning
+Each batch is committed at once (``put``; the search uses ``put_async``: one background
+thread writes the batches in order while the next one is evaluated, and ``close`` waits for
+it), so an interrupted run loses at most the batches not yet written; rerunning
 the same command replays the (deterministic) strategy and takes every stored result
 instead of evaluating it again.
 """
@@ -13,6 +15,8 @@ from __future__ import annotations
 import hashlib
 import json
 import sqlite3
+import threading
+from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -75,10 +79,14 @@ class Store:
     def __init__(self, path: Path, settings: dict[str, Any],
                  inputs: dict[str, str] | None = None) -> None:
         self.path = path
+        self._lock = threading.Lock()
+        self._writer: ThreadPoolExecutor | None = None
+        self._pending: list[Future[None]] = []
         path.parent.mkdir(parents=True, exist_ok=True)
         existed = path.is_file() and path.stat().st_size > 0
         try:
-            self.db = sqlite3.connect(path)
+            # one connection, shared with the writer thread under ``_lock``
+            self.db = sqlite3.connect(path, check_same_thread=False)
         except sqlite3.Error as exc:
             raise InputError(path, "", f"cannot open: {exc}") from None
         try:
@@ -128,23 +136,39 @@ class Store:
         self.db.commit()
 
     def close(self) -> None:
-        """Close the connection."""
-        self.db.close()
+        """Write what is queued (``put_async``), then close the connection."""
+        try:
+            self.flush()
+        finally:
+            if self._writer is not None:
+                self._writer.shutdown(wait=True, cancel_futures=True)
+                self._writer = None
+            self.db.close()
+
+    def flush(self) -> None:
+        """Wait until every queued batch is written; the first write error is raised here
+        (an ``InputError`` naming the file)."""
+        pending, self._pending = self._pending, []
+        for f in pending:
+            f.result()
 
     def count(self) -> int:
         """Number of stored evaluations."""
+        self.flush()
         try:
-            return int(self.db.execute("SELECT COUNT(*) FROM candidates").fetchone()[0])
+            with self._lock:
+                return int(self.db.execute("SELECT COUNT(*) FROM candidates").fetchone()[0])
         except sqlite3.DatabaseError as exc:
             raise _damaged(self.path, exc) from None
 
     def get(self, family: str, idx: int, scenario_id: str) -> Result | None:
         """The stored result of evaluation ``idx`` of ``family`` if it is that candidate."""
         try:
-            row = self.db.execute(
-                "SELECT scenario_id, environment, sun_azimuth_deg, sun_elevation_deg, "
-                "params, metrics, feasible, note FROM candidates WHERE family = ? AND "
-                "idx = ?", (family, idx)).fetchone()
+            with self._lock:
+                row = self.db.execute(
+                    "SELECT scenario_id, environment, sun_azimuth_deg, sun_elevation_deg, "
+                    "params, metrics, feasible, note FROM candidates WHERE family = ? AND "
+                    "idx = ?", (family, idx)).fetchone()
         except sqlite3.DatabaseError as exc:
             raise _damaged(self.path, exc) from None
         if row is None or row[0] != scenario_id:
@@ -162,6 +186,18 @@ class Store:
                              "folder") from None
         return Result(cand, metrics, bool(row[6]), row[7])
 
+    def put_async(self, rows: list[tuple[int, Result]]) -> None:
+        """Queue results for ``put`` on one background thread (batches written in the order
+        queued; the results must not change afterwards). A failed write is raised by the
+        next ``put_async``, ``flush``, ``count`` or ``close``."""
+        done = [f for f in self._pending if f.done()]
+        for f in done:
+            f.result()  # raise a failed write now
+        self._pending = [f for f in self._pending if not f.done()]
+        if self._writer is None:
+            self._writer = ThreadPoolExecutor(1, thread_name_prefix="sensorgap-store")
+        self._pending.append(self._writer.submit(self.put, list(rows)))
+
     def put(self, rows: list[tuple[int, Result]]) -> None:
         """Insert (or replace) results and commit."""
         data = []
@@ -174,18 +210,21 @@ class Store:
                          json.dumps(r.metrics, sort_keys=True), r.risk, int(r.feasible),
                          r.note))
         try:
-            self.db.executemany("INSERT OR REPLACE INTO candidates VALUES "
-                                "(?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)", data)
-            self.db.commit()
+            with self._lock:
+                self.db.executemany("INSERT OR REPLACE INTO candidates VALUES "
+                                    "(?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)", data)
+                self.db.commit()
         except sqlite3.DatabaseError as exc:
             raise InputError(self.path, "", f"cannot store results: {exc}") from None
 
     def all_results(self) -> list[Result]:
         """Every stored result (family, idx order)."""
         out = []
+        self.flush()
         try:
-            keys = self.db.execute("SELECT family, idx, scenario_id FROM candidates "
-                                   "ORDER BY family, idx").fetchall()
+            with self._lock:
+                keys = self.db.execute("SELECT family, idx, scenario_id FROM candidates "
+                                       "ORDER BY family, idx").fetchall()
         except sqlite3.DatabaseError as exc:
             raise _damaged(self.path, exc) from None
         for fam, idx, sid in keys:
