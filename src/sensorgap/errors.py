@@ -28,6 +28,10 @@ class InputError(Exception):
         self.more: list[InputError] = list(more or [])
         super().__init__(self.line())
 
+    def __reduce__(self) -> tuple[type[InputError], tuple[str, str, str, list[InputError]]]:
+        """Picklable (raised in a worker process, re-raised in the parent)."""
+        return (type(self), (self.source, self.field, self.message, self.more))
+
     def line(self) -> str:
         """The single line of this error (the first, when there are several)."""
         parts = [self.source]
