@@ -79,7 +79,9 @@ def test_evaluate_reproduces_every_anchor_row(tmp_path: Path) -> None:
     assert lines[0] == ",".join(COLUMNS) and len(lines) == 1 + len(rows)
     assert json.loads((tmp_path / "anchors" / "anchors.json").read_text())["anchors"][0][
         "command"] == rows[0]["command"]
-    assert any(r["class"] == "sensor-critical" for r in rows)
+    # both outcomes are reproduced: avoided at low speed, and at 50/60 km/h a collision
+    # even for perfect line-of-sight perception (coverage.sightline: unavoidable)
+    assert {"not critical", "unavoidable"} <= {r["class"] for r in rows}
     for i, r in enumerate(rows):
         args = shlex.split(r["command"])[1:]
         out = tmp_path / f"e{i}"

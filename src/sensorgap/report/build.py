@@ -356,11 +356,9 @@ def _scenarios_section(run: RunFolder, out_img: Path, search: dict[str, Any] | N
         f"{run.settings.get('reaction', 'the vehicle file')}). Ranked by collision "
         "probability, then impact speed; scenarios that collide even with perfect "
         "perception are listed apart (unavoidable.csv). Scenarios start with a path TTC "
-        f">= {START_TTC_S:g} s. Limitation: the perfect-perception reference also sees "
-        "a target hidden behind another road user, so a scenario whose dominant effect is "
-        "'occlusion' may be one no line-of-sight sensor (and no human driver) could "
-        "avoid; check its 'hidden behind' reason before testing it as a weakness of this "
-        "vehicle (docs/models.md, Known limitations)."),
+        f">= {START_TTC_S:g} s. Perfect perception is limited to the line of sight: a "
+        "target hidden behind another road user until too late for any sensor or driver "
+        "is unavoidable, not sensor-critical (docs/models.md, collision outcome)."),
             Table(["rank", "scenario", "class", "family", "environments", "target",
                    "P(collision)", "impact [km/h]", "t_safe [s]", "margin [s]",
                    "dominant effect"], overview, "Ranking"),

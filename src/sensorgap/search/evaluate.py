@@ -51,6 +51,7 @@ from sensorgap.coverage.logmiss import (
 )
 from sensorgap.coverage.occluders import ego_frame_boxes, may_hide
 from sensorgap.coverage.scope import scene_scope
+from sensorgap.coverage.sightline import perfect_confirmation_step, viewpoints
 from sensorgap.errors import InputError
 from sensorgap.models import Conditions, System
 from sensorgap.models.system import Sensor
@@ -287,6 +288,9 @@ class BatchTrace:
     occluders: F64 | None = None
     #: occluder labels (M,)
     occluder_labels: tuple[str, ...] = ()
+    #: (B,) step at which perfect perception confirms the target, limited to the line of
+    #: sight past the occluders (``coverage.sightline``; -1: never); None: M - 1
+    perfect_step: NDArray[np.int64] | None = None
 
     def __len__(self) -> int:
         return len(self.n)
@@ -298,7 +302,8 @@ class BatchTrace:
             raise ValueError("this batch was evaluated without a reaction model")
         r = self.reaction
         return reaction_outcome(self.encounter, self.pd_confirm, self.n, r.confirm_m,
-                                r.confirm_n, r.latency_s, r.jerk_m_s3, self.decel_m_s2)
+                                r.confirm_n, r.latency_s, r.jerk_m_s3, self.decel_m_s2,
+                                self.perfect_step)
 
     @cached_property
     def pd_confirm(self) -> F64:
@@ -389,6 +394,8 @@ class Evaluator:
         self._scenes: dict[tuple[str, str], Scene] = {}
         self._targets: dict[str, TargetConfig] = {}
         self.sensor_ids = system.sensor_ids()
+        #: viewpoint of perfect perception (``coverage.sightline``): the driver's eye, m
+        self.perfect_views = viewpoints(system.config.vehicle)
         #: point-sensor pairs evaluated exactly in lookup mode (glare, outside the map)
         self.exact_pairs = 0
         #: evaluate only the sensors that can reach a batch's region (``coverage.scope``)
@@ -656,6 +663,12 @@ class Evaluator:
                 log_conf[gr, vc] = lm[keep].sum(axis=0)
         ttc = np.where(valid, enc.ttc_path, np.inf)
         headway = np.where(valid, kin.headway, np.inf)
+        perfect: NDArray[np.int64] | None = None
+        if occ is not None and self.occlusion:  # perfect perception sees what is in sight
+            need = np.flatnonzero((enc.collide_step >= 0) & (enc.threat_step >= 0))
+            perfect = perfect_confirmation_step(
+                kin.x, kin.y, kin.psi, n, occ, target, self.perfect_views,
+                self.reaction.confirm_m, self.reaction.confirm_n, need.astype(np.int64))
         decel = np.zeros(b)
         for name in np.unique(names):  # per environment: its road's friction
             decel[names == name] = min(self.reaction.decel_max_m_s2, self.friction[
@@ -669,7 +682,7 @@ class Evaluator:
                           reaction=self.reaction, decel_m_s2=decel,
                           occluders=occ if self.occlusion else None,
                           occluder_labels=tuple(o.label for o in occ_tracks)
-                          if self.occlusion else ())
+                          if self.occlusion else (), perfect_step=perfect)
 
     def _occluded_exact(self, scene: Scene, env: EnvironmentConfig, kin: Kinematics,
                         heading: F64, sun: F64, valid: NDArray[np.bool_],

@@ -607,7 +607,7 @@ def _rel_speed(vb: float, h: float, th: float, tv: float) -> float:  # pragma: n
 @numba.njit(cache=True, nogil=True)
 def _reaction_kernel(lo: F64, hi: F64, v0: F64, threat: I64, collide: I64, f: F64,
                      eh: F64, th: F64, tv: F64, dt: float, latency: float, jerk: float,
-                     amax: F64, m: int, out_p: F64, out_v: F64, out_perfect: F64,
+                     amax: F64, pstep: I64, out_p: F64, out_v: F64, out_perfect: F64,
                      out_safe: F64, out_vperf: F64, out_med: F64,
                      out_never: F64) -> None:  # pragma: no cover - compiled
     b, t = lo.shape
@@ -734,6 +734,7 @@ def _reaction_kernel(lo: F64, hi: F64, v0: F64, threat: I64, collide: I64, f: F6
         out_vperf[r] = 0.0
         cum = 0.0
         med = -1
+        ps = pstep[r]  # the step at which perfect perception confirms (-1: never)
         v_ko = -1.0
         ko_last = -1
         # cos/sin of the last ego and target headings (nearby onsets: angle addition)
@@ -752,7 +753,7 @@ def _reaction_kernel(lo: F64, hi: F64, v0: F64, threat: I64, collide: I64, f: F6
                     safe = k
                 continue
             still_safe = False
-            if fk == 0.0 and k != m - 1:
+            if fk == 0.0 and k != ps:
                 continue
             if ko > kc:
                 v = v_never
@@ -781,10 +782,10 @@ def _reaction_kernel(lo: F64, hi: F64, v0: F64, threat: I64, collide: I64, f: F6
                 ko_last = ko
             p_col += fk
             v_sum += fk * v
-            if k == m - 1:
+            if k == ps:
                 out_perfect[r] = 1.0
                 out_vperf[r] = v
-        if m - 1 >= t:  # perfect perception cannot confirm on this time axis
+        if ps < 0 or ps >= t:  # perfect perception never confirms on this time axis
             out_perfect[r] = 1.0
             out_vperf[r] = v_never
         p_col += f[r, t]
@@ -829,11 +830,15 @@ class Outcome:
 
 def reaction_outcome(enc: Encounter, pd_confirm: ArrayLike, n_valid: ArrayLike,
                      confirm_m: int, confirm_n: int, latency_s: float, jerk_m_s3: float,
-                     decel_m_s2: ArrayLike) -> Outcome:
+                     decel_m_s2: ArrayLike, perfect_step: ArrayLike | None = None
+                     ) -> Outcome:
     """The collision outcome of an encounter for (B, T) per-step Pd of the confirming
     sensors (only the first ``n_valid`` (B,) steps count), M-of-N confirmation, latency
     ``latency_s`` s, brake jerk ``jerk_m_s3`` m/s3 and ``decel_m_s2`` (B,) (or a scalar),
-    the reachable deceleration ``min(decel_max, mu g)`` per row, m/s2."""
+    the reachable deceleration ``min(decel_max, mu g)`` per row, m/s2. ``perfect_step``
+    (B,): the step at which perfect perception confirms the target (-1: never; default
+    ``confirm_m - 1``, seen at every step; ``coverage.sightline`` limits it to the line of
+    sight past occluders)."""
     b, t = enc.lo.shape
     if not 1 <= confirm_m <= confirm_n <= MAX_CONFIRM_N:
         raise ValueError(f"need 1 <= M <= N <= {MAX_CONFIRM_N}, got M = {confirm_m}, "
@@ -855,10 +860,13 @@ def reaction_outcome(enc: Encounter, pd_confirm: ArrayLike, n_valid: ArrayLike,
         _, miss, hit = _chain_tables(int(confirm_m), int(confirm_n))
         _first_confirmation_kernel(pd, np.ascontiguousarray(n_valid, dtype=np.int64), rows,
                                    miss, hit, f)
+    pstep = (np.full(b, confirm_m - 1, dtype=np.int64) if perfect_step is None
+             else np.ascontiguousarray(np.broadcast_to(
+                 np.asarray(perfect_step, dtype=np.int64), (b,))))
     out = [np.empty(b) for _ in range(7)]
     _reaction_kernel(enc.lo, enc.hi, enc.v0, enc.threat_step, enc.collide_step, f,
                      enc.ego_heading, enc.target_heading, enc.target_speed, enc.dt,
-                     float(latency_s), float(jerk_m_s3), decel, int(confirm_m), *out)
+                     float(latency_s), float(jerk_m_s3), decel, pstep, *out)
     p, v, perfect, safe, vperf, med, never = out
     t_threat = np.where(enc.threat_step >= 0, enc.threat_step * enc.dt, np.nan)
     return Outcome(p, 3.6 * v, perfect, 3.6 * vperf, safe, med, safe - med, t_threat, never)
