@@ -211,15 +211,16 @@ def _view_kernel(px: F64, py: F64, pz: F64, nx: F64, ny: F64, near: NDArray[np.i
         i = near[q]
         nf = 0
         for j in range(k):
-            state = _sample_in_view(px[i, j], py[i, j], pz[i, j], nx[i, j], ny[i, j], mount,
-                                    lo, hi, check_ego, prefilter)
-            if state == 0:
+            # facing the mount (counted), then the cheaper of the two remaining rejections
+            # first: hidden by an occluder, out of view (the same samples are kept)
+            if nx[i, j] * (mx - px[i, j]) + ny[i, j] * (my - py[i, j]) <= 0.0:
                 continue
             nf += 1
-            if state == 1:
-                continue
             if occ.shape[1] and hidden_by_boxes(mx, my, mz, px[i, j], py[i, j], pz[i, j],
                                                 occ[i if occ.shape[0] > 1 else 0]):
+                continue
+            if _sample_in_view(px[i, j], py[i, j], pz[i, j], nx[i, j], ny[i, j], mount,
+                               lo, hi, check_ego, prefilter) != 2:
                 continue
             flat[m] = q * k + j
             m += 1
@@ -267,9 +268,14 @@ def _changes_kernel(px: F64, py: F64, pz: F64, nx: F64, ny: F64, cx: F64, cy: F6
             continue
         boxes = occ[i if occ.shape[0] > 1 else 0]
         for j in range(k):
+            # the same conjunction as ``_view_kernel``'s, cheapest rejections first:
+            # facing the mount, hidden by an occluder, then in view
+            if nx[i, j] * (mx - px[i, j]) + ny[i, j] * (my - py[i, j]) <= 0.0:
+                continue
+            if not hidden_by_boxes(mx, my, mz, px[i, j], py[i, j], pz[i, j], boxes):
+                continue
             if _sample_in_view(px[i, j], py[i, j], pz[i, j], nx[i, j], ny[i, j], mount,
-                               lo, hi, check_ego, True) == 2 and hidden_by_boxes(
-                    mx, my, mz, px[i, j], py[i, j], pz[i, j], boxes):
+                               lo, hi, check_ego, True) == 2:
                 out[i] = True
                 break
 
