@@ -1,8 +1,9 @@
-"""Family kinds where another road user hides the target (issue #17): a car pulling out
-from in front of a truck, a pedestrian stepping out between parked cars, and a lead
-vehicle cutting out to reveal a stopped car. The occluders are part of the scene
-(``ScenarioBatch.occluders``): they hide the target from the sensors (``coverage.
-occluders``) but are not collision partners of the ego in this open-loop search.
+"""Family kinds where another road user hides the target (issue #17): a car cutting in
+from beyond (or in front of) a truck in the next lane, a pedestrian stepping out between
+parked cars, and a lead vehicle cutting out to reveal a stopped car. The occluders are
+part of the scene (``ScenarioBatch.occluders``): they hide the target from the sensors
+(``coverage.occluders``) but are not collision partners of the ego in this open-loop
+search.
 """
 
 from __future__ import annotations
