@@ -21,6 +21,15 @@ traffic, so lanes -1, -2, ... carry traffic along +s and lanes 1, 2, ... against
     [-7.5, -3.75], centre t = -5.625) the RIGHT lane. The paper's set-up: ego in lane -1
     approaching the curve, target car in lane -2. Lanes 1, 2 are the opposite carriageway.
 
+``motorway_3lane.xodr`` (road 1, three-lane motorway for the cut-in-behind-a-truck family):
+    Six-lane motorway, three 3.75 m driving lanes per direction (the lane width of
+    motorway_r500; EU motorway lanes are 3.5-3.75 m). Reference line (the median line,
+    t = 0): 1000 m straight from (0, 0) heading east, a 100 m clothoid from curvature 0 to
+    1/1000 1/m, then a 400 m arc of R = 1000 m turning LEFT; 1500 m in all. For the ego
+    driving in +s: lane -1 (centre t = -1.875) is the LEFT lane, lane -2 (centre t =
+    -5.625) the MIDDLE lane, lane -3 (centre t = -9.375) the RIGHT lane. Lanes 1, 2, 3 are
+    the opposite carriageway.
+
 ``rural_two_lane.xodr`` (road 1):
     Two-lane rural road, one 3.5 m driving lane per direction (-1 along +s, 1 against).
     Straights and arcs of R = 150 m (left), 300 m (right) and 800 m (left), each entered and
@@ -110,6 +119,26 @@ def motorway() -> xodr.OpenDrive:
     lanes.add_lanesection(sec)
     odr = _opendrive("motorway_r500")
     odr.add_road(xodr.Road(1, pv, lanes, name="motorway_r500"))
+    odr.adjust_roads_and_lanes()
+    return odr
+
+
+def motorway_3lane() -> xodr.OpenDrive:
+    """Three lanes per direction: 1000 m straight, 100 m clothoid, 400 m arc of R = 1000 m."""
+    curv = 1.0 / 1000.0
+    pv = xodr.PlanView(0.0, 0.0, 0.0)
+    pv.add_geometry(xodr.Line(1000.0))
+    pv.add_geometry(xodr.Spiral(0.0, curv, length=100.0))
+    pv.add_geometry(xodr.Arc(curv, length=400.0))
+    sec = xodr.LaneSection(0, _center(xodr.RoadMarkType.solid_solid))
+    solid, broken = xodr.RoadMarkType.solid, xodr.RoadMarkType.broken
+    for mark in (broken, broken, solid):  # inner lane first: -1 / 1, -2 / 2, -3 / 3
+        sec.add_right_lane(_lane(MOTORWAY_LANE_WIDTH, mark=mark))
+        sec.add_left_lane(_lane(MOTORWAY_LANE_WIDTH, mark=mark))
+    lanes = xodr.Lanes()
+    lanes.add_lanesection(sec)
+    odr = _opendrive("motorway_3lane")
+    odr.add_road(xodr.Road(1, pv, lanes, name="motorway_3lane"))
     odr.adjust_roads_and_lanes()
     return odr
 
@@ -214,6 +243,7 @@ def urban_junction() -> xodr.OpenDrive:
 
 #: Output file name -> builder.
 BUILDERS: dict[str, Callable[[], xodr.OpenDrive]] = {
+    "motorway_3lane.xodr": motorway_3lane,
     "motorway_r500.xodr": motorway,
     "rural_two_lane.xodr": rural,
     "urban_junction.xodr": urban_junction,

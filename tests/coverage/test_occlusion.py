@@ -185,3 +185,37 @@ def test_may_hide_never_misses_a_hiding_box() -> None:
     assert hidden.sum() > 50
     assert np.all(flagged[hidden])
     assert flagged.mean() < 0.9  # and it does rule out boxes
+
+
+def test_occlusion_changes_is_exact_about_where_the_pd_changes(monkeypatch) -> None:
+    """``occlusion_changes`` (the lookup's geometry pre-test): with its per-pose culling,
+    with or without precomputed body points, it marks the same poses as without culling,
+    and every pose whose Pd of some sensor drops with the occluder is marked (it may mark
+    more: a hidden sample need not lower the Pd)."""
+    from sensorgap.coverage import body as body_mod
+    from sensorgap.coverage.body import occlusion_changes, take_points
+
+    scene = _scene()
+    rng = np.random.default_rng(11)
+    n = 4000
+    x, y = rng.uniform(-40, 90, n), rng.uniform(-15, 15, n)
+    psi = rng.uniform(-math.pi, math.pi, n)
+    boxes = np.stack([occluder_array([Occluder(rng.uniform(-20, 40), rng.uniform(-6, 6),
+                                               rng.uniform(0, math.pi), 12.0, 2.5, 4.0)])
+                      for _ in range(n)])
+    pts = body_points(body_samples(scene.target), x, y, psi)
+    culled = occlusion_changes(scene, x, y, psi, boxes)
+    np.testing.assert_array_equal(occlusion_changes(scene, x, y, psi, boxes, points=pts),
+                                  culled)
+    monkeypatch.setattr(body_mod, "CULL", False)
+    np.testing.assert_array_equal(occlusion_changes(scene, x, y, psi, boxes), culled)
+    monkeypatch.undo()
+    assert 200 < culled.sum() < n  # not vacuous
+    p0, _ = body_per_sensor_pd(scene, x, y, psi)
+    p1, _ = body_per_sensor_pd(scene, x, y, psi, occluders=boxes)
+    assert not np.any(np.any(p1 < p0, axis=0) & ~culled)
+    # precomputed points (and a subset of them) give the same Pd as computing them
+    sub = np.flatnonzero(culled)
+    ps, _ = body_per_sensor_pd(scene, x[sub], y[sub], psi[sub], occluders=boxes[sub],
+                               points=take_points(pts, sub))
+    np.testing.assert_array_equal(ps, p1[:, sub])

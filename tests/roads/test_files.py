@@ -26,9 +26,9 @@ def _make_roads() -> ModuleType:
     return module
 
 
-def test_the_three_files_are_committed() -> None:
-    assert [f.name for f in FILES] == ["motorway_r500.xodr", "rural_two_lane.xodr",
-                                       "urban_junction.xodr"]
+def test_the_four_files_are_committed() -> None:
+    assert [f.name for f in FILES] == ["motorway_3lane.xodr", "motorway_r500.xodr",
+                                       "rural_two_lane.xodr", "urban_junction.xodr"]
 
 
 def test_xsd_is_shipped_with_scenariogeneration() -> None:
@@ -75,6 +75,30 @@ def test_motorway_layout(motorway: RoadNetwork) -> None:
     sec = road.sections[0]
     assert [ln.id for ln in sec.right] == [-1, -2] and [ln.id for ln in sec.left] == [1, 2]
     assert all(ln.type == "driving" for ln in sec.left + sec.right)
+
+
+def test_motorway_3lane_layout() -> None:
+    """Three 3.75 m driving lanes per direction; 1000 m line, 100 m clothoid, R = 1000 m
+    arc; lane centres of the ego's carriageway at t = -1.875, -5.625, -9.375 m."""
+    from sensorgap.roads import read_opendrive
+
+    net = read_opendrive(ROADS_DIR / "motorway_3lane.xodr")
+    road = net.road(1)
+    assert [g.kind for g in road.geometries] == ["line", "spiral", "arc"]
+    line, spiral, arc = road.geometries
+    assert (line.length, spiral.length, arc.length) == (1000.0, 100.0, 400.0)
+    assert arc.curvature == pytest.approx(1 / 1000, rel=1e-12)
+    for a, b in zip(road.geometries[:-1], road.geometries[1:], strict=True):
+        assert a.end() == pytest.approx((b.x, b.y, b.hdg), abs=1e-9)
+    sec = road.sections[0]
+    assert [ln.id for ln in sec.right] == [-1, -2, -3]
+    assert [ln.id for ln in sec.left] == [1, 2, 3]
+    assert all(ln.type == "driving" for ln in sec.left + sec.right)
+    s = np.array([0.0, 1200.0])
+    for lane, centre in ((-1, -1.875), (-2, -5.625), (-3, -9.375)):
+        np.testing.assert_allclose(net.lane_width(1, lane, s), 3.75)
+        inner, outer = net.lane_edges(1, lane, s)
+        np.testing.assert_allclose(0.5 * (inner + outer), centre, atol=1e-12)
 
 
 def test_rural_layout(rural: RoadNetwork) -> None:

@@ -211,15 +211,16 @@ def _view_kernel(px: F64, py: F64, pz: F64, nx: F64, ny: F64, near: NDArray[np.i
         i = near[q]
         nf = 0
         for j in range(k):
-            state = _sample_in_view(px[i, j], py[i, j], pz[i, j], nx[i, j], ny[i, j], mount,
-                                    lo, hi, check_ego, prefilter)
-            if state == 0:
+            # facing the mount (counted), then the cheaper of the two remaining rejections
+            # first: hidden by an occluder, out of view (the same samples are kept)
+            if nx[i, j] * (mx - px[i, j]) + ny[i, j] * (my - py[i, j]) <= 0.0:
                 continue
             nf += 1
-            if state == 1:
-                continue
             if occ.shape[1] and hidden_by_boxes(mx, my, mz, px[i, j], py[i, j], pz[i, j],
                                                 occ[i if occ.shape[0] > 1 else 0]):
+                continue
+            if _sample_in_view(px[i, j], py[i, j], pz[i, j], nx[i, j], ny[i, j], mount,
+                               lo, hi, check_ego, prefilter) != 2:
                 continue
             flat[m] = q * k + j
             m += 1
@@ -227,37 +228,115 @@ def _view_kernel(px: F64, py: F64, pz: F64, nx: F64, ny: F64, near: NDArray[np.i
     return m
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def _pose_near(cx: float, cy: float, rad: float, mount: F64, hfov: float, pitch: float,
+               cull: bool) -> bool:  # pragma: no cover - compiled
+    """``_near_poses`` for one pose (centre ``cx``, ``cy``, outline radius ``rad``, m) and
+    one sensor (``mount``: the ``_mount_row``, its full ``hfov`` and ``pitch``, rad)."""
+    if not cull:
+        return True
+    dx, dy = cx - mount[0], cy - mount[1]
+    d2 = dx * dx + dy * dy
+    reach = mount[10] + rad
+    if d2 > reach * reach:
+        return False
+    if hfov < 2.0 * math.pi and abs(pitch) < 0.5:
+        dist = math.sqrt(d2)
+        if dist <= rad:
+            return True
+        yaw = math.atan2(mount[4], mount[3])
+        off = abs(((math.atan2(dy, dx) - yaw + math.pi) % (2.0 * math.pi)) - math.pi)
+        spread = math.asin(min(1.0, rad / max(dist, 1e-9)))
+        return off - spread <= 0.5 * hfov + abs(pitch) + 0.05
+    return True
+
+
 @numba.njit(cache=True, nogil=True)
-def _changes_kernel(px: F64, py: F64, pz: F64, nx: F64, ny: F64, mount: F64, lo: F64,
+def _changes_kernel(px: F64, py: F64, pz: F64, nx: F64, ny: F64, cx: F64, cy: F64,
+                    rad: float, mount: F64, hfov: float, pitch: float, cull: bool, lo: F64,
                     hi: F64, check_ego: bool, occ: F64,
                     out: NDArray[np.bool_]) -> None:  # pragma: no cover - compiled
     """Marks in ``out`` the poses (not yet marked) where an occluder of ``occ`` ((N, M, 7)
     or (1, M, 7)) hides at least one sample that one sensor would otherwise see
-    (``_sample_in_view`` with the loose prefilter): one pass, stopping at the first."""
+    (``_sample_in_view`` with the loose prefilter): one pass, stopping at the first;
+    poses whose outline cannot reach the sensor's range or field of view
+    (``_pose_near``: their samples are all out of view) are skipped."""
     n, k = px.shape
     mx, my, mz = mount[0], mount[1], mount[2]
     for i in range(n):
-        if out[i]:
+        if out[i] or not _pose_near(cx[i], cy[i], rad, mount, hfov, pitch, cull):
             continue
         boxes = occ[i if occ.shape[0] > 1 else 0]
         for j in range(k):
+            # the same conjunction as ``_view_kernel``'s, cheapest rejections first:
+            # facing the mount, hidden by an occluder, then in view
+            if nx[i, j] * (mx - px[i, j]) + ny[i, j] * (my - py[i, j]) <= 0.0:
+                continue
+            if not hidden_by_boxes(mx, my, mz, px[i, j], py[i, j], pz[i, j], boxes):
+                continue
             if _sample_in_view(px[i, j], py[i, j], pz[i, j], nx[i, j], ny[i, j], mount,
-                               lo, hi, check_ego, True) == 2 and hidden_by_boxes(
-                    mx, my, mz, px[i, j], py[i, j], pz[i, j], boxes):
+                               lo, hi, check_ego, True) == 2:
                 out[i] = True
                 break
 
 
-def body_points(body: BodySamples, x: F64, y: F64, psi: F64) -> tuple[F64, F64, F64, F64, F64]:
+#: (N, K) sample positions x, y, z (m) and face normals nx, ny of N target poses
+#: (``body_points``).
+BodyPoints = tuple[F64, F64, F64, F64, F64]
+
+
+@numba.njit(cache=True, nogil=True)
+def _points_kernel(x: F64, y: F64, cos: F64, sin: F64, bx: F64, by: F64, bz: F64,
+                   bnx: F64, bny: F64, px: F64, py: F64, pz: F64, nx: F64,
+                   ny: F64) -> None:  # pragma: no cover - compiled
+    """Fills the (N, K) sample positions and normals of N poses (``body_points``; the
+    same operations in the same order as the numpy expressions it replaced)."""
+    for i in range(x.size):
+        c, s = cos[i], sin[i]
+        for j in range(bx.size):
+            px[i, j] = (x[i] + c * bx[j]) - s * by[j]
+            py[i, j] = (y[i] + s * bx[j]) + c * by[j]
+            pz[i, j] = bz[j]
+            nx[i, j] = c * bnx[j] - s * bny[j]
+            ny[i, j] = s * bnx[j] + c * bny[j]
+
+
+def body_points(body: BodySamples, x: F64, y: F64, psi: F64) -> BodyPoints:
     """(N, K) vehicle-frame sample positions (m) and face normals of N target poses
-    (centre x, y in m, heading psi in rad relative to the ego)."""
-    c, s = np.cos(psi)[:, None], np.sin(psi)[:, None]
-    px = x[:, None] + c * body.x[None, :] - s * body.y[None, :]
-    py = y[:, None] + s * body.x[None, :] + c * body.y[None, :]
-    pz = np.ascontiguousarray(np.broadcast_to(body.z[None, :], px.shape))
-    nx = c * body.nx[None, :] - s * body.ny[None, :]
-    ny = s * body.nx[None, :] + c * body.ny[None, :]
+    (centre x, y in m, heading psi in rad relative to the ego), C-contiguous."""
+    x, y, psi = (np.ascontiguousarray(a, dtype=np.float64).ravel() for a in (x, y, psi))
+    shape = (x.size, len(body))
+    px, py, pz, nx, ny = (np.empty(shape) for _ in range(5))
+    _points_kernel(x, y, np.cos(psi), np.sin(psi), body.x, body.y, body.z, body.nx, body.ny,
+                   px, py, pz, nx, ny)
     return px, py, pz, nx, ny
+
+
+def take_points(points: BodyPoints, rows: NDArray[np.intp] | NDArray[np.bool_]) -> BodyPoints:
+    """The ``rows`` (indices or a mask) of body points (``body_points``)."""
+    px, py, pz, nx, ny = (np.ascontiguousarray(a[rows]) for a in points)
+    return px, py, pz, nx, ny
+
+
+def _near_poses(sensor: Sensor, cx: F64, cy: F64, rad: float) -> NDArray[np.bool_]:
+    """(N,) the poses (centres ``cx``, ``cy``, outline radius ``rad``, m) whose outline can
+    reach the sensor's range and horizontal field of view (a cheap, conservative cull
+    before the samples; everything when ``CULL`` is off)."""
+    m = sensor.mount
+    reach = m.max_range + rad
+    d2 = (cx - m.x) ** 2 + (cy - m.y) ** 2
+    near_mask = d2 <= reach * reach
+    if not CULL:
+        near_mask[:] = True
+    elif m.hfov < 2.0 * math.pi and abs(m.pitch) < 0.5:
+        # and whose outline can reach the horizontal field of view (a pitched sensor's
+        # azimuth differs from the vehicle-frame bearing by less than |pitch|: margin)
+        dist = np.sqrt(d2)
+        off = np.abs(np.mod(np.arctan2(cy - m.y, cx - m.x) - m.yaw + math.pi, 2.0 * math.pi)
+                     - math.pi)
+        spread = np.arcsin(np.minimum(1.0, rad / np.maximum(dist, 1e-9)))
+        near_mask &= (off - spread <= 0.5 * m.hfov + abs(m.pitch) + 0.05) | (dist <= rad)
+    return np.asarray(near_mask)
 
 
 def body_sensor_pd(scene: Scene, sensor: Sensor, cx: F64, cy: F64, px: F64, py: F64,
@@ -273,22 +352,8 @@ def body_sensor_pd(scene: Scene, sensor: Sensor, cx: F64, cy: F64, px: F64, py: 
     m = sensor.mount
     pd = np.zeros(n)
     frac = np.zeros(n)
-    # poses whose outline can reach the sensor's range (cheap cull before the samples)
-    rad = _radius(px, py, cx, cy)
-    reach = m.max_range + rad
-    d2 = (cx - m.x) ** 2 + (cy - m.y) ** 2
-    near_mask = d2 <= reach * reach
-    if not CULL:
-        near_mask[:] = True
-    elif m.hfov < 2.0 * math.pi and abs(m.pitch) < 0.5:
-        # and whose outline can reach the horizontal field of view (a pitched sensor's
-        # azimuth differs from the vehicle-frame bearing by less than |pitch|: margin)
-        dist = np.sqrt(d2)
-        off = np.abs(np.mod(np.arctan2(cy - m.y, cx - m.x) - m.yaw + math.pi, 2.0 * math.pi)
-                     - math.pi)
-        spread = np.arcsin(np.minimum(1.0, rad / np.maximum(dist, 1e-9)))
-        near_mask &= (off - spread <= 0.5 * m.hfov + abs(m.pitch) + 0.05) | (dist <= rad)
-    near = np.flatnonzero(near_mask)
+    # poses whose outline can reach the sensor's range and field of view
+    near = np.flatnonzero(_near_poses(sensor, cx, cy, _radius(px, py, cx, cy)))
     if near.size == 0:
         return pd, frac
     lo, hi = _ego_box(scene)
@@ -327,23 +392,32 @@ def body_sensor_pd(scene: Scene, sensor: Sensor, cx: F64, cy: F64, px: F64, py: 
 
 
 def occlusion_changes(scene: Scene, x: F64, y: F64, psi: F64, occluders: F64,
-                      sensors: Sequence[Sensor] | None = None) -> NDArray[np.bool_]:
+                      sensors: Sequence[Sensor] | None = None,
+                      points: BodyPoints | None = None) -> NDArray[np.bool_]:
     """(N,) whether the (N, M, 7) ``occluders`` hide any facing, in-view sample of the
     target bodies at x, y (m), psi (rad) from any of ``sensors`` (default: all): geometry
-    only (no SNR), so a caller can keep an occlusion-free value where they hide nothing."""
-    body = body_samples(scene.target)
-    px, py, pz, nx, ny = body_points(body, x, y, psi)
+    only (no SNR), so a caller can keep an occlusion-free value where they hide nothing.
+    ``points``: the bodies' samples if the caller has them (``body_points``). Each sensor
+    tests only the poses its range and field of view can reach (``_near_poses``: the
+    samples of the others are out of view, so the answer is the same)."""
+    x = np.ascontiguousarray(x, dtype=np.float64)
+    y = np.ascontiguousarray(y, dtype=np.float64)
+    if points is None:
+        points = body_points(body_samples(scene.target), x, y,
+                             np.asarray(psi, dtype=np.float64))
+    px, py, pz, nx, ny = points
     out = np.zeros(px.shape[0], dtype=bool)
     lo, hi = _ego_box(scene)
     occ = _occ3(occluders, px.shape[0])
-    if occ.shape[1] == 0:
+    if occ.shape[1] == 0 or px.shape[0] == 0:
         return out
+    rad = _radius(px, py, x, y)
     for sensor in scene.sensors if sensors is None else sensors:
         m = sensor.mount
         inside = bool(np.all(np.array([m.x, m.y, m.z]) > lo) and np.all(
             np.array([m.x, m.y, m.z]) < hi))
-        _changes_kernel(px, py, pz, np.ascontiguousarray(nx), np.ascontiguousarray(ny),
-                        _mount_row(sensor), lo, hi, not inside, occ, out)
+        _changes_kernel(px, py, pz, nx, ny, x, y, rad, _mount_row(sensor), float(m.hfov),
+                        float(m.pitch), CULL, lo, hi, not inside, occ, out)
     return out
 
 
@@ -380,14 +454,18 @@ def _radius(px: F64, py: F64, cx: F64, cy: F64) -> float:
 def body_per_sensor_pd(scene: Scene, x: F64, y: F64, psi: F64,
                        sun_dirs: F64 | None = None,
                        sensors: Sequence[Sensor] | None = None,
-                       occluders: F64 | None = None) -> tuple[F64, F64]:
+                       occluders: F64 | None = None,
+                       points: BodyPoints | None = None) -> tuple[F64, F64]:
     """(S, N) Pd and visible fraction of every sensor (default: the scene's) for N target
     bodies at vehicle-frame centres x, y (m) and relative headings psi (rad), with
-    ``occluders`` (see ``body_sensor_pd``; ``None``: none)."""
-    body = body_samples(scene.target)
+    ``occluders`` (see ``body_sensor_pd``; ``None``: none); ``points``: the bodies'
+    samples if the caller has them (``body_points`` of the same poses)."""
     x = np.asarray(x, dtype=np.float64)
     y = np.asarray(y, dtype=np.float64)
-    px, py, pz, nx, ny = body_points(body, x, y, np.asarray(psi, dtype=np.float64))
+    if points is None:
+        points = body_points(body_samples(scene.target), x, y,
+                             np.asarray(psi, dtype=np.float64))
+    px, py, pz, nx, ny = points
     sens = scene.sensors if sensors is None else sensors
     pd = np.zeros((len(sens), len(x)))
     frac = np.zeros((len(sens), len(x)))

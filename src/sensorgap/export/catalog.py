@@ -58,7 +58,7 @@ def _sha(path: Path) -> str:
 
 def _lanes(spec: ScenarioSpec) -> dict[str, list[int]]:
     st = spec.family.settings
-    lanes = [int(st[k]) for k in ("ego_lane", "target_lane", "lane") if k in st]
+    lanes = [int(st[k]) for k in ("ego_lane", "target_lane", "occluder_lane", "lane") if k in st]
     return {str(st["road_id"]): lanes}
 
 

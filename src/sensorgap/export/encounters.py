@@ -57,7 +57,8 @@ def _cut_in_behind_truck(b: Build) -> None:
     side = int(b.st["target_lane"])
     name = occluder_name(sp.scenario.occluders[0].label)
     b.entities.append((name, truck))
-    lane_start(b, name, side, tr, f"$truck_dx_m - {number(origin_offset(truck))}",
+    lane_start(b, name, int(b.st["occluder_lane"]), tr,
+                f"$truck_dx_m - {number(origin_offset(truck))}",
                 "$truck_speed_m_s")
     half = number(0.5 * truck.length_m + 0.5 * sp.target.length_m - origin_offset(sp.target))
     ahead = f"$truck_dx_m + $target_gap_m + {half}"

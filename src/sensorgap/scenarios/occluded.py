@@ -1,8 +1,9 @@
-"""Family kinds where another road user hides the target (issue #17): a car pulling out
-from in front of a truck, a pedestrian stepping out between parked cars, and a lead
-vehicle cutting out to reveal a stopped car. The occluders are part of the scene
-(``ScenarioBatch.occluders``): they hide the target from the sensors (``coverage.
-occluders``) but are not collision partners of the ego in this open-loop search.
+"""Family kinds where another road user hides the target (issue #17): a car cutting in
+from beyond (or in front of) a truck in the next lane, a pedestrian stepping out between
+parked cars, and a lead vehicle cutting out to reveal a stopped car. The occluders are
+part of the scene (``ScenarioBatch.occluders``): they hide the target from the sensors
+(``coverage.occluders``) but are not collision partners of the ego in this open-loop
+search.
 """
 
 from __future__ import annotations
@@ -65,15 +66,22 @@ def _occluder(family: Family, label: str, x: F64, y: F64, h: F64,
 
 @register_kind
 class CutInBehindTruck(_LaneKind):
-    """The ego overtakes a slower truck (class ``occluder``) in ``ego_lane``; a car (the
-    target) drives ``target_gap_m`` (rear to the truck's front) ahead of the truck in
-    ``target_lane``, hidden by it, ``speed_delta_m_s`` faster than the truck, and pulls out
-    into the ego lane (``lc_start_s``, ``lc_duration_s``, ``shape``) to pass the truck
-    itself: the ego meets a car that was behind the truck's silhouette until it moved."""
+    """The ego overtakes a slower truck (class ``occluder``) driving in ``occluder_lane``,
+    the lane next to ``ego_lane``; a car (the target) drives ``target_gap_m`` (its rear to
+    the truck's front, along the road) ahead of the truck in ``target_lane``,
+    ``speed_delta_m_s`` faster than the truck, and changes into the ego lane (``lc_start_s``,
+    ``lc_duration_s`` for the whole lateral move, ``shape``). With ``target_lane`` one lane
+    beyond the truck's (a three-lane carriageway) the car is in the truck's shadow from the
+    start and crosses the truck's lane in front of it on its way into the ego lane: it
+    emerges from the shadow only when its inner side passes the sight line past the
+    truck's front corner (about the truck's inner side), by when it is already moving
+    towards the ego lane at speed. ``target_lane = occluder_lane`` is the car pulling out
+    from just in front of the truck (hidden only while the ego is far behind)."""
 
     name = "cut_in_behind_occluder"
-    description = "car pulls out from in front of a truck into the ego lane"
-    settings = {**_ROAD_SETTINGS, "ego_lane": None, "target_lane": None, "occluder": "truck"}
+    description = "car cuts in from in front of / beyond a truck into the ego lane"
+    settings = {**_ROAD_SETTINGS, "ego_lane": None, "occluder_lane": None,
+                "target_lane": None, "occluder": "truck"}
     parameters = (
         Param("ego_s0_m", 50.0, 500.0, unit="m"),
         Param("ego_speed_m_s", 22.0, 36.0, unit="m/s"),
@@ -90,6 +98,7 @@ class CutInBehindTruck(_LaneKind):
                        net: RoadNetwork) -> ScenarioBatch:
         rid, lane, tr, t = self._start(family, "ego_lane")
         side_lane = int(family.settings["target_lane"])
+        truck_lane = int(family.settings["occluder_lane"])
         truck = _target(str(family.settings["occluder"]))
         car = _target(family.target_class)
         s0 = _col(cols, "ego_s0_m")
@@ -106,7 +115,7 @@ class CutInBehindTruck(_LaneKind):
         w = blend_batch(np.asarray(cols["shape"]).astype(str), u)
         ego = self._follow(family, rid, lane, s_e, tr, t)
         tgt = self._changing(family, rid, side_lane, lane, s_t, tr, t, w)
-        kx, ky, kh = family.lane_table(rid, side_lane).poses(s_k, tr)
+        kx, ky, kh = family.lane_table(rid, truck_lane).poses(s_k, tr)
         b = self._batch(t, ego, tgt, family, checks)
         b.occluders = (_occluder(family, str(family.settings["occluder"]), kx, ky, kh, t),)
         return b

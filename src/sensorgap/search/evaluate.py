@@ -35,9 +35,11 @@ from sensorgap.config.reaction import ReactionConfig, load_friction, load_reacti
 from sensorgap.coverage import GridSpec, Scene
 from sensorgap.coverage.body import (
     body_per_sensor_pd,
+    body_points,
     body_samples,
     min_visible_fraction,
     occlusion_changes,
+    take_points,
 )
 from sensorgap.coverage.fastlookup import SUN_NONE, SUN_VEHICLE, SUN_WORLD, sun_directions_of
 from sensorgap.coverage.logmiss import (
@@ -704,15 +706,18 @@ class Evaluator:
             return 0
         sensors = [scene.sensors[i] for i in self.confirm_rows]
         # where the occluders hide no sample from the confirming sensors the maps' value
-        # stands (geometry only, cheap)
-        hit = occlusion_changes(scene, kin.x[gr, vc], kin.y[gr, vc], kin.psi[gr, vc],
-                                occ[gr, vc], sensors)
+        # stands (geometry only, cheap); the body samples are computed once for both steps
+        x, y, psi = kin.x[gr, vc], kin.y[gr, vc], kin.psi[gr, vc]
+        pts = body_points(body_samples(target), x, y, psi)
+        boxes = occ[gr, vc]
+        hit = occlusion_changes(scene, x, y, psi, boxes, sensors, pts)
         gr, vc = gr[hit], vc[hit]
         if not gr.size:
             return 0
         dirs = _sun_directions(env, sun[gr], heading[gr, vc])
-        _, pd = self.exact_per_sensor(scene, kin.x[gr, vc], kin.y[gr, vc], kin.psi[gr, vc],
-                                      dirs, occ[gr, vc], sensors)
+        # occluders exist only with target bodies (``evaluate_batch``): exact body Pd
+        pd = body_per_sensor_pd(scene, x[hit], y[hit], psi[hit], dirs, sensors, boxes[hit],
+                                take_points(pts, hit))[0]
         log_miss[gr, vc] = log_miss_of(pd).sum(axis=0)
         return int(gr.size * len(sensors))
 
