@@ -32,6 +32,7 @@ import numpy as np
 
 from sensorgap.config import load_targets, templates_dir
 from sensorgap.config.load import read_toml
+from sensorgap.config.parameters import bound_error
 from sensorgap.config.presets import resolve_road
 from sensorgap.errors import InputError
 from sensorgap.roads import RoadNetwork, read_opendrive
@@ -133,6 +134,9 @@ def _param(path: Path, default: Param, value: Any) -> Param:
     if not low < high:
         raise InputError(path, field, f"empty or reversed range [{low:g}, {high:g}]: "
                          "low must be < high")
+    why = bound_error(default.name, low) or bound_error(default.name, high)
+    if why:
+        raise InputError(path, field, f"range [{low:g}, {high:g}]: {why}")
     return Param(default.name, low, high, unit=default.unit)
 
 
@@ -178,7 +182,11 @@ def load_family(name_or_path: str, road: Path | None = None) -> Family:
         settings["road"] = str(road_path)
     elif road_text.endswith(".xodr") or "/" in road_text:
         # a path: relative to the family file's folder; recorded absolute (export, report)
-        road_path = (path.parent / road_path).resolve()
+        try:
+            road_path = (path.parent / road_path).resolve()
+        except (RuntimeError, OSError):  # a symlink loop
+            raise InputError(path, "family.road", f"road file {road_path}: cannot resolve "
+                             "the path (a symbolic link loop?)") from None
         settings["road"] = str(road_path)
     if not road_path.is_file():
         raise InputError(path, "family.road", f"road file {road_path} not found")

@@ -17,7 +17,8 @@ from pathlib import Path
 from typing import Any
 
 from sensorgap.errors import InputError
-from sensorgap.search.problem import Candidate, Result
+from sensorgap.search.metrics import metric_names
+from sensorgap.search.problem import OBJECTIVE_KEY, Candidate, Result
 
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
@@ -155,6 +156,14 @@ class Store:
             if not (isinstance(params, dict) and isinstance(metrics, dict)
                     and isinstance(row[1], str) and isinstance(row[7], str)):
                 raise ValueError("not the stored layout")
+            # every metric a search stores, each a number: a row of '{}' or with a metric
+            # missing is damaged, never reused
+            missing = [m for m in (*metric_names(), OBJECTIVE_KEY) if m not in metrics]
+            if missing:
+                raise ValueError(f"metric {missing[0]} missing")
+            if not all(isinstance(v, int | float) and not isinstance(v, bool)
+                       for v in metrics.values()):
+                raise ValueError("a metric is not a number")
             cand = Candidate(family, row[1], sun, params)
         except (TypeError, ValueError) as exc:
             raise InputError(self.path, f"candidates[{family}, {idx}]",
