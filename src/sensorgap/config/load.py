@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import tomllib
 from pathlib import Path
 from typing import Any, TypeVar
@@ -141,7 +142,7 @@ def load_vehicle(name_or_path: str | Path) -> tuple[VehicleConfig, Path]:
     reaction = cfg.reaction
     if (reaction.endswith(".toml") or "/" in reaction) and not Path(reaction).is_absolute():
         # a path: relative to the vehicle file's folder (as a family file's road)
-        cfg = cfg.model_copy(update={"reaction": str((path.parent / reaction).absolute())})
+        cfg = cfg.model_copy(update={"reaction": os.path.abspath(path.parent / reaction)})
     return cfg, path
 
 
