@@ -294,7 +294,7 @@ def test_esmini_log_with_a_short_row_is_a_bad_log(tmp_path: Path) -> None:
                                                                                  "0.05")]))
     t, x, y, h, v = sim.states["Ego"]
     assert t.tolist() == [0.0, 0.05] and x.tolist() == [1.0, 1.0] and v[0] == 10.0
-    with pytest.raises(ValueError, match=r"line 3: 4 fields, the header has 9"):
+    with pytest.raises(ValueError, match=r"line 3: 4 fields, no column 9 \(#1 World_Heading"):
         parse_esmini_csv(_esmini_log(tmp_path / "short.csv", [good, "1, 0.05, Ego, 0"]))
     with pytest.raises(ValueError, match="no data rows"):
         parse_esmini_csv(_esmini_log(tmp_path / "empty.csv", []))

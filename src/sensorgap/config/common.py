@@ -22,10 +22,18 @@ MAX_NAME_CHARS = 64
 NAME_CHARS = "printable ASCII or Latin letters (U+00C0..U+017F), no leading/trailing space"
 
 
+def name_problem(text: str) -> str | None:
+    """Why ``text`` is not a valid name (length, characters), or None."""
+    ok = all(" " <= c <= "~" or "\u00c0" <= c <= "\u017f" for c in text)
+    if not ok or text != text.strip() or not 1 <= len(text) <= MAX_NAME_CHARS:
+        return f"a name is 1-{MAX_NAME_CHARS} characters: {NAME_CHARS}"
+    return None
+
+
 def _name_chars(v: str) -> str:
-    ok = all(" " <= c <= "~" or "\u00c0" <= c <= "\u017f" for c in v)
-    if not ok or v != v.strip():
-        raise ValueError(f"a name is 1-{MAX_NAME_CHARS} characters: {NAME_CHARS}")
+    why = name_problem(v)
+    if why:
+        raise ValueError(why)
     return v
 
 

@@ -106,20 +106,23 @@ def parse_esmini_csv(path: Path) -> SimPaths:
     rows = [[v.strip() for v in ln.split(",")] for _, ln in body]
     if not rows:
         raise ValueError(f"{path}: no data rows in esmini's CSV log")
-    width = len(cols)
-    while width and not cols[width - 1]:  # a trailing comma names no column
-        width -= 1
-    short = next((k for k, r in enumerate(rows) if len(r) < width), None)
-    if short is not None:
-        raise ValueError(f"{path}: line {body[short][0]}: {len(rows[short])} fields, the "
-                         f"header has {width} (a truncated log?)")
-    t = np.array([float(r[1]) for r in rows])
+
+    def fields(idx: list[int]) -> None:  # a row too short for a column read: a bad log
+        need = max(idx)
+        short = next((k for k, r in enumerate(rows) if len(r) <= need), None)
+        if short is not None:
+            raise ValueError(f"{path}: line {body[short][0]}: {len(rows[short])} fields, "
+                             f"no column {need + 1} ({cols[need]}; a truncated log?)")
+
     def floats(idx: list[int]) -> F64:
+        fields(idx)
         return np.array([[float(r[i]) for i in idx] for r in rows]).reshape(-1, len(idx))
 
+    t = floats([1])[:, 0]
     out, boxes, vel = {}, {}, {}
     for k in range(1, n_ent + 1):
-        name = rows[0][col(k, "Entity_Name")] if rows else f"#{k}"
+        fields([col(k, "Entity_Name")])
+        name = rows[0][col(k, "Entity_Name")]
         arr = floats([col(k, "World_Position_X"), col(k, "World_Position_Y"),
                       col(k, "World_Heading_Angle"), col(k, "Current_Speed")])
         out[name] = (t, arr[:, 0], arr[:, 1], np.unwrap(arr[:, 2]), arr[:, 3])

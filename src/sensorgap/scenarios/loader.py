@@ -31,7 +31,8 @@ from typing import Any
 import numpy as np
 
 from sensorgap.config import load_targets, templates_dir
-from sensorgap.config.load import read_toml
+from sensorgap.config.common import name_problem
+from sensorgap.config.load import read_toml, short
 from sensorgap.config.parameters import bound_error
 from sensorgap.config.presets import resolve_road
 from sensorgap.errors import InputError
@@ -144,6 +145,9 @@ def load_family(name_or_path: str, road: Path | None = None) -> Family:
     """Load, validate and fit-check one family. ``road``: the OpenDRIVE file to use instead
     of the one the file's ``road`` setting names (a run folder's recorded copy)."""
     path = resolve_family_path(name_or_path)
+    why = name_problem(path.stem)  # the family's name, drawn in figures
+    if why:
+        raise InputError(path, "", f"family name (file stem) {short(path.stem)}: {why}")
     data = read_toml(path)
     unknown = sorted(set(data) - {"family", "parameters"})
     if unknown:
