@@ -135,6 +135,13 @@ def _setup(case: dict[str, Any], argv: list[str], folder: Path, out: Path,
             _sql(db, "UPDATE candidates SET params = '{not json' WHERE idx = 0;")
         elif step == "store_empty_metrics":
             _sql(db, "UPDATE candidates SET metrics = '{}' WHERE idx = 0;")
+        elif step == "store_deep_json":
+            _sql(db, "UPDATE candidates SET params = '" + "[" * 5000 + "]" * 5000
+                 + "' WHERE idx = 0;")
+        elif step.startswith("deep_json:"):  # deep_json:<file in {dir}>
+            (folder / step.removeprefix("deep_json:")).parent.mkdir(parents=True,
+                                                                    exist_ok=True)
+            (folder / step.removeprefix("deep_json:")).write_text("[" * 5000 + "]" * 5000)
         elif step == "huge_vehicle_name":  # a 1 MB name in {dir}/v.toml
             v = folder / "v.toml"
             v.write_text(re.sub(r'(?m)^name = ".*"$', 'name = "' + "A" * 2**20 + '"',

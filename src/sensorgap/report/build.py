@@ -467,6 +467,13 @@ def build(folder: Path) -> tuple[str, list[str], Section, list[Section]]:
         read_nearfield(folder / "nearfield" / "nearfield.json")
     if (folder / "catalog.json").is_file():
         read_catalog(folder / "catalog.json")
+    for s in sorted((folder / "coverage").glob("*/summary.json")):
+        _object(s, read_json(s))
+    if (folder / "anchors" / "anchors.json").is_file():
+        a = folder / "anchors" / "anchors.json"
+        rows = _object(a, read_json(a)).get("anchors")
+        if not isinstance(rows, list) or not all(isinstance(r, dict) for r in rows):
+            raise InputError(a, "anchors", "expected a list of objects")
     img = folder / REPORT_DIR
     img.mkdir(parents=True, exist_ok=True)
     search = (read_json(folder / "summary.json") if (folder / "summary.json").is_file()

@@ -116,7 +116,7 @@ class Store:
         if stored is not None:
             try:
                 old = json.loads(stored[0])
-            except (TypeError, ValueError):
+            except (TypeError, ValueError, RecursionError):
                 raise _damaged(path, "meta row 'inputs' is not JSON") from None
         if old != inputs and self.count():
             changed = sorted(k for k in {*inputs, *(old if isinstance(old, dict) else {})}
@@ -165,6 +165,10 @@ class Store:
                        for v in metrics.values()):
                 raise ValueError("a metric is not a number")
             cand = Candidate(family, row[1], sun, params)
+        except RecursionError:
+            raise InputError(self.path, f"candidates[{family}, {idx}]", "damaged row (JSON "
+                             "nested too deeply); delete the file or use another --out "
+                             "folder") from None
         except (TypeError, ValueError) as exc:
             raise InputError(self.path, f"candidates[{family}, {idx}]",
                              f"damaged row ({exc}); delete the file or use another --out "
