@@ -445,8 +445,9 @@ def cmd_report(args: argparse.Namespace) -> int:
             raise InputError("--run", "", "give --run DIR or --compare RUN_A RUN_B")
         from sensorgap.report import write_report
 
-        html_path, md_path = write_report(Path(args.run))
-        write_manifest(args.run)
+        with removed_on_error(args.run):  # no figure of a failed report is left behind
+            html_path, md_path = write_report(Path(args.run))
+            write_manifest(args.run)
     print(f"{html_path} and {md_path}")
     return 0
 

@@ -38,6 +38,7 @@ from typing import Any
 from sensorgap.atomic import atomic_write_bytes
 from sensorgap.config import EnvironmentConfig, TargetConfig, load_environments, load_targets
 from sensorgap.config.load import environments_path
+from sensorgap.config.parameters import bound_error
 from sensorgap.config.presets import resolve_road, templates_dir
 from sensorgap.config.reaction import (
     ReactionConfig,
@@ -275,6 +276,10 @@ def _finite_row(path: Path, i: int, row: dict[str, Any]) -> None:
         if bad:
             raise InputError(path, f"ranking[{i}].{key[:64]}", "malformed ranking file: "
                              f"expected a finite number, got {str(v)[:40]!r}")
+        why = (bound_error(key[2:], float(v)) if key.startswith("p_")
+               and isinstance(v, int | float) and not isinstance(v, bool) else None)
+        if why:  # a physical bound (config.parameters)
+            raise InputError(path, f"ranking[{i}].{key[:64]}", why)
 
 
 @dataclass
