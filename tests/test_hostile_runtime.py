@@ -326,3 +326,24 @@ def test_sigterm_unwinds_and_leaves_no_temporary_file(tmp_path: Path,
     assert capsys.readouterr().err.strip() == "sensorgap: interrupted"
     assert not [p for p in out.rglob("*") if ".tmp" in p.name]
     assert signal.getsignal(signal.SIGTERM) == previous  # restored after the command
+
+
+def test_environment_name_with_dollars_is_drawn_as_written_in_the_report(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # the scenario figure's colour-bar label mixes math ($p_d$) with the environment name:
+    # a name 'a$x^{$' was parsed as math there (internal error)
+    from sensorgap.cli import main
+    from sensorgap.config import templates_dir
+
+    text = (templates_dir() / "environments.toml").read_text()
+    name = "a$x^{$ Ä"
+    text = text.replace("[environments.glare_front_right", f'[environments."{name}"')
+    (tmp_path / "e.toml").write_text(text)
+    run = tmp_path / "run"
+    assert main(["search", "--vehicle", "system_b", "--families", "stopped_rural_curve",
+                 "--environments-file", str(tmp_path / "e.toml"), "--environments", name,
+                 "--budget", "12", "--top", "1", "--strategy", "lhs", "--out",
+                 str(run)]) == 0
+    assert main(["report", "--run", str(run)]) == 0, capsys.readouterr().err
+    assert (run / "report" / "scenario_001.png").is_file()
+    assert name in (run / "report.md").read_text()
