@@ -4,6 +4,7 @@ Also: an internal error is exit 1 and says so, with a traceback only under --deb
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import re
@@ -69,6 +70,28 @@ def _edit_manifest(run: Path, entry: str) -> None:
     (run / "manifest.json").write_text(json.dumps(manifest))
 
 
+def _edit_run(case: dict[str, Any], run: Path) -> None:
+    """``run_files`` (inline text written into ``{run}``), ``run_edit`` ([file, regex,
+    replacement]: the first match replaced) and ``run_input_edit`` (a recorded input's
+    copy edited, [old, new] pairs, with its SHA-256 in run.json updated to match)."""
+    for name, text in case.get("run_files", {}).items():
+        (run / name).write_text(text, encoding="utf-8")
+    for name, pattern, repl in case.get("run_edit", []):
+        text, n = re.subn(pattern, repl, (run / name).read_text(encoding="utf-8"), count=1)
+        assert n == 1, f"{case['name']}: {pattern!r} not in {name}"
+        (run / name).write_text(text, encoding="utf-8")
+    for label, pairs in case.get("run_input_edit", {}).items():
+        info = json.loads((run / "run.json").read_text())
+        copy = run / info["inputs"][label]["copy"]
+        text = copy.read_text(encoding="utf-8")
+        for old, new in pairs:
+            assert old in text, f"{case['name']}: {old!r} not in {copy.name}"
+            text = text.replace(old, new)
+        copy.write_text(text, encoding="utf-8")
+        info["inputs"][label]["sha256"] = hashlib.sha256(copy.read_bytes()).hexdigest()
+        (run / "run.json").write_text(json.dumps(info))
+
+
 def _sql(db: Path, script: str) -> None:
     con = sqlite3.connect(db)
     con.executescript(script)
@@ -110,6 +133,34 @@ def _setup(case: dict[str, Any], argv: list[str], folder: Path, out: Path,
             _sql(db, "DROP TABLE candidates; CREATE TABLE candidates (x TEXT);")
         elif step == "store_bad_json":
             _sql(db, "UPDATE candidates SET params = '{not json' WHERE idx = 0;")
+        elif step == "store_empty_metrics":
+            _sql(db, "UPDATE candidates SET metrics = '{}' WHERE idx = 0;")
+        elif step == "store_deep_json":
+            _sql(db, "UPDATE candidates SET params = '" + "[" * 5000 + "]" * 5000
+                 + "' WHERE idx = 0;")
+        elif step.startswith("deep_json:"):  # deep_json:<file in {dir}>
+            (folder / step.removeprefix("deep_json:")).parent.mkdir(parents=True,
+                                                                    exist_ok=True)
+            (folder / step.removeprefix("deep_json:")).write_text("[" * 5000 + "]" * 5000)
+        elif step == "huge_vehicle_name":  # a 1 MB name in {dir}/v.toml
+            v = folder / "v.toml"
+            v.write_text(re.sub(r'(?m)^name = ".*"$', 'name = "' + "A" * 2**20 + '"',
+                                v.read_text(), count=1))
+        elif step == "road_symlink_loop":
+            (folder / "loop.xodr").symlink_to(folder / "loop.xodr")
+        elif step in ("deep_catalog_json", "deep_ranking_json"):
+            name = "catalog.json" if step == "deep_catalog_json" else "ranking.json"
+            (run / name).write_text('{"junk": ' + "[" * 5000 + "]" * 5000 + "}")
+        elif step == "out_roads_symlink":  # {out}/roads links to {dir}/elsewhere
+            (folder / "elsewhere").mkdir()
+            (folder / "elsewhere" / "keep.xodr").write_text("not the export's")
+            out.mkdir()
+            (out / "roads").symlink_to(folder / "elsewhere")
+        elif step == "run_roads_symlink":  # {run}/roads links to {dir}/elsewhere
+            (folder / "elsewhere").mkdir()
+            (folder / "elsewhere" / "keep.xodr").write_text("not the export's")
+            shutil.rmtree(run / "roads")
+            (run / "roads").symlink_to(folder / "elsewhere")
         elif step == "many_geometries":
             _many_geometries(folder / "many.xodr", 50_001)
             argv[argv.index(str(folder / "r.xodr"))] = str(folder / "many.xodr")
@@ -150,6 +201,8 @@ def test_bad_input(case: dict[str, Any], tmp_path: Path, finished_run: Path,
     if any("{run}" in a for a in case["argv"]):
         shutil.copytree(finished_run, run)
     _write_files(case, folder)
+    if run.is_dir():
+        _edit_run(case, run)
     subs = {"{dir}": str(folder), "{out}": str(out), "{run}": str(run),
             "{templates}": str(REPO / "templates"), "{roads}": str(REPO / "roads")}
     argv = [a for a in case["argv"]]
@@ -191,6 +244,8 @@ def test_bad_input(case: dict[str, Any], tmp_path: Path, finished_run: Path,
     assert not [f for f in after if ".tmp" in f], after
     if code == 2:
         assert after <= before, f"files written despite the error: {sorted(after - before)}"
+    if (folder / "elsewhere").is_dir():  # a symlinked output folder: nothing changed there
+        assert _files(folder / "elsewhere") == {"keep.xodr"}
 
 
 def test_internal_error_is_exit_1_without_traceback(monkeypatch: pytest.MonkeyPatch,

@@ -203,3 +203,147 @@ def test_run_records_the_vehicle_file_absolute(tmp_path: Path,
     monkeypatch.chdir(tmp_path)
     assert _vehicle_ref("v.toml") == str(tmp_path.resolve() / "v.toml")
     assert _vehicle_ref("system_a") == "system_a"
+
+
+def test_relative_reaction_is_relative_to_the_vehicle_file(tmp_path: Path,
+                                                           monkeypatch: pytest.MonkeyPatch
+                                                           ) -> None:
+    from sensorgap.config import load_vehicle, templates_dir
+    from sensorgap.config.reaction import load_reaction, reactions_path
+
+    vdir = tmp_path / "car"
+    (vdir / "r").mkdir(parents=True)
+    text = (templates_dir() / "vehicles" / "system_a.toml").read_text()
+    (vdir / "v.toml").write_text(text.replace('reaction = "fusion_any"',
+                                              'reaction = "r/mine.toml"'))
+    # a reaction file whose first model is a distinctive one (latency 0.9 s)
+    presets = reactions_path().read_text()
+    (vdir / "r" / "mine.toml").write_text(
+        presets.replace("[reactions.ads_default", "[reactions.x_ads_default")
+        .replace("latency_s = 0.3\n", "latency_s = 0.9\n", 1))
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    cfg, _ = load_vehicle("../car/v.toml")
+    assert cfg.reaction == str((vdir / "r" / "mine.toml").resolve())
+    r = load_reaction(cfg.reaction)
+    assert r.name.startswith("x_") and r.latency_s == 0.9
+
+
+def test_names_outside_the_font_are_refused_and_latin_names_draw_without_warnings(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    import warnings
+
+    from sensorgap.cli import main
+    from sensorgap.config import templates_dir
+
+    text = (templates_dir() / "vehicles" / "system_a.toml").read_text()
+    (tmp_path / "v.toml").write_text(text.replace('name = "System A"',
+                                                  'name = "Škoda Élan ß-ł $x^{$ (Ä)"'))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert main(["coverage", "--vehicle", str(tmp_path / "v.toml"), "--environment",
+                     "clear", "--target", "car", "--resolution", "1", "--extent",
+                     "0,10,0,10", "--out", str(tmp_path / "out")]) == 0
+    assert not [w for w in caught if "Glyph" in str(w.message)], [str(w.message)
+                                                                   for w in caught]
+    assert capsys.readouterr().err == ""
+    (tmp_path / "w.toml").write_text(text.replace('name = "System A"', 'name = "車 A"'))
+    assert main(["nearfield", "--vehicle", str(tmp_path / "w.toml"), "--out",
+                 str(tmp_path / "nf")]) == 2
+    assert "vehicle.name" in capsys.readouterr().err
+    assert not (tmp_path / "nf").exists()
+
+
+def test_target_reference_height_must_be_on_the_body() -> None:
+    from sensorgap.config import TargetConfig
+
+    base = {"name": "box", "rcs_m2": 1.0, "camera_cross_section_m2": 1.0, "length_m": 1.0,
+            "width_m": 1.0, "height_m": 1.5, "lidar_reflectance": 0.5,
+            "camera_reflectance": 0.5}
+    assert TargetConfig.model_validate({**base, "reference_height_m": 1.5})
+    with pytest.raises(ValueError, match="must not exceed height_m"):
+        TargetConfig.model_validate({**base, "reference_height_m": 1.6})
+
+
+def test_lane_change_duration_bounds() -> None:
+    from sensorgap.config.parameters import PARAMETER_BOUNDS, bound_error
+
+    b = PARAMETER_BOUNDS["lc_duration_s"]
+    assert (b.low, b.high, b.unit) == (1.0, 10.0, "s") and "Olsen" in b.source
+    assert bound_error("lc_duration_s", 1.0) is None
+    assert bound_error("lc_duration_s", 10.0) is None
+    for bad in (0.999, -1.0, 10.01, float("nan"), float("inf")):
+        assert bound_error("lc_duration_s", bad)
+    assert bound_error("gap0_m", -5.0) is None  # a parameter without a bound
+
+
+def _esmini_log(path: Path, rows: list[str]) -> Path:
+    head = ("Index [-] , TimeStamp [sec] , #1 Entity_Name [-] , #1 Entity_ID [-] , "
+            "#1 Current_Speed [m/s] , #1 World_Position_X [m] , #1 World_Position_Y [m] , "
+            "#1 World_Position_Z [m] , #1 World_Heading_Angle [rad] ,")
+    path.write_text("\n".join([head, *rows]) + "\n")
+    return path
+
+
+def test_esmini_log_with_a_short_row_is_a_bad_log(tmp_path: Path) -> None:
+    from sensorgap.export.simulate import parse_esmini_csv
+
+    good = "0, 0.00, Ego, 0, 10.0, 1.0, 2.0, 0.0, 0.1,"
+    sim = parse_esmini_csv(_esmini_log(tmp_path / "ok.csv", [good, good.replace("0.00",
+                                                                                 "0.05")]))
+    t, x, y, h, v = sim.states["Ego"]
+    assert t.tolist() == [0.0, 0.05] and x.tolist() == [1.0, 1.0] and v[0] == 10.0
+    with pytest.raises(ValueError, match=r"line 3: 4 fields, no column 9 \(#1 World_Heading"):
+        parse_esmini_csv(_esmini_log(tmp_path / "short.csv", [good, "1, 0.05, Ego, 0"]))
+    with pytest.raises(ValueError, match="no data rows"):
+        parse_esmini_csv(_esmini_log(tmp_path / "empty.csv", []))
+
+
+def test_sigterm_unwinds_and_leaves_no_temporary_file(tmp_path: Path,
+                                                      monkeypatch: pytest.MonkeyPatch,
+                                                      capsys: pytest.CaptureFixture[str]
+                                                      ) -> None:
+    import signal
+    import time
+
+    from matplotlib.figure import Figure
+
+    from sensorgap.cli import main
+
+    def killed_while_saving(self: Figure, fname: object, **kwargs: object) -> None:
+        Path(str(fname)).write_bytes(b"half a png")
+        os.kill(os.getpid(), signal.SIGTERM)
+        time.sleep(5)  # the handler runs before this returns
+        raise AssertionError("SIGTERM was not delivered")
+
+    monkeypatch.setattr(Figure, "savefig", killed_while_saving)
+    previous = signal.getsignal(signal.SIGTERM)
+    out = tmp_path / "out"
+    assert main(["coverage", "--vehicle", "system_a", "--environment", "clear", "--target",
+                 "car", "--resolution", "1", "--extent", "0,10,0,10", "--out",
+                 str(out)]) == 143
+    assert capsys.readouterr().err.strip() == "sensorgap: interrupted"
+    assert not [p for p in out.rglob("*") if ".tmp" in p.name]
+    assert signal.getsignal(signal.SIGTERM) == previous  # restored after the command
+
+
+def test_environment_name_with_dollars_is_drawn_as_written_in_the_report(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # the scenario figure's colour-bar label mixes math ($p_d$) with the environment name:
+    # a name 'a$x^{$' was parsed as math there (internal error)
+    from sensorgap.cli import main
+    from sensorgap.config import templates_dir
+
+    text = (templates_dir() / "environments.toml").read_text()
+    name = "a$x^{$ Ä"
+    text = text.replace("[environments.glare_front_right", f'[environments."{name}"')
+    (tmp_path / "e.toml").write_text(text)
+    run = tmp_path / "run"
+    assert main(["search", "--vehicle", "system_b", "--families", "stopped_rural_curve",
+                 "--environments-file", str(tmp_path / "e.toml"), "--environments", name,
+                 "--budget", "12", "--top", "1", "--strategy", "lhs", "--out",
+                 str(run)]) == 0
+    assert main(["report", "--run", str(run)]) == 0, capsys.readouterr().err
+    assert (run / "report" / "scenario_001.png").is_file()
+    assert name in (run / "report.md").read_text()

@@ -42,6 +42,15 @@ _GLUED_OPTIONS = {"--extent", "--height", "--ego-lane", "--target-lane", "--lane
                   "--start", "--goal"}
 
 
+class _Terminated(KeyboardInterrupt):
+    """SIGTERM (``kill``, ``timeout``) as an interrupt of the main thread: the command
+    unwinds, so a file being written leaves no temporary file (``atomic.atomic_path``)."""
+
+
+def _terminate(signum: int, frame: Any) -> NoReturn:
+    raise _Terminated
+
+
 def _float_list(text: str, n: int, option: str) -> list[float]:
     parts = text.split(",")
     try:
@@ -333,8 +342,17 @@ def _environments(text: str, env_file: Path | None) -> list[str]:
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
     """Evaluate one candidate exactly into --out (evaluation.json, trace.csv)."""
+    from sensorgap.config.parameters import bound_error
     from sensorgap.search.whatif import evaluate_candidate, parse_sun
 
+    for item in args.param or []:  # physical bounds (config.parameters), before any work
+        name, _, text = item.partition("=")
+        try:
+            why = bound_error(name, float(text))
+        except ValueError:
+            why = None  # not a number: parse_params names it
+        if why:
+            raise InputError("param", name, why)
     ev = evaluate_candidate(
         args.vehicle, args.family, args.environment, parse_sun(args.sun), args.param or [],
         Path(args.out),
@@ -366,8 +384,9 @@ def cmd_export(args: argparse.Namespace) -> int:
     from sensorgap.export import export_catalog
 
     out = Path(args.out) if args.out else None
-    index = export_catalog(Path(args.run), out, osc_version=args.osc_version, top=args.top,
-                           style=args.style)
+    with removed_on_error(out or args.run):  # a failed export leaves no partial catalog
+        index = export_catalog(Path(args.run), out, osc_version=args.osc_version,
+                               top=args.top, style=args.style)
     print(f"{out or args.run}: {len(index['scenarios'])} scenarios, {args.style} style, "
           f"OpenSCENARIO {args.osc_version}, every file XSD-valid")
     return 0
@@ -426,8 +445,9 @@ def cmd_report(args: argparse.Namespace) -> int:
             raise InputError("--run", "", "give --run DIR or --compare RUN_A RUN_B")
         from sensorgap.report import write_report
 
-        html_path, md_path = write_report(Path(args.run))
-        write_manifest(args.run)
+        with removed_on_error(args.run):  # no figure of a failed report is left behind
+            html_path, md_path = write_report(Path(args.run))
+            write_manifest(args.run)
     print(f"{html_path} and {md_path}")
     return 0
 
@@ -540,8 +560,12 @@ def cmd_run(args: argparse.Namespace) -> int:
         raise InputError("--budget", "", f"must be 1..1e7 evaluations, got {args.budget}")
     if not 0 <= args.seed < 2**63:
         raise InputError("--seed", "", f"must be a non-negative integer, got {args.seed}")
+    from sensorgap.scenarios import load_families
+
+    families = _families(args.families)
+    load_families(families)  # every family (and its road) checked before any work
     run_default(Path(args.out), workers=args.workers, system_name=args.vehicle,
-                budget=args.budget, seed=args.seed, families=_families(args.families),
+                budget=args.budget, seed=args.seed, families=families,
                 environments=_environments(args.environments, None))
     write_manifest(args.out)
     return 0
@@ -783,6 +807,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     func: Callable[[argparse.Namespace], int] = args.func
     if hasattr(signal, "SIGXFSZ"):  # a file-size limit: a clean OSError, not a core dump
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+    previous = signal.signal(signal.SIGTERM, _terminate)
     tune_allocator()
     try:
         return func(args)
@@ -797,9 +822,9 @@ def main(argv: Sequence[str] | None = None) -> int:
               f"{exc.strerror or type(exc).__name__} (no partial file was left)",
               file=sys.stderr)
         return EXIT_INPUT
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:
         print("sensorgap: interrupted", file=sys.stderr)
-        return 130
+        return 143 if isinstance(exc, _Terminated) else 130
     except Exception as exc:  # noqa: BLE001 - the one place that turns bugs into exit 1
         if args.debug:
             traceback.print_exc()
@@ -807,6 +832,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"sensorgap: internal error: {type(exc).__name__}: {msg} "
               "(this is a bug; rerun with --debug for the traceback)", file=sys.stderr)
         return EXIT_INTERNAL
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 if __name__ == "__main__":

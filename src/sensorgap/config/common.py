@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field
 
 #: A finite float (NaN and +-inf rejected on load).
 Finite = Annotated[float, Field(allow_inf_nan=False)]
@@ -12,6 +12,34 @@ Finite = Annotated[float, Field(allow_inf_nan=False)]
 NonNeg = Annotated[float, Field(ge=0.0, allow_inf_nan=False)]
 #: A finite float > 0.
 Positive = Annotated[float, Field(gt=0.0, allow_inf_nan=False)]
+
+#: Longest user-given name (vehicle, environment, target), characters (docs/limits.md).
+MAX_NAME_CHARS = 64
+#: What a name may hold: printable ASCII and the Latin letters of Latin-1 and Latin
+#: Extended-A (U+00C0..U+017F: é, ü, ß, ł, ...), all drawn by the figures' font (DejaVu
+#: Sans), so a name never prints a missing-glyph warning; no control characters, no
+#: leading or trailing space.
+NAME_CHARS = "printable ASCII or Latin letters (U+00C0..U+017F), no leading/trailing space"
+
+
+def name_problem(text: str) -> str | None:
+    """Why ``text`` is not a valid name (length, characters), or None."""
+    ok = all(" " <= c <= "~" or "\u00c0" <= c <= "\u017f" for c in text)
+    if not ok or text != text.strip() or not 1 <= len(text) <= MAX_NAME_CHARS:
+        return f"a name is 1-{MAX_NAME_CHARS} characters: {NAME_CHARS}"
+    return None
+
+
+def _name_chars(v: str) -> str:
+    why = name_problem(v)
+    if why:
+        raise ValueError(why)
+    return v
+
+
+#: A user-given name: 1-64 characters from ``NAME_CHARS``.
+Name = Annotated[str, Field(min_length=1, max_length=MAX_NAME_CHARS),
+                 AfterValidator(_name_chars)]
 
 
 class Strict(BaseModel):

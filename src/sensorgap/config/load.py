@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import tomllib
 from pathlib import Path
 from typing import Any, TypeVar
@@ -17,6 +18,8 @@ from sensorgap.errors import InputError
 M = TypeVar("M", bound=BaseModel)
 
 MAX_CONFIG_BYTES = 5_000_000
+#: Longest value or table name quoted in an error line, characters.
+MAX_QUOTED_CHARS = 80
 #: Deepest nesting of tables and arrays accepted in a TOML file (docs/limits.md).
 MAX_TOML_DEPTH = 16
 
@@ -64,13 +67,24 @@ def read_toml(path: Path) -> dict[str, Any]:
     return data
 
 
+def short(value: object) -> str:
+    """``repr(value)``, cut to ``MAX_QUOTED_CHARS`` characters (an error stays one short
+    line when a file holds a megabyte-long string)."""
+    text = repr(value)
+    if len(text) <= MAX_QUOTED_CHARS:
+        return text
+    return f"{text[:MAX_QUOTED_CHARS - 20]}... ({len(text)} characters)"
+
+
 def _loc(loc: tuple[int | str, ...]) -> str:
     out = ""
     for part in loc:
         if isinstance(part, int):
             out += f"[{part}]"
         else:
-            out += ("." if out else "") + str(part)
+            part = str(part)
+            out += ("." if out else "") + (part if len(part) <= MAX_QUOTED_CHARS
+                                           else short(part))
     return out
 
 
@@ -89,7 +103,7 @@ def validation_to_input_error(
         if "input" in err and err.get("type") not in ("missing", "model_type", "dict_type"):
             value = err["input"]
             if not isinstance(value, dict | list):
-                msg += f" (got {value!r})"
+                msg += f" (got {short(value)})"
         found.append(InputError(source, field, msg))
     if not found:
         return InputError(source, prefix, "invalid")
@@ -124,7 +138,12 @@ def resolve_vehicle_path(name_or_path: str | Path) -> Path:
 def load_vehicle(name_or_path: str | Path) -> tuple[VehicleConfig, Path]:
     """Load and validate a vehicle file; returns the config and the file it came from."""
     path = resolve_vehicle_path(name_or_path)
-    return parse_model(VehicleConfig, read_toml(path), path), path
+    cfg = parse_model(VehicleConfig, read_toml(path), path)
+    reaction = cfg.reaction
+    if (reaction.endswith(".toml") or "/" in reaction) and not Path(reaction).is_absolute():
+        # a path: relative to the vehicle file's folder (as a family file's road)
+        cfg = cfg.model_copy(update={"reaction": os.path.abspath(path.parent / reaction)})
+    return cfg, path
 
 
 def environments_path() -> Path:
@@ -144,9 +163,10 @@ def _named_tables(
         raise InputError(path, unknown[0], f"unknown top-level key; only [{key}.*] allowed")
     out: dict[str, M] = {}
     for name, body in tables.items():
+        label = f"{key}.{name if len(name) <= MAX_QUOTED_CHARS else short(name)}"
         if not isinstance(body, dict):
-            raise InputError(path, f"{key}.{name}", "expected a table")
-        out[name] = parse_model(model, {"name": name, **body}, path, prefix=f"{key}.{name}")
+            raise InputError(path, label, "expected a table")
+        out[name] = parse_model(model, {"name": name, **body}, path, prefix=label)
     return out
 
 

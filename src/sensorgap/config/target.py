@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-from pydantic import Field
+from pydantic import Field, model_validator
 
-from sensorgap.config.common import Strict
+from sensorgap.config.common import Name, Strict
 
 
 class TargetConfig(Strict):
@@ -15,7 +15,7 @@ class TargetConfig(Strict):
     ``camera_cross_section_m2`` for cameras (0.9, 1.35, 2.7, 6.75 m2).
     """
 
-    name: str
+    name: Name
     description: str = ""
     rcs_m2: float = Field(
         ge=1.0e-6, le=1.0e4, allow_inf_nan=False,
@@ -39,3 +39,11 @@ class TargetConfig(Strict):
     max_speed_m_s: float = Field(default=70.0, ge=0.1, le=150.0, allow_inf_nan=False,
                                  description="Upper bound for trajectories, m/s")
     sources: dict[str, str] = Field(default_factory=dict)
+
+    @model_validator(mode="after")
+    def _reference_on_body(self) -> TargetConfig:
+        if self.reference_height_m > self.height_m:
+            raise ValueError(f"reference_height_m ({self.reference_height_m:g} m) must not "
+                             f"exceed height_m ({self.height_m:g} m): coverage is evaluated "
+                             "at a height on the target's body")
+        return self

@@ -12,7 +12,7 @@ from typing import Any, Literal
 
 from pydantic import ConfigDict, Field, field_validator, model_validator
 
-from sensorgap.config.common import Strict
+from sensorgap.config.common import Name, Strict
 
 #: Upper limit of a mount's range, m (docs/limits.md).
 MAX_RANGE_M = 10_000.0
@@ -125,7 +125,7 @@ class MountConfig(Strict):
 class BodyConfig(Strict):
     """The vehicle body: name, size, footprint relative to the rear axle."""
 
-    name: str
+    name: Name
     description: str = ""
     length_m: float = Field(gt=0.5, le=30.0, allow_inf_nan=False)
     width_m: float = Field(gt=0.5, le=5.0, allow_inf_nan=False)

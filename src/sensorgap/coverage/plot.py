@@ -69,7 +69,7 @@ def coverage_figure(cov: GridCoverage, system: System, title: str,
                              linewidth=0.8, zorder=5,
                              label="occluder (its shadow: low Pd behind it)" if i == 0
                              else None))
-        ax.annotate(f"{occ.label} {occ.height:g} m", (occ.x, occ.y), color="white",
+        ax.annotate(plain_text(f"{occ.label} {occ.height:g} m"), (occ.x, occ.y), color="white",
                     fontsize=7, ha="center", va="center", zorder=6)
     if occluders:
         ax.legend(loc="upper left", fontsize=8, framealpha=0.9)

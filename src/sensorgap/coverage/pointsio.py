@@ -42,6 +42,12 @@ def read_points_csv(path: Path, default_z: float) -> NDArray[np.float64]:
     if not header:
         raise InputError(path, "header", "empty file; expected a header 'x,y' or 'x,y,z'")
     names = [h.strip().lower() for h in header]
+    seen: set[str] = set()
+    for n in names:
+        if n and n in seen:  # which of the two would be read is not the user's choice
+            raise InputError(path, "header", f"column {n[:40]!r} appears twice; expected "
+                             "one each of x,y[,z]")
+        seen.add(n)
     for col in ("x", "y"):
         if col not in names:
             raise InputError(path, "header", f"missing column {col!r}; expected x,y[,z], "

@@ -38,7 +38,7 @@ from sensorgap.export.xosc import DEFAULT_VERSION, VERSIONS, build_scenario
 from sensorgap.filesio import write_json, write_manifest, write_npz
 from sensorgap.models import Conditions
 from sensorgap.roads import read_opendrive
-from sensorgap.search.runfolder import copy_record
+from sensorgap.search.runfolder import INPUTS_DIR, copy_record
 
 #: Export styles: ``maneuver`` (actions started relative to the ego, for a system under
 #: test; default) and ``replay`` (the evaluated 20 Hz states as timed polylines).
@@ -96,6 +96,18 @@ def _coverage_maps(specs: list[ScenarioSpec], out: Path) -> list[Path]:
     return written
 
 
+def _inside_only(out: Path) -> None:
+    """Refuse a folder the export writes into (or deletes stale files from) that is a
+    symbolic link: it would write outside ``out``."""
+    subs = [out / s for s in ("scenarios", "roads", "coverage", INPUTS_DIR)]
+    if (out / INPUTS_DIR).is_dir() and not (out / INPUTS_DIR).is_symlink():
+        subs += sorted((out / INPUTS_DIR).iterdir())
+    for p in subs:
+        if p.is_symlink():
+            raise InputError(p, "", "is a symbolic link; export writes only inside the "
+                             "catalog folder (remove the link or choose another --out)")
+
+
 def export_catalog(run_dir: Path, out_dir: Path | None = None,
                    osc_version: str = DEFAULT_VERSION, top: int | None = None,
                    coverage: bool = True, style: str = DEFAULT_STYLE) -> dict[str, Any]:
@@ -117,6 +129,7 @@ def export_catalog(run_dir: Path, out_dir: Path | None = None,
                 raise InputError("style", "", f"family {sp.family.name} (kind "
                                  f"{sp.family.kind.name}) has no maneuver form; use "
                                  "--style replay")
+    _inside_only(out)
     (out / "scenarios").mkdir(parents=True, exist_ok=True)
     (out / "roads").mkdir(parents=True, exist_ok=True)
     if out.resolve() != run.folder.resolve():

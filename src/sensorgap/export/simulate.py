@@ -102,14 +102,27 @@ def parse_esmini_csv(path: Path) -> SimPaths:
         raise ValueError(f"{path}: column #{k} {name} missing")
 
     n_ent = max(int(c.split()[0][1:]) for c in cols if c.startswith("#"))
-    rows = [[v.strip() for v in ln.split(",")] for ln in lines[head + 1:] if ln.strip()]
-    t = np.array([float(r[1]) for r in rows])
+    body = [(n, ln) for n, ln in enumerate(lines[head + 1:], start=head + 2) if ln.strip()]
+    rows = [[v.strip() for v in ln.split(",")] for _, ln in body]
+    if not rows:
+        raise ValueError(f"{path}: no data rows in esmini's CSV log")
+
+    def fields(idx: list[int]) -> None:  # a row too short for a column read: a bad log
+        need = max(idx)
+        short = next((k for k, r in enumerate(rows) if len(r) <= need), None)
+        if short is not None:
+            raise ValueError(f"{path}: line {body[short][0]}: {len(rows[short])} fields, "
+                             f"no column {need + 1} ({cols[need]}; a truncated log?)")
+
     def floats(idx: list[int]) -> F64:
+        fields(idx)
         return np.array([[float(r[i]) for i in idx] for r in rows]).reshape(-1, len(idx))
 
+    t = floats([1])[:, 0]
     out, boxes, vel = {}, {}, {}
     for k in range(1, n_ent + 1):
-        name = rows[0][col(k, "Entity_Name")] if rows else f"#{k}"
+        fields([col(k, "Entity_Name")])
+        name = rows[0][col(k, "Entity_Name")]
         arr = floats([col(k, "World_Position_X"), col(k, "World_Position_Y"),
                       col(k, "World_Heading_Angle"), col(k, "Current_Speed")])
         out[name] = (t, arr[:, 0], arr[:, 1], np.unwrap(arr[:, 2]), arr[:, 3])
@@ -358,6 +371,41 @@ def run_one(esmini: Path, xosc: Path, spec: ScenarioSpec, evaluator: Evaluator,
             "log10_risk_simulated": round(m_s["log10_risk"], 4)}
 
 
+def read_catalog_index(path: Path) -> tuple[dict[str, Any], list[dict[str, Any]]]:
+    """``catalog.json`` and its scenario entries, checked: a JSON object whose
+    ``scenarios`` is a list of objects, each with a ``scenario_id`` and a ``file`` (a
+    relative path inside the catalog) and, if given, a ``road`` of the same kind;
+    anything else -> ``InputError`` naming the file and the field."""
+    try:
+        index = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        raise InputError(path, "", f"malformed catalog index: {exc}") from None
+    except RecursionError:
+        raise InputError(path, "", "malformed catalog index: nested too deeply") from None
+    if not isinstance(index, dict):
+        raise InputError(path, "", "malformed catalog index: expected a JSON object")
+    entries = index.get("scenarios")
+    if not isinstance(entries, list):
+        raise InputError(path, "scenarios", "malformed catalog index: expected a list")
+    for i, entry in enumerate(entries):
+        if not isinstance(entry, dict):
+            raise InputError(path, f"scenarios[{i}]", "malformed catalog index: expected "
+                             f"an object, got {type(entry).__name__}")
+        for key in ("scenario_id", "file", "road"):
+            v = entry.get(key)
+            if key == "road" and v is None:
+                continue
+            if not isinstance(v, str) or not v or Path(v).is_absolute() \
+                    or (key != "scenario_id" and ".." in Path(v).parts):
+                raise InputError(path, f"scenarios[{i}].{key}", "malformed catalog index: "
+                                 "expected " + ("a string" if key == "scenario_id" else
+                                                "a relative path inside the catalog"))
+    for key in ("style", "osc_version"):
+        if not isinstance(index.get(key, ""), str):
+            raise InputError(path, key, "malformed catalog index: expected a string")
+    return index, entries
+
+
 def simulate_catalog(catalog: Path, esmini: str | None = None,
                      timeout_s: float = DEFAULT_TIMEOUT_S,
                      step_s: float = DEFAULT_STEP_S,
@@ -376,12 +424,8 @@ def simulate_catalog(catalog: Path, esmini: str | None = None,
         raise InputError("timeout", "", f"must be within 0..86400 s, got {timeout_s!r}")
     if not (0.0 < step_s <= 1.0):
         raise InputError("step", "", f"must be within 0..1 s, got {step_s!r}")
+    index, entries = read_catalog_index(index_path)
     exe = find_esmini(esmini)
-    try:
-        index = json.loads(index_path.read_text(encoding="utf-8"))
-        entries = list(index["scenarios"])
-    except (ValueError, KeyError, TypeError) as exc:
-        raise InputError(index_path, "", f"malformed catalog index: {exc}") from None
     run = read_run(catalog)
     system = load_system(run.vehicle_ref)
     evaluator = Evaluator(system, mode="exact")

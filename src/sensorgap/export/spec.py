@@ -16,7 +16,7 @@ from sensorgap.config import EnvironmentConfig, TargetConfig, load_environments,
 from sensorgap.config.presets import resolve_road
 from sensorgap.errors import InputError
 from sensorgap.models import System
-from sensorgap.scenarios import Scenario, load_family
+from sensorgap.scenarios import InfeasibleScenario, Scenario, load_family
 from sensorgap.scenarios.family import Family, ParamValue
 from sensorgap.search.metrics import metric_names
 from sensorgap.search.runfolder import RunFolder, read_run
@@ -75,7 +75,7 @@ class ScenarioSpec:
                 env = env.model_copy(update={"sun": env.sun.model_copy(update={
                     "azimuth_deg": sun[0], "elevation_deg": sun[1], "frame": "world"})})
             scenario = family.generate(params)
-        except (KeyError, TypeError, ValueError) as exc:
+        except (KeyError, TypeError, ValueError, InfeasibleScenario) as exc:
             raise InputError(source, f"ranking[{row.get('rank', '?')}]",
                              f"cannot rebuild the scenario: {exc}") from None
         metrics = {k: float(row[k]) for k in metric_names() if isinstance(row.get(k), int | float)}

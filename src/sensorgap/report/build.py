@@ -21,6 +21,7 @@ from typing import Any
 from sensorgap.atomic import atomic_write_text
 from sensorgap.config.presets import templates_dir
 from sensorgap.errors import InputError
+from sensorgap.export.simulate import read_catalog_index
 from sensorgap.export.spec import ScenarioSpec
 from sensorgap.models import System
 from sensorgap.provenance import utc_now, versions
@@ -58,6 +59,54 @@ def read_json(path: Path) -> Any:
         return json.loads(path.read_text(encoding="utf-8"))
     except (OSError, ValueError) as exc:
         raise InputError(path, "", f"unreadable JSON: {exc}") from None
+    except RecursionError:
+        raise InputError(path, "", "unreadable JSON: nested too deeply") from None
+
+
+def _object(path: Path, data: Any, field: str = "", key: str | None = None) -> dict[str, Any]:
+    """``data`` (or ``data[key]``, {} when absent) as a JSON object; anything else ->
+    ``InputError`` naming the file and the field."""
+    if key is not None:
+        field = f"{field}.{key}" if field else key
+        data = data.get(key, {})
+    if not isinstance(data, dict):
+        raise InputError(path, field, f"expected a JSON object, got {type(data).__name__}")
+    return data
+
+
+def _numbers(path: Path, data: dict[str, Any], field: str, keys: tuple[str, ...],
+             required: tuple[str, ...] = ()) -> None:
+    """Each of ``keys`` in ``data`` a number (or null); ``required`` ones present."""
+    for k in keys:
+        v = data.get(k)
+        if (v is None and k in required) or (v is not None and (
+                isinstance(v, bool) or not isinstance(v, int | float))):
+            raise InputError(path, f"{field}.{k}" if field else k,
+                             f"expected a number, got {v!r:.40}")
+
+
+def read_nearfield(path: Path) -> dict[str, Any]:
+    """``nearfield.json`` of a run, its fields as the report reads them checked."""
+    d = _object(path, read_json(path))
+    bs = _object(path, d, key="blind_spot_m2")
+    _numbers(path, bs, "blind_spot_m2", ("exact", "grid", "difference"), ("exact",))
+    _numbers(path, _object(path, d, key="uncovered_0p1m_m2"), "uncovered_0p1m_m2",
+             ("exact", "grid", "difference"))
+    _numbers(path, _object(path, d, key="window"), "window", ("radius_m",))
+    if not isinstance(d.get("method", ""), str | dict):
+        raise InputError(path, "method", "expected a string or an object")
+    return d
+
+
+def read_catalog(path: Path) -> dict[str, Any]:
+    """``catalog.json`` of a run, checked (``export.simulate.read_catalog_index``, and a
+    road for every scenario)."""
+    index, entries = read_catalog_index(path)
+    for i, e in enumerate(entries):
+        if not isinstance(e.get("road"), str):
+            raise InputError(path, f"scenarios[{i}].road", "malformed catalog index: "
+                             "expected a relative path inside the catalog")
+    return index
 
 
 def read_csv(path: Path) -> list[dict[str, str]]:
@@ -172,7 +221,7 @@ def _nearfield_section(folder: Path) -> Section:
     nf = folder / "nearfield" / "nearfield.json"
     if not nf.is_file():
         return Section("nearfield", "Near-field blind spots", [Para(NOT_RUN)])
-    d = read_json(nf)
+    d = read_nearfield(nf)
     bs, u = d.get("blind_spot_m2", {}), d.get("uncovered_0p1m_m2", {})
     blocks: list[Any] = [Table(
         ["quantity", "exact polygons [m2]", "grid [m2]", "difference [m2]"],
@@ -202,11 +251,11 @@ def _coverage_section(folder: Path) -> Section:
         return Section("coverage", "Far-field coverage maps per environment", [Para(NOT_RUN)])
     rows, subs = [], []
     for d in dirs:
-        s = read_json(d / "summary.json")
-        a = s.get("area_m2_by_level", {})
+        s = _object(d / "summary.json", read_json(d / "summary.json"))
+        a = _object(d / "summary.json", s, key="area_m2_by_level")
         rows.append([d.name, *(fmt(a.get(k)) for k in ("pd=1.0", "pd>=0.8", "pd>=0.5",
                                                        "pd>0", "pd=0")),
-                     fmt(s.get("grid", {}).get("resolution_m"))])
+                     fmt(_object(d / "summary.json", s, key="grid").get("resolution_m"))])
         if (d / "coverage.png").is_file():
             subs.append(Section(f"coverage-{d.name}", d.name, [
                 Image(d / "coverage.png", f"Fused Pd, {d.name}: target "
@@ -291,7 +340,7 @@ def _scenarios_section(run: RunFolder, out_img: Path, search: dict[str, Any] | N
     if not (folder / "ranking.json").is_file():
         return Section("scenarios", "Critical scenarios", [Para(NOT_RUN)]), [], None
     catalog = folder / "catalog.json"
-    exported = read_json(catalog) if catalog.is_file() else None
+    exported = read_catalog(catalog) if catalog.is_file() else None
     files = {s["scenario_id"]: s for s in exported["scenarios"]} if exported else {}
     system = run.system()
     ev = run.evaluator("lookup")
@@ -430,12 +479,26 @@ def build(folder: Path) -> tuple[str, list[str], Section, list[Section]]:
         raise InputError(folder, "", "neither run.json nor ranking.json says which vehicle "
                          "this run is for")
     system = run.system()
+    if (folder / "nearfield" / "nearfield.json").is_file():  # checked before any work
+        read_nearfield(folder / "nearfield" / "nearfield.json")
+    if (folder / "catalog.json").is_file():
+        read_catalog(folder / "catalog.json")
+    for s in sorted((folder / "coverage").glob("*/summary.json")):
+        _object(s, read_json(s))
+    if (folder / "anchors" / "anchors.json").is_file():
+        a = folder / "anchors" / "anchors.json"
+        rows = _object(a, read_json(a)).get("anchors")
+        if not isinstance(rows, list) or not all(isinstance(r, dict) for r in rows):
+            raise InputError(a, "anchors", "expected a list of objects")
     img = folder / REPORT_DIR
     img.mkdir(parents=True, exist_ok=True)
     search = (read_json(folder / "summary.json") if (folder / "summary.json").is_file()
               and (folder / "ranking.json").is_file() else None)
     if search is not None and not isinstance(search, dict):
         raise InputError(folder / "summary.json", "", "expected a JSON object")
+    for fam, d in (_object(folder / "summary.json", search, key="per_family")
+                   if search is not None else {}).items():
+        _object(folder / "summary.json", d, f"per_family.{fam[:40]}")
     scen, errors, ranked = _scenarios_section(run, img, search)
     lve, n_unavoidable = None, 0
     if ranked is not None:

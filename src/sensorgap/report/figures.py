@@ -108,7 +108,8 @@ def scenario_figure(spec: ScenarioSpec, evaluator: Evaluator, tr: Trace, path: P
     fig.legend(*ax.get_legend_handles_labels(), loc="lower left",
                bbox_to_anchor=(0.06, 0.01), ncol=2, fontsize=7, frameon=False)
     fig.colorbar(im, ax=ax, shrink=0.85,
-                 label=f"$p_d$ of a {spec.target.name} body, {spec.environment_name}: "
+                 label=f"$p_d$ of a {plain_text(spec.target.name)} body, "
+                 f"{plain_text(spec.environment_name)}: "
                  "no sun, no occluders")
     ax.set_title(plain_text(f"rank {spec.rank}: {spec.family.name}, {spec.environment_name}"),
                  fontsize=9)

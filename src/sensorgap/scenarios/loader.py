@@ -31,7 +31,9 @@ from typing import Any
 import numpy as np
 
 from sensorgap.config import load_targets, templates_dir
-from sensorgap.config.load import read_toml
+from sensorgap.config.common import name_problem
+from sensorgap.config.load import read_toml, short
+from sensorgap.config.parameters import bound_error
 from sensorgap.config.presets import resolve_road
 from sensorgap.errors import InputError
 from sensorgap.roads import RoadNetwork, read_opendrive
@@ -133,6 +135,9 @@ def _param(path: Path, default: Param, value: Any) -> Param:
     if not low < high:
         raise InputError(path, field, f"empty or reversed range [{low:g}, {high:g}]: "
                          "low must be < high")
+    why = bound_error(default.name, low) or bound_error(default.name, high)
+    if why:
+        raise InputError(path, field, f"range [{low:g}, {high:g}]: {why}")
     return Param(default.name, low, high, unit=default.unit)
 
 
@@ -140,6 +145,9 @@ def load_family(name_or_path: str, road: Path | None = None) -> Family:
     """Load, validate and fit-check one family. ``road``: the OpenDRIVE file to use instead
     of the one the file's ``road`` setting names (a run folder's recorded copy)."""
     path = resolve_family_path(name_or_path)
+    why = name_problem(path.stem)  # the family's name, drawn in figures
+    if why:
+        raise InputError(path, "", f"family name (file stem) {short(path.stem)}: {why}")
     data = read_toml(path)
     unknown = sorted(set(data) - {"family", "parameters"})
     if unknown:
@@ -178,7 +186,11 @@ def load_family(name_or_path: str, road: Path | None = None) -> Family:
         settings["road"] = str(road_path)
     elif road_text.endswith(".xodr") or "/" in road_text:
         # a path: relative to the family file's folder; recorded absolute (export, report)
-        road_path = (path.parent / road_path).resolve()
+        try:
+            road_path = (path.parent / road_path).resolve()
+        except (RuntimeError, OSError):  # a symlink loop
+            raise InputError(path, "family.road", f"road file {road_path}: cannot resolve "
+                             "the path (a symbolic link loop?)") from None
         settings["road"] = str(road_path)
     if not road_path.is_file():
         raise InputError(path, "family.road", f"road file {road_path} not found")

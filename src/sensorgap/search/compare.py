@@ -46,6 +46,10 @@ def candidate_of(row: dict[str, Any], problem: SearchProblem,
     """The candidate of a ranking row (preset, world-frame sun, parameters); a missing or
     malformed value -> ``InputError`` naming ``source`` and the field."""
     env = str(row["environment"]).split("@")[0]
+    if env not in problem.environments:
+        raise InputError(source, f"ranking[{row.get('scenario_id')}].environment",
+                         f"unknown environment {env[:64]!r}; the run's environments: "
+                         f"{', '.join(problem.environments)}")
     field = "sun_azimuth_deg"
     try:
         sun = (None if row.get("sun_azimuth_deg") is None

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import re
 import sys
 from dataclasses import dataclass, field
@@ -37,6 +38,7 @@ from typing import Any
 from sensorgap.atomic import atomic_write_bytes
 from sensorgap.config import EnvironmentConfig, TargetConfig, load_environments, load_targets
 from sensorgap.config.load import environments_path
+from sensorgap.config.parameters import bound_error
 from sensorgap.config.presets import resolve_road, templates_dir
 from sensorgap.config.reaction import (
     ReactionConfig,
@@ -256,7 +258,28 @@ def _read_ranking(folder: Path) -> tuple[list[dict[str, Any]], dict[str, Any],
         if not isinstance(rank, int) or isinstance(rank, bool) or rank < 1:
             raise InputError(path, f"ranking[{i}].rank", "malformed ranking file: expected "
                              f"a positive integer, got {rank!r}")
+        _finite_row(path, i, row)
     return rows, settings, data, vehicle
+
+
+def _finite_row(path: Path, i: int, row: dict[str, Any]) -> None:
+    """Every number of a ranking row finite (a search writes null for none), and each
+    parameter (``p_*``) and sun angle a finite number or, for a choice, a name: "nan" or
+    "inf" is refused here, before anything is rebuilt or exported from it."""
+    for key, v in row.items():
+        bad = isinstance(v, float) and not math.isfinite(v)
+        if isinstance(v, str) and (key.startswith("p_") or key.startswith("sun_")):
+            try:
+                bad = not math.isfinite(float(v))
+            except ValueError:
+                bad = key.startswith("sun_")  # a choice name is text; a sun angle is not
+        if bad:
+            raise InputError(path, f"ranking[{i}].{key[:64]}", "malformed ranking file: "
+                             f"expected a finite number, got {str(v)[:40]!r}")
+        why = (bound_error(key[2:], float(v)) if key.startswith("p_")
+               and isinstance(v, int | float) and not isinstance(v, bool) else None)
+        if why:  # a physical bound (config.parameters)
+            raise InputError(path, f"ranking[{i}].{key[:64]}", why)
 
 
 @dataclass

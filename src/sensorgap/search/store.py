@@ -21,7 +21,8 @@ from pathlib import Path
 from typing import Any
 
 from sensorgap.errors import InputError
-from sensorgap.search.problem import Candidate, Result
+from sensorgap.search.metrics import metric_names
+from sensorgap.search.problem import OBJECTIVE_KEY, Candidate, Result
 
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
@@ -123,7 +124,7 @@ class Store:
         if stored is not None:
             try:
                 old = json.loads(stored[0])
-            except (TypeError, ValueError):
+            except (TypeError, ValueError, RecursionError):
                 raise _damaged(path, "meta row 'inputs' is not JSON") from None
         if old != inputs and self.count():
             changed = sorted(k for k in {*inputs, *(old if isinstance(old, dict) else {})}
@@ -179,7 +180,19 @@ class Store:
             if not (isinstance(params, dict) and isinstance(metrics, dict)
                     and isinstance(row[1], str) and isinstance(row[7], str)):
                 raise ValueError("not the stored layout")
+            # every metric a search stores, each a number: a row of '{}' or with a metric
+            # missing is damaged, never reused
+            missing = [m for m in (*metric_names(), OBJECTIVE_KEY) if m not in metrics]
+            if missing:
+                raise ValueError(f"metric {missing[0]} missing")
+            if not all(isinstance(v, int | float) and not isinstance(v, bool)
+                       for v in metrics.values()):
+                raise ValueError("a metric is not a number")
             cand = Candidate(family, row[1], sun, params)
+        except RecursionError:
+            raise InputError(self.path, f"candidates[{family}, {idx}]", "damaged row (JSON "
+                             "nested too deeply); delete the file or use another --out "
+                             "folder") from None
         except (TypeError, ValueError) as exc:
             raise InputError(self.path, f"candidates[{family}, {idx}]",
                              f"damaged row ({exc}); delete the file or use another --out "

@@ -1,0 +1,47 @@
+"""Physical bounds of scenario-family parameters, by name.
+
+A family file's ``[parameters]`` range and ``sensorgap evaluate --param`` are checked
+against these bounds (a value outside is not a manoeuvre a road user makes; a tiny or
+negative lane-change duration would also divide by ~0 in the trajectory). Each bound has
+a unit and a source (docs/limits.md).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+
+class Bound(NamedTuple):
+    """Closed range ``[low, high]`` of a parameter in ``unit``, with its ``source``."""
+
+    low: float
+    high: float
+    unit: str
+    source: str
+
+
+#: Parameter name -> its physical bound.
+PARAMETER_BOUNDS: dict[str, Bound] = {
+    # Lane-change duration (start to end of the lateral move), s. Naturalistic single lane
+    # changes take 6.28 s on average, SD 2.0 s (7,192 lane changes of 16 commuters;
+    # Olsen, Lee & Wierwille 2002, "Analysis of distribution, frequency, and duration of
+    # naturalistic lane changes", Proc. HFES 46th Annual Meeting): 10 s is about the mean
+    # + 2 SD. The shortest means reported are 1.25 s and 1.95 s (an early study reviewed by
+    # Toledo & Zohar 2007, "Modeling duration of lane changes", TRR 1999), and about 1.5 s
+    # to execute the change (Finnegan & Green 1990, UMTRI-90-34): 1 s is below any of them.
+    "lc_duration_s": Bound(1.0, 10.0, "s", "lane changes take 1-10 s: Olsen et al. 2002, "
+                           "6.28 +- 2.0 s; Toledo & Zohar 2007"),
+}
+
+
+def bound_error(name: str, value: float) -> str | None:
+    """Why ``value`` of parameter ``name`` is refused (outside its physical bound, or not
+    finite), or None when it is accepted (also for a parameter without a bound)."""
+    b = PARAMETER_BOUNDS.get(name)
+    if b is None:
+        return None
+    if not (math.isfinite(value) and b.low <= value <= b.high):
+        return (f"must be within {b.low:g}..{b.high:g} {b.unit} ({b.source}), "
+                f"got {value:g}")
+    return None
