@@ -7,15 +7,17 @@ from pathlib import Path
 
 import pytest
 
-from sensorgap.search.problem import Candidate, Result
+from sensorgap.search.metrics import metric_names
+from sensorgap.search.problem import OBJECTIVE_KEY, Candidate, Result
 from sensorgap.search.store import Store
 
 SETTINGS = {"vehicle": "v", "seed": 1}
 
 
 def _result(i: int, metric: object = 0.5) -> Result:
-    return Result(Candidate("fam", "clear", None, {"x": float(i)}),
-                  {"collision_probability": metric}, True, "")  # type: ignore[dict-item]
+    metrics = {name: 0.0 for name in [*metric_names(), OBJECTIVE_KEY]}
+    metrics["collision_probability"] = metric  # type: ignore[assignment]
+    return Result(Candidate("fam", "clear", None, {"x": float(i)}), metrics, True, "")
 
 
 def test_queued_batches_are_written_in_order(tmp_path: Path) -> None:
