@@ -93,3 +93,21 @@ def test_compare_grid_is_the_default_jobs() -> None:
     from sensorgap.search.compare_maps import COMPARE_HEADING_DEG
 
     assert COMPARE_GRID == DEFAULT_GRID and COMPARE_HEADING_DEG == COVERAGE_HEADING_DEG
+
+
+def test_unreadable_coverage_map_is_one_line_exit_2(cmp: Path, tmp_path: Path,
+                                                    capsys: pytest.CaptureFixture[str]
+                                                    ) -> None:
+    import shutil
+
+    run = tmp_path / "run"
+    shutil.copytree(cmp / "std", run)
+    bad = run / "coverage" / "car_clear"
+    bad.mkdir(parents=True)
+    (bad / "summary.json").write_text(json.dumps({"environment": "clear", "target": "car"}))
+    (bad / "coverage.npz").write_bytes(b"PK\x03\x04 not a zip")
+    out = tmp_path / "cmp"
+    assert main(["compare", str(cmp / "fog"), str(run), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "coverage.npz" in err[0] and "unreadable coverage map" in err[0]
+    assert not out.exists()  # nothing was computed or left behind

@@ -81,12 +81,14 @@ def _image(path: Path, caption: str, out: Path, tag: str, side: SideMaps | None,
 def _compared(cm: Completed) -> Section:
     items: list[str | tuple[str, str]] = []
     for side in (cm.a, cm.b):
-        made = ", ".join(side.computed) if side.computed else "nothing"
-        items.append((f"{side.name} ({side.tag.upper()}):",
-                      f"run folder {side.run.folder.name}; computed for this comparison "
-                      "from the run's recorded inputs (vehicle, environments, target "
-                      f"classes): {made}"
-                      + (f" (in {side.made.name}/)" if side.computed else "") + "."))
+        if side.computed:
+            text = (f"run folder {side.run.folder.name}; computed for this comparison "
+                    "from the run's recorded inputs (vehicle, environments, target "
+                    f"classes): {', '.join(side.computed)} (in {side.made.name}/).")
+        else:
+            text = (f"run folder {side.run.folder.name}; near field, coverage maps and far "
+                    "field all from the run (nothing computed).")
+        items.append((f"{side.name} ({side.tag.upper()}):", text))
     items += [("Note:", n + ".") for n in cm.notes]
     return Section("compared", "What is compared", [
         Para("Both vehicles in the same environments on the same grids: what a run folder "

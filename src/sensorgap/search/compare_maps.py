@@ -30,6 +30,7 @@ each vehicle is evaluated in its own run's definition and ``notes`` says so.
 from __future__ import annotations
 
 import re
+import zipfile
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -142,6 +143,7 @@ def _existing_maps(run: RunFolder) -> dict[str, tuple[Path, dict[str, Any]]]:
         if (s.parent / "coverage.npz").is_file():
             d = read_json_file(s)
             if isinstance(d, dict):
+                load_map(s.parent)  # unreadable: bad input before anything is computed
                 out[s.parent.name] = (s.parent, d)
     return out
 
@@ -201,14 +203,21 @@ def _farfield_one(system: System, env: EnvironmentConfig, target: TargetConfig,
                                                         "along the lane"}, bodies=True)
 
 
+def _label(side: SideMaps, folder: Path, out: Path) -> str:
+    """A piece's folder without the machine's paths: relative to the comparison's folder
+    ``out`` when made there, else ``run <run folder name>: <path in the run>``."""
+    try:
+        return folder.resolve().relative_to(Path(out).resolve()).as_posix()
+    except ValueError:
+        return (f"run {side.run.folder.name}: "
+                f"{folder.resolve().relative_to(side.run.folder.resolve()).as_posix()}")
+
+
 def _difference(key: str, a: SideMaps, b: SideMaps, sys_a: System, sys_b: System,
                 env: EnvironmentConfig | None, out_dir: Path) -> None:
     """difference.npz / .png / summary.json of the pair ``key`` (one grid)."""
-    with np.load(a.coverage[key] / "coverage.npz") as za, \
-            np.load(b.coverage[key] / "coverage.npz") as zb:
-        pa, pb = np.asarray(za["pd"], np.float64), np.asarray(zb["pd"], np.float64)
-        x, y = np.asarray(za["x"]), np.asarray(za["y"])
-        res = float(np.asarray(za["resolution"]).ravel()[0])
+    pa, x, y, res = load_map(a.coverage[key])
+    pb = load_map(b.coverage[key])[0]
     diff = pa - pb
     cell = res * res
     da, db = pa >= DETECTS_PD, pb >= DETECTS_PD
@@ -227,7 +236,8 @@ def _difference(key: str, a: SideMaps, b: SideMaps, sys_a: System, sys_b: System
     save_figure(fig, out_dir / "difference.png", dpi=90)
     write_json(out_dir / "summary.json", {
         "map": key, "vehicle_a": a.name, "vehicle_b": b.name,
-        "coverage_a": str(a.coverage[key]), "coverage_b": str(b.coverage[key]),
+        "coverage_a": _label(a, a.coverage[key], out_dir.parent.parent),
+        "coverage_b": _label(b, b.coverage[key], out_dir.parent.parent),
         "detects_pd": DETECTS_PD, "cell_m": res,
         "difference": "Pd_A - Pd_B per cell (exact Pd at the cell centres)",
         "max_difference": float(diff.max()), "min_difference": float(diff.min()),
@@ -253,6 +263,8 @@ def complete_runs(run_a: Path, run_b: Path, out: Path, workers: int = 2) -> Comp
             notes.append(f"{s.run.folder}: the vehicle is not recorded (no run.json or "
                          "ranking.json): nothing can be computed for it")
 
+    existing = {s.tag: _existing_maps(s.run) for s in sides}
+
     # near field
     for s in sides:
         own = s.run.folder / "nearfield"
@@ -265,7 +277,6 @@ def complete_runs(run_a: Path, run_b: Path, out: Path, workers: int = 2) -> Comp
             s.computed.append("near field")
 
     # coverage maps: the keys and their (grid, target model)
-    existing = {s.tag: _existing_maps(s.run) for s in sides}
     keys: dict[str, tuple[str, str]] = {}
     for s in sides:
         for key, (_, summ) in existing[s.tag].items():
@@ -341,10 +352,29 @@ def complete_runs(run_a: Path, run_b: Path, out: Path, workers: int = 2) -> Comp
     return Completed(a, b, both, envs, diffs, notes)
 
 
+def load_map(folder: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """(pd, x, y, cell size m) of ``folder/coverage.npz``; unreadable or inconsistent ->
+    ``InputError`` naming the file."""
+    path = folder / "coverage.npz"
+    try:
+        with np.load(path) as z:
+            pd = np.asarray(z["pd"], np.float64)
+            x, y = np.asarray(z["x"], np.float64), np.asarray(z["y"], np.float64)
+            res = float(np.asarray(z["resolution"]).ravel()[0])
+    except (OSError, KeyError, ValueError, IndexError, EOFError, zipfile.BadZipFile) as exc:
+        raise InputError(path, "", "unreadable coverage map (expected the .npz of "
+                         f"`sensorgap coverage`: pd, x, y, resolution): {exc}") from None
+    if pd.shape != (len(y), len(x)):
+        raise InputError(path, "pd", f"expected shape (len(y), len(x)) = ({len(y)}, "
+                         f"{len(x)}), got {pd.shape}")
+    return pd, x, y, res
+
+
 def _same_grid(fa: Path, fb: Path) -> bool:
-    with np.load(fa / "coverage.npz") as za, np.load(fb / "coverage.npz") as zb:
-        return (za["pd"].shape == zb["pd"].shape
-                and bool(np.allclose(za["x"], zb["x"])) and bool(np.allclose(za["y"], zb["y"])))
+    pa, xa, ya, _ = load_map(fa)
+    pb, xb, yb, _ = load_map(fb)
+    return (pa.shape == pb.shape and bool(np.allclose(xa, xb))
+            and bool(np.allclose(ya, yb)))
 
 
 __all__ = ["COMPARE_GRID", "Completed", "SideMaps", "complete_runs", "slug"]
