@@ -26,6 +26,7 @@ from sensorgap.report.summary import (
     direction_words,
     explain_spec,
     fmt_p,
+    mirrored_pairs,
     pd_without,
     spot_words,
     summary_section,
@@ -279,6 +280,21 @@ def test_spot_words() -> None:
                      "up to 0.50 m right of the body")
 
 
+def test_mirrored_pairs() -> None:
+    items = [("3.34 m²", "left: 1.3 to 3.8 m ahead of the rear bumper, 1.7 to 4.8 m left of "
+                         "the body"),
+             ("3.34 m²", "right: 1.3 to 3.8 m ahead of the rear bumper, 1.7 to 4.8 m right "
+                         "of the body"),
+             ("0.20 m²", "behind-left: 0.1 to 0.5 m behind the rear bumper, up to 0.3 m left "
+                         "of the body"),
+             ("0.21 m²", "behind-right: 0.1 to 0.5 m behind the rear bumper, up to 0.3 m "
+                         "right of the body")]
+    assert mirrored_pairs(items) == [
+        ("3.34 m² each", "left and right: 1.3 to 3.8 m ahead of the rear bumper, 1.7 to "
+                         "4.8 m to the side of the body"),
+        items[2], items[3]]  # different areas: not merged
+
+
 def _without_rear_radars(tmp_path: Path) -> Path:
     """A copy of System A's vehicle file without its two rear corner radars."""
     from sensorgap.config.presets import templates_dir
@@ -317,10 +333,14 @@ def test_summary_names_the_rear_blind_wedges_without_rear_radars(tmp_path: Path)
         _, ext = blind_extents(folder / "coverage" / "car_clear" / "coverage.npz", system)
         paras[name + "_ext"] = ext  # type: ignore[assignment]
     text, ext = paras["norear"], paras["norear_ext"]
-    for side in ("behind-left", "behind-right"):
-        area, d0, d1 = ext[side]  # type: ignore[index]
+    left, right = ext["behind-left"], ext["behind-right"]  # type: ignore[index]
+    for area, d0, d1 in (left, right):
         assert area >= 10.0 and d0 < 1.0 and d1 > 20.0
-        assert f"{round(area):,} m² {side} ({d0:.2f} to {d1:.1f} m from the body)" in text
+    # symmetric: one phrase for both wedges
+    assert left == right
+    area, d0, d1 = left
+    assert (f"{round(area):,} m² each behind-left and behind-right ({d0:.2f} to {d1:.1f} m "
+            "from the body)") in text
     assert all(ext_a[0] < 1.0 for ext_a in paras["a_ext"].values())  # type: ignore[union-attr]
     assert "behind-left (" not in paras["a"]
     # the near field by direction, from nearfield.json's exact holes
@@ -328,8 +348,9 @@ def test_summary_names_the_rear_blind_wedges_without_rear_radars(tmp_path: Path)
     big = [h for h in near["blind_spot_m2"]["holes"] if h["area_m2"] >= 0.01]
     assert len(big) == 4
     for h in big:
-        assert f"{h['area_m2']:.2f} m² " in text
-    assert "m² left: " in text and "m² right: " in text and "m² behind-left: " in text
+        assert f"{h['area_m2']:.2f} m² each " in text
+    assert " m² each left and right: " in text
+    assert " m² each behind-left and behind-right: " in text
 
 
 def test_summary_names_the_blind_spots(job: Path) -> None:

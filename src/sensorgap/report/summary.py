@@ -460,6 +460,37 @@ def spot_words(bounds: list[float], centroid: list[float], system: System) -> st
     return f"{where}: {along}, {across}"
 
 
+def _swap_sides(text: str) -> str:
+    """``text`` with left and right exchanged."""
+    return re.sub(r"left|right", lambda m: "right" if m.group(0) == "left" else "left", text)
+
+
+def mirrored_pairs(items: list[tuple[str, str]]) -> list[tuple[str, str]]:
+    """(amount, "<direction>: <where>") items with mirror images merged: two items of the
+    same amount whose texts differ only by left and right become one, "<amount> each",
+    "<direction> and <its mirror>: <where, 'to the side of'>" (symmetric vehicles list
+    every side blind spot twice)."""
+    out: list[tuple[str, str]] = []
+    used: set[int] = set()
+    for i, (amount, words) in enumerate(items):
+        if i in used:
+            continue
+        j = next((k for k in range(i + 1, len(items)) if k not in used
+                  and items[k][0] == amount and items[k][1] == _swap_sides(words)
+                  and items[k][1] != words), None)
+        if j is None:
+            out.append((amount, words))
+            continue
+        used.add(j)
+        head, _, rest = words.partition(": ")
+        rest = re.sub(r" (left|right) of the body", " to the side of the body", rest)
+        rest = re.sub(r"\((left|right) half\)", "(each half)", rest)
+        first, second = sorted((head, _swap_sides(head)), key=lambda t: "right" in t)
+        out.append((f"{amount} each", f"{first} and {second}"
+                    + (f": {rest}" if rest else "")))
+    return out
+
+
 def _nearfield_words(nf: Path, system: System) -> str:
     """The near-field blind spots of ``nearfield.json`` in words, by direction."""
     try:
@@ -475,11 +506,11 @@ def _nearfield_words(nf: Path, system: System) -> str:
         raise InputError(nf, "blind_spot_m2", f"unreadable: {exc}") from None
     text = (f"near field: {exact:.2f} m² within {radius:g} m of the body seen by no sensor "
             "at any height")
-    big = [h for h in holes if h[0] >= MIN_SPOT_WORDS_M2]
+    big = [(f"{a:.2f} m²", spot_words(b, c, system)) for a, b, c in holes
+           if a >= MIN_SPOT_WORDS_M2]
     small = [h for h in holes if h[0] < MIN_SPOT_WORDS_M2]
     if big:
-        text += " (" + "; ".join(f"{a:.2f} m² {spot_words(b, c, system)}"
-                                 for a, b, c in big)
+        text += " (" + "; ".join(f"{a} {w}" for a, w in mirrored_pairs(big))
         if small:
             text += (f"; {_count(len(small), 'sliver')} below {MIN_SPOT_WORDS_M2:g} m² "
                      f"at the body's edge")
@@ -511,8 +542,10 @@ def _coverage_para(folder: Path, system: System) -> Para | None:
                 f"coverage/{m.name}) is detected with Pd < 0.5 over "
                 f"{sum(areas.values()):,.0f} m² outside the body")
         if where:
-            text += ": " + ", ".join(f"{a:,} m² {n} ({_m(d0)} to {_m(d1)} m from the body)"
-                                     for a, n, d0, d1 in where)
+            pairs = mirrored_pairs([(f"{a:,} m²", f"{n}: {_m(d0)} to {_m(d1)} m from the "
+                                     "body") for a, n, d0, d1 in where])
+            text += ": " + ", ".join(
+                f"{a} {w.partition(': ')[0]} ({w.partition(': ')[2]})" for a, w in pairs)
         elif sum(areas.values()) >= 0.5:
             text += " (less than 1 m² in each direction)"
         parts.append(text)
