@@ -174,18 +174,20 @@ def _lookup(side: SideMaps, other: SideMaps, kind: str, name: str,
             return {}
 
     own, theirs = table(side), table(other)
+    note = ""
+    found = None
     if name in own:
+        found = own[name]
         if name in theirs and theirs[name] != own[name]:
             note = (f"{kind} '{name}' is defined differently by the two runs: each vehicle "
                     "is evaluated in its own run's definition")
-            if note not in notes:
-                notes.append(note)
-        return own[name]
-    if name in theirs:
-        notes.append(f"{kind} '{name}': not in {side.name}'s recorded inputs; {other.name}'s "
-                     f"definition is used for both")
-        return theirs[name]
-    return None
+    elif name in theirs:
+        found = theirs[name]
+        note = (f"{kind} '{name}': not in the recorded inputs of {side.run.folder.name}; "
+                f"those of {other.run.folder.name} are used for both")
+    if note and note not in notes:
+        notes.append(note)
+    return found
 
 
 def _farfield_one(system: System, env: EnvironmentConfig, target: TargetConfig,
@@ -260,8 +262,8 @@ def complete_runs(run_a: Path, run_b: Path, out: Path, workers: int = 2) -> Comp
     systems = {s.tag: _system(s) for s in sides}
     for s in sides:
         if systems[s.tag] is None:
-            notes.append(f"{s.run.folder}: the vehicle is not recorded (no run.json or "
-                         "ranking.json): nothing can be computed for it")
+            notes.append(f"{s.run.folder.name}: the vehicle is not recorded (no run.json "
+                         "or ranking.json): nothing can be computed for it")
 
     existing = {s.tag: _existing_maps(s.run) for s in sides}
 
@@ -299,9 +301,10 @@ def complete_runs(run_a: Path, run_b: Path, out: Path, workers: int = 2) -> Comp
             env = _lookup(s, other, "environment", env_name, notes)
             target = _lookup(s, other, "target", target_name, notes)
             if sysm is None or env is None or target is None:
-                if sysm is not None:
-                    notes.append(f"coverage {key}: environment or target class defined by "
-                                 "neither run: not compared")
+                note = (f"coverage {key}: environment or target class defined by neither "
+                        "run: not compared")
+                if sysm is not None and note not in notes:
+                    notes.append(note)
                 continue
             todo.append((s, key, Scene(sysm, target, Conditions.from_config(env)), model))
 
