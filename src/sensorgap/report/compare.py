@@ -85,6 +85,9 @@ def _compared(cm: Completed) -> Section:
             text = (f"run folder {side.run.folder.name}; computed for this comparison "
                     "from the run's recorded inputs (vehicle, environments, target "
                     f"classes): {', '.join(side.computed)} (in {side.made.name}/).")
+        elif not side.coverage and side.nearfield is None:
+            text = (f"run folder {side.run.folder.name}; it records no vehicle: nothing "
+                    "could be computed.")
         else:
             text = (f"run folder {side.run.folder.name}; near field, coverage maps and far "
                     "field all from the run (nothing computed).")
