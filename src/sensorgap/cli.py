@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import signal
 import sys
@@ -368,14 +369,22 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
-    """Cross-evaluate the critical scenarios of two search runs (A vs B)."""
-    from sensorgap.search.compare import write_comparison
+    """Two vehicles side by side (A vs B), complete: what either run lacks (near field,
+    coverage maps, far field) is computed from its recorded inputs; the coverage difference
+    maps; the cross-evaluation of both runs' critical scenarios; report.html/.md."""
+    from sensorgap.report.compare import write_compare_report
+    from sensorgap.search.runfolder import read_run
 
+    for run in (args.run_a, args.run_b):
+        read_run(Path(run))  # both must be search runs: refused before anything is written
     with removed_on_error(args.out):
-        rows = write_comparison(Path(args.run_a), Path(args.run_b), Path(args.out))
+        html_path, _ = write_compare_report(Path(args.run_a), Path(args.run_b),
+                                            Path(args.out))
         write_manifest(args.out)
+    rows = json.loads((Path(args.out) / "comparison.json").read_text(encoding="utf-8"))["rows"]
     who = sorted({str(r["critical_for"]) for r in rows})
-    print(f"{args.out}: {len(rows)} scenarios compared; critical for: {', '.join(who)}")
+    print(f"{args.out}: {len(rows)} scenarios compared; critical for: {', '.join(who)}; "
+          f"maps, difference maps and report: {html_path}")
     return 0
 
 
@@ -742,7 +751,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("folder", help="run or catalog folder")
     p.set_defaults(func=cmd_verify)
 
-    p = sub.add_parser("compare", help="cross-evaluate two search runs (vehicle A vs B)")
+    p = sub.add_parser("compare", help="two vehicles side by side: maps, difference maps, "
+                       "cross-evaluated critical scenarios, report (A vs B)")
     p.add_argument("run_a", help="search run folder of the first vehicle")
     p.add_argument("run_b", help="search run folder of the second vehicle")
     p.add_argument("--out", required=True, help="output folder")

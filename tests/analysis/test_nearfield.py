@@ -231,3 +231,18 @@ def test_write_nearfield_is_deterministic(tmp_path: Path, system_b: System) -> N
         data["blind_spot_m2"]["exact"], abs=1e-5)
     w = data["window"]
     assert (w["xmin"], w["xmax"]) == pytest.approx((-1.05 - 5.0, 3.93 + 5.0))
+
+
+def test_nearfield_legend_covers_nothing(system_b: System) -> None:
+    # issue #14 item 6: the legend sits below the plot, not over blind spots or sensors
+    win = nf.near_field_window(system_b)
+    fps = nf.any_height_footprints(system_b, dphi_deg=1.0)
+    spots = nf.blind_spots(system_b, footprints=fps)
+    unc = nf.uncovered_at_height(system_b, dphi_deg=1.0)
+    fig = nf.nearfield_figure(system_b, win, fps, spots, unc, nf.MIN_OBJECT_HEIGHT_M)
+    fig.canvas.draw()
+    ax = fig.axes[0]
+    assert not ax.get_legend() and len(fig.legends) == 1
+    texts = [t.get_text() for t in fig.legends[0].get_texts()]
+    assert "blind spot (no sensor, any height)" in texts
+    assert not fig.legends[0].get_window_extent().overlaps(ax.get_window_extent())

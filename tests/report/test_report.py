@@ -159,6 +159,22 @@ def test_compare_a_vs_b(compared: Path) -> None:
     doc = _doc(compared / "report.html")
     near = doc.get_element_by_id("nearfield").text_content()
     assert "System A" in near and "System B" in near
+    # issue #14 item 4: complete, although B's run holds a search and a near field only:
+    # its coverage maps and far field are computed, a difference map for every map
+    assert "Not part of this run" not in doc.text_content()
+    what = " ".join(doc.get_element_by_id("compared").text_content().split())
+    assert "System B (B): run folder system_b; computed for this comparison" in what
+    maps = sorted(p.name for p in (compared.parent / "system_b").glob("*"))
+    assert "coverage" not in maps and "farfield" not in maps  # B's run folder untouched
+    cov = doc.get_element_by_id("coverage")
+    diff_dirs = sorted(p.name for p in (compared / "difference").iterdir())
+    assert len(diff_dirs) >= 7 and "car_clear" in diff_dirs
+    for d in diff_dirs:
+        assert f"coverage {d}" in what  # computed for B
+        assert cov.get_element_by_id(f"coverage-{d}") is not None
+    assert len(cov.findall(".//img")) == len(diff_dirs)
+    assert (compared / "b_system_b" / "farfield" / "fog_50" / "farfield.csv").is_file()
+    assert doc.get_element_by_id("table-iv").findall(".//img")
     scen = doc.get_element_by_id("scenarios")
     assert scen.findall(".//table") and (compared / "comparison.csv").is_file()
     assert (compared / "report.md").is_file() and (compared / "manifest.json").is_file()

@@ -22,10 +22,14 @@ from sensorgap.report.summary import (
     KMH,
     MAX_WEAKNESSES,
     blind_areas,
+    blind_extents,
     direction_words,
     explain_spec,
     fmt_p,
+    mirrored_pairs,
     pd_without,
+    spot_words,
+    summary_section,
     sun_azimuth_deg,
     weather_words,
     where_words,
@@ -235,6 +239,118 @@ def test_blind_areas_by_direction(tmp_path: Path) -> None:
              resolution=np.array([res]), height=np.array([0.75]))
     r, areas = blind_areas(tmp_path / "small.npz", system)
     assert r == 30.0 and areas["ahead"] == 4.0 and areas["behind-left"] == 1.0
+
+
+def test_blind_extents_give_the_distance_from_the_body(tmp_path: Path) -> None:
+    system = load_system("system_a")
+    body = system.config.vehicle
+    res = 0.5
+    x = np.arange(-60.0, 80.0, res) + res / 2
+    y = np.arange(-50.0, 50.0, res) + res / 2
+    pd = np.ones((len(y), len(x)), dtype=np.float32)
+    # a blind strip straight behind, from 2 m to 10 m behind the rear bumper, |y| < 0.5
+    xx, yy = np.meshgrid(x, y)
+    strip = (xx <= body.x_rear_m - 2.0) & (xx >= body.x_rear_m - 10.0) & (np.abs(yy) < 0.5)
+    pd[strip] = 0.0
+    np.savez(tmp_path / "c.npz", pd=pd, x=x, y=y, resolution=np.array([res]))
+    _, ext = blind_extents(tmp_path / "c.npz", system)
+    area, d0, d1 = ext["behind"]
+    assert area == np.count_nonzero(strip) * res * res
+    # cell centres: the nearest and farthest of the strip, straight behind the bumper
+    assert d0 == pytest.approx(body.x_rear_m - xx[strip].max())
+    assert d1 == pytest.approx(body.x_rear_m - xx[strip].min())
+    assert 2.0 <= d0 < 2.5 and 9.5 < d1 <= 10.0
+    assert ext["ahead"] == (0.0, 0.0, 0.0)
+
+
+def test_spot_words() -> None:
+    system = load_system("system_a")
+    body = system.config.vehicle
+    hw = 0.5 * body.width_m
+    xr = body.x_rear_m
+    # beside the left door: 1.0-3.0 m ahead of the rear bumper, 1.5-4.0 m left of the body
+    words = spot_words([xr + 1.0, hw + 1.5, xr + 3.0, hw + 4.0], [xr + 2.0, hw + 2.7],
+                       system)
+    assert words == ("left: 1.0 to 3.0 m ahead of the rear bumper, 1.5 to 4.0 m left of the "
+                     "body")
+    # a rear corner spot reaching under the bumper line and into the body's width
+    words = spot_words([xr - 0.2, -(hw + 0.5), xr + 1.0, -(hw - 0.1)],
+                       [xr - 0.1, -(hw + 0.2)], system)
+    assert words == ("behind-right: from 0.20 m behind to 1.0 m ahead of the rear bumper, "
+                     "up to 0.50 m right of the body")
+
+
+def test_mirrored_pairs() -> None:
+    items = [("3.34 m²", "left: 1.3 to 3.8 m ahead of the rear bumper, 1.7 to 4.8 m left of "
+                         "the body"),
+             ("3.34 m²", "right: 1.3 to 3.8 m ahead of the rear bumper, 1.7 to 4.8 m right "
+                         "of the body"),
+             ("0.20 m²", "behind-left: 0.1 to 0.5 m behind the rear bumper, up to 0.3 m left "
+                         "of the body"),
+             ("0.21 m²", "behind-right: 0.1 to 0.5 m behind the rear bumper, up to 0.3 m "
+                         "right of the body")]
+    assert mirrored_pairs(items) == [
+        ("3.34 m² each", "left and right: 1.3 to 3.8 m ahead of the rear bumper, 1.7 to "
+                         "4.8 m to the side of the body"),
+        items[2], items[3]]  # different areas: not merged
+
+
+def _without_rear_radars(tmp_path: Path) -> Path:
+    """A copy of System A's vehicle file without its two rear corner radars."""
+    from sensorgap.config.presets import templates_dir
+
+    text = (templates_dir() / "vehicles" / "system_a.toml").read_text(encoding="utf-8")
+    blocks = text.split("[[sensors]]")
+    kept = [b for b in blocks[1:] if 'id = "radar_rear_' not in b]
+    assert len(kept) == len(blocks) - 3
+    path = tmp_path / "a_norear.toml"
+    path.write_text("[[sensors]]".join([blocks[0], *kept]), encoding="utf-8")
+    return path
+
+
+def test_summary_names_the_rear_blind_wedges_without_rear_radars(tmp_path: Path) -> None:
+    # issue #14 done-when: a copy of System A without its rear radars shows its new rear
+    # blind wedges, by direction and distance, on the summary page; System A does not
+    from sensorgap.analysis.nearfield import write_nearfield
+    from sensorgap.config import load_environment, load_target
+    from sensorgap.coverage import GridSpec, Scene
+    from sensorgap.coverage.outputs import write_coverage
+
+    paras = {}
+    for name, vehicle in (("norear", _without_rear_radars(tmp_path)),
+                          ("a", "system_a")):
+        system = load_system(vehicle)
+        folder = tmp_path / name
+        scene = Scene(system, load_target("car"),
+                      Conditions.from_config(load_environment("clear")))
+        write_coverage(scene, GridSpec(-52.0, 56.0, -50.0, 50.0, 0.5, 0.75),
+                       folder / "coverage" / "car_clear", heading_deg=0.0)
+        if name == "norear":
+            write_nearfield(system, folder / "nearfield", resolution=0.2)
+        sec = summary_section(folder, system, {}, None, None, None, 0)
+        paras[name] = next(b.text for b in sec.blocks
+                           if getattr(b, "text", "").startswith("Blind spots"))
+        _, ext = blind_extents(folder / "coverage" / "car_clear" / "coverage.npz", system)
+        paras[name + "_ext"] = ext  # type: ignore[assignment]
+    text, ext = paras["norear"], paras["norear_ext"]
+    left, right = ext["behind-left"], ext["behind-right"]  # type: ignore[index]
+    for area, d0, d1 in (left, right):
+        assert area >= 10.0 and d0 < 1.0 and d1 > 20.0
+    # symmetric: one phrase for both wedges
+    assert left == right
+    area, d0, d1 = left
+    assert (f"{round(area):,} m² each behind-left and behind-right ({d0:.2f} to {d1:.1f} m "
+            "from the body)") in text
+    assert all(ext_a[0] < 1.0 for ext_a in paras["a_ext"].values())  # type: ignore[union-attr]
+    assert "behind-left (" not in paras["a"]
+    # the near field by direction, from nearfield.json's exact holes
+    near = json.loads((tmp_path / "norear" / "nearfield" / "nearfield.json").read_text())
+    big = [h for h in near["blind_spot_m2"]["holes"] if h["area_m2"] >= 0.01]
+    assert len(big) == 4
+    for h in big:
+        assert f"{h['area_m2']:.2f} m² each " in text
+    assert " m² each left and right: " in text
+    assert " m² each behind-left and behind-right: " in text
 
 
 def test_summary_names_the_blind_spots(job: Path) -> None:

@@ -683,7 +683,8 @@ def _path_patch(geom: BaseGeometry, **kw: Any) -> Any:
 def nearfield_figure(system: System, window: Polygon, footprints: dict[str, Area],
                      spots: list[Polygon], uncovered: BaseGeometry, z: float) -> Any:
     """Fig. 5 style: vehicle, sensor footprints (outlines), blind spots blue, area not
-    covered at height ``z`` green; axes in metres, equal aspect."""
+    covered at height ``z`` green; axes in metres, equal aspect; the legend below the
+    plot."""
     import matplotlib.pyplot as plt
     from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
@@ -692,7 +693,7 @@ def nearfield_figure(system: System, window: Polygon, footprints: dict[str, Area
 
     xmin, ymin, xmax, ymax = window.bounds
     aspect = (ymax - ymin) / (xmax - xmin)
-    fig, ax = plt.subplots(figsize=(9.0, max(3.5, 9.0 * aspect + 0.8)), layout="constrained")
+    fig, ax = plt.subplots(figsize=(9.0, max(3.5, 9.0 * aspect + 1.3)), layout="constrained")
     if (p := _path_patch(uncovered, facecolor="tab:green", edgecolor="none", alpha=0.55,
                          zorder=1)) is not None:
         ax.add_patch(p)
@@ -728,7 +729,9 @@ def nearfield_figure(system: System, window: Polygon, footprints: dict[str, Area
     ]
     handles += [Line2D([], [], color=_TYPE_COLOURS.get(t, "tab:gray"), linewidth=1.0,
                        label=f"{t} footprint (any height)") for t in types_used]
-    ax.legend(handles=handles, loc="upper right", fontsize=7, framealpha=0.9)
+    # below the plot, never over the blind spots or the sensors
+    fig.legend(handles=handles, loc="outside lower center", ncol=3, fontsize=7,
+               frameon=False)
     return fig
 
 

@@ -90,7 +90,8 @@ def write_coverage(
              f"{model}, {grid.resolution:g} m grid")
     if occluders:
         title += f", {len(occluders)} occluder{'s' if len(occluders) > 1 else ''}"
-    save_figure(coverage_figure(cov, scene.system, title, occluders), out_dir / "coverage.png")
+    save_figure(coverage_figure(cov, scene.system, title, occluders, scene.conditions),
+                out_dir / "coverage.png")
     summary = {
         **scene_provenance(scene),
         "grid": {"xmin": grid.xmin, "xmax": grid.xmax, "ymin": grid.ymin, "ymax": grid.ymax,

@@ -1,24 +1,31 @@
-"""``sensorgap report --compare RUN_A RUN_B``: two vehicles side by side (the paper's A-vs-B
-view): blind spots, coverage per Pd level and environment, Table IV, and which critical
-scenarios are critical for one vehicle and not the other (cross-evaluated, with the reason
-traced to the two sensor setups).
+"""``sensorgap compare RUN_A RUN_B`` and ``sensorgap report --compare RUN_A RUN_B``: two
+vehicles side by side (the paper's A-vs-B view), always complete: what either run folder
+lacks (near field, coverage maps, far field) is computed from that run's recorded inputs
+first (``search.compare_maps``). Sections: what is compared (and what was computed), the
+near-field blind spots, the coverage maps of both vehicles on one grid with their
+difference map (where one detects and the other does not), Table IV with Pd against
+distance, and which critical scenarios are critical for one vehicle and not the other
+(cross-evaluated, with the reason traced to the two sensor setups).
 
 Layout: the cross-evaluation table holds the numbers only (11 short columns, readable in a
-1280 px window); each scenario's explanation follows as a list. Figures copied beside the
-report are named ``a_<vehicle>_...`` / ``b_<vehicle>_...`` with the vehicle name reduced to
-letters, digits, ``.``, ``_`` and ``-`` (Markdown links without spaces; two runs of
-vehicles with the same name do not overwrite each other's figures)."""
+1280 px window); each scenario's explanation follows as a list. Figures from the run folders
+are copied beside the report as ``a_<vehicle>_...`` / ``b_<vehicle>_...`` with the vehicle
+name reduced to letters, digits, ``.``, ``_`` and ``-`` (Markdown links without spaces; two
+runs of vehicles with the same name do not overwrite each other's figures); figures made
+for the comparison are linked where they were written (``difference/<map>/``,
+``a_<vehicle>/``, ...)."""
 
 from __future__ import annotations
 
-import re
 from collections import Counter
 from pathlib import Path
+
+import numpy as np
 
 from sensorgap.atomic import atomic_write_bytes, atomic_write_text
 from sensorgap.errors import InputError
 from sensorgap.provenance import utc_now
-from sensorgap.report.build import NOT_RUN, fmt, read_csv, read_json
+from sensorgap.report.build import fmt, read_csv, read_json
 from sensorgap.report.document import (
     Block,
     Bullets,
@@ -29,88 +36,202 @@ from sensorgap.report.document import (
     render_html,
     render_markdown,
 )
+from sensorgap.report.figures import farfield_pair_figure
 from sensorgap.search.compare import MARGIN_P, write_comparison
-from sensorgap.search.runfolder import open_run
+from sensorgap.search.compare_maps import DETECTS_PD, Completed, SideMaps, complete_runs, slug
+
+__all__ = ["slug", "write_compare_report"]
 
 LEVELS = ("pd=1.0", "pd>=0.8", "pd>=0.5", "pd>0", "pd=0")
 
 
-def _name(folder: Path) -> str:
-    """The vehicle's name as the run recorded it (the folder's name when it has none)."""
+def _m2(v: object) -> str:
+    """An area (m2) of a map: whole square metres with thousands separators (the maps'
+    cells are 0.25 m2 or more), below 10 m2 to two decimals."""
+    if isinstance(v, bool) or not isinstance(v, int | float):
+        return ""
+    return f"{v:,.0f}" if abs(v) >= 10 else f"{v:.2f}"
+
+
+def _unmade(side: SideMaps, what: str) -> Para:
+    """Why a piece of one vehicle is missing (it could not be computed)."""
+    return Para(f"{what} of {side.name}: cannot be computed (the run folder "
+                f"{side.run.folder.name} records no vehicle).")
+
+
+def _where(side: SideMaps, folder: Path | None) -> str:
+    """'from the run ...' or 'computed for this comparison' for a piece's folder."""
+    if folder is None:
+        return ""
+    return ("computed for this comparison" if side.made in folder.parents
+            else f"from the run {side.run.folder.name}")
+
+
+def _image(path: Path, caption: str, out: Path, tag: str, side: SideMaps | None,
+           name: str) -> Image:
+    """An image; the file report.md links lies under ``out`` (where it was made, else a
+    copy named ``<tag>_<vehicle>_<name>``)."""
     try:
-        return open_run(folder, ranking=False).system().name
-    except InputError:
-        return folder.name
+        return Image(path, caption, path.resolve().relative_to(out.resolve()).as_posix())
+    except ValueError:
+        who = "" if side is None else f"{slug(side.name)}_"
+        return Image(path, caption, f"{tag}_{who}{name}")
 
 
-def slug(name: str) -> str:
-    """A vehicle name as a file-name part (no spaces)."""
-    return re.sub(r"[^A-Za-z0-9._-]+", "_", name).strip("_").lower() or "vehicle"
+def _compared(cm: Completed) -> Section:
+    items: list[str | tuple[str, str]] = []
+    for side in (cm.a, cm.b):
+        if side.computed:
+            text = (f"run folder {side.run.folder.name}; computed for this comparison "
+                    "from the run's recorded inputs (vehicle, environments, target "
+                    f"classes): {', '.join(side.computed)} (in {side.made.name}/).")
+        elif not side.coverage and side.nearfield is None:
+            text = (f"run folder {side.run.folder.name}; it records no vehicle: nothing "
+                    "could be computed.")
+        else:
+            text = (f"run folder {side.run.folder.name}; near field, coverage maps and far "
+                    "field all from the run (nothing computed).")
+        items.append((f"{side.name} ({side.tag.upper()}):", text))
+    items += [("Note:", n + ".") for n in cm.notes]
+    return Section("compared", "What is compared", [
+        Para("Both vehicles in the same environments on the same grids: what a run folder "
+             "lacks (near field, coverage maps, far field) is computed from that run's "
+             "recorded inputs, never from a shipped preset of the same name."),
+        Bullets(items)])
 
 
-def _nearfield(a: Path, b: Path, na: str, nb: str) -> Section:
-    rows, imgs = [], []
-    vals = {}
-    for tag, name, folder in (("a", na, a), ("b", nb, b)):
-        p = folder / "nearfield" / "nearfield.json"
-        if p.is_file():
-            d = read_json(p)
-            vals[name] = (d["blind_spot_m2"]["exact"], d["uncovered_0p1m_m2"]["exact"])
-            png = folder / "nearfield" / "nearfield.png"
-            if png.is_file():
-                imgs.append(Image(png, f"{name}: near-field coverage",
-                                  f"{tag}_{slug(name)}_nearfield.png"))
-    if len(vals) < 2:
-        return Section("nearfield", "Near-field blind spots", [Para(NOT_RUN)])
-    rows.append(["blind spot (no sensor at any height) [m2]", fmt(vals[na][0]),
-                 fmt(vals[nb][0]), fmt(vals[nb][0] - vals[na][0])])
-    rows.append(["uncovered at 0.1 m [m2]", fmt(vals[na][1]), fmt(vals[nb][1]),
-                 fmt(vals[nb][1] - vals[na][1])])
-    blocks: list[Block] = [Table(["quantity", na, nb, f"{nb} - {na}"], rows), *imgs]
-    return Section("nearfield", "Near-field blind spots", blocks)
+def _nearfield(cm: Completed, out: Path) -> Section:
+    a, b = cm.a, cm.b
+    title = "Near-field blind spots"
+    if a.nearfield is None or b.nearfield is None:
+        return Section("nearfield", title, [_unmade(s, "The near field") for s in (a, b)
+                                            if s.nearfield is None])
+    vals: dict[str, tuple[float, float]] = {}
+    imgs: list[Block] = []
+    for side in (a, b):
+        folder = side.nearfield
+        assert folder is not None
+        d = read_json(folder / "nearfield.json")
+        try:
+            vals[side.tag] = (float(d["blind_spot_m2"]["exact"]),
+                              float(d["uncovered_0p1m_m2"]["exact"]))
+        except (KeyError, TypeError, ValueError) as exc:
+            raise InputError(folder / "nearfield.json", "blind_spot_m2.exact",
+                             f"unreadable: {exc}") from None
+        png = folder / "nearfield.png"
+        if png.is_file():
+            imgs.append(_image(png, f"{side.name}: near-field coverage "
+                               f"({_where(side, folder)})", out, side.tag, side,
+                               "nearfield.png"))
+    na, nb = a.name, b.name
+    rows = [["blind spot (no sensor at any height) [m2]", fmt(vals["a"][0]),
+             fmt(vals["b"][0]), fmt(vals["b"][0] - vals["a"][0])],
+            ["uncovered at 0.1 m [m2]", fmt(vals["a"][1]), fmt(vals["b"][1]),
+             fmt(vals["b"][1] - vals["a"][1])]]
+    return Section("nearfield", title, [Table(["quantity", na, nb, f"{nb} - {na}"], rows),
+                                        *imgs])
 
 
-def _coverage(a: Path, b: Path, na: str, nb: str) -> Section:
-    def areas(folder: Path) -> dict[str, dict[str, float]]:
-        out = {}
-        for d in sorted((folder / "coverage").glob("*/summary.json")):
-            out[d.parent.name] = read_json(d).get("area_m2_by_level", {})
-        return out
-
-    aa, bb = areas(a), areas(b)
-    common = [k for k in aa if k in bb]
-    if not common:
-        return Section("coverage", "Coverage per Pd level", [Para(NOT_RUN)])
+def _coverage(cm: Completed, out: Path) -> Section:
+    a, b = cm.a, cm.b
+    title = "Coverage maps side by side and their difference"
+    if not cm.keys:
+        blocks: list[Block] = [_unmade(s, "The coverage maps") for s in (a, b)
+                               if not s.coverage]
+        return Section("coverage", title, blocks or [Para(
+            "No coverage map in common: " + "; ".join(cm.notes) + ".")])
+    na, nb = a.name, b.name
     rows = []
-    for k in common:
+    for k in cm.keys:
+        sa = read_json(a.coverage[k] / "summary.json").get("area_m2_by_level", {})
+        sb = read_json(b.coverage[k] / "summary.json").get("area_m2_by_level", {})
         for lv in LEVELS:
-            va, vb = aa[k].get(lv), bb[k].get(lv)
-            rows.append([k, lv, fmt(va), fmt(vb),
-                         fmt(None if va is None or vb is None else vb - va)])
-    blocks: list[Block] = [Table(["map", "level", f"{na} [m2]", f"{nb} [m2]",
-                                  f"{nb} - {na} [m2]"], rows, "Area per Pd level")]
-    for k in common[:2]:
-        for tag, name, folder in (("a", na, a), ("b", nb, b)):
-            png = folder / "coverage" / k / "coverage.png"
-            if png.is_file():
-                blocks.append(Image(png, f"{name}: {k}", f"{tag}_{slug(name)}_{k}.png"))
-    return Section("coverage", "Coverage per Pd level", blocks)
+            va, vb = sa.get(lv), sb.get(lv)
+            rows.append([k, lv, _m2(va), _m2(vb),
+                         _m2(None if va is None or vb is None else vb - va)])
+    diff_rows, subs = [], []
+    for k in cm.keys:
+        if k not in cm.differences:
+            continue
+        d = read_json(cm.differences[k] / "summary.json")
+        ar = d.get("area_m2", {})
+        diff_rows.append([k, *(_m2(ar.get(f)) for f in ("only_a_m2", "only_b_m2", "both_m2",
+                                                          "neither_m2"))])
+        png = cm.differences[k] / "difference.png"
+        if png.is_file():
+            subs.append(Section(f"coverage-{slug(k)}", k, [_image(
+                png, f"{k}: A {_where(a, a.coverage[k])}, B {_where(b, b.coverage[k])}; "
+                "difference Pd_A - Pd_B", out, "difference", None, f"{slug(k)}.png")]))
+    return Section("coverage", title, [
+        Para(f"Each figure: the fused Pd of a car body of {na} (A, top) and {nb} (B, middle) "
+             "on one grid in one environment, each with its sensors' fields of view and a "
+             "near-field close-up, and the difference map Pd_A - Pd_B (bottom; blue: A "
+             "detects where B does not, red: the reverse) with both vehicles' sensor "
+             "positions."),
+        Table(["map", f"only {na} detects [m2]", f"only {nb} detects [m2]", "both [m2]",
+               "neither [m2]"], diff_rows,
+              f"Where one vehicle detects (Pd >= {DETECTS_PD:g}) and the other does not "
+              "(difference maps, difference/<map>/)"),
+        Table(["map", "level", f"{na} [m2]", f"{nb} [m2]", f"{nb} - {na} [m2]"], rows,
+              "Area per Pd level")], subs)
 
 
-def _table_iv(a: Path, b: Path, na: str, nb: str) -> Section:
-    pa, pb = a / "farfield" / "table_iv.csv", b / "farfield" / "table_iv.csv"
-    if not (pa.is_file() and pb.is_file()):
-        return Section("table-iv", "Table IV (metres of the lane ahead)", [Para(NOT_RUN)])
-    va = {(r["environment"], r["level"]): r["metres"] for r in read_csv(pa)}
-    vb = {(r["environment"], r["level"]): r["metres"] for r in read_csv(pb)}
-    rows = [[e, lv, va[(e, lv)], vb.get((e, lv), "")] for (e, lv) in va]
-    return Section("table-iv", "Table IV (metres of the lane ahead)",
-                   [Table(["environment", "level", na, nb], rows)])
+def _farfield_levels(folder: Path) -> dict[str, float]:
+    d = read_json(folder / "summary.json").get("levels_m", {})
+    return {str(k): float(v) for k, v in d.items()
+            if isinstance(v, int | float) and not isinstance(v, bool)}
+
+
+def _profile(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """(distance s, fused Pd) of a far-field ``farfield.csv``."""
+    rows = read_csv(path)
+    try:
+        return (np.array([float(r["s"]) for r in rows]),
+                np.array([float(r["pd"]) for r in rows]))
+    except (KeyError, TypeError, ValueError) as exc:
+        raise InputError(path, "s, pd", f"unreadable far-field profile: {exc}") from None
+
+
+def _table_iv(cm: Completed, out: Path) -> Section:
+    a, b = cm.a, cm.b
+    title = "Table IV (metres of the lane ahead) and Pd against distance"
+    envs = [e for e in cm.environments if e in a.farfield and e in b.farfield]
+    if not envs:
+        blocks: list[Block] = [_unmade(s, "The far field") for s in (a, b)
+                               if not s.farfield]
+        return Section("table-iv", title, blocks or [Para(
+            "No far field in common: " + "; ".join(cm.notes) + ".")])
+    na, nb = a.name, b.name
+    rows, curves = [], []
+    for e in envs:
+        la, lb = _farfield_levels(a.farfield[e]), _farfield_levels(b.farfield[e])
+        for lv in LEVELS:
+            va, vb = la.get(lv), lb.get(lv)
+            rows.append([e, lv, "" if va is None else f"{va:.1f}",
+                         "" if vb is None else f"{vb:.1f}",
+                         "" if va is None or vb is None else f"{vb - va:+.1f}"])
+        curves.append((e, *_profile(a.farfield[e] / "farfield.csv"),
+                       *_profile(b.farfield[e] / "farfield.csv")))
+    png = farfield_pair_figure(curves, na, nb, out / "farfield_pd_vs_distance.png")
+    where = "; ".join(f"{s.name}: " + ", ".join(sorted({_where(s, s.farfield[e])
+                                                        for e in envs})) for s in (a, b))
+    return Section("table-iv", title, [
+        Para("Length (m) of the car path in the right lane of motorway_r500 ahead of the ego "
+             "(left lane, 50 m before the clothoid into the R = 500 m curve) at each "
+             f"detection level, as in the paper's Table IV ({where})."),
+        Table(["environment", "level", f"{na} [m]", f"{nb} [m]", f"{nb} - {na} [m]"], rows),
+        Image(png, "Fused Pd of a car body along the right lane against the distance from "
+              f"the front bumper: {na} (A, solid) and {nb} (B, dashed) per environment",
+              png.name)])
 
 
 def _scenarios(a: Path, b: Path, out: Path) -> Section:
-    if not ((a / "ranking.json").is_file() and (b / "ranking.json").is_file()):
-        return Section("scenarios", "Critical for one, not the other", [Para(NOT_RUN)])
+    missing = [f.name for f in (a, b) if not (f / "ranking.json").is_file()]
+    if missing:
+        return Section("scenarios", "Critical for one, not the other", [Para(
+            f"No search in {' and '.join(missing)} (ranking.json): the cross-evaluation of "
+            "critical scenarios needs a search of both vehicles (`sensorgap search --out "
+            "RUN` or `sensorgap run`).")])
     rows = write_comparison(a, b, out)
     counts = Counter((str(r["critical_for"]), str(r["dominant_effect"])) for r in rows)
     cols = [("scenario_id", "scenario"), ("family", "family"),
@@ -140,21 +261,24 @@ def _scenarios(a: Path, b: Path, out: Path) -> Section:
     ])
 
 
-def write_compare_report(run_a: Path, run_b: Path, out: Path) -> tuple[Path, Path]:
-    """``out/report.html`` and ``out/report.md`` comparing two run folders."""
+def write_compare_report(run_a: Path, run_b: Path, out: Path,
+                         workers: int = 2) -> tuple[Path, Path]:
+    """``out/report.html`` and ``out/report.md`` comparing two run folders; what either run
+    lacks is computed into ``out`` first (``search.compare_maps.complete_runs``)."""
     run_a, run_b = Path(run_a), Path(run_b)
     for f in (run_a, run_b):
         if not f.is_dir():
             raise InputError(f, "", "run folder does not exist")
-    na, nb = _name(run_a), _name(run_b)
+    out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    sections = [_nearfield(run_a, run_b, na, nb), _coverage(run_a, run_b, na, nb),
-                _table_iv(run_a, run_b, na, nb), _scenarios(run_a, run_b, out)]
+    cm = complete_runs(run_a, run_b, out, workers=workers)
+    sections = [_compared(cm), _nearfield(cm, out), _coverage(cm, out), _table_iv(cm, out),
+                _scenarios(run_a, run_b, out)]
     for s in sections:  # Markdown links the PNGs next to the report
-        for blk in s.blocks:
-            if isinstance(blk, Image):
+        for blk in [*s.blocks, *(x for sub in s.subsections for x in sub.blocks)]:
+            if isinstance(blk, Image) and blk.path.resolve() != (out / blk.rel).resolve():
                 atomic_write_bytes(out / blk.rel, blk.path.read_bytes())
-    title = f"sensorgap: {na} vs {nb}"
+    title = f"sensorgap: {cm.a.name} vs {cm.b.name}"
     meta = [f"Runs: {run_a.name} and {run_b.name}.", f"Generated (UTC): {utc_now()}"]
     html_path, md_path = out / "report.html", out / "report.md"
     atomic_write_text(html_path, render_html(title, meta, sections))

@@ -137,3 +137,39 @@ def scenario_figure(spec: ScenarioSpec, evaluator: Evaluator, tr: Trace, path: P
                bbox_to_anchor=(0.62, 0.01), ncol=2, fontsize=7, frameon=False)
     bx.set_title("detection and confirmation over time (exact)", fontsize=9)
     return save_figure(fig, path, dpi=100)
+
+
+def farfield_pair_figure(curves: list[tuple[str, np.ndarray, np.ndarray, np.ndarray,
+                                            np.ndarray]],
+                         name_a: str, name_b: str, path: Path) -> Path:
+    """The far field of two vehicles (the paper's Figs. 6-7 as curves): per environment,
+    the fused Pd of each along the target path against the distance from the ego's front
+    bumper (m); ``curves``: (environment, s_a, pd_a, s_b, pd_b), distances in m."""
+    n = max(1, len(curves))
+    ncols = 2 if n > 1 else 1
+    nrows = (n + ncols - 1) // ncols
+    fig, axes = plt.subplots(nrows, ncols, figsize=(11.0, 1.9 * nrows + 0.9),
+                             layout="constrained", squeeze=False, sharex=True, sharey=True)
+    for k, ax in enumerate(axes.ravel()):
+        if k >= len(curves):
+            ax.set_visible(False)
+            continue
+        env, sa, pa, sb, pb = curves[k]
+        ax.plot(sa, pa, color="tab:blue", linewidth=1.4, label=f"{name_a} (A)")
+        ax.plot(sb, pb, color="tab:red", linewidth=1.2, linestyle="--",
+                label=f"{name_b} (B)")
+        for level in (0.5, 0.8):
+            ax.axhline(level, color="grey", linewidth=0.5, linestyle=":")
+        ax.set_ylim(-0.02, 1.02)
+        ax.set_title(plain_text(env), fontsize=9)
+        ax.tick_params(labelsize=8)
+        if k % ncols == 0:
+            ax.set_ylabel("fused $p_d$", fontsize=8)
+        if k >= len(curves) - ncols:
+            ax.tick_params(labelbottom=True)
+            ax.set_xlabel("distance along the target lane from the ego's front bumper [m]",
+                          fontsize=8)
+    handles, labels = axes[0][0].get_legend_handles_labels()
+    fig.legend(handles, [plain_text(t) for t in labels], loc="outside lower center",
+               ncol=2, fontsize=8, frameon=False)
+    return save_figure(fig, path, dpi=90)

@@ -365,12 +365,14 @@ SECTORS = ("ahead", "ahead-left", "left", "behind-left", "behind", "behind-right
            "ahead-right")
 
 
-def blind_areas(path: Path, system: System, radius_m: float = BLIND_RADIUS_M
-                ) -> tuple[float, dict[str, float]]:
-    """Area (m2) per direction (``SECTORS``) where a coverage map (``coverage.npz``: exact
-    fused Pd at cell centres) has Pd < 0.5 within ``radius_m`` of the centre of the body,
-    outside the body; the radius is reduced to the largest circle inside the map. Returns
-    (radius, areas)."""
+def blind_extents(path: Path, system: System, radius_m: float = BLIND_RADIUS_M
+                  ) -> tuple[float, dict[str, tuple[float, float, float]]]:
+    """Per direction (``SECTORS``): (area m2, nearest and farthest distance from the body
+    in m) of the cells where a coverage map (``coverage.npz``: exact fused Pd at cell
+    centres) has Pd < 0.5 within ``radius_m`` of the centre of the body, outside the body;
+    the radius is reduced to the largest circle inside the map. Distances are those of the
+    cell centres from the body's footprint rectangle (0, 0 for a direction without such
+    cells). Returns (radius, extents)."""
     try:
         with np.load(path) as z:
             pd, x, y = z["pd"], z["x"], z["y"]
@@ -386,12 +388,134 @@ def blind_areas(path: Path, system: System, radius_m: float = BLIND_RADIUS_M
     r = min(radius_m, cx - (float(x.min()) - res / 2), float(x.max()) + res / 2 - cx,
             -(float(y.min()) - res / 2), float(y.max()) + res / 2)
     xx, yy = np.meshgrid(x, y)
-    inside = ((xx >= body.x_rear_m) & (xx <= body.x_front_m)
-              & (np.abs(yy) <= 0.5 * body.width_m))
+    hw = 0.5 * body.width_m
+    inside = ((xx >= body.x_rear_m) & (xx <= body.x_front_m) & (np.abs(yy) <= hw))
     blind = (np.hypot(xx - cx, yy) <= r) & (pd < 0.5) & ~inside
     k = (np.floor((np.degrees(np.arctan2(yy, xx - cx)) + 22.5) / 45.0).astype(int)) % 8
-    counts = np.bincount(k[blind], minlength=8)
-    return r, {name: float(c) * res * res for name, c in zip(SECTORS, counts, strict=True)}
+    dx = np.maximum(np.maximum(body.x_rear_m - xx, xx - body.x_front_m), 0.0)
+    dist = np.hypot(dx, np.maximum(np.abs(yy) - hw, 0.0))
+    out = {}
+    for i, name in enumerate(SECTORS):
+        sel = blind & (k == i)
+        n = int(np.count_nonzero(sel))
+        out[name] = ((float(n) * res * res, float(dist[sel].min()), float(dist[sel].max()))
+                     if n else (0.0, 0.0, 0.0))
+    return r, out
+
+
+def blind_areas(path: Path, system: System, radius_m: float = BLIND_RADIUS_M
+                ) -> tuple[float, dict[str, float]]:
+    """Area (m2) per direction (``SECTORS``) where a coverage map (``coverage.npz``: exact
+    fused Pd at cell centres) has Pd < 0.5 within ``radius_m`` of the centre of the body,
+    outside the body; the radius is reduced to the largest circle inside the map. Returns
+    (radius, areas)."""
+    r, ext = blind_extents(path, system, radius_m)
+    return r, {name: e[0] for name, e in ext.items()}
+
+
+#: Near-field blind spots smaller than this (m2) are counted, not described one by one.
+MIN_SPOT_WORDS_M2 = 0.01
+
+
+def _sector(x: float, y: float, cx: float) -> str:
+    """The direction (``SECTORS``) of a point (m) seen from the body's centre at x = cx."""
+    return SECTORS[int(math.floor((math.degrees(math.atan2(y, x - cx)) + 22.5) / 45.0)) % 8]
+
+
+def _m(v: float) -> str:
+    """A distance (m) as text: one decimal from 1 m, two below."""
+    return f"{v:.1f}" if abs(v) >= 1.0 else f"{v:.2f}"
+
+
+def spot_words(bounds: list[float], centroid: list[float], system: System) -> str:
+    """Where a near-field blind spot lies, from its exact bounding box (xmin, ymin, xmax,
+    ymax, m, vehicle frame) and centroid: its direction from the body's centre, along the
+    body from the nearer bumper, across from the body's side ("behind-left: from 0.2 m
+    behind to 1.0 m ahead of the rear bumper, up to 0.5 m left of the body")."""
+    body = system.config.vehicle
+    x0, y0, x1, y1 = (float(v) for v in bounds)
+    cx = 0.5 * (body.x_rear_m + body.x_front_m)
+    where = _sector(float(centroid[0]), float(centroid[1]), cx)
+    if float(centroid[0]) < cx:
+        ref, name, out_dir, in_dir = body.x_rear_m, "the rear bumper", "behind", "ahead of"
+        far, near = ref - x0, ref - x1  # distance outwards (behind) of each end
+    else:
+        ref, name, out_dir, in_dir = body.x_front_m, "the front bumper", "ahead of", "behind"
+        far, near = x1 - ref, x0 - ref
+    if near >= 0.0:
+        along = f"{_m(near)} to {_m(far)} m {out_dir} {name}"
+    elif far <= 0.0:
+        along = f"{_m(-far)} to {_m(-near)} m {in_dir} {name}"
+    else:
+        along = f"from {_m(far)} m {out_dir} to {_m(-near)} m {in_dir} {name}"
+    hw = 0.5 * body.width_m
+    side = "left" if float(centroid[1]) > 0.0 else "right"
+    lo, hi = (y0, y1) if side == "left" else (-y1, -y0)  # distances outwards of y = 0
+    if lo >= hw:
+        across = f"{_m(lo - hw)} to {_m(hi - hw)} m {side} of the body"
+    elif hi > hw:
+        across = f"up to {_m(hi - hw)} m {side} of the body"
+    else:
+        across = f"within the body's width ({side} half)"
+    return f"{where}: {along}, {across}"
+
+
+def _swap_sides(text: str) -> str:
+    """``text`` with left and right exchanged."""
+    return re.sub(r"left|right", lambda m: "right" if m.group(0) == "left" else "left", text)
+
+
+def mirrored_pairs(items: list[tuple[str, str]]) -> list[tuple[str, str]]:
+    """(amount, "<direction>: <where>") items with mirror images merged: two items of the
+    same amount whose texts differ only by left and right become one, "<amount> each",
+    "<direction> and <its mirror>: <where, 'to the side of'>" (symmetric vehicles list
+    every side blind spot twice)."""
+    out: list[tuple[str, str]] = []
+    used: set[int] = set()
+    for i, (amount, words) in enumerate(items):
+        if i in used:
+            continue
+        j = next((k for k in range(i + 1, len(items)) if k not in used
+                  and items[k][0] == amount and items[k][1] == _swap_sides(words)
+                  and items[k][1] != words), None)
+        if j is None:
+            out.append((amount, words))
+            continue
+        used.add(j)
+        head, _, rest = words.partition(": ")
+        rest = re.sub(r" (left|right) of the body", " to the side of the body", rest)
+        rest = re.sub(r"\((left|right) half\)", "(each half)", rest)
+        first, second = sorted((head, _swap_sides(head)), key=lambda t: "right" in t)
+        out.append((f"{amount} each", f"{first} and {second}"
+                    + (f": {rest}" if rest else "")))
+    return out
+
+
+def _nearfield_words(nf: Path, system: System) -> str:
+    """The near-field blind spots of ``nearfield.json`` in words, by direction."""
+    try:
+        d = json.loads(nf.read_text(encoding="utf-8"))
+        exact = float(d["blind_spot_m2"]["exact"])
+        radius = float(d.get("window", {}).get("radius_m", 5.0))
+        holes = [(float(h["area_m2"]), list(h["bounds_m"]), list(h["centroid_m"]))
+                 for h in d["blind_spot_m2"].get("holes", [])]
+        for _, b, c in holes:
+            if len(b) != 4 or len(c) != 2:
+                raise ValueError("bounds_m: 4 numbers, centroid_m: 2 numbers expected")
+    except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
+        raise InputError(nf, "blind_spot_m2", f"unreadable: {exc}") from None
+    text = (f"near field: {exact:.2f} m² within {radius:g} m of the body seen by no sensor "
+            "at any height")
+    big = [(f"{a:.2f} m²", spot_words(b, c, system)) for a, b, c in holes
+           if a >= MIN_SPOT_WORDS_M2]
+    small = [h for h in holes if h[0] < MIN_SPOT_WORDS_M2]
+    if big:
+        text += " (" + "; ".join(f"{a} {w}" for a, w in mirrored_pairs(big))
+        if small:
+            text += (f"; {_count(len(small), 'sliver')} below {MIN_SPOT_WORDS_M2:g} m² "
+                     f"at the body's edge")
+        text += ")"
+    return text
 
 
 def _coverage_para(folder: Path, system: System) -> Para | None:
@@ -403,7 +527,8 @@ def _coverage_para(folder: Path, system: System) -> Para | None:
     if maps:
         clear = [m for m in maps if m.name.endswith("_clear") or m.name == "clear"]
         m = (clear or maps)[0]
-        r, areas = blind_areas(m / "coverage.npz", system)
+        r, ext = blind_extents(m / "coverage.npz", system)
+        areas = {n: e[0] for n, e in ext.items()}
         env = m.name
         if (m / "summary.json").is_file():
             try:
@@ -411,26 +536,22 @@ def _coverage_para(folder: Path, system: System) -> Para | None:
                           .get("environment", env))
             except (OSError, ValueError, AttributeError):
                 raise InputError(m / "summary.json", "", "unreadable JSON") from None
-        where = sorted(((round(a), n) for n, a in areas.items() if round(a) >= 1),
-                       key=lambda t: -t[0])
+        where = sorted(((round(e[0]), n, e[1], e[2]) for n, e in ext.items()
+                        if round(e[0]) >= 1), key=lambda t: -t[0])
         text = (f"within {r:g} m of the vehicle a car (heading the same way; {env}, "
                 f"coverage/{m.name}) is detected with Pd < 0.5 over "
                 f"{sum(areas.values()):,.0f} m² outside the body")
         if where:
-            text += ": " + ", ".join(f"{a:,} m² {n}" for a, n in where)
+            pairs = mirrored_pairs([(f"{a:,} m²", f"{n}: {_m(d0)} to {_m(d1)} m from the "
+                                     "body") for a, n, d0, d1 in where])
+            text += ": " + ", ".join(
+                f"{a} {w.partition(': ')[0]} ({w.partition(': ')[2]})" for a, w in pairs)
         elif sum(areas.values()) >= 0.5:
             text += " (less than 1 m² in each direction)"
         parts.append(text)
     nf = folder / "nearfield" / "nearfield.json"
     if nf.is_file():
-        try:
-            d = json.loads(nf.read_text(encoding="utf-8"))
-            exact = float(d["blind_spot_m2"]["exact"])
-            radius = float(d.get("window", {}).get("radius_m", 5.0))
-        except (OSError, ValueError, KeyError, TypeError) as exc:
-            raise InputError(nf, "blind_spot_m2", f"unreadable: {exc}") from None
-        parts.append(f"near field: {exact:.2f} m² within {radius:g} m of the body seen by no "
-                     "sensor at any height")
+        parts.append(_nearfield_words(nf, system))
     return Para("Blind spots: " + "; ".join(parts) + ".")
 
 
