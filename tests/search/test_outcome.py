@@ -101,6 +101,19 @@ def test_t_safe_equals_the_closed_form_stopping_answer(v0: float, gap: float, la
     assert o.collision_perfect[0] == 0.0
     assert o.t_confirm_median_s[0] == pytest.approx(2 * DT)
     assert o.detection_margin_s[0] == pytest.approx(o.t_safe_s[0] - 2 * DT)
+    # perfect perception confirms at step M - 1 = 2: it could be t_safe - 0.10 s later
+    assert o.perfect_margin_s[0] == pytest.approx(o.t_safe_s[0] - 2 * DT)
+    # ... and a reference that only sees the car from step 10 (e.g. behind a lead car)
+    # confirms at step 10: its margin shrinks by 8 steps; never seen: it collides too
+    late = reaction_outcome(enc, np.ones((1, T)), np.array([T]), 3, 5, lat, 12.0,
+                            np.array([amax]), perfect_step=np.array([10]))
+    if o.t_safe_s[0] >= 10 * DT:
+        assert late.perfect_margin_s[0] == pytest.approx(o.t_safe_s[0] - 10 * DT)
+    else:  # too late even for perfect perception (the snow case): it collides
+        assert late.collision_perfect[0] == 1.0 and math.isnan(late.perfect_margin_s[0])
+    blind = reaction_outcome(enc, np.ones((1, T)), np.array([T]), 3, 5, lat, 12.0,
+                             np.array([amax]), perfect_step=np.array([-1]))
+    assert blind.collision_perfect[0] == 1.0 and math.isnan(blind.perfect_margin_s[0])
     # never detected: no braking, impact at the full closing speed v0 (the target stands)
     never = _outcome(enc, 0.0, lat=lat, decel=amax)
     assert never.collision_probability[0] == 1.0

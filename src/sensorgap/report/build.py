@@ -407,7 +407,9 @@ def _scenarios_section(run: RunFolder, out_img: Path, search: dict[str, Any] | N
         "perception are listed apart (unavoidable.csv). Scenarios start with a path TTC "
         f">= {START_TTC_S:g} s. Perfect perception is limited to the line of sight: a "
         "target hidden behind another road user until too late for any sensor or driver "
-        "is unavoidable, not sensor-critical (docs/models.md, collision outcome)."),
+        "is unavoidable, not sensor-critical; one that perfect perception avoids by less "
+        "than one confirmation window (0.25 s) is marginal, listed with the unavoidable "
+        "ones (docs/models.md, collision outcome)."),
             Table(["rank", "scenario", "class", "family", "environments", "target",
                    "P(collision)", "impact [km/h]", "t_safe [s]", "margin [s]",
                    "dominant effect"], overview, "Ranking"),

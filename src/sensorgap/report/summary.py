@@ -597,7 +597,8 @@ def _searched_para(settings: dict[str, Any], search: dict[str, Any] | None,
     text += (f"Found: {_count(n_ranked, 'sensor-critical scenario')} ranked (the vehicle "
              "collides where one with perfect perception and the same braking does not)")
     if n_unavoidable:
-        text += (f"; {n_unavoidable} more collide even with perfect perception (listed "
+        text += (f"; {n_unavoidable} more collide even with perfect perception or are "
+                 "marginal, avoidable only by it (listed "
                  "apart, unavoidable.csv)")
     return Para(text + ".")
 

@@ -399,6 +399,15 @@ _outcome_metric("t_threat_s",
                 better="none",
                 optional=True)
 
+_outcome_metric("perfect_margin_s",
+                "how much later than perfect perception (in line of sight) a confirmation "
+                "may come and still avoid the collision; below one confirmation window the "
+                "scenario is marginal, not a sensor weakness (empty: perfect perception "
+                "collides too)",
+                unit="s",
+                better="none",
+                optional=True)
+
 _outcome_metric("p_never_confirmed",
                 "probability that the target is never confirmed before the end or impact "
                 "(empty: no collision to avoid)",

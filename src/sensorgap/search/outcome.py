@@ -815,6 +815,9 @@ class Outcome:
         t_threat_s: threat onset, s (NaN: never a threat).
         p_never_confirmed: P(never confirmed within the valid steps), 0..1 (NaN: no
             collision to avoid).
+        perfect_margin_s: how much later than perfect perception a confirmation may come
+            and still avoid the collision, ``t_safe_s`` minus the reference's confirmation
+            time, s (NaN: perfect perception collides too).
     """
 
     collision_probability: F64
@@ -826,6 +829,7 @@ class Outcome:
     detection_margin_s: F64
     t_threat_s: F64
     p_never_confirmed: F64
+    perfect_margin_s: F64
 
 
 def reaction_outcome(enc: Encounter, pd_confirm: ArrayLike, n_valid: ArrayLike,
@@ -869,7 +873,9 @@ def reaction_outcome(enc: Encounter, pd_confirm: ArrayLike, n_valid: ArrayLike,
                      float(latency_s), float(jerk_m_s3), decel, pstep, *out)
     p, v, perfect, safe, vperf, med, never = out
     t_threat = np.where(enc.threat_step >= 0, enc.threat_step * enc.dt, np.nan)
-    return Outcome(p, 3.6 * v, perfect, 3.6 * vperf, safe, med, safe - med, t_threat, never)
+    margin = np.where((perfect < 0.5) & (pstep >= 0), safe - pstep * enc.dt, np.nan)
+    return Outcome(p, 3.6 * v, perfect, 3.6 * vperf, safe, med, safe - med, t_threat, never,
+                   margin)
 
 
 def collision_outcome(ego_x: ArrayLike, ego_y: ArrayLike, ego_heading: ArrayLike,

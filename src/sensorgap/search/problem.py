@@ -117,6 +117,15 @@ OBJECTIVE_INFEASIBLE = -1.0e7
 OBJECTIVE_KEY = "search_objective"
 
 
+#: A scenario is sensor-critical only when perfect perception avoids the collision with at
+#: least this much to spare, s: one confirmation window of the presets (N = 5 cycles at
+#: 20 Hz). Closer to the edge of physics it is *marginal*: only ideal perception avoids it
+#: (any real sensor, Pd < 1, loses that much in confirming), so it says nothing about this
+#: vehicle's sensors. The search steers away from it like from unavoidable encounters
+#: (``ranking.classify``).
+MIN_PERFECT_MARGIN_S = 0.25
+
+
 #: Search objective of a candidate whose collision is unavoidable even with perfect
 #: perception (not a sensor weakness): below every avoidable threat.
 OBJECTIVE_UNAVOIDABLE = -2.0e6
@@ -126,14 +135,17 @@ LOG10_P_FLOOR = -300.0
 
 def search_objective(log10_risk_raw: F64, min_distance_m: F64,
                      collision_probability: F64 | None = None,
-                     collision_perfect: F64 | None = None) -> F64:
+                     collision_perfect: F64 | None = None,
+                     perfect_margin_s: F64 | None = None) -> F64:
     """What the strategies maximise. With the collision outcome: ``log10`` of the
     collision probability where it is above 1e-300; below that (or 0) the unfloored log10
     risk minus 1000 (see below), so the strategies still climb towards encounters that
     come close to going unconfirmed; unavoidable candidates (a collision even with perfect
-    perception) score ``OBJECTIVE_UNAVOIDABLE``. The graded part: the log10 risk *without*
-    the ranking's floor of -300 where the target becomes a threat (a finite path TTC after
-    the lead-in), else ``OBJECTIVE_THREAT_FLOOR - min distance (m, at most 600)``."""
+    perception) score ``OBJECTIVE_UNAVOIDABLE``, and so do marginal ones
+    (``perfect_margin_s`` below ``MIN_PERFECT_MARGIN_S``: avoidable only by ideal
+    perception). The graded part: the log10 risk *without* the ranking's floor of -300
+    where the target becomes a threat (a finite path TTC after the lead-in), else
+    ``OBJECTIVE_THREAT_FLOOR - min distance (m, at most 600)``."""
     raw = np.asarray(log10_risk_raw, dtype=np.float64)
     graded = np.where(np.isfinite(raw), np.maximum(raw, OBJECTIVE_THREAT_FLOOR),
                       OBJECTIVE_THREAT_FLOOR - np.minimum(min_distance_m, 600.0))
@@ -143,7 +155,11 @@ def search_objective(log10_risk_raw: F64, min_distance_m: F64,
     with np.errstate(divide="ignore"):
         lp = np.log10(np.maximum(p, 0.0))
     out = np.where(lp > LOG10_P_FLOOR, lp, np.minimum(graded, 0.0) - 1000.0)
-    return np.where(np.asarray(collision_perfect) > 0.5, OBJECTIVE_UNAVOIDABLE, out)
+    lost = np.asarray(collision_perfect) > 0.5
+    if perfect_margin_s is not None:
+        m = np.asarray(perfect_margin_s, dtype=np.float64)
+        lost |= (p > 0.0) & ~(m >= MIN_PERFECT_MARGIN_S - 1e-9)
+    return np.where(lost, OBJECTIVE_UNAVOIDABLE, out)
 
 
 #: One step before the first open-loop contact the target's rear-most point must be ahead
@@ -406,7 +422,8 @@ class SearchProblem:
             sm = summary(bt).values
             min_dist, raw = sm["min_distance"], sm["log10_risk_raw"]
             objective[ok] = search_objective(raw, min_dist, metrics["collision_probability"][ok],
-                                             metrics["collision_perfect"][ok])
+                                             metrics["collision_perfect"][ok],
+                                             metrics["perfect_margin_s"][ok])
             target = self.evaluator.target(self.family.target_class)
             body = self.evaluator.system.config.vehicle
             bad = [(j, note) for j, note in impossible_encounters(

@@ -32,7 +32,7 @@ from sensorgap.models.geometry import rotate_offsets, sensor_range
 from sensorgap.scenarios.trajectory import DT_S
 from sensorgap.search.evaluate import Trace
 from sensorgap.search.metrics import critical_index
-from sensorgap.search.problem import Candidate, Result, SearchProblem
+from sensorgap.search.problem import MIN_PERFECT_MARGIN_S, Candidate, Result, SearchProblem
 
 #: Default near-duplicate distance.
 MIN_DISTANCE = 0.15
@@ -225,14 +225,18 @@ RANK_MIN_P = 1e-6
 
 
 def classify(r: Result) -> str:
-    """``sensor-critical`` (a perfect-perception vehicle avoids the collision, this one
-    may not), ``unavoidable`` (collides even with perfect perception), ``not critical``
-    or ``infeasible``."""
+    """``sensor-critical`` (a perfect-perception vehicle avoids the collision with at least
+    ``MIN_PERFECT_MARGIN_S`` to spare, this one may not), ``marginal`` (perfect perception
+    avoids it by less), ``unavoidable`` (collides even with perfect perception), ``not
+    critical`` or ``infeasible``."""
     if not r.feasible:
         return "infeasible"
     if r.metrics.get("collision_perfect", 0.0) > 0.5:
         return "unavoidable"
     if r.metrics.get("collision_probability", 0.0) > 0.0:
+        margin = r.metrics.get("perfect_margin_s", math.inf)
+        if not margin >= MIN_PERFECT_MARGIN_S - 1e-9:
+            return "marginal"
         return "sensor-critical"
     return "not critical"
 
@@ -315,7 +319,10 @@ def rank_exact(pairs: list[tuple[Result, Result]], problems: dict[str, SearchPro
                 -r.metrics.get("impact_speed_kmh", 0.0), -r.score, r.candidate.scenario_id)
 
     exact = [e for _, e in pairs if e.feasible]
-    unavoidable = sorted((e for e in exact if classify(e) == "unavoidable"), key=key)
+    # listed apart, never ranked: unavoidable, and marginal (avoidable only by perfect
+    # perception, by less than MIN_PERFECT_MARGIN_S)
+    unavoidable = sorted((e for e in exact if classify(e) in ("unavoidable", "marginal")),
+                         key=key)
     rest = sorted((e for e in exact if classify(e) == "sensor-critical"
                    and e.metrics.get("collision_probability", 0.0) >= RANK_MIN_P), key=key)
     rows: list[tuple[Result, list[str], Explanation]] = []
