@@ -1,5 +1,7 @@
-# Quick start: `make run` (default job into output/) and `make test` (lint, types, whole suite).
+# Quick start: `make run` (default job into output/) and `make test` (lint, types, whole suite
+# on every core with its line coverage printed; PYTEST_WORKERS=0 runs it in one process).
 PYTHON ?= python3
+PYTEST_WORKERS ?= auto
 VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
@@ -18,11 +20,13 @@ lint: $(STAMP)
 	$(BIN)/ruff check src tests benchmarks
 	$(BIN)/mypy src
 
+# -n: pytest-xdist workers, one per core; --dist loadgroup keeps the tests of a file (or of a
+# folder sharing session fixtures, tests/conftest.py) on one worker. Coverage: report only.
 test: lint
-	$(BIN)/pytest -q
+	$(BIN)/pytest -q -n $(PYTEST_WORKERS) --dist loadgroup --cov --cov-report=term
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/run.py
 
 clean:
-	rm -rf $(VENV) output/*/ .pytest_cache .mypy_cache .ruff_cache
+	rm -rf $(VENV) output/*/ .pytest_cache .mypy_cache .ruff_cache .coverage .coverage.*
