@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -19,22 +20,33 @@ TESTS = Path(__file__).resolve().parent
 SHARED_FIXTURE_DIRS = ("export", "report")
 
 
-def xdist_group_of(path: Path) -> str:
-    """The parallel-worker group of a test file: its folder when that folder shares
-    session fixtures (``SHARED_FIXTURE_DIRS``), else the file itself."""
-    rel = path.resolve().relative_to(TESTS)
-    if rel.parts[0] in SHARED_FIXTURE_DIRS:
-        return rel.parts[0]
-    return rel.as_posix()
+def xdist_group_of(nodeid: str) -> str:
+    """The parallel-worker group of a test (its pytest node id, relative to the rootdir):
+    its folder under tests/ when that folder shares session fixtures
+    (``SHARED_FIXTURE_DIRS``), else its file."""
+    path = nodeid.split("::", 1)[0]
+    parts = path.split("/")
+    if len(parts) > 2 and parts[0] == "tests" and parts[1] in SHARED_FIXTURE_DIRS:
+        return "/".join(parts[:2])
+    return path
 
 
-def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    """Under ``pytest -n N --dist loadgroup`` (``make test``), the tests of one file (or of
-    one fixture-sharing folder) go to one worker: module- and session-scoped fixtures are
-    built once, not once per worker. Without xdist the mark is unused."""
-    for item in items:
-        if item.get_closest_marker("xdist_group") is None:
-            item.add_marker(pytest.mark.xdist_group(xdist_group_of(item.path)))
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> Any:
+    """Under ``pytest -n N --dist loadgroup`` (``make test``): whole groups
+    (``xdist_group_of``) go to one worker, so module- and session-scoped fixtures are built
+    once per session, not once per worker. (pytest-xdist's own ``xdist_group`` marks do not
+    reach its scheduler under pytest 9, which keeps node ids elsewhere; this hook is
+    xdist's public way to choose the grouping.) Other ``--dist`` modes are left alone."""
+    if config.getvalue("dist") != "loadgroup":
+        return None
+    from xdist.scheduler import LoadScopeScheduling
+
+    class FileOrFolderScheduling(LoadScopeScheduling):  # type: ignore[misc]
+        def _split_scope(self, nodeid: str) -> str:
+            return xdist_group_of(nodeid)
+
+    return FileOrFolderScheduling(config, log)
 
 
 @pytest.fixture(autouse=True)
