@@ -25,6 +25,7 @@ lint: $(STAMP)
 
 # -n: pytest-xdist workers, one per core; --dist loadgroup keeps the tests of a file (or of a
 # folder sharing session fixtures, tests/conftest.py) on one worker. Coverage: report only.
+# While working: .venv/bin/pytest -q -m "not slow" tests/<area> skips the long end-to-end runs.
 test: lint
 	$(BIN)/pytest -q -n $(PYTEST_WORKERS) --dist loadgroup $(COV)
 
