@@ -3,6 +3,8 @@ grouping of tests for parallel workers (pytest-xdist, ``make test``)."""
 
 from __future__ import annotations
 
+import subprocess
+import sys
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -47,6 +49,19 @@ def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> Any:
             return xdist_group_of(nodeid)
 
     return FileOrFolderScheduling(config, log)
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """With parallel workers (``-n N``), fill numba's kernel cache once before they start
+    when it is empty (a fresh clone): tests/numba_warmup.py, in its own process. Not in the
+    workers themselves, not without ``-n``."""
+    if hasattr(config, "workerinput") or not config.getoption("numprocesses", None):
+        return
+    from tests.numba_warmup import cache_is_warm
+
+    if not cache_is_warm():
+        subprocess.run([sys.executable, "-m", "tests.numba_warmup"], cwd=TESTS.parent,
+                       stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, check=False)
 
 
 @pytest.fixture(autouse=True)
