@@ -1,5 +1,11 @@
-# Quick start: `make run` (default job into output/) and `make test` (lint, types, whole suite).
+# Quick start: `make run` (default job into output/) and `make test` (lint, types, whole suite
+# on every core with its line coverage printed; PYTEST_WORKERS=0 runs it in one process, COV=
+# without coverage).
 PYTHON ?= python3
+PYTEST_WORKERS ?= auto
+# line coverage of src/ (pytest-cov): ~1.35x the CPU time on Python 3.11 (measured 338 -> 452 s
+# of CPU for the suite; tests/numba_warmup.py keeps numba compiling untraced); COV= skips it
+COV ?= --cov --cov-report=term
 VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
@@ -18,11 +24,14 @@ lint: $(STAMP)
 	$(BIN)/ruff check src tests benchmarks
 	$(BIN)/mypy src
 
+# -n: pytest-xdist workers, one per core; --dist loadgroup keeps the tests of a file (or of a
+# folder sharing session fixtures, tests/conftest.py) on one worker. Coverage: report only.
+# While working: .venv/bin/pytest -q -m "not slow" tests/<area> skips the long end-to-end runs.
 test: lint
-	$(BIN)/pytest -q
+	$(BIN)/pytest -q -n $(PYTEST_WORKERS) --dist loadgroup $(COV)
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/run.py
 
 clean:
-	rm -rf $(VENV) output/*/ .pytest_cache .mypy_cache .ruff_cache
+	rm -rf $(VENV) output/*/ .pytest_cache .mypy_cache .ruff_cache .coverage .coverage.*

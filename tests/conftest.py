@@ -1,8 +1,13 @@
-"""Shared fixtures: the shipped presets, scenes and a hardened numpy error state."""
+"""Shared fixtures: the shipped presets, scenes and a hardened numpy error state; the
+grouping of tests for parallel workers (pytest-xdist, ``make test``)."""
 
 from __future__ import annotations
 
+import subprocess
+import sys
 from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -10,6 +15,53 @@ import pytest
 from sensorgap.config import load_environment, load_target
 from sensorgap.coverage import Scene
 from sensorgap.models import Conditions, System, load_system
+
+TESTS = Path(__file__).resolve().parent
+#: Folders whose files share costly session-scoped fixtures (a conftest.py beside them):
+#: their tests run on one worker, so each fixture is built once per session.
+SHARED_FIXTURE_DIRS = ("export", "report")
+
+
+def xdist_group_of(nodeid: str) -> str:
+    """The parallel-worker group of a test (its pytest node id, relative to the rootdir):
+    its folder under tests/ when that folder shares session fixtures
+    (``SHARED_FIXTURE_DIRS``), else its file."""
+    path = nodeid.split("::", 1)[0]
+    parts = path.split("/")
+    if len(parts) > 2 and parts[0] == "tests" and parts[1] in SHARED_FIXTURE_DIRS:
+        return "/".join(parts[:2])
+    return path
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> Any:
+    """Under ``pytest -n N --dist loadgroup`` (``make test``): whole groups
+    (``xdist_group_of``) go to one worker, so module- and session-scoped fixtures are built
+    once per session, not once per worker. (pytest-xdist's own ``xdist_group`` marks do not
+    reach its scheduler under pytest 9, which keeps node ids elsewhere; this hook is
+    xdist's public way to choose the grouping.) Other ``--dist`` modes are left alone."""
+    if config.getvalue("dist") != "loadgroup":
+        return None
+    from xdist.scheduler import LoadScopeScheduling
+
+    class FileOrFolderScheduling(LoadScopeScheduling):  # type: ignore[misc]
+        def _split_scope(self, nodeid: str) -> str:
+            return xdist_group_of(nodeid)
+
+    return FileOrFolderScheduling(config, log)
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """With parallel workers (``-n N``), fill numba's kernel cache once before they start
+    when it is empty (a fresh clone): tests/numba_warmup.py, in its own process. Not in the
+    workers themselves, not without ``-n``."""
+    if hasattr(config, "workerinput") or not config.getoption("numprocesses", None):
+        return
+    from tests.numba_warmup import cache_is_warm
+
+    if not cache_is_warm():
+        subprocess.run([sys.executable, "-m", "tests.numba_warmup"], cwd=TESTS.parent,
+                       stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, check=False)
 
 
 @pytest.fixture(autouse=True)

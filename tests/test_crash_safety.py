@@ -12,6 +12,8 @@ import sys
 import time
 from pathlib import Path
 
+import pytest
+
 import sensorgap
 
 SRC = str(Path(sensorgap.__file__).resolve().parents[1])
@@ -34,6 +36,7 @@ def _rows(db: Path) -> int:
         return 0
 
 
+@pytest.mark.slow
 def test_sigkill_then_resume_gives_the_uninterrupted_ranking(tmp_path: Path) -> None:
     full, killed = tmp_path / "full", tmp_path / "killed"
     ref = _cli([*ARGS, "--out", str(full)])

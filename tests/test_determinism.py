@@ -42,6 +42,7 @@ def _table(db: Path) -> list[tuple[object, ...]]:
         return c.execute("SELECT * FROM candidates ORDER BY family, idx").fetchall()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", list(COMMANDS))
 def test_byte_identical_outputs(name: str, tmp_path: Path,
                                 monkeypatch: pytest.MonkeyPatch) -> None:

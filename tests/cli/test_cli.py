@@ -53,10 +53,9 @@ def test_coverage_outputs_and_determinism(tmp_path: Path) -> None:
     assert summary["area_m2_by_level"]["pd>0"] > 0
 
 
-def test_schema_prints_json_schema() -> None:
-    proc = run("schema")
-    assert proc.returncode == 0
-    schemas = json.loads(proc.stdout)
+def test_schema_prints_json_schema(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["schema"]) == 0
+    schemas = json.loads(capsys.readouterr().out)
     assert set(schemas) == {"vehicle", "environments", "targets"}
     variants = schemas["vehicle"]["$defs"]["DeviceConfig"]["oneOf"]
     assert {v["properties"]["type"]["const"] for v in variants} == {

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -11,16 +9,12 @@ import pytest
 
 from sensorgap.analysis.farfield import EgoPose, farfield, level_lengths, path_ahead
 from sensorgap.analysis.paper import FarFieldSetup, run_farfield, target_path
+from sensorgap.cli import main
 from sensorgap.config.presets import resolve_road
 from sensorgap.errors import InputError
 from sensorgap.models import System, load_system
 from sensorgap.roads import read_opendrive
 from tests.conftest import make_scene
-
-
-def run(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "sensorgap", *args], capture_output=True,
-                          text=True, timeout=300)
 
 
 def test_level_lengths_by_hand() -> None:
@@ -86,8 +80,8 @@ def test_motorway_setup_matches_the_paper_geometry() -> None:
 
 def test_farfield_cli_files(tmp_path: Path) -> None:
     out = tmp_path / "ff"
-    proc = run("farfield", "--vehicle", "system_a", "--environment", "clear", "--out", str(out))
-    assert proc.returncode == 0, proc.stderr
+    assert main(["farfield", "--vehicle", "system_a", "--environment", "clear", "--out",
+                 str(out)]) == 0
     for name in ("farfield.csv", "levels.csv", "farfield.png", "summary.json"):
         assert (out / name).is_file()
     levels = (out / "levels.csv").read_text().splitlines()

@@ -8,6 +8,8 @@ import json
 import re
 from pathlib import Path
 
+import pytest
+
 from sensorgap.cli import main
 from sensorgap.config.presets import templates_dir
 
@@ -22,6 +24,7 @@ def _without_rear_radars(tmp: Path) -> Path:
     return path
 
 
+@pytest.mark.slow
 def test_run_for_a_vehicle_file(tmp_path: Path, capsys) -> None:
     vehicle = _without_rear_radars(tmp_path)
     out = tmp_path / "out"

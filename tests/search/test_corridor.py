@@ -71,25 +71,21 @@ def test_bad_input(system_a: System, kw: dict[str, object], pattern: str) -> Non
         corridor_search(make_scene(system_a), **args)  # type: ignore[arg-type]
 
 
-def test_corridor_cli(tmp_path: object) -> None:
+def test_corridor_cli(tmp_path: object, capsys: pytest.CaptureFixture[str]) -> None:
     import json
-    import subprocess
-    import sys
     from pathlib import Path
 
+    from sensorgap.cli import main
+
     out = Path(str(tmp_path)) / "c"
-    proc = subprocess.run([sys.executable, "-m", "sensorgap", "corridor", "--vehicle",
-                           "system_b", "--environment", "fog_50", "--target", "car",
-                           "--lanes", "-7.5:-3.75", "--start", "-40", "--out", str(out)],
-                          capture_output=True, text=True, timeout=300)
-    assert proc.returncode == 0, proc.stderr
+    assert main(["corridor", "--vehicle", "system_b", "--environment", "fog_50", "--target",
+                 "car", "--lanes", "-7.5:-3.75", "--start", "-40", "--out", str(out)]) == 0
     summary = json.loads((out / "summary.json").read_text())
     assert math.isfinite(summary["log10_p_undetected"]) and summary["log10_p_undetected"] <= 0
     lines = (out / "corridor.csv").read_text().splitlines()
     assert lines[0] == "t,x,y,heading,pd" and len(lines) > 50
     assert (out / "corridor.png").is_file() and (out / "manifest.json").is_file()
-    bad = subprocess.run([sys.executable, "-m", "sensorgap", "corridor", "--vehicle",
-                          "system_b", "--environment", "fog_50", "--target", "car",
-                          "--lanes", "3:1", "--out", str(out / "bad")],
-                         capture_output=True, text=True, timeout=300)
-    assert bad.returncode == 2 and "--lanes" in bad.stderr and not (out / "bad").exists()
+    capsys.readouterr()
+    assert main(["corridor", "--vehicle", "system_b", "--environment", "fog_50", "--target",
+                 "car", "--lanes", "3:1", "--out", str(out / "bad")]) == 2
+    assert "--lanes" in capsys.readouterr().err and not (out / "bad").exists()

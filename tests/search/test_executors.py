@@ -17,6 +17,7 @@ KW = {"vehicle": "system_b", "families": ["cut_in_left", "crossing_pedestrian"],
       "strategy": "de"}
 
 
+@pytest.mark.slow
 def test_dask_gives_the_local_ranking(tmp_path: Path) -> None:
     run_search(out=tmp_path / "local", **KW)  # type: ignore[arg-type]
     run_search(out=tmp_path / "dask", executor="dask", workers=2,  # type: ignore[arg-type]

@@ -1,0 +1,58 @@
+"""Fill numba's on-disk cache (``cache=True`` kernels) before parallel test workers start.
+
+From a fresh clone no kernel is cached yet: every pytest-xdist worker would compile the
+same ~30 kernels itself, and under coverage tracing numba's (pure Python) compiler runs
+several times slower. ``tests/conftest.py`` runs this file once, in its own process (no
+coverage tracing), when ``pytest -n N`` starts; the workers then load the compiled kernels.
+It runs small real commands (a search in lookup and in exact mode over every family, a
+coverage map); it checks nothing, the suite does. When the cache is already warm
+(``cache_is_warm``) nothing runs."""
+
+from __future__ import annotations
+
+import importlib
+import sys
+import tempfile
+from pathlib import Path
+
+#: Kernels whose cache index files tell whether the cache was filled (module:name).
+KERNELS = ("sensorgap.search.outcome:_first_confirmation_kernel",
+           "sensorgap.search.fastmetrics:summarize",
+           "sensorgap.coverage.fastlookup:lookup_pass",
+           "sensorgap.coverage.fastkernel:accumulate_log_miss",
+           "sensorgap.scenarios.fastpath:path_states")
+
+
+def cache_is_warm() -> bool:
+    """True when numba's cache holds an index file for every kernel of ``KERNELS`` (in the
+    cache folder this process would use). Uses numba internals; any surprise -> False."""
+    try:
+        for spec in KERNELS:
+            module, name = spec.split(":")
+            dispatcher = getattr(importlib.import_module(module), name)
+            index = Path(dispatcher._cache._cache_file._index_path)
+            if not index.is_file():
+                return False
+        return True
+    except Exception:  # noqa: BLE001 - a numba change: just warm the cache
+        return False
+
+
+def warm(out: Path) -> None:
+    """Run the commands whose kernels the suite uses most, into ``out``."""
+    from sensorgap.cli import main
+
+    envs = "clear,glare_front_right,fog_50"
+    for pd in ("lookup", "exact"):
+        main(["search", "--vehicle", "system_b", "--families", "all", "--environments", envs,
+              "--budget", "120", "--top", "2", "--strategy", "lhs", "--pd", pd,
+              "--out", str(out / f"search_{pd}")])
+    main(["coverage", "--vehicle", "system_a", "--environment", "glare_front_right",
+          "--target", "car", "--resolution", "2", "--extent", "-20,60,-20,20",
+          "--out", str(out / "coverage")])
+
+
+if __name__ == "__main__":
+    with tempfile.TemporaryDirectory(prefix="sensorgap-warmup-") as tmp:
+        warm(Path(tmp))
+    sys.exit(0)
