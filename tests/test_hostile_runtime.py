@@ -11,6 +11,7 @@ from pathlib import Path
 
 import pytest
 
+from sensorgap.cli import main
 from sensorgap.errors import InputError
 from sensorgap.filesio import verify_manifest, write_manifest
 from sensorgap.runtime import numba_cache_dir
@@ -141,10 +142,10 @@ def test_verify_reports_links_temporaries_and_journals(tmp_path: Path) -> None:
 def test_write_manifest_removes_leftover_temporaries_but_keeps_journals(tmp_path: Path
                                                                         ) -> None:
     run = _folder(tmp_path)
-    (run / ".a.txt.abc123.tmp.txt").write_text("half-written")
+    (run / ".a.txt.abc12345.tmp.txt").write_text("half-written")
     (run / "s.sqlite-journal").write_text("j")
     write_manifest(run)
-    assert not (run / ".a.txt.abc123.tmp.txt").exists()
+    assert not (run / ".a.txt.abc12345.tmp.txt").exists()
     assert (run / "s.sqlite-journal").exists()
 
 
@@ -347,3 +348,36 @@ def test_environment_name_with_dollars_is_drawn_as_written_in_the_report(
     assert main(["report", "--run", str(run)]) == 0, capsys.readouterr().err
     assert (run / "report" / "scenario_001.png").is_file()
     assert name in (run / "report.md").read_text()
+
+
+def test_a_users_tmp_files_survive_a_write_into_their_folder(tmp_path: Path) -> None:
+    """Held-out review round four: writing into an existing folder removed every `*.tmp`
+    below it. Only sensorgap's own temporaries (``.NAME.<8 random>.tmp.EXT``, left by an
+    interrupted command) are removed; a user's files stay."""
+    from sensorgap.filesio import is_own_temporary
+
+    out = tmp_path / "proj"
+    (out / "deep").mkdir(parents=True)
+    mine = [out / "deep" / "report.tmp", out / ".notes.tmp.txt"]
+    for p in mine:
+        p.write_text("user data")
+    ours = out / ".nearfield.png.abcd1234.tmp.png"
+    ours.write_text("half")
+    assert is_own_temporary(ours.name) and not any(is_own_temporary(p.name) for p in mine)
+    assert main(["nearfield", "--vehicle", "system_a", "--resolution", "0.2",
+                 "--out", str(out)]) == 0
+    assert all(p.read_text() == "user data" for p in mine)
+    assert not ours.exists()
+
+
+@pytest.mark.parametrize("argv", [["nearfield", "--vehicle", "system_a", "--out", ""],
+                                  ["search", "--vehicle", "system_a", "--budget", "10",
+                                   "--out", " "]])
+def test_an_empty_out_is_refused(argv: list[str], tmp_path: Path,
+                                 monkeypatch: pytest.MonkeyPatch,
+                                 capsys: pytest.CaptureFixture[str]) -> None:
+    monkeypatch.chdir(tmp_path)
+    assert main(argv) == 2
+    assert capsys.readouterr().err.strip().endswith("(an empty path would write into the "
+                                                    "working directory)")
+    assert list(tmp_path.iterdir()) == []

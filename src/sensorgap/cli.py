@@ -820,6 +820,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     previous = signal.signal(signal.SIGTERM, _terminate)
     tune_allocator()
     try:
+        for name in ("out", "catalog"):  # '' would mean the working directory
+            value = getattr(args, name, None)
+            if isinstance(value, str) and not value.strip():
+                raise InputError(f"--{name}", "", "must name a folder or file (an empty "
+                                 "path would write into the working directory)")
         return func(args)
     except InputError as exc:
         _flag_sources(exc, parser)

@@ -9,6 +9,7 @@ from __future__ import annotations
 import io
 import json
 import math
+import re
 import zipfile
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -97,6 +98,17 @@ _JOURNAL_SUFFIXES = ("-journal", "-wal", "-shm")
 _SHA256_HEX = frozenset("0123456789abcdef")
 
 
+#: The names ``sensorgap.atomic`` gives its temporary files: ``.NAME.<8 random>.tmp.EXT``
+#: (``tempfile.mkstemp``'s random part: 8 of ``a-z0-9_``).
+_OWN_TEMPORARY = re.compile(r"\..+\.[a-z0-9_]{8}\.tmp(\.[^/]*)?")
+
+
+def is_own_temporary(name: str) -> bool:
+    """Whether a file name is one of ``sensorgap.atomic``'s own temporary files (the only
+    files sensorgap ever deletes from an output folder: a user's ``notes.tmp`` is not)."""
+    return _OWN_TEMPORARY.fullmatch(name) is not None
+
+
 def is_temporary(name: str) -> bool:
     """Whether a file name is a temporary file of ``sensorgap.atomic`` (``.NAME.*.tmp*``)
     or of an interrupted write (``*.tmp``), or an SQLite journal (``-journal``, ``-wal``,
@@ -137,7 +149,8 @@ def write_manifest(folder: str | Path) -> Path:
     """Write ``folder/manifest.json``: every regular file below ``folder`` (sorted relative
     POSIX paths) with its size in bytes and SHA-256, so an assessor can verify that nothing
     was changed or lost. Deterministic: no timestamps. Left-over temporary files of
-    ``sensorgap.atomic`` (from an interrupted earlier command) are removed; database
+    ``sensorgap.atomic`` (from an interrupted earlier command, ``is_own_temporary``) are
+    removed, other temporary-looking files left alone and unlisted; database
     journals, symbolic links and the manifest itself are left out (``verify`` reports
     all but the manifest)."""
     root = Path(folder)
@@ -147,7 +160,7 @@ def write_manifest(folder: str | Path) -> Path:
         if kind != "file" or rel == MANIFEST_NAME:
             continue
         if is_temporary(p.name):
-            if not p.name.endswith(_JOURNAL_SUFFIXES):
+            if is_own_temporary(p.name):  # never a user's file that merely looks like one
                 p.unlink(missing_ok=True)
             continue
         size, sha = _sha256_file(p)
