@@ -1,16 +1,18 @@
 # Quick start: `make run` (default job into output/) and `make test` (lint, types, whole suite
-# on every core with its line coverage printed; PYTEST_WORKERS=0 runs it in one process, COV=
-# without coverage).
+# on every core; PYTEST_WORKERS=0 runs it in one process). `make coverage`: the same suite with
+# its line coverage of src/ printed.
 PYTHON ?= python3
 PYTEST_WORKERS ?= auto
 # line coverage of src/ (pytest-cov): ~1.35x the CPU time on Python 3.11 (measured 338 -> 452 s
-# of CPU for the suite; tests/numba_warmup.py keeps numba compiling untraced); COV= skips it
-COV ?= --cov --cov-report=term
+# of CPU for the suite; tests/numba_warmup.py keeps numba compiling untraced). Off in `make
+# test` (and so in CI): with it a fresh-clone CI took 10.5 min of its 15 min budget (2026-11-25,
+# pytest 7.7 min); `make coverage` (or `make test COV="--cov --cov-report=term"`) prints it.
+COV ?=
 VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: run test bench lint clean
+.PHONY: run test coverage bench lint clean
 
 $(STAMP): pyproject.toml constraints.txt
 	$(PYTHON) -m venv $(VENV)
@@ -29,6 +31,9 @@ lint: $(STAMP)
 # While working: .venv/bin/pytest -q -m "not slow" tests/<area> skips the long end-to-end runs.
 test: lint
 	$(BIN)/pytest -q -n $(PYTEST_WORKERS) --dist loadgroup $(COV)
+
+coverage: lint
+	$(BIN)/pytest -q -n $(PYTEST_WORKERS) --dist loadgroup --cov --cov-report=term
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/run.py
