@@ -23,7 +23,7 @@ from sensorgap.config import load_environments
 from sensorgap.models import load_system
 from sensorgap.scenarios import load_family
 from sensorgap.search.evaluate import Evaluator
-from sensorgap.search.problem import MIN_PERFECT_MARGIN_S, SearchProblem
+from sensorgap.search.problem import SearchProblem, enough_margin
 from sensorgap.search.run import run_search
 from sensorgap.search.strategies import get_strategy
 
@@ -105,10 +105,9 @@ def run(quick: bool = False) -> str:
     dp = np.abs(pl - pe)
 
     def crit(m: dict[str, np.ndarray]) -> np.ndarray:
-        """Sensor-critical as the ranking classifies (ranking.classify): perfect perception
-        avoids with at least MIN_PERFECT_MARGIN_S to spare."""
+        """Sensor-critical as the ranking classifies (ranking.classify)."""
         return ((m["collision_probability"] > 0) & (m["collision_perfect"] == 0)
-                & (m["perfect_margin_s"] >= MIN_PERFECT_MARGIN_S - 1e-9))
+                & enough_margin(m["perfect_margin_s"]))
 
     def top10(m: dict[str, np.ndarray]) -> set[int]:
         """The ranking's top 10: sensor-critical rows by P(collision), then impact speed

@@ -37,7 +37,7 @@ from functools import cache
 
 import numba
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from sensorgap.config.target import TargetConfig
 from sensorgap.coverage.grid import GridCoverage, GridSpec
@@ -301,6 +301,11 @@ def _points_kernel(x: F64, y: F64, cos: F64, sin: F64, bx: F64, by: F64, bz: F64
             ny[i, j] = s * bnx[j] + c * bny[j]
 
 
+def _scene_points(scene: Scene, x: F64, y: F64, psi: ArrayLike) -> BodyPoints:
+    """``body_points`` of the scene's target class at the given poses."""
+    return body_points(body_samples(scene.target), x, y, np.asarray(psi, dtype=np.float64))
+
+
 def body_points(body: BodySamples, x: F64, y: F64, psi: F64) -> BodyPoints:
     """(N, K) vehicle-frame sample positions (m) and face normals of N target poses
     (centre x, y in m, heading psi in rad relative to the ego), C-contiguous."""
@@ -402,10 +407,7 @@ def occlusion_changes(scene: Scene, x: F64, y: F64, psi: F64, occluders: F64,
     samples of the others are out of view, so the answer is the same)."""
     x = np.ascontiguousarray(x, dtype=np.float64)
     y = np.ascontiguousarray(y, dtype=np.float64)
-    if points is None:
-        points = body_points(body_samples(scene.target), x, y,
-                             np.asarray(psi, dtype=np.float64))
-    px, py, pz, nx, ny = points
+    px, py, pz, nx, ny = points if points is not None else _scene_points(scene, x, y, psi)
     out = np.zeros(px.shape[0], dtype=bool)
     lo, hi = _ego_box(scene)
     occ = _occ3(occluders, px.shape[0])
@@ -462,10 +464,7 @@ def body_per_sensor_pd(scene: Scene, x: F64, y: F64, psi: F64,
     samples if the caller has them (``body_points`` of the same poses)."""
     x = np.asarray(x, dtype=np.float64)
     y = np.asarray(y, dtype=np.float64)
-    if points is None:
-        points = body_points(body_samples(scene.target), x, y,
-                             np.asarray(psi, dtype=np.float64))
-    px, py, pz, nx, ny = points
+    px, py, pz, nx, ny = points if points is not None else _scene_points(scene, x, y, psi)
     sens = scene.sensors if sensors is None else sensors
     pd = np.zeros((len(sens), len(x)))
     frac = np.zeros((len(sens), len(x)))

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from sensorgap.config import EnvironmentConfig
 from sensorgap.errors import InputError
@@ -126,6 +126,13 @@ OBJECTIVE_KEY = "search_objective"
 MIN_PERFECT_MARGIN_S = 0.25
 
 
+def enough_margin(perfect_margin_s: ArrayLike) -> NDArray[np.bool_]:
+    """Whether perfect perception avoids with at least ``MIN_PERFECT_MARGIN_S`` (s) to
+    spare (NaN, where it collides too: False); the one test behind ``ranking.classify``,
+    the search objective and the benchmarks."""
+    return np.asarray(perfect_margin_s, dtype=np.float64) >= MIN_PERFECT_MARGIN_S - 1e-9
+
+
 #: Search objective of a candidate whose collision is unavoidable even with perfect
 #: perception (not a sensor weakness): below every avoidable threat.
 OBJECTIVE_UNAVOIDABLE = -2.0e6
@@ -157,8 +164,7 @@ def search_objective(log10_risk_raw: F64, min_distance_m: F64,
     out = np.where(lp > LOG10_P_FLOOR, lp, np.minimum(graded, 0.0) - 1000.0)
     lost = np.asarray(collision_perfect) > 0.5
     if perfect_margin_s is not None:
-        m = np.asarray(perfect_margin_s, dtype=np.float64)
-        lost |= (p > 0.0) & ~(m >= MIN_PERFECT_MARGIN_S - 1e-9)
+        lost |= (p > 0.0) & ~enough_margin(perfect_margin_s)
     return np.where(lost, OBJECTIVE_UNAVOIDABLE, out)
 
 

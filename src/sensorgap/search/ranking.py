@@ -32,7 +32,12 @@ from sensorgap.models.geometry import rotate_offsets, sensor_range
 from sensorgap.scenarios.trajectory import DT_S
 from sensorgap.search.evaluate import Trace
 from sensorgap.search.metrics import critical_index
-from sensorgap.search.problem import MIN_PERFECT_MARGIN_S, Candidate, Result, SearchProblem
+from sensorgap.search.problem import (
+    Candidate,
+    Result,
+    SearchProblem,
+    enough_margin,
+)
 
 #: Default near-duplicate distance.
 MIN_DISTANCE = 0.15
@@ -234,8 +239,7 @@ def classify(r: Result) -> str:
     if r.metrics.get("collision_perfect", 0.0) > 0.5:
         return "unavoidable"
     if r.metrics.get("collision_probability", 0.0) > 0.0:
-        margin = r.metrics.get("perfect_margin_s", math.inf)
-        if not margin >= MIN_PERFECT_MARGIN_S - 1e-9:
+        if not enough_margin(r.metrics.get("perfect_margin_s", math.inf)):
             return "marginal"
         return "sensor-critical"
     return "not critical"
