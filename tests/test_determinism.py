@@ -23,8 +23,8 @@ COMMANDS = {
     "corridor": ["corridor", "--vehicle", "system_b", "--environment", "rain_25", "--target",
                  "car", "--out", "{out}"],
     "search+export+report": ["search", "--vehicle", "system_b", "--families",
-                             "cut_in_right,crossing_cyclist", "--environments",
-                             "clear,glare_front_right,fog_50", "--budget", "600", "--seed",
+                             "slow_ahead_curve,crossing_cyclist", "--environments",
+                             "clear,glare_front_right,snow", "--budget", "600", "--seed",
                              "4", "--top", "4", "--out", "{out}"],
 }
 

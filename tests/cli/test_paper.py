@@ -10,6 +10,7 @@ from typing import Any
 import pytest
 
 from sensorgap.analysis.paper import (
+    GLARE_MODEL_CELLS,
     NEARFIELD_TOLERANCE,
     PAPER_BLIND_SPOT_M2,
     PAPER_TABLE_IV,
@@ -47,12 +48,24 @@ def test_qualitative_conclusions(paper: tuple[Path, dict[str, Any]]) -> None:
 
 
 def test_table_iv_within_tolerance(paper: tuple[Path, dict[str, Any]]) -> None:
-    out, _ = paper
+    # every cell within +-20 m, except B's two glare cells that our glare model changes on
+    # purpose (veiling glare on the target's image, not the sun on every pixel): those must
+    # be reproduced by the paper's whole-image glare, and ours may only be longer (a camera
+    # that sees a little more), never shorter
+    out, result = paper
+    whole = result["b_glare_whole_image"]
     for r in csv.DictReader((out / "table_iv.csv").open()):
         want = PAPER_TABLE_IV[(r["system"], r["condition"])][r["level"]]
+        if (r["system"], r["condition"], r["level"]) in GLARE_MODEL_CELLS:
+            assert abs(whole[r["level"]] - want) <= TABLE_IV_TOLERANCE_M, (r, whole)
+            if r["level"] == "pd>0":
+                assert float(r["metres"]) >= whole["pd>0"] - 0.5
+            continue
         assert abs(float(r["metres"]) - want) <= TABLE_IV_TOLERANCE_M, r
+    for level, want in PAPER_TABLE_IV[("B", "glare")].items():
+        assert abs(whole[level] - want) <= TABLE_IV_TOLERANCE_M, (level, whole)
     md = (out / "paper.md").read_text()
-    assert "(within the tolerance)" in md
+    assert "(within the tolerance)" in md and "(glare model)" in md
 
 
 def test_blind_spots_within_tolerance(paper: tuple[Path, dict[str, Any]]) -> None:

@@ -114,7 +114,10 @@ def camera_params(**kw: object) -> CameraParams:
 
 
 def camera_by_hand(r: float, gamma: float, e_sun: float, hfov: float, sun_w: float,
-                   e_dir: float) -> float:
+                   e_dir: float, theta_deg: float = 1.0, k_veil: float = 10.0) -> float:
+    """Eq. 6-9 by hand; with ``sun_w`` > 0 the direct sun as veiling glare on the target's
+    image: ``N_e,sun = w (k E_dir / theta^2) / (rho E_sun / pi) N_e 10^(gamma R / 10)``
+    (Stiles-Holladay, theta >= 1 deg; docs/models.md)."""
     ifov = hfov / 1920
     f = 3e-6 / ifov
     d = f / 1.8
@@ -125,7 +128,9 @@ def camera_by_hand(r: float, gamma: float, e_sun: float, hfov: float, sun_w: flo
     h_nu = H * C / 550e-9
     ne = pr * 1e-3 * 0.6 / h_nu  # eq. 7
     nen = math.sqrt(ne) + K * 1e3 * 300.0 * 1e-3 * 0.6 / h_nu  # eq. 8
-    ne_sun = sun_w * e_dir * math.pi * d**2 / 4 * 1e-3 * 0.6 / h_nu  # eq. 10
+    l_veil = k_veil * e_dir / max(theta_deg, 1.0) ** 2  # per lux of the sun: cd/m2
+    l_obj = 0.15 * e_sun / math.pi
+    ne_sun = sun_w * l_veil / l_obj * ne * 10 ** (gamma * r / 1000 / 10)
     return db(ne / (nen + ne_sun))  # eq. 9
 
 
@@ -140,21 +145,46 @@ def test_camera_eq6_to_9(r: float) -> None:
     assert got == pytest.approx(want, abs=TOL_DB)
 
 
-def test_camera_direct_sun_eq10_only_when_sun_in_view() -> None:
+@pytest.mark.parametrize("r", [10.0, 50.0, 400.0])
+@pytest.mark.parametrize(("tgt_az", "tgt_el"), [(0.0, 0.0), (-10.0, 5.0), (-10.5, 5.2),
+                                                  (15.0, -3.0)])
+def test_camera_veiling_glare_by_hand(r: float, tgt_az: float, tgt_el: float) -> None:
+    """Sun at azimuth -10 deg, elevation 5 deg, inside a level 50 x 28 deg camera's view;
+    the angle between sun and target from the spherical law of cosines (by hand)."""
     mount = Mount(0.0, 0.0, 1.3, 0.0, 0.0, math.radians(50.0), math.radians(28.0), 0.0, 1000.0)
     model = Camera(camera_params())
     sun_front = SunConfig(azimuth_deg=-10.0, elevation_deg=5.0, direct_irradiance_w_m2=480.0)
     c = cond(irradiance_w_m2=534.0, sun=sun_front)
     gamma = c.attenuation_db_km(model.band())
-    got = snr_at(model.prepare(mount, TARGET, c).snr_db, 50.0)
-    want = camera_by_hand(50.0, gamma, 534.0, math.radians(50.0), 1.0, 480.0)
+    got = snr_at(model.prepare(mount, TARGET, c).snr_db, r, math.radians(tgt_az),
+                 math.radians(tgt_el))
+    e1, e2 = math.radians(5.0), math.radians(tgt_el)
+    theta = math.degrees(math.acos(math.sin(e1) * math.sin(e2) + math.cos(e1) * math.cos(e2)
+                                   * math.cos(math.radians(-10.0 - tgt_az))))
+    want = camera_by_hand(r, gamma, 534.0, math.radians(50.0), 1.0, 480.0, theta)
     assert got == pytest.approx(want, abs=TOL_DB)
-    assert got < -50.0  # a camera looking into the sun is blind
+
+
+def test_camera_glare_falls_with_angle_from_the_sun() -> None:
+    """A target next to the sun is blind (SNR bounded by the object-to-veil contrast); 30
+    deg from it the veil is 900 times weaker (1/theta^2) and the camera sees; with the sun
+    behind the camera (outside its view and margin) there is no glare term at all."""
+    mount = Mount(0.0, 0.0, 1.3, 0.0, 0.0, math.radians(90.0), math.radians(28.0), 0.0, 1000.0)
+    model = Camera(camera_params())
+    sun_front = SunConfig(azimuth_deg=-10.0, elevation_deg=5.0, direct_irradiance_w_m2=480.0)
+    c = cond(irradiance_w_m2=534.0, sun=sun_front)
+    prep = model.prepare(mount, TARGET, c)
+    near = snr_at(prep.snr_db, 50.0, math.radians(-10.0), math.radians(5.0))
+    far = snr_at(prep.snr_db, 50.0, math.radians(20.0), math.radians(5.0))
+    # at the sun (theta held at 1 deg): SNR <= -10 log10(10 * 480 / (0.15 * 534 / pi))
+    assert near < -10.0 * math.log10(10.0 * 480.0 / (0.15 * 534.0 / math.pi))
+    assert far > near + 25.0
     sun_behind = SunConfig(azimuth_deg=170.0, elevation_deg=5.0)
     prep = model.prepare(mount, TARGET, cond(irradiance_w_m2=534.0, sun=sun_behind))
     assert "glare" not in prep.effects
+    gamma = c.attenuation_db_km(model.band())
     assert snr_at(prep.snr_db, 50.0) == pytest.approx(
-        camera_by_hand(50.0, gamma, 534.0, math.radians(50.0), 0.0, 0.0), abs=TOL_DB)
+        camera_by_hand(50.0, gamma, 534.0, math.radians(90.0), 0.0, 0.0), abs=TOL_DB)
 
 
 def test_camera_glare_weight_fades_outside_fov() -> None:

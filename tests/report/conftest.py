@@ -26,7 +26,7 @@ def search_only(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A search run of System B with nothing else (no near field, coverage, far field,
     export), its report written."""
     out = tmp_path_factory.mktemp("search_only")
-    run_search("system_b", ["crossing_pedestrian"], ["clear"], 60, 1, 2, out,
+    run_search("system_b", ["slow_ahead_curve"], ["snow"], 60, 1, 2, out,
                strategy="lhs", progress=False)
     assert main(["report", "--run", str(out)]) == 0
     return out

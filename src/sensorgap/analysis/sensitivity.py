@@ -99,3 +99,12 @@ def varied_system(system: System, knob: Knob, value: float) -> System | None:
     """The system rebuilt with ``knob`` at ``value`` (None: the knob is not used)."""
     cfg, changed = vary(system.config, knob, value)
     return None if not changed else build_system(cfg, system.source)
+
+
+def with_camera_field(system: System, field: str, value: float) -> System:
+    """The system rebuilt with ``field`` set to ``value`` on every camera device (e.g. the
+    paper's whole-image glare: ``veiling_glare_k`` at its largest value)."""
+    cfg = system.config
+    devices = {name: (DeviceConfig.model_validate({**dev.model_dump(), field: float(value)})
+                      if dev.type == "camera" else dev) for name, dev in cfg.devices.items()}
+    return build_system(cfg.model_copy(update={"devices": devices}), system.source)

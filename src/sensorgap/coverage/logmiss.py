@@ -39,6 +39,7 @@ from sensorgap.coverage.fastlookup import (
 from sensorgap.coverage.grid import GridSpec, evaluate_grid
 from sensorgap.coverage.kernel import candidates, evaluate_offsets
 from sensorgap.coverage.scene import Scene
+from sensorgap.models.base import glare_factors
 from sensorgap.models.geometry import fov_mask, in_range, rotate_offsets, sensor_range, spherical
 from sensorgap.models.numerics import clip_snr_db
 from sensorgap.models.roc import detection_probability
@@ -59,11 +60,23 @@ def log_miss_of(pd: F64) -> F64:
 
 
 def glare_weights(sensor: Sensor, sun_dirs: F64 | None, index: IntArr) -> F64 | None:
-    """Glare weight per selected point (``None``: no sun, or the sensor is immune)."""
+    """Glare weight (the sun in or near the view) per selected point (``None``: no sun,
+    or the sensor is immune)."""
     if sun_dirs is None or index.size == 0:
         return None
     w = sensor.model.glare_weights(sensor.mount, sun_dirs[index])
     return w if bool(np.any(w > 0.0)) else None
+
+
+def _glare_at(sensor: Sensor, x: F64, y: F64, z: F64 | float, sun_dirs: F64,
+              weights: F64) -> tuple[F64, F64]:
+    """Glare factors (``models.base.glare_factors``) of a camera at vehicle-frame points
+    (m) with their sun directions and glare weights, and the points' ranges (m)."""
+    m = sensor.mount
+    dx, dy = x - m.x, y - m.y
+    dz = np.broadcast_to(np.asarray(z, dtype=np.float64) - m.z, dx.shape)
+    fac = glare_factors(sensor.model, m, dx, dy, dz, sun_dirs, weights)
+    return fac, np.sqrt(dx * dx + dy * dy + dz * dz)
 
 
 def sensor_snr(scene: Scene, sensor: Sensor, x: F64, y: F64, z: F64,
@@ -88,11 +101,14 @@ def sensor_snr(scene: Scene, sensor: Sensor, x: F64, y: F64, z: F64,
     if w is None:
         return idx, snr
     g = np.flatnonzero(w > 0.0)
-    xs, ys, zs = rotate_offsets(m, dx[idx[g]], dy[idx[g]], dz[idx[g]])
+    gx, gy, gz = dx[idx[g]], dy[idx[g]], dz[idx[g]]
+    assert sun_dirs is not None
+    fac = glare_factors(sensor.model, m, gx, gy, gz, sun_dirs[idx[g]], w[g])
+    xs, ys, zs = rotate_offsets(m, gx, gy, gz)
     r = sensor_range(xs, ys, zs)
     _, az, el = spherical(xs, ys, zs)
     snr = snr.copy()
-    snr[g] = clip_snr_db(prepared.snr_db_glare(r, az, el, w[g]))
+    snr[g] = clip_snr_db(prepared.snr_db_glare(r, az, el, fac))
     return idx, snr
 
 
@@ -372,14 +388,14 @@ def lookup_log_miss(maps: LogMissMaps, scene: Scene, x: F64, y: F64, z: F64,
         g = ins[w > 0.0]
         if g.size == 0:
             continue
-        wg = w[w > 0.0]
+        wg, rg = _glare_at(s, x[g], y[g], z[g], sun_dirs[g], w[w > 0.0])
         layer, _ = maps.interpolate(row, x[g], y[g])
         new = np.zeros(g.size)
         if row in maps.signal and prepared.snr_from_signal is not None:
             sig, state = maps.interpolate_signal(row, x[g], y[g])
             ok = state == 1
             if ok.any():
-                snr = clip_snr_db(prepared.snr_from_signal(sig[ok], wg[ok]))
+                snr = clip_snr_db(prepared.snr_from_signal(sig[ok], wg[ok], rg[ok]))
                 new[ok] = log_miss_of(detection_probability(snr, s.roc, scene.roc_shift_db))
         else:
             state = np.full(g.size, 2, dtype=np.int8)
@@ -537,6 +553,7 @@ def lookup_log_miss_tracks(maps: LogMissMaps, scene: Scene, x: F64, y: F64, head
         prepared = scene.prepared(s)
         gi, wg = glare_idx[c, :m], glare_w[c, :m]
         xs, ys = xf[gi], yf[gi]
+        sd = dirs_at(gi)
         if how.outline is not None:
             # a body: where its centre is not well inside the camera's view, the glared
             # layer is replaced over the outline; elsewhere at the centre (below). The body
@@ -550,7 +567,8 @@ def lookup_log_miss_tracks(maps: LogMissMaps, scene: Scene, x: F64, y: F64, head
             if keep.size:
                 sig, _ = maps.interpolate_signal(row, xs[keep], ys[keep])
                 layer = _outline_layer(maps, row, gi[keep], xf, yf, how)
-                snr = clip_snr_db(prepared.snr_from_signal(sig, wg[keep])
+                fk, rk = _glare_at(s, xs[keep], ys[keep], z0, sd[keep], wg[keep])
+                snr = clip_snr_db(prepared.snr_from_signal(sig, fk, rk)
                                   if prepared.snr_from_signal is not None else sig)
                 new = log_miss_of(detection_probability(snr, s.roc, scene.roc_shift_db))
                 of[gi[keep]] = np.minimum(of[gi[keep]] + new - layer, 0.0)
@@ -562,7 +580,8 @@ def lookup_log_miss_tracks(maps: LogMissMaps, scene: Scene, x: F64, y: F64, head
             ok = np.flatnonzero(state == 1)
             if ok.size:
                 sig, _ = maps.interpolate_signal(row, xs[ok], ys[ok])
-                snr = clip_snr_db(prepared.snr_from_signal(sig, wg[ok]))
+                fo, ro = _glare_at(s, xs[ok], ys[ok], z0, sd[ok], wg[ok])
+                snr = clip_snr_db(prepared.snr_from_signal(sig, fo, ro))
                 new[ok] = log_miss_of(detection_probability(snr, s.roc, scene.roc_shift_db))
         else:
             state = np.full(m, 2, dtype=np.int8)
@@ -628,7 +647,9 @@ def _glared_outline(maps: LogMissMaps, scene: Scene, row: int, gi: NDArray[np.in
         sig, state = maps.interpolate_signal(row, px, py)
         ok = np.flatnonzero(state == 1)
         if ok.size:
-            snr = clip_snr_db(prepared.snr_from_signal(sig[ok], np.repeat(wg, k)[ok]))
+            fo, ro = _glare_at(s, px[ok], py[ok], z0, dirs_at(gi[ok // k]),
+                               np.repeat(wg, k)[ok])
+            snr = clip_snr_db(prepared.snr_from_signal(sig[ok], fo, ro))
             new[ok] = log_miss_of(detection_probability(snr, s.roc, scene.roc_shift_db))
     else:
         state = np.full(px.size, 2, dtype=np.int8)

@@ -19,7 +19,7 @@ from pydantic import BaseModel
 
 from sensorgap.config.target import TargetConfig
 from sensorgap.models.conditions import Band, Conditions
-from sensorgap.models.geometry import Mount
+from sensorgap.models.geometry import Mount, separation_cos
 
 F64 = NDArray[np.float64]
 SnrFunction = Callable[[F64, F64, F64], F64]
@@ -37,22 +37,24 @@ class PreparedSensor:
         effects: which effects were modelled for this scene (e.g. ``glare``), with a note.
         uses_angles: whether ``snr_db`` reads azimuth/elevation (a gain pattern); when not,
             callers may pass zeros and skip computing them.
-        snr_db_glare: for sensors the sun can blind: SNR (dB) with a per-point glare weight
-            ``w`` in [0, 1] (the fraction of the direct-sun term applied, see
-            ``SensorModel.glare_weights``), ``snr_db_glare(r, az, el, w)``; ``None`` when the
-            scene has no direct sun or the sensor is immune. With ``w`` equal to the
-            scene's own weight it equals ``snr_db``.
+        snr_db_glare: for sensors the sun can blind: SNR (dB) with a per-point glare
+            factor ``g`` in [0, 1]: the sensor's glare weight for the sun direction
+            (``SensorModel.glare_weights``) times the falloff with the angle between the
+            sun and the line of sight to the point (``SensorModel.glare_falloff``; see
+            ``glare_factors``), ``snr_db_glare(r, az, el, g)``; ``None`` when the scene has
+            no direct sun or the sensor is immune. For a scene prepared with a sun
+            direction and ``g`` from it, it equals ``snr_db``.
         signal_db, snr_from_signal: the same split in two, for lookup maps of glare-prone
             sensors: the received signal (dB, a smooth function of the geometry that can be
-            tabulated) and SNR (dB) from that signal and a glare weight;
-            ``snr_db_glare(r, az, el, w) == snr_from_signal(signal_db(r, az, el), w)``.
+            tabulated) and SNR (dB) from that signal, a glare factor and the range (m);
+            ``snr_db_glare(r, az, el, g) == snr_from_signal(signal_db(r, az, el), g, r)``.
     """
 
     snr_db: SnrFunction
     uses_angles: bool = True
     snr_db_glare: GlareSnrFunction | None = None
     signal_db: SnrFunction | None = None
-    snr_from_signal: Callable[[F64, F64], F64] | None = None
+    snr_from_signal: Callable[[F64, F64, F64], F64] | None = None
     terms_db: dict[str, float] = field(default_factory=dict)
     effects: dict[str, str] = field(default_factory=dict)
 
@@ -87,6 +89,11 @@ class SensorModel(ABC):
         no direct sun); default: immune (zeros)."""
         return np.zeros(len(sun_directions))
 
+    def glare_falloff(self, cos_sep: F64) -> F64:
+        """Glare relative to its largest value, in [0, 1], for the cosine of the angle
+        between the sun and the line of sight to a point; default: no falloff (ones)."""
+        return np.ones(np.shape(cos_sep))
+
     def glare_cone(self, mount: Mount) -> GlareCone | None:
         """The glare weight as a ``GlareCone`` (compiled lookups use it), or ``None`` when
         the sensor is immune or its weight has another form (then ``glare_weights`` is
@@ -114,3 +121,19 @@ class GlareCone:
     yaw: float = 0.0
     pitch: float = 0.0
 
+
+
+def glare_factors(model: SensorModel, mount: Mount, dx: F64, dy: F64, dz: F64 | float,
+                  sun_directions: F64, weights: F64 | None = None) -> F64:
+    """Per-point glare factor ``g`` of ``PreparedSensor.snr_db_glare``: the glare weight of
+    each point's sun direction ((N, 3), vehicle frame, NaN rows: none; or the given
+    ``weights``) times the falloff with the angle between that sun and the line of sight
+    from the mount to the point (offsets ``dx``, ``dy``, ``dz`` from the mount, m)."""
+    w = model.glare_weights(mount, sun_directions) if weights is None else weights
+    g = np.zeros(len(w))
+    on = np.flatnonzero(w > 0.0)
+    if on.size:
+        dz_a = np.broadcast_to(np.asarray(dz, dtype=np.float64), np.shape(dx))
+        c = separation_cos(dx[on], dy[on], dz_a[on], sun_directions[on])
+        g[on] = w[on] * model.glare_falloff(c)
+    return g

@@ -10,14 +10,26 @@ object's diffuse reflectance rho: the object returns the radiance ``rho E_sun / 
 ``E_sun`` of the environment),
 ``N_e = P_r t_int QE / (h nu)``.
 
-Noise (eq. 8) ``N_n = sqrt(N_e) + k B_n T_sys t_int QE / (h nu)``; SNR (eq. 9/10)
-``N_e / (N_n + w N_e,sun)`` with the direct-sun electrons (eq. 10)
-``N_e,sun = E_dir A_r t_int QE / (h nu)``, ``A_r = pi D^2 / 4``.
+Noise (eq. 8) ``N_n = sqrt(N_e) + k B_n T_sys t_int QE / (h nu)``; SNR (eq. 9)
+``N_e / (N_n + N_e,sun)``.
 
-The direct-sun term is applied only while the sun is in or near this camera's field of
-view: ``w = 1`` inside it, falling as ``cos^2`` to 0 at ``glare_margin_deg`` outside it
-(lens flare / veiling glare; estimate), and 0 beyond, at night and under overcast skies.
-Aperture ``D = f / N`` with focal length ``f = pixel_pitch / IFOV``.
+Direct sun (eq. 10, physics.md pitfall 5). Eq. 10 puts the sun's whole flux through the
+aperture (~1e12 electrons) on every pixel; a camera that looks 20 deg away from a low sun
+still sees. The sun's effect on the *target's* image is the veiling glare that lens and
+windscreen scatter from the sun's image, falling with the angle ``theta`` between the sun and
+the line of sight to the target (Stiles-Holladay, CIE 146:2002 disability glare):
+``L_veil = k E_dir / theta^2`` (theta in deg, ``k`` = ``veiling_glare_k``, held at its
+``veiling_glare_min_deg`` value below that angle). In the units of ``N_e`` it is the
+object's signal before the weather times the veil-to-object radiance ratio
+``V(theta) = L_veil / (rho E_sun / pi)``:
+
+``N_e,sun = w V(theta) N_e 10^(gamma R / 10)``
+
+with ``w`` the share of the lens the sun reaches: 1 while the sun is inside the field of
+view, falling as ``cos^2`` to 0 at ``glare_margin_deg`` outside it (lens hood and housing;
+estimate), 0 beyond, at night and under overcast skies. With glare the SNR cannot exceed
+``1 / (w V(theta))``: the object-to-veil contrast. Aperture ``D = f / N`` with focal length
+``f = pixel_pitch / IFOV``.
 """
 
 from __future__ import annotations
@@ -63,6 +75,12 @@ class CameraParams(Strict):
                                     description="Relative illumination loss at the FOV edge, dB")
     glare_margin_deg: float = Field(default=10.0, ge=0.0, le=90.0,
                                     description="Sun angle outside the FOV still glaring, deg")
+    veiling_glare_k: float = Field(
+        default=10.0, ge=0.0, le=1.0e4,
+        description="k of L_veil = k E_glare / theta^2 (theta in deg), (cd/m2)/lx deg2")
+    veiling_glare_min_deg: float = Field(
+        default=1.0, gt=0.0, le=30.0,
+        description="Sun-target angle below which the veil is held constant, deg")
 
 
 @register
@@ -109,6 +127,14 @@ class Camera(SensorModel):
                          0.5 * mount.vfov, math.radians(self.params.glare_margin_deg),
                          mount.yaw, mount.pitch)
 
+    def glare_falloff(self, cos_sep: F64) -> F64:
+        """Veiling glare relative to its value at ``veiling_glare_min_deg``:
+        ``min(1, (theta_min / theta)^2)`` for the cosine of the angle ``theta`` between the
+        sun and the line of sight to the target (Stiles-Holladay)."""
+        theta = np.degrees(np.arccos(np.clip(cos_sep, -1.0, 1.0)))
+        t_min = self.params.veiling_glare_min_deg
+        return np.asarray(t_min**2 / np.maximum(theta, t_min) ** 2, dtype=np.float64)
+
     def may_be_glared(self, mount: Mount, conditions: Conditions) -> bool:
         """True when the sun is in or within ``glare_margin_deg`` of the field of view."""
         return self.glare_weight(mount, conditions) > 0.0
@@ -143,28 +169,27 @@ class Camera(SensorModel):
         k_db = math.fsum(terms.values())
         thermal = BOLTZMANN_J_K * p.noise_bandwidth_hz * p.system_noise_temperature_k * conv
         w = self.glare_weight(mount, conditions)
-        sun_full = 0.0  # direct-sun electrons at glare weight 1
+        e_dir = 0.0  # direct-sun irradiance at the camera, W/m2 (0: no glare possible)
         if env.sun is not None and env.sun.visible:
-            sun_full = env.sun.direct_irradiance_w_m2 * math.pi * aperture**2 / 4.0 * conv
-        sun_e = 0.0
-        if w > 0.0 and env.sun is not None:
-            sun_e = w * sun_full
-            effects["glare"] = f"direct sun on the sensor, weight {w:.3f}, {sun_e:.3e} e-"
-        ln_fixed_noise = math.log(thermal + sun_e)
+            e_dir = env.sun.direct_irradiance_w_m2
+        # veil-to-object radiance ratio at theta_min: k E_dir / theta_min^2 / (rho E / pi)
+        t_min = p.veiling_glare_min_deg
+        ln_veil0 = math.log(max(p.veiling_glare_k * e_dir, 1e-300)) - 2.0 * math.log(t_min) \
+            + math.log(math.pi / (target.camera_reflectance * max(irr, 1e-300)))
+        glare = e_dir > 0.0 and p.veiling_glare_k > 0.0
+        ln_thermal = math.log(thermal)
         gamma = conditions.attenuation_db_km(self.band())
         one_way_db_m = gamma / 1000.0  # object -> camera: one pass (Koschmieder)
         ifov_db = 20.0 * math.log10(ifov)
         edge, hfov, vfov = p.fov_edge_loss_db, mount.hfov, mount.vfov
-
-        def snr_db(r: F64, az: F64, el: F64) -> F64:
-            lr20 = 20.0 * np.log10(r)
-            npo_db = np.minimum(sigma_db - lr20 - ifov_db, n_pix_db)
-            ne_db = k_db + npo_db - lr20 - one_way_db_m * r
-            if edge > 0.0:
-                ne_db = ne_db - pattern_loss_db(az, el, hfov, vfov, edge)
-            ln_ne = ne_db * LN10_OVER_10
-            ln_noise = np.logaddexp(0.5 * ln_ne, ln_fixed_noise)
-            return np.asarray((ln_ne - ln_noise) / LN10_OVER_10, dtype=np.float64)
+        sun_s = None  # this scene's sun in the sensor frame, when it reaches this camera
+        if w > 0.0 and glare and conditions.sun_direction is not None:
+            sun_s = mount.rotation().T @ np.asarray(conditions.sun_direction, dtype=np.float64)
+            off = math.degrees(angle_outside_fov(mount, conditions.sun_direction))
+            effects["glare"] = (f"sun {off:.1f} deg outside the view (weight {w:.3f}); "
+                                f"veiling glare {10.0 * ln_veil0 / math.log(10.0):.1f} dB of "
+                                f"the object's radiance at {t_min:g} deg from the sun, "
+                                "falling as 1/theta^2")
 
         def signal_db(r: F64, az: F64, el: F64) -> F64:
             lr20 = 20.0 * np.log10(r)
@@ -174,21 +199,34 @@ class Camera(SensorModel):
                 ne_db = ne_db - pattern_loss_db(az, el, hfov, vfov, edge)
             return np.asarray(ne_db, dtype=np.float64)
 
-        def snr_from_signal(ne_db: F64, w: F64) -> F64:
+        def snr_from_signal(ne_db: F64, g: F64, r: F64) -> F64:
             ln_ne = ne_db * LN10_OVER_10
-            ln_noise = np.logaddexp(0.5 * ln_ne, np.log(thermal + w * sun_full))
+            ln_veil = (np.log(np.maximum(g, 1e-300)) + ln_veil0 + ln_ne
+                       + one_way_db_m * r * LN10_OVER_10)
+            ln_noise = np.logaddexp(0.5 * ln_ne, np.logaddexp(ln_thermal, ln_veil))
             return np.asarray((ln_ne - ln_noise) / LN10_OVER_10, dtype=np.float64)
 
-        def snr_db_glare(r: F64, az: F64, el: F64, w: F64) -> F64:
-            return snr_from_signal(signal_db(r, az, el), w)
+        def snr_db_glare(r: F64, az: F64, el: F64, g: F64) -> F64:
+            return snr_from_signal(signal_db(r, az, el), g, r)
+
+        def snr_db(r: F64, az: F64, el: F64) -> F64:
+            ne_db = signal_db(r, az, el)
+            if sun_s is not None:
+                ce = np.cos(el)
+                cos_sep = ce * np.cos(az) * sun_s[0] + ce * np.sin(az) * sun_s[1] \
+                    + np.sin(el) * sun_s[2]
+                return snr_from_signal(ne_db, w * self.glare_falloff(cos_sep), r)
+            ln_ne = ne_db * LN10_OVER_10
+            ln_noise = np.logaddexp(0.5 * ln_ne, ln_thermal)
+            return np.asarray((ln_ne - ln_noise) / LN10_OVER_10, dtype=np.float64)
 
         terms["N_thermal [dB e-]"] = 10.0 * math.log10(thermal)
-        if sun_e > 0.0:
-            terms["N_sun [dB e-]"] = 10.0 * math.log10(sun_e)
+        if glare:
+            terms[f"veil/object at {t_min:g} deg [dB]"] = 10.0 * ln_veil0 / math.log(10.0)
         terms["weather one-way [dB/km]"] = gamma
         terms["focal length [mm]"] = focal * 1e3
         return PreparedSensor(snr_db=snr_db, terms_db=terms, effects=effects,
-                              uses_angles=edge > 0.0,
-                              snr_db_glare=snr_db_glare if sun_full > 0.0 else None,
-                              signal_db=signal_db if sun_full > 0.0 else None,
-                              snr_from_signal=snr_from_signal if sun_full > 0.0 else None)
+                              uses_angles=edge > 0.0 or sun_s is not None,
+                              snr_db_glare=snr_db_glare if glare else None,
+                              signal_db=signal_db if glare else None,
+                              snr_from_signal=snr_from_signal if glare else None)

@@ -206,3 +206,15 @@ def horizontal_reach_bbox(
     xs = [mount.x] + [mount.x + rh * math.cos(a) for a in angles]
     ys = [mount.y] + [mount.y + rh * math.sin(a) for a in angles]
     return (min(xs), max(xs), min(ys), max(ys))
+
+
+def separation_cos(dx: F64, dy: F64, dz: F64 | float, directions: F64) -> F64:
+    """Cosine of the angle between offsets from a mount (vehicle-frame axes, m; the line
+    of sight to a point) and (N, 3) vehicle-frame unit ``directions`` (e.g. to the sun).
+    NaN rows (no direction) and zero offsets give -1 (as far apart as possible)."""
+    dz_a = np.broadcast_to(np.asarray(dz, dtype=np.float64), np.shape(dx))
+    r = np.sqrt(dx * dx + dy * dy + dz_a * dz_a)
+    d = np.asarray(directions, dtype=np.float64)
+    dot = dx * d[:, 0] + dy * d[:, 1] + dz_a * d[:, 2]
+    c = np.divide(dot, r, out=np.full(np.shape(dx), -1.0), where=r > 0.0)
+    return np.asarray(np.clip(np.nan_to_num(c, nan=-1.0), -1.0, 1.0), dtype=np.float64)
