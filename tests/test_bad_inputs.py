@@ -178,6 +178,9 @@ def _setup(case: dict[str, Any], argv: list[str], folder: Path, out: Path,
             (run / "search.sqlite-journal").write_bytes(b"journal")
         elif step == "hidden_tmp":
             (run / ".x.tmp.xosc").write_text("<half")
+        elif step == "edit_first_scenario":
+            first = sorted((run / "scenarios").glob("*.xosc"))[0]
+            first.write_text(first.read_text() + "<!-- edited -->\n")
         elif step == "unlisted_file":
             (run / "extra.txt").write_text("not listed")
         elif step == "manifest_symlink":
@@ -203,6 +206,8 @@ def test_bad_input(case: dict[str, Any], tmp_path: Path, finished_run: Path,
     _write_files(case, folder)
     if run.is_dir():
         _edit_run(case, run)
+        if case.get("drop_manifest"):  # test a file's own check, not the folder's integrity
+            (run / "manifest.json").unlink()
     subs = {"{dir}": str(folder), "{out}": str(out), "{run}": str(run),
             "{templates}": str(REPO / "templates"), "{roads}": str(REPO / "roads")}
     argv = [a for a in case["argv"]]

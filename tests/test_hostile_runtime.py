@@ -56,6 +56,25 @@ def test_numba_cache_without_home_uses_a_private_temp_folder(tmp_path: Path,
     assert other is not None and other != chosen and Path(other).is_dir()
 
 
+def test_matplotlib_config_moves_to_a_private_folder_when_home_is_read_only(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Held-out review round four: with HOME unwritable matplotlib printed a multi-line
+    warning on every command; now MPLCONFIGDIR points at a private folder (0700) first.
+    A writable default or an explicit setting is left alone."""
+    from sensorgap.runtime import matplotlib_config_dir
+
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    monkeypatch.setattr("tempfile.tempdir", str(tmp))
+    env = {"HOME": str(tmp_path / "home")}
+    assert matplotlib_config_dir(env, writable=lambda p: True) is None
+    assert "MPLCONFIGDIR" not in env
+    chosen = matplotlib_config_dir(env, writable=lambda p: False)
+    assert chosen is not None and env["MPLCONFIGDIR"] == chosen and Path(chosen).parent == tmp
+    assert not os.stat(chosen).st_mode & (stat.S_IWGRP | stat.S_IWOTH)
+    assert matplotlib_config_dir(env, writable=lambda p: False) is None  # already set
+
+
 def test_numba_cache_respects_an_explicit_setting(tmp_path: Path) -> None:
     env = {"NUMBA_CACHE_DIR": "/somewhere"}
     assert numba_cache_dir(_pkg(tmp_path), env, writable=lambda p: False) is None
@@ -381,3 +400,92 @@ def test_an_empty_out_is_refused(argv: list[str], tmp_path: Path,
     assert capsys.readouterr().err.strip().endswith("(an empty path would write into the "
                                                     "working directory)")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_refuse_if_changed_unit(tmp_path: Path) -> None:
+    """A manifest is rewritten only over what the command writes itself: a listed file
+    changed or missing is refused (naming it); the command's own outputs (a file, a
+    folder, a folder's direct children), files added since and a folder without a manifest
+    pass."""
+    from sensorgap.filesio import refuse_if_changed
+
+    refuse_if_changed(tmp_path / "nothing", ("x",))  # no manifest: nothing certified yet
+    run = _folder(tmp_path)
+    refuse_if_changed(run, ())
+    (run / "new.txt").write_text("n")  # added since: e.g. another command's outputs
+    refuse_if_changed(run, ())
+    (run / "a.txt").write_text("A")
+    (run / "sub" / "b.txt").write_text("B")
+    with pytest.raises(InputError, match=r"a\.txt was changed .*and 1 more"):
+        refuse_if_changed(run, ())
+    with pytest.raises(InputError, match=r"sub/b\.txt was changed"):
+        refuse_if_changed(run, ("a.txt",))
+    refuse_if_changed(run, ("a.txt", "sub/*"))
+    refuse_if_changed(run, ("a.txt", "sub/"))
+    (run / "sub" / "b.txt").unlink()
+    (run / "sub" / "deeper").mkdir()
+    (run / "sub" / "deeper" / "b.txt").write_text("b")
+    refuse_if_changed(run, ("a.txt", "sub/*"))  # sub/b.txt is a direct child: ours
+    (run / "a.txt").unlink()
+    with pytest.raises(InputError, match=r"a\.txt is missing"):
+        refuse_if_changed(run, ("sub/",))
+
+
+def test_report_and_export_do_not_certify_a_tampered_run(tmp_path: Path,
+                                                        capsys: pytest.CaptureFixture[str]
+                                                        ) -> None:
+    """Held-out review round four: `report --run` (and an export in place) rewrote the
+    manifest over a ranking.csv edited by hand, after which `verify` said OK. Now they
+    refuse (exit 2, one line naming the file) and leave the folder as it was; an intact
+    run is reported, exported and re-reported as before, and verifies."""
+    run = tmp_path / "run"
+    assert main(["search", "--vehicle", "system_b", "--families", "slow_ahead_curve",
+                 "--environments", "snow", "--budget", "30", "--seed", "1", "--top", "2",
+                 "--strategy", "lhs", "--out", str(run)]) == 0
+    assert main(["report", "--run", str(run)]) == 0
+    assert main(["export", "--run", str(run)]) == 0
+    assert main(["report", "--run", str(run)]) == 0
+    assert main(["verify", str(run)]) == 0
+    capsys.readouterr()
+    (run / "ranking.csv").write_text((run / "ranking.csv").read_text() + "forged,row\n")
+    before = {p: p.read_bytes() for p in run.rglob("*") if p.is_file()}
+    for argv in (["report", "--run", str(run)], ["export", "--run", str(run)]):
+        assert main(argv) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "ranking.csv was changed" in err[0], err
+    assert {p: p.read_bytes() for p in run.rglob("*") if p.is_file()} == before
+    assert main(["verify", str(run)]) != 0
+
+
+def test_a_reaction_files_friction_is_used(tmp_path: Path) -> None:
+    """Held-out review round four: a vehicle's own reaction file with its own [friction]
+    table was evaluated with the shipped friction. Now the evaluator, the run record and
+    the run folder's evaluator use that table (dry road 0.3 instead of 0.9: the
+    deceleration limit is 2.9 m/s2)."""
+    from sensorgap.config import templates_dir
+    from sensorgap.config.reaction import friction_source, load_friction, reactions_path
+    from sensorgap.models import load_system
+    from sensorgap.search.evaluate import Evaluator
+    from sensorgap.search.runfolder import read_run
+
+    shipped = load_friction()
+    vdir = tmp_path / "car"
+    vdir.mkdir()
+    presets = reactions_path().read_text()
+    assert "dry = 0.9" in presets
+    (vdir / "mine.toml").write_text(presets.replace("dry = 0.9", "dry = 0.3", 1))
+    text = (templates_dir() / "vehicles" / "system_a.toml").read_text()
+    (vdir / "v.toml").write_text(text.replace('reaction = "fusion_any"',
+                                              'reaction = "mine.toml"'))
+    system = load_system(str(vdir / "v.toml"))
+    assert friction_source(system.config.reaction) == (vdir / "mine.toml").resolve()
+    ev = Evaluator(system)
+    assert ev.friction["dry"] == 0.3 and ev.friction["wet"] == shipped["wet"]
+    run = tmp_path / "run"
+    assert main(["search", "--vehicle", str(vdir / "v.toml"), "--families",
+                 "slow_ahead_curve", "--environments", "clear", "--budget", "8",
+                 "--strategy", "lhs", "--out", str(run)]) == 0
+    assert read_run(run).evaluator().friction["dry"] == 0.3
+    # a reaction file without a [friction] table: the shipped one
+    (vdir / "bare.toml").write_text(presets.split("\n[friction]\n")[0])
+    assert friction_source(str(vdir / "bare.toml")) == reactions_path()

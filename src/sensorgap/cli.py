@@ -13,8 +13,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn
 
 from sensorgap.atomic import removed_on_error
+from sensorgap.config.common import parse_decimal, parse_integer
 from sensorgap.errors import InputError
-from sensorgap.filesio import write_manifest
+from sensorgap.filesio import refuse_if_changed, write_manifest
 from sensorgap.runtime import tune_allocator
 
 if TYPE_CHECKING:
@@ -52,10 +53,22 @@ def _terminate(signum: int, frame: Any) -> NoReturn:
     raise _Terminated
 
 
+def _decimal(text: str) -> float:
+    return parse_decimal(text)
+
+
+def _integer(text: str) -> int:
+    return parse_integer(text)
+
+
+_decimal.__name__ = "number"  # argparse: "invalid number value: '1_0'"
+_integer.__name__ = "integer"
+
+
 def _float_list(text: str, n: int, option: str) -> list[float]:
     parts = text.split(",")
     try:
-        vals = [float(p) for p in parts]
+        vals = [parse_decimal(p) for p in parts]
     except ValueError:
         vals = []
     if len(vals) != n or not all(math.isfinite(v) for v in vals):
@@ -349,7 +362,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     for item in args.param or []:  # physical bounds (config.parameters), before any work
         name, _, text = item.partition("=")
         try:
-            why = bound_error(name, float(text))
+            why = bound_error(name, parse_decimal(text))
         except ValueError:
             why = None  # not a number: parse_params names it
         if why:
@@ -405,6 +418,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     """Run a catalog's scenarios in esmini; simulation.csv."""
     from sensorgap.export.simulate import simulate_catalog
 
+    refuse_if_changed(args.catalog, ("simulation.csv",))  # its manifest is rewritten
     rows = simulate_catalog(Path(args.catalog), args.esmini, timeout_s=args.timeout,
                             step_s=args.step, ego_reaction=args.ego_reaction)
     write_manifest(args.catalog)
@@ -453,7 +467,10 @@ def cmd_report(args: argparse.Namespace) -> int:
         if not args.run:
             raise InputError("--run", "", "give --run DIR or --compare RUN_A RUN_B")
         from sensorgap.report import write_report
+        from sensorgap.report.build import REPORT_DIR
 
+        # the report rewrites the manifest: it must not certify a file changed by hand
+        refuse_if_changed(args.run, ("report.html", "report.md", f"{REPORT_DIR}/"))
         with removed_on_error(args.run):  # no figure of a failed report is left behind
             html_path, md_path = write_report(Path(args.run))
             write_manifest(args.run)
@@ -622,7 +639,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("probe", help="SNR and Pd per sensor at points from a CSV")
     _add_scene_args(p)
     p.add_argument("--points", required=True, help="CSV with columns x,y[,z] (vehicle frame, m)")
-    p.add_argument("--heading", type=float, default=None,
+    p.add_argument("--heading", type=_decimal, default=None,
                    help="evaluate target bodies centred at the points at this heading "
                         "relative to the ego, deg (default: points)")
     p.add_argument("--out", help="output CSV (default: stdout)")
@@ -630,24 +647,24 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("coverage", help="coverage grid, heat map and summary")
     _add_scene_args(p)
-    p.add_argument("--height", type=float, help="m (default: the target's reference height)")
-    p.add_argument("--resolution", type=float, default=0.5, help="cell size, m")
+    p.add_argument("--height", type=_decimal, help="m (default: the target's reference height)")
+    p.add_argument("--resolution", type=_decimal, default=0.5, help="cell size, m")
     p.add_argument("--extent", default="-60,160,-40,40", help="XMIN,XMAX,YMIN,YMAX in m")
     p.add_argument("--per-sensor", action="store_true", help="also store each sensor's map")
-    p.add_argument("--heading", type=float, default=None,
+    p.add_argument("--heading", type=_decimal, default=None,
                    help="target bodies centred at the cells at this heading relative to the "
                         "ego, deg (default: points at --height)")
     p.add_argument("--occluder", action="append", default=[], metavar="KIND@X,Y,HEADING",
                    help="a road user standing still as an occluder (a target class of "
                    "targets.toml sized box, centre X,Y m in the vehicle frame, HEADING deg "
                    "relative to the ego); repeatable; needs --heading (target bodies)")
-    p.add_argument("--workers", type=int, default=2, help="threads")
+    p.add_argument("--workers", type=_integer, default=2, help="threads")
     p.add_argument("--out", required=True, help="output folder")
     p.set_defaults(func=cmd_coverage)
 
     p = sub.add_parser("nearfield", help="near-field blind spots (Fig. 5)")
     p.add_argument("--vehicle", required=True, help="preset name or .toml path")
-    p.add_argument("--resolution", type=float, default=0.05, help="grid cell size, m")
+    p.add_argument("--resolution", type=_decimal, default=0.05, help="grid cell size, m")
     p.add_argument("--out", required=True, help="output folder")
     p.set_defaults(func=cmd_nearfield)
 
@@ -656,11 +673,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--environment", required=True, help="environment preset name")
     p.add_argument("--road", default="motorway_r500", help="road name or .xodr path")
     p.add_argument("--road-id", default="1", help="OpenDRIVE road id")
-    p.add_argument("--ego-lane", type=int, default=-1, help="ego lane id")
-    p.add_argument("--ego-s", type=float, default=450.0, help="ego position along the road, m")
-    p.add_argument("--target-lane", type=int, default=-2, help="target lane id")
+    p.add_argument("--ego-lane", type=_integer, default=-1, help="ego lane id")
+    p.add_argument("--ego-s", type=_decimal, default=450.0, help="ego position along the road, m")
+    p.add_argument("--target-lane", type=_integer, default=-2, help="target lane id")
     p.add_argument("--target", default="car", help="pedestrian | bike | car | truck")
-    p.add_argument("--length", type=float, default=303.0, help="path length ahead, m")
+    p.add_argument("--length", type=_decimal, default=303.0, help="path length ahead, m")
     p.add_argument("--target-model", choices=("body", "point"), default="body",
                    help="the target as its body heading along the lane, or as a point at "
                    "its reference height (the paper's setting)")
@@ -680,9 +697,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="'all' (every preset) or comma-separated environment presets")
     p.add_argument("--environments-file",
                    help="environments file defining the presets (default: the shipped ones)")
-    p.add_argument("--budget", type=int, default=200, help="evaluations in total")
-    p.add_argument("--seed", type=int, default=0, help="random seed")
-    p.add_argument("--top", type=int, default=10, help="ranked scenarios to write")
+    p.add_argument("--budget", type=_integer, default=200, help="evaluations in total")
+    p.add_argument("--seed", type=_integer, default=0, help="random seed")
+    p.add_argument("--top", type=_integer, default=10, help="ranked scenarios to write")
     p.add_argument("--strategy", default="de",
                    help="de | cem | lhs | random | grid (or a plugin)")
     p.add_argument("--pd", default="lookup", choices=["lookup", "exact"],
@@ -690,7 +707,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-sun", action="store_true", help="do not search sun azimuth/elevation")
     p.add_argument("--detection", default="cumulative",
                    help="reliable detection: 'cumulative' (Pd >= 0.99) or M/N confirmation")
-    p.add_argument("--workers", type=int, default=2,
+    p.add_argument("--workers", type=_integer, default=2,
                    help="threads per batch, or Dask worker processes")
     p.add_argument("--executor", default="local", choices=["local", "dask"],
                    help="evaluate batches here (threads) or on Dask distributed")
@@ -718,7 +735,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", help="catalog folder (default: the run folder)")
     p.add_argument("--osc-version", default="1.2", choices=["1.0", "1.1", "1.2", "1.3"],
                    help="OpenSCENARIO version")
-    p.add_argument("--top", type=int, help="export only the first N ranked scenarios")
+    p.add_argument("--top", type=_integer, help="export only the first N ranked scenarios")
     p.add_argument("--style", default="maneuver", choices=["maneuver", "replay"],
                    help="maneuver: actions started relative to the ego, for a system under "
                    "test (default); replay: the evaluated paths as timed polylines")
@@ -727,8 +744,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("simulate", help="run a catalog in esmini and compare the paths")
     p.add_argument("--catalog", required=True, help="catalog folder (catalog.json)")
     p.add_argument("--esmini", help="esmini executable (default: $SENSORGAP_ESMINI or PATH)")
-    p.add_argument("--timeout", type=float, default=60.0, help="hard limit per scenario, s")
-    p.add_argument("--step", type=float, default=0.05, help="fixed simulation step, s")
+    p.add_argument("--timeout", type=_decimal, default=60.0, help="hard limit per scenario, s")
+    p.add_argument("--step", type=_decimal, default=0.05, help="fixed simulation step, s")
     p.add_argument("--ego-reaction", action="store_true",
                    help="also run each scenario with the ego braking at the median and "
                    "90th-percentile confirmation time (reaction model) and compare esmini's "
@@ -760,12 +777,12 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("corridor", help="least-detectable approach path (corridor search)")
     _add_scene_args(p)
-    p.add_argument("--start", type=float, default=-60.0, help="start x (vehicle frame), m")
-    p.add_argument("--goal", type=float, default=6.0, help="critical-zone x, m")
+    p.add_argument("--start", type=_decimal, default=-60.0, help="start x (vehicle frame), m")
+    p.add_argument("--goal", type=_decimal, default=6.0, help="critical-zone x, m")
     p.add_argument("--lanes", default="-7.5:-3.75",
                    help="lateral lane bands LO:HI[,LO:HI...] in the vehicle frame, m")
-    p.add_argument("--speed", type=float, default=8.0, help="relative speed along x, m/s")
-    p.add_argument("--lateral-res", type=float, default=0.25, help="lattice row spacing, m")
+    p.add_argument("--speed", type=_decimal, default=8.0, help="relative speed along x, m/s")
+    p.add_argument("--lateral-res", type=_decimal, default=0.25, help="lattice row spacing, m")
     p.add_argument("--out", required=True, help="output folder")
     p.set_defaults(func=cmd_corridor)
 
@@ -778,13 +795,13 @@ def build_parser() -> argparse.ArgumentParser:
                        "field, search, export, report into OUT/<vehicle>/")
     p.add_argument("--vehicle", default="system_a", help="preset name or .toml path")
     p.add_argument("--out", default="output", help="output folder")
-    p.add_argument("--budget", type=int, default=100_000, help="search evaluations in total")
-    p.add_argument("--seed", type=int, default=1, help="random seed of the search")
+    p.add_argument("--budget", type=_integer, default=100_000, help="search evaluations in total")
+    p.add_argument("--seed", type=_integer, default=1, help="random seed of the search")
     p.add_argument("--families", default="all",
                    help="'all' or comma-separated family names or .toml paths")
     p.add_argument("--environments", default="all",
                    help="'all' or comma-separated environment presets")
-    p.add_argument("--workers", type=int, default=2, help="threads")
+    p.add_argument("--workers", type=_integer, default=2, help="threads")
     p.set_defaults(func=cmd_run)
     return parser
 

@@ -217,36 +217,80 @@ def read_manifest(folder: str | Path) -> dict[str, dict[str, Any]]:
     return files
 
 
+def refuse_if_changed(folder: str | Path, rewrites: tuple[str, ...]) -> None:
+    """Before a command adds to a folder that already has a ``manifest.json`` and then
+    rewrites it: every file the manifest lists must be as recorded (and no symbolic link
+    may be there), except below the paths this command writes itself (``rewrites``:
+    relative POSIX paths or folders, e.g. ``report.html``, ``scenarios/``; ``coverage/*``:
+    that folder's direct children only). Otherwise the new manifest would certify a file
+    changed by hand, and ``verify`` would say OK. Files added since are not refused (other
+    commands write into sub-folders of a run; the new manifest lists them). Raises
+    ``InputError`` naming the first such file and how many there are; a folder without a
+    manifest is not checked (nothing certified yet)."""
+    from sensorgap.errors import InputError
+
+    root = Path(folder)
+    if not (root / MANIFEST_NAME).is_file():
+        return
+
+    def ours(rel: str) -> bool:
+        for w in rewrites:
+            if w.endswith("/*"):  # the folder's direct children only
+                head = w[:-1]
+                if rel.startswith(head) and "/" not in rel[len(head):]:
+                    return True
+            elif rel == w.rstrip("/") or rel.startswith(w.rstrip("/") + "/"):
+                return True
+        return False
+
+    # a file added since (another command's outputs in a sub-folder, e.g. a job's near
+    # field) is listed by the new manifest; a certified file changed or lost is refused
+    bad = [why for rel, why in _manifest_problems(root)
+           if not ours(rel) and not why.endswith(("(from an interrupted command; not in "
+                                                  "the manifest)", "is not in the manifest"))]
+    if bad:
+        more = f" (and {len(bad) - 1} more; run 'sensorgap verify {root}')" \
+            if len(bad) > 1 else ""
+        raise InputError(root / MANIFEST_NAME, "files",
+                         f"the folder no longer matches its manifest: {bad[0]}{more}; "
+                         "writing into it would certify that; restore the file or run "
+                         "the command again into a fresh folder")
+
+
 def verify_manifest(folder: str | Path) -> list[str]:
     """Problems of a run folder against its ``manifest.json`` (checked with
     ``read_manifest``): listed files missing, not regular files or changed (size or
     SHA-256); symbolic links anywhere in the folder (never followed); files not listed,
     left-over temporary files and database journals included. Empty when the folder is
     intact. Reads only inside the folder."""
-    root = Path(folder)
+    return [why for _, why in _manifest_problems(Path(folder))]
+
+
+def _manifest_problems(root: Path) -> list[tuple[str, str]]:
+    """``verify_manifest``'s problems as (relative path, message)."""
     listed = read_manifest(root)
     entries = dict(_walk(root))
-    problems = []
+    problems: list[tuple[str, str]] = []
     for rel, kind in entries.items():
         if kind == "link":
-            problems.append(f"{rel} is a symbolic link (not allowed in a run folder)")
+            problems.append((rel, f"{rel} is a symbolic link (not allowed in a run folder)"))
     for rel, meta in sorted(listed.items()):
         found = entries.get(rel)
         if found is None:
-            problems.append(f"{rel} is missing")
+            problems.append((rel, f"{rel} is missing"))
             continue
         if found != "file":
-            problems.append(f"{rel} is not a regular file")
+            problems.append((rel, f"{rel} is not a regular file"))
             continue
         if meta["bytes"] != (root / rel).lstat().st_size \
                 or _sha256_file(root / rel) != (meta["bytes"], meta["sha256"]):
-            problems.append(f"{rel} was changed (size or SHA-256 differs)")
+            problems.append((rel, f"{rel} was changed (size or SHA-256 differs)"))
     for rel, kind in entries.items():
         if kind in ("dir", "link") or rel == MANIFEST_NAME or rel in listed:
             continue
         if is_temporary(rel.rsplit("/", 1)[-1]):
-            problems.append(f"{rel} is a left-over temporary or journal file (from an "
-                            "interrupted command; not in the manifest)")
+            problems.append((rel, f"{rel} is a left-over temporary or journal file (from an "
+                             "interrupted command; not in the manifest)"))
         else:
-            problems.append(f"{rel} is not in the manifest")
+            problems.append((rel, f"{rel} is not in the manifest"))
     return problems

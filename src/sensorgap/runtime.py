@@ -117,3 +117,35 @@ def configure_numba_cache() -> str | None:
         return chosen
     except Exception:  # noqa: BLE001 - a cache folder must never stop a command
         return None
+
+
+def matplotlib_config_dir(env: MutableMapping[str, str] | None = None,
+                          writable: Callable[[Path], bool] | None = None) -> str | None:
+    """Point ``MPLCONFIGDIR`` (unless set) at a private writable folder when matplotlib's
+    default (``$XDG_CONFIG_HOME/matplotlib`` or ``~/.config/matplotlib``) cannot be
+    written: otherwise matplotlib prints a multi-line warning on every command (held-out
+    review round four: HOME unwritable). Returns the folder chosen, or None."""
+    env = os.environ if env is None else env
+    if env.get("MPLCONFIGDIR"):
+        return None
+    base = (Path(env["XDG_CONFIG_HOME"]) if env.get("XDG_CONFIG_HOME")
+            else Path(env.get("HOME") or "~").expanduser() / ".config")
+    default = base / "matplotlib"
+    probe = default if default.exists() else base if base.exists() else base.parent
+    can_write = writable or (lambda q: os.access(q, os.W_OK | os.X_OK))
+    if can_write(probe):
+        return None
+    uid = os.getuid() if hasattr(os, "getuid") else 0
+    chosen = Path(tempfile.gettempdir()) / f"sensorgap-matplotlib-{uid}"
+    folder = str(chosen) if _private_dir(chosen) else tempfile.mkdtemp(
+        prefix="sensorgap-matplotlib-")
+    env["MPLCONFIGDIR"] = folder
+    return folder
+
+
+def configure_matplotlib_dir() -> str | None:
+    """``matplotlib_config_dir`` for this process; never raises."""
+    try:
+        return matplotlib_config_dir()
+    except Exception:  # noqa: BLE001 - a config folder must never stop a command
+        return None

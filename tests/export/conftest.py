@@ -12,9 +12,11 @@ import pytest
 
 from sensorgap.cli import main
 from sensorgap.export.simulate import find_esmini
+from sensorgap.models import load_system
 from sensorgap.scenarios import load_family
 from sensorgap.scenarios.trajectory import InfeasibleScenario
 from sensorgap.search.run import run_search
+from sensorgap.search.runfolder import record_inputs, write_search_record
 
 FAMILIES = ["cut_in_left", "overtake_left", "slow_ahead_curve", "crossing_pedestrian",
             "crossing_cyclist"]
@@ -61,6 +63,11 @@ def write_family_run(out: Path, per_family: int = 1, seed: int = 7) -> Path:
     out.mkdir(parents=True, exist_ok=True)
     (out / "ranking.json").write_text(json.dumps(
         {"ranking": rows, "settings": {"vehicle_ref": "system_a"}}), encoding="utf-8")
+    # its inputs recorded as a search records them (a run without them is refused)
+    system = load_system("system_a")
+    write_search_record(out, "system_a", {}, record_inputs(
+        out, Path(system.source), None, system.config.reaction,
+        [load_family(n) for n in ALL_FAMILIES]))
     return out
 
 

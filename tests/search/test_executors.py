@@ -34,3 +34,4 @@ def test_unreachable_scheduler_is_one_line(tmp_path: Path,
     err = capsys.readouterr().err.strip()
     assert code == 2 and "cannot reach the Dask scheduler" in err
     assert len(err.splitlines()) == 1
+    assert not (tmp_path / "o").exists()  # no empty folder left behind (review round four)

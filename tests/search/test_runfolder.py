@@ -16,6 +16,7 @@ import pytest
 
 from sensorgap.cli import main
 from sensorgap.config.presets import templates_dir
+from sensorgap.errors import InputError
 from sensorgap.search.run import run_search
 from sensorgap.search.runfolder import open_run
 
@@ -189,18 +190,23 @@ def test_a_changed_input_is_named_and_a_modified_copy_refused(
     assert len(err2) == 1 and "was modified" in err2[0] and "my_envs.toml" in err2[0]
 
 
-def test_a_run_without_recorded_inputs_falls_back_to_presets(
+def test_a_run_without_recorded_inputs_is_refused(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # held-out review round four: such a run was rebuilt from the shipped presets of the
+    # same names (with a note), which may silently differ from what was searched
     folder = tmp_path / "old"
     folder.mkdir()
     (folder / "ranking.json").write_text(json.dumps(
         {"ranking": [{"rank": 1, "scenario_id": "x", "family": "cut_in_left",
                       "environment": "clear"}],
          "settings": {"vehicle_ref": "system_a"}}), encoding="utf-8")
-    run = open_run(folder)
+    with pytest.raises(InputError, match=r"run\.json: inputs: missing: the run does not "
+                       r"record its inputs"):
+        open_run(folder)
+    assert main(["export", "--run", str(folder)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "records no inputs" in err[0] and "presets" in err[0]
-    assert not run.recorded
-    assert run.environments()["clear"].visibility_m == 23000.0
-    assert run.family("cut_in_left").source.endswith("templates/scenarios/cut_in_left.toml")
-    assert run.system().name == "System A"
+    assert len(err) == 1 and "run the search again" in err[0]
+    assert sorted(p.name for p in folder.iterdir()) == ["ranking.json"]
+    # without ranked rows there is nothing to rebuild: a folder of other outputs opens
+    (folder / "ranking.json").unlink()
+    assert open_run(folder, ranking=False).rows == []

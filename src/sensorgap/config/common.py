@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from typing import Annotated
 
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field
@@ -47,3 +48,30 @@ class Strict(BaseModel):
     coercion (a quoted "3" is not a number; integers are accepted where floats are)."""
 
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False, strict=True)
+
+
+#: A plain decimal number as written in CSV files and on the command line: optional sign,
+#: digits with an optional point, optional exponent; no '_' digit separators (Python's
+#: ``float('1_000')`` accepts them), no inner spaces. 'nan' and 'inf' are read as such, so
+#: that the option's own check names the allowed range.
+_DECIMAL = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?"
+                      r"|[+-]?(?:nan|inf|infinity)", re.IGNORECASE)
+_INTEGER = re.compile(r"[+-]?[0-9]+")
+
+
+def parse_decimal(text: str) -> float:
+    """A plain decimal number (``_DECIMAL``; surrounding spaces allowed) as a float;
+    anything else -> ``ValueError``. Values beyond the float range are ``inf``; callers
+    check finiteness and range."""
+    t = text.strip()
+    if len(t) > 400 or not _DECIMAL.fullmatch(t):
+        raise ValueError(f"not a plain decimal number: {text[:80]!r}")
+    return float(t)
+
+
+def parse_integer(text: str) -> int:
+    """A plain integer (optional sign and digits; no '_' separators) -> ``ValueError``."""
+    t = text.strip()
+    if len(t) > 400 or not _INTEGER.fullmatch(t):
+        raise ValueError(f"not a plain integer: {text[:80]!r}")
+    return int(t)

@@ -143,6 +143,13 @@ def load_vehicle(name_or_path: str | Path) -> tuple[VehicleConfig, Path]:
     if (reaction.endswith(".toml") or "/" in reaction) and not Path(reaction).is_absolute():
         # a path: relative to the vehicle file's folder (as a family file's road)
         cfg = cfg.model_copy(update={"reaction": os.path.abspath(path.parent / reaction)})
+    else:  # a preset name: checked for every command, not only those that use it
+        from sensorgap.config.reaction import reaction_presets
+
+        names = reaction_presets()
+        if reaction not in names:
+            raise InputError(path, "reaction", f"unknown reaction model {reaction[:64]!r}; "
+                             f"presets: {', '.join(names)} (or a path to a .toml file)")
     return cfg, path
 
 

@@ -27,7 +27,7 @@ File layout (the shipped presets or a file of the same layout)::
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, Literal, get_args
 
 from pydantic import Field, ValidationError
 
@@ -135,6 +135,12 @@ def load_reaction(name_or_path: str | Path | None = None,
         raise InputError(path, f"reactions.{name}", "must be a table")
     raw = dict(raw)
     if isinstance(raw.get("confirm_with"), list):
+        allowed = get_args(SensorType)
+        for i, v in enumerate(raw["confirm_with"]):  # one line per file, not pydantic's two
+            if v not in allowed:
+                raise InputError(path, f"reactions.{name}.confirm_with[{i}]",
+                                 f"unknown sensor type {str(v)[:80]!r}; allowed: "
+                                 f"{', '.join(allowed)}")
         raw["confirm_with"] = tuple(raw["confirm_with"])
     try:
         cfg = ReactionConfig.model_validate({"name": name, **raw})
@@ -159,6 +165,18 @@ def load_reaction(name_or_path: str | Path | None = None,
         raise InputError(path, f"reactions.{name}.sources.{unknown[0]}",
                          "source for an unknown parameter")
     return cfg
+
+
+def friction_source(reaction: str | None) -> Path:
+    """The file whose ``[friction]`` table goes with a vehicle's ``reaction`` setting: a
+    reaction file (a path) that has its own ``[friction]`` table, else the shipped
+    ``reactions.toml``."""
+    text = "" if reaction is None else str(reaction)
+    if text.endswith(".toml") or "/" in text:
+        path = Path(text)
+        if "friction" in read_toml(path):
+            return path
+    return reactions_path()
 
 
 def load_friction(path: Path | None = None) -> dict[str, float]:

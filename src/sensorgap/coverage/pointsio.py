@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from sensorgap.config.common import parse_decimal
 from sensorgap.errors import InputError
 
 #: Input limits (docs/limits.md): points per file, file size, and points x sensors (the
@@ -79,7 +80,7 @@ def _rows(path: Path, reader: Any, ix: int, iy: int, iz: int | None, default_z: 
                 raise InputError(path, f"line {lineno}, column {name}", f"field of "
                                  f"{len(cell)} characters; at most {MAX_FIELD_CHARS} allowed")
             try:
-                v = float(cell)
+                v = parse_decimal(cell)
             except ValueError:
                 v = math.nan
             if not math.isfinite(v) or abs(v) > 1.0e7:

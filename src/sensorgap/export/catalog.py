@@ -35,7 +35,7 @@ from sensorgap.export.maneuver import build_maneuver_scenario, supported
 from sensorgap.export.spec import ScenarioSpec, read_run, specs_of_run
 from sensorgap.export.validate import FOOTWAY_M, semantic_errors, xsd_errors
 from sensorgap.export.xosc import DEFAULT_VERSION, VERSIONS, build_scenario
-from sensorgap.filesio import write_json, write_manifest, write_npz
+from sensorgap.filesio import refuse_if_changed, write_json, write_manifest, write_npz
 from sensorgap.models import Conditions
 from sensorgap.roads import read_opendrive
 from sensorgap.search.runfolder import INPUTS_DIR, copy_record
@@ -108,6 +108,11 @@ def _inside_only(out: Path) -> None:
                              "catalog folder (remove the link or choose another --out)")
 
 
+#: What an export writes into its folder (``filesio.refuse_if_changed``): everything else
+#: listed in an existing manifest must be unchanged before the manifest is rewritten.
+EXPORT_WRITES = ("scenarios/", "roads/", "coverage/*", "catalog.json", "simulation.csv")
+
+
 def export_catalog(run_dir: Path, out_dir: Path | None = None,
                    osc_version: str = DEFAULT_VERSION, top: int | None = None,
                    coverage: bool = True, style: str = DEFAULT_STYLE) -> dict[str, Any]:
@@ -130,9 +135,13 @@ def export_catalog(run_dir: Path, out_dir: Path | None = None,
                                  f"{sp.family.kind.name}) has no maneuver form; use "
                                  "--style replay")
     _inside_only(out)
+    in_place = out.resolve() == run.folder.resolve()
+    refuse_if_changed(out, EXPORT_WRITES if in_place else
+                      (*EXPORT_WRITES, "ranking.csv", "ranking.json", "run.json",
+                       f"{INPUTS_DIR}/"))
     (out / "scenarios").mkdir(parents=True, exist_ok=True)
     (out / "roads").mkdir(parents=True, exist_ok=True)
-    if out.resolve() != run.folder.resolve():
+    if not in_place:
         for name in ("ranking.csv", "ranking.json"):
             if (run.folder / name).is_file():
                 atomic_write_bytes(out / name, (run.folder / name).read_bytes())

@@ -38,7 +38,6 @@ from sensorgap.export.bodies import MAX_BODY_DEV_M, box_deviation, planned_boxes
 from sensorgap.export.maneuver import maneuver_triggers, occluder_name, planned_origins
 from sensorgap.export.spec import ScenarioSpec, read_run
 from sensorgap.export.xosc import EGO, TARGET, origin_path, target_origin_offset
-from sensorgap.models import load_system
 from sensorgap.scenarios import Scenario, Trajectory
 from sensorgap.search.evaluate import Evaluator
 from sensorgap.search.metrics import compute_all
@@ -427,8 +426,8 @@ def simulate_catalog(catalog: Path, esmini: str | None = None,
     index, entries = read_catalog_index(index_path)
     exe = find_esmini(esmini)
     run = read_run(catalog)
-    system = load_system(run.vehicle_ref)
-    evaluator = Evaluator(system, mode="exact")
+    system = run.system()  # the recorded inputs of the run, never a preset of that name
+    evaluator = run.evaluator("exact")
     by_id = {str(r["scenario_id"]): r for r in run.rows}
     rows = []
     for entry in entries:
@@ -442,7 +441,7 @@ def simulate_catalog(catalog: Path, esmini: str | None = None,
             rows.append({**base, "status": "missing",
                          "message": "scenario not in ranking.json"})
             continue
-        spec = ScenarioSpec.from_row(by_id[sid], system, catalog / "ranking.json")
+        spec = ScenarioSpec.from_row(by_id[sid], system, catalog / "ranking.json", run)
         style = str(index.get("style", "replay"))
         row = run_one(exe, xosc, spec, evaluator, timeout_s, step_s, style)
         if ego_reaction:

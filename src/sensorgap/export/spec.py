@@ -8,6 +8,7 @@ to one searched candidate.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -57,33 +58,65 @@ class ScenarioSpec:
         """Rebuild a ranking row (``InputError`` naming ``source`` if it is inconsistent)
         from the inputs ``run`` recorded (family, its road, environments, targets); without
         ``run``, from the shipped presets."""
+        at = _row_label(row, run)
+        field = "family"
         try:
             family = (run.family(str(row["family"])) if run is not None
                       else load_family(str(row["family"])))
             params: dict[str, ParamValue] = {}
             for p in family.space:
-                v = row[f"p_{p.name}"]
-                params[p.name] = str(v) if p.categorical else float(v)
+                field = f"p_{p.name}"
+                params[p.name] = _param_value(row[field], p.categorical, p.choices)
+            field = "environment"
             env_name = str(row["environment"]).split("@")[0]
             presets = run.environments() if run is not None else load_environments()
             if env_name not in presets:
-                raise KeyError(f"environment {env_name!r}")
+                raise ValueError(f"unknown environment {env_name[:64]!r}")
             env = presets[env_name]
             sun = None
             if row.get("sun_azimuth_deg") is not None and env.sun is not None:
-                sun = (float(row["sun_azimuth_deg"]), float(row["sun_elevation_deg"]))
+                field = "sun_azimuth_deg"
+                az = _param_value(row["sun_azimuth_deg"], False, ())
+                field = "sun_elevation_deg"
+                sun = (float(az), float(_param_value(row["sun_elevation_deg"], False, ())))
                 env = env.model_copy(update={"sun": env.sun.model_copy(update={
                     "azimuth_deg": sun[0], "elevation_deg": sun[1], "frame": "world"})})
+        except KeyError:
+            raise InputError(source, f"{at}.{field}", "missing") from None
+        except (TypeError, ValueError) as exc:
+            raise InputError(source, f"{at}.{field}", str(exc)) from None
+        try:
             scenario = family.generate(params)
         except (KeyError, TypeError, ValueError, InfeasibleScenario) as exc:
-            raise InputError(source, f"ranking[{row.get('rank', '?')}]",
-                             f"cannot rebuild the scenario: {exc}") from None
+            raise InputError(source, at, f"cannot rebuild the scenario: {exc}") from None
         metrics = {k: float(row[k]) for k in metric_names() if isinstance(row.get(k), int | float)}
         targets = run.targets() if run is not None else None
         target = (targets[scenario.target_class] if targets is not None
                   and scenario.target_class in targets else load_target(scenario.target_class))
         return cls(str(row["scenario_id"]), int(row["rank"]), family, params, env_name, env,
                    sun, scenario, target, system, metrics, str(row.get("reason", "")))
+
+
+def _row_label(row: dict[str, Any], run: RunFolder | None) -> str:
+    """``ranking[i]``: the row's 0-based position in ``ranking.json`` (as the checks on
+    reading it name rows), or its scenario id when it is not one of the run's rows."""
+    if run is not None:
+        for i, r in enumerate(run.rows):
+            if r is row or r == row:
+                return f"ranking[{i}]"
+    return f"ranking[id={str(row.get('scenario_id', '?'))[:64]}]"
+
+
+def _param_value(v: Any, categorical: bool, choices: tuple[str, ...]) -> ParamValue:
+    """A ranking row's parameter: a choice by name, else a finite JSON number (not a
+    boolean, not a string)."""
+    if categorical:
+        if not isinstance(v, str) or (choices and v not in choices):
+            raise ValueError(f"expected one of {', '.join(choices)}, got {str(v)[:40]!r}")
+        return v
+    if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+        raise ValueError(f"expected a finite number, got {str(v)[:40]!r}")
+    return float(v)
 
 
 def specs_of_run(run: RunFolder, top: int | None = None) -> list[ScenarioSpec]:

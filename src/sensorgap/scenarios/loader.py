@@ -202,6 +202,11 @@ def load_family(name_or_path: str, road: Path | None = None) -> Family:
         if key in settings and not net.lane_exists(settings["road_id"], settings[key]):
             raise InputError(path, f"family.{key}", f"lane {settings[key]!r} does not exist "
                              f"on road {settings['road_id']}")
+    if "ego_lane" in settings and "target_lane" in settings \
+            and settings["ego_lane"] == settings["target_lane"]:
+        raise InputError(path, "family.target_lane", "must differ from ego_lane "
+                         f"({settings['ego_lane']}): the target changes from its lane into "
+                         "the ego's (or passes in the next lane)")
     params = data.get("parameters", {})
     if not isinstance(params, dict):
         raise InputError(path, "parameters", "expected a table")

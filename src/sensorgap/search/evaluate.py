@@ -31,7 +31,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sensorgap.config import EnvironmentConfig, TargetConfig, load_target
-from sensorgap.config.reaction import ReactionConfig, load_friction, load_reaction, road_condition
+from sensorgap.config.reaction import (
+    ReactionConfig,
+    friction_source,
+    load_friction,
+    load_reaction,
+    road_condition,
+)
 from sensorgap.coverage import GridSpec, Scene
 from sensorgap.coverage.body import (
     body_per_sensor_pd,
@@ -375,7 +381,8 @@ class Evaluator:
     def __init__(self, system: System, mode: str = "lookup", max_maps: int = 32,
                  resolution_m: float = MAP_RESOLUTION_M,
                  rule: DetectionRule | None = None, bodies: bool = True,
-                 reaction: ReactionConfig | None = None) -> None:
+                 reaction: ReactionConfig | None = None,
+                 friction: Mapping[str, float] | None = None) -> None:
         if mode not in ("lookup", "exact"):
             raise ValueError(f"mode must be 'lookup' or 'exact', got {mode!r}")
         self.system = system
@@ -384,7 +391,8 @@ class Evaluator:
         self.bodies = bodies
         #: the vehicle's reaction model (its file's ``reaction``) and road friction
         self.reaction = reaction or load_reaction(system.config.reaction)
-        self.friction = load_friction()
+        self.friction = (dict(friction) if friction is not None
+                         else load_friction(friction_source(system.config.reaction)))
         types = set(self.reaction.confirm_with)
         #: sensor rows whose detections confirm a target for braking
         self.confirm_rows: tuple[int, ...] = tuple(

@@ -8,6 +8,7 @@ byte-identical ranking files.
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import io
 import json
@@ -178,6 +179,7 @@ def run_search(vehicle: str | Path, families: list[str], environments: list[str]
     inputs = _input_digests(system.source, evaluator, envs, fams)
     db = out / "search.sqlite"
     new_db = not db.exists()
+    new_out = not out.exists()
     out.mkdir(parents=True, exist_ok=True)
     store = Store(db, settings, inputs)
     if store.count() and not resume:
@@ -197,6 +199,9 @@ def run_search(vehicle: str | Path, families: list[str], environments: list[str]
         store.close()
         if new_db:  # nothing was stored: leave no empty database behind
             db.unlink(missing_ok=True)
+        if new_out:  # nor an empty folder this search created
+            with contextlib.suppress(OSError):
+                out.rmdir()
         raise
     # the run folder keeps its inputs: copies under inputs/, paths and SHA-256 in run.json
     write_search_record(out, _vehicle_ref(vehicle), settings, record_inputs(

@@ -42,6 +42,7 @@ from sensorgap.config.parameters import bound_error
 from sensorgap.config.presets import resolve_road, templates_dir
 from sensorgap.config.reaction import (
     ReactionConfig,
+    friction_source,
     load_friction,
     load_reaction,
     reactions_path,
@@ -61,6 +62,9 @@ RANKING_JSON = "ranking.json"
 SINGLE = ("vehicle", "environments", "targets", "reaction", "friction")
 #: Text fields every ranking row must carry.
 ROW_TEXT = ("scenario_id", "family", "environment")
+#: The classes a ranked row may have (``search.ranking.classify``; only sensor-critical
+#: rows are ranked, older runs ranked every class).
+ROW_CLASSES = ("sensor-critical", "marginal", "unavoidable", "not critical")
 #: What a scenario id may be (it names the exported files).
 SCENARIO_ID = re.compile(r"[A-Za-z0-9_-]{1,64}")
 #: Fields of ``run.json`` a reader checks, and the JSON type each must have.
@@ -131,7 +135,7 @@ def record_inputs(folder: Path, vehicle_file: Path, environments_file: Path | No
     }
     r_path, r_name = reaction_source(reaction)
     out["reaction"] = {**rec.add("reaction", r_path), "name": r_name}
-    out["friction"] = rec.add("reaction", reactions_path())
+    out["friction"] = rec.add("reaction", friction_source(reaction))
     fams: dict[str, Any] = {}
     roads: dict[str, Any] = {}
     for f in families:
@@ -249,6 +253,9 @@ def _read_ranking(folder: Path) -> tuple[list[dict[str, Any]], dict[str, Any],
             if not isinstance(row.get(key), str) or not row[key]:
                 raise InputError(path, f"ranking[{i}].{key}", "malformed ranking file: "
                                  "missing or not a string")
+        if "class" in row and row["class"] not in ROW_CLASSES:
+            raise InputError(path, f"ranking[{i}].class", "malformed ranking file: expected "
+                             f"one of {', '.join(ROW_CLASSES)}, got {str(row['class'])[:40]!r}")
         if not SCENARIO_ID.fullmatch(row["scenario_id"]):
             # it names files (scenarios/<id>.xosc): no path separators, no markup
             raise InputError(path, f"ranking[{i}].scenario_id", "malformed ranking file: "
@@ -373,8 +380,8 @@ class RunFolder:
     def evaluator(self, mode: str = "exact", rule: DetectionRule | None = None) -> Evaluator:
         """An evaluator of the run's vehicle with its recorded reaction model, friction
         and target classes."""
-        ev = Evaluator(self.system(), mode=mode, rule=rule, reaction=self.reaction())
-        ev.friction = self.friction()
+        ev = Evaluator(self.system(), mode=mode, rule=rule, reaction=self.reaction(),
+                       friction=self.friction())
         ev._targets.update(self.targets())  # the cache Evaluator.target fills from presets
         return ev
 
@@ -438,9 +445,11 @@ def open_run(folder: Path, ranking: bool = True) -> RunFolder:
     run = RunFolder(folder, rows, settings, info, vehicle, data)
     if run.recorded:
         run.check_inputs()
-    elif rows:
-        say(f"note: {folder} records no inputs (a run from before run.json kept them): "
-            "rebuilding from the shipped presets")
+    elif rows:  # rebuilding from presets of the same names could silently differ
+        raise InputError(folder / RUN_JSON, "inputs", "missing: the run does not record "
+                         "its inputs (run.json absent, or from an older sensorgap that did not "
+                         "keep them), so its scenarios cannot be rebuilt as searched; run "
+                         "the search again")
     return run
 
 

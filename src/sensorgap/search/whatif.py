@@ -17,6 +17,7 @@ import numpy as np
 
 from sensorgap.atomic import atomic_write_bytes
 from sensorgap.config import load_environments
+from sensorgap.config.common import parse_decimal
 from sensorgap.errors import InputError
 from sensorgap.filesio import csv_bytes, write_json
 from sensorgap.models import Conditions, load_system
@@ -48,7 +49,7 @@ def parse_params(items: list[str], problem: SearchProblem) -> dict[str, ParamVal
             out[name] = text
             continue
         try:
-            v = float(text)
+            v = parse_decimal(text)
         except ValueError:
             v = math.nan
         if not math.isfinite(v):
@@ -67,7 +68,7 @@ def parse_sun(text: str | None) -> tuple[float, float] | None:
         return None
     parts = text.split("/")
     try:
-        az, el = float(parts[0]), float(parts[1])
+        az, el = parse_decimal(parts[0]), parse_decimal(parts[1])
     except (ValueError, IndexError):
         az = el = math.nan
     if len(parts) != 2 or not (math.isfinite(az) and math.isfinite(el)) or not (
