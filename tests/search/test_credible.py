@@ -158,3 +158,29 @@ def test_system_a_ranked_bodies_are_unseen_at_the_named_step(tmp_path: Path) -> 
                               tr.x[k:k + 1], tr.y[k:k + 1], psi=tr.psi[k:k + 1],
                               occluders=occ)[:, 0]
         assert pd.max() < 0.9, (row["rank"], row["reason"])
+
+
+def test_one_encounter_elsewhere_on_a_curve_is_one_row(monkeypatch: pytest.MonkeyPatch
+                                                      ) -> None:
+    """The default job ranked the same stopped-car encounter twice: the ego at s = 608 and
+    861 m of the same constant-radius curve, P(collision) 1e-7 apart, while 'same outcome'
+    meant equal to 1e-9. Within ``SAME_OUTCOME`` it is one row (and two without it)."""
+    from sensorgap.search import ranking
+    from sensorgap.search.evaluate import Evaluator
+    from sensorgap.search.problem import Candidate, SearchProblem
+
+    fam = load_family("slow_ahead_curve")
+    prob = SearchProblem(fam, {"rain_25": load_environments()["rain_25"]},
+                         Evaluator(load_system("system_a"), "exact"))
+    base = {"ego_speed_m_s": 35.8243, "gap0_m": 148.4673, "target_speed_m_s": 0.0444}
+    res = [prob.evaluate(Candidate(fam.name, "rain_25", None, {**base, "ego_s0_m": s0}))
+           for s0 in (607.9775, 860.808)]
+    a, b = (r.metrics for r in res)
+    assert ranking.classify(res[0]) == ranking.classify(res[1]) == "sensor-critical"
+    assert 0.0 < abs(a["collision_probability"] - b["collision_probability"]) < 1e-5
+    pairs = [(r, r) for r in res]
+    rows, _ = ranking.rank_exact(pairs, {fam.name: prob}, 10)
+    assert len(rows) == 1
+    monkeypatch.setattr(ranking, "SAME_OUTCOME", dict.fromkeys(ranking.SAME_OUTCOME, 0.0))
+    rows, _ = ranking.rank_exact(pairs, {fam.name: prob}, 10)
+    assert len(rows) == 2

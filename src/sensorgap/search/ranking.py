@@ -227,6 +227,9 @@ UNAVOIDABLE_PER_GROUP = 2
 #: Sensor-critical scenarios less likely than this to end in a collision are not ranked
 #: (counted in summary.json): a list of one-in-10^30 collisions helps no test engineer.
 RANK_MIN_P = 1e-6
+#: Outcome tolerances within which two rows of a family and dominant effect are one
+#: encounter placed elsewhere on the road (``rank_exact``): P(collision), km/h, s.
+SAME_OUTCOME = {"collision_probability": 1e-5, "impact_speed_kmh": 0.01, "t_safe_s": 1e-6}
 
 
 def classify(r: Result) -> str:
@@ -346,14 +349,16 @@ def rank_exact(pairs: list[tuple[Result, Result]], problems: dict[str, SearchPro
     def same_outcome(r: Result, ex: Explanation,
                      out: list[tuple[Result, list[str], Explanation]]) -> bool:
         """The same encounter placed elsewhere on the road: same family, effect and
-        outcome (P(collision), impact speed, t_safe to 1e-9): joins the first row."""
-        def sig(x: Result) -> tuple[float, ...]:
-            return tuple(round(float(x.metrics.get(m, 0.0)), 9) for m in
-                         ("collision_probability", "impact_speed_kmh", "t_safe_s"))
+        outcome (``SAME_OUTCOME``: P(collision), impact speed and t_safe within their
+        tolerances): joins the first row. Two places on a constant-radius curve give the
+        same encounter up to rounding (measured: P 1e-7, impact 1e-5 km/h apart)."""
+        def same(a: Result, b: Result) -> bool:
+            return all(abs(float(a.metrics.get(m, 0.0)) - float(b.metrics.get(m, 0.0))) <= tol
+                       for m, tol in SAME_OUTCOME.items())
 
         for row in out:
             if (row[0].candidate.family == r.candidate.family
-                    and row[2].dominant == ex.dominant and sig(row[0]) == sig(r)):
+                    and row[2].dominant == ex.dominant and same(row[0], r)):
                 if r.candidate.environment_label not in row[1]:
                     row[1].append(r.candidate.environment_label)
                 return True
