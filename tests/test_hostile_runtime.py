@@ -404,9 +404,9 @@ def test_an_empty_out_is_refused(argv: list[str], tmp_path: Path,
 
 def test_refuse_if_changed_unit(tmp_path: Path) -> None:
     """A manifest is rewritten only over what the command writes itself: a listed file
-    changed or missing is refused (naming it); the command's own outputs (a file, a
-    folder, a folder's direct children), files added since and a folder without a manifest
-    pass."""
+    changed is refused (naming it); the command's own outputs (a file, a folder, a
+    folder's direct children), files added or lost since and a folder without a manifest
+    pass, a lost file staying listed."""
     from sensorgap.filesio import refuse_if_changed
 
     refuse_if_changed(tmp_path / "nothing", ("x",))  # no manifest: nothing certified yet
@@ -426,9 +426,20 @@ def test_refuse_if_changed_unit(tmp_path: Path) -> None:
     (run / "sub" / "deeper").mkdir()
     (run / "sub" / "deeper" / "b.txt").write_text("b")
     refuse_if_changed(run, ("a.txt", "sub/*"))  # sub/b.txt is a direct child: ours
-    (run / "a.txt").unlink()
+    # a file lost is not refused (the command degrades) but stays listed by the manifest
+    # written with the same rewrites, so verify keeps reporting it
+    (run / "a.txt").write_text("a")
+    (run / "sub" / "b.txt").write_text("b")
+    write_manifest(run)
+    (run / "sub" / "b.txt").unlink()
+    refuse_if_changed(run, ())
+    write_manifest(run, ())
+    assert verify_manifest(run) == ["sub/b.txt is missing"]
+    write_manifest(run, ("sub/",))  # a file the command writes itself: not kept
+    assert verify_manifest(run) == []
+    (run / "a.txt").unlink()  # the run's own record, at the top: refused
     with pytest.raises(InputError, match=r"a\.txt is missing"):
-        refuse_if_changed(run, ("sub/",))
+        refuse_if_changed(run, ())
 
 
 def test_report_and_export_do_not_certify_a_tampered_run(tmp_path: Path,
@@ -437,7 +448,9 @@ def test_report_and_export_do_not_certify_a_tampered_run(tmp_path: Path,
     """Held-out review round four: `report --run` (and an export in place) rewrote the
     manifest over a ranking.csv edited by hand, after which `verify` said OK. Now they
     refuse (exit 2, one line naming the file) and leave the folder as it was; an intact
-    run is reported, exported and re-reported as before, and verifies."""
+    run is reported, exported and re-reported as before, and verifies. A part lost from a
+    sub-folder lets the report degrade and stays listed (verify names it); the run's own
+    record lost from the top of the folder is refused."""
     run = tmp_path / "run"
     assert main(["search", "--vehicle", "system_b", "--families", "slow_ahead_curve",
                  "--environments", "snow", "--budget", "30", "--seed", "1", "--top", "2",
@@ -447,6 +460,7 @@ def test_report_and_export_do_not_certify_a_tampered_run(tmp_path: Path,
     assert main(["report", "--run", str(run)]) == 0
     assert main(["verify", str(run)]) == 0
     capsys.readouterr()
+    original = (run / "ranking.csv").read_bytes()
     (run / "ranking.csv").write_text((run / "ranking.csv").read_text() + "forged,row\n")
     before = {p: p.read_bytes() for p in run.rglob("*") if p.is_file()}
     for argv in (["report", "--run", str(run)], ["export", "--run", str(run)]):
@@ -455,6 +469,19 @@ def test_report_and_export_do_not_certify_a_tampered_run(tmp_path: Path,
         assert len(err) == 1 and "ranking.csv was changed" in err[0], err
     assert {p: p.read_bytes() for p in run.rglob("*") if p.is_file()} == before
     assert main(["verify", str(run)]) != 0
+    # a lost part (in a sub-folder) is not refused: the report degrades, and verify still
+    # names the loss; a lost record at the top (ranking.json) is refused
+    (run / "ranking.csv").write_bytes(original)
+    assert main(["verify", str(run)]) == 0
+    lost = sorted((run / "scenarios").glob("*.xosc"))[0]
+    lost.unlink()
+    assert main(["report", "--run", str(run)]) == 0
+    capsys.readouterr()
+    assert main(["verify", str(run)]) != 0
+    assert f"scenarios/{lost.name} is missing" in capsys.readouterr().err
+    (run / "ranking.json").unlink()
+    assert main(["report", "--run", str(run)]) == 2
+    assert "ranking.json is missing" in capsys.readouterr().err
 
 
 def test_a_reaction_files_friction_is_used(tmp_path: Path) -> None:

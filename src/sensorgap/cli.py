@@ -421,7 +421,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     refuse_if_changed(args.catalog, ("simulation.csv",))  # its manifest is rewritten
     rows = simulate_catalog(Path(args.catalog), args.esmini, timeout_s=args.timeout,
                             step_s=args.step, ego_reaction=args.ego_reaction)
-    write_manifest(args.catalog)
+    write_manifest(args.catalog, ("simulation.csv",))
     ok = sum(1 for r in rows if r.get("status") == "ok")
     within = sum(1 for r in rows if r.get("within_0p5m") == "yes")
     coll = sum(1 for r in rows if r.get("collision_agrees") == "yes")
@@ -470,10 +470,11 @@ def cmd_report(args: argparse.Namespace) -> int:
         from sensorgap.report.build import REPORT_DIR
 
         # the report rewrites the manifest: it must not certify a file changed by hand
-        refuse_if_changed(args.run, ("report.html", "report.md", f"{REPORT_DIR}/"))
+        writes = ("report.html", "report.md", f"{REPORT_DIR}/")
+        refuse_if_changed(args.run, writes)
         with removed_on_error(args.run):  # no figure of a failed report is left behind
             html_path, md_path = write_report(Path(args.run))
-            write_manifest(args.run)
+            write_manifest(args.run, writes)
     print(f"{html_path} and {md_path}")
     return 0
 

@@ -145,16 +145,24 @@ def _sha256_file(path: Path) -> tuple[int, str]:
     return size, h.hexdigest()
 
 
-def write_manifest(folder: str | Path) -> Path:
+def write_manifest(folder: str | Path, rewrites: tuple[str, ...] | None = None) -> Path:
     """Write ``folder/manifest.json``: every regular file below ``folder`` (sorted relative
     POSIX paths) with its size in bytes and SHA-256, so an assessor can verify that nothing
     was changed or lost. Deterministic: no timestamps. Left-over temporary files of
     ``sensorgap.atomic`` (from an interrupted earlier command, ``is_own_temporary``) are
     removed, other temporary-looking files left alone and unlisted; database
     journals, symbolic links and the manifest itself are left out (``verify`` reports
-    all but the manifest)."""
+    all but the manifest). With ``rewrites`` (a command adding to a folder, see
+    ``refuse_if_changed``) the entries of files lost since that the command does not
+    write stay as recorded."""
     root = Path(folder)
-    files = {}
+    files: dict[str, dict[str, Any]] = {}
+    if rewrites is not None and (root / MANIFEST_NAME).is_file():
+        # a command adding to a certified folder: files it does not write that were lost
+        # since stay listed (as recorded), so verify reports them (refuse_if_changed)
+        for rel, meta in read_manifest(root).items():
+            if not _written_by(rel, rewrites) and not (root / rel).exists():
+                files[rel] = meta
     for rel, kind in _walk(root):
         p = root / rel
         if kind != "file" or rel == MANIFEST_NAME:
@@ -165,7 +173,8 @@ def write_manifest(folder: str | Path) -> Path:
             continue
         size, sha = _sha256_file(p)
         files[rel] = {"bytes": size, "sha256": sha}
-    return write_json(root / MANIFEST_NAME, {"algorithm": "sha256", "files": files})
+    return write_json(root / MANIFEST_NAME, {"algorithm": "sha256",
+                                              "files": dict(sorted(files.items()))})
 
 
 def _bad_entry(rel: object) -> str | None:
@@ -217,6 +226,19 @@ def read_manifest(folder: str | Path) -> dict[str, dict[str, Any]]:
     return files
 
 
+def _written_by(rel: str, rewrites: tuple[str, ...]) -> bool:
+    """Whether ``rel`` lies below one of a command's ``rewrites`` (relative POSIX paths
+    or folders; ``dir/*``: that folder's direct children only)."""
+    for w in rewrites:
+        if w.endswith("/*"):
+            head = w[:-1]
+            if rel.startswith(head) and "/" not in rel[len(head):]:
+                return True
+        elif rel == w.rstrip("/") or rel.startswith(w.rstrip("/") + "/"):
+            return True
+    return False
+
+
 def refuse_if_changed(folder: str | Path, rewrites: tuple[str, ...]) -> None:
     """Before a command adds to a folder that already has a ``manifest.json`` and then
     rewrites it: every file the manifest lists must be as recorded (and no symbolic link
@@ -224,7 +246,10 @@ def refuse_if_changed(folder: str | Path, rewrites: tuple[str, ...]) -> None:
     relative POSIX paths or folders, e.g. ``report.html``, ``scenarios/``; ``coverage/*``:
     that folder's direct children only). Otherwise the new manifest would certify a file
     changed by hand, and ``verify`` would say OK. Files added since are not refused (other
-    commands write into sub-folders of a run; the new manifest lists them). Raises
+    commands write into sub-folders of a run; the new manifest lists them), nor files lost
+    from a sub-folder (an analysis or export part: the command degrades;
+    ``write_manifest(folder, rewrites)`` keeps them listed, so ``verify`` still reports
+    them); a file lost at the top of the folder (the run's own record) is. Raises
     ``InputError`` naming the first such file and how many there are; a folder without a
     manifest is not checked (nothing certified yet)."""
     from sensorgap.errors import InputError
@@ -233,21 +258,15 @@ def refuse_if_changed(folder: str | Path, rewrites: tuple[str, ...]) -> None:
     if not (root / MANIFEST_NAME).is_file():
         return
 
-    def ours(rel: str) -> bool:
-        for w in rewrites:
-            if w.endswith("/*"):  # the folder's direct children only
-                head = w[:-1]
-                if rel.startswith(head) and "/" not in rel[len(head):]:
-                    return True
-            elif rel == w.rstrip("/") or rel.startswith(w.rstrip("/") + "/"):
-                return True
-        return False
-
     # a file added since (another command's outputs in a sub-folder, e.g. a job's near
-    # field) is listed by the new manifest; a certified file changed or lost is refused
+    # field) is listed by the new manifest; a file of a part lost (in a sub-folder: an
+    # analysis, the export) stays listed (write_manifest with the same rewrites), so
+    # verify still reports it; a certified file changed, or one of the run's own record
+    # at the top of the folder (ranking, summary, run.json) lost, is refused
     bad = [why for rel, why in _manifest_problems(root)
-           if not ours(rel) and not why.endswith(("(from an interrupted command; not in "
-                                                  "the manifest)", "is not in the manifest"))]
+           if not _written_by(rel, rewrites) and not why.endswith((
+               "(from an interrupted command; not in the manifest)", "is not in the manifest"))
+           and not (why.endswith(" is missing") and "/" in rel)]
     if bad:
         more = f" (and {len(bad) - 1} more; run 'sensorgap verify {root}')" \
             if len(bad) > 1 else ""

@@ -108,3 +108,67 @@ def test_sun_rows_match_the_preset_and_searched_suns() -> None:
             assert np.all(rows[:, 0] == SUN_NONE)
         else:
             np.testing.assert_allclose(got, want, rtol=0, atol=1e-12)
+
+
+def test_a_cameras_part_of_the_body_maps_is_removed_exactly() -> None:
+    """A glared camera's no-sun part is subtracted from the interpolated body total and
+    its glared value added. The part subtracted (``_outline_layer``) must be what
+    ``LogMissMaps.body_totals`` put in: re-interpolating the layer at the outline points
+    instead differed by up to 33 nepers where detection is near certain (a glared camera
+    left at Pd 0.97 where exact evaluation gave 0.006). Here: a one-camera body map
+    interpolated at random centres and headings equals ``_outline_layer`` there (float32
+    rounding), for the min and a higher order statistic."""
+    from sensorgap.coverage.logmiss import TrackLookup, _outline_layer
+
+    system = load_system("system_b")
+    car = load_target("car")
+    scene = Scene(system, car, Conditions(env=ENVS["clear"], sun_direction=None))
+    grid = GridSpec(-20.0, 90.0, -20.0, 20.0, 0.5, car.reference_height_m)
+    maps = LogMissMaps.build(scene, grid)
+    row = system.sensor_ids().index("cam_main")
+    outline = np.array([[x, y] for x in (-0.9, 0.0, 1.2, 3.9) for y in (-0.9, 0.9)]
+                       + [[-0.9, 0.0], [3.9, 0.0]])
+    rng = np.random.default_rng(3)
+    b, t = 4, 60
+    xf = rng.uniform(-10.0, 85.0, b * t)
+    yf = rng.uniform(-15.0, 15.0, b * t)
+    psi = rng.uniform(-math.pi, math.pi, (b, t))
+    gi = np.arange(b * t, dtype=np.int64)
+    for q in (0, 3):
+        totals = maps.body_totals(outline, (row,), 12, (q,))
+        how = TrackLookup(totals, psi, frozenset({row}), lambda f: np.zeros(f.size),
+                          lambda r, f: np.zeros(f.size), outline, {row: q})
+        h = np.rint(np.mod(psi.reshape(-1), math.pi) / (math.pi / 12)).astype(int) % 12
+        want = np.array([_bilinear_at(totals[h[k]], grid, xf[k], yf[k])
+                         for k in range(b * t)])
+        got = _outline_layer(maps, row, gi, xf, yf, how)
+        np.testing.assert_allclose(got, want, rtol=0, atol=1e-4)
+        assert np.min(want) < -10.0  # near-certain detections are among the points
+
+
+def _bilinear_at(img: np.ndarray, grid: GridSpec, x: float, y: float) -> float:
+    """Bilinear value of a map at one vehicle-frame point, by hand."""
+    fx = (x - (grid.xmin + 0.5 * grid.resolution)) / grid.resolution
+    fy = (y - (grid.ymin + 0.5 * grid.resolution)) / grid.resolution
+    ny, nx = img.shape
+    i, j = min(int(fx), nx - 2), min(int(fy), ny - 2)
+    ax, ay = fx - i, fy - j
+    return float((1 - ay) * ((1 - ax) * img[j, i] + ax * img[j, i + 1])
+                 + ay * ((1 - ax) * img[j + 1, i] + ax * img[j + 1, i + 1]))
+
+
+def test_near_view_mask_is_a_box_dilation() -> None:
+    """A cell is near the view when some cell within ``reach`` cells (a square) is in
+    view: by hand for one in-view cell and at the map's border."""
+    from sensorgap.coverage.fastlookup import near_view_mask
+
+    sig = np.full((2, 7, 9), np.nan, dtype=np.float32)
+    sig[0, 3, 4] = 1.0
+    sig[1, 0, 0] = 2.0
+    m = near_view_mask(sig, 2)
+    want0 = np.zeros((7, 9), dtype=bool)
+    want0[1:6, 2:7] = True
+    want1 = np.zeros((7, 9), dtype=bool)
+    want1[0:3, 0:3] = True
+    assert np.array_equal(m[0], want0) and np.array_equal(m[1], want1)
+    assert np.array_equal(near_view_mask(sig, 0), np.isfinite(sig))

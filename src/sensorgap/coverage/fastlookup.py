@@ -95,7 +95,8 @@ def lookup_pass(total: F32, x0: float, y0: float, inv_res: float, x: F64, y: F64
                 heading: F64, psi: F64, n: I64, rows: I64, sun: F64, rot: F64, half_h: F64,
                 half_v: F64, margin: F64, cos_bound: F64, yaw: F64,
                 level: NDArray[np.bool_], mount_xy: F64, reach2: F64, signal: F32,
-                has_signal: NDArray[np.bool_], keep_unseen: bool, pad: float, out: F64,
+                has_signal: NDArray[np.bool_], keep_unseen: bool, near_view: NDArray[np.bool_],
+                out: F64,
                 outside: I64,
                 glare_idx: I64,
                 glare_w: F64, glare_state: NDArray[np.int8],
@@ -109,9 +110,9 @@ def lookup_pass(total: F32, x0: float, y0: float, inv_res: float, x: F64, y: F64
     ``glare_idx[c]``, ``glare_w[c]``, ``glare_state[c]`` (count in ``counts[1 + c]``);
     state 1: all four corner cells of its ``signal`` map (received signal, NaN out of
     view) are in view, 2: some are, or it has no signal map (``has_signal``); points with
-    none in view are skipped unless ``keep_unseen`` and some cell at a corner of the
-    square of half side ``pad`` (m, a target body's reach) around it is in view
-    (``reach2`` then includes ``pad``), first by the squared
+    none in view are skipped unless ``keep_unseen`` and one of their corner cells is
+    ``near_view`` ((C, ny, nx): some cell within a target body's reach of it is in view,
+    ``near_view_mask``; ``reach2`` then includes that reach), first by the squared
     horizontal distance to the camera (``mount_xy``) against ``reach2``: (max range + a
     cell diagonal)^2, beyond which no corner cell can be in range. ``sun[r]`` = (kind,
     azimuth rad, elevation rad); ``heading`` (B, T) ego heading, rad. Level cameras
@@ -228,16 +229,8 @@ def lookup_pass(total: F32, x0: float, y0: float, inv_res: float, x: F64, y: F64
                         if not keep_unseen:
                             continue  # out of its view: Pd = 0 with or without glare
                         # a body around the point: is its view within the body's reach?
-                        # (the cells at the four corners of a square of half side pad)
-                        pc = int(pad * inv_res) + 1
-                        seen = False
-                        for qi in (i - pc, i + 1 + pc):
-                            for qj in (j - pc, j + 1 + pc):
-                                ci = min(max(qi, 0), nx - 1)
-                                cj = min(max(qj, 0), ny - 1)
-                                if np.isfinite(sg[cj, ci]):
-                                    seen = True
-                        if not seen:
+                        nv = near_view[c]
+                        if not (nv[j, i] or nv[j, i + 1] or nv[j + 1, i] or nv[j + 1, i + 1]):
                             continue
                     st = 1 if n_in == 4 else 2
                 m = counts[1 + c]
@@ -245,6 +238,25 @@ def lookup_pass(total: F32, x0: float, y0: float, inv_res: float, x: F64, y: F64
                 glare_w[c, m] = w
                 glare_state[c, m] = st
                 counts[1 + c] = m + 1
+
+
+def near_view_mask(signal: F32, reach_cells: int) -> NDArray[np.bool_]:
+    """(C, ny, nx): whether some cell within ``reach_cells`` (a square of that half side,
+    in cells) of each cell has a finite ``signal`` (is in the camera's view): the cells a
+    target body centred there may reach into the view from (box dilation by an integral
+    image)."""
+    c, ny, nx = signal.shape
+    k = max(int(reach_cells), 0)
+    fin = np.isfinite(signal).astype(np.int32)
+    ii = np.zeros((c, ny + 1, nx + 1), dtype=np.int64)
+    ii[:, 1:, 1:] = fin.cumsum(axis=1).cumsum(axis=2)
+    j0 = np.clip(np.arange(ny) - k, 0, ny)
+    j1 = np.clip(np.arange(ny) + k + 1, 0, ny)
+    i0 = np.clip(np.arange(nx) - k, 0, nx)
+    i1 = np.clip(np.arange(nx) + k + 1, 0, nx)
+    box = (ii[:, j1][:, :, i1] - ii[:, j0][:, :, i1] - ii[:, j1][:, :, i0]
+           + ii[:, j0][:, :, i0])
+    return np.asarray(box > 0)
 
 
 def sun_directions_of(sun: F64, heading: F64) -> F64:

@@ -136,9 +136,9 @@ def export_catalog(run_dir: Path, out_dir: Path | None = None,
                                  "--style replay")
     _inside_only(out)
     in_place = out.resolve() == run.folder.resolve()
-    refuse_if_changed(out, EXPORT_WRITES if in_place else
-                      (*EXPORT_WRITES, "ranking.csv", "ranking.json", "run.json",
-                       f"{INPUTS_DIR}/"))
+    writes = EXPORT_WRITES if in_place else (*EXPORT_WRITES, "ranking.csv", "ranking.json",
+                                             "run.json", f"{INPUTS_DIR}/")
+    refuse_if_changed(out, writes)
     (out / "scenarios").mkdir(parents=True, exist_ok=True)
     (out / "roads").mkdir(parents=True, exist_ok=True)
     if not in_place:
@@ -204,5 +204,5 @@ def export_catalog(run_dir: Path, out_dir: Path | None = None,
              "scenarios": scenarios, "files": files,
              "search_settings": run.settings}
     write_json(out / "catalog.json", index)
-    write_manifest(out)
+    write_manifest(out, writes)
     return index
