@@ -35,10 +35,28 @@ PARAMETER_BOUNDS: dict[str, Bound] = {
 }
 
 
+#: Bounds by unit suffix, for parameters without their own entry (any family's, plugins'
+#: included): a speed of a road user, m/s, and a distance or position along the road, m.
+SUFFIX_BOUNDS: dict[str, Bound] = {
+    "_speed_m_s": Bound(0.0, 100.0, "m/s", "road users move forwards at up to 360 km/h; "
+                        "estimate: above any road vehicle's top speed"),
+    "_m": Bound(-10_000.0, 10_000.0, "m", "a scene within 10 km of the ego: the largest "
+                "sensor range, docs/limits.md"),
+}
+
+
+def bound_of(name: str) -> Bound | None:
+    """The physical bound of parameter ``name``: its own, else by unit suffix, else None."""
+    b = PARAMETER_BOUNDS.get(name)
+    if b is not None:
+        return b
+    return next((sb for suffix, sb in SUFFIX_BOUNDS.items() if name.endswith(suffix)), None)
+
+
 def bound_error(name: str, value: float) -> str | None:
     """Why ``value`` of parameter ``name`` is refused (outside its physical bound, or not
     finite), or None when it is accepted (also for a parameter without a bound)."""
-    b = PARAMETER_BOUNDS.get(name)
+    b = bound_of(name)
     if b is None:
         return None
     if not (math.isfinite(value) and b.low <= value <= b.high):
