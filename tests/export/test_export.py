@@ -243,6 +243,10 @@ def test_esmini_failures_are_per_scenario(catalog: Path, tmp_path: Path) -> None
     files = [work / s["file"] for s in index["scenarios"]]
     files[0].unlink()  # a deleted file
     files[1].write_text(files[1].read_text()[:500])  # a truncated file: esmini fails
+    # a catalog no longer as certified: simulate refuses it while it has its manifest
+    # (filesio.refuse_if_changed); without one it runs what it can, per scenario
+    assert main(["simulate", "--catalog", str(work), "--esmini", str(ESMINI)]) == 2
+    (work / "manifest.json").unlink()
     assert main(["simulate", "--catalog", str(work), "--esmini", str(ESMINI)]) == 0
     import csv
 
@@ -311,6 +315,7 @@ def test_simulate_reports_a_run_that_stops_early(catalog: Path, tmp_path: Path) 
     cond = tree.find(".//StopTrigger//SimulationTimeCondition")
     cond.set("value", "3.0")
     tree.write(str(first))
+    (work / "manifest.json").unlink()  # edited by hand: no longer the certified catalog
     assert main(["simulate", "--catalog", str(work), "--esmini", str(ESMINI)]) == 0
     rows = {r["scenario_id"]: r for r in csv.DictReader((work / "simulation.csv").open())}
     r = rows[index["scenarios"][0]["scenario_id"]]

@@ -99,6 +99,31 @@ def _reaction_rows(catalog: Path, tmp_path: Path) -> list[dict[str, str]]:
     return list(csv.DictReader((work / "simulation.csv").open()))
 
 
+#: How closely esmini's entities follow the plan (simulate's 'within 0.5 m of the plan').
+PLAN_TOL_M = 0.5
+
+
+def _predicted_clearance(cat: Path, row: dict[str, str], q: str, t_s: float) -> float:
+    """The reaction model's gap (m) between the braking ego's front and the target at
+    time ``t_s`` for the row's confirmation quantile ``q`` (positive: short of contact)."""
+    from sensorgap.export.spec import specs_of_run
+
+    run = read_run(cat)
+    ev = run.evaluator("exact")
+    spec = next(s for s in specs_of_run(run) if s.scenario_id == row["scenario_id"])
+    bt = planned_batch(spec, ev)
+    enc = bt.encounter
+    assert enc is not None and bt.decel_m_s2 is not None
+    k = confirmation_steps(bt, ev)[q]
+    assert k is not None
+    pred = predict(bt, ev, k)
+    j = int(round(t_s / enc.dt))
+    v0, r = float(enc.v0[0]), ev.reaction
+    pos = v0 * enc.dt * j - float(lost_distance(j * enc.dt - pred.t_brake_s, v0,
+                                                 r.jerk_m_s3, float(bt.decel_m_s2[0])))
+    return float(enc.lo[0, j] - pos)
+
+
 @needs_esmini
 def test_esmini_reaction_runs_agree_with_the_prediction(catalog: Path, maneuver_catalog: Path,
                                                         tmp_path: Path,
@@ -119,6 +144,13 @@ def test_esmini_reaction_runs_agree_with_the_prediction(catalog: Path, maneuver_
                     continue
                 runs += 1
                 pred, sim = (r[f"react_{q}_collision_{w}_s"] for w in ("predicted", "esmini"))
+                if pred == "" and sim != "":
+                    # a near miss in the plan that esmini's ego, following the plan to
+                    # within 0.5 m (the export's check), turns into a touch: allowed
+                    # only within that tolerance (measured: one run, 0.14 m short at
+                    # the scenario's last step, contact at 10.0 s)
+                    assert _predicted_clearance(cat, r, q, float(sim)) <= PLAN_TOL_M, (q, r)
+                    continue
                 assert (pred == "") == (sim == ""), (q, r)
                 if pred == "":
                     continue
