@@ -103,44 +103,36 @@ def _opendrive(name: str) -> xodr.OpenDrive:
     return xodr.OpenDrive(name, revMajor="1", revMinor="7")
 
 
-def motorway() -> xodr.OpenDrive:
-    """Ponn 2019 far-field road: 500 m straight, 100 m clothoid, 700 m arc of R = 500 m."""
-    curv = 1.0 / 500.0
+def _divided_motorway(name: str, straight_m: float, radius_m: float, arc_m: float,
+                      lanes_per_side: int) -> xodr.OpenDrive:
+    """Road 1 ``name``: a straight, a 100 m clothoid into a left-hand arc of ``radius_m``;
+    ``lanes_per_side`` 3.75 m lanes each way, broken marks between lanes, solid outside."""
+    curv = 1.0 / radius_m
     pv = xodr.PlanView(0.0, 0.0, 0.0)
-    pv.add_geometry(xodr.Line(500.0))
+    pv.add_geometry(xodr.Line(straight_m))
     pv.add_geometry(xodr.Spiral(0.0, curv, length=100.0))
-    pv.add_geometry(xodr.Arc(curv, length=700.0))
+    pv.add_geometry(xodr.Arc(curv, length=arc_m))
     sec = xodr.LaneSection(0, _center(xodr.RoadMarkType.solid_solid))
     solid, broken = xodr.RoadMarkType.solid, xodr.RoadMarkType.broken
-    for mark in (broken, solid):  # inner lane first: -1 / 1, then -2 / 2
+    for mark in (broken,) * (lanes_per_side - 1) + (solid,):  # inner lane first: -1 / 1
         sec.add_right_lane(_lane(MOTORWAY_LANE_WIDTH, mark=mark))
         sec.add_left_lane(_lane(MOTORWAY_LANE_WIDTH, mark=mark))
     lanes = xodr.Lanes()
     lanes.add_lanesection(sec)
-    odr = _opendrive("motorway_r500")
-    odr.add_road(xodr.Road(1, pv, lanes, name="motorway_r500"))
+    odr = _opendrive(name)
+    odr.add_road(xodr.Road(1, pv, lanes, name=name))
     odr.adjust_roads_and_lanes()
     return odr
+
+
+def motorway() -> xodr.OpenDrive:
+    """Ponn 2019 far-field road: 500 m straight, 100 m clothoid, 700 m arc of R = 500 m."""
+    return _divided_motorway("motorway_r500", 500.0, 500.0, 700.0, 2)
 
 
 def motorway_3lane() -> xodr.OpenDrive:
     """Three lanes per direction: 1000 m straight, 100 m clothoid, 400 m arc of R = 1000 m."""
-    curv = 1.0 / 1000.0
-    pv = xodr.PlanView(0.0, 0.0, 0.0)
-    pv.add_geometry(xodr.Line(1000.0))
-    pv.add_geometry(xodr.Spiral(0.0, curv, length=100.0))
-    pv.add_geometry(xodr.Arc(curv, length=400.0))
-    sec = xodr.LaneSection(0, _center(xodr.RoadMarkType.solid_solid))
-    solid, broken = xodr.RoadMarkType.solid, xodr.RoadMarkType.broken
-    for mark in (broken, broken, solid):  # inner lane first: -1 / 1, -2 / 2, -3 / 3
-        sec.add_right_lane(_lane(MOTORWAY_LANE_WIDTH, mark=mark))
-        sec.add_left_lane(_lane(MOTORWAY_LANE_WIDTH, mark=mark))
-    lanes = xodr.Lanes()
-    lanes.add_lanesection(sec)
-    odr = _opendrive("motorway_3lane")
-    odr.add_road(xodr.Road(1, pv, lanes, name="motorway_3lane"))
-    odr.adjust_roads_and_lanes()
-    return odr
+    return _divided_motorway("motorway_3lane", 1000.0, 1000.0, 400.0, 3)
 
 
 def rural() -> xodr.OpenDrive:

@@ -8,7 +8,6 @@ to one searched candidate.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -18,7 +17,7 @@ from sensorgap.config.presets import resolve_road
 from sensorgap.errors import InputError
 from sensorgap.models import System
 from sensorgap.scenarios import InfeasibleScenario, Scenario, load_family
-from sensorgap.scenarios.family import Family, ParamValue
+from sensorgap.scenarios.family import Family, Param, ParamValue
 from sensorgap.search.metrics import metric_names
 from sensorgap.search.runfolder import RunFolder, read_run
 
@@ -66,7 +65,7 @@ class ScenarioSpec:
             params: dict[str, ParamValue] = {}
             for p in family.space:
                 field = f"p_{p.name}"
-                params[p.name] = _param_value(row[field], p.categorical, p.choices)
+                params[p.name] = p.from_json(row[field])
             field = "environment"
             env_name = str(row["environment"]).split("@")[0]
             presets = run.environments() if run is not None else load_environments()
@@ -76,9 +75,9 @@ class ScenarioSpec:
             sun = None
             if row.get("sun_azimuth_deg") is not None and env.sun is not None:
                 field = "sun_azimuth_deg"
-                az = _param_value(row["sun_azimuth_deg"], False, ())
+                az = _finite(row["sun_azimuth_deg"])
                 field = "sun_elevation_deg"
-                sun = (float(az), float(_param_value(row["sun_elevation_deg"], False, ())))
+                sun = (az, _finite(row["sun_elevation_deg"]))
                 env = env.model_copy(update={"sun": env.sun.model_copy(update={
                     "azimuth_deg": sun[0], "elevation_deg": sun[1], "frame": "world"})})
         except KeyError:
@@ -107,16 +106,9 @@ def _row_label(row: dict[str, Any], run: RunFolder | None) -> str:
     return f"ranking[id={str(row.get('scenario_id', '?'))[:64]}]"
 
 
-def _param_value(v: Any, categorical: bool, choices: tuple[str, ...]) -> ParamValue:
-    """A ranking row's parameter: a choice by name, else a finite JSON number (not a
-    boolean, not a string)."""
-    if categorical:
-        if not isinstance(v, str) or (choices and v not in choices):
-            raise ValueError(f"expected one of {', '.join(choices)}, got {str(v)[:40]!r}")
-        return v
-    if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
-        raise ValueError(f"expected a finite number, got {str(v)[:40]!r}")
-    return float(v)
+def _finite(v: Any) -> float:
+    """A finite JSON number of a ranking row (a sun angle), else ``ValueError``."""
+    return float(Param("angle").from_json(v))
 
 
 def specs_of_run(run: RunFolder, top: int | None = None) -> list[ScenarioSpec]:

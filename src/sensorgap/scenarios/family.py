@@ -63,6 +63,19 @@ class Param:
             return (self.choices.index(str(value)) + 0.5) / len(self.choices)
         return (float(value) - self.low) / (self.high - self.low)
 
+    def from_json(self, v: object) -> ParamValue:
+        """A value as a ranking file holds it: a choice by name, else a finite JSON number
+        (not a boolean, not a string); anything else -> ``ValueError`` saying what is
+        expected."""
+        if self.choices:
+            if not isinstance(v, str) or v not in self.choices:
+                raise ValueError(f"expected one of {', '.join(self.choices)}, "
+                                 f"got {str(v)[:40]!r}")
+            return v
+        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+            raise ValueError(f"expected a finite number, got {str(v)[:40]!r}")
+        return float(v)
+
     def corners(self) -> tuple[ParamValue, ...]:
         """Extreme values (for the fit check): both ends, or every choice."""
         return self.choices if self.choices else (self.low, self.high)

@@ -12,7 +12,6 @@ every difference is traced back to the two sensor setups.
 
 from __future__ import annotations
 
-import math
 from collections import Counter
 from pathlib import Path
 from typing import Any
@@ -57,16 +56,7 @@ def candidate_of(row: dict[str, Any], problem: SearchProblem,
         params: dict[str, Any] = {}
         for p in problem.family.space:
             field = f"p_{p.name}"
-            value = row[field]
-            if p.categorical:
-                if value not in p.choices:
-                    raise ValueError(f"not one of {', '.join(p.choices)}")
-                params[p.name] = str(value)
-            else:
-                if isinstance(value, bool) or not isinstance(value, int | float) \
-                        or not math.isfinite(value):
-                    raise ValueError("not a finite number")
-                params[p.name] = float(value)
+            params[p.name] = p.from_json(row[field])
     except (KeyError, TypeError, ValueError) as exc:
         raise InputError(source, f"ranking[{row.get('scenario_id')}].{field}",
                          f"missing or malformed value ({exc})") from None
