@@ -240,6 +240,57 @@ def lookup_pass(total: F32, x0: float, y0: float, inv_res: float, x: F64, y: F64
                 counts[1 + c] = m + 1
 
 
+@numba.njit(cache=True, nogil=True)
+def outline_order_pass(layer: F32, x0: float, y0: float, inv_res: float, ox: I64, oy: I64,
+                       q: int, xs: F64, ys: F64, psi: F64,
+                       out: F64) -> None:  # pragma: no cover - compiled
+    """One sensor's part of the body maps (``LogMissMaps.body_totals``) at M target
+    centres, interpolated as ``lookup_pass`` interpolates the totals: at each of the four
+    cells around a centre (``x0``, ``y0``: first cell centre, m; ``inv_res``: cells per
+    m), the ``q``-th smallest of ``layer`` ((ny, nx) ln(1 - Pd)) over the outline offsets
+    of the centre's heading bin (``ox``, ``oy``: (H, K) whole cells; bin of ``psi`` (rad)
+    as in ``lookup_pass``; 0 off the map), then bilinear. Corner cells are clamped to the
+    map as in ``_bilinear``; the result equals the body maps of that one sensor
+    interpolated at the centres (tests/coverage/test_fastlookup.py)."""
+    ny, nx = layer.shape
+    n_bins, k_out = ox.shape
+    bin_w = math.pi / n_bins
+    buf = np.empty(k_out)
+    c = np.empty(4)
+    for m in range(xs.size):
+        fx = (xs[m] - x0) * inv_res
+        fy = (ys[m] - y0) * inv_res
+        i = min(max(int(math.floor(fx)), 0), nx - 2)
+        j = min(max(int(math.floor(fy)), 0), ny - 2)
+        ax = fx - i
+        ay = fy - j
+        h = 0
+        if n_bins > 1:
+            h = int(round((psi[m] % math.pi) / bin_w)) % n_bins
+        for corner in range(4):
+            dj = corner // 2
+            di = corner % 2
+            for kk in range(k_out):
+                jj = j + dj + oy[h, kk]
+                ii = i + di + ox[h, kk]
+                if jj >= 0 and jj < ny and ii >= 0 and ii < nx:
+                    buf[kk] = layer[jj, ii]
+                else:
+                    buf[kk] = 0.0
+            # the q-th smallest: q + 1 passes of a selection sort
+            for a in range(q + 1):
+                best = a
+                for b in range(a + 1, k_out):
+                    if buf[b] < buf[best]:
+                        best = b
+                tmp = buf[a]
+                buf[a] = buf[best]
+                buf[best] = tmp
+            c[corner] = buf[q]
+        out[m] = (1.0 - ay) * ((1.0 - ax) * c[0] + ax * c[1]) + ay * ((1.0 - ax) * c[2]
+                                                                      + ax * c[3])
+
+
 def near_view_mask(signal: F32, reach_cells: int) -> NDArray[np.bool_]:
     """(C, ny, nx): whether some cell within ``reach_cells`` (a square of that half side,
     in cells) of each cell has a finite ``signal`` (is in the camera's view): the cells a

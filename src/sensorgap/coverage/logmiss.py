@@ -23,6 +23,7 @@ measured in ``benchmarks/bench_search.py`` and ``sensorgap tradeoff``).
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -35,6 +36,7 @@ from sensorgap.coverage.fastlookup import (
     cone_cos_bound,
     lookup_pass,
     near_view_mask,
+    outline_order_pass,
     sun_directions_of,
 )
 from sensorgap.coverage.grid import GridSpec, evaluate_grid
@@ -691,32 +693,31 @@ def _outline_layer(maps: LogMissMaps, row: int, gi: NDArray[np.int64], xf: F64, 
     near certain, leaving a glared camera at Pd 0.97 where exact evaluation gave 0.006.)"""
     assert how.outline is not None
     g = maps.grid
-    res = g.resolution
-    layer = maps.layers[row]
-    ny, nx = layer.shape
-    n_bins = how.totals.shape[0]
-    psi = how.psi.reshape(-1)[gi]
-    h = (np.rint(np.mod(psi, math.pi) / (math.pi / n_bins)).astype(np.int64) % n_bins
-         if n_bins > 1 else np.zeros(gi.size, dtype=np.int64))
+    ox, oy = _outline_offsets(how.outline, how.totals.shape[0], g.resolution)
+    out = np.empty(gi.size)
+    outline_order_pass(maps.layers[row], g.xmin + 0.5 * g.resolution,
+                       g.ymin + 0.5 * g.resolution, 1.0 / g.resolution, ox, oy,
+                       0 if how.order is None else how.order.get(row, 0),
+                       np.ascontiguousarray(xf[gi]), np.ascontiguousarray(yf[gi]),
+                       np.ascontiguousarray(how.psi.reshape(-1)[gi], dtype=np.float64), out)
+    return out
+
+
+@functools.lru_cache(maxsize=64)
+def _outline_offsets_cached(outline: bytes, k: int, n_bins: int, res: float
+                            ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    xy = np.frombuffer(outline, dtype=np.float64).reshape(k, 2)
     a = np.arange(n_bins) * math.pi / n_bins
-    ox = np.rint((np.cos(a)[:, None] * how.outline[None, :, 0]
-                  - np.sin(a)[:, None] * how.outline[None, :, 1]) / res).astype(np.int64)
-    oy = np.rint((np.sin(a)[:, None] * how.outline[None, :, 0]
-                  + np.cos(a)[:, None] * how.outline[None, :, 1]) / res).astype(np.int64)
-    fx = (xf[gi] - (g.xmin + 0.5 * res)) / res
-    fy = (yf[gi] - (g.ymin + 0.5 * res)) / res
-    i = np.clip(np.floor(fx).astype(np.int64), 0, nx - 2)
-    j = np.clip(np.floor(fy).astype(np.int64), 0, ny - 2)
-    ax, ay = fx - i, fy - j
-    q = 0 if how.order is None else how.order.get(row, 0)
+    ox = np.rint((np.cos(a)[:, None] * xy[None, :, 0] - np.sin(a)[:, None] * xy[None, :, 1])
+                 / res).astype(np.int64)
+    oy = np.rint((np.sin(a)[:, None] * xy[None, :, 0] + np.cos(a)[:, None] * xy[None, :, 1])
+                 / res).astype(np.int64)
+    return ox, oy
 
-    def corner(dj: int, di: int) -> F64:
-        jj = (j + dj)[:, None] + oy[h]
-        ii = (i + di)[:, None] + ox[h]
-        ok = (jj >= 0) & (jj < ny) & (ii >= 0) & (ii < nx)
-        v = np.where(ok, layer[np.clip(jj, 0, ny - 1), np.clip(ii, 0, nx - 1)], 0.0)
-        return np.asarray(np.partition(v, q, axis=1)[:, q], dtype=np.float64)
 
-    return np.asarray((1.0 - ay) * ((1.0 - ax) * corner(0, 0) + ax * corner(0, 1))
-                      + ay * ((1.0 - ax) * corner(1, 0) + ax * corner(1, 1)),
-                      dtype=np.float64)
+def _outline_offsets(outline: F64, n_bins: int, res: float
+                     ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """(H, K) whole-cell offsets of a (K, 2) outline (m) rotated to each of ``n_bins``
+    heading bins (bin h: h * pi / H rad), as ``LogMissMaps.body_totals`` rounds them."""
+    xy = np.ascontiguousarray(outline, dtype=np.float64)
+    return _outline_offsets_cached(xy.tobytes(), len(xy), n_bins, float(res))
