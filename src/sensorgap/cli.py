@@ -319,7 +319,7 @@ def cmd_search(args: argparse.Namespace) -> int:
         Path(args.out), strategy=args.strategy, mode=args.pd, sun_search=not args.no_sun,
         environments_file=Path(args.environments_file) if args.environments_file else None,
         detection=args.detection, workers=args.workers, resume=args.resume,
-        executor=args.executor, scheduler=args.scheduler)
+        executor=args.executor, scheduler=args.scheduler, seeds=args.seeds)
     write_manifest(args.out)
     crit = sum(1 for r in outcome.ranking if r["class"] == "sensor-critical")
     d = outcome.summary["lookup_vs_exact"]
@@ -593,7 +593,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     load_families(families)  # every family (and its road) checked before any work
     run_default(Path(args.out), workers=args.workers, system_name=args.vehicle,
                 budget=args.budget, seed=args.seed, families=families,
-                environments=_environments(args.environments, None))
+                environments=_environments(args.environments, None), seeds=args.seeds)
     write_manifest(args.out)
     return 0
 
@@ -700,6 +700,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="environments file defining the presets (default: the shipped ones)")
     p.add_argument("--budget", type=_integer, default=200, help="evaluations in total")
     p.add_argument("--seed", type=_integer, default=0, help="random seed")
+    p.add_argument("--seeds", type=_integer, default=1,
+                   help="run the budget as this many independent searches (1..10) and "
+                   "say per ranked row how many found it (the ranking's stability)")
     p.add_argument("--top", type=_integer, default=10, help="ranked scenarios to write")
     p.add_argument("--strategy", default="de",
                    help="de | cem | lhs | random | grid (or a plugin)")
@@ -798,6 +801,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default="output", help="output folder")
     p.add_argument("--budget", type=_integer, default=100_000, help="search evaluations in total")
     p.add_argument("--seed", type=_integer, default=1, help="random seed of the search")
+    p.add_argument("--seeds", type=_integer, default=3,
+                   help="the budget as this many independent searches (1..10): the report "
+                   "says how many found each top weakness")
     p.add_argument("--families", default="all",
                    help="'all' or comma-separated family names or .toml paths")
     p.add_argument("--environments", default="all",

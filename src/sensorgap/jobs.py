@@ -58,6 +58,9 @@ COVERAGE_HEADING_DEG = 0.0
 DEFAULT_BUDGET = 100_000
 DEFAULT_TOP = 20
 DEFAULT_SEED = 1
+#: The default search runs as this many independent searches sharing the budget, so the
+#: report can say how many of them found each top weakness (``run_search`` ``seeds``).
+DEFAULT_SEEDS = 3
 #: Targets of the default job on 2 cores.
 TARGET_TIME_S = 60.0
 TARGET_PEAK_MIB = 1536.0
@@ -162,12 +165,13 @@ def vehicle_ref(vehicle: str) -> tuple[str, str]:
 def run_default(out: Path, workers: int = 2, system_name: str = DEFAULT_SYSTEM,
                 budget: int = DEFAULT_BUDGET, top: int = DEFAULT_TOP,
                 seed: int = DEFAULT_SEED, families: list[str] | None = None,
-                environments: list[str] | None = None) -> dict[str, Any]:
+                environments: list[str] | None = None,
+                seeds: int = DEFAULT_SEEDS) -> dict[str, Any]:
     """The whole pipeline for a vehicle (preset name or .toml path) into
     ``out/<vehicle>/``: coverage maps, near field, far field, search over ``families``
     and ``environments`` (default: all), the Euro NCAP anchor cases when their family is
     searched (``search.anchors``: ``anchors/anchors.csv``), export and report; returns run
-    info."""
+    info. ``seeds``: independent searches sharing the budget (``run_search``)."""
     name, ref = vehicle_ref(system_name)
     system = load_system(ref)  # bad input is refused before anything is written
     fams = family_presets() if families is None else list(families)
@@ -183,7 +187,7 @@ def run_default(out: Path, workers: int = 2, system_name: str = DEFAULT_SYSTEM,
     print(f"{folder}: main job for {system.name} ({ref})")
     def search() -> Any:
         return run_search(ref, fams, envs, budget, seed, top, folder, strategy="de",
-                          progress=False, workers=workers, resume=True)
+                          progress=False, workers=workers, resume=True, seeds=seeds)
 
     side_peak = 0.0
     if workers >= 2:
@@ -207,13 +211,15 @@ def run_default(out: Path, workers: int = 2, system_name: str = DEFAULT_SYSTEM,
             system, ncap_obstructed_cases(system.config.vehicle.x_front_m),
             vehicle_ref=ref), folder / "anchors"))
     clock.stage("export", lambda: export_catalog(folder))
-    settings = {"budget": budget, "top": top, "seed": seed, "strategy": "de", "pd": "lookup",
+    settings = {"budget": budget, "top": top, "seed": seed, "seeds": seeds, "strategy": "de",
+                "pd": "lookup",
                 "families": fams, "environments": envs,
                 "coverage_grid_m": list(DEFAULT_GRID),
                 "coverage_target": f"car bodies at heading {COVERAGE_HEADING_DEG:g} deg",
                 "farfield_target": "car body along the lane", "workers": workers}
     command = ["sensorgap", "run", "--vehicle", ref, "--out", str(out), "--budget",
-               str(budget), "--seed", str(seed), "--families", ",".join(fams),
+               str(budget), "--seed", str(seed), "--seeds", str(seeds),
+               "--families", ",".join(fams),
                "--environments", ",".join(envs), "--workers", str(workers)]
     tdir = templates_dir()
     files = [system.source, tdir / "environments.toml", tdir / "targets.toml",

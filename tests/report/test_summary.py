@@ -144,8 +144,31 @@ def test_confidence_states_what_was_and_was_not_measured(job: Path) -> None:
     assert f"{lve['sensor_critical_exact']} exactly" in text
     assert f"at most {fmt_p(lve['max_abs_diff_collision_probability'])}" in text
     assert f"top-10 overlap {lve['top10_overlap']} of 10" in text
-    # the top 10 over three seeds is not in a run folder: said plainly, no number invented
+    # the default job runs its budget as three independent searches: how many of them
+    # found each of the top 10 on their own, as summary.json and the ranking rows say
+    stab = summary["stability"]
+    assert stab["seeds"] == 3 and sum(stab["budget_per_seed"]) == summary["candidates"]
+    rows = _ranking(job)["ranking"]
+    assert stab["found_by"] == [r["found_by_seeds"] for r in rows[:10]]
+    assert all(0 <= f <= 3 for f in stab["found_by"])
+    assert "Stability over seeds: the budget ran as 3 independent searches" in text
+    n_all = sum(1 for f in stab["found_by"] if f == 3)
+    if n_all:
+        assert f"{n_all} {'was' if n_all == 1 else 'were'} found by all 3 searches" in text
+    first = doc.get_element_by_id("test-first").text_content()
+    assert "found by searches" in first and f"{rows[0]['found_by_seeds']} of 3" in first
+
+
+def test_confidence_of_a_single_search_says_stability_was_not_measured(
+        search_only: Path) -> None:
+    """One search (``--seeds 1``, the search command's default): said plainly, no number
+    invented, and how to measure it."""
+    text = " ".join(_doc(search_only / "report.html").get_element_by_id(
+        "confidence").text_content().split())
     assert "Stability over seeds: not measured in this run (one search, seed 1)" in text
+    assert "rerun with --seeds 3" in text
+    rows = _ranking(search_only)["ranking"]
+    assert rows and all(r["found_by_seeds"] is None for r in rows)
 
 
 def test_summary_without_a_search(tmp_path: Path) -> None:

@@ -222,6 +222,10 @@ def test_cem_concentrates_on_optimum() -> None:
     ({"environments": ["mars"]}, "unknown environment 'mars'"),
     ({"families": ["nope"]}, "unknown family"),
     ({"strategy": "magic"}, "unknown strategy"),
+    ({"seeds": 0}, "^seeds: must be an integer within 1..10, got 0"),
+    ({"seeds": 11}, "^seeds: must be an integer within 1..10, got 11"),
+    ({"seeds": True}, "^seeds: must be an integer"),
+    ({"seeds": 3}, "times seeds \\(3\\)"),
 ])
 def test_run_bad_input(tmp_path: Path, kw: dict[str, object], match: str) -> None:
     args: dict[str, object] = {"vehicle": "system_b", "families": FAST,
@@ -252,6 +256,56 @@ def test_run_deterministic_and_resumes(tmp_path: Path) -> None:
     with pytest.raises(InputError, match="different settings"):
         run_search(out=tmp_path / "a", resume=True, **{**kw, "seed": 8})  # type: ignore[arg-type]
     assert all(r["reason"] for r in b.ranking)
+
+
+def test_seeds_split_the_budget_into_independent_searches(tmp_path: Path) -> None:
+    """``seeds=3``: the budget runs as three searches (stream 0 is the one-seed search's
+    stream, so its candidates are the first ones of a one-seed run with a third of the
+    budget); every ranked row says how many of the three found it on their own, by the
+    rule of ``ranking.found_by``; deterministic and resumable; another ``seeds`` on resume
+    is another search."""
+    kw = {"vehicle": "system_b", "families": ["cut_out_reveal"],
+          "environments": ["clear", "snow"], "budget": 90, "seed": 7, "top": 5,
+          "strategy": "lhs"}
+    a = run_search(out=tmp_path / "a", seeds=3, **kw)  # type: ignore[arg-type]
+    run_search(out=tmp_path / "b", seeds=3, **kw)  # type: ignore[arg-type]
+    assert (tmp_path / "a" / "ranking.csv").read_bytes() == (
+        tmp_path / "b" / "ranking.csv").read_bytes()
+    one = run_search(out=tmp_path / "one", **{**kw, "budget": 30})  # type: ignore[arg-type]
+    ids_a = [r.candidate.scenario_id for r in a.results]
+    assert ids_a[:30] == [r.candidate.scenario_id for r in one.results]
+    assert len(set(ids_a[:30]) & set(ids_a[30:])) < 30  # the other streams differ
+    stab = a.summary["stability"]
+    assert stab["seeds"] == 3 and stab["budget_per_seed"] == [30, 30, 30]
+    assert a.ranking and all(0 <= r["found_by_seeds"] <= 3 for r in a.ranking)
+    assert stab["found_by"] == [r["found_by_seeds"] for r in a.ranking[:10]]
+    assert one.summary["stability"] == {"seeds": 1}
+    assert all(r["found_by_seeds"] is None for r in one.ranking)
+    again = run_search(out=tmp_path / "a", resume=True, seeds=3, **kw)  # type: ignore[arg-type]
+    assert again.evaluated == 0 and again.ranking == a.ranking
+    with pytest.raises(InputError, match="different settings"):
+        run_search(out=tmp_path / "a", resume=True, seeds=2, **kw)  # type: ignore[arg-type]
+
+
+def test_found_by_counts_the_same_weakness_not_the_same_point() -> None:
+    """By hand: a row is found by a search when that search's ranking has a row of the same
+    family and dominant effect sharing an environment; parameters may differ."""
+    from sensorgap.search.problem import Candidate, Result
+    from sensorgap.search.ranking import Explanation, found_by
+
+    def row(fam: str, envs: list[str], effect: str, speed: float):  # type: ignore[no-untyped-def]
+        c = Candidate(fam, envs[0], None, {"ego_speed_m_s": speed})
+        return (Result(c, {}, True), envs, Explanation("", effect, 0.0, {}))
+
+    ranked = [row("cut_in_left", ["rain_5"], "weather", 20.0),
+              row("cut_in_left", ["clear", "snow"], "FOV", 20.0),
+              row("crossing_cyclist", ["fog_50"], "range", 10.0)]
+    tops = [[row("cut_in_left", ["rain_5", "fog_50"], "weather", 31.0)],  # same weakness
+            [row("cut_in_left", ["snow"], "FOV", 12.0),
+             row("cut_in_left", ["rain_5"], "glare", 20.0)],  # other cause: not the first
+            [row("crossing_cyclist", ["clear"], "range", 10.0)]]  # no common environment
+    assert found_by(ranked, tops) == [1, 1, 0]
+    assert found_by(ranked, []) == [0, 0, 0]
 
 
 def test_systems_differ_with_reasons(tmp_path: Path) -> None:

@@ -603,7 +603,7 @@ def _searched_para(settings: dict[str, Any], search: dict[str, Any] | None,
     return Para(text + ".")
 
 
-def _test_first(picked: list[RankedScenario]) -> Table:
+def _test_first(picked: list[RankedScenario], seeds: int = 1) -> Table:
     rows: list[list[str | Link]] = []
     for r in picked:
         p = _num(r.row.get("collision_probability"))
@@ -615,8 +615,14 @@ def _test_first(picked: list[RankedScenario]) -> Table:
         rows.append([str(r.row.get("rank")), str(r.row.get("scenario_id")), r.spec.family.name,
                      r.spec.environment_name, "" if p is None else fmt_p(p),
                      "" if v is None else f"{v:.0f}", *files])
-    return Table(["rank", "scenario", "family", "environment", "P(collision)",
-                  "impact [km/h]", "OpenSCENARIO", "OpenDRIVE"], rows)
+        if seeds > 1:
+            f = r.row.get("found_by_seeds")
+            rows[-1].insert(6, "" if f is None else f"{int(f)} of {seeds}")
+    head = ["rank", "scenario", "family", "environment", "P(collision)", "impact [km/h]",
+            "OpenSCENARIO", "OpenDRIVE"]
+    if seeds > 1:
+        head.insert(6, "found by searches")
+    return Table(head, rows)
 
 
 def _confidence(settings: dict[str, Any], search: dict[str, Any] | None,
@@ -667,13 +673,39 @@ def _confidence(settings: dict[str, Any], search: dict[str, Any] | None,
         items.append(text + ".")
     else:
         items.append("Lookup vs exact evaluation: not measured in this run.")
-    seed = settings.get("seed")
-    items.append(
-        "Stability over seeds: not measured in this run (one search"
-        + (f", seed {seed}" if seed is not None else "") + "); the ranking can change with "
-        "the budget and the seed: rerun with two other seeds and compare the top 10 of "
-        "ranking.json.")
+    items.append(_stability(settings, (search or {}).get("stability")))
     return items
+
+
+def _stability(settings: dict[str, Any], stab: dict[str, Any] | None) -> str:
+    """The confidence line on seeds: measured when the budget ran as several independent
+    searches (``run_search`` ``seeds``), else how to measure it."""
+    seed = settings.get("seed")
+    if not stab or int(stab.get("seeds", 1)) < 2 or not stab.get("found_by"):
+        return ("Stability over seeds: not measured in this run (one search"
+                + (f", seed {seed}" if seed is not None else "") + "); the ranking can "
+                "change with the budget and the seed: rerun with --seeds 3 (the budget as "
+                "three independent searches) to see how many of them find each weakness.")
+    k = int(stab["seeds"])
+    found = [int(f) for f in stab["found_by"]]
+    per = [int(b) for b in stab.get("budget_per_seed", [])]
+    each = (f" of {per[0]:,}" if per and min(per) == max(per)
+            else f" of {min(per):,}-{max(per):,}" if per else "")
+    counts = Counter(found)
+    parts = [f"{counts[j]} by {'all ' + str(k) if j == k else j if j > 1 else 'one only'}"
+             for j in range(k, 0, -1) if counts[j]]
+    if counts[0]:
+        parts.append(f"{counts[0]} by none alone (only their union ranked it)")
+    verb = " was found by " if parts[0].startswith("1 ") else " were found by "
+    parts[0] = parts[0].replace(" by ", verb, 1) + " searches on their own"
+    text = (f"Stability over seeds: the budget ran as {k} independent searches"
+            f"{each} candidates each. Of the top {len(found)} weaknesses, "
+            + ", ".join(parts) + " (the same family, cause and an environment in common "
+            "in that search's own ranking)")
+    if counts[1]:
+        text += ("; a weakness found by one search only may be missed by a rerun with "
+                 "another seed")
+    return text + "."
 
 
 def summary_section(folder: Path, system: System, settings: dict[str, Any],
@@ -697,7 +729,8 @@ def summary_section(folder: Path, system: System, settings: dict[str, Any],
             else [Para("None found: no scenario in which the sensors make the difference.")]),
     ]
     if picked:
-        subs.append(Section("test-first", "Test these first", [_test_first(picked)]))
+        seeds = int(((search or {}).get("stability") or {}).get("seeds", 1))
+        subs.append(Section("test-first", "Test these first", [_test_first(picked, seeds)]))
     subs.append(Section("confidence", "Confidence", [Bullets(
         _confidence(settings, search, lookup_vs_exact, ranked))]))
     return Section("summary", "Summary", blocks, subs)

@@ -248,12 +248,15 @@ def classify(r: Result) -> str:
     return "not critical"
 
 
-def reevaluate(results: list[Result], exact: dict[str, SearchProblem], pool: int
+def reevaluate(results: list[Result], exact: dict[str, SearchProblem], pool: int,
+               cache: dict[str, Result] | None = None
                ) -> tuple[list[tuple[Result, Result]], dict[str, float]]:
     """Re-evaluate about ``pool`` of the best feasible results (search objective, spread
     over the (family, environment) groups; see ``POOL_MIN``) exactly with the ``exact``
     problems; returns (lookup result, exact result) pairs and the disagreement of the two
-    over them (what the lookup proposed vs what exact evaluation decides)."""
+    over them (what the lookup proposed vs what exact evaluation decides). ``cache``:
+    exact results by scenario id, reused and filled (several searches of one run share
+    their re-evaluations)."""
     groups: dict[tuple[str, str], list[Result]] = {}
     for r in results:
         if r.feasible:
@@ -280,16 +283,24 @@ def reevaluate(results: list[Result], exact: dict[str, SearchProblem], pool: int
         take(sorted((r for r in rs if classify(r) == "unavoidable"),
                     key=lambda r: (-r.metrics.get("impact_speed_kmh", 0.0),
                                    r.candidate.scenario_id)), UNAVOIDABLE_PER_GROUP)
-    pairs: list[tuple[Result, Result]] = []
+    cache = {} if cache is None else cache
     by_family: dict[str, list[Result]] = {}
     for r in chosen:
-        by_family.setdefault(r.candidate.family, []).append(r)
+        if r.candidate.scenario_id not in cache:
+            by_family.setdefault(r.candidate.family, []).append(r)
     for fam, rs in by_family.items():
         for r, e in zip(rs, exact[fam].evaluate_many([r.candidate for r in rs]), strict=True):
-            pairs.append((r, e))
-    pairs.sort(key=lambda p: (-p[0].objective, p[0].candidate.scenario_id))
+            cache[r.candidate.scenario_id] = e
+    pairs = sorted(((r, cache[r.candidate.scenario_id]) for r in chosen),
+                   key=lambda p: (-p[0].objective, p[0].candidate.scenario_id))
+    return pairs, disagreement(pairs)
+
+
+def disagreement(pairs: list[tuple[Result, Result]]) -> dict[str, float]:
+    """Lookup vs exact over (lookup result, exact result) pairs: P(collision) differences,
+    sensor-critical counts by each and both, the overlap of the top 10 by P(collision)."""
     if not pairs:
-        return pairs, {"reevaluated": 0}
+        return {"reevaluated": 0}
     pl = np.array([p[0].metrics.get("collision_probability", 0.0) for p in pairs])
     pe = np.array([p[1].metrics.get("collision_probability", 0.0) for p in pairs])
     cl = {p[0].candidate.scenario_id for p in pairs if classify(p[0]) == "sensor-critical"}
@@ -299,7 +310,7 @@ def reevaluate(results: list[Result], exact: dict[str, SearchProblem], pool: int
         pairs, key=lambda p: -p[0].metrics.get("collision_probability", 0.0))[:k]}
     top_e = {p[1].candidate.scenario_id for p in sorted(
         pairs, key=lambda p: -p[1].metrics.get("collision_probability", 0.0))[:k]}
-    return pairs, {
+    return {
         "reevaluated": len(pairs),
         "mean_abs_diff_collision_probability": float(np.mean(np.abs(pl - pe))),
         "max_abs_diff_collision_probability": float(np.max(np.abs(pl - pe))),
@@ -309,9 +320,20 @@ def reevaluate(results: list[Result], exact: dict[str, SearchProblem], pool: int
     }
 
 
+def merge_pairs(*pair_lists: list[tuple[Result, Result]]) -> list[tuple[Result, Result]]:
+    """The union of several searches' re-evaluated pairs (one per scenario id), in the
+    order ``reevaluate`` gives (search objective, then scenario id)."""
+    seen: dict[str, tuple[Result, Result]] = {}
+    for pairs in pair_lists:
+        for p in pairs:
+            seen.setdefault(p[0].candidate.scenario_id, p)
+    return sorted(seen.values(), key=lambda p: (-p[0].objective, p[0].candidate.scenario_id))
+
+
 def rank_exact(pairs: list[tuple[Result, Result]], problems: dict[str, SearchProblem],
                top: int, min_distance: float = MIN_DISTANCE,
-               max_per_group: int = MAX_PER_GROUP
+               max_per_group: int = MAX_PER_GROUP,
+               explained: dict[str, Explanation] | None = None
                ) -> tuple[list[tuple[Result, list[str], Explanation]],
                           list[tuple[Result, list[str], Explanation]]]:
     """The ranking from exact results: sensor-critical scenarios (collision probability
@@ -319,7 +341,9 @@ def rank_exact(pairs: list[tuple[Result, Result]], problems: dict[str, SearchPro
     a family and environment collapsed, at most ``max_per_group`` per (family,
     environment); the same trajectory critical for the same reason (dominant effect) in
     several environments is one row listing them. Returns (ranking, unavoidable), each row
-    (exact result, environment labels, explanation)."""
+    (exact result, environment labels, explanation). ``explained``: explanations by
+    scenario id, reused and filled (rankings of one run's searches share them)."""
+    explained = {} if explained is None else explained
     def key(r: Result) -> tuple[int, float, float, float, str]:
         crit = classify(r) == "sensor-critical"
         return (0 if crit else 1, -r.metrics.get("collision_probability", 0.0),
@@ -376,7 +400,9 @@ def rank_exact(pairs: list[tuple[Result, Result]], problems: dict[str, SearchPro
             if any(candidate_distance(prob, r.candidate, row[0].candidate) < min_distance
                    for row in out):
                 continue
-            ex = explain(prob, r.candidate)
+            ex = explained.get(r.candidate.scenario_id)
+            if ex is None:
+                ex = explained[r.candidate.scenario_id] = explain(prob, r.candidate)
             if merged(r, ex, out) or same_outcome(r, ex, out):
                 continue
             out.append((r, [r.candidate.environment_label], ex))
@@ -389,3 +415,21 @@ def rank_exact(pairs: list[tuple[Result, Result]], problems: dict[str, SearchPro
     unav: list[tuple[Result, list[str], Explanation]] = []
     fill(unavoidable, unav, min(top, 10), None)
     return rows, unav
+
+
+#: The summary states the stability of this many leading rows.
+STABILITY_TOP = 10
+
+
+def found_by(rows: list[tuple[Result, list[str], Explanation]],
+             tops: list[list[tuple[Result, list[str], Explanation]]]) -> list[int]:
+    """Per ranked row: in how many of ``tops`` (each independent search's own ranking) the
+    same finding is ranked: a row of the same family and dominant effect with an
+    environment in common (the same kind of weakness, not the same parameter values:
+    independent searches land at different points of one critical region)."""
+    def same(a: tuple[Result, list[str], Explanation],
+             b: tuple[Result, list[str], Explanation]) -> bool:
+        return (a[0].candidate.family == b[0].candidate.family
+                and a[2].dominant == b[2].dominant and bool(set(a[1]) & set(b[1])))
+
+    return [sum(1 for t in tops if any(same(row, o) for o in t)) for row in rows]

@@ -36,8 +36,12 @@ from sensorgap.search.ranking import (
     MIN_DISTANCE,
     POOL_MIN,
     POOL_PER_RANK,
+    STABILITY_TOP,
     Explanation,
     classify,
+    disagreement,
+    found_by,
+    merge_pairs,
     rank_exact,
     reevaluate,
 )
@@ -47,6 +51,8 @@ from sensorgap.search.strategies import get_strategy, strategy_names
 
 MAX_BUDGET = 1_000_000
 MAX_SEED = 2**63 - 1
+#: Most independent searches one run's budget may be split into (``seeds``).
+MAX_SEEDS = 10
 #: The ranking's leading metric columns (collision terms), in this order.
 HEAD_METRICS = ("collision_probability", "impact_speed_kmh", "collision_perfect", "t_safe_s",
                 "detection_margin_s", "t_confirm_median_s", "t_threat_s",
@@ -130,10 +136,15 @@ def run_search(vehicle: str | Path, families: list[str], environments: list[str]
                min_distance: float = MIN_DISTANCE,
                detection: str = "cumulative", workers: int = 2,
                resume: bool = False, executor: str = "local",
-               scheduler: str | None = None) -> SearchOutcome:
+               scheduler: str | None = None, seeds: int = 1) -> SearchOutcome:
     """Search, store every candidate, write the ranking; see the module docstring.
     ``workers``: threads per batch (``executor="local"``) or Dask worker processes of a
     local cluster (``"dask"`` without ``scheduler``); the result does not depend on either.
+    ``seeds``: the budget runs as that many independent searches (random streams ``[seed,
+    family]`` and ``[seed, family, s]`` for s = 1..), each with its share; the ranking is
+    over all of them, and each ranked row says how many of the searches found it on their
+    own (``found_by_seeds``; ``summary.json`` ``stability``): the confidence a rerun with
+    another seed would find it too, at no extra cost.
     """
     if not 1 <= budget <= MAX_BUDGET:
         raise InputError("budget", "", f"must be within 1..{MAX_BUDGET}, got {budget}")
@@ -148,6 +159,8 @@ def run_search(vehicle: str | Path, families: list[str], environments: list[str]
         raise InputError("pd", "", f"must be lookup or exact, got {mode!r}")
     if isinstance(seed, bool) or not 0 <= seed <= MAX_SEED:
         raise InputError("seed", "", f"must be an integer within 0..{MAX_SEED}, got {seed}")
+    if isinstance(seeds, bool) or not 1 <= seeds <= MAX_SEEDS:
+        raise InputError("seeds", "", f"must be an integer within 1..{MAX_SEEDS}, got {seeds}")
     if scheduler is not None:
         check_scheduler_address(scheduler)
     all_envs = load_environments(environments_file)
@@ -159,9 +172,10 @@ def run_search(vehicle: str | Path, families: list[str], environments: list[str]
             raise InputError("environments", "", f"unknown environment {e!r}; presets: "
                              f"{', '.join(all_envs)}")
     fams = load_families(families)
-    if budget < len(fams):
+    if budget < len(fams) * seeds:
         raise InputError("budget", "", f"budget {budget} is smaller than the number of "
-                         f"families ({len(fams)}); give at least one evaluation per family")
+                         f"families ({len(fams)}) times seeds ({seeds}); give at least one "
+                         "evaluation per family and seed")
     system = load_system(vehicle)
     envs = {e: all_envs[e] for e in dict.fromkeys(environments)}
     rule = DetectionRule.parse(detection)
@@ -173,7 +187,8 @@ def run_search(vehicle: str | Path, families: list[str], environments: list[str]
     settings = {"vehicle": system.name, "vehicle_file": system.source.name,
                 "vehicle_ref": _vehicle_ref(vehicle),
                 "families": [f.name for f in fams], "environments": list(envs),
-                "seed": seed, "strategy": strategy, "pd": mode, "sun_search": sun_search,
+                "seed": seed, "seeds": seeds, "strategy": strategy, "pd": mode,
+                "sun_search": sun_search,
                 "detection": rule.label(), "reaction": evaluator.reaction.label(),
                 "target_model": "bodies"}
     inputs = _input_digests(system.source, evaluator, envs, fams)
@@ -190,6 +205,7 @@ def run_search(vehicle: str | Path, families: list[str], environments: list[str]
     shares = [budget // len(fams) + (1 if i < budget % len(fams) else 0)
               for i in range(len(fams))]
     results: list[Result] = []
+    stream: list[int] = []  # which of the independent searches each result belongs to
     evaluated = reused = 0
     disable = (not sys.stderr.isatty()) if progress is None else not progress
     resuming = store.count() > 0
@@ -212,34 +228,39 @@ def run_search(vehicle: str | Path, families: list[str], environments: list[str]
                 prob = problems[fam.name]
                 strat_cls = get_strategy(strategy)
                 assert strat_cls is not None
-                strat = strat_cls(prob.dim, prob.levels, share,
-                                  np.random.default_rng([seed, i]),
-                                  batch=strat_cls.batch_for(share))
                 idx = 0
-                while True:
-                    X = strat.ask()
-                    if len(X) == 0:
-                        break
-                    decoded = prob.decode_batch(X)
-                    cands = prob.candidates(decoded)
-                    batch: list[Result | None] = [
-                        store.get(fam.name, idx + j, c.scenario_id) if resuming else None
-                        for j, c in enumerate(cands)]
-                    todo = np.array([j for j, r in enumerate(batch) if r is None], dtype=int)
-                    reused += len(batch) - todo.size
-                    if todo.size:
-                        sub = decoded.take(todo)
-                        fresh = prob.results([cands[j] for j in todo],
-                                             runner.evaluate(spec, prob, sub))
-                        for j, r in zip(todo.tolist(), fresh, strict=True):
-                            batch[j] = r
-                        store.put_async([(idx + j, batch[j]) for j in todo.tolist()])
-                        evaluated += todo.size
-                    done = [r for r in batch if r is not None]
-                    strat.tell(X, np.array([r.objective for r in done]))
-                    results.extend(done)
-                    idx += len(done)
-                    bar.update(len(done))
+                for s_i in range(seeds):
+                    part = share // seeds + (1 if s_i < share % seeds else 0)
+                    strat = strat_cls(prob.dim, prob.levels, part,
+                                      np.random.default_rng([seed, i] if s_i == 0
+                                                            else [seed, i, s_i]),
+                                      batch=strat_cls.batch_for(part))
+                    while True:
+                        X = strat.ask()
+                        if len(X) == 0:
+                            break
+                        decoded = prob.decode_batch(X)
+                        cands = prob.candidates(decoded)
+                        batch: list[Result | None] = [
+                            store.get(fam.name, idx + j, c.scenario_id) if resuming else None
+                            for j, c in enumerate(cands)]
+                        todo = np.array([j for j, r in enumerate(batch) if r is None],
+                                        dtype=int)
+                        reused += len(batch) - todo.size
+                        if todo.size:
+                            sub = decoded.take(todo)
+                            fresh = prob.results([cands[j] for j in todo],
+                                                 runner.evaluate(spec, prob, sub))
+                            for j, r in zip(todo.tolist(), fresh, strict=True):
+                                batch[j] = r
+                            store.put_async([(idx + j, batch[j]) for j in todo.tolist()])
+                            evaluated += todo.size
+                        done = [r for r in batch if r is not None]
+                        strat.tell(X, np.array([r.objective for r in done]))
+                        results.extend(done)
+                        stream.extend([s_i] * len(done))
+                        idx += len(done)
+                        bar.update(len(done))
     finally:
         store.close()
         runner.close()
@@ -247,24 +268,49 @@ def run_search(vehicle: str | Path, families: list[str], environments: list[str]
         f.name: SearchProblem(f, envs, Evaluator(system, mode="exact", rule=rule), sun_search)
         for f in fams}
     pool = max(POOL_MIN, POOL_PER_RANK * top)
-    pairs, disagreement = reevaluate(results, exact_problems, pool)
+    cache: dict[str, Result] = {}
+    explained: dict[str, Explanation] = {}
+    if seeds == 1:
+        pairs, lve = reevaluate(results, exact_problems, pool, cache)
+    else:  # each search's own best re-evaluated; the ranking over their union
+        per_seed = [reevaluate([r for r, s_i in zip(results, stream, strict=True)
+                                if s_i == k], exact_problems, pool, cache)[0]
+                    for k in range(seeds)]
+        pairs = merge_pairs(*per_seed)
+        lve = disagreement(pairs)
     lookup_of = {lk.candidate.scenario_id: lk for lk, _ in pairs}
-    chosen, unavoidable = rank_exact(pairs, exact_problems, top, min_distance)
+    chosen, unavoidable = rank_exact(pairs, exact_problems, top, min_distance,
+                                     explained=explained)
+    stability: dict[str, Any] = {"seeds": seeds}
+    found: list[int | None] = [None] * len(chosen)
+    if seeds > 1:
+        tops = [rank_exact(ps, exact_problems, top, min_distance, explained=explained)[0]
+                for ps in per_seed]
+        found = list(found_by(chosen, tops))
+        stability.update({
+            "budget_per_seed": [sum(1 for s_i in stream if s_i == k) for k in range(seeds)],
+            "top": STABILITY_TOP,
+            "found_by": found[:STABILITY_TOP],
+            "rule": "a ranked row counts as found by a search when that search's own "
+                    f"ranking (top {top}) holds a row of the same family and dominant "
+                    "effect with an environment in common"})
     params = sorted({p.name for f in fams for p in f.space})
     metrics = metric_names()
     head = [m for m in HEAD_METRICS if m in metrics]
-    columns = ["rank", "scenario_id", "class", "family", "environment", "environments",
+    columns = ["rank", "scenario_id", "class", "found_by_seeds", "family", "environment",
+               "environments",
                "target", "sun_azimuth_deg", "sun_elevation_deg", *head, "dominant_effect",
                "named_step_t_s", "lookup_collision_probability", "risk",
                *[m for m in metrics if m not in head and m != "risk"],
                *[f"p_{p}" for p in params], "reason"]
 
-    def row_of(rank: int, r: Result, env_labels: list[str], ex: Explanation
-               ) -> dict[str, Any]:
+    def row_of(rank: int, r: Result, env_labels: list[str], ex: Explanation,
+               seeds_found: int | None = None) -> dict[str, Any]:
         c = r.candidate
         lk = lookup_of.get(c.scenario_id)
         row: dict[str, Any] = {
             "rank": rank, "scenario_id": c.scenario_id, "class": classify(r),
+            "found_by_seeds": seeds_found,
             "family": c.family, "environment": c.environment_label,
             "environments": ", ".join(env_labels),
             "target": exact_problems[c.family].family.target_class,
@@ -279,14 +325,15 @@ def run_search(vehicle: str | Path, families: list[str], environments: list[str]
         row.update({f"p_{k}": v for k, v in c.params.items()})
         return row
 
-    rows = [row_of(i, r, envs_, ex) for i, (r, envs_, ex) in enumerate(chosen, start=1)]
+    rows = [row_of(i, r, envs_, ex, f)
+            for i, ((r, envs_, ex), f) in enumerate(zip(chosen, found, strict=True), start=1)]
     unav_rows = [row_of(i, r, envs_, ex)
                  for i, (r, envs_, ex) in enumerate(unavoidable, start=1)]
     atomic_write_bytes(out / "ranking.csv", ranking_csv(rows, columns))
     atomic_write_bytes(out / "unavoidable.csv", ranking_csv(unav_rows, columns))
     write_json(out / "ranking.json", {"columns": columns, "ranking": rows,
                                       "unavoidable": unav_rows, "settings": settings,
-                                      "lookup_vs_exact": disagreement})
+                                      "lookup_vs_exact": lve, "stability": stability})
     n_ok = sum(r.feasible for r in results)
     per_family = {}
     for f, share in zip(fams, shares, strict=True):
@@ -305,7 +352,8 @@ def run_search(vehicle: str | Path, families: list[str], environments: list[str]
                    (float(r.metrics.get("collision_probability", 0.0)) for _, r in pairs
                     if classify(r) == "sensor-critical"), default=0.0),
                "best_log10_risk": max((r.score for r in results), default=-300.0),
-               "lookup_vs_exact": disagreement,
+               "lookup_vs_exact": lve,
+               "stability": stability,
                "per_family": per_family,
                "speed_limits": _speed_limits(next(iter(problems.values())))}
     write_json(out / "summary.json", summary)
