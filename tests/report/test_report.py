@@ -215,8 +215,9 @@ def test_anchor_cases_in_the_report(job: Path, search_only: Path) -> None:
     assert other.split("\n## ", 1)[0].strip().endswith("Not part of this run.")
 
 
+@pytest.mark.parametrize("wide", [0.0, 1e9], ids=["map-above", "side-by-side"])
 def test_scenario_figure_shows_the_named_step(job: Path, monkeypatch: pytest.MonkeyPatch,
-                                              tmp_path: Path) -> None:
+                                              tmp_path: Path, wide: float) -> None:
     # issue #14 item 6: the per-scenario figure draws the target's body at the step the
     # reason names (with its exact Pd of the confirming sensors), the scene's occluders
     # at that step, and over time the confirming Pd, P(confirmed), the path TTC and the
@@ -233,8 +234,17 @@ def test_scenario_figure_shows_the_named_step(job: Path, monkeypatch: pytest.Mon
     captured = {}
     monkeypatch.setattr(figures, "save_figure",
                         lambda fig, path, dpi: captured.setdefault("fig", fig) and path)
+    # both layouts: the map above the curves (a long scene) and beside them
+    monkeypatch.setattr(figures, "WIDE_SCENE", wide)
     figures.scenario_figure(spec, ev, tr, tmp_path / "f.png")
     fig = captured["fig"]
+    fig.canvas.draw()
+    ax, bx = fig.axes[:2]
+    pa, pb = ax.get_position(), bx.get_position()
+    assert (pa.y0 > pb.y1) if wide == 0.0 else (pa.x1 < pb.x0)  # above / beside
+    cbar = next(a for a in ax.child_axes if a.get_ylabel() == "$p_d$")
+    pc = cbar.get_position()
+    assert pc.height == pytest.approx(pa.height, rel=1e-6)  # as tall as the map
     labels = [t.get_text() for leg in fig.legends for t in leg.get_texts()]
     k = named_step(tr)
     pdc = tr.pd if tr.pd_confirm is None else tr.pd_confirm

@@ -28,6 +28,10 @@ from sensorgap.search.ranking import named_step  # noqa: E402
 
 plt.rcParams["svg.hashsalt"] = "sensorgap"
 
+#: A scene longer than this many times its width is drawn with the map over the whole
+#: width above the curves (else side by side).
+WIDE_SCENE = 2.5
+
 
 def scenario_trace(spec: ScenarioSpec, evaluator: Evaluator) -> Trace:
     """The scenario evaluated exactly (the report's curves)."""
@@ -54,14 +58,25 @@ def scenario_figure(spec: ScenarioSpec, evaluator: Evaluator, tr: Trace, path: P
     maps = evaluator.maps(spec.environment, spec.target)
     g = maps.grid
     pd_map = -np.expm1(maps.total.astype(np.float64))
-    fig, (ax, bx) = plt.subplots(1, 2, figsize=(12.0, 5.0),
-                                 gridspec_kw={"width_ratios": [1.6, 1.0]})
-    fig.subplots_adjust(left=0.06, right=0.93, bottom=0.27, top=0.92, wspace=0.42)
     pad = 15.0
     x0, x1 = min(float(tr.x.min()), -10.0) - pad, max(float(tr.x.max()), 10.0) + pad
     y0, y1 = min(float(tr.y.min()), -6.0) - pad / 2, max(float(tr.y.max()), 6.0) + pad / 2
     x0, x1 = max(x0, g.xmin), min(x1, g.xmax)
     y0, y1 = max(y0, g.ymin), min(y1, g.ymax)
+    wide = (x1 - x0) > WIDE_SCENE * (y1 - y0)
+    if wide:
+        # a long, thin scene (far ahead): at least a quarter of its length across, the map
+        # over the whole width above the curves (side by side it was a thin strip)
+        need = (x1 - x0) / 4.0
+        if y1 - y0 < need:
+            c = 0.5 * (y0 + y1)
+            y0, y1 = max(c - 0.5 * need, g.ymin), min(c + 0.5 * need, g.ymax)
+        map_h = max(1.8, 10.4 * (y1 - y0) / (x1 - x0))
+        fig = plt.figure(figsize=(12.0, map_h + 4.4), layout="constrained")
+        ax, bx = fig.subplots(2, 1, height_ratios=[map_h, 2.8])
+    else:
+        fig = plt.figure(figsize=(12.0, 5.4), layout="constrained")
+        ax, bx = fig.subplots(1, 2, width_ratios=[1.6, 1.0])
     # only the cells in view (the whole map would be resampled by the renderer)
     i0 = max(int(np.floor((x0 - g.xmin) / g.resolution)), 0)
     i1 = min(int(np.ceil((x1 - g.xmin) / g.resolution)), pd_map.shape[1])
@@ -105,14 +120,13 @@ def scenario_figure(spec: ScenarioSpec, evaluator: Evaluator, tr: Trace, path: P
     ax.set_ylim(y0, y1)
     ax.set_xlabel("x (ego vehicle frame) [m]")
     ax.set_ylabel("y (ego vehicle frame) [m]")
-    fig.legend(*ax.get_legend_handles_labels(), loc="lower left",
-               bbox_to_anchor=(0.06, 0.01), ncol=2, fontsize=7, frameon=False)
-    fig.colorbar(im, ax=ax, shrink=0.85,
-                 label=f"$p_d$ of a {plain_text(spec.target.name)} body, "
-                 f"{plain_text(spec.environment_name)}: "
-                 "no sun, no occluders")
-    ax.set_title(plain_text(f"rank {spec.rank}: {spec.family.name}, {spec.environment_name}"),
-                 fontsize=9)
+    fig.legend(*ax.get_legend_handles_labels(), loc="outside lower left", ncol=2, fontsize=7,
+               frameon=False)
+    # the colour bar as tall as the map itself (an inset beside it)
+    fig.colorbar(im, cax=ax.inset_axes((1.015, 0.0, 0.018, 1.0)), label="$p_d$")
+    ax.set_title(plain_text(f"rank {spec.rank}: {spec.family.name}, {spec.environment_name}; "
+                            f"map: Pd of a {spec.target.name} body there, no sun, "
+                            "no occluders"), fontsize=9)
     r = evaluator.reaction
     f = first_confirmation(pdc[None, :], np.array([len(pdc)]), r.confirm_m, r.confirm_n)[0]
     bx.plot(tr.t, pdc, color="tab:blue", label="$p_d$ of the confirming sensors")
@@ -133,8 +147,8 @@ def scenario_figure(spec: ScenarioSpec, evaluator: Evaluator, tr: Trace, path: P
         if v is not None and math.isfinite(float(v)):
             bx.axvline(float(v), color=colour, linestyle=":", linewidth=1.0, label=text)
     lines = bx.get_lines() + cx.get_lines()
-    fig.legend(lines, [str(ln.get_label()) for ln in lines], loc="lower left",
-               bbox_to_anchor=(0.62, 0.01), ncol=2, fontsize=7, frameon=False)
+    fig.legend(lines, [str(ln.get_label()) for ln in lines], loc="outside lower right",
+               ncol=2, fontsize=7, frameon=False)
     bx.set_title("detection and confirmation over time (exact)", fontsize=9)
     return save_figure(fig, path, dpi=100)
 
