@@ -179,8 +179,9 @@ def cmd_coverage(args: argparse.Namespace) -> int:
                          "); coarsen the resolution or shrink the extent")
     scene = _scene(args)
     height = scene.target.reference_height_m if args.height is None else args.height
-    if not (math.isfinite(height) and -10.0 <= height <= 50.0):
-        raise InputError("--height", "", f"must be within -10..50 m, got {height!r}")
+    if not (math.isfinite(height) and 0.0 <= height <= 50.0):
+        raise InputError("--height", "", f"must be within 0..50 m (above the road plane the "
+                         f"vehicle stands on: the models know no terrain), got {height!r}")
     if args.per_sensor and cells * len(scene.sensors) > MAX_PER_SENSOR_CELLS:
         raise InputError("--per-sensor", "", f"{cells:.3g} cells x {len(scene.sensors)} "
                          f"sensors is too large (at most {MAX_PER_SENSOR_CELLS:.0e} maps "

@@ -96,14 +96,15 @@ def write(tmp_path: Path, sensors: list[dict[str, object]]) -> Path:
 
 def test_user_sensor_type_without_core_edits(tmp_path: Path, ideal: None) -> None:
     p = write(tmp_path, [{"id": "all", "yaw": 0, "hfov": 360, "vfov": 180},
-                         {"id": "none", "yaw": 0, "hfov": 0, "vfov": 0}])
+                         {"id": "none", "yaw": 0, "hfov": 1e-9, "vfov": 1e-9}])
     system = load_system(p)
     scene = Scene(system, load_target("car"), Conditions.from_config(
         make_scene(system).conditions.env))
     pts = np.array([[10.0, 5.0, 0.5], [-20.0, -3.0, 2.0], [30.0, 0.0, 0.5], [1.0, 0.0, 0.5]])
     cov = evaluate_points(scene, pts)
     assert cov.pd[0].tolist() == [1.0, 1.0, 1.0, 0.0]  # r = 0 is never in view
-    assert cov.pd[1].tolist() == [0.0, 0.0, 1.0, 0.0]  # FOV 0: only the exact boresight
+    # a pencil beam (FOV 1e-9 deg; 0 is refused: tests/bad_inputs) sees only its boresight
+    assert cov.pd[1].tolist() == [0.0, 0.0, 1.0, 0.0]
     assert np.all(np.isfinite(cov.snr_db))
 
 

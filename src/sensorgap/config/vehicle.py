@@ -78,8 +78,9 @@ class MountConfig(Strict):
     )
     yaw_deg: float = Field(default=0.0, ge=-360.0, le=360.0, allow_inf_nan=False)
     pitch_deg: float = Field(default=0.0, ge=-90.0, le=90.0, allow_inf_nan=False)
-    hfov_deg: float = Field(ge=0.0, le=360.0, allow_inf_nan=False)
-    vfov_deg: float = Field(ge=0.0, le=180.0, allow_inf_nan=False)
+    # > 0: a sensor without a field of view sees nothing (refused rather than evaluated)
+    hfov_deg: float = Field(gt=0.0, le=360.0, allow_inf_nan=False)
+    vfov_deg: float = Field(gt=0.0, le=180.0, allow_inf_nan=False)
     min_range_m: float = Field(default=0.0, ge=0.0, le=MAX_RANGE_M, allow_inf_nan=False)
     max_range_m: float = Field(ge=0.01, le=MAX_RANGE_M, allow_inf_nan=False,
                                description="Detection range limit, m (at most 10 km)")
