@@ -19,6 +19,7 @@ from sensorgap.models import System
 from sensorgap.scenarios import InfeasibleScenario, Scenario, load_family
 from sensorgap.scenarios.family import Family, Param, ParamValue
 from sensorgap.search.metrics import metric_names
+from sensorgap.search.problem import Candidate
 from sensorgap.search.runfolder import RunFolder, read_run
 
 __all__ = ["RunInfo", "ScenarioSpec", "read_run", "specs_of_run"]
@@ -80,6 +81,12 @@ class ScenarioSpec:
                 sun = (az, _finite(row["sun_elevation_deg"]))
                 env = env.model_copy(update={"sun": env.sun.model_copy(update={
                     "azimuth_deg": sun[0], "elevation_deg": sun[1], "frame": "world"})})
+            field = "environment"
+            label = (env_name if sun is None
+                     else Candidate(str(row["family"]), env_name, sun, {}).environment_label)
+            if str(row["environment"]) != label:
+                raise ValueError(f"{str(row['environment'])[:64]!r} does not match the row's "
+                                 f"environment and sun columns (expected {label!r})")
         except KeyError:
             raise InputError(source, f"{at}.{field}", "missing") from None
         except (TypeError, ValueError) as exc:
