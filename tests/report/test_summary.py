@@ -154,7 +154,10 @@ def test_confidence_states_what_was_and_was_not_measured(job: Path) -> None:
     assert "Stability over seeds: the budget ran as 3 independent searches" in text
     n_all = sum(1 for f in stab["found_by"] if f == 3)
     if n_all:
-        assert f"{n_all} {'was' if n_all == 1 else 'were'} found by all 3 searches" in text
+        assert "same kind of weakness" in text and f": {n_all} by all 3" in text
+    near = stab["found_near_by"]
+    assert len(near) == len(stab["found_by"]) and all(0 <= n <= 3 for n in near)
+    assert f"near-duplicate distance {stab['near_distance']:g}" in text
     first = doc.get_element_by_id("test-first").text_content()
     assert "found by searches" in first and f"{rows[0]['found_by_seeds']} of 3" in first
 

@@ -305,6 +305,11 @@ def test_found_by_counts_the_same_weakness_not_the_same_point() -> None:
              row("cut_in_left", ["rain_5"], "glare", 20.0)],  # other cause: not the first
             [row("crossing_cyclist", ["clear"], "range", 10.0)]]  # no common environment
     assert found_by(ranked, tops) == [1, 1, 0]
+    # the sun searched in a preset: the same preset at another sun position is the same
+    sunny = [row("slow_ahead_curve", ["glare_front_right@sun62/5"], "glare", 30.0)]
+    assert found_by(sunny, [[row("slow_ahead_curve", ["glare_front_right@sun57/4"], "glare",
+                                 25.0)], [row("slow_ahead_curve", ["clear@sun62/5"],
+                                              "glare", 30.0)]]) == [1]
     assert found_by(ranked, []) == [0, 0, 0]
 
 

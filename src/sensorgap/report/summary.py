@@ -691,21 +691,30 @@ def _stability(settings: dict[str, Any], stab: dict[str, Any] | None) -> str:
     per = [int(b) for b in stab.get("budget_per_seed", [])]
     each = (f" of {per[0]:,}" if per and min(per) == max(per)
             else f" of {min(per):,}-{max(per):,}" if per else "")
+    text = (f"Stability over seeds: the budget ran as {k} independent searches"
+            f"{each} candidates each. How many of them found each of the top {len(found)} "
+            "weaknesses on their own, as the same kind of weakness (the same family, cause "
+            "and environment preset, at any sun position, in that search's own ranking): "
+            + _found_counts(found, k))
+    near = [int(f) for f in stab.get("found_near_by", [])]
+    if len(near) == len(found):
+        text += (f"; at nearly the same parameters and sun (within the ranking's "
+                 f"near-duplicate distance {float(stab.get('near_distance', 0.15)):g}): "
+                 + _found_counts(near, k))
+    if 1 in found:
+        text += ("; a weakness found by one search only may be missed by a rerun with "
+                 "another seed")
+    return text + "."
+
+
+def _found_counts(found: list[int], k: int) -> str:
+    """'7 by all 3, 2 by 2, 1 by one only' of per-row search counts."""
     counts = Counter(found)
     parts = [f"{counts[j]} by {'all ' + str(k) if j == k else j if j > 1 else 'one only'}"
              for j in range(k, 0, -1) if counts[j]]
     if counts[0]:
         parts.append(f"{counts[0]} by none alone (only their union ranked it)")
-    verb = " was found by " if parts[0].startswith("1 ") else " were found by "
-    parts[0] = parts[0].replace(" by ", verb, 1) + " searches on their own"
-    text = (f"Stability over seeds: the budget ran as {k} independent searches"
-            f"{each} candidates each. Of the top {len(found)} weaknesses, "
-            + ", ".join(parts) + " (the same family, cause and an environment in common "
-            "in that search's own ranking)")
-    if counts[1]:
-        text += ("; a weakness found by one search only may be missed by a rerun with "
-                 "another seed")
-    return text + "."
+    return ", ".join(parts)
 
 
 def summary_section(folder: Path, system: System, settings: dict[str, Any],

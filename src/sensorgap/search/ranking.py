@@ -425,11 +425,28 @@ def found_by(rows: list[tuple[Result, list[str], Explanation]],
              tops: list[list[tuple[Result, list[str], Explanation]]]) -> list[int]:
     """Per ranked row: in how many of ``tops`` (each independent search's own ranking) the
     same finding is ranked: a row of the same family and dominant effect with an
-    environment in common (the same kind of weakness, not the same parameter values:
-    independent searches land at different points of one critical region)."""
+    environment preset in common (the same kind of weakness, not the same parameter values
+    or sun position: independent searches land at different points of one critical
+    region)."""
+    def presets(labels: list[str]) -> set[str]:
+        return {lab.split("@")[0] for lab in labels}  # 'clear@sun62/5': the preset clear
+
     def same(a: tuple[Result, list[str], Explanation],
              b: tuple[Result, list[str], Explanation]) -> bool:
         return (a[0].candidate.family == b[0].candidate.family
-                and a[2].dominant == b[2].dominant and bool(set(a[1]) & set(b[1])))
+                and a[2].dominant == b[2].dominant
+                and bool(presets(a[1]) & presets(b[1])))
 
     return [sum(1 for t in tops if any(same(row, o) for o in t)) for row in rows]
+
+
+def found_near(rows: list[tuple[Result, list[str], Explanation]],
+               tops: list[list[tuple[Result, list[str], Explanation]]],
+               problems: dict[str, SearchProblem], distance: float) -> list[int]:
+    """Per ranked row: in how many of ``tops`` a row of the same family and environment
+    preset lies within ``distance`` of it (``candidate_distance``: parameters and sun;
+    the ranking's near-duplicate test), the stricter sense of found again."""
+    return [sum(1 for t in tops if any(
+        candidate_distance(problems[row[0].candidate.family], row[0].candidate,
+                           o[0].candidate) < distance for o in t)) for row in rows]
+

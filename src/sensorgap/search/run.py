@@ -41,6 +41,7 @@ from sensorgap.search.ranking import (
     classify,
     disagreement,
     found_by,
+    found_near,
     merge_pairs,
     rank_exact,
     reevaluate,
@@ -287,13 +288,16 @@ def run_search(vehicle: str | Path, families: list[str], environments: list[str]
         tops = [rank_exact(ps, exact_problems, top, min_distance, explained=explained)[0]
                 for ps in per_seed]
         found = list(found_by(chosen, tops))
+        near = found_near(chosen, tops, exact_problems, min_distance)
         stability.update({
             "budget_per_seed": [sum(1 for s_i in stream if s_i == k) for k in range(seeds)],
             "top": STABILITY_TOP,
             "found_by": found[:STABILITY_TOP],
+            "found_near_by": near[:STABILITY_TOP],
+            "near_distance": min_distance,
             "rule": "a ranked row counts as found by a search when that search's own "
                     f"ranking (top {top}) holds a row of the same family and dominant "
-                    "effect with an environment in common"})
+                    "effect with an environment preset in common (any sun position)"})
     params = sorted({p.name for f in fams for p in f.space})
     metrics = metric_names()
     head = [m for m in HEAD_METRICS if m in metrics]
