@@ -28,6 +28,15 @@ SUN_NONE, SUN_WORLD, SUN_VEHICLE = 0, 1, 2
 GLARE_W_MIN = 1e-9
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def bilerp(ax: float, ay: float, a: float, b: float, c: float,
+           d: float) -> float:  # pragma: no cover - compiled
+    """Bilinear interpolation at fractions ``ax``, ``ay`` in [0, 1] of a cell whose corner
+    values are ``a`` (i, j), ``b`` (i + 1, j), ``c`` (i, j + 1), ``d`` (i + 1, j + 1): the
+    one formula of every compiled map lookup."""
+    return (1.0 - ay) * ((1.0 - ax) * a + ax * b) + ay * ((1.0 - ax) * c + ax * d)
+
+
 @numba.njit(cache=True, nogil=True)
 def fade(o: float, margin: float) -> float:  # pragma: no cover - compiled
     """Glare weight at an angle ``o`` (rad) outside the field of view."""
@@ -189,8 +198,8 @@ def lookup_pass(total: F32, x0: float, y0: float, inv_res: float, x: F64, y: F64
             if n_bins > 1:
                 h = int(round((psi[r, k] % math.pi) / bin_w)) % n_bins
             tot = total[h]
-            out[r, k] = ((1.0 - ay) * ((1.0 - ax) * tot[j, i] + ax * tot[j, i + 1])
-                         + ay * ((1.0 - ax) * tot[j + 1, i] + ax * tot[j + 1, i + 1]))
+            out[r, k] = bilerp(ax, ay, tot[j, i], tot[j, i + 1], tot[j + 1, i],
+                               tot[j + 1, i + 1])
             if n_active == 0:
                 continue
             a = sun[r, 1]  # vehicle-frame azimuth of the sun, rad
@@ -287,8 +296,7 @@ def outline_order_pass(layer: F32, x0: float, y0: float, inv_res: float, ox: I64
                 buf[a] = buf[best]
                 buf[best] = tmp
             c[corner] = buf[q]
-        out[m] = (1.0 - ay) * ((1.0 - ax) * c[0] + ax * c[1]) + ay * ((1.0 - ax) * c[2]
-                                                                      + ax * c[3])
+        out[m] = bilerp(ax, ay, c[0], c[1], c[2], c[3])
 
 
 def near_view_mask(signal: F32, reach_cells: int) -> NDArray[np.bool_]:

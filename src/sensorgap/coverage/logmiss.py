@@ -33,6 +33,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sensorgap.coverage.fastlookup import (
+    bilerp,
     cone_cos_bound,
     lookup_pass,
     near_view_mask,
@@ -160,8 +161,7 @@ def _bilinear(img: F32, x0: float, y0: float, inv_res: float, xs: F64, ys: F64,
         j = min(int(fy), ny - 2)
         ax = fx - i
         ay = fy - j
-        out[k] = ((1.0 - ay) * ((1.0 - ax) * img[j, i] + ax * img[j, i + 1])
-                  + ay * ((1.0 - ax) * img[j + 1, i] + ax * img[j + 1, i + 1]))
+        out[k] = bilerp(ax, ay, img[j, i], img[j, i + 1], img[j + 1, i], img[j + 1, i + 1])
 
 
 @numba.njit(cache=True, nogil=True)
@@ -191,7 +191,7 @@ def _bilinear_finite(img: F32, x0: float, y0: float, inv_res: float, xs: F64, ys
             continue
         ax = fx - i
         ay = fy - j
-        out[k] = (1.0 - ay) * ((1.0 - ax) * a + ax * b) + ay * ((1.0 - ax) * c + ax * d)
+        out[k] = bilerp(ax, ay, a, b, c, d)
         state[k] = 1
 
 
