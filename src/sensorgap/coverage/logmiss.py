@@ -83,6 +83,31 @@ def _glare_at(sensor: Sensor, x: F64, y: F64, z: F64 | float, sun_dirs: F64,
     return fac, np.sqrt(dx * dx + dy * dy + dz * dz)
 
 
+def _glared_from_maps(maps: LogMissMaps, scene: Scene, row: int, x: F64, y: F64,
+                      z: F64 | float, sun_dirs: F64, weights: F64
+                      ) -> tuple[F64, NDArray[np.int8]]:
+    """A glared camera's ln(1 - Pd) at vehicle-frame points (m) from its signal map (the
+    one glare correction of every lookup): the ROC of ``snr_from_signal`` of the
+    interpolated signal with each point's glare factor (sun directions, glare weights)
+    where the four cells around the point are in view (state 1); 0 with state 0 (out of
+    view) or 2 (the edge of the view, or no signal map): the caller evaluates those
+    exactly."""
+    s = scene.sensors[row]
+    prepared = scene.prepared(s)
+    new = np.zeros(len(x))
+    if row not in maps.signal or prepared.snr_from_signal is None:
+        return new, np.full(len(x), 2, dtype=np.int8)
+    sig, state = maps.interpolate_signal(row, x, y)
+    ok = np.flatnonzero(state == 1)
+    if ok.size:
+        zz: F64 | float = (z if isinstance(z, float)
+                           else np.asarray(z, dtype=np.float64)[ok])
+        fac, rng = _glare_at(s, x[ok], y[ok], zz, sun_dirs[ok], weights[ok])
+        snr = clip_snr_db(prepared.snr_from_signal(sig[ok], fac, rng))
+        new[ok] = log_miss_of(detection_probability(snr, s.roc, scene.roc_shift_db))
+    return new, state
+
+
 def sensor_snr(scene: Scene, sensor: Sensor, x: F64, y: F64, z: F64,
                sun_dirs: F64 | None = None) -> tuple[IntArr, F64]:
     """SNR (dB) of one sensor at flat vehicle-frame points (m) with a per-point sun.
@@ -407,17 +432,9 @@ def lookup_log_miss(maps: LogMissMaps, scene: Scene, x: F64, y: F64, z: F64,
         g = ins[w > 0.0]
         if g.size == 0:
             continue
-        wg, rg = _glare_at(s, x[g], y[g], z[g], sun_dirs[g], w[w > 0.0])
         layer, _ = maps.interpolate(row, x[g], y[g])
-        new = np.zeros(g.size)
-        if row in maps.signal and prepared.snr_from_signal is not None:
-            sig, state = maps.interpolate_signal(row, x[g], y[g])
-            ok = state == 1
-            if ok.any():
-                snr = clip_snr_db(prepared.snr_from_signal(sig[ok], wg[ok], rg[ok]))
-                new[ok] = log_miss_of(detection_probability(snr, s.roc, scene.roc_shift_db))
-        else:
-            state = np.full(g.size, 2, dtype=np.int8)
+        new, state = _glared_from_maps(maps, scene, row, x[g], y[g], z[g], sun_dirs[g],
+                                       w[w > 0.0])
         edge = np.flatnonzero(state == 2)
         if edge.size:  # at the edge of the field of view: exact
             ge = g[edge]
@@ -568,8 +585,6 @@ def lookup_log_miss_tracks(maps: LogMissMaps, scene: Scene, x: F64, y: F64, head
         m = int(counts[1 + c])
         if m == 0:
             continue
-        s = scene.sensors[row]
-        prepared = scene.prepared(s)
         gi, wg = glare_idx[c, :m], glare_w[c, :m]
         xs, ys = xf[gi], yf[gi]
         sd = dirs_at(gi)
@@ -582,28 +597,15 @@ def lookup_log_miss_tracks(maps: LogMissMaps, scene: Scene, x: F64, y: F64, head
             if e.size:
                 of[gi[e]] = np.minimum(of[gi[e]] + _glared_outline(
                     maps, scene, row, gi[e], wg[e], xf, yf, how, dirs_at, z0), 0.0)
-            keep = np.flatnonzero(st == 1)
+            keep = np.flatnonzero(st == 1)  # all four cells in view (lookup_pass)
             if keep.size:
-                sig, _ = maps.interpolate_signal(row, xs[keep], ys[keep])
                 layer = _outline_layer(maps, row, gi[keep], xf, yf, how)
-                fk, rk = _glare_at(s, xs[keep], ys[keep], z0, sd[keep], wg[keep])
-                snr = clip_snr_db(prepared.snr_from_signal(sig, fk, rk)
-                                  if prepared.snr_from_signal is not None else sig)
-                new = log_miss_of(detection_probability(snr, s.roc, scene.roc_shift_db))
+                new, _ = _glared_from_maps(maps, scene, row, xs[keep], ys[keep], z0, sd[keep],
+                                           wg[keep])
                 of[gi[keep]] = np.minimum(of[gi[keep]] + new - layer, 0.0)
             continue
         layer, _ = maps.interpolate(row, xs, ys)
-        new = np.zeros(m)
-        state = glare_state[c, :m]
-        if has_signal[c] and prepared.snr_from_signal is not None:
-            ok = np.flatnonzero(state == 1)
-            if ok.size:
-                sig, _ = maps.interpolate_signal(row, xs[ok], ys[ok])
-                fo, ro = _glare_at(s, xs[ok], ys[ok], z0, sd[ok], wg[ok])
-                snr = clip_snr_db(prepared.snr_from_signal(sig, fo, ro))
-                new[ok] = log_miss_of(detection_probability(snr, s.roc, scene.roc_shift_db))
-        else:
-            state = np.full(m, 2, dtype=np.int8)
+        new, state = _glared_from_maps(maps, scene, row, xs, ys, z0, sd, wg)
         edge = np.flatnonzero(state == 2)
         if edge.size:  # at the edge of the field of view: exact
             new[edge] = how.exact_camera(row, gi[edge])
