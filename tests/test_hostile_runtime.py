@@ -217,7 +217,7 @@ def test_relative_road_is_relative_to_the_family_file(tmp_path: Path,
 
 def test_run_records_the_vehicle_file_absolute(tmp_path: Path,
                                                monkeypatch: pytest.MonkeyPatch) -> None:
-    from sensorgap.search.run import _vehicle_ref
+    from sensorgap.search.settings import vehicle_ref as _vehicle_ref
 
     (tmp_path / "v.toml").write_text("")
     monkeypatch.chdir(tmp_path)

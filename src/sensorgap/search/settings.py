@@ -1,0 +1,183 @@
+"""What a search is asked (``SearchSettings``, checked before any work) and what that
+resolves to (``prepare``: the vehicle, environments, families, evaluator and one search
+problem per family, the record a run folder keeps and the digests of every input).
+
+Reading the input files is the only I/O here; the search loop (``search.loop``) and the
+writers (``search.run``) take a ``Prepared``.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from sensorgap.config import EnvironmentConfig, load_environments, load_targets
+from sensorgap.config.presets import resolve_road
+from sensorgap.errors import InputError
+from sensorgap.models import System, load_system
+from sensorgap.scenarios import Family, load_families
+from sensorgap.search.evaluate import DetectionRule, Evaluator
+from sensorgap.search.executors import ProblemSpec, check_scheduler_address
+from sensorgap.search.problem import SearchProblem
+from sensorgap.search.ranking import MIN_DISTANCE
+from sensorgap.search.store import digest, file_digest
+from sensorgap.search.strategies import get_strategy, strategy_names
+
+#: Largest budget of one search, candidates.
+MAX_BUDGET = 1_000_000
+#: Largest seed (numpy's seed sequences take any non-negative integer; this keeps it an
+#: int64 in the store).
+MAX_SEED = 2**63 - 1
+#: Most independent searches one run's budget may be split into (``seeds``).
+MAX_SEEDS = 10
+
+
+@dataclass(frozen=True)
+class SearchSettings:
+    """One search: the vehicle (preset name or .toml path), family names or files,
+    environment preset names (of ``environments_file`` if given), the budget (candidates
+    in all), the seed and the number of independent searches sharing the budget
+    (``seeds``), how many rows to rank (``top``), the strategy, ``mode`` (Pd by map
+    ``lookup`` or ``exact``), whether the sun position is searched, the ranking's
+    near-duplicate distance, the detection rule, and where batches are evaluated
+    (``workers`` threads, or Dask worker processes with ``executor="dask"``)."""
+
+    vehicle: str | Path
+    families: tuple[str, ...]
+    environments: tuple[str, ...]
+    budget: int
+    seed: int
+    top: int
+    strategy: str = "de"
+    mode: str = "lookup"
+    sun_search: bool = True
+    environments_file: Path | None = None
+    min_distance: float = MIN_DISTANCE
+    detection: str = "cumulative"
+    workers: int = 2
+    executor: str = "local"
+    scheduler: str | None = None
+    seeds: int = 1
+
+    def check(self) -> None:
+        """Refuse settings out of their ranges (``InputError`` naming the field)."""
+        if not 1 <= self.budget <= MAX_BUDGET:
+            raise InputError("budget", "", f"must be within 1..{MAX_BUDGET}, got {self.budget}")
+        if not 1 <= self.workers <= 64:
+            raise InputError("workers", "", f"must be 1..64, got {self.workers}")
+        if self.top < 1:
+            raise InputError("top", "", f"must be >= 1, got {self.top}")
+        if get_strategy(self.strategy) is None:
+            raise InputError("strategy", "", f"unknown strategy {self.strategy!r}; allowed: "
+                             f"{', '.join(strategy_names())}")
+        if self.mode not in ("lookup", "exact"):
+            raise InputError("pd", "", f"must be lookup or exact, got {self.mode!r}")
+        if isinstance(self.seed, bool) or not 0 <= self.seed <= MAX_SEED:
+            raise InputError("seed", "", f"must be an integer within 0..{MAX_SEED}, got "
+                             f"{self.seed}")
+        if isinstance(self.seeds, bool) or not 1 <= self.seeds <= MAX_SEEDS:
+            raise InputError("seeds", "", f"must be an integer within 1..{MAX_SEEDS}, got "
+                             f"{self.seeds}")
+        if self.scheduler is not None:
+            check_scheduler_address(self.scheduler)
+
+
+@dataclass
+class Prepared:
+    """The resolved inputs of a search (``prepare``)."""
+
+    settings: SearchSettings
+    system: System
+    families: list[Family]
+    environments: dict[str, EnvironmentConfig]
+    rule: DetectionRule
+    evaluator: Evaluator
+    #: one search problem per family, by family name
+    problems: dict[str, SearchProblem]
+    #: how a Dask worker rebuilds the problems (``search.executors``)
+    spec: ProblemSpec
+    #: the settings as the store, ranking.json and summary.json record them
+    record: dict[str, Any]
+    #: content digests of every input the stored results depend on
+    inputs: dict[str, str]
+
+    def shares(self) -> list[int]:
+        """Candidates per family: the budget split evenly (the first ones get the rest)."""
+        n, b = len(self.families), self.settings.budget
+        return [b // n + (1 if i < b % n else 0) for i in range(n)]
+
+    def exact_problems(self) -> dict[str, SearchProblem]:
+        """The problems with exact evaluation (the lookup's proposals are re-evaluated with
+        them before anything is ranked)."""
+        s = self.settings
+        if s.mode == "exact":
+            return self.problems
+        ev = Evaluator(self.system, mode="exact", rule=self.rule)
+        return {f.name: SearchProblem(f, self.environments, ev, s.sun_search)
+                for f in self.families}
+
+
+def vehicle_ref(vehicle: str | Path) -> str:
+    """How the run records its vehicle: a preset name as given, a file as its absolute
+    path (so export, compare and report work from any working directory)."""
+    text = str(vehicle)
+    if text.endswith(".toml") or "/" in text or Path(text).exists():
+        return str(Path(text).resolve())
+    return text
+
+
+def input_digests(vehicle_file: Path, evaluator: Evaluator,
+                  envs: dict[str, EnvironmentConfig], fams: list[Family]) -> dict[str, str]:
+    """Content digests of every input the stored results depend on (``--resume`` refuses
+    when one changed): the vehicle file, its reaction model and friction, the
+    environments, the target classes and each family's file and road."""
+    out = {"vehicle": file_digest(vehicle_file),
+           "reaction": digest(json.dumps([evaluator.reaction.model_dump(mode="json"),
+                                          evaluator.friction], sort_keys=True)),
+           "environments": digest(json.dumps({k: v.model_dump(mode="json")
+                                              for k, v in envs.items()}, sort_keys=True)),
+           "targets": digest(json.dumps({k: v.model_dump(mode="json")
+                                         for k, v in load_targets().items()},
+                                        sort_keys=True))}
+    for f in fams:
+        out[f"family {f.name}"] = file_digest(Path(f.source))
+        out[f"road of {f.name}"] = file_digest(resolve_road(str(f.settings["road"])))
+    return out
+
+
+def prepare(s: SearchSettings) -> Prepared:
+    """Check the settings and resolve them: every input read and checked before any
+    candidate is evaluated or any file written."""
+    s.check()
+    all_envs = load_environments(s.environments_file)
+    if not s.environments:
+        raise InputError("environments", "", "give at least one environment; presets: "
+                         f"{', '.join(all_envs)}")
+    for e in s.environments:
+        if e not in all_envs:
+            raise InputError("environments", "", f"unknown environment {e!r}; presets: "
+                             f"{', '.join(all_envs)}")
+    fams = load_families(list(s.families))
+    if s.budget < len(fams) * s.seeds:
+        raise InputError("budget", "", f"budget {s.budget} is smaller than the number of "
+                         f"families ({len(fams)}) times seeds ({s.seeds}); give at least one "
+                         "evaluation per family and seed")
+    system = load_system(s.vehicle)
+    envs = {e: all_envs[e] for e in dict.fromkeys(s.environments)}
+    rule = DetectionRule.parse(s.detection)
+    evaluator = Evaluator(system, mode=s.mode, rule=rule)
+    problems = {f.name: SearchProblem(f, envs, evaluator, s.sun_search) for f in fams}
+    spec = ProblemSpec(str(s.vehicle), tuple(s.families), tuple(envs),
+                       None if s.environments_file is None else str(s.environments_file),
+                       s.mode, rule.label(), s.sun_search)
+    record = {"vehicle": system.name, "vehicle_file": system.source.name,
+              "vehicle_ref": vehicle_ref(s.vehicle),
+              "families": [f.name for f in fams], "environments": list(envs),
+              "seed": s.seed, "seeds": s.seeds, "strategy": s.strategy, "pd": s.mode,
+              "sun_search": s.sun_search,
+              "detection": rule.label(), "reaction": evaluator.reaction.label(),
+              "target_model": "bodies"}
+    return Prepared(s, system, fams, envs, rule, evaluator, problems, spec, record,
+                    input_digests(system.source, evaluator, envs, fams))
