@@ -436,6 +436,8 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     if args.ego_reaction:
         runs = [r[k] for r in rows for k in r if k.startswith("react_")
                 and k.endswith("_agrees") and r[k]]
+        tol = [r[k] for r in rows for k in r if k.startswith("react_")
+               and k.endswith("_within_plan") and r[k]]
         same = sum(1 for r in rows for q in ("median", "p90")
                    if r.get(f"react_{q}_agrees") == "yes"
                    and r.get(f"react_{q}_collision_predicted_s", "") != ""
@@ -448,7 +450,10 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         print(f"  ego reaction (brake at the median / 90th-percentile confirmation): "
               f"{runs.count('yes')}/{len(runs)} runs agree with the reaction model's "
               f"prediction (collision or not, impact speed within 2 km/h); {same}/{hits} "
-              "of the agreeing collisions at the predicted step (one step)")
+              "of the agreeing collisions at the predicted step (one step); "
+              f"{tol.count('yes')}/{len(tol)} within the plan's tolerance (impact speeds "
+              "whose braking distances differ by at most the 0.5 m to which esmini's ego "
+              "follows the plan)")
     for r in rows:
         if r.get("status") != "ok":
             print(f"  {r['scenario_id']}: {r['status']}: {r.get('message', '')}")

@@ -106,22 +106,16 @@ PLAN_TOL_M = 0.5
 def _predicted_clearance(cat: Path, row: dict[str, str], q: str, t_s: float) -> float:
     """The reaction model's gap (m) between the braking ego's front and the target at
     time ``t_s`` for the row's confirmation quantile ``q`` (positive: short of contact)."""
+    from sensorgap.export.reaction import clearance_m
     from sensorgap.export.spec import specs_of_run
 
     run = read_run(cat)
     ev = run.evaluator("exact")
     spec = next(s for s in specs_of_run(run) if s.scenario_id == row["scenario_id"])
     bt = planned_batch(spec, ev)
-    enc = bt.encounter
-    assert enc is not None and bt.decel_m_s2 is not None
     k = confirmation_steps(bt, ev)[q]
     assert k is not None
-    pred = predict(bt, ev, k)
-    j = int(round(t_s / enc.dt))
-    v0, r = float(enc.v0[0]), ev.reaction
-    pos = v0 * enc.dt * j - float(lost_distance(j * enc.dt - pred.t_brake_s, v0,
-                                                 r.jerk_m_s3, float(bt.decel_m_s2[0])))
-    return float(enc.lo[0, j] - pos)
+    return clearance_m(bt, ev, predict(bt, ev, k), t_s)
 
 
 @needs_esmini
@@ -143,6 +137,12 @@ def test_esmini_reaction_runs_agree_with_the_prediction(catalog: Path, maneuver_
                 if r[f"react_{q}_agrees"] == "":
                     continue
                 runs += 1
+                assert r[f"react_{q}_within_plan"] == "yes", (
+                    q, r["style"], r["reaction_decel_m_s2"],
+                    *(r[f"react_{q}_{c}"] for c in ("collision_predicted_s",
+                                                    "collision_esmini_s",
+                                                    "impact_predicted_kmh",
+                                                    "impact_esmini_kmh")))
                 pred, sim = (r[f"react_{q}_collision_{w}_s"] for w in ("predicted", "esmini"))
                 if pred == "" and sim != "":
                     # a near miss in the plan that esmini's ego, following the plan to
@@ -199,3 +199,30 @@ def test_esmini_reaction_avoids_when_predicted(encounter_run: Path, tmp_path: Pa
     assert any(predicted) and not all(predicted)
     agree = np.mean([r.agrees for r in results])
     assert agree >= 0.95, agree
+
+
+def test_within_plan_by_hand() -> None:
+    """|v_p^2 - v_e^2| <= 2 a d with d = 0.5 m, on a stub encounter braking at 5.884 m/s2
+    (5.884 m2/s2): 12.88 vs 9.91 km/h: 12.80 - 7.58 = 5.22 (within); 20 vs 9.91: 30.86 -
+    7.58 = 23.3 (not); a predicted 7.19 km/h impact that esmini avoids: 3.99 (within); 12
+    km/h vs none: 11.1 (not); none vs none: 0; the edge 2 a d exactly, then just beyond."""
+    from types import SimpleNamespace
+
+    from sensorgap.export.reaction import Prediction, within_plan
+
+    def case(a: float, vp: float | None, ve: float | None) -> bool:
+        bt = SimpleNamespace(decel_m_s2=np.array([a]))
+        pred = Prediction(0, 0.0, 0.3, None if vp is None else 5.0, vp)
+        return within_plan(bt, None, pred, None if ve is None else 5.0,  # type: ignore[arg-type]
+                           ve)
+
+    assert case(5.884, 12.88, 9.91)
+    assert not case(5.884, 20.0, 9.91)
+    assert case(5.884, 7.19, None)
+    assert not case(5.884, 12.0, None)
+    assert case(5.884, None, None)
+    a, ve = 8.826, 3.0
+    vp = (ve * ve + 2.0 * a * 0.5) ** 0.5
+    assert case(a, vp * 3.6, ve * 3.6)
+    assert not case(a, vp * 3.6 * 1.001, ve * 3.6)
+
