@@ -4,6 +4,7 @@ From a fresh clone no kernel is cached yet: every pytest-xdist worker would comp
 same ~30 kernels itself, and under coverage tracing numba's (pure Python) compiler runs
 several times slower. ``tests/conftest.py`` runs this file once, in its own process (no
 coverage tracing), when ``pytest -n N`` starts; the workers then load the compiled kernels.
+``make test`` runs it earlier (``--if-cold``), beside mypy: both use one core each.
 It runs small real commands (a search in lookup and in exact mode over every family, a
 coverage map); it checks nothing, the suite does. When the cache is already warm
 (``cache_is_warm``) nothing runs."""
@@ -53,6 +54,9 @@ def warm(out: Path) -> None:
 
 
 if __name__ == "__main__":
+    # --if-cold: nothing when the cache is already warm (``make test`` runs this beside mypy)
+    if "--if-cold" in sys.argv[1:] and cache_is_warm():
+        sys.exit(0)
     with tempfile.TemporaryDirectory(prefix="sensorgap-warmup-") as tmp:
         warm(Path(tmp))
     sys.exit(0)

@@ -23,14 +23,21 @@ from sensorgap.search.run import run_search
 ENVS = load_environments()
 
 
+@pytest.fixture(scope="module")
+def lookup_a() -> Evaluator:
+    """System A's lookup evaluator, shared by the per-family tests (as one search shares it
+    across its families): its coverage maps are built once per target class, not per test."""
+    return Evaluator(load_system("system_a"), "lookup")
+
+
 @pytest.mark.parametrize("name", family_presets())
-def test_every_family_yields_threats_and_only_possible_encounters(name: str) -> None:
+def test_every_family_yields_threats_and_only_possible_encounters(
+        name: str, lookup_a: Evaluator) -> None:
     """No feasible candidate starts with overlapping bodies or runs into the ego's side or
     rear; every family produces targets that become a threat (the search objective above
     the never-a-threat floor), overtake_left included."""
-    system = load_system("system_a")
-    prob = SearchProblem(load_family(name), {"clear": ENVS["clear"]},
-                         Evaluator(system, "lookup"))
+    system = lookup_a.system
+    prob = SearchProblem(load_family(name), {"clear": ENVS["clear"]}, lookup_a)
     d = prob.decode_batch(np.random.default_rng(1).random((3000, prob.dim)))
     out = prob.evaluate_decoded(d, threads=2)
     assert out.objective is not None

@@ -10,6 +10,7 @@ import pytest
 pytest.importorskip("distributed", reason="the [distributed] extra is not installed")
 
 from sensorgap.cli import main  # noqa: E402
+from sensorgap.search.executors import DaskExecutor  # noqa: E402
 from sensorgap.search.run import run_search  # noqa: E402
 
 KW = {"vehicle": "system_b", "families": ["cut_in_left", "crossing_pedestrian"],
@@ -26,8 +27,17 @@ def test_dask_gives_the_local_ranking(tmp_path: Path) -> None:
         assert (tmp_path / "local" / name).read_bytes() == (tmp_path / "dask" / name).read_bytes()
 
 
-def test_unreachable_scheduler_is_one_line(tmp_path: Path,
+def test_unreachable_scheduler_is_one_line(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
                                            capsys: pytest.CaptureFixture[str]) -> None:
+    # Dask retries a refused connection until the executor's timeout (10 s by default):
+    # 1 s here gives the same refusal without the suite waiting 9 s for it
+    init = DaskExecutor.__init__
+
+    def quick_init(self: DaskExecutor, address: str | None = None, workers: int = 2,
+                   timeout_s: float = 1.0) -> None:
+        init(self, address, workers, timeout_s=1.0)
+
+    monkeypatch.setattr(DaskExecutor, "__init__", quick_init)
     code = main(["search", "--vehicle", "system_b", "--families", "crossing_pedestrian",
                  "--environments", "clear", "--budget", "10", "--executor", "dask",
                  "--scheduler", "tcp://127.0.0.1:9", "--out", str(tmp_path / "o")])
