@@ -387,10 +387,10 @@ def cmd_compare(args: argparse.Namespace) -> int:
     coverage maps, far field) is computed from its recorded inputs; the coverage difference
     maps; the cross-evaluation of both runs' critical scenarios; report.html/.md."""
     from sensorgap.report.compare import write_compare_report
-    from sensorgap.search.runfolder import read_run
+    from sensorgap.search.compare import check_rankings
 
-    for run in (args.run_a, args.run_b):
-        read_run(Path(run))  # both must be search runs: refused before anything is written
+    # both must be search runs with readable rankings: refused before anything is written
+    check_rankings(Path(args.run_a), Path(args.run_b))
     with removed_on_error(args.out):
         html_path, _ = write_compare_report(Path(args.run_a), Path(args.run_b),
                                             Path(args.out))

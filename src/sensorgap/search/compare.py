@@ -27,8 +27,8 @@ from sensorgap.search.ranking import classify, explain
 from sensorgap.search.run import ranking_csv
 from sensorgap.search.runfolder import ROW_TEXT, RunFolder, read_run
 
-__all__ = ["ROW_TEXT", "RunRanking", "candidate_of", "compare_runs", "read_run",
-           "write_comparison"]
+__all__ = ["ROW_TEXT", "RunRanking", "candidate_of", "check_rankings", "compare_runs",
+           "read_run", "write_comparison"]
 
 #: Collision-probability difference that makes a scenario critical for one vehicle only.
 MARGIN_P = 0.1
@@ -100,6 +100,17 @@ def _environments(run: RunFolder) -> dict[str, Any]:
     envs = run.environments()
     names = [e for e in run.settings.get("environments", []) if e in envs]
     return {e: envs[e] for e in names} if names else dict(envs)
+
+
+def check_rankings(*runs: Path) -> None:
+    """Read every ranked row of each run as the comparison will (``candidate_of``), so that
+    a malformed ranking is refused before any map is computed or file written."""
+    for path in runs:
+        run = read_run(path)
+        side = _Side(run)
+        for row in run.rows:
+            candidate_of(row, side.problem(run, str(row["family"])),
+                         run.folder / "ranking.json")
 
 
 def compare_runs(run_a: Path, run_b: Path,
