@@ -29,6 +29,7 @@ run: $(STAMP)
 
 lint: $(STAMP)
 	$(BIN)/ruff check src tests benchmarks
+	$(BIN)/ruff format --check src tests benchmarks
 	$(BIN)/mypy src
 
 # lint for the suite: mypy beside the numba warm-up (tests/numba_warmup.py, only when the
@@ -36,6 +37,7 @@ lint: $(STAMP)
 # warm-up 17 s, one after the other before). Fails as lint does, after the warm-up ended.
 lint-warm: $(STAMP)
 	$(BIN)/ruff check src tests benchmarks
+	$(BIN)/ruff format --check src tests benchmarks
 	$(BIN)/python -m tests.numba_warmup --if-cold > /dev/null 2>&1 & warm=$$!; \
 	$(BIN)/mypy src; status=$$?; wait $$warm; exit $$status
 

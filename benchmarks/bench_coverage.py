@@ -37,22 +37,38 @@ def straightforward(scene: Scene, grid: GridSpec) -> NDArray[np.float64]:
 
 def run() -> str:
     """Run the benchmark; returns the Markdown table."""
-    scene = Scene(load_system("system_a"), load_target("car"),
-                  Conditions.from_config(load_environment("clear")))
+    scene = Scene(
+        load_system("system_a"),
+        load_target("car"),
+        Conditions.from_config(load_environment("clear")),
+    )
     t_ref, mem_ref, ref = measure(lambda: straightforward(scene, GRID), repeat=2)
     rows = []
     for workers in (1, 2):
         t, mem, cov = measure(lambda w=workers: evaluate_grid(scene, GRID, workers=w))
         delta = float(np.max(np.abs(cov.fused - ref)))
-        rows.append([f"sensorgap grid, {workers} thread(s)", f"{t:.3f}", f"{t_ref / t:.1f}x",
-                     f"{delta:.1e}", f"{mem:.0f}", "<= 0.2 s, >= 15x, <= 1e-9" if workers == 2
-                     else ""])
-    rows.insert(0, ["straightforward numpy", f"{t_ref:.3f}", "1.0x", "0 (reference)",
-                    f"{mem_ref:.0f}", ""])
-    head = (f"Coverage map: System A, car, clear, h = 0.75 m, {GRID.nx} x {GRID.ny} = "
-            f"{GRID.cells:,} cells at {GRID.resolution} m\n\n")
-    return head + table(["method", "time [s]", "speed-up", "max |dPd|", "peak mem [MiB]",
-                         "target"], rows) + f"\n\nprocess peak RSS: {max_rss_mib():.0f} MiB\n"
+        rows.append(
+            [
+                f"sensorgap grid, {workers} thread(s)",
+                f"{t:.3f}",
+                f"{t_ref / t:.1f}x",
+                f"{delta:.1e}",
+                f"{mem:.0f}",
+                "<= 0.2 s, >= 15x, <= 1e-9" if workers == 2 else "",
+            ]
+        )
+    rows.insert(
+        0, ["straightforward numpy", f"{t_ref:.3f}", "1.0x", "0 (reference)", f"{mem_ref:.0f}", ""]
+    )
+    head = (
+        f"Coverage map: System A, car, clear, h = 0.75 m, {GRID.nx} x {GRID.ny} = "
+        f"{GRID.cells:,} cells at {GRID.resolution} m\n\n"
+    )
+    return (
+        head
+        + table(["method", "time [s]", "speed-up", "max |dPd|", "peak mem [MiB]", "target"], rows)
+        + f"\n\nprocess peak RSS: {max_rss_mib():.0f} MiB\n"
+    )
 
 
 if __name__ == "__main__":

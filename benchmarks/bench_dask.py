@@ -43,15 +43,20 @@ def _rate(spec: ProblemSpec, workers: int, n: int) -> float:
 
 def run(n: int = N_DEFAULT) -> str:
     """Run the benchmark; returns the Markdown table."""
-    spec = ProblemSpec("system_a", FAMILIES, tuple(load_environments()), None, "lookup",
-                       "cumulative", True)
+    spec = ProblemSpec(
+        "system_a", FAMILIES, tuple(load_environments()), None, "lookup", "cumulative", True
+    )
     r1 = _rate(spec, 1, n)
     r2 = _rate(spec, 2, n)
-    rows = [["1", f"{r1:,.0f}", f"{n / r1:.1f}", "1.00x"],
-            ["2", f"{r2:,.0f}", f"{n / r2:.1f}", f"{r2 / r1:.2f}x"]]
-    return (f"Dask distributed, local cluster, {n:,} candidates (System A, "
-            f"{', '.join(FAMILIES)}, 7 environments, 10 s at 20 Hz); target speed-up >= 1.7x"
-            "\n\n" + table(["workers", "candidates/s", "time [s]", "speed-up"], rows) + "\n")
+    rows = [
+        ["1", f"{r1:,.0f}", f"{n / r1:.1f}", "1.00x"],
+        ["2", f"{r2:,.0f}", f"{n / r2:.1f}", f"{r2 / r1:.2f}x"],
+    ]
+    return (
+        f"Dask distributed, local cluster, {n:,} candidates (System A, "
+        f"{', '.join(FAMILIES)}, 7 environments, 10 s at 20 Hz); target speed-up >= 1.7x"
+        "\n\n" + table(["workers", "candidates/s", "time [s]", "speed-up"], rows) + "\n"
+    )
 
 
 if __name__ == "__main__":

@@ -58,30 +58,73 @@ def _coverage(tmp: Path, scale: float) -> list[str]:
     cells = cli.MAX_GRID_CELLS * scale
     ny = 1000
     nx = int(cells // ny)  # 0.1 m cells: nx * ny <= the limit
-    return ["coverage", "--vehicle", "system_a", "--environment", "clear", "--target", "car",
-            "--resolution", "0.1", f"--extent=-10,{-10 + nx * 0.1:g},-50,50",
-            "--out", str(tmp / "cov")]
+    return [
+        "coverage",
+        "--vehicle",
+        "system_a",
+        "--environment",
+        "clear",
+        "--target",
+        "car",
+        "--resolution",
+        "0.1",
+        f"--extent=-10,{-10 + nx * 0.1:g},-50,50",
+        "--out",
+        str(tmp / "cov"),
+    ]
 
 
 def _coverage_bodies(tmp: Path, scale: float) -> list[str]:
     side = int(math.sqrt(cli.MAX_BODY_CELLS * scale))
-    return ["coverage", "--vehicle", "system_a", "--environment", "clear", "--target", "car",
-            "--resolution", "0.1", f"--extent=-{side * 0.05:g},{side * 0.05:g},"
-            f"-{side * 0.05:g},{side * 0.05:g}", "--heading", "0", "--out", str(tmp / "body")]
+    return [
+        "coverage",
+        "--vehicle",
+        "system_a",
+        "--environment",
+        "clear",
+        "--target",
+        "car",
+        "--resolution",
+        "0.1",
+        f"--extent=-{side * 0.05:g},{side * 0.05:g},-{side * 0.05:g},{side * 0.05:g}",
+        "--heading",
+        "0",
+        "--out",
+        str(tmp / "body"),
+    ]
 
 
 def _coverage_per_sensor(tmp: Path, scale: float) -> list[str]:
     cells = cli.MAX_PER_SENSOR_CELLS * scale / SYSTEM_A_SENSORS
     nx = int(cells // 1000)
-    return ["coverage", "--vehicle", "system_a", "--environment", "clear", "--target", "car",
-            "--resolution", "0.1", f"--extent=-10,{-10 + nx * 0.1:g},-50,50", "--per-sensor",
-            "--out", str(tmp / "per")]
+    return [
+        "coverage",
+        "--vehicle",
+        "system_a",
+        "--environment",
+        "clear",
+        "--target",
+        "car",
+        "--resolution",
+        "0.1",
+        f"--extent=-10,{-10 + nx * 0.1:g},-50,50",
+        "--per-sensor",
+        "--out",
+        str(tmp / "per"),
+    ]
 
 
 def _nearfield(tmp: Path, scale: float) -> list[str]:
     lo = cli.NEARFIELD_RESOLUTION_M[0]
-    return ["nearfield", "--vehicle", "system_a", "--resolution",
-            f"{lo / math.sqrt(scale):g}", "--out", str(tmp / "nf")]
+    return [
+        "nearfield",
+        "--vehicle",
+        "system_a",
+        "--resolution",
+        f"{lo / math.sqrt(scale):g}",
+        "--out",
+        str(tmp / "nf"),
+    ]
 
 
 def _probe(tmp: Path, scale: float) -> list[str]:
@@ -91,34 +134,82 @@ def _probe(tmp: Path, scale: float) -> list[str]:
         f.write("x,y\n")
         for i in range(n):
             f.write(f"{(i % 2000) * 0.1 - 50:.1f},{(i // 2000) % 100 * 0.5 - 25:.1f}\n")
-    return ["probe", "--vehicle", "system_a", "--environment", "clear", "--target", "car",
-            "--points", str(pts), "--out", str(tmp / "probe.csv")]
+    return [
+        "probe",
+        "--vehicle",
+        "system_a",
+        "--environment",
+        "clear",
+        "--target",
+        "car",
+        "--points",
+        str(pts),
+        "--out",
+        str(tmp / "probe.csv"),
+    ]
 
 
 def _corridor(tmp: Path, scale: float) -> list[str]:
     # 0.05 s cycles at 8 m/s: 0.4 m per column; rows at 0.05 m over a 20 m band
     rows = 400
     cols = int(MAX_CORRIDOR_NODES * scale / rows) - 2
-    return ["corridor", "--vehicle", "system_a", "--environment", "clear", "--target", "car",
-            f"--start=-{cols * 0.4 - 6:g}", "--goal", "6", "--lanes=-10:10", "--speed", "8",
-            "--lateral-res", "0.05", "--out", str(tmp / "corridor")]
+    return [
+        "corridor",
+        "--vehicle",
+        "system_a",
+        "--environment",
+        "clear",
+        "--target",
+        "car",
+        f"--start=-{cols * 0.4 - 6:g}",
+        "--goal",
+        "6",
+        "--lanes=-10:10",
+        "--speed",
+        "8",
+        "--lateral-res",
+        "0.05",
+        "--out",
+        str(tmp / "corridor"),
+    ]
 
 
 def _road(tmp: Path, scale: float) -> list[str]:
     n = int(MAX_GEOMETRIES * scale)
-    geoms = "".join(f'<geometry s="{i}" x="{i}" y="0" hdg="0" length="1"><line/></geometry>'
-                    for i in range(n))
-    lanes = ('<lanes><laneSection s="0"><center><lane id="0" type="none"/></center><right>'
-             '<lane id="-1" type="driving"><width sOffset="0" a="3.5" b="0" c="0" d="0"/>'
-             '</lane><lane id="-2" type="driving"><width sOffset="0" a="3.5" b="0" c="0" '
-             'd="0"/></lane></right></laneSection></lanes>')
+    geoms = "".join(
+        f'<geometry s="{i}" x="{i}" y="0" hdg="0" length="1"><line/></geometry>' for i in range(n)
+    )
+    lanes = (
+        '<lanes><laneSection s="0"><center><lane id="0" type="none"/></center><right>'
+        '<lane id="-1" type="driving"><width sOffset="0" a="3.5" b="0" c="0" d="0"/>'
+        '</lane><lane id="-2" type="driving"><width sOffset="0" a="3.5" b="0" c="0" '
+        'd="0"/></lane></right></laneSection></lanes>'
+    )
     road = tmp / "long.xodr"
-    road.write_text(f'<?xml version="1.0"?><OpenDRIVE><header revMajor="1" revMinor="6"/>'
-                    f'<road id="1" junction="-1" length="{n}"><planView>{geoms}</planView>'
-                    f"{lanes}</road></OpenDRIVE>")
-    return ["farfield", "--vehicle", "system_a", "--environment", "clear", "--road",
-            str(road), "--ego-lane", "-1", "--target-lane", "-2", "--ego-s", "10",
-            "--length", f"{min(300.0, n - 30.0):g}", "--out", str(tmp / "ff")]
+    road.write_text(
+        f'<?xml version="1.0"?><OpenDRIVE><header revMajor="1" revMinor="6"/>'
+        f'<road id="1" junction="-1" length="{n}"><planView>{geoms}</planView>'
+        f"{lanes}</road></OpenDRIVE>"
+    )
+    return [
+        "farfield",
+        "--vehicle",
+        "system_a",
+        "--environment",
+        "clear",
+        "--road",
+        str(road),
+        "--ego-lane",
+        "-1",
+        "--target-lane",
+        "-2",
+        "--ego-s",
+        "10",
+        "--length",
+        f"{min(300.0, n - 30.0):g}",
+        "--out",
+        str(tmp / "ff"),
+    ]
 
 
 def _sensors(tmp: Path, scale: float) -> list[str]:
@@ -129,15 +220,23 @@ def _sensors(tmp: Path, scale: float) -> list[str]:
     body = "".join(first.replace('id = "', f'id = "n{i}_', 1) for i in range(n))
     vehicle = tmp / "many_sensors.toml"
     vehicle.write_text(head + body)
-    return ["nearfield", "--vehicle", str(vehicle), "--resolution", "0.05", "--out",
-            str(tmp / "nf_many")]
+    return [
+        "nearfield",
+        "--vehicle",
+        str(vehicle),
+        "--resolution",
+        "0.05",
+        "--out",
+        str(tmp / "nf_many"),
+    ]
 
 
 CASES = [
     Case("coverage, points", f"{cli.MAX_GRID_CELLS:.0e} cells", _coverage),
     Case("coverage, bodies (--heading)", f"{cli.MAX_BODY_CELLS:.0e} cells", _coverage_bodies),
-    Case("coverage --per-sensor", f"{cli.MAX_PER_SENSOR_CELLS:.0e} map cells",
-         _coverage_per_sensor),
+    Case(
+        "coverage --per-sensor", f"{cli.MAX_PER_SENSOR_CELLS:.0e} map cells", _coverage_per_sensor
+    ),
     Case("nearfield", f"resolution {cli.NEARFIELD_RESOLUTION_M[0]:g} m", _nearfield),
     Case("probe", f"{MAX_POINT_SENSOR_VALUES:.0e} point x sensor values", _probe),
     Case("corridor", f"{MAX_CORRIDOR_NODES:.0e} lattice nodes", _corridor),
@@ -150,9 +249,13 @@ def run_case(case: Case, scale: float) -> dict[str, float]:
     """Run one case in a fresh child process; its exit code, seconds and peak MiB."""
     with tempfile.TemporaryDirectory(prefix="bench_limits_") as d:
         argv = case.argv(Path(d), scale)
-        out = subprocess.run([sys.executable, "-c", CHILD, *argv], capture_output=True,
-                             env={"PYTHONPATH": str(ROOT / "src"), "PATH": "/usr/bin:/bin"},
-                             timeout=3600, check=False)
+        out = subprocess.run(
+            [sys.executable, "-c", CHILD, *argv],
+            capture_output=True,
+            env={"PYTHONPATH": str(ROOT / "src"), "PATH": "/usr/bin:/bin"},
+            timeout=3600,
+            check=False,
+        )
     lines = out.stdout.decode().strip().splitlines()
     if not lines:
         return {"exit": out.returncode, "seconds": math.nan, "peak_mib": math.nan}
@@ -165,12 +268,22 @@ def run(scale: float = 1.0) -> str:
     rows = []
     for case in CASES:
         r = run_case(case, scale)
-        rows.append([case.name, case.limit, f"{scale:g}", str(int(r["exit"])),
-                     f"{r['seconds']:.1f}", f"{r['peak_mib']:.0f}",
-                     "yes" if r["peak_mib"] <= BUDGET_MIB else "no"])
-    return ("Worst accepted inputs (docs/limits.md), each in a fresh child process\n\n"
-            + table(["case", "limit", "scale", "exit", "time [s]", "peak [MiB]",
-                     "<= 4 GiB"], rows) + "\n")
+        rows.append(
+            [
+                case.name,
+                case.limit,
+                f"{scale:g}",
+                str(int(r["exit"])),
+                f"{r['seconds']:.1f}",
+                f"{r['peak_mib']:.0f}",
+                "yes" if r["peak_mib"] <= BUDGET_MIB else "no",
+            ]
+        )
+    return (
+        "Worst accepted inputs (docs/limits.md), each in a fresh child process\n\n"
+        + table(["case", "limit", "scale", "exit", "time [s]", "peak [MiB]", "<= 4 GiB"], rows)
+        + "\n"
+    )
 
 
 if __name__ == "__main__":

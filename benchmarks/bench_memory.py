@@ -35,16 +35,42 @@ print(json.dumps({"cells": grid.cells, "seconds": dt, "peak_mib": peak, "base_mi
 def run() -> str:
     """Run the benchmark in a child process; returns the Markdown table."""
     src = str(Path(__file__).resolve().parents[1] / "src")
-    out = subprocess.run([sys.executable, "-c", CHILD], capture_output=True, check=True,
-                         env={"PYTHONPATH": src, "PATH": "/usr/bin:/bin"}, timeout=1800)
+    out = subprocess.run(
+        [sys.executable, "-c", CHILD],
+        capture_output=True,
+        check=True,
+        env={"PYTHONPATH": src, "PATH": "/usr/bin:/bin"},
+        timeout=1800,
+    )
     r = json.loads(out.stdout.decode().strip().splitlines()[-1])
-    rows = [[f"{r['cells']:,}", f"{r['seconds']:.1f}", f"{r['result_mib']:.0f}",
-             f"{r['base_mib']:.0f}", f"{r['peak_mib']:.0f}",
-             f"{r['peak_mib'] / LIMIT_MIB:.2f}", "yes" if r["peak_mib"] <= LIMIT_MIB else "no"]]
-    return ("Coverage map 1000 m x 200 m at 0.05 m, System A, car, clear, 2 threads, tiles "
-            "of 400,000 cells\n\n"
-            + table(["cells", "time [s]", "result array [MiB]", "process before [MiB]",
-                     "peak [MiB]", "peak / 2 GiB", "<= 2 GiB"], rows) + "\n")
+    rows = [
+        [
+            f"{r['cells']:,}",
+            f"{r['seconds']:.1f}",
+            f"{r['result_mib']:.0f}",
+            f"{r['base_mib']:.0f}",
+            f"{r['peak_mib']:.0f}",
+            f"{r['peak_mib'] / LIMIT_MIB:.2f}",
+            "yes" if r["peak_mib"] <= LIMIT_MIB else "no",
+        ]
+    ]
+    return (
+        "Coverage map 1000 m x 200 m at 0.05 m, System A, car, clear, 2 threads, tiles "
+        "of 400,000 cells\n\n"
+        + table(
+            [
+                "cells",
+                "time [s]",
+                "result array [MiB]",
+                "process before [MiB]",
+                "peak [MiB]",
+                "peak / 2 GiB",
+                "<= 2 GiB",
+            ],
+            rows,
+        )
+        + "\n"
+    )
 
 
 if __name__ == "__main__":

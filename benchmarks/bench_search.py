@@ -37,15 +37,18 @@ N_END_TO_END = 50_000
 
 def _problem(mode: str) -> SearchProblem:
     envs = load_environments()
-    return SearchProblem(load_family(FAMILY), {"fog_50": envs["fog_50"], "clear": envs["clear"]},
-                         Evaluator(load_system("system_b"), mode))
+    return SearchProblem(
+        load_family(FAMILY),
+        {"fog_50": envs["fog_50"], "clear": envs["clear"]},
+        Evaluator(load_system("system_b"), mode),
+    )
 
 
 def _rate(prob: SearchProblem, U: np.ndarray, threads: int, chunk: int = 4096) -> float:
     prob.evaluate_decoded(prob.decode_batch(U[:256]), threads)  # warm-up: maps, numba
     t0 = time.perf_counter()
     for a in range(0, len(U), chunk):
-        prob.evaluate_decoded(prob.decode_batch(U[a:a + chunk]), threads)
+        prob.evaluate_decoded(prob.decode_batch(U[a : a + chunk]), threads)
     return len(U) / (time.perf_counter() - t0)
 
 
@@ -74,8 +77,7 @@ def _best(prob: SearchProblem, name: str, budget: int, seed: int) -> float:
     below; see ``problem.search_objective``)."""
     cls = get_strategy(name)
     assert cls is not None
-    s = cls(prob.dim, prob.levels, budget, np.random.default_rng(seed),
-            batch=cls.batch_for(budget))
+    s = cls(prob.dim, prob.levels, budget, np.random.default_rng(seed), batch=cls.batch_for(budget))
     best = -np.inf
     while len(X := s.ask()):
         out = prob.evaluate_decoded(prob.decode_batch(X), threads=2)
@@ -96,8 +98,16 @@ def run(quick: bool = False) -> str:
         prob = _problem(mode)
         r1, r2 = _rate(prob, U, 1), _rate(prob, U, 2)
         target = 50_000 if mode == "lookup" else 2_000
-        rows.append([mode, f"{r1:,.0f}", f"{r2:,.0f}", f"{r2 / r1:.2f}x", f"{target:,}",
-                     "yes" if r2 >= target else "no"])
+        rows.append(
+            [
+                mode,
+                f"{r1:,.0f}",
+                f"{r2:,.0f}",
+                f"{r2 / r1:.2f}x",
+                f"{target:,}",
+                "yes" if r2 >= target else "no",
+            ]
+        )
     U = rng.random((max(256, int(N_ERROR * scale)), dim))
     look = _problem("lookup").evaluate_decoded(_problem("lookup").decode_batch(U), 2)
     exact = _problem("exact").evaluate_decoded(_problem("exact").decode_batch(U), 2)
@@ -106,8 +116,11 @@ def run(quick: bool = False) -> str:
 
     def crit(m: dict[str, np.ndarray]) -> np.ndarray:
         """Sensor-critical as the ranking classifies (ranking.classify)."""
-        return ((m["collision_probability"] > 0) & (m["collision_perfect"] == 0)
-                & enough_margin(m["perfect_margin_s"]))
+        return (
+            (m["collision_probability"] > 0)
+            & (m["collision_perfect"] == 0)
+            & enough_margin(m["perfect_margin_s"])
+        )
 
     def top10(m: dict[str, np.ndarray]) -> set[int]:
         """The ranking's top 10: sensor-critical rows by P(collision), then impact speed
@@ -117,18 +130,31 @@ def run(quick: bool = False) -> str:
         return set(rows[order][:10].tolist())
 
     top_l, top_e = top10(look.metrics), top10(exact.metrics)
-    err = [["max abs error of P(collision)", f"{np.max(dp):.2e}"],
-           ["mean abs error of P(collision)", f"{np.mean(dp):.2e}"],
-           ["sensor-critical: lookup / exact / both",
+    err = [
+        ["max abs error of P(collision)", f"{np.max(dp):.2e}"],
+        ["mean abs error of P(collision)", f"{np.mean(dp):.2e}"],
+        [
+            "sensor-critical: lookup / exact / both",
             f"{int(crit(look.metrics).sum())} / {int(crit(exact.metrics).sum())} / "
-            f"{int((crit(look.metrics) & crit(exact.metrics)).sum())}"],
-           ["top-10 overlap as ranked (lookup vs exact)", f"{len(top_l & top_e)}/10"],
-           ["candidates compared", f"{len(U):,}"]]
+            f"{int((crit(look.metrics) & crit(exact.metrics)).sum())}",
+        ],
+        ["top-10 overlap as ranked (lookup vs exact)", f"{len(top_l & top_e)}/10"],
+        ["candidates compared", f"{len(U):,}"],
+    ]
     n_e2e = max(2_000, int(N_END_TO_END * scale))
     with tempfile.TemporaryDirectory() as tmp:
         t0 = time.perf_counter()
-        run_search("system_b", [FAMILY], ["fog_50", "clear"], n_e2e, 1, 20, Path(tmp),
-                   strategy="random", progress=False)
+        run_search(
+            "system_b",
+            [FAMILY],
+            ["fog_50", "clear"],
+            n_e2e,
+            1,
+            20,
+            Path(tmp),
+            strategy="random",
+            progress=False,
+        )
         e2e = n_e2e / (time.perf_counter() - t0)
     adapt = []
     n_ad = max(100, int(N_ADAPTIVE * scale))
@@ -136,8 +162,11 @@ def run(quick: bool = False) -> str:
     envs = load_environments()
     totals = {"cem": 0, "de": 0}
     for vehicle, family, env_names in ADAPTIVE_PROBLEMS:
-        prob = SearchProblem(load_family(family), {e: envs[e] for e in env_names},
-                             Evaluator(load_system(vehicle), "lookup"))
+        prob = SearchProblem(
+            load_family(family),
+            {e: envs[e] for e in env_names},
+            Evaluator(load_system(vehicle), "lookup"),
+        )
         diffs: dict[str, list[float]] = {"cem": [], "de": []}
         for seed in seeds:
             rnd = _best(prob, "random", 10 * n_ad, seed)
@@ -147,25 +176,45 @@ def run(quick: bool = False) -> str:
         for st in ("cem", "de"):
             d = np.asarray(diffs[st])
             totals[st] += int(np.sum(d >= 0.0))
-            row.append(f"{int(np.sum(d >= 0.0))}/{len(d)} (median {np.median(d):+.2f}, "
-                       f"worst {d.min():+.2f})")
+            row.append(
+                f"{int(np.sum(d >= 0.0))}/{len(d)} (median {np.median(d):+.2f}, "
+                f"worst {d.min():+.2f})"
+            )
         adapt.append(row)
     n_cmp = len(seeds) * len(ADAPTIVE_PROBLEMS)
     adapt.append(["all problems", f"{totals['cem']}/{n_cmp}", f"{totals['de']}/{n_cmp}"])
-    return (f"Search: System B, {FAMILY}, fog_50 + clear (sun searched), 10 s at 20 Hz "
-            "(201 steps); this machine, same run\n\n"
-            + table(["Pd evaluation", "candidates/s, 1 thread", "candidates/s, 2 threads",
-                     "speed-up", "target (2 cores)", "met"], rows) + "\n\n"
-            + table(["lookup vs exact", "value"], err) + "\n\n"
-            + table(["end to end", "value"],
-                    [["run_search, random, lookup, store + ranking + explain (cand/s)",
-                      f"{e2e:,.0f} ({n_e2e:,} candidates)"]]) + "\n\n"
-            + f"Adaptive ({n_ad:,} evaluations) vs random ({10 * n_ad:,}): seeds "
-            f"{seeds[0]}-{seeds[-1]} on which the adaptive strategy's best search objective "
-            "(log10 P(collision), graded below 1e-300) is at least random's (difference "
-            "adaptive - random: median and worst)\n\n"
-            + table(["problem", "CEM", "DE"], adapt)
-            + "\n")
+    return (
+        f"Search: System B, {FAMILY}, fog_50 + clear (sun searched), 10 s at 20 Hz "
+        "(201 steps); this machine, same run\n\n"
+        + table(
+            [
+                "Pd evaluation",
+                "candidates/s, 1 thread",
+                "candidates/s, 2 threads",
+                "speed-up",
+                "target (2 cores)",
+                "met",
+            ],
+            rows,
+        )
+        + "\n\n"
+        + table(["lookup vs exact", "value"], err)
+        + "\n\n"
+        + table(
+            ["end to end", "value"],
+            [
+                [
+                    "run_search, random, lookup, store + ranking + explain (cand/s)",
+                    f"{e2e:,.0f} ({n_e2e:,} candidates)",
+                ]
+            ],
+        )
+        + "\n\n"
+        + f"Adaptive ({n_ad:,} evaluations) vs random ({10 * n_ad:,}): seeds "
+        f"{seeds[0]}-{seeds[-1]} on which the adaptive strategy's best search objective "
+        "(log10 P(collision), graded below 1e-300) is at least random's (difference "
+        "adaptive - random: median and worst)\n\n" + table(["problem", "CEM", "DE"], adapt) + "\n"
+    )
 
 
 if __name__ == "__main__":

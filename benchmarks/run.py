@@ -29,8 +29,10 @@ def main(argv: list[str]) -> int:
     names = [a for a in argv if not a.startswith("--") and not a.isdigit()] or list(BENCHMARKS)
     unknown = [n for n in names if n not in BENCHMARKS]
     if unknown:
-        print(f"unknown benchmark(s): {', '.join(unknown)}; have: {', '.join(BENCHMARKS)}",
-              file=sys.stderr)
+        print(
+            f"unknown benchmark(s): {', '.join(unknown)}; have: {', '.join(BENCHMARKS)}",
+            file=sys.stderr,
+        )
         return 2
     for name in names:
         module = importlib.import_module(BENCHMARKS[name])

@@ -60,8 +60,13 @@ def pytest_configure(config: pytest.Config) -> None:
     from tests.numba_warmup import cache_is_warm
 
     if not cache_is_warm():
-        subprocess.run([sys.executable, "-m", "tests.numba_warmup"], cwd=TESTS.parent,
-                       stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, check=False)
+        subprocess.run(
+            [sys.executable, "-m", "tests.numba_warmup"],
+            cwd=TESTS.parent,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+            check=False,
+        )
 
 
 @pytest.fixture(autouse=True)
@@ -81,8 +86,10 @@ def system_b() -> System:
     return load_system("system_b")
 
 
-def make_scene(system: System, target: str = "car", env: str = "clear",
-               heading: float = 0.0) -> Scene:
+def make_scene(
+    system: System, target: str = "car", env: str = "clear", heading: float = 0.0
+) -> Scene:
     """A scene from preset names."""
-    return Scene(system, load_target(target),
-                 Conditions.from_config(load_environment(env), heading))
+    return Scene(
+        system, load_target(target), Conditions.from_config(load_environment(env), heading)
+    )

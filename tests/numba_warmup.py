@@ -17,11 +17,13 @@ import tempfile
 from pathlib import Path
 
 #: Kernels whose cache index files tell whether the cache was filled (module:name).
-KERNELS = ("sensorgap.search.outcome:_first_confirmation_kernel",
-           "sensorgap.search.fastmetrics:summarize",
-           "sensorgap.coverage.fastlookup:lookup_pass",
-           "sensorgap.coverage.fastkernel:accumulate_log_miss",
-           "sensorgap.scenarios.fastpath:path_states")
+KERNELS = (
+    "sensorgap.search.outcome:_first_confirmation_kernel",
+    "sensorgap.search.fastmetrics:summarize",
+    "sensorgap.coverage.fastlookup:lookup_pass",
+    "sensorgap.coverage.fastkernel:accumulate_log_miss",
+    "sensorgap.scenarios.fastpath:path_states",
+)
 
 
 def cache_is_warm() -> bool:
@@ -45,12 +47,44 @@ def warm(out: Path) -> None:
 
     envs = "clear,glare_front_right,fog_50"
     for pd in ("lookup", "exact"):
-        main(["search", "--vehicle", "system_b", "--families", "all", "--environments", envs,
-              "--budget", "120", "--top", "2", "--strategy", "lhs", "--pd", pd,
-              "--out", str(out / f"search_{pd}")])
-    main(["coverage", "--vehicle", "system_a", "--environment", "glare_front_right",
-          "--target", "car", "--resolution", "2", "--extent", "-20,60,-20,20",
-          "--out", str(out / "coverage")])
+        main(
+            [
+                "search",
+                "--vehicle",
+                "system_b",
+                "--families",
+                "all",
+                "--environments",
+                envs,
+                "--budget",
+                "120",
+                "--top",
+                "2",
+                "--strategy",
+                "lhs",
+                "--pd",
+                pd,
+                "--out",
+                str(out / f"search_{pd}"),
+            ]
+        )
+    main(
+        [
+            "coverage",
+            "--vehicle",
+            "system_a",
+            "--environment",
+            "glare_front_right",
+            "--target",
+            "car",
+            "--resolution",
+            "2",
+            "--extent",
+            "-20,60,-20,20",
+            "--out",
+            str(out / "coverage"),
+        ]
+    )
 
 
 if __name__ == "__main__":

@@ -25,7 +25,8 @@ from sensorgap.cli import main
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parent
 CASES: list[dict[str, Any]] = tomllib.loads(
-    (HERE / "bad_inputs" / "cases.toml").read_text(encoding="utf-8"))["case"]
+    (HERE / "bad_inputs" / "cases.toml").read_text(encoding="utf-8")
+)["case"]
 SRC = str(Path(sensorgap.__file__).resolve().parents[1])
 
 
@@ -33,8 +34,21 @@ def test_corpus_is_large_and_unique() -> None:
     names = [c["name"] for c in CASES]
     assert len(names) >= 120 and len(set(names)) == len(names)
     commands = {c["argv"][0] for c in CASES}
-    assert {"probe", "coverage", "nearfield", "farfield", "search", "corridor", "schema",
-            "run", "export", "simulate", "report", "compare", "verify"} <= commands
+    assert {
+        "probe",
+        "coverage",
+        "nearfield",
+        "farfield",
+        "search",
+        "corridor",
+        "schema",
+        "run",
+        "export",
+        "simulate",
+        "report",
+        "compare",
+        "verify",
+    } <= commands
 
 
 @pytest.fixture(scope="module")
@@ -42,11 +56,42 @@ def finished_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A small finished, exported search run with a near-field analysis and a manifest."""
     out = tmp_path_factory.mktemp("run") / "run"
     # System B on a rural curve into the low sun: a sensor-critical scenario to export
-    assert main(["search", "--vehicle", "system_b", "--families", "stopped_rural_curve",
-                 "--environments", "glare_front_right", "--budget", "60", "--top", "2",
-                 "--strategy", "lhs", "--out", str(out)]) == 0
-    assert main(["nearfield", "--vehicle", "system_a", "--resolution", "0.2", "--out",
-                 str(out / "nearfield")]) == 0
+    assert (
+        main(
+            [
+                "search",
+                "--vehicle",
+                "system_b",
+                "--families",
+                "stopped_rural_curve",
+                "--environments",
+                "glare_front_right",
+                "--budget",
+                "60",
+                "--top",
+                "2",
+                "--strategy",
+                "lhs",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
+    assert (
+        main(
+            [
+                "nearfield",
+                "--vehicle",
+                "system_a",
+                "--resolution",
+                "0.2",
+                "--out",
+                str(out / "nearfield"),
+            ]
+        )
+        == 0
+    )
     assert main(["export", "--run", str(out)]) == 0
     return out
 
@@ -99,18 +144,22 @@ def _sql(db: Path, script: str) -> None:
 
 
 def _many_geometries(path: Path, n: int) -> None:
-    geoms = "".join(f'<geometry s="{i}" x="{i}" y="0" hdg="0" length="1"><line/></geometry>'
-                    for i in range(n))
-    lanes = ('<lanes><laneSection s="0"><center><lane id="0" type="none"/></center><right>'
-             '<lane id="-1" type="driving"><width sOffset="0" a="3.5" b="0" c="0" d="0"/>'
-             "</lane></right></laneSection></lanes>")
-    path.write_text(f'<?xml version="1.0"?><OpenDRIVE><header revMajor="1" revMinor="6"/>'
-                    f'<road id="1" junction="-1" length="{n}"><planView>{geoms}</planView>'
-                    f"{lanes}</road></OpenDRIVE>")
+    geoms = "".join(
+        f'<geometry s="{i}" x="{i}" y="0" hdg="0" length="1"><line/></geometry>' for i in range(n)
+    )
+    lanes = (
+        '<lanes><laneSection s="0"><center><lane id="0" type="none"/></center><right>'
+        '<lane id="-1" type="driving"><width sOffset="0" a="3.5" b="0" c="0" d="0"/>'
+        "</lane></right></laneSection></lanes>"
+    )
+    path.write_text(
+        f'<?xml version="1.0"?><OpenDRIVE><header revMajor="1" revMinor="6"/>'
+        f'<road id="1" junction="-1" length="{n}"><planView>{geoms}</planView>'
+        f"{lanes}</road></OpenDRIVE>"
+    )
 
 
-def _setup(case: dict[str, Any], argv: list[str], folder: Path, out: Path,
-           run: Path) -> None:
+def _setup(case: dict[str, Any], argv: list[str], folder: Path, out: Path, run: Path) -> None:
     db = out / "search.sqlite"
     for step in case.get("setup", []):
         if step == "out_parent_is_file":
@@ -136,16 +185,18 @@ def _setup(case: dict[str, Any], argv: list[str], folder: Path, out: Path,
         elif step == "store_empty_metrics":
             _sql(db, "UPDATE candidates SET metrics = '{}' WHERE idx = 0;")
         elif step == "store_deep_json":
-            _sql(db, "UPDATE candidates SET params = '" + "[" * 5000 + "]" * 5000
-                 + "' WHERE idx = 0;")
+            _sql(
+                db,
+                "UPDATE candidates SET params = '" + "[" * 5000 + "]" * 5000 + "' WHERE idx = 0;",
+            )
         elif step.startswith("deep_json:"):  # deep_json:<file in {dir}>
-            (folder / step.removeprefix("deep_json:")).parent.mkdir(parents=True,
-                                                                    exist_ok=True)
+            (folder / step.removeprefix("deep_json:")).parent.mkdir(parents=True, exist_ok=True)
             (folder / step.removeprefix("deep_json:")).write_text("[" * 5000 + "]" * 5000)
         elif step == "huge_vehicle_name":  # a 1 MB name in {dir}/v.toml
             v = folder / "v.toml"
-            v.write_text(re.sub(r'(?m)^name = ".*"$', 'name = "' + "A" * 2**20 + '"',
-                                v.read_text(), count=1))
+            v.write_text(
+                re.sub(r'(?m)^name = ".*"$', 'name = "' + "A" * 2**20 + '"', v.read_text(), count=1)
+            )
         elif step == "road_symlink_loop":
             (folder / "loop.xodr").symlink_to(folder / "loop.xodr")
         elif step in ("deep_catalog_json", "deep_ranking_json"):
@@ -190,13 +241,17 @@ def _setup(case: dict[str, Any], argv: list[str], folder: Path, out: Path,
 
 
 def _files(folder: Path) -> set[str]:
-    return {p.relative_to(folder).as_posix() for p in folder.rglob("*") if p.is_file()} \
-        if folder.is_dir() else set()
+    return (
+        {p.relative_to(folder).as_posix() for p in folder.rglob("*") if p.is_file()}
+        if folder.is_dir()
+        else set()
+    )
 
 
 @pytest.mark.parametrize("case", CASES, ids=[c["name"] for c in CASES])
-def test_bad_input(case: dict[str, Any], tmp_path: Path, finished_run: Path,
-                   capsys: pytest.CaptureFixture[str]) -> None:
+def test_bad_input(
+    case: dict[str, Any], tmp_path: Path, finished_run: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     folder = tmp_path / "case"
     folder.mkdir()
     out = tmp_path / "out"
@@ -208,8 +263,13 @@ def test_bad_input(case: dict[str, Any], tmp_path: Path, finished_run: Path,
         _edit_run(case, run)
         if case.get("drop_manifest"):  # test a file's own check, not the folder's integrity
             (run / "manifest.json").unlink()
-    subs = {"{dir}": str(folder), "{out}": str(out), "{run}": str(run),
-            "{templates}": str(REPO / "templates"), "{roads}": str(REPO / "roads")}
+    subs = {
+        "{dir}": str(folder),
+        "{out}": str(out),
+        "{run}": str(run),
+        "{templates}": str(REPO / "templates"),
+        "{roads}": str(REPO / "roads"),
+    }
     argv = [a for a in case["argv"]]
     for i, a in enumerate(argv):
         for k, v in subs.items():
@@ -223,9 +283,14 @@ def test_bad_input(case: dict[str, Any], tmp_path: Path, finished_run: Path,
         def cap() -> None:
             resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
 
-        proc = subprocess.run([sys.executable, "-m", "sensorgap", *argv], capture_output=True,
-                              env={**os.environ, "PYTHONPATH": SRC}, preexec_fn=cap,
-                              timeout=300, check=False)
+        proc = subprocess.run(
+            [sys.executable, "-m", "sensorgap", *argv],
+            capture_output=True,
+            env={**os.environ, "PYTHONPATH": SRC},
+            preexec_fn=cap,
+            timeout=300,
+            check=False,
+        )
         code, err = proc.returncode, proc.stderr.decode("utf-8", "replace")
     else:
         try:
@@ -234,8 +299,11 @@ def test_bad_input(case: dict[str, Any], tmp_path: Path, finished_run: Path,
             code = int(exc.code or 0)
         err = capsys.readouterr().err
     # a run folder's one-line notes and warnings (docs/runs.md) are not errors
-    lines = [ln for ln in err.strip().splitlines()
-             if not ln.startswith(("sensorgap: note: ", "sensorgap: warning: "))]
+    lines = [
+        ln
+        for ln in err.strip().splitlines()
+        if not ln.startswith(("sensorgap: note: ", "sensorgap: warning: "))
+    ]
     assert code == case["exit"], f"exit {code}: {err}"
     # one line per error found (every validation error is listed): as many as the case
     # says, else at least one
@@ -253,9 +321,9 @@ def test_bad_input(case: dict[str, Any], tmp_path: Path, finished_run: Path,
         assert _files(folder / "elsewhere") == {"keep.xodr"}
 
 
-def test_internal_error_is_exit_1_without_traceback(monkeypatch: pytest.MonkeyPatch,
-                                                    capsys: pytest.CaptureFixture[str],
-                                                    tmp_path: Path) -> None:
+def test_internal_error_is_exit_1_without_traceback(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
     import sensorgap.analysis.nearfield as nf
 
     def boom(*_: Any, **__: Any) -> None:

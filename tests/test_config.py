@@ -33,8 +33,16 @@ def test_presets_load_and_reproduce_table_iii() -> None:
     for want in [(50, 120), (137, 60), (30, 250), (150, 100), (70, 5.5), (145, 150)]:
         assert want in pairs_a
     pairs_b = sorted((s.hfov_deg, s.max_range_m) for s in b.sensors)
-    for want in [(35, 250), (45, 150), (120, 60), (90, 80), (75, 100), (135, 50), (35, 160),
-                 (90, 8)]:
+    for want in [
+        (35, 250),
+        (45, 150),
+        (120, 60),
+        (90, 80),
+        (75, 100),
+        (135, 50),
+        (35, 160),
+        (90, 8),
+    ]:
         assert want in pairs_b
 
 
@@ -69,18 +77,38 @@ BAD = [
     ("hfov_deg = 50.0", "hfov_deg = 400.0", r"sensors\[0\]\.hfov_deg: .*less than or equal to 360"),
     ("hfov_deg = 50.0", "hfov_deg = nan", r"sensors\[0\]\.hfov_deg"),
     ("max_range_m = 120.0", "max_range_m = inf", r"sensors\[0\]\.max_range_m"),
-    ("max_range_m = 120.0", "max_range_m = -5.0",
-     r"sensors\[0\]\.max_range_m: .*greater than or equal to 0\.01"),
-    ("max_range_m = 120.0", "max_range_m = 1e308",
-     r"sensors\[0\]\.max_range_m: .*less than or equal to 10000"),
-    ("min_range_m = 0.5\nmax_range_m = 120.0", "min_range_m = 200.0\nmax_range_m = 120.0",
-     r"sensors\[0\]: min_range_m \(200.0\) must be below max_range_m"),
-    ('type = "lidar"', 'type = "sonar"', r"devices\.lidar_scanning\.type: unknown sensor type "
-     r"'sonar'; allowed: camera, lidar, radar, ultrasonic"),
-    ("tx_power_dbm = 12.0", "tx_power_dbm = -99.0",
-     r"devices\.radar_77_lrr\.tx_power_dbm: .*greater than or equal to -30"),
-    ('peak_power_w = "', 'peak_power_w_x = "', r"devices\.lidar_scanning\.sources\.peak_power_w_x|"
-     r"devices\.lidar_scanning\.sources\.peak_power_w: missing source"),
+    (
+        "max_range_m = 120.0",
+        "max_range_m = -5.0",
+        r"sensors\[0\]\.max_range_m: .*greater than or equal to 0\.01",
+    ),
+    (
+        "max_range_m = 120.0",
+        "max_range_m = 1e308",
+        r"sensors\[0\]\.max_range_m: .*less than or equal to 10000",
+    ),
+    (
+        "min_range_m = 0.5\nmax_range_m = 120.0",
+        "min_range_m = 200.0\nmax_range_m = 120.0",
+        r"sensors\[0\]: min_range_m \(200.0\) must be below max_range_m",
+    ),
+    (
+        'type = "lidar"',
+        'type = "sonar"',
+        r"devices\.lidar_scanning\.type: unknown sensor type "
+        r"'sonar'; allowed: camera, lidar, radar, ultrasonic",
+    ),
+    (
+        "tx_power_dbm = 12.0",
+        "tx_power_dbm = -99.0",
+        r"devices\.radar_77_lrr\.tx_power_dbm: .*greater than or equal to -30",
+    ),
+    (
+        'peak_power_w = "',
+        'peak_power_w_x = "',
+        r"devices\.lidar_scanning\.sources\.peak_power_w_x|"
+        r"devices\.lidar_scanning\.sources\.peak_power_w: missing source",
+    ),
     ('id = "us_front_2"', 'id = "us_front_1"', r"duplicate sensor id 'us_front_1'"),
     ('device = "lidar_scanning"', 'device = "nope"', r"unknown device 'nope'"),
     ("wheelbase_m = 3.0", "wheelbase_m = 3.0\nwheelbase_x = 1", r"vehicle\.wheelbase_x: Extra"),
@@ -119,10 +147,12 @@ ENV_BAD = [
     ("rain_mm_h = nan", r"environments\.wet\.rain_mm_h"),
     ("visibility_m = inf", r"environments\.wet\.visibility_m"),
     ("visibility_m = 0.0", r"environments\.wet\.visibility_m: .*greater than or equal to 1"),
-    ("sun = { azimuth_deg = 0.0, elevation_deg = 95.0 }",
-     r"environments\.wet\.sun\.elevation_deg: .*less than or equal to 90"),
+    (
+        "sun = { azimuth_deg = 0.0, elevation_deg = 95.0 }",
+        r"environments\.wet\.sun\.elevation_deg: .*less than or equal to 90",
+    ),
     ("fog = 3", r"environments\.wet\.fog: Extra inputs are not permitted"),
-    ("roc_shift_db = \"3\"", r"environments\.wet\.roc_shift_db: Input should be a valid number"),
+    ('roc_shift_db = "3"', r"environments\.wet\.roc_shift_db: Input should be a valid number"),
 ]
 
 

@@ -17,15 +17,35 @@ import pytest
 import sensorgap
 
 SRC = str(Path(sensorgap.__file__).resolve().parents[1])
-ARGS = ["search", "--vehicle", "system_b", "--families", "cut_in_left,crossing_pedestrian",
-        "--environments", "clear,fog_50", "--budget", "12000", "--seed", "5", "--top", "8",
-        "--strategy", "random", "--workers", "1"]
+ARGS = [
+    "search",
+    "--vehicle",
+    "system_b",
+    "--families",
+    "cut_in_left,crossing_pedestrian",
+    "--environments",
+    "clear,fog_50",
+    "--budget",
+    "12000",
+    "--seed",
+    "5",
+    "--top",
+    "8",
+    "--strategy",
+    "random",
+    "--workers",
+    "1",
+]
 
 
 def _cli(args: list[str]) -> subprocess.Popen[bytes]:
     env = {**os.environ, "PYTHONPATH": SRC}
-    return subprocess.Popen([sys.executable, "-m", "sensorgap", *args], env=env,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    return subprocess.Popen(
+        [sys.executable, "-m", "sensorgap", *args],
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
 
 
 def _rows(db: Path) -> int:
@@ -67,4 +87,5 @@ def test_sigkill_then_resume_gives_the_uninterrupted_ranking(tmp_path: Path) -> 
     assert (killed / "ranking.json").read_bytes() == (full / "ranking.json").read_bytes()
     manifest = json.loads((killed / "manifest.json").read_text())
     assert {"ranking.csv", "ranking.json", "search.sqlite", "summary.json"} <= set(
-        manifest["files"])
+        manifest["files"]
+    )

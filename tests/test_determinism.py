@@ -12,20 +12,68 @@ import pytest
 from sensorgap.cli import main
 
 COMMANDS = {
-    "coverage": ["coverage", "--vehicle", "system_b", "--environment", "glare_front_right",
-                 "--target", "car", "--resolution", "0.5", "--extent", "-20,120,-20,20",
-                 "--per-sensor", "--out", "{out}"],
-    "nearfield": ["nearfield", "--vehicle", "system_a", "--resolution", "0.1", "--out",
-                  "{out}"],
-    "farfield": ["farfield", "--vehicle", "system_b", "--environment", "rain_25", "--road",
-                 "motorway_r500", "--ego-lane", "-1", "--ego-s", "450", "--target-lane", "-2",
-                 "--out", "{out}"],
-    "corridor": ["corridor", "--vehicle", "system_b", "--environment", "rain_25", "--target",
-                 "car", "--out", "{out}"],
-    "search+export+report": ["search", "--vehicle", "system_b", "--families",
-                             "slow_ahead_curve,crossing_cyclist", "--environments",
-                             "clear,glare_front_right,snow", "--budget", "600", "--seed",
-                             "4", "--top", "4", "--out", "{out}"],
+    "coverage": [
+        "coverage",
+        "--vehicle",
+        "system_b",
+        "--environment",
+        "glare_front_right",
+        "--target",
+        "car",
+        "--resolution",
+        "0.5",
+        "--extent",
+        "-20,120,-20,20",
+        "--per-sensor",
+        "--out",
+        "{out}",
+    ],
+    "nearfield": ["nearfield", "--vehicle", "system_a", "--resolution", "0.1", "--out", "{out}"],
+    "farfield": [
+        "farfield",
+        "--vehicle",
+        "system_b",
+        "--environment",
+        "rain_25",
+        "--road",
+        "motorway_r500",
+        "--ego-lane",
+        "-1",
+        "--ego-s",
+        "450",
+        "--target-lane",
+        "-2",
+        "--out",
+        "{out}",
+    ],
+    "corridor": [
+        "corridor",
+        "--vehicle",
+        "system_b",
+        "--environment",
+        "rain_25",
+        "--target",
+        "car",
+        "--out",
+        "{out}",
+    ],
+    "search+export+report": [
+        "search",
+        "--vehicle",
+        "system_b",
+        "--families",
+        "slow_ahead_curve,crossing_cyclist",
+        "--environments",
+        "clear,glare_front_right,snow",
+        "--budget",
+        "600",
+        "--seed",
+        "4",
+        "--top",
+        "4",
+        "--out",
+        "{out}",
+    ],
 }
 
 
@@ -44,8 +92,7 @@ def _table(db: Path) -> list[tuple[object, ...]]:
 
 @pytest.mark.slow
 @pytest.mark.parametrize("name", list(COMMANDS))
-def test_byte_identical_outputs(name: str, tmp_path: Path,
-                                monkeypatch: pytest.MonkeyPatch) -> None:
+def test_byte_identical_outputs(name: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv("SOURCE_DATE_EPOCH", "1767225600")
     out, a, b = tmp_path / "out", tmp_path / "a", tmp_path / "b"
     _run(name, out)  # same inputs, same output folder, twice
@@ -57,8 +104,11 @@ def test_byte_identical_outputs(name: str, tmp_path: Path,
     assert files_a == files_b
     kinds = {p.suffix for p in files_a}
     assert kinds & {".csv", ".json"}
-    differ = [str(p) for p in files_a if p.suffix != ".sqlite"
-              and (a / p).read_bytes() != (b / p).read_bytes()]
+    differ = [
+        str(p)
+        for p in files_a
+        if p.suffix != ".sqlite" and (a / p).read_bytes() != (b / p).read_bytes()
+    ]
     assert differ == [], f"not byte-identical: {differ}"
     for p in files_a:
         if p.suffix == ".sqlite":

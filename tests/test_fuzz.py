@@ -24,19 +24,31 @@ REPO = Path(__file__).resolve().parents[1]
 VEHICLE = (REPO / "templates" / "vehicles" / "system_b.toml").read_text()
 ENVS = (REPO / "templates" / "environments.toml").read_text()
 ROAD = (REPO / "roads" / "rural_two_lane.xodr").read_bytes()
-FUZZ = settings(max_examples=60, deadline=None, derandomize=True,
-                suppress_health_check=[HealthCheck.function_scoped_fixture,
-                                       HealthCheck.too_slow])
+FUZZ = settings(
+    max_examples=60,
+    deadline=None,
+    derandomize=True,
+    suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow],
+)
 
-_scalar = st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.integers(-10**12, 10**12),
-                    st.text(max_size=8), st.booleans(), st.just([]), st.just({}))
+_scalar = st.one_of(
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.integers(-(10**12), 10**12),
+    st.text(max_size=8),
+    st.booleans(),
+    st.just([]),
+    st.just({}),
+)
 
 
 def _mutate_toml(text: str, data: st.DataObject) -> str:
     """Replace the value of one random `key = value` line with a random scalar."""
     lines = text.splitlines()
-    idx = [i for i, ln in enumerate(lines) if "=" in ln and not ln.lstrip().startswith("#")
-           and not ln.lstrip().startswith("[")]
+    idx = [
+        i
+        for i, ln in enumerate(lines)
+        if "=" in ln and not ln.lstrip().startswith("#") and not ln.lstrip().startswith("[")
+    ]
     i = data.draw(st.sampled_from(idx))
     key = lines[i].split("=", 1)[0]
     value = data.draw(_scalar)
@@ -72,8 +84,7 @@ def test_vehicle_loading_only_raises_input_error(tmp_path_factory, data) -> None
     from sensorgap.config import load_target
 
     sc = Scene(system, load_target("car"), Conditions.from_config(env))
-    pts = np.column_stack([np.linspace(-50, 200, 40), np.linspace(-5, 5, 40),
-                           np.full(40, 0.75)])
+    pts = np.column_stack([np.linspace(-50, 200, 40), np.linspace(-5, 5, 40), np.full(40, 0.75)])
     cov = evaluate_points(sc, pts)
     assert np.all(np.isfinite(cov.snr_db)) and np.all((cov.fused >= 0) & (cov.fused <= 1))
 
@@ -107,12 +118,17 @@ def test_random_bytes_as_toml(tmp_path_factory, blob: bytes) -> None:  # type: i
 
 
 @FUZZ
-@given(st.lists(st.tuples(st.integers(0, len(ROAD) - 1), st.binary(min_size=0, max_size=8)),
-                min_size=1, max_size=6))
+@given(
+    st.lists(
+        st.tuples(st.integers(0, len(ROAD) - 1), st.binary(min_size=0, max_size=8)),
+        min_size=1,
+        max_size=6,
+    )
+)
 def test_mutated_opendrive_only_raises_input_error(tmp_path_factory, edits) -> None:  # type: ignore[no-untyped-def]
     data = bytearray(ROAD)
     for pos, chunk in edits:
-        data[pos:pos + len(chunk)] = chunk
+        data[pos : pos + len(chunk)] = chunk
     path = tmp_path_factory.mktemp("r") / "road.xodr"
     path.write_bytes(bytes(data))
     try:

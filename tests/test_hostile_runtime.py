@@ -38,9 +38,9 @@ def test_numba_cache_moves_to_xdg_when_package_read_only(tmp_path: Path) -> None
     assert env["NUMBA_CACHE_DIR"] == chosen and Path(chosen).is_dir()
 
 
-def test_numba_cache_without_home_uses_a_private_temp_folder(tmp_path: Path,
-                                                             monkeypatch: pytest.MonkeyPatch
-                                                             ) -> None:
+def test_numba_cache_without_home_uses_a_private_temp_folder(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     tmp = tmp_path / "tmp"
     tmp.mkdir()
     monkeypatch.setattr("tempfile.tempdir", str(tmp))
@@ -57,7 +57,8 @@ def test_numba_cache_without_home_uses_a_private_temp_folder(tmp_path: Path,
 
 
 def test_matplotlib_config_moves_to_a_private_folder_when_home_is_read_only(
-        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """Held-out review round four: with HOME unwritable matplotlib printed a multi-line
     warning on every command; now MPLCONFIGDIR points at a private folder (0700) first.
     A writable default or an explicit setting is left alone."""
@@ -86,8 +87,9 @@ SETTINGS = {"seed": 0}
 
 def _store_with_row(path: Path, inputs: dict[str, str]) -> None:
     store = Store(path, SETTINGS, inputs)
-    store.db.execute("INSERT INTO candidates VALUES ('f', 0, 'id', 'clear', NULL, NULL, "
-                     "'{}', '{}', 0.0, 1, '')")
+    store.db.execute(
+        "INSERT INTO candidates VALUES ('f', 0, 'id', 'clear', NULL, NULL, '{}', '{}', 0.0, 1, '')"
+    )
     store.db.commit()
     store.close()
 
@@ -125,8 +127,9 @@ def test_store_damage_is_one_input_error(tmp_path: Path, damage: str) -> None:
     assert str(db) in info.value.line() and "\n" not in info.value.line()
 
 
-def test_store_in_unwritable_place_is_one_input_error(tmp_path: Path,
-                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+def test_store_in_unwritable_place_is_one_input_error(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     def refuse(*_: object, **__: object) -> None:
         raise sqlite3.OperationalError("unable to open database file")
 
@@ -158,8 +161,7 @@ def test_verify_reports_links_temporaries_and_journals(tmp_path: Path) -> None:
     assert any(p.startswith("search.sqlite-journal is a left-over") for p in problems)
 
 
-def test_write_manifest_removes_leftover_temporaries_but_keeps_journals(tmp_path: Path
-                                                                        ) -> None:
+def test_write_manifest_removes_leftover_temporaries_but_keeps_journals(tmp_path: Path) -> None:
     run = _folder(tmp_path)
     (run / ".a.txt.abc12345.tmp.txt").write_text("half-written")
     (run / "s.sqlite-journal").write_text("j")
@@ -168,14 +170,18 @@ def test_write_manifest_removes_leftover_temporaries_but_keeps_journals(tmp_path
     assert (run / "s.sqlite-journal").exists()
 
 
-@pytest.mark.parametrize(("entry", "pattern"), [
-    ("../../etc/passwd", "normalised relative path"),
-    ("/etc/passwd", "not an absolute path"),
-    ("sub/../a.txt", "normalised relative path"),
-    ("", "non-empty relative path"),
-])
-def test_verify_refuses_entries_outside_the_folder(tmp_path: Path, entry: str,
-                                                   pattern: str) -> None:
+@pytest.mark.parametrize(
+    ("entry", "pattern"),
+    [
+        ("../../etc/passwd", "normalised relative path"),
+        ("/etc/passwd", "not an absolute path"),
+        ("sub/../a.txt", "normalised relative path"),
+        ("", "non-empty relative path"),
+    ],
+)
+def test_verify_refuses_entries_outside_the_folder(
+    tmp_path: Path, entry: str, pattern: str
+) -> None:
     import json
 
     run = _folder(tmp_path)
@@ -186,8 +192,16 @@ def test_verify_refuses_entries_outside_the_folder(tmp_path: Path, entry: str,
         verify_manifest(run)
 
 
-@pytest.mark.parametrize("text", ['{"files": []}', "[]", "{broken", '{"files": {"a.txt": 3}}',
-                                  '{"files": {"a.txt": {"bytes": true, "sha256": "x"}}}'])
+@pytest.mark.parametrize(
+    "text",
+    [
+        '{"files": []}',
+        "[]",
+        "{broken",
+        '{"files": {"a.txt": 3}}',
+        '{"files": {"a.txt": {"bytes": true, "sha256": "x"}}}',
+    ],
+)
 def test_verify_malformed_manifest(tmp_path: Path, text: str) -> None:
     run = _folder(tmp_path)
     (run / "manifest.json").write_text(text)
@@ -195,8 +209,9 @@ def test_verify_malformed_manifest(tmp_path: Path, text: str) -> None:
         verify_manifest(run)
 
 
-def test_relative_road_is_relative_to_the_family_file(tmp_path: Path,
-                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+def test_relative_road_is_relative_to_the_family_file(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     import shutil
 
     from sensorgap.config.presets import resolve_road, templates_dir
@@ -206,8 +221,7 @@ def test_relative_road_is_relative_to_the_family_file(tmp_path: Path,
     (fam_dir / "roads").mkdir(parents=True)
     shutil.copy(resolve_road("motorway_r500"), fam_dir / "roads" / "m.xodr")
     text = (templates_dir() / "scenarios" / "cut_in_left.toml").read_text()
-    (fam_dir / "f.toml").write_text(text.replace('road = "motorway_r500"',
-                                                 'road = "roads/m.xodr"'))
+    (fam_dir / "f.toml").write_text(text.replace('road = "motorway_r500"', 'road = "roads/m.xodr"'))
     elsewhere = tmp_path / "elsewhere"
     elsewhere.mkdir()
     monkeypatch.chdir(elsewhere)
@@ -215,8 +229,9 @@ def test_relative_road_is_relative_to_the_family_file(tmp_path: Path,
     assert fam.settings["road"] == str((fam_dir / "roads" / "m.xodr").resolve())
 
 
-def test_run_records_the_vehicle_file_absolute(tmp_path: Path,
-                                               monkeypatch: pytest.MonkeyPatch) -> None:
+def test_run_records_the_vehicle_file_absolute(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     from sensorgap.search.settings import vehicle_ref as _vehicle_ref
 
     (tmp_path / "v.toml").write_text("")
@@ -225,22 +240,25 @@ def test_run_records_the_vehicle_file_absolute(tmp_path: Path,
     assert _vehicle_ref("system_a") == "system_a"
 
 
-def test_relative_reaction_is_relative_to_the_vehicle_file(tmp_path: Path,
-                                                           monkeypatch: pytest.MonkeyPatch
-                                                           ) -> None:
+def test_relative_reaction_is_relative_to_the_vehicle_file(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     from sensorgap.config import load_vehicle, templates_dir
     from sensorgap.config.reaction import load_reaction, reactions_path
 
     vdir = tmp_path / "car"
     (vdir / "r").mkdir(parents=True)
     text = (templates_dir() / "vehicles" / "system_a.toml").read_text()
-    (vdir / "v.toml").write_text(text.replace('reaction = "fusion_any"',
-                                              'reaction = "r/mine.toml"'))
+    (vdir / "v.toml").write_text(
+        text.replace('reaction = "fusion_any"', 'reaction = "r/mine.toml"')
+    )
     # a reaction file whose first model is a distinctive one (latency 0.9 s)
     presets = reactions_path().read_text()
     (vdir / "r" / "mine.toml").write_text(
-        presets.replace("[reactions.ads_default", "[reactions.x_ads_default")
-        .replace("latency_s = 0.3\n", "latency_s = 0.9\n", 1))
+        presets.replace("[reactions.ads_default", "[reactions.x_ads_default").replace(
+            "latency_s = 0.3\n", "latency_s = 0.9\n", 1
+        )
+    )
     elsewhere = tmp_path / "elsewhere"
     elsewhere.mkdir()
     monkeypatch.chdir(elsewhere)
@@ -251,26 +269,46 @@ def test_relative_reaction_is_relative_to_the_vehicle_file(tmp_path: Path,
 
 
 def test_names_outside_the_font_are_refused_and_latin_names_draw_without_warnings(
-        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     import warnings
 
     from sensorgap.cli import main
     from sensorgap.config import templates_dir
 
     text = (templates_dir() / "vehicles" / "system_a.toml").read_text()
-    (tmp_path / "v.toml").write_text(text.replace('name = "System A"',
-                                                  'name = "Škoda Élan ß-ł $x^{$ (Ä)"'))
+    (tmp_path / "v.toml").write_text(
+        text.replace('name = "System A"', 'name = "Škoda Élan ß-ł $x^{$ (Ä)"')
+    )
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        assert main(["coverage", "--vehicle", str(tmp_path / "v.toml"), "--environment",
-                     "clear", "--target", "car", "--resolution", "1", "--extent",
-                     "0,10,0,10", "--out", str(tmp_path / "out")]) == 0
-    assert not [w for w in caught if "Glyph" in str(w.message)], [str(w.message)
-                                                                   for w in caught]
+        assert (
+            main(
+                [
+                    "coverage",
+                    "--vehicle",
+                    str(tmp_path / "v.toml"),
+                    "--environment",
+                    "clear",
+                    "--target",
+                    "car",
+                    "--resolution",
+                    "1",
+                    "--extent",
+                    "0,10,0,10",
+                    "--out",
+                    str(tmp_path / "out"),
+                ]
+            )
+            == 0
+        )
+    assert not [w for w in caught if "Glyph" in str(w.message)], [str(w.message) for w in caught]
     assert capsys.readouterr().err == ""
     (tmp_path / "w.toml").write_text(text.replace('name = "System A"', 'name = "車 A"'))
-    assert main(["nearfield", "--vehicle", str(tmp_path / "w.toml"), "--out",
-                 str(tmp_path / "nf")]) == 2
+    assert (
+        main(["nearfield", "--vehicle", str(tmp_path / "w.toml"), "--out", str(tmp_path / "nf")])
+        == 2
+    )
     assert "vehicle.name" in capsys.readouterr().err
     assert not (tmp_path / "nf").exists()
 
@@ -278,9 +316,16 @@ def test_names_outside_the_font_are_refused_and_latin_names_draw_without_warning
 def test_target_reference_height_must_be_on_the_body() -> None:
     from sensorgap.config import TargetConfig
 
-    base = {"name": "box", "rcs_m2": 1.0, "camera_cross_section_m2": 1.0, "length_m": 1.0,
-            "width_m": 1.0, "height_m": 1.5, "lidar_reflectance": 0.5,
-            "camera_reflectance": 0.5}
+    base = {
+        "name": "box",
+        "rcs_m2": 1.0,
+        "camera_cross_section_m2": 1.0,
+        "length_m": 1.0,
+        "width_m": 1.0,
+        "height_m": 1.5,
+        "lidar_reflectance": 0.5,
+        "camera_reflectance": 0.5,
+    }
     assert TargetConfig.model_validate({**base, "reference_height_m": 1.5})
     with pytest.raises(ValueError, match="must not exceed height_m"):
         TargetConfig.model_validate({**base, "reference_height_m": 1.6})
@@ -299,9 +344,11 @@ def test_lane_change_duration_bounds() -> None:
 
 
 def _esmini_log(path: Path, rows: list[str]) -> Path:
-    head = ("Index [-] , TimeStamp [sec] , #1 Entity_Name [-] , #1 Entity_ID [-] , "
-            "#1 Current_Speed [m/s] , #1 World_Position_X [m] , #1 World_Position_Y [m] , "
-            "#1 World_Position_Z [m] , #1 World_Heading_Angle [rad] ,")
+    head = (
+        "Index [-] , TimeStamp [sec] , #1 Entity_Name [-] , #1 Entity_ID [-] , "
+        "#1 Current_Speed [m/s] , #1 World_Position_X [m] , #1 World_Position_Y [m] , "
+        "#1 World_Position_Z [m] , #1 World_Heading_Angle [rad] ,"
+    )
     path.write_text("\n".join([head, *rows]) + "\n")
     return path
 
@@ -310,8 +357,7 @@ def test_esmini_log_with_a_short_row_is_a_bad_log(tmp_path: Path) -> None:
     from sensorgap.export.simulate import parse_esmini_csv
 
     good = "0, 0.00, Ego, 0, 10.0, 1.0, 2.0, 0.0, 0.1,"
-    sim = parse_esmini_csv(_esmini_log(tmp_path / "ok.csv", [good, good.replace("0.00",
-                                                                                 "0.05")]))
+    sim = parse_esmini_csv(_esmini_log(tmp_path / "ok.csv", [good, good.replace("0.00", "0.05")]))
     t, x, y, h, v = sim.states["Ego"]
     assert t.tolist() == [0.0, 0.05] and x.tolist() == [1.0, 1.0] and v[0] == 10.0
     with pytest.raises(ValueError, match=r"line 3: 4 fields, no column 9 \(#1 World_Heading"):
@@ -320,10 +366,9 @@ def test_esmini_log_with_a_short_row_is_a_bad_log(tmp_path: Path) -> None:
         parse_esmini_csv(_esmini_log(tmp_path / "empty.csv", []))
 
 
-def test_sigterm_unwinds_and_leaves_no_temporary_file(tmp_path: Path,
-                                                      monkeypatch: pytest.MonkeyPatch,
-                                                      capsys: pytest.CaptureFixture[str]
-                                                      ) -> None:
+def test_sigterm_unwinds_and_leaves_no_temporary_file(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
     import signal
     import time
 
@@ -340,16 +385,34 @@ def test_sigterm_unwinds_and_leaves_no_temporary_file(tmp_path: Path,
     monkeypatch.setattr(Figure, "savefig", killed_while_saving)
     previous = signal.getsignal(signal.SIGTERM)
     out = tmp_path / "out"
-    assert main(["coverage", "--vehicle", "system_a", "--environment", "clear", "--target",
-                 "car", "--resolution", "1", "--extent", "0,10,0,10", "--out",
-                 str(out)]) == 143
+    assert (
+        main(
+            [
+                "coverage",
+                "--vehicle",
+                "system_a",
+                "--environment",
+                "clear",
+                "--target",
+                "car",
+                "--resolution",
+                "1",
+                "--extent",
+                "0,10,0,10",
+                "--out",
+                str(out),
+            ]
+        )
+        == 143
+    )
     assert capsys.readouterr().err.strip() == "sensorgap: interrupted"
     assert not [p for p in out.rglob("*") if ".tmp" in p.name]
     assert signal.getsignal(signal.SIGTERM) == previous  # restored after the command
 
 
 def test_environment_name_with_dollars_is_drawn_as_written_in_the_report(
-        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     # the scenario figure's colour-bar label mixes math ($p_d$) with the environment name:
     # a name 'a$x^{$' was parsed as math there (internal error)
     from sensorgap.cli import main
@@ -360,10 +423,30 @@ def test_environment_name_with_dollars_is_drawn_as_written_in_the_report(
     text = text.replace("[environments.glare_front_right", f'[environments."{name}"')
     (tmp_path / "e.toml").write_text(text)
     run = tmp_path / "run"
-    assert main(["search", "--vehicle", "system_b", "--families", "stopped_rural_curve",
-                 "--environments-file", str(tmp_path / "e.toml"), "--environments", name,
-                 "--budget", "12", "--top", "1", "--strategy", "lhs", "--out",
-                 str(run)]) == 0
+    assert (
+        main(
+            [
+                "search",
+                "--vehicle",
+                "system_b",
+                "--families",
+                "stopped_rural_curve",
+                "--environments-file",
+                str(tmp_path / "e.toml"),
+                "--environments",
+                name,
+                "--budget",
+                "12",
+                "--top",
+                "1",
+                "--strategy",
+                "lhs",
+                "--out",
+                str(run),
+            ]
+        )
+        == 0
+    )
     assert main(["report", "--run", str(run)]) == 0, capsys.readouterr().err
     assert (run / "report" / "scenario_001.png").is_file()
     assert name in (run / "report.md").read_text()
@@ -383,22 +466,33 @@ def test_a_users_tmp_files_survive_a_write_into_their_folder(tmp_path: Path) -> 
     ours = out / ".nearfield.png.abcd1234.tmp.png"
     ours.write_text("half")
     assert is_own_temporary(ours.name) and not any(is_own_temporary(p.name) for p in mine)
-    assert main(["nearfield", "--vehicle", "system_a", "--resolution", "0.2",
-                 "--out", str(out)]) == 0
+    assert (
+        main(["nearfield", "--vehicle", "system_a", "--resolution", "0.2", "--out", str(out)]) == 0
+    )
     assert all(p.read_text() == "user data" for p in mine)
     assert not ours.exists()
 
 
-@pytest.mark.parametrize("argv", [["nearfield", "--vehicle", "system_a", "--out", ""],
-                                  ["search", "--vehicle", "system_a", "--budget", "10",
-                                   "--out", " "]])
-def test_an_empty_out_is_refused(argv: list[str], tmp_path: Path,
-                                 monkeypatch: pytest.MonkeyPatch,
-                                 capsys: pytest.CaptureFixture[str]) -> None:
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["nearfield", "--vehicle", "system_a", "--out", ""],
+        ["search", "--vehicle", "system_a", "--budget", "10", "--out", " "],
+    ],
+)
+def test_an_empty_out_is_refused(
+    argv: list[str],
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
     monkeypatch.chdir(tmp_path)
     assert main(argv) == 2
-    assert capsys.readouterr().err.strip().endswith("(an empty path would write into the "
-                                                    "working directory)")
+    assert (
+        capsys.readouterr()
+        .err.strip()
+        .endswith("(an empty path would write into the working directory)")
+    )
     assert list(tmp_path.iterdir()) == []
 
 
@@ -442,9 +536,9 @@ def test_refuse_if_changed_unit(tmp_path: Path) -> None:
         refuse_if_changed(run, ())
 
 
-def test_report_and_export_do_not_certify_a_tampered_run(tmp_path: Path,
-                                                        capsys: pytest.CaptureFixture[str]
-                                                        ) -> None:
+def test_report_and_export_do_not_certify_a_tampered_run(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     """Held-out review round four: `report --run` (and an export in place) rewrote the
     manifest over a ranking.csv edited by hand, after which `verify` said OK. Now they
     refuse (exit 2, one line naming the file) and leave the folder as it was; an intact
@@ -452,9 +546,30 @@ def test_report_and_export_do_not_certify_a_tampered_run(tmp_path: Path,
     sub-folder lets the report degrade and stays listed (verify names it); the run's own
     record lost from the top of the folder is refused."""
     run = tmp_path / "run"
-    assert main(["search", "--vehicle", "system_b", "--families", "slow_ahead_curve",
-                 "--environments", "snow", "--budget", "30", "--seed", "1", "--top", "2",
-                 "--strategy", "lhs", "--out", str(run)]) == 0
+    assert (
+        main(
+            [
+                "search",
+                "--vehicle",
+                "system_b",
+                "--families",
+                "slow_ahead_curve",
+                "--environments",
+                "snow",
+                "--budget",
+                "30",
+                "--seed",
+                "1",
+                "--top",
+                "2",
+                "--strategy",
+                "lhs",
+                "--out",
+                str(run),
+            ]
+        )
+        == 0
+    )
     assert main(["report", "--run", str(run)]) == 0
     assert main(["export", "--run", str(run)]) == 0
     assert main(["report", "--run", str(run)]) == 0
@@ -502,16 +617,32 @@ def test_a_reaction_files_friction_is_used(tmp_path: Path) -> None:
     assert "dry = 0.9" in presets
     (vdir / "mine.toml").write_text(presets.replace("dry = 0.9", "dry = 0.3", 1))
     text = (templates_dir() / "vehicles" / "system_a.toml").read_text()
-    (vdir / "v.toml").write_text(text.replace('reaction = "fusion_any"',
-                                              'reaction = "mine.toml"'))
+    (vdir / "v.toml").write_text(text.replace('reaction = "fusion_any"', 'reaction = "mine.toml"'))
     system = load_system(str(vdir / "v.toml"))
     assert friction_source(system.config.reaction) == (vdir / "mine.toml").resolve()
     ev = Evaluator(system)
     assert ev.friction["dry"] == 0.3 and ev.friction["wet"] == shipped["wet"]
     run = tmp_path / "run"
-    assert main(["search", "--vehicle", str(vdir / "v.toml"), "--families",
-                 "slow_ahead_curve", "--environments", "clear", "--budget", "8",
-                 "--strategy", "lhs", "--out", str(run)]) == 0
+    assert (
+        main(
+            [
+                "search",
+                "--vehicle",
+                str(vdir / "v.toml"),
+                "--families",
+                "slow_ahead_curve",
+                "--environments",
+                "clear",
+                "--budget",
+                "8",
+                "--strategy",
+                "lhs",
+                "--out",
+                str(run),
+            ]
+        )
+        == 0
+    )
     assert read_run(run).evaluator().friction["dry"] == 0.3
     # a reaction file without a [friction] table: the shipped one
     (vdir / "bare.toml").write_text(presets.split("\n[friction]\n")[0])

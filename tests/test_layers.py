@@ -8,14 +8,31 @@ from pathlib import Path
 import sensorgap
 
 #: Pipeline order; a module may import its own layer and the layers before it.
-LAYERS = ["errors", "atomic", "filesio", "registry", "plugins", "provenance", "runtime",
-          "version", "config",
-          "models",
-          "coverage", "roads", "analysis", "scenarios", "search", "tradeoff", "export", "report",
-          "jobs", "api", "cli"]
+LAYERS = [
+    "errors",
+    "atomic",
+    "filesio",
+    "registry",
+    "plugins",
+    "provenance",
+    "runtime",
+    "version",
+    "config",
+    "models",
+    "coverage",
+    "roads",
+    "analysis",
+    "scenarios",
+    "search",
+    "tradeoff",
+    "export",
+    "report",
+    "jobs",
+    "api",
+    "cli",
+]
 #: Shared base modules count as one layer (they may import each other).
-_BASE = {"errors", "atomic", "filesio", "registry", "plugins", "provenance", "runtime",
-         "version"}
+_BASE = {"errors", "atomic", "filesio", "registry", "plugins", "provenance", "runtime", "version"}
 ROOT = Path(sensorgap.__file__).parent
 
 
@@ -34,14 +51,20 @@ def _imports(path: Path) -> list[str]:
             if node.module.startswith("sensorgap."):
                 out.append(node.module.removeprefix("sensorgap."))
         elif isinstance(node, ast.Import):
-            out += [a.name.removeprefix("sensorgap.") for a in node.names
-                    if a.name.startswith("sensorgap.")]
+            out += [
+                a.name.removeprefix("sensorgap.")
+                for a in node.names
+                if a.name.startswith("sensorgap.")
+            ]
     return out
 
 
 def test_every_package_is_a_known_layer() -> None:
-    names = {p.stem if p.is_file() else p.name for p in ROOT.iterdir()
-             if (p.suffix == ".py" and p.stem != "__init__") or (p / "__init__.py").exists()}
+    names = {
+        p.stem if p.is_file() else p.name
+        for p in ROOT.iterdir()
+        if (p.suffix == ".py" and p.stem != "__init__") or (p / "__init__.py").exists()
+    }
     unknown = names - set(LAYERS) - {"__main__"}
     assert not unknown, f"add these to LAYERS in pipeline order: {sorted(unknown)}"
 
@@ -68,11 +91,14 @@ def test_nothing_imports_the_root_package() -> None:
         rel = path.relative_to(ROOT)
         tree = ast.parse(path.read_text(encoding="utf-8"))
         for node in ast.walk(tree):
-            if isinstance(node, ast.ImportFrom) and node.module == "sensorgap" \
-                    and node.level == 0 and rel.as_posix() != "__init__.py":
+            if (
+                isinstance(node, ast.ImportFrom)
+                and node.module == "sensorgap"
+                and node.level == 0
+                and rel.as_posix() != "__init__.py"
+            ):
                 bad.append(f"{rel}: from sensorgap import ...")
-            elif isinstance(node, ast.Import) and any(a.name == "sensorgap"
-                                                      for a in node.names):
+            elif isinstance(node, ast.Import) and any(a.name == "sensorgap" for a in node.names):
                 bad.append(f"{rel}: import sensorgap")
     assert not bad, "\n".join(bad)
     root = ast.parse((ROOT / "__init__.py").read_text(encoding="utf-8"))

@@ -10,9 +10,19 @@ import pytest
 from sensorgap.config.common import parse_decimal, parse_integer
 
 
-@pytest.mark.parametrize(("text", "want"), [("1", 1.0), ("-1.5e3", -1500.0), (".5", 0.5),
-                                            ("5.", 5.0), (" 2 ", 2.0), ("+3E-2", 0.03),
-                                            ("1e400", math.inf), ("-inf", -math.inf)])
+@pytest.mark.parametrize(
+    ("text", "want"),
+    [
+        ("1", 1.0),
+        ("-1.5e3", -1500.0),
+        (".5", 0.5),
+        ("5.", 5.0),
+        (" 2 ", 2.0),
+        ("+3E-2", 0.03),
+        ("1e400", math.inf),
+        ("-inf", -math.inf),
+    ],
+)
 def test_plain_decimals(text: str, want: float) -> None:
     assert parse_decimal(text) == want
 
@@ -21,8 +31,9 @@ def test_nan_is_read_for_the_options_own_check() -> None:
     assert math.isnan(parse_decimal("NaN"))
 
 
-@pytest.mark.parametrize("text", ["1_000", "0x10", "1e", "", "e5", "1 0", "nan1", "\uff11",
-                                  "1" * 401])
+@pytest.mark.parametrize(
+    "text", ["1_000", "0x10", "1e", "", "e5", "1 0", "nan1", "\uff11", "1" * 401]
+)
 def test_not_plain_decimals(text: str) -> None:
     with pytest.raises(ValueError, match="not a plain decimal number"):
         parse_decimal(text)

@@ -20,8 +20,16 @@ from sensorgap.version import __version__
 _configure_numba_cache()  # a writable numba cache folder even when installed read-only
 _configure_matplotlib_dir()  # and matplotlib's, without its warning when HOME is read-only
 
-_API = ("Occluder", "coverage_grid", "evaluate_points", "export_catalog", "find_scenarios",
-        "load_vehicle", "scene", "write_report")
+_API = (
+    "Occluder",
+    "coverage_grid",
+    "evaluate_points",
+    "export_catalog",
+    "find_scenarios",
+    "load_vehicle",
+    "scene",
+    "write_report",
+)
 
 
 def __getattr__(name: str) -> object:

@@ -35,30 +35,44 @@ def load_vehicle(vehicle: str | Path) -> System:
     return load_system(vehicle)
 
 
-def scene(vehicle: str | Path | System, environment: str = "clear", target: str = "car",
-          environments_file: str | Path | None = None, ego_heading_deg: float = 0.0
-          ) -> Scene:
+def scene(
+    vehicle: str | Path | System,
+    environment: str = "clear",
+    target: str = "car",
+    environments_file: str | Path | None = None,
+    ego_heading_deg: float = 0.0,
+) -> Scene:
     """The scene of a vehicle in an environment preset with a target class (sun directions
     resolved for an ego heading, deg, counter-clockwise from east)."""
     system = vehicle if isinstance(vehicle, System) else load_system(vehicle)
-    env = load_environment(environment, None if environments_file is None
-                           else Path(environments_file))
-    return Scene(system, load_target(target),
-                 Conditions.from_config(env, math.radians(ego_heading_deg)))
+    env = load_environment(
+        environment, None if environments_file is None else Path(environments_file)
+    )
+    return Scene(
+        system, load_target(target), Conditions.from_config(env, math.radians(ego_heading_deg))
+    )
 
 
-def evaluate_points(vehicle: str | Path | System, points: ArrayLike,
-                    environment: str = "clear", target: str = "car") -> PointCoverage:
+def evaluate_points(
+    vehicle: str | Path | System, points: ArrayLike, environment: str = "clear", target: str = "car"
+) -> PointCoverage:
     """Per-sensor SNR (dB) and Pd and the fused Pd at (N, 3) vehicle-frame points (m):
     point targets, the paper's setting."""
-    return _evaluate_points(scene(vehicle, environment, target),
-                            np.asarray(points, dtype=np.float64))
+    return _evaluate_points(
+        scene(vehicle, environment, target), np.asarray(points, dtype=np.float64)
+    )
 
 
-def coverage_grid(vehicle: str | Path | System, environment: str = "clear",
-                  target: str = "car", extent: Sequence[float] = (-60.0, 160.0, -40.0, 40.0),
-                  resolution: float = 0.5, heading_deg: float | None = 0.0,
-                  occluders: Sequence[Occluder] = (), workers: int = 2) -> GridCoverage:
+def coverage_grid(
+    vehicle: str | Path | System,
+    environment: str = "clear",
+    target: str = "car",
+    extent: Sequence[float] = (-60.0, 160.0, -40.0, 40.0),
+    resolution: float = 0.5,
+    heading_deg: float | None = 0.0,
+    occluders: Sequence[Occluder] = (),
+    workers: int = 2,
+) -> GridCoverage:
     """Fused (and per-sensor) Pd on a grid: ``extent`` = (xmin, xmax, ymin, ymax), m, in
     the vehicle frame, cells of ``resolution`` m; target bodies centred at the cells at
     ``heading_deg`` relative to the ego (``None``: points at the target's reference
@@ -66,13 +80,21 @@ def coverage_grid(vehicle: str | Path | System, environment: str = "clear",
     sc = scene(vehicle, environment, target)
     xmin, xmax, ymin, ymax = (float(v) for v in extent)
     grid = GridSpec(xmin, xmax, ymin, ymax, float(resolution), sc.target.reference_height_m)
-    return compute_coverage(sc, grid, per_sensor=True, workers=workers,
-                            heading_deg=heading_deg, occluders=occluders)
+    return compute_coverage(
+        sc, grid, per_sensor=True, workers=workers, heading_deg=heading_deg, occluders=occluders
+    )
 
 
-def find_scenarios(vehicle: str | Path, out: str | Path, families: str | Sequence[str] = "all",
-           environments: str | Sequence[str] = "all", budget: int = 2000, seed: int = 1,
-           top: int = 10, **options: Any) -> SearchOutcome:
+def find_scenarios(
+    vehicle: str | Path,
+    out: str | Path,
+    families: str | Sequence[str] = "all",
+    environments: str | Sequence[str] = "all",
+    budget: int = 2000,
+    seed: int = 1,
+    top: int = 10,
+    **options: Any,
+) -> SearchOutcome:
     """Search for sensor-critical scenarios into the run folder ``out`` (SQLite store,
     ranking.csv/json, summary.json): ``families`` and ``environments`` are ``"all"`` or
     lists of names (families may be .toml paths); ``options`` as ``run_search`` (strategy,
@@ -82,16 +104,20 @@ def find_scenarios(vehicle: str | Path, out: str | Path, families: str | Sequenc
     return run_search(vehicle, fams, envs, budget, seed, top, Path(out), **options)
 
 
-def export_catalog(run: str | Path, out: str | Path | None = None, osc_version: str = "1.2",
-                   top: int | None = None, style: str = "maneuver") -> dict[str, Any]:
+def export_catalog(
+    run: str | Path,
+    out: str | Path | None = None,
+    osc_version: str = "1.2",
+    top: int | None = None,
+    style: str = "maneuver",
+) -> dict[str, Any]:
     """The OpenSCENARIO + OpenDRIVE catalog of a search run (XSD-validated) in ``style``
     (``maneuver``: actions on triggers relative to the ego, a replaceable ego controller;
     ``replay``: timed trajectories; docs/export.md); returns the catalog index
     (``catalog.json``)."""
     from sensorgap.export import export_catalog as _export
 
-    return _export(Path(run), None if out is None else Path(out), osc_version, top,
-                   style=style)
+    return _export(Path(run), None if out is None else Path(out), osc_version, top, style=style)
 
 
 def write_report(run: str | Path) -> tuple[Path, Path]:
@@ -101,5 +127,13 @@ def write_report(run: str | Path) -> tuple[Path, Path]:
     return _write(Path(run))
 
 
-__all__ = ["Occluder", "coverage_grid", "evaluate_points", "export_catalog", "find_scenarios",
-           "load_vehicle", "scene", "write_report"]
+__all__ = [
+    "Occluder",
+    "coverage_grid",
+    "evaluate_points",
+    "export_catalog",
+    "find_scenarios",
+    "load_vehicle",
+    "scene",
+    "write_report",
+]

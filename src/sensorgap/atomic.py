@@ -61,8 +61,11 @@ def removed_on_error(folder: str | Path) -> Iterator[None]:
         yield
     except Exception:
         if root.is_dir():
-            new = sorted((p for p in root.rglob("*") if p not in before),
-                         key=lambda p: len(p.parts), reverse=True)
+            new = sorted(
+                (p for p in root.rglob("*") if p not in before),
+                key=lambda p: len(p.parts),
+                reverse=True,
+            )
             for p in new:
                 with suppress(OSError):
                     if p.is_symlink() or p.is_file():

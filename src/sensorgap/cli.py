@@ -40,8 +40,15 @@ NEARFIELD_RESOLUTION_M = (0.02, 1.0)
 #: farfield: path length range, m.
 MAX_FARFIELD_LENGTH_M = 10_000.0
 EXIT_INTERNAL = 1
-_GLUED_OPTIONS = {"--extent", "--height", "--ego-lane", "--target-lane", "--lanes",
-                  "--start", "--goal"}
+_GLUED_OPTIONS = {
+    "--extent",
+    "--height",
+    "--ego-lane",
+    "--target-lane",
+    "--lanes",
+    "--start",
+    "--goal",
+}
 
 
 class _Terminated(KeyboardInterrupt):
@@ -88,8 +95,9 @@ def _scene(args: argparse.Namespace, ego_heading_rad: float = 0.0) -> Scene:
     from sensorgap.models import Conditions, load_system
 
     system = load_system(args.vehicle)
-    env = load_environment(args.environment, Path(args.environments_file)
-                           if args.environments_file else None)
+    env = load_environment(
+        args.environment, Path(args.environments_file) if args.environments_file else None
+    )
     target = load_target(args.target)
     return Scene(system, target, Conditions.from_config(env, ego_heading_rad))
 
@@ -105,10 +113,14 @@ def cmd_probe(args: argparse.Namespace) -> int:
     pts = read_points_csv(Path(args.points), default_z=scene.target.reference_height_m)
     per_point = len(scene.sensors) * (1 if args.heading is None else BODY_COST)
     if len(pts) * per_point > MAX_POINT_SENSOR_VALUES:
-        raise InputError(args.points, "", f"{len(pts)} points x {len(scene.sensors)} sensors "
-                         f"is too many (at most {MAX_POINT_SENSOR_VALUES // per_point} points "
-                         f"for this vehicle{' with --heading' if args.heading is not None else ''}"
-                         "); split the file")
+        raise InputError(
+            args.points,
+            "",
+            f"{len(pts)} points x {len(scene.sensors)} sensors "
+            f"is too many (at most {MAX_POINT_SENSOR_VALUES // per_point} points "
+            f"for this vehicle{' with --heading' if args.heading is not None else ''}"
+            "); split the file",
+        )
     if args.heading is None:
         data = probe_csv(evaluate_points(scene, pts))
     else:
@@ -130,8 +142,7 @@ def _probe_bodies(scene: Scene, pts: Any, heading_deg: float) -> bytes:
     from sensorgap.filesio import csv_bytes
 
     if not math.isfinite(heading_deg):
-        raise InputError("--heading", "", f"must be a finite angle in degrees, got "
-                         f"{heading_deg!r}")
+        raise InputError("--heading", "", f"must be a finite angle in degrees, got {heading_deg!r}")
     x, y = pts[:, 0], pts[:, 1]
     # the scene carries its sun (its SNRs include the glare of that sun)
     pd, frac = body_per_sensor_pd(scene, x, y, np.full(len(x), math.radians(heading_deg)))
@@ -153,56 +164,90 @@ def cmd_coverage(args: argparse.Namespace) -> int:
         raise InputError("--workers", "", f"must be 1..64, got {args.workers}")
     xmin, xmax, ymin, ymax = _float_list(args.extent, 4, "--extent")
     if not (xmin < xmax and ymin < ymax):
-        raise InputError("--extent", "", "must be XMIN,XMAX,YMIN,YMAX with XMIN < XMAX and "
-                         f"YMIN < YMAX, got {args.extent!r}")
+        raise InputError(
+            "--extent",
+            "",
+            f"must be XMIN,XMAX,YMIN,YMAX with XMIN < XMAX and YMIN < YMAX, got {args.extent!r}",
+        )
     if max(abs(xmin), abs(xmax), abs(ymin), abs(ymax)) > MAX_EXTENT_M:
-        raise InputError("--extent", "", f"coordinates must be within +-{MAX_EXTENT_M:g} m, "
-                         f"got {args.extent!r}")
+        raise InputError(
+            "--extent", "", f"coordinates must be within +-{MAX_EXTENT_M:g} m, got {args.extent!r}"
+        )
     res = _positive(args.resolution, "--resolution")
     if res < MIN_RESOLUTION_M:
-        raise InputError("--resolution", "", f"must be at least {MIN_RESOLUTION_M:g} m, got "
-                         f"{res!r}")
+        raise InputError(
+            "--resolution", "", f"must be at least {MIN_RESOLUTION_M:g} m, got {res!r}"
+        )
     if args.heading is not None and not math.isfinite(args.heading):
-        raise InputError("--heading", "", f"must be a finite angle in degrees, got "
-                         f"{args.heading!r}")
+        raise InputError(
+            "--heading", "", f"must be a finite angle in degrees, got {args.heading!r}"
+        )
     # whole cells only: the grid never reaches beyond the extent (clipped, and said so)
     nx, ny = math.floor((xmax - xmin) / res + 1e-9), math.floor((ymax - ymin) / res + 1e-9)
     if nx < 1 or ny < 1:
-        raise InputError("--resolution", "", f"{res:g} m cells do not fit the extent "
-                         f"{xmax - xmin:g} x {ymax - ymin:g} m; give a resolution at most "
-                         f"{min(xmax - xmin, ymax - ymin):g} m")
+        raise InputError(
+            "--resolution",
+            "",
+            f"{res:g} m cells do not fit the extent "
+            f"{xmax - xmin:g} x {ymax - ymin:g} m; give a resolution at most "
+            f"{min(xmax - xmin, ymax - ymin):g} m",
+        )
     cells = nx * ny
     limit = MAX_BODY_CELLS if args.heading is not None else MAX_GRID_CELLS
     if cells > limit:
-        raise InputError("--resolution", "", f"grid of {cells:.3g} cells is too large (at "
-                         f"most {limit:.0e}{' with --heading' if args.heading is not None else ''}"
-                         "); coarsen the resolution or shrink the extent")
+        raise InputError(
+            "--resolution",
+            "",
+            f"grid of {cells:.3g} cells is too large (at "
+            f"most {limit:.0e}{' with --heading' if args.heading is not None else ''}"
+            "); coarsen the resolution or shrink the extent",
+        )
     scene = _scene(args)
     height = scene.target.reference_height_m if args.height is None else args.height
     if not (math.isfinite(height) and 0.0 <= height <= 50.0):
-        raise InputError("--height", "", f"must be within 0..50 m (above the road plane the "
-                         f"vehicle stands on: the models know no terrain), got {height!r}")
+        raise InputError(
+            "--height",
+            "",
+            f"must be within 0..50 m (above the road plane the "
+            f"vehicle stands on: the models know no terrain), got {height!r}",
+        )
     if args.per_sensor and cells * len(scene.sensors) > MAX_PER_SENSOR_CELLS:
-        raise InputError("--per-sensor", "", f"{cells:.3g} cells x {len(scene.sensors)} "
-                         f"sensors is too large (at most {MAX_PER_SENSOR_CELLS:.0e} maps "
-                         "cells); coarsen the resolution or shrink the extent")
+        raise InputError(
+            "--per-sensor",
+            "",
+            f"{cells:.3g} cells x {len(scene.sensors)} "
+            f"sensors is too large (at most {MAX_PER_SENSOR_CELLS:.0e} maps "
+            "cells); coarsen the resolution or shrink the extent",
+        )
     clipped = (xmin + nx * res, ymin + ny * res)
     grid = GridSpec(xmin, clipped[0], ymin, clipped[1], res, height)
     occluders = [_occluder(text) for text in args.occluder]
     if occluders and args.heading is None:
-        raise InputError("--occluder", "", "occluders hide parts of target bodies: add "
-                         "--heading DEG")
+        raise InputError(
+            "--occluder", "", "occluders hide parts of target bodies: add --heading DEG"
+        )
     with removed_on_error(args.out):
-        summary = write_coverage(scene, grid, Path(args.out), per_sensor=args.per_sensor,
-                                 workers=args.workers, heading_deg=args.heading,
-                                 occluders=occluders)
+        summary = write_coverage(
+            scene,
+            grid,
+            Path(args.out),
+            per_sensor=args.per_sensor,
+            workers=args.workers,
+            heading_deg=args.heading,
+            occluders=occluders,
+        )
         write_manifest(args.out)
     lv = summary["area_m2_by_level"]
-    note = ("" if clipped == (xmax, ymax) else
-            f" (extent clipped to whole cells: x {xmin:g}..{clipped[0]:g}, y {ymin:g}.."
-            f"{clipped[1]:g} m)")
-    print(f"{args.out}: {grid.nx}x{grid.ny} cells, area Pd=1 {lv['pd=1.0']:.0f} m2, "
-          f"Pd>0 {lv['pd>0']:.0f} m2{note}")
+    note = (
+        ""
+        if clipped == (xmax, ymax)
+        else f" (extent clipped to whole cells: x {xmin:g}..{clipped[0]:g}, y {ymin:g}.."
+        f"{clipped[1]:g} m)"
+    )
+    print(
+        f"{args.out}: {grid.nx}x{grid.ny} cells, area Pd=1 {lv['pd=1.0']:.0f} m2, "
+        f"Pd>0 {lv['pd>0']:.0f} m2{note}"
+    )
     return 0
 
 
@@ -217,12 +262,16 @@ def _occluder(text: str) -> Occluder:
 
     kind, sep, rest = text.partition("@")
     if not sep:
-        raise InputError("--occluder", "", f"must be KIND@X,Y,HEADING (e.g. truck@15,-3.5,0),"
-                         f" got {text!r}")
+        raise InputError(
+            "--occluder", "", f"must be KIND@X,Y,HEADING (e.g. truck@15,-3.5,0), got {text!r}"
+        )
     x, y, heading = _float_list(rest, 3, "--occluder")
     if not (abs(x) <= MAX_OCCLUDER_M and abs(y) <= MAX_OCCLUDER_M and abs(heading) <= 360.0):
-        raise InputError("--occluder", "", f"X, Y within +-{MAX_OCCLUDER_M:g} m and HEADING "
-                         f"within +-360 deg, got {text!r}")
+        raise InputError(
+            "--occluder",
+            "",
+            f"X, Y within +-{MAX_OCCLUDER_M:g} m and HEADING within +-360 deg, got {text!r}",
+        )
     try:
         target = load_target(kind.strip())
     except InputError as e:
@@ -244,8 +293,10 @@ def cmd_nearfield(args: argparse.Namespace) -> int:
         summary = write_nearfield(system, Path(args.out), res)
         write_manifest(args.out)
     bs = summary["blind_spot_m2"]
-    print(f"{args.out}: blind spots {bs['exact']:.2f} m2 exact, {bs['grid']:.2f} m2 on the "
-          f"{res:g} m grid")
+    print(
+        f"{args.out}: blind spots {bs['exact']:.2f} m2 exact, {bs['grid']:.2f} m2 on the "
+        f"{res:g} m grid"
+    )
     return 0
 
 
@@ -259,28 +310,46 @@ def cmd_farfield(args: argparse.Namespace) -> int:
 
     length = _positive(args.length, "--length")
     if length > MAX_FARFIELD_LENGTH_M:
-        raise InputError("--length", "", f"must be at most {MAX_FARFIELD_LENGTH_M:g} m, got "
-                         f"{length!r}")
-    setup = FarFieldSetup(road=args.road, road_id=args.road_id, ego_lane=args.ego_lane,
-                          target_lane=args.target_lane, ego_s_m=args.ego_s, length_m=length,
-                          target=args.target)
+        raise InputError(
+            "--length", "", f"must be at most {MAX_FARFIELD_LENGTH_M:g} m, got {length!r}"
+        )
+    setup = FarFieldSetup(
+        road=args.road,
+        road_id=args.road_id,
+        ego_lane=args.ego_lane,
+        target_lane=args.target_lane,
+        ego_s_m=args.ego_s,
+        length_m=length,
+        target=args.target,
+    )
     net = read_opendrive(resolve_road(args.road))
     road = net.road(args.road_id)
     if not (0.0 <= args.ego_s <= road.length):
-        raise InputError("--ego-s", "", f"must be within 0..{road.length:g} m of road "
-                         f"{args.road_id}, got {args.ego_s!r}")
+        raise InputError(
+            "--ego-s",
+            "",
+            f"must be within 0..{road.length:g} m of road {args.road_id}, got {args.ego_s!r}",
+        )
     for opt, lane in (("--ego-lane", args.ego_lane), ("--target-lane", args.target_lane)):
         if not net.lane_exists(args.road_id, lane, args.ego_s):
-            raise InputError(opt, "", f"lane {lane} does not exist on road {args.road_id} "
-                             f"at s = {args.ego_s:g} m")
+            raise InputError(
+                opt,
+                "",
+                f"lane {lane} does not exist on road {args.road_id} at s = {args.ego_s:g} m",
+            )
     system = load_system(args.vehicle)
     bodies = args.target_model == "body"
     with removed_on_error(args.out):
         scene, ff = run_farfield(system, args.environment, setup, net, bodies=bodies)
-        write_farfield(scene, ff, Path(args.out), f"{system.name}, {args.environment}: "
-                       f"{args.target} ({args.target_model}) on lane {args.target_lane}",
-                       extra={"setup": setup.__dict__, "target_model": _target_model(bodies)},
-                       bodies=bodies)
+        write_farfield(
+            scene,
+            ff,
+            Path(args.out),
+            f"{system.name}, {args.environment}: "
+            f"{args.target} ({args.target_model}) on lane {args.target_lane}",
+            extra={"setup": setup.__dict__, "target_model": _target_model(bodies)},
+            bodies=bodies,
+        )
         write_manifest(args.out)
     print(", ".join(f"{k} {v:.0f} m" for k, v in ff.levels_m.items()))
     return 0
@@ -288,8 +357,11 @@ def cmd_farfield(args: argparse.Namespace) -> int:
 
 def _target_model(bodies: bool) -> str:
     """How a far-field target was modelled (for the summary)."""
-    return ("body (coverage.body), heading along the lane" if bodies
-            else "point at the target's reference height (the paper's setting)")
+    return (
+        "body (coverage.body), heading along the lane"
+        if bodies
+        else "point at the target's reference height (the paper's setting)"
+    )
 
 
 def cmd_paper(args: argparse.Namespace) -> int:
@@ -300,12 +372,16 @@ def cmd_paper(args: argparse.Namespace) -> int:
     write_manifest(args.out)
     for name, ok in result["checks"].items():
         print(f"[{'ok' if ok else 'FAIL'}] {name}")
-    print("sensitivity of Table IV to the calibrated parameters (sensitivity.csv): "
-          "agreement shows the model can reproduce the paper, not that it predicts it")
+    print(
+        "sensitivity of Table IV to the calibrated parameters (sensitivity.csv): "
+        "agreement shows the model can reproduce the paper, not that it predicts it"
+    )
     for r in result["sensitivity"]:
-        print(f"  {r['parameter']} = {r['value']:g} {r['unit']}: largest change "
-              f"{r['max_change_m']:+.0f} m ({r['cell']}), blind spots "
-              f"{r['nearfield_change_m2']:+.2f} m2")
+        print(
+            f"  {r['parameter']} = {r['value']:g} {r['unit']}: largest change "
+            f"{r['max_change_m']:+.0f} m ({r['cell']}), blind spots "
+            f"{r['nearfield_change_m2']:+.2f} m2"
+        )
     return 0
 
 
@@ -315,25 +391,41 @@ def cmd_search(args: argparse.Namespace) -> int:
 
     env_file = Path(args.environments_file) if args.environments_file else None
     outcome = run_search(
-        args.vehicle, _families(args.families), _environments(args.environments, env_file),
-        args.budget, args.seed, args.top,
-        Path(args.out), strategy=args.strategy, mode=args.pd, sun_search=not args.no_sun,
+        args.vehicle,
+        _families(args.families),
+        _environments(args.environments, env_file),
+        args.budget,
+        args.seed,
+        args.top,
+        Path(args.out),
+        strategy=args.strategy,
+        mode=args.pd,
+        sun_search=not args.no_sun,
         environments_file=Path(args.environments_file) if args.environments_file else None,
-        detection=args.detection, workers=args.workers, resume=args.resume,
-        executor=args.executor, scheduler=args.scheduler, seeds=args.seeds)
+        detection=args.detection,
+        workers=args.workers,
+        resume=args.resume,
+        executor=args.executor,
+        scheduler=args.scheduler,
+        seeds=args.seeds,
+    )
     write_manifest(args.out)
     crit = sum(1 for r in outcome.ranking if r["class"] == "sensor-critical")
     d = outcome.summary["lookup_vs_exact"]
     if args.pd == "lookup" and d.get("reevaluated"):
-        print(f"lookup vs exact over the {d['reevaluated']} best candidates (re-evaluated "
-              f"exactly; every reported number is exact): mean |dP_collision| "
-              f"{d['mean_abs_diff_collision_probability']:.3g}, max "
-              f"{d['max_abs_diff_collision_probability']:.3g}; sensor-critical "
-              f"{d['sensor_critical_lookup']} by lookup, {d['sensor_critical_exact']} "
-              f"exactly, {d['sensor_critical_both']} both")
-    print(f"{args.out}: {outcome.evaluated} evaluated, {outcome.reused} reused, "
-          f"{len(outcome.ranking)} ranked ({crit} sensor-critical), best collision "
-          f"probability {outcome.summary['best_collision_probability']:.3g}")
+        print(
+            f"lookup vs exact over the {d['reevaluated']} best candidates (re-evaluated "
+            f"exactly; every reported number is exact): mean |dP_collision| "
+            f"{d['mean_abs_diff_collision_probability']:.3g}, max "
+            f"{d['max_abs_diff_collision_probability']:.3g}; sensor-critical "
+            f"{d['sensor_critical_lookup']} by lookup, {d['sensor_critical_exact']} "
+            f"exactly, {d['sensor_critical_both']} both"
+        )
+    print(
+        f"{args.out}: {outcome.evaluated} evaluated, {outcome.reused} reused, "
+        f"{len(outcome.ranking)} ranked ({crit} sensor-critical), best collision "
+        f"probability {outcome.summary['best_collision_probability']:.3g}"
+    )
     return 0
 
 
@@ -369,16 +461,23 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         if why:
             raise InputError("param", name, why)
     ev = evaluate_candidate(
-        args.vehicle, args.family, args.environment, parse_sun(args.sun), args.param or [],
+        args.vehicle,
+        args.family,
+        args.environment,
+        parse_sun(args.sun),
+        args.param or [],
         Path(args.out),
         Path(args.environments_file) if args.environments_file else None,
-        Path(args.run) if args.run else None)
+        Path(args.run) if args.run else None,
+    )
     m = ev["metrics"]
     if not ev["feasible"]:
         print(f"{args.out}: infeasible: {ev['note']}")
     else:
-        print(f"{args.out}: {ev['class']}, P(collision) {m['collision_probability']:.3g}, "
-              f"impact {m['impact_speed_kmh']:.1f} km/h")
+        print(
+            f"{args.out}: {ev['class']}, P(collision) {m['collision_probability']:.3g}, "
+            f"impact {m['impact_speed_kmh']:.1f} km/h"
+        )
     return 0
 
 
@@ -392,13 +491,14 @@ def cmd_compare(args: argparse.Namespace) -> int:
     # both must be search runs with readable rankings: refused before anything is written
     check_rankings(Path(args.run_a), Path(args.run_b))
     with removed_on_error(args.out):
-        html_path, _ = write_compare_report(Path(args.run_a), Path(args.run_b),
-                                            Path(args.out))
+        html_path, _ = write_compare_report(Path(args.run_a), Path(args.run_b), Path(args.out))
         write_manifest(args.out)
     rows = json.loads((Path(args.out) / "comparison.json").read_text(encoding="utf-8"))["rows"]
     who = sorted({str(r["critical_for"]) for r in rows})
-    print(f"{args.out}: {len(rows)} scenarios compared; critical for: {', '.join(who)}; "
-          f"maps, difference maps and report: {html_path}")
+    print(
+        f"{args.out}: {len(rows)} scenarios compared; critical for: {', '.join(who)}; "
+        f"maps, difference maps and report: {html_path}"
+    )
     return 0
 
 
@@ -408,10 +508,13 @@ def cmd_export(args: argparse.Namespace) -> int:
 
     out = Path(args.out) if args.out else None
     with removed_on_error(out or args.run):  # a failed export leaves no partial catalog
-        index = export_catalog(Path(args.run), out, osc_version=args.osc_version,
-                               top=args.top, style=args.style)
-    print(f"{out or args.run}: {len(index['scenarios'])} scenarios, {args.style} style, "
-          f"OpenSCENARIO {args.osc_version}, every file XSD-valid")
+        index = export_catalog(
+            Path(args.run), out, osc_version=args.osc_version, top=args.top, style=args.style
+        )
+    print(
+        f"{out or args.run}: {len(index['scenarios'])} scenarios, {args.style} style, "
+        f"OpenSCENARIO {args.osc_version}, every file XSD-valid"
+    )
     return 0
 
 
@@ -420,40 +523,71 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     from sensorgap.export.simulate import simulate_catalog
 
     refuse_if_changed(args.catalog, ("simulation.csv",))  # its manifest is rewritten
-    rows = simulate_catalog(Path(args.catalog), args.esmini, timeout_s=args.timeout,
-                            step_s=args.step, ego_reaction=args.ego_reaction)
+    rows = simulate_catalog(
+        Path(args.catalog),
+        args.esmini,
+        timeout_s=args.timeout,
+        step_s=args.step,
+        ego_reaction=args.ego_reaction,
+    )
     write_manifest(args.catalog, ("simulation.csv",))
     ok = sum(1 for r in rows if r.get("status") == "ok")
     within = sum(1 for r in rows if r.get("within_0p5m") == "yes")
     coll = sum(1 for r in rows if r.get("collision_agrees") == "yes")
     trig = [r for r in rows if r.get("trigger_agrees")]
     trig_ok = sum(1 for r in trig if r["trigger_agrees"] == "yes")
-    triggers = (f", {trig_ok}/{len(trig)} with their relative triggers within 0.1 s / 0.5 m "
-                "of the plan" if trig else "")
-    print(f"{args.catalog}: {ok}/{len(rows)} ran cleanly to the end, {within} within 0.5 m "
-          f"of the plan, {coll} with the plan's collision outcome (esmini --collision)"
-          f"{triggers}")
+    triggers = (
+        f", {trig_ok}/{len(trig)} with their relative triggers within 0.1 s / 0.5 m of the plan"
+        if trig
+        else ""
+    )
+    print(
+        f"{args.catalog}: {ok}/{len(rows)} ran cleanly to the end, {within} within 0.5 m "
+        f"of the plan, {coll} with the plan's collision outcome (esmini --collision)"
+        f"{triggers}"
+    )
     if args.ego_reaction:
-        runs = [r[k] for r in rows for k in r if k.startswith("react_")
-                and k.endswith("_agrees") and r[k]]
-        tol = [r[k] for r in rows for k in r if k.startswith("react_")
-               and k.endswith("_within_plan") and r[k]]
-        same = sum(1 for r in rows for q in ("median", "p90")
-                   if r.get(f"react_{q}_agrees") == "yes"
-                   and r.get(f"react_{q}_collision_predicted_s", "") != ""
-                   and r.get(f"react_{q}_collision_esmini_s", "") != ""
-                   and abs(float(r[f"react_{q}_collision_predicted_s"])
-                           - float(r[f"react_{q}_collision_esmini_s"])) <= args.step + 1e-9)
-        hits = sum(1 for r in rows for q in ("median", "p90")
-                   if r.get(f"react_{q}_agrees") == "yes"
-                   and r.get(f"react_{q}_collision_predicted_s", "") != "")
-        print(f"  ego reaction (brake at the median / 90th-percentile confirmation): "
-              f"{runs.count('yes')}/{len(runs)} runs agree with the reaction model's "
-              f"prediction (collision or not, impact speed within 2 km/h); {same}/{hits} "
-              "of the agreeing collisions at the predicted step (one step); "
-              f"{tol.count('yes')}/{len(tol)} within the plan's tolerance (impact speeds "
-              "whose braking distances differ by at most the 0.5 m to which esmini's ego "
-              "follows the plan)")
+        runs = [
+            r[k]
+            for r in rows
+            for k in r
+            if k.startswith("react_") and k.endswith("_agrees") and r[k]
+        ]
+        tol = [
+            r[k]
+            for r in rows
+            for k in r
+            if k.startswith("react_") and k.endswith("_within_plan") and r[k]
+        ]
+        same = sum(
+            1
+            for r in rows
+            for q in ("median", "p90")
+            if r.get(f"react_{q}_agrees") == "yes"
+            and r.get(f"react_{q}_collision_predicted_s", "") != ""
+            and r.get(f"react_{q}_collision_esmini_s", "") != ""
+            and abs(
+                float(r[f"react_{q}_collision_predicted_s"])
+                - float(r[f"react_{q}_collision_esmini_s"])
+            )
+            <= args.step + 1e-9
+        )
+        hits = sum(
+            1
+            for r in rows
+            for q in ("median", "p90")
+            if r.get(f"react_{q}_agrees") == "yes"
+            and r.get(f"react_{q}_collision_predicted_s", "") != ""
+        )
+        print(
+            f"  ego reaction (brake at the median / 90th-percentile confirmation): "
+            f"{runs.count('yes')}/{len(runs)} runs agree with the reaction model's "
+            f"prediction (collision or not, impact speed within 2 km/h); {same}/{hits} "
+            "of the agreeing collisions at the predicted step (one step); "
+            f"{tol.count('yes')}/{len(tol)} within the plan's tolerance (impact speeds "
+            "whose braking distances differ by at most the 0.5 m to which esmini's ego "
+            "follows the plan)"
+        )
     for r in rows:
         if r.get("status") != "ok":
             print(f"  {r['scenario_id']}: {r['status']}: {r.get('message', '')}")
@@ -528,47 +662,73 @@ def cmd_corridor(args: argparse.Namespace) -> int:
     try:
         c = corridor_search(scene, args.start, args.goal, lanes, args.speed, lateral_res=res)
     except InputError as exc:  # name the options of this command
-        flag = {"x_start/x_goal": "--start/--goal", "lanes": "--lanes",
-                "lateral_res": "--lateral-res"}.get(exc.field)
+        flag = {
+            "x_start/x_goal": "--start/--goal",
+            "lanes": "--lanes",
+            "lateral_res": "--lateral-res",
+        }.get(exc.field)
         if exc.source == "corridor" and flag:
             raise InputError(flag, "", exc.message) from None
         raise
     out = Path(args.out)
     with removed_on_error(out):
         _write_corridor(args, scene, c, lanes, res, out)
-    print(f"{out}: P(undetected along the corridor) = {c.p_undetected:.3g} "
-          f"(log10 {c.log10_p_undetected:.1f}) over {c.t[-1]:.1f} s")
+    print(
+        f"{out}: P(undetected along the corridor) = {c.p_undetected:.3g} "
+        f"(log10 {c.log10_p_undetected:.1f}) over {c.t[-1]:.1f} s"
+    )
     return 0
 
 
-def _write_corridor(args: argparse.Namespace, scene: Scene, c: Any,
-                    lanes: list[tuple[float, float]], res: float, out: Path) -> None:
+def _write_corridor(
+    args: argparse.Namespace,
+    scene: Scene,
+    c: Any,
+    lanes: list[tuple[float, float]],
+    res: float,
+    out: Path,
+) -> None:
     from sensorgap.coverage import GridSpec, evaluate_grid
     from sensorgap.coverage.plot import coverage_figure, save_figure
     from sensorgap.filesio import write_csv, write_json
 
     out.mkdir(parents=True, exist_ok=True)
-    write_csv(out / "corridor.csv", ["t", "x", "y", "heading", "pd"],
-              [c.t, c.x, c.y, c.heading, c.pd])
+    write_csv(
+        out / "corridor.csv", ["t", "x", "y", "heading", "pd"], [c.t, c.x, c.y, c.heading, c.pd]
+    )
     ys = [lo for lo, _ in lanes] + [hi for _, hi in lanes]
     x0, x1 = min(args.start, -10.0) - 5.0, max(args.goal, 10.0) + 5.0
     y0, y1 = min(ys) - 10.0, max(ys) + 10.0
     plot_res = max(0.25, math.sqrt((x1 - x0) * (y1 - y0) / 4e6))  # background <= 4e6 cells
     grid = GridSpec(x0, x1, y0, y1, plot_res, scene.target.reference_height_m)
-    fig = coverage_figure(evaluate_grid(scene, grid, workers=2), scene.system,
-                          f"{scene.system.name}: least-detectable {scene.target.name} path, "
-                          f"{scene.conditions.env.name}, P_undet = {c.p_undetected:.3g}")
+    fig = coverage_figure(
+        evaluate_grid(scene, grid, workers=2),
+        scene.system,
+        f"{scene.system.name}: least-detectable {scene.target.name} path, "
+        f"{scene.conditions.env.name}, P_undet = {c.p_undetected:.3g}",
+    )
     fig.axes[0].plot(c.x, c.y, color="magenta", linewidth=2.0, label="corridor")
     fig.axes[0].legend(loc="upper left", fontsize=8)
     save_figure(fig, out / "corridor.png")
-    write_json(out / "summary.json", {
-        "vehicle": scene.system.name, "environment": scene.conditions.env.name,
-        "target": scene.target.name, "start_x_m": args.start, "goal_x_m": args.goal,
-        "lanes_m": lanes, "speed_rel_m_s": args.speed, "lateral_res_m": res,
-        "p_undetected": c.p_undetected, "log10_p_undetected": c.log10_p_undetected,
-        "duration_s": float(c.t[-1]),
-        "min_pd": float(c.pd.min()), "max_pd": float(c.pd.max()),
-        "files": ["corridor.csv", "corridor.png", "summary.json"]})
+    write_json(
+        out / "summary.json",
+        {
+            "vehicle": scene.system.name,
+            "environment": scene.conditions.env.name,
+            "target": scene.target.name,
+            "start_x_m": args.start,
+            "goal_x_m": args.goal,
+            "lanes_m": lanes,
+            "speed_rel_m_s": args.speed,
+            "lateral_res_m": res,
+            "p_undetected": c.p_undetected,
+            "log10_p_undetected": c.log10_p_undetected,
+            "duration_s": float(c.t[-1]),
+            "min_pd": float(c.pd.min()),
+            "max_pd": float(c.pd.max()),
+            "files": ["corridor.csv", "corridor.png", "summary.json"],
+        },
+    )
     write_manifest(out)
 
 
@@ -597,9 +757,16 @@ def cmd_run(args: argparse.Namespace) -> int:
 
     families = _families(args.families)
     load_families(families)  # every family (and its road) checked before any work
-    run_default(Path(args.out), workers=args.workers, system_name=args.vehicle,
-                budget=args.budget, seed=args.seed, families=families,
-                environments=_environments(args.environments, None), seeds=args.seeds)
+    run_default(
+        Path(args.out),
+        workers=args.workers,
+        system_name=args.vehicle,
+        budget=args.budget,
+        seed=args.seed,
+        families=families,
+        environments=_environments(args.environments, None),
+        seeds=args.seeds,
+    )
     write_manifest(args.out)
     return 0
 
@@ -607,8 +774,10 @@ def cmd_run(args: argparse.Namespace) -> int:
 def _add_scene_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--vehicle", required=True, help="preset name (system_a) or .toml path")
     p.add_argument("--environment", required=True, help="environment preset name")
-    p.add_argument("--environments-file",
-                   help="environments file defining the presets (default: the shipped ones)")
+    p.add_argument(
+        "--environments-file",
+        help="environments file defining the presets (default: the shipped ones)",
+    )
     p.add_argument("--target", required=True, help="pedestrian | bike | car | truck")
 
 
@@ -646,9 +815,13 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("probe", help="SNR and Pd per sensor at points from a CSV")
     _add_scene_args(p)
     p.add_argument("--points", required=True, help="CSV with columns x,y[,z] (vehicle frame, m)")
-    p.add_argument("--heading", type=_decimal, default=None,
-                   help="evaluate target bodies centred at the points at this heading "
-                        "relative to the ego, deg (default: points)")
+    p.add_argument(
+        "--heading",
+        type=_decimal,
+        default=None,
+        help="evaluate target bodies centred at the points at this heading "
+        "relative to the ego, deg (default: points)",
+    )
     p.add_argument("--out", help="output CSV (default: stdout)")
     p.set_defaults(func=cmd_probe)
 
@@ -658,13 +831,22 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--resolution", type=_decimal, default=0.5, help="cell size, m")
     p.add_argument("--extent", default="-60,160,-40,40", help="XMIN,XMAX,YMIN,YMAX in m")
     p.add_argument("--per-sensor", action="store_true", help="also store each sensor's map")
-    p.add_argument("--heading", type=_decimal, default=None,
-                   help="target bodies centred at the cells at this heading relative to the "
-                        "ego, deg (default: points at --height)")
-    p.add_argument("--occluder", action="append", default=[], metavar="KIND@X,Y,HEADING",
-                   help="a road user standing still as an occluder (a target class of "
-                   "targets.toml sized box, centre X,Y m in the vehicle frame, HEADING deg "
-                   "relative to the ego); repeatable; needs --heading (target bodies)")
+    p.add_argument(
+        "--heading",
+        type=_decimal,
+        default=None,
+        help="target bodies centred at the cells at this heading relative to the "
+        "ego, deg (default: points at --height)",
+    )
+    p.add_argument(
+        "--occluder",
+        action="append",
+        default=[],
+        metavar="KIND@X,Y,HEADING",
+        help="a road user standing still as an occluder (a target class of "
+        "targets.toml sized box, centre X,Y m in the vehicle frame, HEADING deg "
+        "relative to the ego); repeatable; needs --heading (target bodies)",
+    )
     p.add_argument("--workers", type=_integer, default=2, help="threads")
     p.add_argument("--out", required=True, help="output folder")
     p.set_defaults(func=cmd_coverage)
@@ -685,9 +867,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--target-lane", type=_integer, default=-2, help="target lane id")
     p.add_argument("--target", default="car", help="pedestrian | bike | car | truck")
     p.add_argument("--length", type=_decimal, default=303.0, help="path length ahead, m")
-    p.add_argument("--target-model", choices=("body", "point"), default="body",
-                   help="the target as its body heading along the lane, or as a point at "
-                   "its reference height (the paper's setting)")
+    p.add_argument(
+        "--target-model",
+        choices=("body", "point"),
+        default="body",
+        help="the target as its body heading along the lane, or as a point at "
+        "its reference height (the paper's setting)",
+    )
     p.add_argument("--out", required=True, help="output folder")
     p.set_defaults(func=cmd_farfield)
 
@@ -697,58 +883,97 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("search", help="search for critical scenarios (undetected and dangerous)")
     p.add_argument("--vehicle", required=True, help="preset name or .toml path")
-    p.add_argument("--families", default="all",
-                   help="'all' (every family of templates/scenarios) or comma-separated "
-                   "family names or .toml paths")
-    p.add_argument("--environments", default="all",
-                   help="'all' (every preset) or comma-separated environment presets")
-    p.add_argument("--environments-file",
-                   help="environments file defining the presets (default: the shipped ones)")
+    p.add_argument(
+        "--families",
+        default="all",
+        help="'all' (every family of templates/scenarios) or comma-separated "
+        "family names or .toml paths",
+    )
+    p.add_argument(
+        "--environments",
+        default="all",
+        help="'all' (every preset) or comma-separated environment presets",
+    )
+    p.add_argument(
+        "--environments-file",
+        help="environments file defining the presets (default: the shipped ones)",
+    )
     p.add_argument("--budget", type=_integer, default=200, help="evaluations in total")
     p.add_argument("--seed", type=_integer, default=0, help="random seed")
-    p.add_argument("--seeds", type=_integer, default=1,
-                   help="run the budget as this many independent searches (1..10) and "
-                   "say per ranked row how many found it (the ranking's stability)")
+    p.add_argument(
+        "--seeds",
+        type=_integer,
+        default=1,
+        help="run the budget as this many independent searches (1..10) and "
+        "say per ranked row how many found it (the ranking's stability)",
+    )
     p.add_argument("--top", type=_integer, default=10, help="ranked scenarios to write")
-    p.add_argument("--strategy", default="de",
-                   help="de | cem | lhs | random | grid (or a plugin)")
-    p.add_argument("--pd", default="lookup", choices=["lookup", "exact"],
-                   help="Pd per step from cached coverage maps or exact evaluation")
+    p.add_argument("--strategy", default="de", help="de | cem | lhs | random | grid (or a plugin)")
+    p.add_argument(
+        "--pd",
+        default="lookup",
+        choices=["lookup", "exact"],
+        help="Pd per step from cached coverage maps or exact evaluation",
+    )
     p.add_argument("--no-sun", action="store_true", help="do not search sun azimuth/elevation")
-    p.add_argument("--detection", default="cumulative",
-                   help="reliable detection: 'cumulative' (Pd >= 0.99) or M/N confirmation")
-    p.add_argument("--workers", type=_integer, default=2,
-                   help="threads per batch, or Dask worker processes")
-    p.add_argument("--executor", default="local", choices=["local", "dask"],
-                   help="evaluate batches here (threads) or on Dask distributed")
+    p.add_argument(
+        "--detection",
+        default="cumulative",
+        help="reliable detection: 'cumulative' (Pd >= 0.99) or M/N confirmation",
+    )
+    p.add_argument(
+        "--workers", type=_integer, default=2, help="threads per batch, or Dask worker processes"
+    )
+    p.add_argument(
+        "--executor",
+        default="local",
+        choices=["local", "dask"],
+        help="evaluate batches here (threads) or on Dask distributed",
+    )
     p.add_argument("--scheduler", help="Dask scheduler address (default: a local cluster)")
-    p.add_argument("--resume", action="store_true",
-                   help="continue the search stored in --out (same settings)")
+    p.add_argument(
+        "--resume", action="store_true", help="continue the search stored in --out (same settings)"
+    )
     p.add_argument("--out", required=True, help="run folder")
     p.set_defaults(func=cmd_search)
 
     p = sub.add_parser("evaluate", help="one candidate, exact: metrics and a per-step trace")
     p.add_argument("--vehicle", help="preset name or .toml path (or give --run)")
-    p.add_argument("--run", help="search run folder: use the vehicle, environments, "
-                   "families, targets and reaction model it recorded")
+    p.add_argument(
+        "--run",
+        help="search run folder: use the vehicle, environments, "
+        "families, targets and reaction model it recorded",
+    )
     p.add_argument("--family", required=True, help="family name or .toml path")
     p.add_argument("--environment", required=True, help="environment preset")
     p.add_argument("--environments-file", help="environments file (default: shipped presets)")
     p.add_argument("--sun", help="AZ/EL: world-frame sun, deg (default: the preset's)")
-    p.add_argument("--param", action="append", metavar="NAME=VALUE",
-                   help="a family parameter (repeat for each)")
+    p.add_argument(
+        "--param",
+        action="append",
+        metavar="NAME=VALUE",
+        help="a family parameter (repeat for each)",
+    )
     p.add_argument("--out", required=True, help="output folder")
     p.set_defaults(func=cmd_evaluate)
 
     p = sub.add_parser("export", help="OpenSCENARIO + OpenDRIVE catalog of a search run")
     p.add_argument("--run", required=True, help="search run folder (ranking.json)")
     p.add_argument("--out", help="catalog folder (default: the run folder)")
-    p.add_argument("--osc-version", default="1.2", choices=["1.0", "1.1", "1.2", "1.3"],
-                   help="OpenSCENARIO version")
+    p.add_argument(
+        "--osc-version",
+        default="1.2",
+        choices=["1.0", "1.1", "1.2", "1.3"],
+        help="OpenSCENARIO version",
+    )
     p.add_argument("--top", type=_integer, help="export only the first N ranked scenarios")
-    p.add_argument("--style", default="maneuver", choices=["maneuver", "replay"],
-                   help="maneuver: actions started relative to the ego, for a system under "
-                   "test (default); replay: the evaluated paths as timed polylines")
+    p.add_argument(
+        "--style",
+        default="maneuver",
+        choices=["maneuver", "replay"],
+        help="maneuver: actions started relative to the ego, for a system under "
+        "test (default); replay: the evaluated paths as timed polylines",
+    )
     p.set_defaults(func=cmd_export)
 
     p = sub.add_parser("simulate", help="run a catalog in esmini and compare the paths")
@@ -756,16 +981,20 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--esmini", help="esmini executable (default: $SENSORGAP_ESMINI or PATH)")
     p.add_argument("--timeout", type=_decimal, default=60.0, help="hard limit per scenario, s")
     p.add_argument("--step", type=_decimal, default=0.05, help="fixed simulation step, s")
-    p.add_argument("--ego-reaction", action="store_true",
-                   help="also run each scenario with the ego braking at the median and "
-                   "90th-percentile confirmation time (reaction model) and compare esmini's "
-                   "collision and impact speed with the prediction")
+    p.add_argument(
+        "--ego-reaction",
+        action="store_true",
+        help="also run each scenario with the ego braking at the median and "
+        "90th-percentile confirmation time (reaction model) and compare esmini's "
+        "collision and impact speed with the prediction",
+    )
     p.set_defaults(func=cmd_simulate)
 
     p = sub.add_parser("report", help="audit report (report.html + report.md) of a run")
     p.add_argument("--run", help="run folder (make run: output/system_a)")
-    p.add_argument("--compare", nargs=2, metavar=("RUN_A", "RUN_B"),
-                   help="two run folders side by side")
+    p.add_argument(
+        "--compare", nargs=2, metavar=("RUN_A", "RUN_B"), help="two run folders side by side"
+    )
     p.add_argument("--out", help="output folder of --compare (default: beside RUN_A)")
     p.set_defaults(func=cmd_report)
 
@@ -778,8 +1007,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("folder", help="run or catalog folder")
     p.set_defaults(func=cmd_verify)
 
-    p = sub.add_parser("compare", help="two vehicles side by side: maps, difference maps, "
-                       "cross-evaluated critical scenarios, report (A vs B)")
+    p = sub.add_parser(
+        "compare",
+        help="two vehicles side by side: maps, difference maps, "
+        "cross-evaluated critical scenarios, report (A vs B)",
+    )
     p.add_argument("run_a", help="search run folder of the first vehicle")
     p.add_argument("run_b", help="search run folder of the second vehicle")
     p.add_argument("--out", required=True, help="output folder")
@@ -789,31 +1021,44 @@ def build_parser() -> argparse.ArgumentParser:
     _add_scene_args(p)
     p.add_argument("--start", type=_decimal, default=-60.0, help="start x (vehicle frame), m")
     p.add_argument("--goal", type=_decimal, default=6.0, help="critical-zone x, m")
-    p.add_argument("--lanes", default="-7.5:-3.75",
-                   help="lateral lane bands LO:HI[,LO:HI...] in the vehicle frame, m")
+    p.add_argument(
+        "--lanes",
+        default="-7.5:-3.75",
+        help="lateral lane bands LO:HI[,LO:HI...] in the vehicle frame, m",
+    )
     p.add_argument("--speed", type=_decimal, default=8.0, help="relative speed along x, m/s")
     p.add_argument("--lateral-res", type=_decimal, default=0.25, help="lattice row spacing, m")
     p.add_argument("--out", required=True, help="output folder")
     p.set_defaults(func=cmd_corridor)
 
     p = sub.add_parser("schema", help="JSON Schema of the config files")
-    p.add_argument("kind", nargs="?", default="all",
-                   choices=["all", "vehicle", "environments", "targets"])
+    p.add_argument(
+        "kind", nargs="?", default="all", choices=["all", "vehicle", "environments", "targets"]
+    )
     p.set_defaults(func=cmd_schema)
 
-    p = sub.add_parser("run", help="the main job for a vehicle: coverage, near field, far "
-                       "field, search, export, report into OUT/<vehicle>/")
+    p = sub.add_parser(
+        "run",
+        help="the main job for a vehicle: coverage, near field, far "
+        "field, search, export, report into OUT/<vehicle>/",
+    )
     p.add_argument("--vehicle", default="system_a", help="preset name or .toml path")
     p.add_argument("--out", default="output", help="output folder")
     p.add_argument("--budget", type=_integer, default=100_000, help="search evaluations in total")
     p.add_argument("--seed", type=_integer, default=1, help="random seed of the search")
-    p.add_argument("--seeds", type=_integer, default=3,
-                   help="the budget as this many independent searches (1..10): the report "
-                   "says how many found each top weakness")
-    p.add_argument("--families", default="all",
-                   help="'all' or comma-separated family names or .toml paths")
-    p.add_argument("--environments", default="all",
-                   help="'all' or comma-separated environment presets")
+    p.add_argument(
+        "--seeds",
+        type=_integer,
+        default=3,
+        help="the budget as this many independent searches (1..10): the report "
+        "says how many found each top weakness",
+    )
+    p.add_argument(
+        "--families", default="all", help="'all' or comma-separated family names or .toml paths"
+    )
+    p.add_argument(
+        "--environments", default="all", help="'all' or comma-separated environment presets"
+    )
     p.add_argument("--workers", type=_integer, default=2, help="threads")
     p.set_defaults(func=cmd_run)
     return parser
@@ -853,8 +1098,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         for name in ("out", "catalog"):  # '' would mean the working directory
             value = getattr(args, name, None)
             if isinstance(value, str) and not value.strip():
-                raise InputError(f"--{name}", "", "must name a folder or file (an empty "
-                                 "path would write into the working directory)")
+                raise InputError(
+                    f"--{name}",
+                    "",
+                    "must name a folder or file (an empty "
+                    "path would write into the working directory)",
+                )
         return func(args)
     except InputError as exc:
         _flag_sources(exc, parser)
@@ -863,9 +1112,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         return EXIT_INPUT
     except OSError as exc:  # disk full, file too large, permissions, a file as a folder
         where = exc.filename or "output"
-        print(f"sensorgap: error: {where}: cannot write or read: "
-              f"{exc.strerror or type(exc).__name__} (no partial file was left)",
-              file=sys.stderr)
+        print(
+            f"sensorgap: error: {where}: cannot write or read: "
+            f"{exc.strerror or type(exc).__name__} (no partial file was left)",
+            file=sys.stderr,
+        )
         return EXIT_INPUT
     except KeyboardInterrupt as exc:
         print("sensorgap: interrupted", file=sys.stderr)
@@ -874,8 +1125,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.debug:
             traceback.print_exc()
         msg = str(exc).splitlines()[0] if str(exc) else ""
-        print(f"sensorgap: internal error: {type(exc).__name__}: {msg} "
-              "(this is a bug; rerun with --debug for the traceback)", file=sys.stderr)
+        print(
+            f"sensorgap: internal error: {type(exc).__name__}: {msg} "
+            "(this is a bug; rerun with --debug for the traceback)",
+            file=sys.stderr,
+        )
         return EXIT_INTERNAL
     finally:
         signal.signal(signal.SIGTERM, previous)

@@ -19,8 +19,9 @@ class InputError(Exception):
         message: what is wrong and what is allowed.
     """
 
-    def __init__(self, source: str | Path, field: str, message: str,
-                 more: list[InputError] | None = None) -> None:
+    def __init__(
+        self, source: str | Path, field: str, message: str, more: list[InputError] | None = None
+    ) -> None:
         self.source = str(source)
         self.field = field
         self.message = message

@@ -42,9 +42,7 @@ def csv_bytes(columns: Sequence[str], data: Sequence[NDArray[Any]]) -> bytes:
     lines = [",".join(columns)]
     cols = [np.asarray(c) for c in data]
     n = len(cols[0]) if cols else 0
-    fmt = [
-        (format_float if c.dtype.kind == "f" else str) for c in cols
-    ]
+    fmt = [(format_float if c.dtype.kind == "f" else str) for c in cols]
     lists = [c.tolist() for c in cols]
     for i in range(n):
         lines.append(",".join(f(col[i]) for f, col in zip(fmt, lists, strict=True)))
@@ -113,8 +111,11 @@ def is_temporary(name: str) -> bool:
     """Whether a file name is a temporary file of ``sensorgap.atomic`` (``.NAME.*.tmp*``)
     or of an interrupted write (``*.tmp``), or an SQLite journal (``-journal``, ``-wal``,
     ``-shm``): never part of a finished run folder."""
-    return ((name.startswith(".") and ".tmp" in name) or name.endswith(".tmp")
-            or name.endswith(_JOURNAL_SUFFIXES))
+    return (
+        (name.startswith(".") and ".tmp" in name)
+        or name.endswith(".tmp")
+        or name.endswith(_JOURNAL_SUFFIXES)
+    )
 
 
 def _walk(root: Path) -> list[tuple[str, str]]:
@@ -128,8 +129,15 @@ def _walk(root: Path) -> list[tuple[str, str]]:
         for name in [*dirnames, *filenames]:
             full = Path(dirpath) / name
             mode = os.lstat(full).st_mode
-            kind = ("link" if stat.S_ISLNK(mode) else "dir" if stat.S_ISDIR(mode)
-                    else "file" if stat.S_ISREG(mode) else "other")
+            kind = (
+                "link"
+                if stat.S_ISLNK(mode)
+                else "dir"
+                if stat.S_ISDIR(mode)
+                else "file"
+                if stat.S_ISREG(mode)
+                else "other"
+            )
             out.append((full.relative_to(root).as_posix(), kind))
     return sorted(out)
 
@@ -173,8 +181,9 @@ def write_manifest(folder: str | Path, rewrites: tuple[str, ...] | None = None) 
             continue
         size, sha = _sha256_file(p)
         files[rel] = {"bytes": size, "sha256": sha}
-    return write_json(root / MANIFEST_NAME, {"algorithm": "sha256",
-                                              "files": dict(sorted(files.items()))})
+    return write_json(
+        root / MANIFEST_NAME, {"algorithm": "sha256", "files": dict(sorted(files.items()))}
+    )
 
 
 def _bad_entry(rel: object) -> str | None:
@@ -207,8 +216,12 @@ def read_manifest(folder: str | Path) -> dict[str, dict[str, Any]]:
     except RecursionError:
         raise InputError(path, "", "malformed manifest: nested too deeply") from None
     if not isinstance(data, dict) or not isinstance(data.get("files"), dict):
-        raise InputError(path, "files", "malformed manifest: expected an object with "
-                         "'files' mapping each relative path to its bytes and sha256")
+        raise InputError(
+            path,
+            "files",
+            "malformed manifest: expected an object with "
+            "'files' mapping each relative path to its bytes and sha256",
+        )
     if data.get("algorithm", "sha256") != "sha256":
         raise InputError(path, "algorithm", f"must be sha256, got {data.get('algorithm')!r}")
     files: dict[str, dict[str, Any]] = data["files"]
@@ -216,13 +229,21 @@ def read_manifest(folder: str | Path) -> dict[str, dict[str, Any]]:
         why = _bad_entry(rel)
         if why:
             raise InputError(path, f"files[{rel!r}]", why)
-        ok = (isinstance(meta, dict) and isinstance(meta.get("bytes"), int)
-              and not isinstance(meta.get("bytes"), bool) and meta["bytes"] >= 0
-              and isinstance(meta.get("sha256"), str) and len(meta["sha256"]) == 64
-              and set(meta["sha256"]) <= _SHA256_HEX)
+        ok = (
+            isinstance(meta, dict)
+            and isinstance(meta.get("bytes"), int)
+            and not isinstance(meta.get("bytes"), bool)
+            and meta["bytes"] >= 0
+            and isinstance(meta.get("sha256"), str)
+            and len(meta["sha256"]) == 64
+            and set(meta["sha256"]) <= _SHA256_HEX
+        )
         if not ok:
-            raise InputError(path, f"files[{rel!r}]", "expected {\"bytes\": a non-negative "
-                             "integer, \"sha256\": 64 lowercase hex digits}")
+            raise InputError(
+                path,
+                f"files[{rel!r}]",
+                'expected {"bytes": a non-negative integer, "sha256": 64 lowercase hex digits}',
+            )
     return files
 
 
@@ -232,7 +253,7 @@ def _written_by(rel: str, rewrites: tuple[str, ...]) -> bool:
     for w in rewrites:
         if w.endswith("/*"):
             head = w[:-1]
-            if rel.startswith(head) and "/" not in rel[len(head):]:
+            if rel.startswith(head) and "/" not in rel[len(head) :]:
                 return True
         elif rel == w.rstrip("/") or rel.startswith(w.rstrip("/") + "/"):
             return True
@@ -263,17 +284,24 @@ def refuse_if_changed(folder: str | Path, rewrites: tuple[str, ...]) -> None:
     # analysis, the export) stays listed (write_manifest with the same rewrites), so
     # verify still reports it; a certified file changed, or one of the run's own record
     # at the top of the folder (ranking, summary, run.json) lost, is refused
-    bad = [why for rel, why in _manifest_problems(root)
-           if not _written_by(rel, rewrites) and not why.endswith((
-               "(from an interrupted command; not in the manifest)", "is not in the manifest"))
-           and not (why.endswith(" is missing") and "/" in rel)]
+    bad = [
+        why
+        for rel, why in _manifest_problems(root)
+        if not _written_by(rel, rewrites)
+        and not why.endswith(
+            ("(from an interrupted command; not in the manifest)", "is not in the manifest")
+        )
+        and not (why.endswith(" is missing") and "/" in rel)
+    ]
     if bad:
-        more = f" (and {len(bad) - 1} more; run 'sensorgap verify {root}')" \
-            if len(bad) > 1 else ""
-        raise InputError(root / MANIFEST_NAME, "files",
-                         f"the folder no longer matches its manifest: {bad[0]}{more}; "
-                         "writing into it would certify that; restore the file or run "
-                         "the command again into a fresh folder")
+        more = f" (and {len(bad) - 1} more; run 'sensorgap verify {root}')" if len(bad) > 1 else ""
+        raise InputError(
+            root / MANIFEST_NAME,
+            "files",
+            f"the folder no longer matches its manifest: {bad[0]}{more}; "
+            "writing into it would certify that; restore the file or run "
+            "the command again into a fresh folder",
+        )
 
 
 def verify_manifest(folder: str | Path) -> list[str]:
@@ -301,15 +329,22 @@ def _manifest_problems(root: Path) -> list[tuple[str, str]]:
         if found != "file":
             problems.append((rel, f"{rel} is not a regular file"))
             continue
-        if meta["bytes"] != (root / rel).lstat().st_size \
-                or _sha256_file(root / rel) != (meta["bytes"], meta["sha256"]):
+        if meta["bytes"] != (root / rel).lstat().st_size or _sha256_file(root / rel) != (
+            meta["bytes"],
+            meta["sha256"],
+        ):
             problems.append((rel, f"{rel} was changed (size or SHA-256 differs)"))
     for rel, kind in entries.items():
         if kind in ("dir", "link") or rel == MANIFEST_NAME or rel in listed:
             continue
         if is_temporary(rel.rsplit("/", 1)[-1]):
-            problems.append((rel, f"{rel} is a left-over temporary or journal file (from an "
-                             "interrupted command; not in the manifest)"))
+            problems.append(
+                (
+                    rel,
+                    f"{rel} is a left-over temporary or journal file (from an "
+                    "interrupted command; not in the manifest)",
+                )
+            )
         else:
             problems.append((rel, f"{rel} is not in the manifest"))
     return problems

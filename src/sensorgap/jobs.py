@@ -90,8 +90,7 @@ class _Clock:
         return time.perf_counter() - self.t0
 
 
-def _coverage(system_name: str, out: Path, workers: int,
-              environments: list[str]) -> dict[str, Any]:
+def _coverage(system_name: str, out: Path, workers: int, environments: list[str]) -> dict[str, Any]:
     """Coverage maps of car bodies heading as the ego (``COVERAGE_HEADING_DEG``), one per
     environment preset, on ``workers`` threads (the body kernels release the GIL)."""
     system = load_system(system_name)
@@ -100,8 +99,7 @@ def _coverage(system_name: str, out: Path, workers: int,
 
     grid = GridSpec(xmin, xmax, ymin, ymax, res, target.reference_height_m)
     names = list(environments)
-    scenes = {n: Scene(system, target, Conditions.from_config(load_environment(n)))
-              for n in names}
+    scenes = {n: Scene(system, target, Conditions.from_config(load_environment(n))) for n in names}
 
     def one(env_name: str) -> GridCoverage:
         return compute_coverage(scenes[env_name], grid, heading_deg=COVERAGE_HEADING_DEG)
@@ -110,8 +108,13 @@ def _coverage(system_name: str, out: Path, workers: int,
         covs = list(pool.map(one, names))
     areas = {}
     for name, cov in zip(names, covs, strict=True):  # figures on this thread (pyplot)
-        summary = write_coverage(scenes[name], grid, out / "coverage" / f"{target.name}_{name}",
-                                 heading_deg=COVERAGE_HEADING_DEG, cov=cov)
+        summary = write_coverage(
+            scenes[name],
+            grid,
+            out / "coverage" / f"{target.name}_{name}",
+            heading_deg=COVERAGE_HEADING_DEG,
+            cov=cov,
+        )
         areas[name] = dict(summary["area_m2_by_level"])
     return areas
 
@@ -123,21 +126,31 @@ def _farfield(system_name: str, out: Path, environments: list[str]) -> None:
     envs, levels, metres = [], [], []
     for env_name in environments:
         scene, ff = run_farfield(system, env_name, setup, net, bodies=True)
-        write_farfield(scene, ff, out / "farfield" / env_name,
-                       f"{system.name}, {env_name}: car body along the right lane",
-                       extra={"setup": setup.__dict__,
-                              "target_model": "body (coverage.body), heading along the lane"},
-                       bodies=True)
+        write_farfield(
+            scene,
+            ff,
+            out / "farfield" / env_name,
+            f"{system.name}, {env_name}: car body along the right lane",
+            extra={
+                "setup": setup.__dict__,
+                "target_model": "body (coverage.body), heading along the lane",
+            },
+            bodies=True,
+        )
         for level, _ in LEVELS:
             envs.append(env_name)
             levels.append(level)
             metres.append(round(ff.levels_m[level], 1))
-    write_csv(out / "farfield" / "table_iv.csv", ["environment", "level", "metres"],
-              [np.array(envs), np.array(levels), np.array(metres, dtype=np.float64)])
+    write_csv(
+        out / "farfield" / "table_iv.csv",
+        ["environment", "level", "metres"],
+        [np.array(envs), np.array(levels), np.array(metres, dtype=np.float64)],
+    )
 
 
-def _analysis(ref: str, folder: Path, workers: int,
-              environments: list[str]) -> tuple[dict[str, float], float]:
+def _analysis(
+    ref: str, folder: Path, workers: int, environments: list[str]
+) -> tuple[dict[str, float], float]:
     """The stages the search does not need: coverage maps, near field, far field (each
     deterministic, each writing its own folder). Returns (wall-clock s per stage, this
     process's peak memory, MiB); run in a process of its own beside the search."""
@@ -145,7 +158,8 @@ def _analysis(ref: str, folder: Path, workers: int,
     stages: list[tuple[str, Callable[[], Any]]] = [
         ("coverage maps", lambda: _coverage(ref, folder, workers, environments)),
         ("near field", lambda: write_nearfield(load_system(ref), folder / "nearfield")),
-        ("far field", lambda: _farfield(ref, folder, environments))]
+        ("far field", lambda: _farfield(ref, folder, environments)),
+    ]
     for name, fn in stages:
         t = time.perf_counter()
         fn()
@@ -162,11 +176,17 @@ def vehicle_ref(vehicle: str) -> tuple[str, str]:
     return vehicle, vehicle
 
 
-def run_default(out: Path, workers: int = 2, system_name: str = DEFAULT_SYSTEM,
-                budget: int = DEFAULT_BUDGET, top: int = DEFAULT_TOP,
-                seed: int = DEFAULT_SEED, families: list[str] | None = None,
-                environments: list[str] | None = None,
-                seeds: int = DEFAULT_SEEDS) -> dict[str, Any]:
+def run_default(
+    out: Path,
+    workers: int = 2,
+    system_name: str = DEFAULT_SYSTEM,
+    budget: int = DEFAULT_BUDGET,
+    top: int = DEFAULT_TOP,
+    seed: int = DEFAULT_SEED,
+    families: list[str] | None = None,
+    environments: list[str] | None = None,
+    seeds: int = DEFAULT_SEEDS,
+) -> dict[str, Any]:
     """The whole pipeline for a vehicle (preset name or .toml path) into
     ``out/<vehicle>/``: coverage maps, near field, far field, search over ``families``
     and ``environments`` (default: all), the Euro NCAP anchor cases when their family is
@@ -179,15 +199,31 @@ def run_default(out: Path, workers: int = 2, system_name: str = DEFAULT_SYSTEM,
     all_envs = load_environments()
     unknown = [e for e in envs if e not in all_envs]
     if unknown:
-        raise InputError("environments", "", f"unknown environment preset(s) "
-                         f"{', '.join(unknown)}; presets: {', '.join(all_envs)}")
+        raise InputError(
+            "environments",
+            "",
+            f"unknown environment preset(s) {', '.join(unknown)}; presets: {', '.join(all_envs)}",
+        )
     folder = out / name
     folder.mkdir(parents=True, exist_ok=True)
     clock = _Clock()
     print(f"{folder}: main job for {system.name} ({ref})")
+
     def search() -> Any:
-        return run_search(ref, fams, envs, budget, seed, top, folder, strategy="de",
-                          progress=False, workers=workers, resume=True, seeds=seeds)
+        return run_search(
+            ref,
+            fams,
+            envs,
+            budget,
+            seed,
+            top,
+            folder,
+            strategy="de",
+            progress=False,
+            workers=workers,
+            resume=True,
+            seeds=seeds,
+        )
 
     side_peak = 0.0
     if workers >= 2:
@@ -198,44 +234,88 @@ def run_default(out: Path, workers: int = 2, system_name: str = DEFAULT_SYSTEM,
         with ProcessPoolExecutor(1, mp_context=ctx) as pool:
             side = pool.submit(_analysis, ref, folder, 1, envs)
             outcome = clock.stage("search", search)
-            times, side_peak = clock.stage("coverage, near and far field (beside the "
-                                           "search, waiting for them)", side.result)
+            times, side_peak = clock.stage(
+                "coverage, near and far field (beside the search, waiting for them)", side.result
+            )
         for name, secs in times.items():
             print(f"    {name}: {secs:.1f} s (in the second process)")
     else:
-        times, _ = clock.stage("coverage, near and far field",
-                               lambda: _analysis(ref, folder, workers, envs))
+        times, _ = clock.stage(
+            "coverage, near and far field", lambda: _analysis(ref, folder, workers, envs)
+        )
         outcome = clock.stage("search", search)
     if NCAP_FAMILY in fams:
-        clock.stage("anchors", lambda: write_anchors(evaluate_anchors(
-            system, ncap_obstructed_cases(system.config.vehicle.x_front_m),
-            vehicle_ref=ref), folder / "anchors"))
+        clock.stage(
+            "anchors",
+            lambda: write_anchors(
+                evaluate_anchors(
+                    system, ncap_obstructed_cases(system.config.vehicle.x_front_m), vehicle_ref=ref
+                ),
+                folder / "anchors",
+            ),
+        )
     clock.stage("export", lambda: export_catalog(folder))
-    settings = {"budget": budget, "top": top, "seed": seed, "seeds": seeds, "strategy": "de",
-                "pd": "lookup",
-                "families": fams, "environments": envs,
-                "coverage_grid_m": list(DEFAULT_GRID),
-                "coverage_target": f"car bodies at heading {COVERAGE_HEADING_DEG:g} deg",
-                "farfield_target": "car body along the lane", "workers": workers}
-    command = ["sensorgap", "run", "--vehicle", ref, "--out", str(out), "--budget",
-               str(budget), "--seed", str(seed), "--seeds", str(seeds),
-               "--families", ",".join(fams),
-               "--environments", ",".join(envs), "--workers", str(workers)]
+    settings = {
+        "budget": budget,
+        "top": top,
+        "seed": seed,
+        "seeds": seeds,
+        "strategy": "de",
+        "pd": "lookup",
+        "families": fams,
+        "environments": envs,
+        "coverage_grid_m": list(DEFAULT_GRID),
+        "coverage_target": f"car bodies at heading {COVERAGE_HEADING_DEG:g} deg",
+        "farfield_target": "car body along the lane",
+        "workers": workers,
+    }
+    command = [
+        "sensorgap",
+        "run",
+        "--vehicle",
+        ref,
+        "--out",
+        str(out),
+        "--budget",
+        str(budget),
+        "--seed",
+        str(seed),
+        "--seeds",
+        str(seeds),
+        "--families",
+        ",".join(fams),
+        "--environments",
+        ",".join(envs),
+        "--workers",
+        str(workers),
+    ]
     tdir = templates_dir()
-    files = [system.source, tdir / "environments.toml", tdir / "targets.toml",
-             tdir / "reactions.toml",
-             *sorted((tdir / "scenarios").glob("*.toml")), *sorted(roads_dir().glob("*.xodr"))]
-    write_run_info(folder, command, ref, files, settings,
-                   {"candidates": outcome.summary["candidates"]})
+    files = [
+        system.source,
+        tdir / "environments.toml",
+        tdir / "targets.toml",
+        tdir / "reactions.toml",
+        *sorted((tdir / "scenarios").glob("*.toml")),
+        *sorted(roads_dir().glob("*.xodr")),
+    ]
+    write_run_info(
+        folder, command, ref, files, settings, {"candidates": outcome.summary["candidates"]}
+    )
     clock.stage("report", lambda: write_report(folder))
     # peak memory of the job: this process's peak plus the second process's (an upper
     # bound: the two peaks need not coincide)
     total, peak = clock.total, peak_rss_mib() + side_peak
     write_manifest(folder)  # timings are printed, not written: files stay byte-identical
-    info = {"settings": settings, "timings_s": {**clock.stages, **times}, "total_s": total,
-            "peak_rss_mib": peak}
+    info = {
+        "settings": settings,
+        "timings_s": {**clock.stages, **times},
+        "total_s": total,
+        "peak_rss_mib": peak,
+    }
     both = " (both processes' peaks added)" if side_peak else ""
-    print(f"{folder}: {outcome.summary['candidates']:,} candidates, "
-          f"{len(outcome.ranking)} ranked; total {total:.1f} s (target {TARGET_TIME_S:.0f} s), "
-          f"peak memory {peak:.0f} MiB{both} (target {TARGET_PEAK_MIB:.0f} MiB)")
+    print(
+        f"{folder}: {outcome.summary['candidates']:,} candidates, "
+        f"{len(outcome.ranking)} ranked; total {total:.1f} s (target {TARGET_TIME_S:.0f} s), "
+        f"peak memory {peak:.0f} MiB{both} (target {TARGET_PEAK_MIB:.0f} MiB)"
+    )
     return info

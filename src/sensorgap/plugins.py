@@ -35,7 +35,8 @@ def load_plugins() -> list[str]:
             if callable(obj):
                 obj()
         except Exception as exc:  # noqa: BLE001 - a broken plugin is bad input, one line
-            raise InputError(f"plugin {ep.name}", ep.value, f"failed to load: "
-                             f"{type(exc).__name__}: {exc}") from None
+            raise InputError(
+                f"plugin {ep.name}", ep.value, f"failed to load: {type(exc).__name__}: {exc}"
+            ) from None
         names.append(ep.name)
     return names

@@ -20,8 +20,21 @@ from typing import Any
 from sensorgap.filesio import write_json
 
 #: Distributions whose versions a run records.
-PACKAGES = ("sensorgap", "numpy", "scipy", "pandas", "numba", "pydantic", "lxml", "networkx",
-            "scenariogeneration", "xmlschema", "shapely", "matplotlib", "tqdm")
+PACKAGES = (
+    "sensorgap",
+    "numpy",
+    "scipy",
+    "pandas",
+    "numba",
+    "pydantic",
+    "lxml",
+    "networkx",
+    "scenariogeneration",
+    "xmlschema",
+    "shapely",
+    "matplotlib",
+    "tqdm",
+)
 
 
 def versions() -> dict[str, str]:
@@ -57,20 +70,31 @@ def config_hashes(paths: Iterable[Path], root: Path | None = None) -> dict[str, 
 def utc_now() -> str:
     """The run's timestamp (ISO 8601, UTC; ``SOURCE_DATE_EPOCH`` when set)."""
     epoch = os.environ.get("SOURCE_DATE_EPOCH")
-    t = (dt.datetime.fromtimestamp(int(epoch), dt.UTC) if epoch and epoch.isdigit()
-         else dt.datetime.now(dt.UTC))
+    t = (
+        dt.datetime.fromtimestamp(int(epoch), dt.UTC)
+        if epoch and epoch.isdigit()
+        else dt.datetime.now(dt.UTC)
+    )
     return t.replace(microsecond=0).isoformat().replace("+00:00", "Z")
 
 
-def write_run_info(folder: Path, command: list[str], vehicle: str,
-                   files: Iterable[Path], settings: dict[str, Any],
-                   extra: dict[str, Any] | None = None) -> dict[str, Any]:
+def write_run_info(
+    folder: Path,
+    command: list[str],
+    vehicle: str,
+    files: Iterable[Path],
+    settings: dict[str, Any],
+    extra: dict[str, Any] | None = None,
+) -> dict[str, Any]:
     """``folder/run.json``: command, vehicle, versions, config hashes, settings (+ extra).
     The ``inputs`` a search recorded in an existing ``run.json`` (``search.runfolder``) are
     kept."""
     info: dict[str, Any] = {
-        "command": command, "vehicle": vehicle, "versions": versions(),
-        "config_sha256": config_hashes(files, Path.cwd()), "settings": settings,
+        "command": command,
+        "vehicle": vehicle,
+        "versions": versions(),
+        "config_sha256": config_hashes(files, Path.cwd()),
+        "settings": settings,
         "platform": f"{platform.system()} {platform.machine()}",
     }
     info.update(extra or {})

@@ -22,8 +22,9 @@ class Registry(Generic[T]):
         on_lookup: called before every lookup (loads plug-ins once).
     """
 
-    def __init__(self, what: str, key: Callable[[T], str],
-                 on_lookup: Callable[[], object] | None = None) -> None:
+    def __init__(
+        self, what: str, key: Callable[[T], str], on_lookup: Callable[[], object] | None = None
+    ) -> None:
         self.what = what
         self._key = key
         self._on_lookup = on_lookup
@@ -35,8 +36,10 @@ class Registry(Generic[T]):
         name = self._key(item)  # type: ignore[arg-type]
         existing = self._items.get(name)
         if existing is not None and existing is not item:
-            raise ValueError(f"{self.what} {name!r} is already registered by "
-                             f"{getattr(existing, '__module__', '?')}")
+            raise ValueError(
+                f"{self.what} {name!r} is already registered by "
+                f"{getattr(existing, '__module__', '?')}"
+            )
         self._items[name] = item  # type: ignore[assignment]
         return item
 

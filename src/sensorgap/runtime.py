@@ -55,9 +55,11 @@ def tune_allocator() -> bool:
         return False
     mallopt.argtypes = [ctypes.c_int, ctypes.c_int]
     mallopt.restype = ctypes.c_int
-    _done = bool(mallopt(_M_MMAP_THRESHOLD, MMAP_THRESHOLD_B)
-                 and mallopt(_M_TRIM_THRESHOLD, TRIM_THRESHOLD_B)
-                 and mallopt(_M_TOP_PAD, TOP_PAD_B))
+    _done = bool(
+        mallopt(_M_MMAP_THRESHOLD, MMAP_THRESHOLD_B)
+        and mallopt(_M_TRIM_THRESHOLD, TRIM_THRESHOLD_B)
+        and mallopt(_M_TOP_PAD, TOP_PAD_B)
+    )
     return _done
 
 
@@ -76,8 +78,11 @@ def _private_dir(path: Path) -> bool:
     return os.access(path, os.W_OK | os.X_OK)
 
 
-def numba_cache_dir(package_dir: Path, env: MutableMapping[str, str] | None = None,
-                    writable: Callable[[Path], bool] | None = None) -> str | None:
+def numba_cache_dir(
+    package_dir: Path,
+    env: MutableMapping[str, str] | None = None,
+    writable: Callable[[Path], bool] | None = None,
+) -> str | None:
     """Choose numba's cache folder and set ``NUMBA_CACHE_DIR`` in ``env`` (default
     ``os.environ``): None (numba's default beside the source) when ``package_dir`` is
     writable or ``NUMBA_CACHE_DIR`` is already set; else the first usable folder of
@@ -87,10 +92,14 @@ def numba_cache_dir(package_dir: Path, env: MutableMapping[str, str] | None = No
     if env.get("NUMBA_CACHE_DIR"):
         return None
     can_write = writable or (lambda p: os.access(p, os.W_OK | os.X_OK))
-    folders = [package_dir, *(d for d in sorted(package_dir.iterdir())
-                              if d.is_dir() and (d / "__init__.py").is_file())]
-    if all(can_write(d / "__pycache__") or (not (d / "__pycache__").exists()
-                                            and can_write(d)) for d in folders):
+    folders = [
+        package_dir,
+        *(d for d in sorted(package_dir.iterdir()) if d.is_dir() and (d / "__init__.py").is_file()),
+    ]
+    if all(
+        can_write(d / "__pycache__") or (not (d / "__pycache__").exists() and can_write(d))
+        for d in folders
+    ):
         return None
     candidates = []
     if env.get("XDG_CACHE_HOME"):
@@ -119,8 +128,9 @@ def configure_numba_cache() -> str | None:
         return None
 
 
-def matplotlib_config_dir(env: MutableMapping[str, str] | None = None,
-                          writable: Callable[[Path], bool] | None = None) -> str | None:
+def matplotlib_config_dir(
+    env: MutableMapping[str, str] | None = None, writable: Callable[[Path], bool] | None = None
+) -> str | None:
     """Point ``MPLCONFIGDIR`` (unless set) at a private writable folder when matplotlib's
     default (``$XDG_CONFIG_HOME/matplotlib`` or ``~/.config/matplotlib``) cannot be
     written: otherwise matplotlib prints a multi-line warning on every command (held-out
@@ -128,8 +138,11 @@ def matplotlib_config_dir(env: MutableMapping[str, str] | None = None,
     env = os.environ if env is None else env
     if env.get("MPLCONFIGDIR"):
         return None
-    base = (Path(env["XDG_CONFIG_HOME"]) if env.get("XDG_CONFIG_HOME")
-            else Path(env.get("HOME") or "~").expanduser() / ".config")
+    base = (
+        Path(env["XDG_CONFIG_HOME"])
+        if env.get("XDG_CONFIG_HOME")
+        else Path(env.get("HOME") or "~").expanduser() / ".config"
+    )
     default = base / "matplotlib"
     probe = default if default.exists() else base if base.exists() else base.parent
     can_write = writable or (lambda q: os.access(q, os.W_OK | os.X_OK))
@@ -137,8 +150,9 @@ def matplotlib_config_dir(env: MutableMapping[str, str] | None = None,
         return None
     uid = os.getuid() if hasattr(os, "getuid") else 0
     chosen = Path(tempfile.gettempdir()) / f"sensorgap-matplotlib-{uid}"
-    folder = str(chosen) if _private_dir(chosen) else tempfile.mkdtemp(
-        prefix="sensorgap-matplotlib-")
+    folder = (
+        str(chosen) if _private_dir(chosen) else tempfile.mkdtemp(prefix="sensorgap-matplotlib-")
+    )
     env["MPLCONFIGDIR"] = folder
     return folder
 

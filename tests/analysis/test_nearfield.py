@@ -21,11 +21,28 @@ from sensorgap.models.geometry import Mount, fov_mask, in_range, rotate_offsets
 REPO = Path(__file__).resolve().parents[2]
 
 
-def mount(x: float = 1.0, y: float = 0.5, z: float = 0.5, yaw: float = 30.0,
-          pitch: float = 0.0, hfov: float = 70.0, vfov: float = 35.0, rmin: float = 0.15,
-          rmax: float = 5.5) -> Mount:
-    return Mount(x, y, z, math.radians(yaw), math.radians(pitch), math.radians(hfov),
-                 math.radians(vfov), rmin, rmax)
+def mount(
+    x: float = 1.0,
+    y: float = 0.5,
+    z: float = 0.5,
+    yaw: float = 30.0,
+    pitch: float = 0.0,
+    hfov: float = 70.0,
+    vfov: float = 35.0,
+    rmin: float = 0.15,
+    rmax: float = 5.5,
+) -> Mount:
+    return Mount(
+        x,
+        y,
+        z,
+        math.radians(yaw),
+        math.radians(pitch),
+        math.radians(hfov),
+        math.radians(vfov),
+        rmin,
+        rmax,
+    )
 
 
 # ----------------------------------------------------------------------- closed forms
@@ -44,8 +61,7 @@ def test_unpitched_any_height_footprint_is_annular_sector() -> None:
     assert fp.area == pytest.approx(half * (m.max_range**2 - r_in**2), rel=1e-5)
     centre = shapely.Point(m.x, m.y)
     assert fp.exterior.distance(centre) == pytest.approx(r_in, abs=1e-6)  # chord
-    assert shapely.hausdorff_distance(fp.exterior, centre) == pytest.approx(m.max_range,
-                                                                            abs=1e-9)
+    assert shapely.hausdorff_distance(fp.exterior, centre) == pytest.approx(m.max_range, abs=1e-9)
 
 
 def test_full_circle_sensor_is_an_annulus() -> None:
@@ -89,12 +105,16 @@ def _brute_force(m: Mount, px: np.ndarray, py: np.ndarray, zs: np.ndarray) -> np
     return seen
 
 
-@pytest.mark.parametrize("m", [
-    mount(z=1.02, yaw=90.0, pitch=70.0, hfov=137.0, vfov=77.0, rmin=0.1, rmax=6.0),
-    mount(z=0.6, yaw=0.0, pitch=15.0, hfov=137.0, vfov=100.0, rmin=0.1, rmax=5.0),
-    mount(z=0.9, yaw=-140.0, pitch=-10.0, hfov=250.0, vfov=30.0, rmin=0.5, rmax=4.0),
-    mount(z=1.5, yaw=10.0, pitch=85.0, hfov=60.0, vfov=40.0, rmin=0.0, rmax=3.0),
-], ids=["mirror-down", "bumper-fisheye", "wide-up", "nadir"])
+@pytest.mark.parametrize(
+    "m",
+    [
+        mount(z=1.02, yaw=90.0, pitch=70.0, hfov=137.0, vfov=77.0, rmin=0.1, rmax=6.0),
+        mount(z=0.6, yaw=0.0, pitch=15.0, hfov=137.0, vfov=100.0, rmin=0.1, rmax=5.0),
+        mount(z=0.9, yaw=-140.0, pitch=-10.0, hfov=250.0, vfov=30.0, rmin=0.5, rmax=4.0),
+        mount(z=1.5, yaw=10.0, pitch=85.0, hfov=60.0, vfov=40.0, rmin=0.0, rmax=3.0),
+    ],
+    ids=["mirror-down", "bumper-fisheye", "wide-up", "nadir"],
+)
 def test_pitched_footprints_match_brute_force(m: Mount) -> None:
     rng = np.random.default_rng(7)
     r = m.max_range + 0.3
@@ -112,10 +132,17 @@ def test_pitched_footprints_match_brute_force(m: Mount) -> None:
 
 
 @settings(max_examples=15, deadline=None)
-@given(st.floats(-180.0, 180.0), st.floats(-60.0, 89.0), st.floats(1.0, 360.0),
-       st.floats(1.0, 179.0), st.floats(0.0, 1.0), st.floats(0.05, 3.9))
-def test_footprints_are_valid_finite_and_nested(yaw: float, pitch: float, hfov: float,
-                                                vfov: float, rmin: float, z: float) -> None:
+@given(
+    st.floats(-180.0, 180.0),
+    st.floats(-60.0, 89.0),
+    st.floats(1.0, 360.0),
+    st.floats(1.0, 179.0),
+    st.floats(0.0, 1.0),
+    st.floats(0.05, 3.9),
+)
+def test_footprints_are_valid_finite_and_nested(
+    yaw: float, pitch: float, hfov: float, vfov: float, rmin: float, z: float
+) -> None:
     m = mount(z=z, yaw=yaw, pitch=pitch, hfov=hfov, vfov=vfov, rmin=rmin, rmax=5.0)
     fp = nf.sensor_footprint_any_height(m, dphi_deg=0.25)
     fz = nf.sensor_footprint_at_height(m, 0.1, dphi_deg=0.25)
@@ -130,13 +157,14 @@ def test_footprints_are_valid_finite_and_nested(yaw: float, pitch: float, hfov: 
 
 def _vehicle_with(tmp_path: Path, sensors: list[dict[str, float | str]]) -> System:
     """System A's body and devices with the given ultrasonic-device sensors."""
-    head = (REPO / "templates" / "vehicles" / "system_a.toml").read_text().split(
-        "[[sensors]]")[0]
+    head = (REPO / "templates" / "vehicles" / "system_a.toml").read_text().split("[[sensors]]")[0]
     blocks = "".join(
         f'[[sensors]]\nid = "{s["id"]}"\ndevice = "ultrasonic_70"\n'
-        f'position_m = [{s["x"]}, {s["y"]}, 0.5]\nyaw_deg = {s["yaw"]}\n'
-        f'hfov_deg = {s["hfov"]}\nvfov_deg = 20.0\nmin_range_m = 0.0\n'
-        f'max_range_m = {s["range"]}\nsource = "test"\n\n' for s in sensors)
+        f"position_m = [{s['x']}, {s['y']}, 0.5]\nyaw_deg = {s['yaw']}\n"
+        f"hfov_deg = {s['hfov']}\nvfov_deg = 20.0\nmin_range_m = 0.0\n"
+        f'max_range_m = {s["range"]}\nsource = "test"\n\n'
+        for s in sensors
+    )
     path = tmp_path / "hand.toml"
     path.write_text(head + blocks)
     return load_system(path)
@@ -146,10 +174,13 @@ def test_triangular_hole_between_two_sectors_and_the_body(tmp_path: Path) -> Non
     # System A's body: x in [-1.13, 4.04], |y| <= 0.975. Two sensors on the left corners
     # looking left with 90 deg fields of view: the sector edges at 135 deg (front) and
     # 45 deg (rear) close a right isosceles triangle over the left side of the body.
-    system = _vehicle_with(tmp_path, [
-        {"id": "front", "x": 4.04, "y": 0.975, "yaw": 90.0, "hfov": 90.0, "range": 10.0},
-        {"id": "rear", "x": -1.13, "y": 0.975, "yaw": 90.0, "hfov": 90.0, "range": 10.0},
-    ])
+    system = _vehicle_with(
+        tmp_path,
+        [
+            {"id": "front", "x": 4.04, "y": 0.975, "yaw": 90.0, "hfov": 90.0, "range": 10.0},
+            {"id": "rear", "x": -1.13, "y": 0.975, "yaw": 90.0, "hfov": 90.0, "range": 10.0},
+        ],
+    )
     length = 5.17
     spots = nf.blind_spots(system)
     assert len(spots) == 1
@@ -160,11 +191,14 @@ def test_triangular_hole_between_two_sectors_and_the_body(tmp_path: Path) -> Non
 
 
 def test_rectangular_hole_between_three_half_planes_and_the_body(tmp_path: Path) -> None:
-    system = _vehicle_with(tmp_path, [
-        {"id": "front", "x": 4.04, "y": 0.975, "yaw": 0.0, "hfov": 180.0, "range": 20.0},
-        {"id": "rear", "x": -1.13, "y": 0.975, "yaw": 180.0, "hfov": 180.0, "range": 20.0},
-        {"id": "pole", "x": 1.455, "y": 2.975, "yaw": 90.0, "hfov": 180.0, "range": 20.0},
-    ])
+    system = _vehicle_with(
+        tmp_path,
+        [
+            {"id": "front", "x": 4.04, "y": 0.975, "yaw": 0.0, "hfov": 180.0, "range": 20.0},
+            {"id": "rear", "x": -1.13, "y": 0.975, "yaw": 180.0, "hfov": 180.0, "range": 20.0},
+            {"id": "pole", "x": 1.455, "y": 2.975, "yaw": 90.0, "hfov": 180.0, "range": 20.0},
+        ],
+    )
     spots = nf.blind_spots(system)
     assert len(spots) == 1
     assert spots[0].area == pytest.approx(5.17 * 2.0, rel=1e-6)
@@ -201,10 +235,13 @@ def test_preset_blind_spots_match_the_paper(exact: dict[str, dict[str, float]]) 
 @pytest.mark.parametrize("key", ["A", "B"])
 def test_grid_converges_to_exact(key: str, exact: dict[str, dict[str, float]]) -> None:
     system = load_system(f"system_{key.lower()}")
-    err_blind = [abs(nf.grid_blind_spots(system, r).area - exact[key]["blind"])
-                 for r in (0.2, 0.05)]
-    err_unc = [abs(nf.grid_uncovered_at_height(system, 0.1, r).area - exact[key]["uncovered"])
-               for r in (0.2, 0.05)]
+    err_blind = [
+        abs(nf.grid_blind_spots(system, r).area - exact[key]["blind"]) for r in (0.2, 0.05)
+    ]
+    err_unc = [
+        abs(nf.grid_uncovered_at_height(system, 0.1, r).area - exact[key]["uncovered"])
+        for r in (0.2, 0.05)
+    ]
     assert err_blind[1] < err_blind[0] and err_blind[1] < 0.1
     assert err_unc[1] < err_unc[0] and err_unc[1] < 0.1
 
@@ -213,8 +250,9 @@ def test_write_nearfield_is_deterministic(tmp_path: Path, system_b: System) -> N
     runs = []
     for name in ("one", "two"):
         summary = nf.write_nearfield(system_b, tmp_path / name, resolution=0.2, dphi_deg=0.5)
-        runs.append({f: (tmp_path / name / f).read_bytes()
-                     for f in ("nearfield.json", "nearfield.png")})
+        runs.append(
+            {f: (tmp_path / name / f).read_bytes() for f in ("nearfield.json", "nearfield.png")}
+        )
     assert runs[0] == runs[1]
     assert runs[0]["nearfield.png"].startswith(b"\x89PNG")
     data = json.loads(runs[0]["nearfield.json"])
@@ -228,7 +266,8 @@ def test_write_nearfield_is_deterministic(tmp_path: Path, system_b: System) -> N
         assert block["difference"] == pytest.approx(block["grid"] - block["exact"], abs=1e-5)
     holes = data["blind_spot_m2"]["holes"]
     assert sum(h["area_m2"] for h in holes) == pytest.approx(
-        data["blind_spot_m2"]["exact"], abs=1e-5)
+        data["blind_spot_m2"]["exact"], abs=1e-5
+    )
     w = data["window"]
     assert (w["xmin"], w["xmax"]) == pytest.approx((-1.05 - 5.0, 3.93 + 5.0))
 

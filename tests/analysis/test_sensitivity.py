@@ -23,14 +23,21 @@ def test_vary_touches_only_calibrated_devices() -> None:
     assert vary(a.config, _knob("System B radar antenna gains"), 30.0)[1] == 0
     cfg, n = vary(b.config, _knob("System B radar antenna gains"), 30.0)
     assert n >= 1
-    radars = [d for d in cfg.devices.values() if d.type == "radar"
-              and d.sources.get("tx_gain_dbi", "").startswith("calibrated")]
-    assert radars and all(d.params()["tx_gain_dbi"] == 30.0 == d.params()["rx_gain_dbi"]
-                          for d in radars)
+    radars = [
+        d
+        for d in cfg.devices.values()
+        if d.type == "radar" and d.sources.get("tx_gain_dbi", "").startswith("calibrated")
+    ]
+    assert radars and all(
+        d.params()["tx_gain_dbi"] == 30.0 == d.params()["rx_gain_dbi"] for d in radars
+    )
     # camera exposure carries its noise bandwidth along: B_n = 1 / t_int
     cfg, n = vary(a.config, _knob("camera exposure"), 1e-3)
-    cams = [d for d in cfg.devices.values() if d.type == "camera"
-            and d.sources.get("integration_time_s", "").startswith("calibrated")]
+    cams = [
+        d
+        for d in cfg.devices.values()
+        if d.type == "camera" and d.sources.get("integration_time_s", "").startswith("calibrated")
+    ]
     assert n == len(cams) >= 1
     for d in cams:
         assert d.params()["integration_time_s"] == 1e-3
@@ -39,8 +46,11 @@ def test_vary_touches_only_calibrated_devices() -> None:
     cfg, _ = vary(a.config, _knob("radar/ultrasonic detection floor"), 0.0)
     assert cfg.roc.floor_db == 0.0 and a.config.roc.floor_db == 7.5
     cfg, n = vary(a.config, _knob("camera/lidar ROC half width"), 6.0)
-    assert n >= 1 and all(d.roc is None or d.roc.half_width_db == 6.0
-                          for d in cfg.devices.values() if d.type in ("camera", "lidar"))
+    assert n >= 1 and all(
+        d.roc is None or d.roc.half_width_db == 6.0
+        for d in cfg.devices.values()
+        if d.type in ("camera", "lidar")
+    )
 
 
 @pytest.mark.parametrize("label", [k.label for k in KNOBS])

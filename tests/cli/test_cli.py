@@ -16,16 +16,33 @@ from sensorgap.cli import main
 
 
 def run(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "sensorgap.cli", *args],
-                          capture_output=True, text=True, timeout=300)
+    return subprocess.run(
+        [sys.executable, "-m", "sensorgap.cli", *args], capture_output=True, text=True, timeout=300
+    )
 
 
 def test_probe_columns_and_values(tmp_path: Path) -> None:
     pts = tmp_path / "p.csv"
     pts.write_text("x,y\n10,0\n50,3\n-20,-2\n")
     out = tmp_path / "o.csv"
-    assert main(["probe", "--vehicle", "system_a", "--environment", "clear", "--target", "car",
-                 "--points", str(pts), "--out", str(out)]) == 0
+    assert (
+        main(
+            [
+                "probe",
+                "--vehicle",
+                "system_a",
+                "--environment",
+                "clear",
+                "--target",
+                "car",
+                "--points",
+                str(pts),
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     rows = list(csv.reader(out.read_text().splitlines()))
     header = rows[0]
     assert header[:3] == ["x", "y", "z"] and header[-1] == "pd"
@@ -38,8 +55,19 @@ def test_probe_columns_and_values(tmp_path: Path) -> None:
 
 
 def test_coverage_outputs_and_determinism(tmp_path: Path) -> None:
-    args = ["coverage", "--vehicle", "system_b", "--environment", "glare_front_right",
-            "--target", "car", "--resolution", "1", "--extent", "-20,100,-20,20"]
+    args = [
+        "coverage",
+        "--vehicle",
+        "system_b",
+        "--environment",
+        "glare_front_right",
+        "--target",
+        "car",
+        "--resolution",
+        "1",
+        "--extent",
+        "-20,100,-20,20",
+    ]
     assert main([*args, "--out", str(tmp_path / "a")]) == 0
     assert main([*args, "--out", str(tmp_path / "b")]) == 0
     for name in ("coverage.npz", "coverage.png", "summary.json"):
@@ -59,7 +87,11 @@ def test_schema_prints_json_schema(capsys: pytest.CaptureFixture[str]) -> None:
     assert set(schemas) == {"vehicle", "environments", "targets"}
     variants = schemas["vehicle"]["$defs"]["DeviceConfig"]["oneOf"]
     assert {v["properties"]["type"]["const"] for v in variants} == {
-        "camera", "lidar", "radar", "ultrasonic"}
+        "camera",
+        "lidar",
+        "radar",
+        "ultrasonic",
+    }
 
 
 def test_bad_vehicle_file_via_cli(tmp_path: Path) -> None:
@@ -67,8 +99,17 @@ def test_bad_vehicle_file_via_cli(tmp_path: Path) -> None:
     tests/bad_inputs/cases.toml holds the former per-case subprocess tests of this file)."""
     bad = tmp_path / "v.toml"
     bad.write_text("schema_version = 1\n[vehicle]\nname = 'x'\n")
-    proc = run("probe", "--vehicle", str(bad), "--environment", "clear", "--target", "car",
-               "--points", str(bad))
+    proc = run(
+        "probe",
+        "--vehicle",
+        str(bad),
+        "--environment",
+        "clear",
+        "--target",
+        "car",
+        "--points",
+        str(bad),
+    )
     assert proc.returncode == 2
     # every missing field listed, one line each, no traceback
     lines = proc.stderr.strip().splitlines()
@@ -81,8 +122,25 @@ def test_run_folders_carry_a_manifest(tmp_path: Path) -> None:
     import hashlib
 
     out = tmp_path / "cov"
-    assert main(["coverage", "--vehicle", "system_a", "--environment", "clear", "--target",
-                 "car", "--resolution", "2", "--extent=-10,40,-10,10", "--out", str(out)]) == 0
+    assert (
+        main(
+            [
+                "coverage",
+                "--vehicle",
+                "system_a",
+                "--environment",
+                "clear",
+                "--target",
+                "car",
+                "--resolution",
+                "2",
+                "--extent=-10,40,-10,10",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     manifest = json.loads((out / "manifest.json").read_text())
     files = manifest["files"]
     assert set(files) == {"coverage.npz", "coverage.png", "summary.json"}
@@ -92,7 +150,8 @@ def test_run_folders_carry_a_manifest(tmp_path: Path) -> None:
 
 
 def test_library_errors_name_arguments_and_the_cli_names_flags(
-        capsys: pytest.CaptureFixture[str]) -> None:
+    capsys: pytest.CaptureFixture[str],
+) -> None:
     # issue #16: a script calling the library is told about the argument
     # (``load_target("horse")`` -> "target: ..."), the CLI user about the option
     from sensorgap.config import load_target
@@ -101,8 +160,24 @@ def test_library_errors_name_arguments_and_the_cli_names_flags(
     with pytest.raises(InputError) as info:
         load_target("horse")
     assert info.value.line().startswith("target: unknown target 'horse'")
-    assert main(["search", "--vehicle", "system_b", "--families", "cut_in_right",
-                 "--environments", "clear", "--budget", "0", "--out", "unused"]) == 2
+    assert (
+        main(
+            [
+                "search",
+                "--vehicle",
+                "system_b",
+                "--families",
+                "cut_in_right",
+                "--environments",
+                "clear",
+                "--budget",
+                "0",
+                "--out",
+                "unused",
+            ]
+        )
+        == 2
+    )
     err = capsys.readouterr().err
     assert "sensorgap: error: --budget: must be within" in err
 
@@ -115,8 +190,30 @@ def test_vehicle_name_with_mathtext_is_drawn_as_written(tmp_path: Path) -> None:
     text = (templates_dir() / "vehicles" / "system_a.toml").read_text()
     v = tmp_path / "v.toml"
     v.write_text(text.replace('name = "System A"', 'name = "A $x^{$"', 1))
-    assert main(["coverage", "--vehicle", str(v), "--environment", "clear", "--target", "car",
-                 "--resolution", "1", "--extent", "0,10,0,10", "--out", str(tmp_path / "c")]) == 0
-    assert main(["nearfield", "--vehicle", str(v), "--out", str(tmp_path / "n"),
-                 "--resolution", "0.25"]) == 0
+    assert (
+        main(
+            [
+                "coverage",
+                "--vehicle",
+                str(v),
+                "--environment",
+                "clear",
+                "--target",
+                "car",
+                "--resolution",
+                "1",
+                "--extent",
+                "0,10,0,10",
+                "--out",
+                str(tmp_path / "c"),
+            ]
+        )
+        == 0
+    )
+    assert (
+        main(
+            ["nearfield", "--vehicle", str(v), "--out", str(tmp_path / "n"), "--resolution", "0.25"]
+        )
+        == 0
+    )
     assert (tmp_path / "c" / "coverage.png").is_file()

@@ -20,8 +20,13 @@ from tests.conftest import make_scene
 def test_level_lengths_by_hand() -> None:
     pd = np.array([1.0, 1.0, 0.9, 0.6, 0.3, 0.0, 0.0])
     ds = np.full(7, 0.5)
-    assert level_lengths(pd, ds) == {"pd=1.0": 1.0, "pd>=0.8": 1.5, "pd>=0.5": 2.0,
-                                     "pd>0": 2.5, "pd=0": 1.0}
+    assert level_lengths(pd, ds) == {
+        "pd=1.0": 1.0,
+        "pd>=0.8": 1.5,
+        "pd>=0.5": 2.0,
+        "pd>0": 2.5,
+        "pd=0": 1.0,
+    }
 
 
 def test_path_ahead_starts_at_front_bumper() -> None:
@@ -59,8 +64,7 @@ def test_farfield_bodies_on_a_straight_road(system_a: System) -> None:
     ff = farfield(scene, path, EgoPose(0.0, 0.0, 0.0), length_m=600.0, bodies=True)
     pts = farfield(scene, path, EgoPose(0.0, 0.0, 0.0), length_m=600.0)
     np.testing.assert_allclose(ff.vehicle, pts.vehicle)
-    pd, _ = body_per_sensor_pd(scene, ff.vehicle[:, 0], ff.vehicle[:, 1],
-                               np.zeros(len(ff.s)))
+    pd, _ = body_per_sensor_pd(scene, ff.vehicle[:, 0], ff.vehicle[:, 1], np.zeros(len(ff.s)))
     np.testing.assert_allclose(ff.pd, 1.0 - np.prod(1.0 - pd, axis=0), atol=1e-12)
     assert np.all(ff.pd[ff.vehicle[:, 0] > 260.0 + 2.5] == 0.0)
     near = (ff.vehicle[:, 0] > 20.0) & (ff.vehicle[:, 0] < 60.0)
@@ -80,13 +84,16 @@ def test_motorway_setup_matches_the_paper_geometry() -> None:
 
 def test_farfield_cli_files(tmp_path: Path) -> None:
     out = tmp_path / "ff"
-    assert main(["farfield", "--vehicle", "system_a", "--environment", "clear", "--out",
-                 str(out)]) == 0
+    assert (
+        main(["farfield", "--vehicle", "system_a", "--environment", "clear", "--out", str(out)])
+        == 0
+    )
     for name in ("farfield.csv", "levels.csv", "farfield.png", "summary.json"):
         assert (out / name).is_file()
     levels = (out / "levels.csv").read_text().splitlines()
     assert levels[0] == "level,metres" and len(levels) == 6
     import json
+
     assert json.loads((out / "summary.json").read_text())["target_model"].startswith("body")
 
 

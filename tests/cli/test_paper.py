@@ -83,8 +83,11 @@ def test_sensitivity_table(paper: tuple[Path, dict[str, Any]]) -> None:
     out, result = paper
     rows = list(csv.DictReader((out / "sensitivity.csv").open()))
     assert len(rows) == 14 == len(result["sensitivity"])
-    floor0 = next(r for r in rows if r["parameter"] == "radar/ultrasonic detection floor"
-                  and float(r["value"]) == 0.0)
+    floor0 = next(
+        r
+        for r in rows
+        if r["parameter"] == "radar/ultrasonic detection floor" and float(r["value"]) == 0.0
+    )
     assert abs(float(floor0["max_change_m"])) > 1.0
     assert all(float(r["nearfield_change_m2"]) == 0.0 for r in rows)
     gains = [r for r in rows if r["parameter"] == "System B radar antenna gains"]

@@ -28,13 +28,35 @@ def _without_rear_radars(tmp: Path) -> Path:
 def test_run_for_a_vehicle_file(tmp_path: Path, capsys) -> None:
     vehicle = _without_rear_radars(tmp_path)
     out = tmp_path / "out"
-    assert main(["run", "--vehicle", str(vehicle), "--out", str(out), "--budget", "600",
-                 "--families", "cut_in_left,slow_ahead_curve", "--environments",
-                 "clear,fog_50"]) == 0
+    assert (
+        main(
+            [
+                "run",
+                "--vehicle",
+                str(vehicle),
+                "--out",
+                str(out),
+                "--budget",
+                "600",
+                "--families",
+                "cut_in_left,slow_ahead_curve",
+                "--environments",
+                "clear,fog_50",
+            ]
+        )
+        == 0
+    )
     folder = out / "a_no_rear_radar"
-    for name in ("coverage/car_clear/coverage.png", "coverage/car_fog_50/coverage.png",
-                 "nearfield/nearfield.json", "farfield/clear/farfield.png", "ranking.json",
-                 "report.html", "run.json", "manifest.json"):
+    for name in (
+        "coverage/car_clear/coverage.png",
+        "coverage/car_fog_50/coverage.png",
+        "nearfield/nearfield.json",
+        "farfield/clear/farfield.png",
+        "ranking.json",
+        "report.html",
+        "run.json",
+        "manifest.json",
+    ):
         assert (folder / name).is_file(), name
     assert not (folder / "coverage" / "car_snow").exists()  # only what was asked
     run = json.loads((folder / "run.json").read_text())
@@ -44,9 +66,28 @@ def test_run_for_a_vehicle_file(tmp_path: Path, capsys) -> None:
     ours = json.loads((folder / "coverage" / "car_clear" / "summary.json").read_text())
     g = ours["grid"]
     extent = f"{g['xmin']:g},{g['xmax']:g},{g['ymin']:g},{g['ymax']:g}"
-    assert main(["coverage", "--vehicle", "system_a", "--environment", "clear", "--target",
-                 "car", "--extent", extent, "--resolution", f"{g['resolution_m']:g}",
-                 "--heading", "0", "--out", str(tmp_path / "cov_a")]) == 0
+    assert (
+        main(
+            [
+                "coverage",
+                "--vehicle",
+                "system_a",
+                "--environment",
+                "clear",
+                "--target",
+                "car",
+                "--extent",
+                extent,
+                "--resolution",
+                f"{g['resolution_m']:g}",
+                "--heading",
+                "0",
+                "--out",
+                str(tmp_path / "cov_a"),
+            ]
+        )
+        == 0
+    )
     ref = json.loads((tmp_path / "cov_a" / "summary.json").read_text())
     assert ours["area_m2_by_level"]["pd=0"] > ref["area_m2_by_level"]["pd=0"] + 100.0
     assert main(["verify", str(folder)]) == 0

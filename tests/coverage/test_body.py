@@ -19,8 +19,11 @@ from sensorgap.models.roc import detection_probability
 
 @pytest.fixture(scope="module")
 def scene_a() -> Scene:
-    return Scene(load_system("system_a"), load_target("car"),
-                 Conditions(env=EnvironmentConfig(name="clear"), sun_direction=None))
+    return Scene(
+        load_system("system_a"),
+        load_target("car"),
+        Conditions(env=EnvironmentConfig(name="clear"), sun_direction=None),
+    )
 
 
 def _row(scene: Scene, sid: str) -> int:
@@ -34,9 +37,12 @@ def _fraction_by_hand(s, px, py, pz, nx, ny) -> float:
     facing = nx * (m.x - px) + ny * (m.y - py) > 0
     dx, dy, dz = px - m.x, py - m.y, pz - m.z
     r = np.sqrt(dx * dx + dy * dy + dz * dz)
-    inside = ((np.abs(np.arctan2(dy, dx)) <= 0.5 * m.hfov)
-              & (np.abs(np.arctan2(dz, np.hypot(dx, dy))) <= 0.5 * m.vfov)
-              & (r >= m.min_range) & (r <= m.max_range))
+    inside = (
+        (np.abs(np.arctan2(dy, dx)) <= 0.5 * m.hfov)
+        & (np.abs(np.arctan2(dz, np.hypot(dx, dy))) <= 0.5 * m.vfov)
+        & (r >= m.min_range)
+        & (r <= m.max_range)
+    )
     return float((facing & inside).sum() / facing.sum())
 
 
@@ -53,10 +59,10 @@ def test_box_partly_inside_the_windshield_camera(scene_a):
     seen = {"below": False, "above": False}
     for shift in np.linspace(-2.0, 4.0, 25):
         yc = edge + shift
-        pd, frac = body_per_sensor_pd(scene_a, np.array([40.0]), np.array([yc]),
-                                      np.array([0.0]), sensors=(s,))
-        px, py, pz, nx, ny = body_points(b, np.array([40.0]), np.array([yc]),
-                                         np.array([0.0]))
+        pd, frac = body_per_sensor_pd(
+            scene_a, np.array([40.0]), np.array([yc]), np.array([0.0]), sensors=(s,)
+        )
+        px, py, pz, nx, ny = body_points(b, np.array([40.0]), np.array([yc]), np.array([0.0]))
         f = _fraction_by_hand(s, px[0], py[0], pz[0], nx[0], ny[0])
         assert frac[0, 0] == pytest.approx(f, abs=1e-12)
         if 0.0 < f < 0.5:
@@ -66,8 +72,9 @@ def test_box_partly_inside_the_windshield_camera(scene_a):
             seen["above"] = True
             facing = nx[0] * (s.mount.x - px[0]) + ny[0] * (s.mount.y - py[0]) > 0
             _, snr = sensor_snr(scene_a, s, px[0][facing], py[0][facing], pz[0][facing])
-            want = detection_probability(np.array([snr.max() + 10 * math.log10(f)]),
-                                         s.roc, scene_a.roc_shift_db)[0]
+            want = detection_probability(
+                np.array([snr.max() + 10 * math.log10(f)]), s.roc, scene_a.roc_shift_db
+            )[0]
             assert pd[0, 0] == pytest.approx(want, abs=1e-12)
     assert seen == {"below": True, "above": True}
 
@@ -78,16 +85,18 @@ def test_radar_needs_only_a_reflecting_part(scene_a):
     s = scene_a.sensors[_row(scene_a, "radar_front_center")]
     x_face = 60.0 - 2.25
     yc = s.mount.y + math.tan(0.5 * s.mount.hfov) * (x_face - s.mount.x)
-    pd, frac = body_per_sensor_pd(scene_a, np.array([60.0]), np.array([yc]),
-                                  np.array([0.0]), sensors=(s,))
+    pd, frac = body_per_sensor_pd(
+        scene_a, np.array([60.0]), np.array([yc]), np.array([0.0]), sensors=(s,)
+    )
     assert 0.0 < frac[0, 0] < 1.0
     b = body_samples(scene_a.target)
     px, py, pz, nx, ny = body_points(b, np.array([60.0]), np.array([yc]), np.array([0.0]))
     facing = (nx * (s.mount.x - px) + ny * (s.mount.y - py)) > 0
     idx, snr = sensor_snr(scene_a, s, px[facing], py[facing], pz[facing])
     assert frac[0, 0] == pytest.approx(idx.size / facing.sum(), abs=1e-12)
-    want = detection_probability(np.array([snr.max() + 10 * math.log10(frac[0, 0])]),
-                                 s.roc, scene_a.roc_shift_db)[0]
+    want = detection_probability(
+        np.array([snr.max() + 10 * math.log10(frac[0, 0])]), s.roc, scene_a.roc_shift_db
+    )[0]
     assert pd[0, 0] == pytest.approx(want, abs=1e-12)
 
 
@@ -119,8 +128,7 @@ def test_hidden_by_the_ego_body(scene_a):
     # through the ego's box when the lidar sits above the box's centre line
     lid = scene_a.sensors[_row(scene_a, "lidar_front")]
     lo, hi = body_mod._ego_box(scene_a)
-    inside = all(lo[a] < v < hi[a] for a, v in enumerate((lid.mount.x, lid.mount.y,
-                                                          lid.mount.z)))
+    inside = all(lo[a] < v < hi[a] for a, v in enumerate((lid.mount.x, lid.mount.y, lid.mount.z)))
     mz = max(lid.mount.z, hi[2] + 0.1)
     assert body_mod._hidden_by_box(lid.mount.x, lid.mount.y, mz, 1.0, -1.5, 0.2, lo, hi)
     # the same sample seen from beside the car, at its own height: not hidden
@@ -129,12 +137,25 @@ def test_hidden_by_the_ego_body(scene_a):
     # and through the body model: the facing sample is counted, but not visible
     flat = np.empty(1, dtype=np.int64)
     nf = np.empty(1, dtype=np.int64)
-    mount = np.array([lid.mount.x, lid.mount.y, mz, 1.0, 0.0, 1.0, 0.0, -1.0, -1.0, 0.0,
-                      1e3, math.pi])
-    got = body_mod._view_kernel(np.array([[1.0]]), np.array([[-1.5]]), np.array([[0.2]]),
-                                np.array([[0.0]]), np.array([[1.0]]),
-                                np.array([0], dtype=np.int64), mount, lo, hi, True, True,
-                                np.zeros((1, 0, 7)), flat, nf)
+    mount = np.array(
+        [lid.mount.x, lid.mount.y, mz, 1.0, 0.0, 1.0, 0.0, -1.0, -1.0, 0.0, 1e3, math.pi]
+    )
+    got = body_mod._view_kernel(
+        np.array([[1.0]]),
+        np.array([[-1.5]]),
+        np.array([[0.2]]),
+        np.array([[0.0]]),
+        np.array([[1.0]]),
+        np.array([0], dtype=np.int64),
+        mount,
+        lo,
+        hi,
+        True,
+        True,
+        np.zeros((1, 0, 7)),
+        flat,
+        nf,
+    )
     assert nf[0] == 1 and got == 0
 
 
@@ -147,22 +168,93 @@ def test_probe_and_coverage_with_heading(tmp_path, capsys):
 
     pts = tmp_path / "p.csv"
     pts.write_text("x,y\n2.2,-2.3\n")
-    assert main(["probe", "--vehicle", "system_a", "--environment", "clear", "--target",
-                 "car", "--points", str(pts), "--out", str(tmp_path / "point.csv")]) == 0
-    assert main(["probe", "--vehicle", "system_a", "--environment", "clear", "--target",
-                 "car", "--points", str(pts), "--heading", "0",
-                 "--out", str(tmp_path / "body.csv")]) == 0
+    assert (
+        main(
+            [
+                "probe",
+                "--vehicle",
+                "system_a",
+                "--environment",
+                "clear",
+                "--target",
+                "car",
+                "--points",
+                str(pts),
+                "--out",
+                str(tmp_path / "point.csv"),
+            ]
+        )
+        == 0
+    )
+    assert (
+        main(
+            [
+                "probe",
+                "--vehicle",
+                "system_a",
+                "--environment",
+                "clear",
+                "--target",
+                "car",
+                "--points",
+                str(pts),
+                "--heading",
+                "0",
+                "--out",
+                str(tmp_path / "body.csv"),
+            ]
+        )
+        == 0
+    )
     point = next(csv.DictReader((tmp_path / "point.csv").open()))
     body = next(csv.DictReader((tmp_path / "body.csv").open()))
     assert float(point["pd"]) == 0.0
     assert float(body["pd"]) > 0.99
     assert float(body["cam_mirror_right.visible"]) > 0.0
     out = tmp_path / "cov"
-    assert main(["coverage", "--vehicle", "system_a", "--environment", "clear", "--target",
-                 "car", "--resolution", "1", "--extent", "-10,20,-8,8", "--heading", "90",
-                 "--out", str(out)]) == 0
+    assert (
+        main(
+            [
+                "coverage",
+                "--vehicle",
+                "system_a",
+                "--environment",
+                "clear",
+                "--target",
+                "car",
+                "--resolution",
+                "1",
+                "--extent",
+                "-10,20,-8,8",
+                "--heading",
+                "90",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     summary = (out / "summary.json").read_text()
     assert "heading 90 deg" in summary
-    assert main(["coverage", "--vehicle", "system_a", "--environment", "clear", "--target",
-                 "car", "--resolution", "1", "--extent", "-10,20,-8,8", "--heading", "nan",
-                 "--out", str(tmp_path / "bad")]) == 2
+    assert (
+        main(
+            [
+                "coverage",
+                "--vehicle",
+                "system_a",
+                "--environment",
+                "clear",
+                "--target",
+                "car",
+                "--resolution",
+                "1",
+                "--extent",
+                "-10,20,-8,8",
+                "--heading",
+                "nan",
+                "--out",
+                str(tmp_path / "bad"),
+            ]
+        )
+        == 2
+    )

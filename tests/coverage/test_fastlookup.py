@@ -29,15 +29,23 @@ ENVS = load_environments()
 
 @pytest.mark.parametrize("pitch_deg", [0.0, 20.0, 70.0])
 @pytest.mark.parametrize("margin_deg", [0.0, 10.0])
-def test_glare_cone_weight_equals_camera_glare_weights(pitch_deg: float,
-                                                       margin_deg: float) -> None:
+def test_glare_cone_weight_equals_camera_glare_weights(pitch_deg: float, margin_deg: float) -> None:
     system = load_system("system_a")
     cam = next(s for s in system.sensors if isinstance(s.model, Camera))
     model = cam.model
     assert isinstance(model, Camera)
     model = Camera(model.params.model_copy(update={"glare_margin_deg": margin_deg}))
-    mount = Mount(0.0, 0.0, 1.5, math.radians(30.0), math.radians(pitch_deg),
-                  math.radians(120.0), math.radians(60.0), 0.1, 100.0)
+    mount = Mount(
+        0.0,
+        0.0,
+        1.5,
+        math.radians(30.0),
+        math.radians(pitch_deg),
+        math.radians(120.0),
+        math.radians(60.0),
+        0.1,
+        100.0,
+    )
     rng = np.random.default_rng(7)
     az = rng.uniform(-math.pi, math.pi, 4000)
     el = np.arcsin(rng.uniform(-1.0, 1.0, 4000))  # uniform on the sphere
@@ -45,8 +53,12 @@ def test_glare_cone_weight_equals_camera_glare_weights(pitch_deg: float,
     want = model.glare_weights(mount, d)
     cone = model.glare_cone(mount)
     bound = cone_cos_bound(cone.half_h, cone.half_v, cone.margin)
-    got = np.array([glare_cone_weight(*v, cone.rotation, cone.half_h, cone.half_v,
-                                      cone.margin, bound) for v in d])
+    got = np.array(
+        [
+            glare_cone_weight(*v, cone.rotation, cone.half_h, cone.half_v, cone.margin, bound)
+            for v in d
+        ]
+    )
     np.testing.assert_allclose(got, want, rtol=0, atol=1e-12)
     assert 0 < np.count_nonzero(want == 1.0) < want.size  # inside and outside both hit
     if margin_deg:
@@ -80,10 +92,15 @@ def test_tracks_lookup_equals_point_lookup(system_name: str) -> None:
     lookup_log_miss_tracks(maps, scene, x, y, heading, n, rows, sun, out)
     for r in range(b):
         k = n[r]
-        dirs = sun_directions_of(np.repeat(sun[r:r + 1], k, axis=0), heading[r, :k])
-        want, _ = lookup_log_miss(maps, scene, x[r, :k], y[r, :k],
-                                  np.full(k, car.reference_height_m),
-                                  None if sun[r, 0] == SUN_NONE else dirs)
+        dirs = sun_directions_of(np.repeat(sun[r : r + 1], k, axis=0), heading[r, :k])
+        want, _ = lookup_log_miss(
+            maps,
+            scene,
+            x[r, :k],
+            y[r, :k],
+            np.full(k, car.reference_height_m),
+            None if sun[r, 0] == SUN_NONE else dirs,
+        )
         np.testing.assert_allclose(out[r, :k], want, rtol=0, atol=1e-9)
         assert np.all(out[r, k:] == 123.0)  # steps beyond n are not written
     assert np.all(np.isfinite(out))
@@ -126,8 +143,9 @@ def test_a_cameras_part_of_the_body_maps_is_removed_exactly() -> None:
     grid = GridSpec(-20.0, 90.0, -20.0, 20.0, 0.5, car.reference_height_m)
     maps = LogMissMaps.build(scene, grid)
     row = system.sensor_ids().index("cam_main")
-    outline = np.array([[x, y] for x in (-0.9, 0.0, 1.2, 3.9) for y in (-0.9, 0.9)]
-                       + [[-0.9, 0.0], [3.9, 0.0]])
+    outline = np.array(
+        [[x, y] for x in (-0.9, 0.0, 1.2, 3.9) for y in (-0.9, 0.9)] + [[-0.9, 0.0], [3.9, 0.0]]
+    )
     rng = np.random.default_rng(3)
     b, t = 4, 60
     xf = rng.uniform(-10.0, 85.0, b * t)
@@ -136,11 +154,17 @@ def test_a_cameras_part_of_the_body_maps_is_removed_exactly() -> None:
     gi = np.arange(b * t, dtype=np.int64)
     for q in (0, 3):
         totals = maps.body_totals(outline, (row,), 12, (q,))
-        how = TrackLookup(totals, psi, frozenset({row}), lambda f: np.zeros(f.size),
-                          lambda r, f: np.zeros(f.size), outline, {row: q})
+        how = TrackLookup(
+            totals,
+            psi,
+            frozenset({row}),
+            lambda f: np.zeros(f.size),
+            lambda r, f: np.zeros(f.size),
+            outline,
+            {row: q},
+        )
         h = np.rint(np.mod(psi.reshape(-1), math.pi) / (math.pi / 12)).astype(int) % 12
-        want = np.array([_bilinear_at(totals[h[k]], grid, xf[k], yf[k])
-                         for k in range(b * t)])
+        want = np.array([_bilinear_at(totals[h[k]], grid, xf[k], yf[k]) for k in range(b * t)])
         got = _outline_layer(maps, row, gi, xf, yf, how)
         np.testing.assert_allclose(got, want, rtol=0, atol=1e-4)
         assert np.min(want) < -10.0  # near-certain detections are among the points
@@ -153,8 +177,10 @@ def _bilinear_at(img: np.ndarray, grid: GridSpec, x: float, y: float) -> float:
     ny, nx = img.shape
     i, j = min(int(fx), nx - 2), min(int(fy), ny - 2)
     ax, ay = fx - i, fy - j
-    return float((1 - ay) * ((1 - ax) * img[j, i] + ax * img[j, i + 1])
-                 + ay * ((1 - ax) * img[j + 1, i] + ax * img[j + 1, i + 1]))
+    return float(
+        (1 - ay) * ((1 - ax) * img[j, i] + ax * img[j, i + 1])
+        + ay * ((1 - ax) * img[j + 1, i] + ax * img[j + 1, i + 1])
+    )
 
 
 def test_near_view_mask_is_a_box_dilation() -> None:

@@ -12,8 +12,9 @@ from tests.conftest import make_scene
 
 @pytest.mark.parametrize("env", ["clear", "glare_front_right", "fog_50"])
 @pytest.mark.parametrize("target", ["car", "pedestrian"])
-def test_grid_equals_unculled_points(system_a: System, system_b: System, env: str,
-                                     target: str) -> None:
+def test_grid_equals_unculled_points(
+    system_a: System, system_b: System, env: str, target: str
+) -> None:
     grid = GridSpec(-30.0, 90.0, -20.0, 20.0, 0.7, 0.75)
     X, Y = np.meshgrid(grid.xs(), grid.ys())
     pts = np.column_stack([X.ravel(), Y.ravel(), np.full(X.size, 0.75)])
@@ -34,8 +35,9 @@ def test_grid_equals_unculled_points(system_a: System, system_b: System, env: st
             np.testing.assert_allclose(detail.pd[sid].ravel(), ref.pd[row], rtol=0, atol=1e-12)
             # SNR in dB: relative 1e-12, and 1e-12 dB absolute where it crosses 0 dB (a
             # -0.0153 dB cell differed by 1.5e-14 dB on a fresh machine: 1e-12 relative)
-            np.testing.assert_allclose(detail.snr_db[sid].ravel(), ref.snr_db[row],
-                                       rtol=1e-12, atol=1e-12)
+            np.testing.assert_allclose(
+                detail.snr_db[sid].ravel(), ref.snr_db[row], rtol=1e-12, atol=1e-12
+            )
 
 
 def test_culled_sensors_are_not_prepared(system_a: System) -> None:

@@ -18,16 +18,20 @@ from sensorgap.models import Conditions, load_system
 
 
 def _scene(target: str = "car") -> Scene:
-    return Scene(load_system("system_a"), load_target(target),
-                 Conditions(env=EnvironmentConfig(name="clear"), sun_direction=None))
+    return Scene(
+        load_system("system_a"),
+        load_target(target),
+        Conditions(env=EnvironmentConfig(name="clear"), sun_direction=None),
+    )
 
 
 def _row(scene: Scene, sid: str) -> int:
     return [s.id for s in scene.sensors].index(sid)
 
 
-def _hidden_by_hand(m: tuple[float, float, float], p: np.ndarray, x1: float, x2: float,
-                    half_w: float, h: float) -> bool:
+def _hidden_by_hand(
+    m: tuple[float, float, float], p: np.ndarray, x1: float, x2: float, half_w: float, h: float
+) -> bool:
     """An axis-aligned box x1..x2, |y| <= half_w, 0..h ahead of the mount (x1 > mount x,
     sample beyond x2): the ray crosses the slab x1..x2 for t in [ta, tb]; it is hidden
     when y(t) and z(t) are inside the box for a common t (interval arithmetic, not the
@@ -63,8 +67,12 @@ def test_box_behind_box_visible_fraction_by_hand(offset_y: float) -> None:
     px, py, pz, nx, ny = body_points(body_samples(scene.target), x, y, psi)
     m = (cam.mount.x, cam.mount.y, cam.mount.z)
     facing = (nx * (m[0] - px) + ny * (m[1] - py) > 0.0)[0]
-    hidden = np.array([_hidden_by_hand(m, np.array([px[0, j], py[0, j], pz[0, j]]), 20.0,
-                                       26.0, 1.25, 3.5) for j in range(px.shape[1])])
+    hidden = np.array(
+        [
+            _hidden_by_hand(m, np.array([px[0, j], py[0, j], pz[0, j]]), 20.0, 26.0, 1.25, 3.5)
+            for j in range(px.shape[1])
+        ]
+    )
     want = float((facing & ~hidden).sum() / facing.sum())  # all in view at 40 m ahead
     pd, frac = body_per_sensor_pd(scene, x, y, psi, occluders=occluder_array([occ]))
     assert frac[row, 0] == pytest.approx(want, abs=1e-12)
@@ -88,13 +96,15 @@ def test_low_occluder_hides_the_lower_samples_only() -> None:
     scene = _scene("pedestrian")
     row = _row(scene, "cam_windshield")
     occ = Occluder(14.2, 0.0, 0.0, 0.4, 4.0, 0.7)
-    pd, frac = body_per_sensor_pd(scene, np.array([15.0]), np.array([0.0]),
-                                  np.array([0.0]), occluders=occluder_array([occ]))
+    pd, frac = body_per_sensor_pd(
+        scene, np.array([15.0]), np.array([0.0]), np.array([0.0]), occluders=occluder_array([occ])
+    )
     assert frac[row, 0] == pytest.approx(0.5)
     # a 1.5 m parked car instead hides the whole adult from the 1.32 m camera
     car = Occluder.of_target(load_target("car"), 12.0, 0.0, math.pi / 2)
-    _, frac = body_per_sensor_pd(scene, np.array([15.0]), np.array([0.0]),
-                                 np.array([0.0]), occluders=occluder_array([car]))
+    _, frac = body_per_sensor_pd(
+        scene, np.array([15.0]), np.array([0.0]), np.array([0.0]), occluders=occluder_array([car])
+    )
     assert frac[row, 0] == 0.0
 
 
@@ -106,10 +116,8 @@ def test_adding_an_occluder_never_raises_pd() -> None:
     n = 3000
     x, y = rng.uniform(-40, 80, n), rng.uniform(-20, 20, n)
     psi = rng.uniform(-math.pi, math.pi, n)
-    o1 = Occluder(rng.uniform(8, 30), rng.uniform(-6, 6), rng.uniform(0, math.pi), 10.0,
-                  2.5, 4.0)
-    o2 = Occluder(rng.uniform(-30, -8), rng.uniform(-6, 6), rng.uniform(0, math.pi), 4.5,
-                  1.8, 1.5)
+    o1 = Occluder(rng.uniform(8, 30), rng.uniform(-6, 6), rng.uniform(0, math.pi), 10.0, 2.5, 4.0)
+    o2 = Occluder(rng.uniform(-30, -8), rng.uniform(-6, 6), rng.uniform(0, math.pi), 4.5, 1.8, 1.5)
     p0, f0 = body_per_sensor_pd(scene, x, y, psi)
     p1, f1 = body_per_sensor_pd(scene, x, y, psi, occluders=occluder_array([o1]))
     p2, f2 = body_per_sensor_pd(scene, x, y, psi, occluders=occluder_array([o1, o2]))
@@ -144,8 +152,21 @@ def test_coverage_cli_with_an_occluder(tmp_path) -> None:
     seen without it lose Pd; the summary names the occluder; the map is drawn."""
     from sensorgap.cli import main
 
-    common = ["coverage", "--vehicle", "system_a", "--environment", "clear", "--target",
-              "car", "--extent", "-10,80,-15,15", "--resolution", "1", "--heading", "0"]
+    common = [
+        "coverage",
+        "--vehicle",
+        "system_a",
+        "--environment",
+        "clear",
+        "--target",
+        "car",
+        "--extent",
+        "-10,80,-15,15",
+        "--resolution",
+        "1",
+        "--heading",
+        "0",
+    ]
     assert main([*common, "--out", str(tmp_path / "a")]) == 0
     assert main([*common, "--occluder", "truck@15,-3.5,0", "--out", str(tmp_path / "b")]) == 0
     a = np.load(tmp_path / "a" / "coverage.npz")["pd"]
@@ -164,18 +185,28 @@ def test_coverage_cli_with_an_occluder(tmp_path) -> None:
     assert (tmp_path / "b" / "coverage.png").stat().st_size > 10_000
 
 
-def _random_poses_and_boxes(xr: tuple[float, float], yr: tuple[float, float],
-                            bx: tuple[float, float], by: tuple[float, float],
-                            size: tuple[float, float, float], n: int = 4000, seed: int = 11
-                            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def _random_poses_and_boxes(
+    xr: tuple[float, float],
+    yr: tuple[float, float],
+    bx: tuple[float, float],
+    by: tuple[float, float],
+    size: tuple[float, float, float],
+    n: int = 4000,
+    seed: int = 11,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """``n`` random target poses (x in ``xr``, y in ``yr``, any heading) and per pose one
     random box of ``size`` (length, width, height, m) centred in ``bx`` x ``by``."""
     rng = np.random.default_rng(seed)
     x, y = rng.uniform(*xr, n), rng.uniform(*yr, n)
     psi = rng.uniform(-math.pi, math.pi, n)
-    boxes = np.stack([occluder_array([Occluder(rng.uniform(*bx), rng.uniform(*by),
-                                               rng.uniform(0, math.pi), *size)])
-                      for _ in range(n)])
+    boxes = np.stack(
+        [
+            occluder_array(
+                [Occluder(rng.uniform(*bx), rng.uniform(*by), rng.uniform(0, math.pi), *size)]
+            )
+            for _ in range(n)
+        ]
+    )
     return x, y, psi, boxes
 
 
@@ -185,8 +216,9 @@ def test_may_hide_never_misses_a_hiding_box() -> None:
     from sensorgap.coverage.occluders import may_hide
 
     scene = _scene()
-    x, y, psi, boxes = _random_poses_and_boxes((-40, 80), (-20, 20), (-30, 60), (-12, 12),
-                                               (6.0, 2.0, 2.5))
+    x, y, psi, boxes = _random_poses_and_boxes(
+        (-40, 80), (-20, 20), (-30, 60), (-12, 12), (6.0, 2.0, 2.5)
+    )
     _, f0 = body_per_sensor_pd(scene, x, y, psi)
     _, f1 = body_per_sensor_pd(scene, x, y, psi, occluders=boxes)
     hidden = np.any(f1 < f0, axis=0)
@@ -206,12 +238,12 @@ def test_occlusion_changes_is_exact_about_where_the_pd_changes(monkeypatch) -> N
     from sensorgap.coverage.body import occlusion_changes, take_points
 
     scene = _scene()
-    x, y, psi, boxes = _random_poses_and_boxes((-40, 90), (-15, 15), (-20, 40), (-6, 6),
-                                               (12.0, 2.5, 4.0))
+    x, y, psi, boxes = _random_poses_and_boxes(
+        (-40, 90), (-15, 15), (-20, 40), (-6, 6), (12.0, 2.5, 4.0)
+    )
     pts = body_points(body_samples(scene.target), x, y, psi)
     culled = occlusion_changes(scene, x, y, psi, boxes)
-    np.testing.assert_array_equal(occlusion_changes(scene, x, y, psi, boxes, points=pts),
-                                  culled)
+    np.testing.assert_array_equal(occlusion_changes(scene, x, y, psi, boxes, points=pts), culled)
     monkeypatch.setattr(body_mod, "CULL", False)
     np.testing.assert_array_equal(occlusion_changes(scene, x, y, psi, boxes), culled)
     monkeypatch.undo()
@@ -221,6 +253,7 @@ def test_occlusion_changes_is_exact_about_where_the_pd_changes(monkeypatch) -> N
     assert not np.any(np.any(p1 < p0, axis=0) & ~culled)
     # precomputed points (and a subset of them) give the same Pd as computing them
     sub = np.flatnonzero(culled)
-    ps, _ = body_per_sensor_pd(scene, x[sub], y[sub], psi[sub], occluders=boxes[sub],
-                               points=take_points(pts, sub))
+    ps, _ = body_per_sensor_pd(
+        scene, x[sub], y[sub], psi[sub], occluders=boxes[sub], points=take_points(pts, sub)
+    )
     np.testing.assert_array_equal(ps, p1[:, sub])

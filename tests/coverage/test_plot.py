@@ -34,8 +34,7 @@ def cov() -> GridCoverage:
 
 
 def test_sun_words() -> None:
-    assert sun_words(-20.0, 8.0) == "sun front (20° right of straight ahead), 8° above " \
-                                    "the horizon"
+    assert sun_words(-20.0, 8.0) == "sun front (20° right of straight ahead), 8° above the horizon"
     assert sun_words(-45.0, 10.0).startswith("sun front-right (45° right")
     assert sun_words(180.0, 60.0) == "sun rear (straight behind), 60° above the horizon"
     assert sun_words(100.0, 5.0).startswith("sun left (100° left of straight ahead)")
@@ -87,19 +86,16 @@ def test_comparison_figure(cov: GridCoverage) -> None:
     assert np.allclose(im.get_array(), cov.fused - pd_b)
     for a in mains:
         assert len(a.child_axes) == 1
-        assert abs(a.child_axes[0].get_window_extent().height
-                   - a.get_window_extent().height) < 1.0
+        assert abs(a.child_axes[0].get_window_extent().height - a.get_window_extent().height) < 1.0
     texts = _legend_texts(fig)
     assert "System A: sensor positions (difference map)" in texts
     assert "System B: sensor positions (difference map)" in texts
     # both vehicles' sensors are marked on the difference map
     marks = [ln for ln in mains[2].get_lines() if len(ln.get_xdata()) > 1]
-    assert sorted(len(ln.get_xdata()) for ln in marks) == sorted([len(sa.sensors),
-                                                                  len(sb.sensors)])
+    assert sorted(len(ln.get_xdata()) for ln in marks) == sorted([len(sa.sensors), len(sb.sensors)])
 
 
-def test_coverage_of_a_scene_draws_its_sun(tmp_path: Path,
-                                           monkeypatch: pytest.MonkeyPatch) -> None:
+def test_coverage_of_a_scene_draws_its_sun(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     from sensorgap.coverage import outputs
 
     seen: list[list[str]] = []
@@ -110,8 +106,11 @@ def test_coverage_of_a_scene_draws_its_sun(tmp_path: Path,
         return fig
 
     monkeypatch.setattr(outputs, "coverage_figure", spy)
-    scene = Scene(load_system("system_b"), load_target("car"),
-                  Conditions.from_config(load_environment("glare_front_right")))
+    scene = Scene(
+        load_system("system_b"),
+        load_target("car"),
+        Conditions.from_config(load_environment("glare_front_right")),
+    )
     grid = GridSpec(-20.0, 40.0, -15.0, 15.0, 1.0, 0.75)
     outputs.write_coverage(scene, grid, tmp_path / "cov")
     assert (tmp_path / "cov" / "coverage.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

@@ -18,13 +18,27 @@ from sensorgap.scenarios.trajectory import InfeasibleScenario
 from sensorgap.search.run import run_search
 from sensorgap.search.runfolder import record_inputs, write_search_record
 
-FAMILIES = ["cut_in_left", "overtake_left", "slow_ahead_curve", "crossing_pedestrian",
-            "crossing_cyclist"]
+FAMILIES = [
+    "cut_in_left",
+    "overtake_left",
+    "slow_ahead_curve",
+    "crossing_pedestrian",
+    "crossing_cyclist",
+]
 ENVS = ["clear", "glare_front_right", "fog_50", "rain_25", "snow"]
 #: Every shipped family: together they use every built-in family kind.
-ALL_FAMILIES = ["cut_in_left", "cut_in_right", "overtake_left", "slow_ahead_curve",
-                "stopped_rural_curve", "crossing_pedestrian", "crossing_cyclist",
-                "pedestrian_behind_parked_cars", "cut_out_reveal", "cut_in_behind_truck"]
+ALL_FAMILIES = [
+    "cut_in_left",
+    "cut_in_right",
+    "overtake_left",
+    "slow_ahead_curve",
+    "stopped_rural_curve",
+    "crossing_pedestrian",
+    "crossing_cyclist",
+    "pedestrian_behind_parked_cars",
+    "cut_out_reveal",
+    "cut_in_behind_truck",
+]
 
 
 def _esmini() -> Path | None:
@@ -36,8 +50,10 @@ def _esmini() -> Path | None:
 
 ESMINI = _esmini()
 needs_esmini = pytest.mark.skipif(
-    ESMINI is None, reason="esmini is not installed (set SENSORGAP_ESMINI or put esmini on "
-    "PATH); it is not on any package registry, CI has none")
+    ESMINI is None,
+    reason="esmini is not installed (set SENSORGAP_ESMINI or put esmini on "
+    "PATH); it is not on any package registry, CI has none",
+)
 
 
 def write_family_run(out: Path, per_family: int = 1, seed: int = 7) -> Path:
@@ -58,16 +74,33 @@ def write_family_run(out: Path, per_family: int = 1, seed: int = 7) -> Path:
                 continue
             found += 1
             sid = hashlib.sha256(f"{name}/{found}/{params}".encode()).hexdigest()[:12]
-            rows.append({"rank": len(rows) + 1, "scenario_id": sid, "family": name,
-                         "environment": "clear", **{f"p_{k}": v for k, v in params.items()}})
+            rows.append(
+                {
+                    "rank": len(rows) + 1,
+                    "scenario_id": sid,
+                    "family": name,
+                    "environment": "clear",
+                    **{f"p_{k}": v for k, v in params.items()},
+                }
+            )
     out.mkdir(parents=True, exist_ok=True)
-    (out / "ranking.json").write_text(json.dumps(
-        {"ranking": rows, "settings": {"vehicle_ref": "system_a"}}), encoding="utf-8")
+    (out / "ranking.json").write_text(
+        json.dumps({"ranking": rows, "settings": {"vehicle_ref": "system_a"}}), encoding="utf-8"
+    )
     # its inputs recorded as a search records them (a run without them is refused)
     system = load_system("system_a")
-    write_search_record(out, "system_a", {}, record_inputs(
-        out, Path(system.source), None, system.config.reaction,
-        [load_family(n) for n in ALL_FAMILIES]))
+    write_search_record(
+        out,
+        "system_a",
+        {},
+        record_inputs(
+            out,
+            Path(system.source),
+            None,
+            system.config.reaction,
+            [load_family(n) for n in ALL_FAMILIES],
+        ),
+    )
     return out
 
 
@@ -83,8 +116,7 @@ def run_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def catalog(run_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The replay-style catalog (timed polylines) of the small run."""
     out = tmp_path_factory.mktemp("catalog")
-    assert main(["export", "--run", str(run_dir), "--out", str(out), "--style",
-                 "replay"]) == 0
+    assert main(["export", "--run", str(run_dir), "--out", str(out), "--style", "replay"]) == 0
     return out
 
 
@@ -101,9 +133,17 @@ def encounter_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A small search run whose ranked scenarios start their manoeuvres on relative
     triggers (system_a; lane changes, mostly the default job's cut-out reveal)."""
     out = tmp_path_factory.mktemp("encounter_run")
-    run_search("system_a", ["cut_out_reveal", "cut_in_behind_truck", "cut_in_left",
-                            "overtake_left"], ["fog_50", "snow"], 400, 3, 6, out,
-               strategy="lhs", progress=False)
+    run_search(
+        "system_a",
+        ["cut_out_reveal", "cut_in_behind_truck", "cut_in_left", "overtake_left"],
+        ["fog_50", "snow"],
+        400,
+        3,
+        6,
+        out,
+        strategy="lhs",
+        progress=False,
+    )
     return out
 
 
@@ -119,8 +159,9 @@ STYLES = ("maneuver", "replay")
 
 
 @pytest.fixture(scope="session")
-def family_catalogs(family_run: Path,
-                    tmp_path_factory: pytest.TempPathFactory) -> dict[tuple[str, str], Path]:
+def family_catalogs(
+    family_run: Path, tmp_path_factory: pytest.TempPathFactory
+) -> dict[tuple[str, str], Path]:
     """The catalog of ``family_run`` (every family kind) in every style and version:
     (style, version) -> folder (no coverage maps)."""
     from sensorgap.export import export_catalog
@@ -129,7 +170,6 @@ def family_catalogs(family_run: Path,
     for style in STYLES:
         for version in VERSIONS:
             folder = tmp_path_factory.mktemp(f"family_{style}_{version.replace('.', '')}")
-            export_catalog(family_run, folder, osc_version=version, coverage=False,
-                           style=style)
+            export_catalog(family_run, folder, osc_version=version, coverage=False, style=style)
             out[(style, version)] = folder
     return out

@@ -16,8 +16,17 @@ from sensorgap.scenarios.trajectory import Trajectory
 def _plan(heading: float = 0.3) -> PlannedBox:
     t = np.arange(0.0, 2.0001, 0.05)
     c, s = math.cos(heading), math.sin(heading)
-    return PlannedBox(Trajectory(t, 10.0 + 8.0 * t * c, -3.0 + 8.0 * t * s,
-                                 np.full_like(t, heading), np.full_like(t, 8.0)), 4.5, 1.8)
+    return PlannedBox(
+        Trajectory(
+            t,
+            10.0 + 8.0 * t * c,
+            -3.0 + 8.0 * t * s,
+            np.full_like(t, heading),
+            np.full_like(t, 8.0),
+        ),
+        4.5,
+        1.8,
+    )
 
 
 def test_box_corners_and_deviation() -> None:

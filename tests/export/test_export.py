@@ -28,10 +28,8 @@ def _ranked(run: Path) -> int:
 
 
 @pytest.mark.parametrize("version", ["1.0", "1.1", "1.2", "1.3"])
-def test_every_file_passes_its_official_xsd(run_dir: Path, tmp_path: Path,
-                                            version: str) -> None:
-    index = export_catalog(run_dir, tmp_path, osc_version=version, coverage=False,
-                           style="replay")
+def test_every_file_passes_its_official_xsd(run_dir: Path, tmp_path: Path, version: str) -> None:
+    index = export_catalog(run_dir, tmp_path, osc_version=version, coverage=False, style="replay")
     files = sorted((tmp_path / "scenarios").glob("*.xosc"))
     assert len(files) == len(index["scenarios"]) == _ranked(run_dir) >= 3
     for f in files:
@@ -49,8 +47,7 @@ def test_catalog_layout_and_index(catalog: Path) -> None:
     roles = {m["role"] for m in index["files"].values()}
     assert roles == {"scenario", "road", "coverage map", "ranking"}
     ranking = json.loads((catalog / "ranking.json").read_text())["ranking"]
-    assert [s["scenario_id"] for s in index["scenarios"]] == [r["scenario_id"]
-                                                               for r in ranking]
+    assert [s["scenario_id"] for s in index["scenarios"]] == [r["scenario_id"] for r in ranking]
     for s in index["scenarios"]:
         xosc = catalog / s["file"]
         road = etree.parse(str(xosc)).find("RoadNetwork/LogicFile").get("filepath")
@@ -66,8 +63,11 @@ def test_scenario_content_matches_the_search(catalog: Path) -> None:
 
     for p in load_family(row["family"]).space:
         value, got = row[f"p_{p.name}"], declared[p.name]
-        assert (got == value) if isinstance(value, str) else math.isclose(
-            float(got), float(value), rel_tol=0, abs_tol=1e-12), p.name
+        assert (
+            (got == value)
+            if isinstance(value, str)
+            else math.isclose(float(got), float(value), rel_tol=0, abs_tol=1e-12)
+        ), p.name
     assert f"risk={row['risk']:.6g}" in tree.find("FileHeader").get("description")
     # both entities follow timed polylines with a vertex per 20 Hz step, except where a
     # slow body moves less than esmini's vertex filter (0.1 m) per step
@@ -77,8 +77,9 @@ def test_scenario_content_matches_the_search(catalog: Path) -> None:
         times = [float(v.get("time")) for v in poly.iter("Vertex")]
         xy = [(float(p.get("x")), float(p.get("y"))) for p in poly.iter("WorldPosition")]
         assert times[0] >= 0.0 and len(times) == len(xy) >= 2  # > 0: waits there first
-        for (a, b), (p, q) in zip(zip(times, times[1:], strict=False),
-                                  zip(xy, xy[1:], strict=False), strict=True):
+        for (a, b), (p, q) in zip(
+            zip(times, times[1:], strict=False), zip(xy, xy[1:], strict=False), strict=True
+        ):
             k = (b - a) / 0.05
             assert k >= 1 - 1e-6 and abs(k - round(k)) < 1e-4
             assert round(k) == 1 or math.dist(p, q) >= 0.1 or math.dist(p, q) == 0.0
@@ -113,10 +114,12 @@ def test_vehicle_bodies_are_where_planned(catalog: Path) -> None:
         assert float(centre.get("x")) == pytest.approx(0.3 * tgt.length_m, abs=1e-6)
         assert float(target.find(".//RearAxle").get("positionX")) == 0.0
         assert float(target.find(".//FrontAxle").get("positionX")) == pytest.approx(
-            0.6 * tgt.length_m, abs=1e-6)
+            0.6 * tgt.length_m, abs=1e-6
+        )
         spec = ScenarioSpec.from_row(row, load_system(run.vehicle_ref))
-        poly = [p for p in tree.iter("FollowTrajectoryAction")
-                if "Target" in etree.tostring(p).decode()][0]
+        poly = [
+            p for p in tree.iter("FollowTrajectoryAction") if "Target" in etree.tostring(p).decode()
+        ][0]
         v0 = next(poly.iter("WorldPosition"))
         x0, y0, h0 = (float(v0.get(k)) for k in ("x", "y", "h"))
         cx = x0 + 0.3 * tgt.length_m * math.cos(h0)
@@ -126,8 +129,9 @@ def test_vehicle_bodies_are_where_planned(catalog: Path) -> None:
     assert checked >= 1
 
 
-def test_semantic_checks_catch_bad_references_and_off_road_paths(catalog: Path,
-                                                                 tmp_path: Path) -> None:
+def test_semantic_checks_catch_bad_references_and_off_road_paths(
+    catalog: Path, tmp_path: Path
+) -> None:
     index = json.loads((catalog / "catalog.json").read_text())
     s = index["scenarios"][0]
     src = catalog / s["file"]
@@ -198,16 +202,18 @@ def test_critical_scenarios_generator(run_dir: Path, catalog: Path, tmp_path: Pa
     assert len(files) == 2 and files[0].read_bytes() != files[1].read_bytes()
 
 
-def test_simulate_without_esmini_is_one_line(catalog: Path, tmp_path: Path,
-                                             monkeypatch: pytest.MonkeyPatch,
-                                             capsys: pytest.CaptureFixture[str]) -> None:
+def test_simulate_without_esmini_is_one_line(
+    catalog: Path,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
     monkeypatch.delenv("SENSORGAP_ESMINI", raising=False)
     monkeypatch.setenv("PATH", str(tmp_path))
     assert main(["simulate", "--catalog", str(catalog)]) == 2
     err = capsys.readouterr().err.strip()
     assert "esmini is not installed" in err and len(err.splitlines()) == 1
-    assert main(["simulate", "--catalog", str(catalog), "--esmini",
-                 str(tmp_path / "nope")]) == 2
+    assert main(["simulate", "--catalog", str(catalog), "--esmini", str(tmp_path / "nope")]) == 2
     assert "is not an executable file" in capsys.readouterr().err
     assert main(["simulate", "--catalog", str(tmp_path / "missing")]) == 2
     assert "catalog folder does not exist" in capsys.readouterr().err
@@ -257,8 +263,10 @@ def test_esmini_failures_are_per_scenario(catalog: Path, tmp_path: Path) -> None
     assert all(rows[s]["status"] == "ok" for s in sid[2:])
     # a hard time limit far below esmini's start-up: every scenario is killed, none hangs
     os.remove(work / "simulation.csv")
-    assert main(["simulate", "--catalog", str(work), "--esmini", str(ESMINI),
-                 "--timeout", "0.001"]) == 0
+    assert (
+        main(["simulate", "--catalog", str(work), "--esmini", str(ESMINI), "--timeout", "0.001"])
+        == 0
+    )
     rows2 = list(csv.DictReader((work / "simulation.csv").open()))
     assert {r["status"] for r in rows2 if r["scenario_id"] != sid[0]} == {"timeout"}
 
@@ -285,11 +293,24 @@ def test_esmini_collides_when_the_plan_does(catalog: Path, tmp_path: Path) -> No
         spec = ScenarioSpec.from_row(row, system)
         tr = ev.trace(spec.scenario, spec.environment, spec.family.duration_s)
         log = tmp_path / f"{row['scenario_id']}.txt"
-        subprocess.run([str(ESMINI), "--headless", "--osc",
-                        str(catalog / "scenarios" / f"{row['scenario_id']}.xosc"),
-                        "--fixed_timestep", "0.05", "--collision", "--logfile_path", str(log),
-                        "--disable_stdout"], cwd=tmp_path, capture_output=True, timeout=120,
-                       check=False)
+        subprocess.run(
+            [
+                str(ESMINI),
+                "--headless",
+                "--osc",
+                str(catalog / "scenarios" / f"{row['scenario_id']}.xosc"),
+                "--fixed_timestep",
+                "0.05",
+                "--collision",
+                "--logfile_path",
+                str(log),
+                "--disable_stdout",
+            ],
+            cwd=tmp_path,
+            capture_output=True,
+            timeout=120,
+            check=False,
+        )
         hit = re.search(r"\[(\d+\.\d+)\] \[\w+\] Collision between", log.read_text())
         if tr.collided:
             assert hit is not None, row["scenario_id"]
@@ -324,8 +345,9 @@ def test_simulate_reports_a_run_that_stops_early(catalog: Path, tmp_path: Path) 
 
 
 @pytest.mark.parametrize("bad", ["../../escaped", "<b>x</b>", ""])
-def test_scenario_id_cannot_name_a_path(run_dir: Path, tmp_path: Path, bad: str,
-                                        capsys: pytest.CaptureFixture[str]) -> None:
+def test_scenario_id_cannot_name_a_path(
+    run_dir: Path, tmp_path: Path, bad: str, capsys: pytest.CaptureFixture[str]
+) -> None:
     # held-out hostile review (#18): a ranking row whose scenario_id is a path or markup
     # wrote scenarios/../../escaped.xosc outside --out; now one line, exit 2, nothing
     run = Path(shutil.copytree(run_dir, tmp_path / "run"))
@@ -340,13 +362,15 @@ def test_scenario_id_cannot_name_a_path(run_dir: Path, tmp_path: Path, bad: str,
     assert not list(tmp_path.rglob("escaped*")) and not out.exists()
 
 
-@pytest.mark.parametrize(("flag", "value"), [("--timeout", "inf"), ("--timeout", "0"),
-                                             ("--step", "nan"), ("--step", "5")])
-def test_simulate_bounds_are_one_line(catalog: Path, flag: str, value: str,
-                                      capsys: pytest.CaptureFixture[str]) -> None:
+@pytest.mark.parametrize(
+    ("flag", "value"),
+    [("--timeout", "inf"), ("--timeout", "0"), ("--step", "nan"), ("--step", "5")],
+)
+def test_simulate_bounds_are_one_line(
+    catalog: Path, flag: str, value: str, capsys: pytest.CaptureFixture[str]
+) -> None:
     # held-out review (#18): --timeout inf was an OverflowError (exit 1); checked before
     # esmini is looked for
-    assert main(["simulate", "--catalog", str(catalog), "--esmini", "/bin/true", flag,
-                 value]) == 2
+    assert main(["simulate", "--catalog", str(catalog), "--esmini", "/bin/true", flag, value]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith(f"sensorgap: error: {flag}: must be within")

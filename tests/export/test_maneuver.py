@@ -33,25 +33,55 @@ from sensorgap.models import load_system
 from sensorgap.scenarios import load_family
 from tests.export.conftest import ALL_FAMILIES, ESMINI, needs_esmini
 
-KINDS = {"cut_in", "overtake", "slow_ahead", "crossing", "crossing_behind_parked",
-         "cut_out_reveal", "cut_in_behind_occluder"}
+KINDS = {
+    "cut_in",
+    "overtake",
+    "slow_ahead",
+    "crossing",
+    "crossing_behind_parked",
+    "cut_out_reveal",
+    "cut_in_behind_occluder",
+}
 #: Declared parameters every maneuver file of a kind references (besides the ego's).
 REFERENCED = {
-    "cut_in": {"dx0_m", "target_speed_m_s", "lc_start_s", "lc_duration_s",
-               "lane_change_shape"},
-    "overtake": {"dx0_m", "speed_delta_m_s", "merge_gap_m", "merge_duration_s",
-                 "brake_delay_s", "decel_m_s2", "lane_change_shape"},
+    "cut_in": {"dx0_m", "target_speed_m_s", "lc_start_s", "lc_duration_s", "lane_change_shape"},
+    "overtake": {
+        "dx0_m",
+        "speed_delta_m_s",
+        "merge_gap_m",
+        "merge_duration_s",
+        "brake_delay_s",
+        "decel_m_s2",
+        "lane_change_shape",
+    },
     "slow_ahead": {"gap0_m", "target_speed_m_s"},
     "crossing": {"cross_ahead_m"},
     "crossing_behind_parked": {"cross_ahead_m"},
-    "cut_out_reveal": {"lead_gap_m", "target_speed_m_s", "cut_out_s", "lc_duration_s",
-                       "reveal_s", "lane_change_shape"},
-    "cut_in_behind_occluder": {"truck_dx_m", "truck_speed_m_s", "target_gap_m",
-                               "speed_delta_m_s", "lc_start_s", "lc_duration_s",
-                               "lane_change_shape"},
+    "cut_out_reveal": {
+        "lead_gap_m",
+        "target_speed_m_s",
+        "cut_out_s",
+        "lc_duration_s",
+        "reveal_s",
+        "lane_change_shape",
+    },
+    "cut_in_behind_occluder": {
+        "truck_dx_m",
+        "truck_speed_m_s",
+        "target_gap_m",
+        "speed_delta_m_s",
+        "lc_start_s",
+        "lc_duration_s",
+        "lane_change_shape",
+    },
 }
-EGO_REFERENCED = {"ego_s0_m", "ego_speed_m_s", "ego_controller",
-                  "ego_controller_longitudinal", "ego_controller_lateral"}
+EGO_REFERENCED = {
+    "ego_s0_m",
+    "ego_speed_m_s",
+    "ego_controller",
+    "ego_controller_longitudinal",
+    "ego_controller_lateral",
+}
 
 
 @pytest.fixture(scope="module")
@@ -63,8 +93,7 @@ def family_maneuver(family_run: Path, tmp_path_factory: pytest.TempPathFactory) 
 
 
 def _rows(folder: Path) -> list[dict[str, object]]:
-    rows: list[dict[str, object]] = json.loads(
-        (folder / "ranking.json").read_text())["ranking"]
+    rows: list[dict[str, object]] = json.loads((folder / "ranking.json").read_text())["ranking"]
     return rows
 
 
@@ -91,7 +120,8 @@ def _set_parameter(path: Path, name: str, value: str, out: Path) -> None:
 @pytest.mark.parametrize("style", ["maneuver", "replay"])
 @pytest.mark.parametrize("version", ["1.0", "1.1", "1.2", "1.3"])
 def test_both_styles_are_xsd_valid_for_every_family_kind(
-        family_catalogs: dict[tuple[str, str], Path], version: str, style: str) -> None:
+    family_catalogs: dict[tuple[str, str], Path], version: str, style: str
+) -> None:
     folder = family_catalogs[(style, version)]
     index = json.loads((folder / "catalog.json").read_text())
     assert index["style"] == style and index["osc_version"] == version
@@ -109,13 +139,17 @@ def test_both_styles_are_xsd_valid_for_every_family_kind(
         if style == "replay":
             assert polylines == 2  # ego and target: timed 20 Hz polylines
         else:  # actions; only a crossing follows a (timed) path
-            assert polylines == (1 if "crossing" in load_family(s["family"]).kind.name
-                                 and tree.find(".//FollowTrajectoryAction") is not None
-                                 else 0)
+            assert polylines == (
+                1
+                if "crossing" in load_family(s["family"]).kind.name
+                and tree.find(".//FollowTrajectoryAction") is not None
+                else 0
+            )
 
 
 def test_maneuver_references_resolve_and_place_entities_as_planned(
-        family_run: Path, family_maneuver: Path) -> None:
+    family_run: Path, family_maneuver: Path
+) -> None:
     """Every ``$`` reference and expression resolves; the kind's parameters are
     referenced; each entity's start, resolved from the declared values, is the plan's
     (lane position -> lane centre, road position -> reference line + t; 5 cm)."""
@@ -136,8 +170,7 @@ def test_maneuver_references_resolve_and_place_entities_as_planned(
             wp = private.find(".//TeleportAction/Position/WorldPosition")
             if lp is not None:
                 s = float(evaluate(lp.get("s"), values))
-                x, y, _, _ = net.lane_center(lp.get("roadId"), int(lp.get("laneId")),
-                                             np.array([s]))
+                x, y, _, _ = net.lane_center(lp.get("roadId"), int(lp.get("laneId")), np.array([s]))
                 xy = (float(x[0]), float(y[0]))
             elif rp is not None:
                 s = float(evaluate(rp.get("s"), values))
@@ -152,8 +185,9 @@ def test_maneuver_references_resolve_and_place_entities_as_planned(
                 assert math.hypot(xy[0] - p.x[0], xy[1] - p.y[0]) < 0.05, (kind, name)
             placed.add(name)
         assert {"Ego", "Target"} <= placed
-        speed = next(p for p in tree.find(".//Init/Actions").iter("Private")
-                     if p.get("entityRef") == "Ego").find(".//AbsoluteTargetSpeed")
+        speed = next(
+            p for p in tree.find(".//Init/Actions").iter("Private") if p.get("entityRef") == "Ego"
+        ).find(".//AbsoluteTargetSpeed")
         v = float(evaluate(speed.get("value"), values))
         # the lane speed: the planned reference-line speed times the lane's length factor
         assert abs(v / float(row["p_ego_speed_m_s"]) - 1.0) < 0.02
@@ -175,12 +209,14 @@ def test_maneuver_structure(family_run: Path, family_maneuver: Path) -> None:
         assert (prop.get("name"), prop.get("value")) == ("esminiController", "$ego_controller")
         act = tree.find(".//ActivateControllerAction")
         assert act.get("longitudinal") == "$ego_controller_longitudinal"
-        assert values["ego_controller_longitudinal"] == values["ego_controller_lateral"] == (
-            "false")
+        assert (
+            values["ego_controller_longitudinal"] == values["ego_controller_lateral"] == ("false")
+        )
         stop = tree.find("Storyboard/StopTrigger")
         assert stop.find(".//CollisionCondition/EntityRef").get("entityRef") == "Target"
         assert float(stop.find(".//SimulationTimeCondition").get("value")) == (
-            load_family(str(row["family"])).duration_s)
+            load_family(str(row["family"])).duration_s
+        )
         changes = list(tree.iter("LaneChangeAction"))
         if kind in ("cut_in", "cut_in_behind_occluder"):
             dyn = changes[0].find("LaneChangeActionDynamics")
@@ -195,9 +231,9 @@ def test_maneuver_structure(family_run: Path, family_maneuver: Path) -> None:
             assert changes == [] and tree.find(".//RelativeDistanceCondition") is None
 
 
-def test_editing_a_declared_parameter_changes_the_scenario(family_run: Path,
-                                                           family_maneuver: Path,
-                                                           tmp_path: Path) -> None:
+def test_editing_a_declared_parameter_changes_the_scenario(
+    family_run: Path, family_maneuver: Path, tmp_path: Path
+) -> None:
     """Raising ``target_speed_m_s`` by 2 m/s raises the target's initial speed by 2 m/s
     times its lane factor; moving ``ego_s0_m`` by 10 m moves every lane position by 10 m
     (the target and occluders start relative to the ego's start)."""
@@ -210,8 +246,11 @@ def test_editing_a_declared_parameter_changes_the_scenario(family_run: Path,
         def target_speed_and_positions(path: Path) -> tuple[float, list[float]]:
             tree = etree.parse(str(path))
             vals: dict[str, str | float] = dict(declared_parameters(tree))
-            tgt = next(p for p in tree.find(".//Init/Actions").iter("Private")
-                       if p.get("entityRef") == "Target")
+            tgt = next(
+                p
+                for p in tree.find(".//Init/Actions").iter("Private")
+                if p.get("entityRef") == "Target"
+            )
             v = float(evaluate(tgt.find(".//AbsoluteTargetSpeed").get("value"), vals))
             return v, [float(evaluate(p.get("s"), vals)) for p in tree.iter("LanePosition")]
 
@@ -220,16 +259,16 @@ def test_editing_a_declared_parameter_changes_the_scenario(family_run: Path,
         _set_parameter(src, "target_speed_m_s", repr(old + 2.0), tmp_path / "v.xosc")
         v1, _ = target_speed_and_positions(tmp_path / "v.xosc")
         assert v1 - v0 == pytest.approx(2.0 * v0 / old, rel=1e-6)
-        _set_parameter(src, "ego_s0_m", repr(float(row["p_ego_s0_m"]) + 10.0),
-                       tmp_path / "s.xosc")
+        _set_parameter(src, "ego_s0_m", repr(float(row["p_ego_s0_m"]) + 10.0), tmp_path / "s.xosc")
         _, s1 = target_speed_and_positions(tmp_path / "s.xosc")
         assert np.allclose(np.array(s1) - np.array(s0), 10.0)
         checked += 1
     assert checked >= 3
 
 
-def test_a_bad_style_is_an_input_error(run_dir: Path, tmp_path: Path,
-                                       capsys: pytest.CaptureFixture[str]) -> None:
+def test_a_bad_style_is_an_input_error(
+    run_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     with pytest.raises(InputError, match="maneuver, replay"):
         export_catalog(run_dir, tmp_path, style="movie")
     with pytest.raises(SystemExit) as exc:
@@ -240,10 +279,21 @@ def test_a_bad_style_is_an_input_error(run_dir: Path, tmp_path: Path,
 
 # --- esmini (skipped without it) -------------------------------------------------------
 
+
 def _esmini_run(xosc: Path, tmp: Path, csv_log: bool = True) -> tuple[str, Path]:
     text, log = tmp / f"{xosc.stem}.txt", tmp / f"{xosc.stem}.csv"
-    cmd = [str(ESMINI), "--headless", "--osc", str(xosc), "--fixed_timestep", "0.05",
-           "--collision", "--disable_stdout", "--logfile_path", str(text)]
+    cmd = [
+        str(ESMINI),
+        "--headless",
+        "--osc",
+        str(xosc),
+        "--fixed_timestep",
+        "0.05",
+        "--collision",
+        "--disable_stdout",
+        "--logfile_path",
+        str(text),
+    ]
     if csv_log:
         cmd += ["--csv_logger", str(log)]
     subprocess.run(cmd, cwd=tmp, capture_output=True, timeout=120, check=False)
@@ -253,9 +303,13 @@ def _esmini_run(xosc: Path, tmp: Path, csv_log: bool = True) -> tuple[str, Path]
 def _warnings(text: str) -> list[str]:
     """esmini's warnings and errors except the 3D-model look-up of an install without its
     model pack and the ego-target collisions the scenarios are about."""
-    return [ln for ln in text.splitlines()
-            if re.search(r"\[(warn|error)\]", ln) and "3D model" not in ln
-            and not re.search(r"Collision between (Ego and Target|Target and Ego)", ln)]
+    return [
+        ln
+        for ln in text.splitlines()
+        if re.search(r"\[(warn|error)\]", ln)
+        and "3D model" not in ln
+        and not re.search(r"Collision between (Ego and Target|Target and Ego)", ln)
+    ]
 
 
 def _simulate(catalog: Path, tmp_path: Path) -> list[dict[str, str]]:
@@ -267,17 +321,16 @@ def _simulate(catalog: Path, tmp_path: Path) -> list[dict[str, str]]:
 
 
 @needs_esmini
-def test_esmini_plays_the_maneuver_catalog_as_planned(maneuver_catalog: Path,
-                                                      encounter_run: Path,
-                                                      tmp_path: Path) -> None:
+def test_esmini_plays_the_maneuver_catalog_as_planned(
+    maneuver_catalog: Path, encounter_run: Path, tmp_path: Path
+) -> None:
     """The maneuver catalogs of two small runs run to their end (the duration, or the
     ego's collision with the target, which the StopTrigger ends the run at), with the
     plan's collision outcome, and every relative trigger starts within 0.1 s of the plan
     with the relative geometry within 0.5 m of the plan's."""
     encounters = tmp_path / "encounters"
     export_catalog(encounter_run, encounters, coverage=False)
-    rows = (_simulate(maneuver_catalog, tmp_path / "a")
-            + _simulate(encounters, tmp_path / "b"))
+    rows = _simulate(maneuver_catalog, tmp_path / "a") + _simulate(encounters, tmp_path / "b")
     assert rows and all(r["style"] == "maneuver" for r in rows)
     n_trig = 0
     for r in rows:
@@ -304,8 +357,10 @@ def test_esmini_plays_every_family_kind(family_maneuver: Path, tmp_path: Path) -
         assert r["trigger_agrees"] in ("yes", ""), r
         assert float(r["max_dev_relative_m"]) >= 0.0
         # the bodies are reported (not bounded) in this style: every planned body is there
-        spec = _spec(family_maneuver, next(x for x in _rows(family_maneuver)
-                                           if x["scenario_id"] == r["scenario_id"]))
+        spec = _spec(
+            family_maneuver,
+            next(x for x in _rows(family_maneuver) if x["scenario_id"] == r["scenario_id"]),
+        )
         logged = {b.split(":")[0]: float(b.split(":")[1]) for b in r["bodies"].split()}
         assert set(logged) == set(planned_boxes(spec)), r
         assert float(r["max_dev_body_m"]) == pytest.approx(max(logged.values()), abs=1e-4)
@@ -313,7 +368,8 @@ def test_esmini_plays_every_family_kind(family_maneuver: Path, tmp_path: Path) -
 
 @needs_esmini
 def test_esmini_puts_every_body_where_planned_in_replay(
-        family_catalogs: dict[tuple[str, str], Path], tmp_path: Path) -> None:
+    family_catalogs: dict[tuple[str, str], Path], tmp_path: Path
+) -> None:
     """Replay style, one scenario of every family: every body's logged box (esmini's
     bb_* columns: centre and corners) within 0.05 m of the plan's (issue #15 item 1),
     also for slow targets (esmini's vertex filter) and crossing pedestrians."""
@@ -326,12 +382,15 @@ def test_esmini_puts_every_body_where_planned_in_replay(
 
 
 @needs_esmini
-def test_esmini_warns_about_nothing_in_either_style(catalog: Path, maneuver_catalog: Path,
-                                                    family_maneuver: Path,
-                                                    tmp_path: Path) -> None:
+def test_esmini_warns_about_nothing_in_either_style(
+    catalog: Path, maneuver_catalog: Path, family_maneuver: Path, tmp_path: Path
+) -> None:
     """No 'conflicting domain' (init actions overridden) or any other warning."""
-    files = [f for c in (catalog, maneuver_catalog, family_maneuver)
-             for f in sorted((c / "scenarios").glob("*.xosc"))]
+    files = [
+        f
+        for c in (catalog, maneuver_catalog, family_maneuver)
+        for f in sorted((c / "scenarios").glob("*.xosc"))
+    ]
     assert len(files) >= 15
     for f in files:
         text, _ = _esmini_run(f, tmp_path, csv_log=False)
@@ -340,9 +399,9 @@ def test_esmini_warns_about_nothing_in_either_style(catalog: Path, maneuver_cata
 
 
 @needs_esmini
-def test_editing_a_parameter_changes_what_esmini_plays(family_run: Path,
-                                                       family_maneuver: Path,
-                                                       tmp_path: Path) -> None:
+def test_editing_a_parameter_changes_what_esmini_plays(
+    family_run: Path, family_maneuver: Path, tmp_path: Path
+) -> None:
     """Raising the declared ``target_speed_m_s`` of a slower car ahead by 2 m/s: esmini's
     target drives 2 m/s (times the lane factor) faster and is 2 s x that further ahead
     after 2 s; lengthening a cut-in's ``lc_duration_s`` by 1 s ends esmini's lane change
@@ -360,21 +419,21 @@ def test_editing_a_parameter_changes_what_esmini_plays(family_run: Path,
     assert 0.98 < factor < 1.02 and a[4][0] == pytest.approx(old * factor, abs=1e-3)
     k = min(int(np.argmin(np.abs(a[0] - 2.0))), len(a[0]) - 1, len(b[0]) - 1)
     ahead = math.hypot(b[1][k] - b[1][0], b[2][k] - b[2][0]) - math.hypot(
-        a[1][k] - a[1][0], a[2][k] - a[2][0])
+        a[1][k] - a[1][0], a[2][k] - a[2][0]
+    )
     assert ahead == pytest.approx(2.0 * factor * a[0][k], abs=0.05)
 
     cut = next(r for r in rows if r["family"] == "cut_in_right")
     src = work / f"{cut['scenario_id']}.xosc"
     text_a, _ = _esmini_run(src, tmp_path, csv_log=False)
-    _set_parameter(src, "lc_duration_s", repr(float(cut["p_lc_duration_s"]) + 1.0),
-                   work / "longer.xosc")
+    _set_parameter(
+        src, "lc_duration_s", repr(float(cut["p_lc_duration_s"]) + 1.0), work / "longer.xosc"
+    )
     text_b, _ = _esmini_run(work / "longer.xosc", tmp_path, csv_log=False)
 
     def lane_change(text: str) -> tuple[float, float]:
-        start = re.search(r"\[([\d.]+)\] \[info\] cut_in_action initState -> startTransition",
-                          text)
-        end = re.search(r"\[([\d.]+)\] \[info\] cut_in_action runningState -> endTransition",
-                        text)
+        start = re.search(r"\[([\d.]+)\] \[info\] cut_in_action initState -> startTransition", text)
+        end = re.search(r"\[([\d.]+)\] \[info\] cut_in_action runningState -> endTransition", text)
         assert start and end
         return float(start.group(1)), float(end.group(1))
 
@@ -384,8 +443,9 @@ def test_editing_a_parameter_changes_what_esmini_plays(family_run: Path,
 
 
 @needs_esmini
-def test_a_builtin_controller_drives_the_ego(family_run: Path, family_maneuver: Path,
-                                             tmp_path: Path) -> None:
+def test_a_builtin_controller_drives_the_ego(
+    family_run: Path, family_maneuver: Path, tmp_path: Path
+) -> None:
     """docs/export.md: with ``ego_controller = ACCController`` active on the longitudinal
     domain the ego brakes behind the slower car it runs into under the default
     controller (keep lane and speed)."""
@@ -411,9 +471,9 @@ def test_a_builtin_controller_drives_the_ego(family_run: Path, family_maneuver: 
     assert braked >= 1
 
 
-def test_semantic_checks_see_a_crossing_path_off_the_road(family_run: Path,
-                                                          family_maneuver: Path,
-                                                          tmp_path: Path) -> None:
+def test_semantic_checks_see_a_crossing_path_off_the_road(
+    family_run: Path, family_maneuver: Path, tmp_path: Path
+) -> None:
     """The maneuver style's crossing path (road positions with expressions) is resolved
     and checked against the road like the replay style's world positions."""
     from sensorgap.export.validate import semantic_errors
@@ -428,6 +488,7 @@ def test_semantic_checks_see_a_crossing_path_off_the_road(family_run: Path,
     vertex = list(tree.find(".//Trajectory").iter("RoadPosition"))[-1]
     vertex.set("t", str(float(vertex.get("t")) + 40.0))
     tree.write(str(tmp_path / "off.xosc"))
-    errs = semantic_errors(tmp_path / "off.xosc", net, {},
-                           tolerance_by_path={"Target_crossing": 5.5})
+    errs = semantic_errors(
+        tmp_path / "off.xosc", net, {}, tolerance_by_path={"Target_crossing": 5.5}
+    )
     assert any("Target_crossing leaves the road" in e for e in errs)

@@ -40,8 +40,12 @@ def qc_report(path: Path) -> dict[str, tuple[StatusType, list[str]]]:
     config.set_config_param("InputFile", str(path))
     config.register_checker_bundle(constants.BUNDLE_NAME)
     result = Result()
-    result.register_checker_bundle(name=constants.BUNDLE_NAME, description="sensorgap test",
-                                   version=constants.BUNDLE_VERSION, summary="")
+    result.register_checker_bundle(
+        name=constants.BUNDLE_NAME,
+        description="sensorgap test",
+        version=constants.BUNDLE_VERSION,
+        summary="",
+    )
     result.set_result_version(version=constants.BUNDLE_VERSION)
     quiet = logging.getLogger().level
     logging.getLogger().setLevel(logging.WARNING)  # the checker logs every step at INFO
@@ -49,9 +53,13 @@ def qc_report(path: Path) -> dict[str, tuple[StatusType, list[str]]]:
         run_checks(config, result)
     finally:
         logging.getLogger().setLevel(quiet)
-    return {c.checker_id: (c.status, [f"{i.level.name} {i.rule_uid}: {i.description}"
-                                      for i in c.issues])
-            for c in result.get_checker_results(constants.BUNDLE_NAME)}
+    return {
+        c.checker_id: (
+            c.status,
+            [f"{i.level.name} {i.rule_uid}: {i.description}" for i in c.issues],
+        )
+        for c in result.get_checker_results(constants.BUNDLE_NAME)
+    }
 
 
 def _assert_clean(path: Path, version: str) -> None:
@@ -71,15 +79,17 @@ def _assert_clean(path: Path, version: str) -> None:
 @pytest.mark.parametrize("style", STYLES)
 @pytest.mark.parametrize("version", VERSIONS)
 def test_asam_qc_finds_no_issue_in_any_family_kind(
-        family_catalogs: dict[tuple[str, str], Path], version: str, style: str) -> None:
+    family_catalogs: dict[tuple[str, str], Path], version: str, style: str
+) -> None:
     files = sorted((family_catalogs[(style, version)] / "scenarios").glob("*.xosc"))
     assert len(files) >= 10
     for f in files:
         _assert_clean(f, version)
 
 
-def test_asam_qc_finds_no_issue_in_the_search_catalogs(catalog: Path,
-                                                       maneuver_catalog: Path) -> None:
+def test_asam_qc_finds_no_issue_in_the_search_catalogs(
+    catalog: Path, maneuver_catalog: Path
+) -> None:
     for folder in (catalog, maneuver_catalog):
         files = sorted((folder / "scenarios").glob("*.xosc"))
         assert files
@@ -93,11 +103,11 @@ def test_asam_qc_reports_a_broken_reference(maneuver_catalog: Path, tmp_path: Pa
     tree = etree.parse(str(src))
     tree.find(".//Init/Actions/Private").set("entityRef", "Nobody")
     tree.find(".//RoadNetwork/LogicFile").set(
-        "filepath", str((src.parent / tree.find(".//RoadNetwork/LogicFile").get(
-            "filepath")).resolve()))
+        "filepath",
+        str((src.parent / tree.find(".//RoadNetwork/LogicFile").get("filepath")).resolve()),
+    )
     broken = tmp_path / "broken.xosc"
     tree.write(str(broken))
     report = qc_report(broken)
     found = [m for _, msgs in report.values() for m in msgs]
-    assert any("resolvable_entity_references" in m and m.startswith("ERROR") for m in found), \
-        found
+    assert any("resolvable_entity_references" in m and m.startswith("ERROR") for m in found), found

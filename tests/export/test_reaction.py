@@ -55,8 +55,7 @@ def test_brake_steps_follow_the_jerk_ramp(v0: float, decel: float) -> None:
     assert x == pytest.approx(v0 * big - lost_distance(big, v0, jerk, decel), abs=0.01)
     # the lane-speed factor scales speeds and rates
     scaled = brake_steps(t_b, v0, jerk, decel, dt, factor=1.01)
-    assert [s.rate_m_s2 for s in scaled] == pytest.approx(
-        [1.01 * s.rate_m_s2 for s in steps])
+    assert [s.rate_m_s2 for s in scaled] == pytest.approx([1.01 * s.rate_m_s2 for s in steps])
 
 
 def test_prediction_is_the_kernels(maneuver_catalog: Path) -> None:
@@ -94,8 +93,9 @@ def test_prediction_is_the_kernels(maneuver_catalog: Path) -> None:
 def _reaction_rows(catalog: Path, tmp_path: Path) -> list[dict[str, str]]:
     work = tmp_path / catalog.name
     shutil.copytree(catalog, work)
-    assert main(["simulate", "--catalog", str(work), "--esmini", str(ESMINI),
-                 "--ego-reaction"]) == 0
+    assert (
+        main(["simulate", "--catalog", str(work), "--esmini", str(ESMINI), "--ego-reaction"]) == 0
+    )
     return list(csv.DictReader((work / "simulation.csv").open()))
 
 
@@ -119,10 +119,9 @@ def _predicted_clearance(cat: Path, row: dict[str, str], q: str, t_s: float) -> 
 
 
 @needs_esmini
-def test_esmini_reaction_runs_agree_with_the_prediction(catalog: Path, maneuver_catalog: Path,
-                                                        tmp_path: Path,
-                                                        capsys: pytest.CaptureFixture[str]
-                                                        ) -> None:
+def test_esmini_reaction_runs_agree_with_the_prediction(
+    catalog: Path, maneuver_catalog: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     """Both styles of the small run, every reaction run (median and 90th-percentile
     confirmation): esmini collides exactly when the prediction does, within one step of
     the predicted time. Replay: impact speeds within 2 km/h. Maneuver: within 2 km/h, or,
@@ -138,11 +137,19 @@ def test_esmini_reaction_runs_agree_with_the_prediction(catalog: Path, maneuver_
                     continue
                 runs += 1
                 assert r[f"react_{q}_within_plan"] == "yes", (
-                    q, r["style"], r["reaction_decel_m_s2"],
-                    *(r[f"react_{q}_{c}"] for c in ("collision_predicted_s",
-                                                    "collision_esmini_s",
-                                                    "impact_predicted_kmh",
-                                                    "impact_esmini_kmh")))
+                    q,
+                    r["style"],
+                    r["reaction_decel_m_s2"],
+                    *(
+                        r[f"react_{q}_{c}"]
+                        for c in (
+                            "collision_predicted_s",
+                            "collision_esmini_s",
+                            "impact_predicted_kmh",
+                            "impact_esmini_kmh",
+                        )
+                    ),
+                )
                 pred, sim = (r[f"react_{q}_collision_{w}_s"] for w in ("predicted", "esmini"))
                 if pred == "" and sim != "":
                     # a near miss in the plan that esmini's ego, following the plan to
@@ -156,14 +163,17 @@ def test_esmini_reaction_runs_agree_with_the_prediction(catalog: Path, maneuver_
                     continue
                 dt = abs(float(pred) - float(sim))
                 assert dt <= 0.05 + 1e-9, (q, r)
-                dv = abs(float(r[f"react_{q}_impact_predicted_kmh"])
-                         - float(r[f"react_{q}_impact_esmini_kmh"]))
+                dv = abs(
+                    float(r[f"react_{q}_impact_predicted_kmh"])
+                    - float(r[f"react_{q}_impact_esmini_kmh"])
+                )
                 if r["style"] == "replay" or dt < 1e-9:
                     assert dv <= MAX_IMPACT_DIFF_KMH, (q, r)
                     assert r[f"react_{q}_agrees"] == "yes", (q, r)
                 else:
-                    assert dv <= MAX_IMPACT_DIFF_KMH + 3.6 * float(
-                        r["reaction_decel_m_s2"]) * 0.05, (q, r)
+                    assert (
+                        dv <= MAX_IMPACT_DIFF_KMH + 3.6 * float(r["reaction_decel_m_s2"]) * 0.05
+                    ), (q, r)
         assert "ego reaction" in capsys.readouterr().out
     assert runs >= 4
 
@@ -192,8 +202,11 @@ def test_esmini_reaction_avoids_when_predicted(encounter_run: Path, tmp_path: Pa
         if kc < 0 or kt < 0:
             continue
         for k in range(ev.reaction.confirm_m - 1, kc + 1, 10):
-            results.append(run_reaction(spec, ev, bt, k, ESMINI, "maneuver", "1.2",
-                                        cat / entry["road"], 60.0, 0.05))
+            results.append(
+                run_reaction(
+                    spec, ev, bt, k, ESMINI, "maneuver", "1.2", cat / entry["road"], 60.0, 0.05
+                )
+            )
     assert all(not r.error for r in results)
     predicted = [r.prediction.collision_s is not None for r in results]
     assert any(predicted) and not all(predicted)
@@ -213,8 +226,13 @@ def test_within_plan_by_hand() -> None:
     def case(a: float, vp: float | None, ve: float | None) -> bool:
         bt = SimpleNamespace(decel_m_s2=np.array([a]))
         pred = Prediction(0, 0.0, 0.3, None if vp is None else 5.0, vp)
-        return within_plan(bt, None, pred, None if ve is None else 5.0,  # type: ignore[arg-type]
-                           ve)
+        return within_plan(
+            bt,
+            None,
+            pred,
+            None if ve is None else 5.0,  # type: ignore[arg-type]
+            ve,
+        )
 
     assert case(5.884, 12.88, 9.91)
     assert not case(5.884, 20.0, 9.91)
@@ -225,4 +243,3 @@ def test_within_plan_by_hand() -> None:
     vp = (ve * ve + 2.0 * a * 0.5) ** 0.5
     assert case(a, vp * 3.6, ve * 3.6)
     assert not case(a, vp * 3.6 * 1.001, ve * 3.6)
-

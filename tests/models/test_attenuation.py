@@ -244,9 +244,13 @@ def test_p676_vapour_pressure_above_total_pressure_raises() -> None:
 def test_kunkel_reference_values() -> None:
     # brief: V = 50 m -> ~0.5 g/m3 (within 1 %); V ~ 300-380 m -> ~0.05 g/m3
     assert rel(att.fog_lwc_from_visibility_g_m3(50.0), 0.5) < 0.01
-    assert 0.045 < att.fog_lwc_from_visibility_g_m3(380.0) < 0.05 < (
-        att.fog_lwc_from_visibility_g_m3(300.0)
-    ) < 0.07
+    assert (
+        0.045
+        < att.fog_lwc_from_visibility_g_m3(380.0)
+        < 0.05
+        < (att.fog_lwc_from_visibility_g_m3(300.0))
+        < 0.07
+    )
 
 
 def test_kunkel_round_trip() -> None:

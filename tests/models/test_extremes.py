@@ -22,22 +22,27 @@ def scene(system: System, target: str, **env: object) -> Scene:
 
 
 @pytest.mark.parametrize("target", ["pedestrian", "bike", "car", "truck"])
-@pytest.mark.parametrize("env", [
-    {},
-    {"visibility_m": 50.0},  # ~340 dB/km in every optical band
-    {"rain_mm_h": 400.0, "snow_mm_h": 100.0, "visibility_m": 1.0},
-    {"irradiance_w_m2": 0.0},
-    {"sun": SunConfig(azimuth_deg=0.0, elevation_deg=0.001)},
-])
-def test_every_sensor_finite_at_every_range(system_a: System, system_b: System, target: str,
-                                            env: dict[str, object]) -> None:
+@pytest.mark.parametrize(
+    "env",
+    [
+        {},
+        {"visibility_m": 50.0},  # ~340 dB/km in every optical band
+        {"rain_mm_h": 400.0, "snow_mm_h": 100.0, "visibility_m": 1.0},
+        {"irradiance_w_m2": 0.0},
+        {"sun": SunConfig(azimuth_deg=0.0, elevation_deg=0.001)},
+    ],
+)
+def test_every_sensor_finite_at_every_range(
+    system_a: System, system_b: System, target: str, env: dict[str, object]
+) -> None:
     for system in (system_a, system_b):
         sc = scene(system, target, **env)
         for s in system.sensors:
             m = s.mount
             d = np.array([np.cos(m.yaw), np.sin(m.yaw)])
-            pts = np.column_stack([m.x + RANGES * d[0], m.y + RANGES * d[1],
-                                   np.full_like(RANGES, m.z)])
+            pts = np.column_stack(
+                [m.x + RANGES * d[0], m.y + RANGES * d[1], np.full_like(RANGES, m.z)]
+            )
             cov = evaluate_points(sc, pts)
             assert np.all(np.isfinite(cov.snr_db)) and np.all(np.isfinite(cov.pd))
             assert np.all((cov.snr_db >= SNR_FLOOR_DB) & (cov.snr_db <= SNR_CEIL_DB))

@@ -20,17 +20,35 @@ from sensorgap.models.geometry import (
 coord = st.floats(min_value=-200.0, max_value=200.0)
 
 
-def mount(yaw_deg: float = 0.0, pitch_deg: float = 0.0, hfov: float = 60.0,
-          vfov: float = 20.0) -> Mount:
-    return Mount(1.0, -0.5, 0.6, math.radians(yaw_deg), math.radians(pitch_deg),
-                 math.radians(hfov), math.radians(vfov), 0.0, 300.0)
+def mount(
+    yaw_deg: float = 0.0, pitch_deg: float = 0.0, hfov: float = 60.0, vfov: float = 20.0
+) -> Mount:
+    return Mount(
+        1.0,
+        -0.5,
+        0.6,
+        math.radians(yaw_deg),
+        math.radians(pitch_deg),
+        math.radians(hfov),
+        math.radians(vfov),
+        0.0,
+        300.0,
+    )
 
 
 @settings(max_examples=300)
-@given(coord, coord, coord, st.floats(-180.0, 180.0), st.floats(-60.0, 60.0),
-       st.floats(0.0, 360.0), st.floats(0.0, 180.0))
-def test_fov_mask_matches_angle_definition(x: float, y: float, z: float, yaw: float,
-                                           pitch: float, hfov: float, vfov: float) -> None:
+@given(
+    coord,
+    coord,
+    coord,
+    st.floats(-180.0, 180.0),
+    st.floats(-60.0, 60.0),
+    st.floats(0.0, 360.0),
+    st.floats(0.0, 180.0),
+)
+def test_fov_mask_matches_angle_definition(
+    x: float, y: float, z: float, yaw: float, pitch: float, hfov: float, vfov: float
+) -> None:
     m = mount(yaw, pitch, hfov, vfov)
     xs, ys, zs = rotate_offsets(m, np.array([x - m.x]), np.array([y - m.y]), z - m.z)
     _, az, el = spherical(xs, ys, zs)
@@ -60,16 +78,18 @@ def test_fov_360_sees_everything_fov_0_only_boresight() -> None:
     zs = np.array([5.0, -5.0, 0.0, 0.0])
     assert fov_mask(full, xs, ys, zs).all()
     zero = mount(hfov=0.0, vfov=0.0)
-    got = fov_mask(zero, np.array([10.0, 10.0, 10.0]), np.array([0.0, 1e-6, 0.0]),
-                   np.array([0.0, 0.0, 1e-6]))
+    got = fov_mask(
+        zero, np.array([10.0, 10.0, 10.0]), np.array([0.0, 1e-6, 0.0]), np.array([0.0, 0.0, 1e-6])
+    )
     assert got.tolist() == [True, False, False]
 
 
 def test_positive_pitch_looks_down() -> None:
     m = mount(pitch_deg=30.0)
     # a point below the boresight in the vehicle frame is on the sensor's x axis
-    xs, ys, zs = rotate_offsets(m, np.array([math.cos(math.radians(30))]), np.array([0.0]),
-                                -math.sin(math.radians(30)))
+    xs, ys, zs = rotate_offsets(
+        m, np.array([math.cos(math.radians(30))]), np.array([0.0]), -math.sin(math.radians(30))
+    )
     assert abs(float(zs[0])) < 1e-12 and abs(float(ys[0])) < 1e-12 and float(xs[0]) > 0.99
 
 
@@ -84,5 +104,4 @@ def test_reach_bbox_contains_fov_points() -> None:
         xs, ys, zs = rotate_offsets(m, x - m.x, y - m.y, 0.75 - m.z)
         r = np.sqrt(xs**2 + ys**2 + zs**2)
         vis = fov_mask(m, xs, ys, zs) & (r <= m.max_range)
-        assert np.all((x[vis] >= bb[0]) & (x[vis] <= bb[1]) & (y[vis] >= bb[2])
-                      & (y[vis] <= bb[3]))
+        assert np.all((x[vis] >= bb[0]) & (x[vis] <= bb[1]) & (y[vis] >= bb[2]) & (y[vis] <= bb[3]))

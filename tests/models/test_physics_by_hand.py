@@ -24,11 +24,28 @@ H = 6.62607015e-34
 C = 299792458.0
 TOL_DB = 1e-9
 
-TARGET = TargetConfig(name="t", rcs_m2=100.0, camera_cross_section_m2=2.7, length_m=4.5,
-                      width_m=1.8, height_m=1.5, reference_height_m=0.75, lidar_reflectance=0.1,
-                      camera_reflectance=0.15)
-MOUNT = Mount(x=0.0, y=0.0, z=0.5, yaw=0.0, pitch=0.0, hfov=math.radians(30.0),
-              vfov=math.radians(10.0), min_range=0.0, max_range=5000.0)
+TARGET = TargetConfig(
+    name="t",
+    rcs_m2=100.0,
+    camera_cross_section_m2=2.7,
+    length_m=4.5,
+    width_m=1.8,
+    height_m=1.5,
+    reference_height_m=0.75,
+    lidar_reflectance=0.1,
+    camera_reflectance=0.15,
+)
+MOUNT = Mount(
+    x=0.0,
+    y=0.0,
+    z=0.5,
+    yaw=0.0,
+    pitch=0.0,
+    hfov=math.radians(30.0),
+    vfov=math.radians(10.0),
+    min_range=0.0,
+    max_range=5000.0,
+)
 
 
 def cond(**kw: object) -> Conditions:
@@ -48,9 +65,16 @@ def snr_at(prep_fn: object, r: float, az: float = 0.0, el: float = 0.0) -> float
 @pytest.mark.parametrize("az_deg", [0.0, 10.0])
 @pytest.mark.parametrize("rain", [0.0, 25.0])
 def test_radar_eq3(r: float, az_deg: float, rain: float) -> None:
-    p = RadarParams(frequency_hz=76.5e9, tx_power_dbm=12.0, tx_gain_dbi=25.0, rx_gain_dbi=25.0,
-                    noise_bandwidth_hz=250e3, noise_figure_db=14.0, system_loss_db=4.0,
-                    fov_edge_loss_db=3.0)
+    p = RadarParams(
+        frequency_hz=76.5e9,
+        tx_power_dbm=12.0,
+        tx_gain_dbi=25.0,
+        rx_gain_dbi=25.0,
+        noise_bandwidth_hz=250e3,
+        noise_figure_db=14.0,
+        system_loss_db=4.0,
+        fov_edge_loss_db=3.0,
+    )
     c = cond(rain_mm_h=rain)
     model = Radar(p)
     gamma = c.attenuation_db_km(model.band())
@@ -59,7 +83,7 @@ def test_radar_eq3(r: float, az_deg: float, rain: float) -> None:
     g = 10 ** ((25.0 - loss_one_way_db) / 10)
     pe = 10 ** ((12.0 - 30.0) / 10)
     lam = C / 76.5e9
-    t_sys = 290.0 * (10 ** 1.4 - 1) + 290.0
+    t_sys = 290.0 * (10**1.4 - 1) + 290.0
     l_oa = 10 ** (4.0 / 10) * 10 ** (2 * gamma * r / 1000 / 10)
     snr = pe * g * g * 100.0 * lam**2 / ((4 * math.pi) ** 3 * r**4 * l_oa * K * 250e3 * t_sys)
     got = snr_at(model.prepare(MOUNT, TARGET, c).snr_db, r, az)
@@ -67,13 +91,19 @@ def test_radar_eq3(r: float, az_deg: float, rain: float) -> None:
 
 
 def test_ultrasonic_eq3_with_acoustic_wavelength() -> None:
-    p = UltrasonicParams(frequency_hz=48e3, tx_power_dbm=20.0, tx_gain_dbi=12.0,
-                         rx_gain_dbi=12.0, noise_bandwidth_hz=2e3,
-                         system_noise_temperature_k=2e8, fov_edge_loss_db=0.0)
+    p = UltrasonicParams(
+        frequency_hz=48e3,
+        tx_power_dbm=20.0,
+        tx_gain_dbi=12.0,
+        rx_gain_dbi=12.0,
+        noise_bandwidth_hz=2e3,
+        system_noise_temperature_k=2e8,
+        fov_edge_loss_db=0.0,
+    )
     c = cond(temperature_c=20.0)
     lam = 331.3 * math.sqrt(1 + 20.0 / 273.15) / 48e3
     r = 3.0
-    g = 10 ** 1.2
+    g = 10**1.2
     l_oa = 10 ** (2 * 1000.0 * r / 1000 / 10)  # paper: 1000 dB/km one way
     snr = 0.1 * g * g * 100.0 * lam**2 / ((4 * math.pi) ** 3 * r**4 * l_oa * K * 2e3 * 2e8)
     got = snr_at(Ultrasonic(p).prepare(MOUNT, TARGET, c).snr_db, r)
@@ -83,10 +113,16 @@ def test_ultrasonic_eq3_with_acoustic_wavelength() -> None:
 @pytest.mark.parametrize("law", ["min", "point"])
 @pytest.mark.parametrize("r", [0.5, 20.0, 150.0, 3000.0])
 def test_lidar_eq4_eq5(law: str, r: float) -> None:
-    p = LidarParams(wavelength_m=905e-9, peak_power_w=75.0, beam_divergence_rad=2e-3,
-                    receiver_diameter_m=0.015, noise_bandwidth_hz=2e8,
-                    system_noise_temperature_k=290.0, system_loss_db=3.0,
-                    target_law=law)  # type: ignore[arg-type]
+    p = LidarParams(
+        wavelength_m=905e-9,
+        peak_power_w=75.0,
+        beam_divergence_rad=2e-3,
+        receiver_diameter_m=0.015,
+        noise_bandwidth_hz=2e8,
+        system_noise_temperature_k=290.0,
+        system_loss_db=3.0,
+        target_law=law,
+    )  # type: ignore[arg-type]
     tgt = TARGET.model_copy(update={"rcs_m2": 1.0})
     c = cond(visibility_m=2000.0)
     model = Lidar(p)
@@ -105,16 +141,34 @@ def test_lidar_eq4_eq5(law: str, r: float) -> None:
 
 
 def camera_params(**kw: object) -> CameraParams:
-    base = dict(wavelength_m=550e-9, pixels_h=1920, pixels_v=1080, pixel_pitch_m=3e-6,
-                f_number=1.8, quantum_efficiency=0.6, integration_time_s=1e-3,
-                noise_bandwidth_hz=1e3, system_noise_temperature_k=300.0, system_loss_db=1.0,
-                fov_edge_loss_db=0.0, glare_margin_deg=10.0)
+    base = dict(
+        wavelength_m=550e-9,
+        pixels_h=1920,
+        pixels_v=1080,
+        pixel_pitch_m=3e-6,
+        f_number=1.8,
+        quantum_efficiency=0.6,
+        integration_time_s=1e-3,
+        noise_bandwidth_hz=1e3,
+        system_noise_temperature_k=300.0,
+        system_loss_db=1.0,
+        fov_edge_loss_db=0.0,
+        glare_margin_deg=10.0,
+    )
     base.update(kw)
     return CameraParams(**base)  # type: ignore[arg-type]
 
 
-def camera_by_hand(r: float, gamma: float, e_sun: float, hfov: float, sun_w: float,
-                   e_dir: float, theta_deg: float = 1.0, k_veil: float = 10.0) -> float:
+def camera_by_hand(
+    r: float,
+    gamma: float,
+    e_sun: float,
+    hfov: float,
+    sun_w: float,
+    e_dir: float,
+    theta_deg: float = 1.0,
+    k_veil: float = 10.0,
+) -> float:
     """Eq. 6-9 by hand; with ``sun_w`` > 0 the direct sun as veiling glare on the target's
     image: ``N_e,sun = w (k E_dir / theta^2) / (rho E_sun / pi) N_e 10^(gamma R / 10)``
     (Stiles-Holladay, theta >= 1 deg; docs/models.md)."""
@@ -146,8 +200,9 @@ def test_camera_eq6_to_9(r: float) -> None:
 
 
 @pytest.mark.parametrize("r", [10.0, 50.0, 400.0])
-@pytest.mark.parametrize(("tgt_az", "tgt_el"), [(0.0, 0.0), (-10.0, 5.0), (-10.5, 5.2),
-                                                  (15.0, -3.0)])
+@pytest.mark.parametrize(
+    ("tgt_az", "tgt_el"), [(0.0, 0.0), (-10.0, 5.0), (-10.5, 5.2), (15.0, -3.0)]
+)
 def test_camera_veiling_glare_by_hand(r: float, tgt_az: float, tgt_el: float) -> None:
     """Sun at azimuth -10 deg, elevation 5 deg, inside a level 50 x 28 deg camera's view;
     the angle between sun and target from the spherical law of cosines (by hand)."""
@@ -156,11 +211,16 @@ def test_camera_veiling_glare_by_hand(r: float, tgt_az: float, tgt_el: float) ->
     sun_front = SunConfig(azimuth_deg=-10.0, elevation_deg=5.0, direct_irradiance_w_m2=480.0)
     c = cond(irradiance_w_m2=534.0, sun=sun_front)
     gamma = c.attenuation_db_km(model.band())
-    got = snr_at(model.prepare(mount, TARGET, c).snr_db, r, math.radians(tgt_az),
-                 math.radians(tgt_el))
+    got = snr_at(
+        model.prepare(mount, TARGET, c).snr_db, r, math.radians(tgt_az), math.radians(tgt_el)
+    )
     e1, e2 = math.radians(5.0), math.radians(tgt_el)
-    theta = math.degrees(math.acos(math.sin(e1) * math.sin(e2) + math.cos(e1) * math.cos(e2)
-                                   * math.cos(math.radians(-10.0 - tgt_az))))
+    theta = math.degrees(
+        math.acos(
+            math.sin(e1) * math.sin(e2)
+            + math.cos(e1) * math.cos(e2) * math.cos(math.radians(-10.0 - tgt_az))
+        )
+    )
     want = camera_by_hand(r, gamma, 534.0, math.radians(50.0), 1.0, 480.0, theta)
     assert got == pytest.approx(want, abs=TOL_DB)
 
@@ -184,7 +244,8 @@ def test_camera_glare_falls_with_angle_from_the_sun() -> None:
     assert "glare" not in prep.effects
     gamma = c.attenuation_db_km(model.band())
     assert snr_at(prep.snr_db, 50.0) == pytest.approx(
-        camera_by_hand(50.0, gamma, 534.0, math.radians(90.0), 0.0, 0.0), abs=TOL_DB)
+        camera_by_hand(50.0, gamma, 534.0, math.radians(90.0), 0.0, 0.0), abs=TOL_DB
+    )
 
 
 def test_camera_glare_weight_fades_outside_fov() -> None:

@@ -12,10 +12,13 @@ from tests.conftest import make_scene
 
 
 @settings(max_examples=25, deadline=None)
-@given(st.sampled_from(["pedestrian", "bike", "car", "truck"]),
-       st.floats(min_value=-60.0, max_value=60.0))
-def test_active_pd_non_increasing_with_range_clear(system_a: System, target: str,
-                                                   bearing_deg: float) -> None:
+@given(
+    st.sampled_from(["pedestrian", "bike", "car", "truck"]),
+    st.floats(min_value=-60.0, max_value=60.0),
+)
+def test_active_pd_non_increasing_with_range_clear(
+    system_a: System, target: str, bearing_deg: float
+) -> None:
     """Along any ray from an active sensor's mount, in clear air, Pd never increases."""
     scene = make_scene(system_a, target, "clear")
     for s in scene.sensors:
@@ -34,8 +37,9 @@ def test_active_pd_non_increasing_with_range_clear(system_a: System, target: str
 
 def test_glare_lowers_only_the_cameras_it_reaches(system_a: System, system_b: System) -> None:
     rng = np.random.default_rng(3)
-    pts = np.column_stack([rng.uniform(-40, 150, 3000), rng.uniform(-30, 30, 3000),
-                           np.full(3000, 0.75)])
+    pts = np.column_stack(
+        [rng.uniform(-40, 150, 3000), rng.uniform(-30, 30, 3000), np.full(3000, 0.75)]
+    )
     for system in (system_a, system_b):
         clear = make_scene(system, "car", "clear")
         glare = make_scene(system, "car", "glare_front_right")

@@ -42,8 +42,7 @@ class Ideal(SensorModel):
     def band(self) -> Band:
         return Band("radio", frequency_hz=77e9)
 
-    def prepare(self, mount: Mount, target: TargetConfig, conditions: Conditions
-                ) -> PreparedSensor:
+    def prepare(self, mount: Mount, target: TargetConfig, conditions: Conditions) -> PreparedSensor:
         value = self.params.snr_db
         return PreparedSensor(snr_db=lambda r, az, el: np.full_like(r, value), uses_angles=False)
 
@@ -95,11 +94,17 @@ def write(tmp_path: Path, sensors: list[dict[str, object]]) -> Path:
 
 
 def test_user_sensor_type_without_core_edits(tmp_path: Path, ideal: None) -> None:
-    p = write(tmp_path, [{"id": "all", "yaw": 0, "hfov": 360, "vfov": 180},
-                         {"id": "none", "yaw": 0, "hfov": 1e-9, "vfov": 1e-9}])
+    p = write(
+        tmp_path,
+        [
+            {"id": "all", "yaw": 0, "hfov": 360, "vfov": 180},
+            {"id": "none", "yaw": 0, "hfov": 1e-9, "vfov": 1e-9},
+        ],
+    )
     system = load_system(p)
-    scene = Scene(system, load_target("car"), Conditions.from_config(
-        make_scene(system).conditions.env))
+    scene = Scene(
+        system, load_target("car"), Conditions.from_config(make_scene(system).conditions.env)
+    )
     pts = np.array([[10.0, 5.0, 0.5], [-20.0, -3.0, 2.0], [30.0, 0.0, 0.5], [1.0, 0.0, 0.5]])
     cov = evaluate_points(scene, pts)
     assert cov.pd[0].tolist() == [1.0, 1.0, 1.0, 0.0]  # r = 0 is never in view
@@ -111,6 +116,7 @@ def test_user_sensor_type_without_core_edits(tmp_path: Path, ideal: None) -> Non
 def test_unknown_type_lists_registered(tmp_path: Path) -> None:
     p = write(tmp_path, [{"id": "a", "yaw": 0, "hfov": 90, "vfov": 30}])
     from sensorgap.errors import InputError
+
     with pytest.raises(InputError, match="unknown sensor type 'ideal_test'; allowed: camera"):
         load_system(p)
 
@@ -118,8 +124,9 @@ def test_unknown_type_lists_registered(tmp_path: Path) -> None:
 def test_yaw_wrap_in_files(tmp_path: Path, ideal: None) -> None:
     a = load_system(write(tmp_path, [{"id": "a", "yaw": 180, "hfov": 90, "vfov": 30}]))
     b = load_system(write(tmp_path, [{"id": "a", "yaw": -180, "hfov": 90, "vfov": 30}]))
-    assert math.isclose(a.sensors[0].mount.yaw, b.sensors[0].mount.yaw, abs_tol=1e-15) or \
-        math.isclose(abs(a.sensors[0].mount.yaw), math.pi)
+    assert math.isclose(
+        a.sensors[0].mount.yaw, b.sensors[0].mount.yaw, abs_tol=1e-15
+    ) or math.isclose(abs(a.sensors[0].mount.yaw), math.pi)
     pts = np.array([[-10.0, 0.0, 0.5], [-10.0, 8.0, 0.5], [10.0, 0.0, 0.5]])
     ca = evaluate_points(make_scene(a), pts)
     cb = evaluate_points(make_scene(b), pts)
@@ -132,13 +139,19 @@ def test_fused_invariant_to_sensor_order(tmp_path: Path) -> None:
     text = system.source.read_text()
     head, *blocks = text.split("[[sensors]]")
     p = tmp_path / "rev.toml"
-    p.write_text(head + "".join("[[sensors]]" + b if b.endswith("\n") else "[[sensors]]" + b
-                                + "\n" for b in reversed(blocks)))
+    p.write_text(
+        head
+        + "".join(
+            "[[sensors]]" + b if b.endswith("\n") else "[[sensors]]" + b + "\n"
+            for b in reversed(blocks)
+        )
+    )
     rev = load_system(p)
     assert [s.id for s in rev.sensors] == [s.id for s in reversed(system.sensors)]
     rng = np.random.default_rng(11)
-    pts = np.column_stack([rng.uniform(-60, 200, 2000), rng.uniform(-30, 30, 2000),
-                           np.full(2000, 0.75)])
+    pts = np.column_stack(
+        [rng.uniform(-60, 200, 2000), rng.uniform(-30, 30, 2000), np.full(2000, 0.75)]
+    )
     f1 = evaluate_points(make_scene(system, "pedestrian", "rain_25"), pts).fused
     f2 = evaluate_points(make_scene(rev, "pedestrian", "rain_25"), pts).fused
     np.testing.assert_allclose(f1, f2, rtol=0, atol=1e-15)

@@ -52,9 +52,8 @@ def snr_for(pd_target: float, **kw: float | str) -> float:
 
 def test_swerling1_exact() -> None:
     # Pd = Pfa^(1/(1+SNR)); 21.1 dB for Pd 0.9 at Pfa 1e-6 (physics.md)
-    snr = 10 ** 2.11
-    assert pd(21.1, kind="swerling1", pfa=1e-6) == pytest.approx(1e-6 ** (1 / (1 + snr)),
-                                                                  rel=1e-12)
+    snr = 10**2.11
+    assert pd(21.1, kind="swerling1", pfa=1e-6) == pytest.approx(1e-6 ** (1 / (1 + snr)), rel=1e-12)
     assert snr_for(0.9, kind="swerling1", pfa=1e-6) == pytest.approx(21.1, abs=0.05)
     # "50 % at 10 dB" <-> Pfa ~ 4.9e-4 (physics.md)
     assert pd(10.0, kind="swerling1", pfa=4.9e-4) == pytest.approx(0.5, abs=0.01)
@@ -79,8 +78,7 @@ def test_albersheim_inside_validity_matches_swerling0() -> None:
     A = math.log(0.62 / 1e-6)
     Z = 13.0 / (6.2 + 4.54 / math.sqrt(1.44))
     B = (10**Z - A) / (1.7 + 0.12 * A)
-    assert pd(13.0, kind="albersheim", pfa=1e-6) == pytest.approx(1 / (1 + math.exp(-B)),
-                                                                   rel=1e-12)
+    assert pd(13.0, kind="albersheim", pfa=1e-6) == pytest.approx(1 / (1 + math.exp(-B)), rel=1e-12)
 
 
 def test_albersheim_outside_validity_uses_exact() -> None:
@@ -93,8 +91,7 @@ def test_albersheim_rejects_pfa_outside_range() -> None:
         RocConfig(kind="albersheim", pfa=1e-2)
 
 
-@pytest.mark.parametrize("kind", ["paper", "smoothstep", "swerling0", "swerling1",
-                                  "albersheim"])
+@pytest.mark.parametrize("kind", ["paper", "smoothstep", "swerling0", "swerling1", "albersheim"])
 def test_roc_monotone_finite_in_unit_interval(kind: str) -> None:
     s = np.linspace(-400.0, 400.0, 4001)
     p = detection_probability(s, RocConfig(kind=kind, pfa=1e-6))  # type: ignore[arg-type]

@@ -36,8 +36,9 @@ class FixedAttenuation(Conditions):
 def _boresight(system: System, sensor_id: str, r: np.ndarray) -> np.ndarray:
     s = next(x for x in system.sensors if x.id == sensor_id)
     m = s.mount
-    d = np.array([np.cos(m.pitch) * np.cos(m.yaw), np.cos(m.pitch) * np.sin(m.yaw),
-                  -np.sin(m.pitch)])
+    d = np.array(
+        [np.cos(m.pitch) * np.cos(m.yaw), np.cos(m.pitch) * np.sin(m.yaw), -np.sin(m.pitch)]
+    )
     return np.column_stack([m.x + r * d[0], m.y + r * d[1], m.z + r * d[2]])
 
 
@@ -51,8 +52,9 @@ def _sensor_pd(scene: Scene, sensor_id: str, pts: np.ndarray) -> tuple[np.ndarra
 @pytest.mark.parametrize("target", TARGETS)
 def test_range_sweep_finite_bounded_monotone(system_name: str, target: str) -> None:
     system = SYSTEMS[system_name]
-    scene = Scene(system, load_target(target),
-                  Conditions.from_config(EnvironmentConfig(name="clear")))
+    scene = Scene(
+        system, load_target(target), Conditions.from_config(EnvironmentConfig(name="clear"))
+    )
     for s in system.sensors:
         snr, pd = _sensor_pd(scene, s.id, _boresight(system, s.id, RANGES))
         assert np.all(np.isfinite(snr)) and np.all(np.isfinite(pd))
@@ -70,11 +72,18 @@ def test_attenuation_sweep_monotone(system_name: str) -> None:
     for target in TARGETS:
         pds = []
         for g in GAMMAS:
-            scene = Scene(system, load_target(target),
-                          FixedAttenuation(env=env, sun_direction=None, gamma_db_km=float(g)))
-            cov = evaluate_points(scene, np.vstack([_boresight(system, s.id,
-                                                               np.array([2.0, 20.0, 80.0]))
-                                                    for s in system.sensors]), cull=False)
+            scene = Scene(
+                system,
+                load_target(target),
+                FixedAttenuation(env=env, sun_direction=None, gamma_db_km=float(g)),
+            )
+            cov = evaluate_points(
+                scene,
+                np.vstack(
+                    [_boresight(system, s.id, np.array([2.0, 20.0, 80.0])) for s in system.sensors]
+                ),
+                cull=False,
+            )
             assert np.all(np.isfinite(cov.pd)) and np.all((cov.pd >= 0) & (cov.pd <= 1))
             pds.append(cov.pd)
         stack = np.array(pds)  # (gamma, sensor, point)
@@ -93,9 +102,14 @@ def test_sun_elevation_sweep_glare_never_helps(elevation: float) -> None:
                 if s.type_name != "camera":
                     continue
                 m = s.mount
-                env = EnvironmentConfig(name="sun", sun=SunConfig(
-                    azimuth_deg=float(np.degrees(m.yaw)), elevation_deg=elevation,
-                    direct_irradiance_w_m2=900.0))
+                env = EnvironmentConfig(
+                    name="sun",
+                    sun=SunConfig(
+                        azimuth_deg=float(np.degrees(m.yaw)),
+                        elevation_deg=elevation,
+                        direct_irradiance_w_m2=900.0,
+                    ),
+                )
                 sunny = Scene(system, tgt, Conditions.from_config(env))
                 pts = _boresight(system, s.id, np.array([1.0, 10.0, 50.0, 150.0]))
                 _, pd_sun = _sensor_pd(sunny, s.id, pts)

@@ -17,9 +17,18 @@ from typing import Any
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 BASH = shutil.which("bash") or "/bin/bash"
 #: Flags this machine needs (no sandbox in containers, no GPU, no network chatter).
-FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-         "--disable-background-networking", "--disable-component-update", "--disable-sync",
-         "--hide-scrollbars", "--mute-audio"]
+FLAGS = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--hide-scrollbars",
+    "--mute-audio",
+]
 
 
 class Browser:
@@ -29,7 +38,7 @@ class Browser:
         if CHROMIUM is None:
             raise RuntimeError("chromium is not installed")
         self.profile = tempfile.mkdtemp(prefix="sensorgap-chromium-")
-        to_r, to_w = os.pipe()      # we write commands, the browser reads fd 3
+        to_r, to_w = os.pipe()  # we write commands, the browser reads fd 3
         from_r, from_w = os.pipe()  # the browser writes fd 4, we read replies
         self.timeout_s = timeout_s
         # bash puts the pipe ends on the descriptors Chromium expects (3 and 4); dash
@@ -37,10 +46,21 @@ class Browser:
         self.log = Path(self.profile + ".log")
         with self.log.open("wb") as log:
             self.proc = subprocess.Popen(
-                [BASH, "-c", f'exec "$0" "$@" 3<&{to_r} 4>&{from_w}', CHROMIUM, *FLAGS,
-                 f"--user-data-dir={self.profile}", "--remote-debugging-pipe",
-                 "about:blank"],
-                stdin=subprocess.DEVNULL, stdout=log, stderr=log, pass_fds=(to_r, from_w))
+                [
+                    BASH,
+                    "-c",
+                    f'exec "$0" "$@" 3<&{to_r} 4>&{from_w}',
+                    CHROMIUM,
+                    *FLAGS,
+                    f"--user-data-dir={self.profile}",
+                    "--remote-debugging-pipe",
+                    "about:blank",
+                ],
+                stdin=subprocess.DEVNULL,
+                stdout=log,
+                stderr=log,
+                pass_fds=(to_r, from_w),
+            )
         os.close(to_r)
         os.close(from_w)
         self._w = os.fdopen(to_w, "wb", buffering=0)
@@ -49,8 +69,9 @@ class Browser:
         self._id = 0
         self.events: list[dict[str, Any]] = []
         target = self._send("Target.createTarget", {"url": "about:blank"})["targetId"]
-        self.session = self._send("Target.attachToTarget",
-                                  {"targetId": target, "flatten": True})["sessionId"]
+        self.session = self._send("Target.attachToTarget", {"targetId": target, "flatten": True})[
+            "sessionId"
+        ]
         self.call("Page.enable")
         self.call("Runtime.enable")
 
@@ -59,15 +80,17 @@ class Browser:
             chunk = self._r.read(1 << 20)
             if not chunk:
                 tail = self.log.read_text(errors="replace").splitlines()[-15:]
-                raise RuntimeError("chromium closed the DevTools pipe; its last output:\n"
-                                   + "\n".join(tail))
+                raise RuntimeError(
+                    "chromium closed the DevTools pipe; its last output:\n" + "\n".join(tail)
+                )
             self._buf += chunk
         msg, self._buf = self._buf.split(b"\0", 1)
         out: dict[str, Any] = json.loads(msg)
         return out
 
-    def _send(self, method: str, params: dict[str, Any] | None = None,
-              session: str | None = None) -> dict[str, Any]:
+    def _send(
+        self, method: str, params: dict[str, Any] | None = None, session: str | None = None
+    ) -> dict[str, Any]:
         self._id += 1
         msg: dict[str, Any] = {"id": self._id, "method": method, "params": params or {}}
         if session:
@@ -99,8 +122,10 @@ class Browser:
 
     def open(self, path: Path, width: int = 1280, height: int = 800) -> None:
         """Load a file in a ``width`` x ``height`` CSS-pixel viewport (scale 1)."""
-        self.call("Emulation.setDeviceMetricsOverride",
-                  {"width": width, "height": height, "deviceScaleFactor": 1, "mobile": False})
+        self.call(
+            "Emulation.setDeviceMetricsOverride",
+            {"width": width, "height": height, "deviceScaleFactor": 1, "mobile": False},
+        )
         self.call("Page.navigate", {"url": Path(path).resolve().as_uri()})
         self.wait_event("Page.loadEventFired")
 
@@ -123,8 +148,9 @@ class Browser:
 
     def pdf(self) -> bytes:
         """The page printed to PDF (A4, the page's print stylesheet)."""
-        r = self.call("Page.printToPDF", {"paperWidth": 8.27, "paperHeight": 11.69,
-                                          "printBackground": True})
+        r = self.call(
+            "Page.printToPDF", {"paperWidth": 8.27, "paperHeight": 11.69, "printBackground": True}
+        )
         return base64.b64decode(r["data"])
 
     def close(self) -> None:

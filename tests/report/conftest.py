@@ -26,8 +26,9 @@ def search_only(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A search run of System B with nothing else (no near field, coverage, far field,
     export), its report written."""
     out = tmp_path_factory.mktemp("search_only")
-    run_search("system_b", ["slow_ahead_curve"], ["snow"], 60, 1, 2, out,
-               strategy="lhs", progress=False)
+    run_search(
+        "system_b", ["slow_ahead_curve"], ["snow"], 60, 1, 2, out, strategy="lhs", progress=False
+    )
     assert main(["report", "--run", str(out)]) == 0
     return out
 
@@ -40,8 +41,17 @@ def compared(job: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
 
     base = tmp_path_factory.mktemp("compare")
     b = base / "system_b"
-    run_search("system_b", ["crossing_pedestrian", "stopped_rural_curve"],
-               ["clear", "fog_50"], 300, 1, 4, b, strategy="lhs", progress=False)
+    run_search(
+        "system_b",
+        ["crossing_pedestrian", "stopped_rural_curve"],
+        ["clear", "fog_50"],
+        300,
+        1,
+        4,
+        b,
+        strategy="lhs",
+        progress=False,
+    )
     write_nearfield(load_system("system_b"), b / "nearfield")
     out = base / "cmp"
     assert main(["report", "--compare", str(job), str(b), "--out", str(out)]) == 0

@@ -14,8 +14,9 @@ import pytest
 from sensorgap.report.summary import MAX_WEAKNESSES
 from tests.report.chromium import CHROMIUM, Browser
 
-pytestmark = pytest.mark.skipif(CHROMIUM is None, reason="headless Chromium is not installed "
-                                "(Debian package chromium)")
+pytestmark = pytest.mark.skipif(
+    CHROMIUM is None, reason="headless Chromium is not installed (Debian package chromium)"
+)
 
 #: The window an assessor opens the report in (CSS px).
 WIDTH, HEIGHT = 1280, 800
@@ -54,7 +55,8 @@ def _errors(b: Browser) -> list[Any]:
     for ev in b.events:
         m, p = ev.get("method"), ev.get("params", {})
         if m == "Runtime.exceptionThrown" or (
-                m == "Runtime.consoleAPICalled" and p.get("type") in ("error", "assert")):
+            m == "Runtime.consoleAPICalled" and p.get("type") in ("error", "assert")
+        ):
             out.append(p)
         elif m == "Log.entryAdded" and p.get("entry", {}).get("level") == "error":
             out.append(p["entry"])
@@ -68,8 +70,9 @@ def test_summary_above_the_fold_without_overflow(job: Path, tmp_path: Path) -> N
         m = b.eval(_LAYOUT)
         fold = b.screenshot(tmp_path / "report_1280x800.png")
         s = m["summary"]
-        whole = b.screenshot(tmp_path / "summary.png", {"x": 0, "y": s["top"],
-                                                        "width": WIDTH, "height": s["height"]})
+        whole = b.screenshot(
+            tmp_path / "summary.png", {"x": 0, "y": s["top"], "width": WIDTH, "height": s["height"]}
+        )
         errors = _errors(b)
     assert (m["innerWidth"], m["innerHeight"]) == (WIDTH, HEIGHT)
     assert _png_size(fold) == (WIDTH, HEIGHT) and _png_size(whole)[0] == WIDTH
@@ -92,9 +95,10 @@ def test_compare_report_readable_at_1280(compared: Path, tmp_path: Path) -> None
         b.open(compared / "report.html", WIDTH, HEIGHT)
         m = b.eval(_LAYOUT)
         box = b.eval(f"({_BOX})('#scenarios')")
-        b.screenshot(tmp_path / "compare_scenarios.png",
-                     {"x": 0, "y": box["top"], "width": WIDTH, "height": min(box["height"],
-                                                                              3000)})
+        b.screenshot(
+            tmp_path / "compare_scenarios.png",
+            {"x": 0, "y": box["top"], "width": WIDTH, "height": min(box["height"], 3000)},
+        )
         errors = _errors(b)
     # every column of every table visible without scrolling; no ~450 px rows
     assert m["scrollWidth"] <= WIDTH and m["cut"] == [], m["cut"]
@@ -113,10 +117,14 @@ def test_printed_pages(job: Path, search_only: Path, tmp_path: Path) -> None:
             b.open(folder / "report.html", A4_W, A4_H)
             b.call("Emulation.setEmulatedMedia", {"media": "print"})
             summary = b.eval(f"({_BOX})('#summary')")
-            items = b.eval("[...document.querySelectorAll('#weaknesses li')]"
-                           ".map(l => l.getBoundingClientRect().height)")
-            rows = b.eval("[...document.querySelectorAll('#test-first tbody tr')]"
-                          ".map(r => r.getBoundingClientRect().height)")
+            items = b.eval(
+                "[...document.querySelectorAll('#weaknesses li')]"
+                ".map(l => l.getBoundingClientRect().height)"
+            )
+            rows = b.eval(
+                "[...document.querySelectorAll('#test-first tbody tr')]"
+                ".map(r => r.getBoundingClientRect().height)"
+            )
             nav = b.eval("getComputedStyle(document.querySelector('nav')).breakBefore")
             breaks = b.eval(breaks_js)
             pdf = b.pdf()

@@ -18,10 +18,8 @@ def test_top_lists_differ(job: Path, compared: Path) -> None:
     a = (run_a / "ranking.csv").read_bytes()
     b = (run_b / "ranking.csv").read_bytes()
     assert a != b
-    ids_a = {r["scenario_id"] for r in json.loads((run_a / "ranking.json")
-                                                  .read_text())["ranking"]}
-    ids_b = {r["scenario_id"] for r in json.loads((run_b / "ranking.json")
-                                                  .read_text())["ranking"]}
+    ids_a = {r["scenario_id"] for r in json.loads((run_a / "ranking.json").read_text())["ranking"]}
+    ids_b = {r["scenario_id"] for r in json.loads((run_b / "ranking.json").read_text())["ranking"]}
     assert ids_a != ids_b
 
 
@@ -29,8 +27,10 @@ def test_every_difference_names_the_sensors_of_both_setups(compared: Path) -> No
     data = json.loads((compared / "comparison.json").read_text())
     rows = data["rows"]
     assert len(rows) >= 2  # the union of the two rankings, duplicates merged
-    sensors = {s.name: {x.id for x in s.sensors}
-               for s in (load_system("system_a"), load_system("system_b"))}
+    sensors = {
+        s.name: {x.id for x in s.sensors}
+        for s in (load_system("system_a"), load_system("system_b"))
+    }
     one_sided = [r for r in rows if r["critical_for"] not in ("both", "neither")]
     assert one_sided, "the two setups differ, so some scenario must be critical for one only"
     for r in rows:
@@ -38,23 +38,32 @@ def test_every_difference_names_the_sensors_of_both_setups(compared: Path) -> No
         if r["critical_for"] in ("both", "neither"):
             assert abs(pa - pb) < MARGIN_P
             continue
-        worse, better = (("System A", "System B") if r["critical_for"] == "System A"
-                         else ("System B", "System A"))
-        assert (r[f"collision_probability_{worse}"]
-                - r[f"collision_probability_{better}"]) >= MARGIN_P
+        worse, better = (
+            ("System A", "System B")
+            if r["critical_for"] == "System A"
+            else ("System B", "System A")
+        )
+        assert (
+            r[f"collision_probability_{worse}"] - r[f"collision_probability_{better}"]
+        ) >= MARGIN_P
         # the reason starts with the worse vehicle's missing sensors and their effect ...
         assert r["why"].startswith(f"{worse}: {r['dominant_effect']}:")
         # ... and names the better vehicle's sensors that see the target, with a type
         assert f"| {better} at the same moment sees it with {r['other_sees']}" in r["why"]
         parts = r["other_sees"].split("; ")
         assert parts and all(p.split(" (")[0] in sensors[better] for p in parts)
-        assert all(float(re.search(r"Pd ([0-9.]+)", p).group(1)) >= SEES_PD  # type: ignore
-                   for p in parts)
+        assert all(
+            float(re.search(r"Pd ([0-9.]+)", p).group(1)) >= SEES_PD  # type: ignore
+            for p in parts
+        )
 
 
 def test_markdown_summary_counts_all_rows(compared: Path) -> None:
     md = (compared / "comparison.md").read_text()
     data = json.loads((compared / "comparison.json").read_text())
-    counted = sum(int(line.rsplit("|", 2)[1]) for line in md.splitlines()
-                  if line.startswith(("| System", "| both", "| neither")))
+    counted = sum(
+        int(line.rsplit("|", 2)[1])
+        for line in md.splitlines()
+        if line.startswith(("| System", "| both", "| neither"))
+    )
     assert counted == len(data["rows"])

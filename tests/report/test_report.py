@@ -16,8 +16,19 @@ from lxml import html as lhtml
 
 from sensorgap.cli import main
 
-SECTIONS = ["summary", "vehicle", "nearfield", "coverage", "table-iv", "scenarios", "anchors",
-            "assumptions", "accuracy", "reproduce", "appendix"]
+SECTIONS = [
+    "summary",
+    "vehicle",
+    "nearfield",
+    "coverage",
+    "table-iv",
+    "scenarios",
+    "anchors",
+    "assumptions",
+    "accuracy",
+    "reproduce",
+    "appendix",
+]
 #: report.html size budget (docs/report.md): per embedded figure (base64 bytes), for the
 #: text without figures, and in all for the default job (35 figures).
 FIGURE_BUDGET_B = 150_000
@@ -35,8 +46,16 @@ def test_every_section_table_and_image(job: Path) -> None:
     for sid in SECTIONS:
         sec = doc.get_element_by_id(sid)
         assert sec is not None and sec.find("h2") is not None, sid
-    for sid in ("nearfield", "coverage", "table-iv", "scenarios", "accuracy", "reproduce",
-                "sensor-setup", "environments"):
+    for sid in (
+        "nearfield",
+        "coverage",
+        "table-iv",
+        "scenarios",
+        "accuracy",
+        "reproduce",
+        "sensor-setup",
+        "environments",
+    ):
         tables = doc.get_element_by_id(sid).findall(".//table")
         assert tables, sid
         for t in tables:
@@ -98,8 +117,9 @@ def test_markdown_has_the_same_content(job: Path) -> None:
         assert (job / target).is_file(), target
 
 
-def test_deterministic_but_for_the_timestamp(job: Path, monkeypatch: pytest.MonkeyPatch,
-                                             tmp_path: Path) -> None:
+def test_deterministic_but_for_the_timestamp(
+    job: Path, monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
     from sensorgap.report import write_report
 
     monkeypatch.setenv("SOURCE_DATE_EPOCH", "1700000000")
@@ -110,8 +130,7 @@ def test_deterministic_but_for_the_timestamp(job: Path, monkeypatch: pytest.Monk
     monkeypatch.delenv("SOURCE_DATE_EPOCH")
     write_report(job)
     b = (job / "report.html").read_text()
-    diff = [(x, y) for x, y in zip(a.decode().splitlines(), b.splitlines(), strict=True)
-            if x != y]
+    diff = [(x, y) for x, y in zip(a.decode().splitlines(), b.splitlines(), strict=True) if x != y]
     assert len(diff) == 1 and "Generated (UTC)" in diff[0][1]
 
 
@@ -144,8 +163,9 @@ def test_size_budget(job: Path) -> None:
     assert base64.b64encode(raw).decode() not in text
 
 
-def test_bad_files_are_one_line_exit_2(job: Path, tmp_path: Path,
-                                       capsys: pytest.CaptureFixture[str]) -> None:
+def test_bad_files_are_one_line_exit_2(
+    job: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     bad = tmp_path / "bad"
     shutil.copytree(job, bad)
     (bad / "nearfield" / "nearfield.json").write_text("{not json")
@@ -204,8 +224,7 @@ def test_anchor_cases_in_the_report(job: Path, search_only: Path) -> None:
     md = (job / "report.md").read_text()
     part = md.split("## Anchor cases", 1)[1].split("\n## ", 1)[0]
     for r in rows:
-        line = next(ln for ln in part.splitlines()
-                    if ln.startswith(f"| {r['vut_kmh']:.0f} | 5 |"))
+        line = next(ln for ln in part.splitlines() if ln.startswith(f"| {r['vut_kmh']:.0f} | 5 |"))
         cells = [c.strip() for c in line.strip("|").split("|")]
         assert cells[2] == r["class"]
         assert cells[3] == format(r["collision_probability"], ".2g")
@@ -216,8 +235,9 @@ def test_anchor_cases_in_the_report(job: Path, search_only: Path) -> None:
 
 
 @pytest.mark.parametrize("wide", [0.0, 1e9], ids=["map-above", "side-by-side"])
-def test_scenario_figure_shows_the_named_step(job: Path, monkeypatch: pytest.MonkeyPatch,
-                                              tmp_path: Path, wide: float) -> None:
+def test_scenario_figure_shows_the_named_step(
+    job: Path, monkeypatch: pytest.MonkeyPatch, tmp_path: Path, wide: float
+) -> None:
     # issue #14 item 6: the per-scenario figure draws the target's body at the step the
     # reason names (with its exact Pd of the confirming sensors), the scene's occluders
     # at that step, and over time the confirming Pd, P(confirmed), the path TTC and the
@@ -232,8 +252,9 @@ def test_scenario_figure_shows_the_named_step(job: Path, monkeypatch: pytest.Mon
     ev = Evaluator(spec.system, mode="exact")
     tr = figures.scenario_trace(spec, ev)
     captured = {}
-    monkeypatch.setattr(figures, "save_figure",
-                        lambda fig, path, dpi: captured.setdefault("fig", fig) and path)
+    monkeypatch.setattr(
+        figures, "save_figure", lambda fig, path, dpi: captured.setdefault("fig", fig) and path
+    )
     # both layouts: the map above the curves (a long scene) and beside them
     monkeypatch.setattr(figures, "WIDE_SCENE", wide)
     figures.scenario_figure(spec, ev, tr, tmp_path / "f.png")

@@ -69,8 +69,7 @@ def test_weaknesses_are_true_to_the_ranking(job: Path) -> None:
     for rank in sorted(rows):
         first.setdefault((rows[rank]["family"], rows[rank]["dominant_effect"]), rank)
     want = sorted(first.values())[:MAX_WEAKNESSES]
-    got = [int(re.search(r"\(rank (\d+)\)\.$", li.text_content().strip())[1])
-           for li in items]
+    got = [int(re.search(r"\(rank (\d+)\)\.$", li.text_content().strip())[1]) for li in items]
     assert got == want and items
     for li, rank in zip(items, got, strict=True):
         row, text = rows[rank], " ".join(li.text_content().split())
@@ -78,8 +77,10 @@ def test_weaknesses_are_true_to_the_ranking(job: Path) -> None:
         assert f"ego at {row['p_ego_speed_m_s'] * KMH:.0f} km/h" in text
         if row.get("p_target_speed_m_s") is not None:
             assert f"{row['target']} at {row['p_target_speed_m_s'] * KMH:.0f} km/h" in text
-        assert (f"P(collision) {fmt_p(row['collision_probability'])}, impact at "
-                f"{row['impact_speed_kmh']:.0f} km/h") in text
+        assert (
+            f"P(collision) {fmt_p(row['collision_probability'])}, impact at "
+            f"{row['impact_speed_kmh']:.0f} km/h"
+        ) in text
         assert f"At {row['named_step_t_s']:.2f} s" in text
         if row.get("t_confirm_median_s") is not None:
             assert f"confirms it at {row['t_confirm_median_s']:.2f} s (median)" in text
@@ -162,12 +163,12 @@ def test_confidence_states_what_was_and_was_not_measured(job: Path) -> None:
     assert "found by searches" in first and f"{rows[0]['found_by_seeds']} of 3" in first
 
 
-def test_confidence_of_a_single_search_says_stability_was_not_measured(
-        search_only: Path) -> None:
+def test_confidence_of_a_single_search_says_stability_was_not_measured(search_only: Path) -> None:
     """One search (``--seeds 1``, the search command's default): said plainly, no number
     invented, and how to measure it."""
-    text = " ".join(_doc(search_only / "report.html").get_element_by_id(
-        "confidence").text_content().split())
+    text = " ".join(
+        _doc(search_only / "report.html").get_element_by_id("confidence").text_content().split()
+    )
     assert "Stability over seeds: not measured in this run (one search, seed 1)" in text
     assert "rerun with --seeds 3" in text
     rows = _ranking(search_only)["ranking"]
@@ -199,8 +200,9 @@ def test_direction_words() -> None:
 def test_sun_direction_is_the_models(heading_deg: float, azimuth_deg: float) -> None:
     """The sun direction named in the summary is the one the sensor models use
     (``Conditions.sun_directions``) for a world-frame (compass) sun and an ego heading."""
-    env = load_environments()["clear"].model_copy(update={"sun": SunConfig(
-        azimuth_deg=azimuth_deg, elevation_deg=12.0, frame="world")})
+    env = load_environments()["clear"].model_copy(
+        update={"sun": SunConfig(azimuth_deg=azimuth_deg, elevation_deg=12.0, frame="world")}
+    )
     h = math.radians(heading_deg)
     d = Conditions.sun_directions(env, np.array([h]))
     assert d is not None
@@ -225,12 +227,17 @@ def test_where_and_weather_words() -> None:
 
 
 def test_pd_without_reads_the_rankings_reason() -> None:
-    reason = ("weather: at t=2.85 s the target is at x=86.9 y=0.0 m (ego frame), Pd of the "
-              "confirming sensors 0.00; P(collision) 1; missing: cam_windshield (weather: "
-              "Pd 0.00, 0.87 in clear air), radar_front_center (occlusion: Pd 0.00, 0.92 "
-              "without the occluders), cam_main (glare: Pd 0.10, 0.93 without the sun)")
-    assert pd_without(reason) == {"cam_windshield": 0.87, "radar_front_center": 0.92,
-                                  "cam_main": 0.93}
+    reason = (
+        "weather: at t=2.85 s the target is at x=86.9 y=0.0 m (ego frame), Pd of the "
+        "confirming sensors 0.00; P(collision) 1; missing: cam_windshield (weather: "
+        "Pd 0.00, 0.87 in clear air), radar_front_center (occlusion: Pd 0.00, 0.92 "
+        "without the occluders), cam_main (glare: Pd 0.10, 0.93 without the sun)"
+    )
+    assert pd_without(reason) == {
+        "cam_windshield": 0.87,
+        "radar_front_center": 0.92,
+        "cam_main": 0.93,
+    }
 
 
 def test_blind_areas_by_direction(tmp_path: Path) -> None:
@@ -246,23 +253,43 @@ def test_blind_areas_by_direction(tmp_path: Path) -> None:
 
     def blind(x0: float, y0: float, n: int = 2) -> None:  # n x n cells from (x0, y0)
         i, j = np.searchsorted(x, x0), np.searchsorted(y, y0)
-        pd[j:j + n, i:i + n] = 0.2
+        pd[j : j + n, i : i + n] = 0.2
 
-    blind(cx - 20.0, 10.0)          # behind-left: 1 m2
-    blind(cx + 20.0, -0.25, 4)      # ahead: 4 m2
-    blind(cx, -8.0)                 # right: 1 m2
-    blind(cx, 0.0)                  # inside the body: not counted
-    blind(cx - 55.0, 0.0)           # beyond 50 m: not counted
-    np.savez(tmp_path / "coverage.npz", pd=pd, x=x, y=y, resolution=np.array([res]),
-             height=np.array([0.75]))
+    blind(cx - 20.0, 10.0)  # behind-left: 1 m2
+    blind(cx + 20.0, -0.25, 4)  # ahead: 4 m2
+    blind(cx, -8.0)  # right: 1 m2
+    blind(cx, 0.0)  # inside the body: not counted
+    blind(cx - 55.0, 0.0)  # beyond 50 m: not counted
+    np.savez(
+        tmp_path / "coverage.npz",
+        pd=pd,
+        x=x,
+        y=y,
+        resolution=np.array([res]),
+        height=np.array([0.75]),
+    )
     r, areas = blind_areas(tmp_path / "coverage.npz", system)
     assert r == 50.0
-    assert areas == {"ahead": 4.0, "ahead-left": 0.0, "left": 0.0, "behind-left": 1.0,
-                     "behind": 0.0, "behind-right": 0.0, "right": 1.0, "ahead-right": 0.0}
+    assert areas == {
+        "ahead": 4.0,
+        "ahead-left": 0.0,
+        "left": 0.0,
+        "behind-left": 1.0,
+        "behind": 0.0,
+        "behind-right": 0.0,
+        "right": 1.0,
+        "ahead-right": 0.0,
+    }
     # a map reaching 30 m to the side: the circle shrinks to fit it
     keep = np.abs(y) < 30.0
-    np.savez(tmp_path / "small.npz", pd=pd[keep], x=x, y=y[keep],
-             resolution=np.array([res]), height=np.array([0.75]))
+    np.savez(
+        tmp_path / "small.npz",
+        pd=pd[keep],
+        x=x,
+        y=y[keep],
+        resolution=np.array([res]),
+        height=np.array([0.75]),
+    )
     r, areas = blind_areas(tmp_path / "small.npz", system)
     assert r == 30.0 and areas["ahead"] == 4.0 and areas["behind-left"] == 1.0
 
@@ -295,30 +322,40 @@ def test_spot_words() -> None:
     hw = 0.5 * body.width_m
     xr = body.x_rear_m
     # beside the left door: 1.0-3.0 m ahead of the rear bumper, 1.5-4.0 m left of the body
-    words = spot_words([xr + 1.0, hw + 1.5, xr + 3.0, hw + 4.0], [xr + 2.0, hw + 2.7],
-                       system)
-    assert words == ("left: 1.0 to 3.0 m ahead of the rear bumper, 1.5 to 4.0 m left of the "
-                     "body")
+    words = spot_words([xr + 1.0, hw + 1.5, xr + 3.0, hw + 4.0], [xr + 2.0, hw + 2.7], system)
+    assert words == ("left: 1.0 to 3.0 m ahead of the rear bumper, 1.5 to 4.0 m left of the body")
     # a rear corner spot reaching under the bumper line and into the body's width
-    words = spot_words([xr - 0.2, -(hw + 0.5), xr + 1.0, -(hw - 0.1)],
-                       [xr - 0.1, -(hw + 0.2)], system)
-    assert words == ("behind-right: from 0.20 m behind to 1.0 m ahead of the rear bumper, "
-                     "up to 0.50 m right of the body")
+    words = spot_words(
+        [xr - 0.2, -(hw + 0.5), xr + 1.0, -(hw - 0.1)], [xr - 0.1, -(hw + 0.2)], system
+    )
+    assert words == (
+        "behind-right: from 0.20 m behind to 1.0 m ahead of the rear bumper, "
+        "up to 0.50 m right of the body"
+    )
 
 
 def test_mirrored_pairs() -> None:
-    items = [("3.34 m²", "left: 1.3 to 3.8 m ahead of the rear bumper, 1.7 to 4.8 m left of "
-                         "the body"),
-             ("3.34 m²", "right: 1.3 to 3.8 m ahead of the rear bumper, 1.7 to 4.8 m right "
-                         "of the body"),
-             ("0.20 m²", "behind-left: 0.1 to 0.5 m behind the rear bumper, up to 0.3 m left "
-                         "of the body"),
-             ("0.21 m²", "behind-right: 0.1 to 0.5 m behind the rear bumper, up to 0.3 m "
-                         "right of the body")]
+    items = [
+        ("3.34 m²", "left: 1.3 to 3.8 m ahead of the rear bumper, 1.7 to 4.8 m left of the body"),
+        ("3.34 m²", "right: 1.3 to 3.8 m ahead of the rear bumper, 1.7 to 4.8 m right of the body"),
+        (
+            "0.20 m²",
+            "behind-left: 0.1 to 0.5 m behind the rear bumper, up to 0.3 m left of the body",
+        ),
+        (
+            "0.21 m²",
+            "behind-right: 0.1 to 0.5 m behind the rear bumper, up to 0.3 m right of the body",
+        ),
+    ]
     assert mirrored_pairs(items) == [
-        ("3.34 m² each", "left and right: 1.3 to 3.8 m ahead of the rear bumper, 1.7 to "
-                         "4.8 m to the side of the body"),
-        items[2], items[3]]  # different areas: not merged
+        (
+            "3.34 m² each",
+            "left and right: 1.3 to 3.8 m ahead of the rear bumper, 1.7 to "
+            "4.8 m to the side of the body",
+        ),
+        items[2],
+        items[3],
+    ]  # different areas: not merged
 
 
 def _without_rear_radars(tmp_path: Path) -> Path:
@@ -343,19 +380,22 @@ def test_summary_names_the_rear_blind_wedges_without_rear_radars(tmp_path: Path)
     from sensorgap.coverage.outputs import write_coverage
 
     paras = {}
-    for name, vehicle in (("norear", _without_rear_radars(tmp_path)),
-                          ("a", "system_a")):
+    for name, vehicle in (("norear", _without_rear_radars(tmp_path)), ("a", "system_a")):
         system = load_system(vehicle)
         folder = tmp_path / name
-        scene = Scene(system, load_target("car"),
-                      Conditions.from_config(load_environment("clear")))
-        write_coverage(scene, GridSpec(-52.0, 56.0, -50.0, 50.0, 0.5, 0.75),
-                       folder / "coverage" / "car_clear", heading_deg=0.0)
+        scene = Scene(system, load_target("car"), Conditions.from_config(load_environment("clear")))
+        write_coverage(
+            scene,
+            GridSpec(-52.0, 56.0, -50.0, 50.0, 0.5, 0.75),
+            folder / "coverage" / "car_clear",
+            heading_deg=0.0,
+        )
         if name == "norear":
             write_nearfield(system, folder / "nearfield", resolution=0.2)
         sec = summary_section(folder, system, {}, None, None, None, 0)
-        paras[name] = next(b.text for b in sec.blocks
-                           if getattr(b, "text", "").startswith("Blind spots"))
+        paras[name] = next(
+            b.text for b in sec.blocks if getattr(b, "text", "").startswith("Blind spots")
+        )
         _, ext = blind_extents(folder / "coverage" / "car_clear" / "coverage.npz", system)
         paras[name + "_ext"] = ext  # type: ignore[assignment]
     text, ext = paras["norear"], paras["norear_ext"]
@@ -365,8 +405,10 @@ def test_summary_names_the_rear_blind_wedges_without_rear_radars(tmp_path: Path)
     # symmetric: one phrase for both wedges
     assert left == right
     area, d0, d1 = left
-    assert (f"{round(area):,} m² each behind-left and behind-right ({d0:.2f} to {d1:.1f} m "
-            "from the body)") in text
+    assert (
+        f"{round(area):,} m² each behind-left and behind-right ({d0:.2f} to {d1:.1f} m "
+        "from the body)"
+    ) in text
     assert all(ext_a[0] < 1.0 for ext_a in paras["a_ext"].values())  # type: ignore[union-attr]
     assert "behind-left (" not in paras["a"]
     # the near field by direction, from nearfield.json's exact holes
@@ -384,15 +426,17 @@ def test_summary_names_the_blind_spots(job: Path) -> None:
     text = " ".join(doc.get_element_by_id("summary").text_content().split())
     near = json.loads((job / "nearfield" / "nearfield.json").read_text())
     assert f"near field: {near['blind_spot_m2']['exact']:.2f} m² within 5 m" in text
-    _, areas = blind_areas(job / "coverage" / "car_clear" / "coverage.npz",
-                           load_system("system_a"))
-    assert (f"within 50 m of the vehicle a car (heading the same way; clear, "
-            f"coverage/car_clear) is detected with Pd < 0.5 over "
-            f"{sum(areas.values()):,.0f} m² outside the body") in text
+    _, areas = blind_areas(job / "coverage" / "car_clear" / "coverage.npz", load_system("system_a"))
+    assert (
+        f"within 50 m of the vehicle a car (heading the same way; clear, "
+        f"coverage/car_clear) is detected with Pd < 0.5 over "
+        f"{sum(areas.values()):,.0f} m² outside the body"
+    ) in text
 
 
-def test_unreadable_coverage_map_is_one_line_exit_2(tmp_path: Path,
-                                                    capsys: pytest.CaptureFixture[str]) -> None:
+def test_unreadable_coverage_map_is_one_line_exit_2(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     (tmp_path / "run.json").write_text(json.dumps({"vehicle": "system_a"}))
     npz = tmp_path / "coverage" / "car_clear" / "coverage.npz"
     npz.parent.mkdir(parents=True)

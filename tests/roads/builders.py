@@ -6,12 +6,13 @@ from pathlib import Path
 
 ROADS_DIR = Path(__file__).resolve().parents[2] / "roads"
 
-LANE = ('<lane id="{id}" type="{type}"><link>{links}</link>'
-        '<width sOffset="0" a="{w}" b="0" c="0" d="0"/></lane>')
+LANE = (
+    '<lane id="{id}" type="{type}"><link>{links}</link>'
+    '<width sOffset="0" a="{w}" b="0" c="0" d="0"/></lane>'
+)
 
 
-def lane_xml(lane_id: int, width: float = 3.5, lane_type: str = "driving",
-             links: str = "") -> str:
+def lane_xml(lane_id: int, width: float = 3.5, lane_type: str = "driving", links: str = "") -> str:
     """One lane with a constant width (m)."""
     return LANE.format(id=lane_id, type=lane_type, links=links, w=width)
 
@@ -30,19 +31,31 @@ def section_xml(s: float = 0.0, left: str | None = None, right: str | None = Non
     return "".join(parts)
 
 
-def road_xml(road_id: str = "1", length: float = 100.0, geometry: str | None = None,
-             lanes: str | None = None, link: str = "", junction: str = "-1",
-             attrs: str = "") -> str:
+def road_xml(
+    road_id: str = "1",
+    length: float = 100.0,
+    geometry: str | None = None,
+    lanes: str | None = None,
+    link: str = "",
+    junction: str = "-1",
+    attrs: str = "",
+) -> str:
     """A road; by default a straight line along +x from the origin with one section."""
-    geometry = (f'<geometry s="0" x="0" y="0" hdg="0" length="{length}"><line/></geometry>'
-                if geometry is None else geometry)
+    geometry = (
+        f'<geometry s="0" x="0" y="0" hdg="0" length="{length}"><line/></geometry>'
+        if geometry is None
+        else geometry
+    )
     lanes = f"<lanes>{section_xml()}</lanes>" if lanes is None else lanes
-    return (f'<road id="{road_id}" length="{length}" junction="{junction}" {attrs}>'
-            f"<link>{link}</link><planView>{geometry}</planView>{lanes}</road>")
+    return (
+        f'<road id="{road_id}" length="{length}" junction="{junction}" {attrs}>'
+        f"<link>{link}</link><planView>{geometry}</planView>{lanes}</road>"
+    )
 
 
 def document(*bodies: str) -> str:
     """A full OpenDRIVE 1.7 document around roads/junctions."""
-    return ('<?xml version="1.0" encoding="utf-8"?>\n<OpenDRIVE>\n'
-            '<header revMajor="1" revMinor="7" name="test"/>\n'
-            + "\n".join(bodies) + "\n</OpenDRIVE>\n")
+    return (
+        '<?xml version="1.0" encoding="utf-8"?>\n<OpenDRIVE>\n'
+        '<header revMajor="1" revMinor="7" name="test"/>\n' + "\n".join(bodies) + "\n</OpenDRIVE>\n"
+    )

@@ -27,8 +27,12 @@ def _make_roads() -> ModuleType:
 
 
 def test_the_four_files_are_committed() -> None:
-    assert [f.name for f in FILES] == ["motorway_3lane.xodr", "motorway_r500.xodr",
-                                       "rural_two_lane.xodr", "urban_junction.xodr"]
+    assert [f.name for f in FILES] == [
+        "motorway_3lane.xodr",
+        "motorway_r500.xodr",
+        "rural_two_lane.xodr",
+        "urban_junction.xodr",
+    ]
 
 
 def test_xsd_is_shipped_with_scenariogeneration() -> None:

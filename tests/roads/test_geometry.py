@@ -65,10 +65,12 @@ def test_spiral_from_zero_curvature_matches_fresnel() -> None:
     assert k[0] == 0.0 and k[-1] == pytest.approx(k1, rel=1e-14)
 
 
-@pytest.mark.parametrize(("k0", "k1", "length"), [(0.01, 0.002, 80.0), (-0.02, 0.03, 60.0),
-                                                   (1 / 150, 0.0, 60.0)])
-def test_spiral_general_against_fresnel_and_curvature_integral(k0: float, k1: float,
-                                                               length: float) -> None:
+@pytest.mark.parametrize(
+    ("k0", "k1", "length"), [(0.01, 0.002, 80.0), (-0.02, 0.03, 60.0), (1 / 150, 0.0, 60.0)]
+)
+def test_spiral_general_against_fresnel_and_curvature_integral(
+    k0: float, k1: float, length: float
+) -> None:
     x0, y0, h0 = -3.0, 4.0, 1.1
     g = Spiral(0.0, x0, y0, h0, length, curv_start=k0, curv_end=k1)
     ds = S * length
@@ -133,8 +135,9 @@ def test_poly3_cubic_against_quadrature() -> None:
     a, b, c, d = 0.5, 0.1, -0.004, 5e-5
     g = Poly3(0.0, 0.0, 0.0, 0.0, 150.0, a=a, b=b, c=c, d=d)
     for u in (0.0, 12.0, 55.0, 100.0):
-        s = quad(lambda t: math.sqrt(1 + (b + 2 * c * t + 3 * d * t * t) ** 2), 0.0, u,
-                 epsabs=1e-13)[0]
+        s = quad(
+            lambda t: math.sqrt(1 + (b + 2 * c * t + 3 * d * t * t) ** 2), 0.0, u, epsabs=1e-13
+        )[0]
         x, y, h, k = g.evaluate(np.array([s]))
         dv, ddv = b + 2 * c * u + 3 * d * u * u, 2 * c + 6 * d * u
         assert x[0] == pytest.approx(u, abs=1e-9)
@@ -147,12 +150,39 @@ def test_param_poly3_arc_length_and_normalized_by_hand() -> None:
     x0, y0, h0, length = 1.0, -1.0, 0.6, 50.0
     cu, du = -0.001, 1e-6
     cv, dv = 0.01, -2e-4
-    al = ParamPoly3(0.0, x0, y0, h0, length, a_u=0.0, b_u=1.0, c_u=cu, d_u=du,
-                    a_v=0.0, b_v=0.0, c_v=cv, d_v=dv, p_range="arcLength")
+    al = ParamPoly3(
+        0.0,
+        x0,
+        y0,
+        h0,
+        length,
+        a_u=0.0,
+        b_u=1.0,
+        c_u=cu,
+        d_u=du,
+        a_v=0.0,
+        b_v=0.0,
+        c_v=cv,
+        d_v=dv,
+        p_range="arcLength",
+    )
     # the same curve with p in [0, 1]: coefficients scaled by length^n
-    nm = ParamPoly3(0.0, x0, y0, h0, length, a_u=0.0, b_u=length, c_u=cu * length**2,
-                    d_u=du * length**3, a_v=0.0, b_v=0.0, c_v=cv * length**2,
-                    d_v=dv * length**3, p_range="normalized")
+    nm = ParamPoly3(
+        0.0,
+        x0,
+        y0,
+        h0,
+        length,
+        a_u=0.0,
+        b_u=length,
+        c_u=cu * length**2,
+        d_u=du * length**3,
+        a_v=0.0,
+        b_v=0.0,
+        c_v=cv * length**2,
+        d_v=dv * length**3,
+        p_range="normalized",
+    )
     p = np.array([0.0, 10.0, 25.0, 50.0])
     x, y, h, k = al.evaluate(p)
     u = p + cu * p**2 + du * p**3
@@ -167,12 +197,29 @@ def test_param_poly3_arc_length_and_normalized_by_hand() -> None:
         np.testing.assert_allclose(a_, b_, rtol=1e-12, atol=1e-12)
 
 
-@pytest.mark.parametrize("geom", [
-    Spiral(0.0, 0.0, 0.0, 0.3, 80.0, curv_start=0.01, curv_end=-0.03),
-    Poly3(0.0, 0.0, 0.0, 0.0, 90.0, a=0.0, b=0.05, c=0.002, d=-4e-5),
-    ParamPoly3(0.0, 0.0, 0.0, 0.0, 40.0, a_u=0.0, b_u=40.0, c_u=-3.0, d_u=0.5,
-               a_v=0.0, b_v=0.0, c_v=6.0, d_v=-2.0, p_range="normalized"),
-])
+@pytest.mark.parametrize(
+    "geom",
+    [
+        Spiral(0.0, 0.0, 0.0, 0.3, 80.0, curv_start=0.01, curv_end=-0.03),
+        Poly3(0.0, 0.0, 0.0, 0.0, 90.0, a=0.0, b=0.05, c=0.002, d=-4e-5),
+        ParamPoly3(
+            0.0,
+            0.0,
+            0.0,
+            0.0,
+            40.0,
+            a_u=0.0,
+            b_u=40.0,
+            c_u=-3.0,
+            d_u=0.5,
+            a_v=0.0,
+            b_v=0.0,
+            c_v=6.0,
+            d_v=-2.0,
+            p_range="normalized",
+        ),
+    ],
+)
 def test_curvature_rate_matches_finite_differences(geom: Spiral | Poly3 | ParamPoly3) -> None:
     ds = np.linspace(5.0, geom.length - 5.0, 9)
     h = 1e-3
@@ -187,9 +234,11 @@ def test_curvature_rate_matches_finite_differences(geom: Spiral | Poly3 | ParamP
 
 def test_position_derivative_is_the_heading() -> None:
     # d(x, y)/ds = (cos h, sin h) for the arc-length parametrised primitives (1e-7)
-    geoms = [Arc(0.0, 0.0, 0.0, 0.2, 100.0, curvature=0.02),
-             Spiral(0.0, 0.0, 0.0, 0.2, 100.0, curv_start=-0.01, curv_end=0.04),
-             Poly3(0.0, 0.0, 0.0, 0.2, 100.0, a=0.0, b=0.0, c=0.003, d=-2e-5)]
+    geoms = [
+        Arc(0.0, 0.0, 0.0, 0.2, 100.0, curvature=0.02),
+        Spiral(0.0, 0.0, 0.0, 0.2, 100.0, curv_start=-0.01, curv_end=0.04),
+        Poly3(0.0, 0.0, 0.0, 0.2, 100.0, a=0.0, b=0.0, c=0.003, d=-2e-5),
+    ]
     ds, e = np.linspace(1.0, 99.0, 15), 1e-4
     for g in geoms:
         xp, yp, _, _ = g.evaluate(ds + e)

@@ -52,8 +52,7 @@ def test_motorway_neighbours(motorway: RoadNetwork) -> None:
 def test_urban_junction_successors(urban: RoadNetwork) -> None:
     g = urban.lane_graph
     assert g.number_of_nodes() == 4 * 4 + 12 + 4  # arm lanes, connecting lanes, corner walks
-    exits = {"1": {"4", "2", "3"}, "2": {"1", "3", "4"}, "3": {"4", "1", "2"},
-             "4": {"2", "3", "1"}}
+    exits = {"1": {"4", "2", "3"}, "2": {"1", "3", "4"}, "3": {"4", "1", "2"}, "4": {"2", "3", "1"}}
     for arm, others in exits.items():
         entry = (arm, 0, 1)  # lane 1 of every arm travels towards the junction
         conns = _succ(g, entry)
@@ -78,8 +77,12 @@ def test_urban_junction_successors(urban: RoadNetwork) -> None:
 def _linked_roads(tmp_path: Path) -> Path:
     # road 1 -> road 2 (with a lane merge: three lane sections) -> road 3 reversed (end to end)
     r1 = xodr.create_road(xodr.Line(100), 1, left_lanes=1, right_lanes=2)
-    r2 = xodr.create_road([xodr.Line(50), xodr.Arc(0.01, length=50)], 2, left_lanes=1,
-                          right_lanes=[xodr.LaneDef(10, 30, 2, 1, -2)])
+    r2 = xodr.create_road(
+        [xodr.Line(50), xodr.Arc(0.01, length=50)],
+        2,
+        left_lanes=1,
+        right_lanes=[xodr.LaneDef(10, 30, 2, 1, -2)],
+    )
     r3 = xodr.create_road(xodr.Spiral(0.0001, 0.02, length=60), 3, left_lanes=1, right_lanes=1)
     r1.add_successor(xodr.ElementType.road, 2, xodr.ContactPoint.start)
     r2.add_predecessor(xodr.ElementType.road, 1, xodr.ContactPoint.end)
@@ -109,7 +112,12 @@ def test_linked_roads_written_by_scenariogeneration(tmp_path: Path) -> None:
     # the opposite direction: road 3 lane -1 -> road 2 lane 1 -> ... -> road 1 lane 1
     succ = _kind(g, "successor")
     assert nx.shortest_path(succ, ("3", 0, -1), ("1", 0, 1)) == [
-        ("3", 0, -1), ("2", 2, 1), ("2", 1, 1), ("2", 0, 1), ("1", 0, 1)]
+        ("3", 0, -1),
+        ("2", 2, 1),
+        ("2", 1, 1),
+        ("2", 0, 1),
+        ("1", 0, 1),
+    ]
     # geometry stitched by scenariogeneration: road 3 ends where road 2 ends, reversed
     x2, y2, h2 = net.reference_line(2, net.road(2).length)
     x3, y3, h3 = net.reference_line(3, net.road(3).length)
@@ -121,8 +129,7 @@ def test_linked_roads_written_by_scenariogeneration(tmp_path: Path) -> None:
 
 
 def test_junction_written_by_scenariogeneration(tmp_path: Path) -> None:
-    arms = [xodr.create_road([xodr.Line(100)], i, left_lanes=1, right_lanes=1)
-            for i in range(4)]
+    arms = [xodr.create_road([xodr.Line(100)], i, left_lanes=1, right_lanes=1) for i in range(4)]
     jc = xodr.CommonJunctionCreator(1, "cross", startnum=100)
     for i, road in enumerate(arms):
         jc.add_incoming_road_circular_geometry(road, 20, i * np.pi / 2, "successor")

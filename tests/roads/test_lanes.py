@@ -18,8 +18,12 @@ W = 3.75  # motorway lane width, m
 
 def test_motorway_constant_widths_and_edges(motorway: RoadNetwork) -> None:
     s = np.array([0.0, 250.0, 550.0, 1000.0, motorway.road(1).length])
-    for lane, (inner, outer) in {-1: (0.0, -W), -2: (-W, -2 * W), 1: (0.0, W),
-                                 2: (W, 2 * W)}.items():
+    for lane, (inner, outer) in {
+        -1: (0.0, -W),
+        -2: (-W, -2 * W),
+        1: (0.0, W),
+        2: (W, 2 * W),
+    }.items():
         np.testing.assert_allclose(motorway.lane_width(1, lane, s), W, atol=1e-12)
         ti, to = motorway.lane_edges(1, lane, s)
         np.testing.assert_allclose(ti, inner, atol=1e-12)
@@ -69,18 +73,26 @@ def _lane(lane_id: int, *widths: str) -> str:
     return f'<lane id="{lane_id}" type="driving">{"".join(widths)}</lane>'
 
 
-POLY_DOC = document(road_xml(lanes=(
-    '<lanes><laneOffset s="0" a="0.2" b="0.001" c="0" d="0"/>'
-    '<laneOffset s="60" a="0.26" b="0" c="0" d="0"/>'
-    '<laneSection s="0"><left>'
-    + _lane(1, _width_xml(0, W1), _width_xml(25, W1B)) + _lane(2, _width_xml(0, (2, 0, 0, 0)))
-    + '</left><center><lane id="0" type="none"/></center><right>'
-    + _lane(-1, _width_xml(0, (3.5, 0, 0, 0))) + _lane(-2, _width_xml(0, WIDEN))
-    + '</right></laneSection><laneSection s="50"><left>'
-    + _lane(1, _width_xml(0, (3.0, 0, 0, 0)))
-    + '</left><center><lane id="0" type="none"/></center><right>'
-    + _lane(-1, _width_xml(0, (3.5, 0, 0, 0))) + _lane(-2, _width_xml(0, (3.0, 0, 0, 0)))
-    + "</right></laneSection></lanes>")))
+POLY_DOC = document(
+    road_xml(
+        lanes=(
+            '<lanes><laneOffset s="0" a="0.2" b="0.001" c="0" d="0"/>'
+            '<laneOffset s="60" a="0.26" b="0" c="0" d="0"/>'
+            '<laneSection s="0"><left>'
+            + _lane(1, _width_xml(0, W1), _width_xml(25, W1B))
+            + _lane(2, _width_xml(0, (2, 0, 0, 0)))
+            + '</left><center><lane id="0" type="none"/></center><right>'
+            + _lane(-1, _width_xml(0, (3.5, 0, 0, 0)))
+            + _lane(-2, _width_xml(0, WIDEN))
+            + '</right></laneSection><laneSection s="50"><left>'
+            + _lane(1, _width_xml(0, (3.0, 0, 0, 0)))
+            + '</left><center><lane id="0" type="none"/></center><right>'
+            + _lane(-1, _width_xml(0, (3.5, 0, 0, 0)))
+            + _lane(-2, _width_xml(0, (3.0, 0, 0, 0)))
+            + "</right></laneSection></lanes>"
+        )
+    )
+)
 
 
 def _poly(co: tuple[float, ...], u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -122,8 +134,9 @@ def test_polynomial_lane_centre_offsets_by_hand(poly: RoadNetwork) -> None:
     # lane 0 is the laneOffset line; the offset switches records at s = 60
     s2 = np.array([55.0, 60.0, 80.0])
     np.testing.assert_allclose(poly.lane_center(1, 0, s2)[1], [0.255, 0.26, 0.26], atol=1e-12)
-    np.testing.assert_allclose(poly.lane_center(1, -1, s2)[1], np.array([0.255, 0.26, 0.26]) - 1.75,
-                               atol=1e-12)
+    np.testing.assert_allclose(
+        poly.lane_center(1, -1, s2)[1], np.array([0.255, 0.26, 0.26]) - 1.75, atol=1e-12
+    )
 
 
 def test_lanes_existing_per_section(poly: RoadNetwork) -> None:
@@ -131,8 +144,11 @@ def test_lanes_existing_per_section(poly: RoadNetwork) -> None:
     assert not poly.lane_exists(1, 2, s=70.0)
     assert not poly.lane_exists(1, 3) and not poly.lane_exists(1, 0)
     assert not poly.lane_exists(2, -1)  # no road 2
-    with pytest.raises(InputError, match=r"test\.xodr: road\[id=1\]/lane\[id=2\]: lane does not "
-                                         r"exist at s=70"):
+    with pytest.raises(
+        InputError,
+        match=r"test\.xodr: road\[id=1\]/lane\[id=2\]: lane does not "
+        r"exist at s=70",
+    ):
         poly.lane_center(1, 2, np.array([10.0, 70.0]))
     with pytest.raises(InputError, match=r"lane\[id=-3\]"):
         poly.lane_center(1, -3, np.array([10.0]))
@@ -152,16 +168,21 @@ def test_lane_at_borders(poly: RoadNetwork) -> None:
 
 
 def test_lane_centre_heading_and_curvature_on_a_clothoid_with_varying_offsets(
-        load_xodr: Callable[..., RoadNetwork]) -> None:
+    load_xodr: Callable[..., RoadNetwork],
+) -> None:
     # curvature changes (clothoid) while the lane offset and width change: every term of the
     # offset-curve formulas is active; compare with finite differences of the centre line
-    geo = ('<geometry s="0" x="0" y="0" hdg="0.3" length="100"><spiral curvStart="0.001" '
-           'curvEnd="0.03"/></geometry>')
-    lanes = ('<lanes><laneOffset s="0" a="0.1" b="0.01" c="-2e-4" d="1e-6"/>'
-             '<laneSection s="0"><center><lane id="0" type="none"/></center><right>'
-             + _lane(-1, _width_xml(0, (3.0, 0.02, 1e-4, -1e-6)))
-             + _lane(-2, _width_xml(0, (2.0, -0.01, 3e-4, 0.0)))
-             + "</right></laneSection></lanes>")
+    geo = (
+        '<geometry s="0" x="0" y="0" hdg="0.3" length="100"><spiral curvStart="0.001" '
+        'curvEnd="0.03"/></geometry>'
+    )
+    lanes = (
+        '<lanes><laneOffset s="0" a="0.1" b="0.01" c="-2e-4" d="1e-6"/>'
+        '<laneSection s="0"><center><lane id="0" type="none"/></center><right>'
+        + _lane(-1, _width_xml(0, (3.0, 0.02, 1e-4, -1e-6)))
+        + _lane(-2, _width_xml(0, (2.0, -0.01, 3e-4, 0.0)))
+        + "</right></laneSection></lanes>"
+    )
     net = load_xodr(document(road_xml(geometry=geo, lanes=lanes)))
     s = np.linspace(5.0, 95.0, 10)
     e = 1e-4

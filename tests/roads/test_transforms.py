@@ -37,8 +37,9 @@ def test_motorway_round_trip_10k_points(motorway: RoadNetwork) -> None:
 def test_rural_round_trip_through_clothoids(rural: RoadNetwork) -> None:
     _round_trip(rural, "1", 6.99, 5_000, seed=2)
     # every lane of both lane ids is hit: -1 right of the reference line, 1 left
-    rid, lane, s, t = rural.world_to_road(*rural.road_to_world("1", np.full(2, 900.0),
-                                                              np.array([-1.75, 1.75])))
+    rid, lane, s, t = rural.world_to_road(
+        *rural.road_to_world("1", np.full(2, 900.0), np.array([-1.75, 1.75]))
+    )
     assert lane.tolist() == [-1, 1]
     np.testing.assert_allclose(s, 900.0, atol=ROUND_TRIP_TOL)
 

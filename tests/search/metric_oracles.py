@@ -22,7 +22,7 @@ def at_least_m_of_window(pd: np.ndarray, m: int, n: int) -> np.ndarray:
     over the window of independent cycles; shorter windows at the start)."""
     out = np.zeros(pd.size)
     for k in range(pd.size):
-        window = pd[max(0, k - n + 1):k + 1]
+        window = pd[max(0, k - n + 1) : k + 1]
         dist = np.zeros(window.size + 1)  # dist[j] = P(j detections so far)
         dist[0] = 1.0
         for p in window:

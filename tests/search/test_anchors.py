@@ -32,7 +32,13 @@ def test_cases_are_the_protocol_points_by_hand() -> None:
     # offset -3.9 / v; the start 4.5 s of travel (+ 3.9 m) before the line, >= 15 m.
     cases = ncap_obstructed_cases(3.9)
     assert [round(3.6 * float(c.params["ego_speed_m_s"]), 9) for c in cases] == [
-        10.0, 20.0, 30.0, 40.0, 50.0, 60.0]
+        10.0,
+        20.0,
+        30.0,
+        40.0,
+        50.0,
+        60.0,
+    ]
     for c in cases:
         v = float(c.params["ego_speed_m_s"])
         assert c.family == NCAP_FAMILY
@@ -72,13 +78,16 @@ def test_evaluate_reproduces_every_anchor_row(tmp_path: Path) -> None:
     # System A: every row's command, run through the CLI, gives the same class and
     # metrics (1e-9); anchors.csv has one row per case and the documented columns.
     system = load_system("system_a")
-    rows = evaluate_anchors(system, ncap_obstructed_cases(system.config.vehicle.x_front_m),
-                            vehicle_ref="system_a")
+    rows = evaluate_anchors(
+        system, ncap_obstructed_cases(system.config.vehicle.x_front_m), vehicle_ref="system_a"
+    )
     write_anchors(rows, tmp_path / "anchors")
     lines = (tmp_path / "anchors" / "anchors.csv").read_text().splitlines()
     assert lines[0] == ",".join(COLUMNS) and len(lines) == 1 + len(rows)
-    assert json.loads((tmp_path / "anchors" / "anchors.json").read_text())["anchors"][0][
-        "command"] == rows[0]["command"]
+    assert (
+        json.loads((tmp_path / "anchors" / "anchors.json").read_text())["anchors"][0]["command"]
+        == rows[0]["command"]
+    )
     # both outcomes are reproduced: avoided at low speed, and at 50/60 km/h a collision
     # even for perfect line-of-sight perception (coverage.sightline: unavoidable)
     assert {"not critical", "unavoidable"} <= {r["class"] for r in rows}
@@ -89,8 +98,14 @@ def test_evaluate_reproduces_every_anchor_row(tmp_path: Path) -> None:
         assert main(args) == 0
         got = json.loads((out / "evaluation.json").read_text())
         assert got["class"] == r["class"]
-        for name in ("collision_probability", "impact_speed_kmh", "collision_perfect",
-                     "t_safe_s", "t_confirm_median_s", "detection_margin_s"):
+        for name in (
+            "collision_probability",
+            "impact_speed_kmh",
+            "collision_perfect",
+            "t_safe_s",
+            "t_confirm_median_s",
+            "detection_margin_s",
+        ):
             a, b = got["metrics"][name], r[name]
             if b is None:
                 assert a is None or not math.isfinite(a)

@@ -21,11 +21,11 @@ from tests.search.metric_oracles import oracle
 ENVS = load_environments()
 
 
-def _problem(family: str, mode: str = "exact", system: str = "system_b",
-             rule: DetectionRule | None = None) -> SearchProblem:
+def _problem(
+    family: str, mode: str = "exact", system: str = "system_b", rule: DetectionRule | None = None
+) -> SearchProblem:
     envs = {k: ENVS[k] for k in ("clear", "glare_front_right", "fog_50")}
-    return SearchProblem(load_family(family), envs, Evaluator(load_system(system), mode,
-                                                               rule=rule))
+    return SearchProblem(load_family(family), envs, Evaluator(load_system(system), mode, rule=rule))
 
 
 @pytest.mark.parametrize("name", family_presets())
@@ -68,8 +68,9 @@ def test_kinematics_by_hand() -> None:
     """Ego at 20 m/s behind a stopped car 50 m ahead (straight road): gap = 50 - half
     length - x_front, TTC = gap / 20 s, headway = gap / 20 s."""
     fam = load_family("slow_ahead_curve")
-    sc = fam.generate({"ego_s0_m": 450.0, "ego_speed_m_s": 20.0, "target_speed_m_s": 0.0,
-                       "gap0_m": 50.0})
+    sc = fam.generate(
+        {"ego_s0_m": 450.0, "ego_speed_m_s": 20.0, "target_speed_m_s": 0.0, "gap0_m": 50.0}
+    )
     system = load_system("system_a")
     car = load_target("car")
     kin = kinematics(sc, system, car)
@@ -85,15 +86,25 @@ def test_kinematics_by_hand() -> None:
 def test_per_point_glare_equals_a_scene_with_that_sun(heading_deg: float) -> None:
     """Exact evaluation with per-point sun directions = ``evaluate_points`` in a scene
     resolved for that ego heading (scalar glare weight), every sensor, 1e-12."""
-    env = ENVS["glare_front_right"].model_copy(update={"sun": ENVS[
-        "glare_front_right"].sun.model_copy(update={"frame": "world", "azimuth_deg": 75.0})})
+    env = ENVS["glare_front_right"].model_copy(
+        update={
+            "sun": ENVS["glare_front_right"].sun.model_copy(
+                update={"frame": "world", "azimuth_deg": 75.0}
+            )
+        }
+    )
     system = load_system("system_b")
     car = load_target("car")
     h = math.radians(heading_deg)
     ref = Scene(system, car, Conditions.from_config(env, h))
     rng = np.random.default_rng(1)
-    pts = np.column_stack([rng.uniform(-30, 150, 400), rng.uniform(-20, 20, 400),
-                           np.full(400, car.reference_height_m)])
+    pts = np.column_stack(
+        [
+            rng.uniform(-30, 150, 400),
+            rng.uniform(-20, 20, 400),
+            np.full(400, car.reference_height_m),
+        ]
+    )
     want = log_miss_of(evaluate_points(ref, pts).pd).sum(axis=0)
     scene = Scene(system, car, Conditions(env=env, sun_direction=None))
     dirs = Conditions.sun_directions(env, np.full(400, h))
@@ -128,8 +139,9 @@ def test_batch_metrics_equal_per_row_metrics(rule: DetectionRule) -> None:
     d = prob.decode_batch(np.random.default_rng(11).random((60, prob.dim)))
     batch = prob.family.generate_batch(d.params)
     ok = np.flatnonzero(batch.ok)
-    bt = prob.evaluator.evaluate_batch(batch, d.env_names, prob.environments, d.sun_deg,
-                                       rows=ok, duration_s=prob.family.duration_s)
+    bt = prob.evaluator.evaluate_batch(
+        batch, d.env_names, prob.environments, d.sun_deg, rows=ok, duration_s=prob.family.duration_s
+    )
     values = compute_all_batch(bt)
     for i in range(len(ok)):
         tr = bt.row(i)
@@ -138,8 +150,9 @@ def test_batch_metrics_equal_per_row_metrics(rule: DetectionRule) -> None:
             # against the row as a batch of one (what compute_all of a trace evaluates)
             want = oracle(m, tr)
             assert values[m][i] == pytest.approx(want, rel=1e-12, abs=1e-12, nan_ok=True), m
-            assert get_metric(m).compute(tr) == pytest.approx(values[m][i], rel=1e-12,
-                                                             abs=1e-12, nan_ok=True), m
+            assert get_metric(m).compute(tr) == pytest.approx(
+                values[m][i], rel=1e-12, abs=1e-12, nan_ok=True
+            ), m
 
 
 def test_threads_give_identical_results() -> None:
@@ -163,7 +176,8 @@ def test_single_evaluate_equals_its_batch_row() -> None:
         assert out.objective is not None and r.objective == out.objective[i]
         for m in out.metrics:
             assert r.metrics[m] == out.metrics[m][i] or (
-                np.isnan(r.metrics[m]) and np.isnan(out.metrics[m][i])), m
+                np.isnan(r.metrics[m]) and np.isnan(out.metrics[m][i])
+            ), m
 
 
 @pytest.mark.parametrize("name", ["crossing_pedestrian", "crossing_cyclist"])
@@ -181,8 +195,7 @@ def test_crossing_waits_on_the_footway_and_meets_its_timing(name: str) -> None:
         xs, ys = batch.target.x[i], batch.target.y[i]
         assert np.max(net.off_road_m(xs, ys)) <= 2.0 + 1e-6
         _, lanes, _, t_road = net.world_to_road(xs, ys)
-        t_p = float(p["cross_ahead_m"]) / float(p["ego_speed_m_s"]) + float(
-            p["conflict_offset_s"])
+        t_p = float(p["cross_ahead_m"]) / float(p["ego_speed_m_s"]) + float(p["conflict_offset_s"])
         s_c = float(np.mean(net.world_to_road(xs, ys)[2]))
         inner, outer = net.lane_edges(rid, lane, np.array([s_c]))
         centre = 0.5 * float(inner[0] + outer[0])
@@ -199,20 +212,29 @@ def test_scene_limited_evaluation_is_identical_and_logged() -> None:
     from sensorgap.search.problem import Decoded
 
     n = 10
-    d = Decoded(np.array(["glare_front_right"] * n), np.column_stack(
-        [np.linspace(0, 350, n), np.full(n, 10.0)]), {
-        "ego_s0_m": np.linspace(450.0, 700.0, n), "ego_speed_m_s": np.full(n, 15.0),
-        "target_speed_m_s": np.full(n, 15.0), "gap0_m": np.linspace(100.0, 190.0, n)})
+    d = Decoded(
+        np.array(["glare_front_right"] * n),
+        np.column_stack([np.linspace(0, 350, n), np.full(n, 10.0)]),
+        {
+            "ego_s0_m": np.linspace(450.0, 700.0, n),
+            "ego_speed_m_s": np.full(n, 15.0),
+            "target_speed_m_s": np.full(n, 15.0),
+            "gap0_m": np.linspace(100.0, 190.0, n),
+        },
+    )
     outs = []
     for scoped in (True, False):
-        prob = SearchProblem(load_family("slow_ahead_curve"),
-                             {k: ENVS[k] for k in ("clear", "glare_front_right", "fog_50")},
-                             Evaluator(load_system("system_b"), "exact", bodies=False))
+        prob = SearchProblem(
+            load_family("slow_ahead_curve"),
+            {k: ENVS[k] for k in ("clear", "glare_front_right", "fog_50")},
+            Evaluator(load_system("system_b"), "exact", bodies=False),
+        )
         prob.evaluator.scoped = scoped
         # every row (the search itself evaluates Pd only where there is a collision to
         # avoid, and these keep their distance)
-        bt = prob.evaluator.evaluate_batch(prob.family.generate_batch(d.params),
-                                           d.env_names, prob.environments, d.sun_deg)
+        bt = prob.evaluator.evaluate_batch(
+            prob.family.generate_batch(d.params), d.env_names, prob.environments, d.sun_deg
+        )
         outs.append((bt, prob.evaluator.scope_log))
     (a, log_a), (b, log_b) = outs
     assert np.all(a.log_miss < 0.0)
@@ -258,6 +280,8 @@ def test_distance_at_detection_is_not_capped() -> None:
     d = m.compute(tr)
     assert 145.0 < d < 160.0
     from sensorgap.scenarios.batch import ScenarioBatch
-    bt = ev.evaluate_batch(ScenarioBatch.of(sc), ["clear"], load_environments(),
-                           duration_s=fam.duration_s)
+
+    bt = ev.evaluate_batch(
+        ScenarioBatch.of(sc), ["clear"], load_environments(), duration_s=fam.duration_s
+    )
     assert m.compute_batch(bt)[0] == pytest.approx(d, abs=1e-9)

@@ -11,9 +11,9 @@ import pytest
 from sensorgap.cli import main
 
 
-def test_missing_run_is_one_line_exit_2(tmp_path: Path,
-                                        capsys: pytest.CaptureFixture[str]) -> None:
-    assert main(["compare", str(tmp_path / "nope"), str(tmp_path), "--out",
-                 str(tmp_path / "o")]) == 2
+def test_missing_run_is_one_line_exit_2(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert (
+        main(["compare", str(tmp_path / "nope"), str(tmp_path), "--out", str(tmp_path / "o")]) == 2
+    )
     err = capsys.readouterr().err.strip()
     assert "ranking.json is missing" in err and len(err.splitlines()) == 1

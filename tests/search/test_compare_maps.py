@@ -26,13 +26,40 @@ def cmp(tmp_path_factory: pytest.TempPathFactory) -> Path:
     tail = tail.replace("visibility_m = 23000.0", "visibility_m = 50.0", 1)
     envs = root / "my_envs.toml"
     envs.write_text(head + "[environments.clear]" + tail, encoding="utf-8")
-    assert main(["search", "--vehicle", "system_a", "--families", "crossing_pedestrian",
-                 "--environments", "clear", "--environments-file", str(envs),
-                 "--budget", "30", "--strategy", "lhs", "--out", str(root / "fog")]) == 0
-    run_search("system_a", ["crossing_pedestrian"], ["clear"], 30, 1, 3, root / "std",
-               strategy="lhs", progress=False)
-    assert main(["compare", str(root / "fog"), str(root / "std"), "--out",
-                 str(root / "cmp")]) == 0
+    assert (
+        main(
+            [
+                "search",
+                "--vehicle",
+                "system_a",
+                "--families",
+                "crossing_pedestrian",
+                "--environments",
+                "clear",
+                "--environments-file",
+                str(envs),
+                "--budget",
+                "30",
+                "--strategy",
+                "lhs",
+                "--out",
+                str(root / "fog"),
+            ]
+        )
+        == 0
+    )
+    run_search(
+        "system_a",
+        ["crossing_pedestrian"],
+        ["clear"],
+        30,
+        1,
+        3,
+        root / "std",
+        strategy="lhs",
+        progress=False,
+    )
+    assert main(["compare", str(root / "fog"), str(root / "std"), "--out", str(root / "cmp")]) == 0
     return root
 
 
@@ -47,17 +74,21 @@ def test_complete_without_not_run(cmp: Path) -> None:
         assert (made / "nearfield" / "nearfield.json").is_file()
         assert (made / "coverage" / "car_clear" / "coverage.npz").is_file()
         assert (made / "farfield" / "clear" / "farfield.csv").is_file()
-    assert md.count("computed for this comparison from the run's recorded inputs "
-                    "(vehicle, environments, target classes): near field, coverage "
-                    "car_clear, far field clear") == 2
+    assert (
+        md.count(
+            "computed for this comparison from the run's recorded inputs "
+            "(vehicle, environments, target classes): near field, coverage "
+            "car_clear, far field clear"
+        )
+        == 2
+    )
     # the input run folders were not written to
     for run in ("fog", "std"):
         assert not (cmp / run / "nearfield").exists() and not (cmp / run / "coverage").exists()
     # the difference map is listed and linked
     assert "## Coverage maps side by side and their difference" in md
     assert "(difference/car_clear/difference.png)" in md
-    assert (out / "difference" / "car_clear" / "difference.png").read_bytes()[:4] \
-        == b"\x89PNG"
+    assert (out / "difference" / "car_clear" / "difference.png").read_bytes()[:4] == b"\x89PNG"
     assert "(farfield_pd_vs_distance.png)" in md
     assert json.loads((out / "manifest.json").read_text())
 
@@ -79,7 +110,7 @@ def test_difference_map_uses_each_runs_recorded_environment(cmp: Path) -> None:
     s = json.loads((out / "difference" / "car_clear" / "summary.json").read_text())
     assert s["detects_pd"] == DETECTS_PD
     assert s["area_m2"]["only_a_m2"] == 0.0 and s["area_m2"]["only_b_m2"] > 1000.0
-    assert s["area_m2"]["only_b_m2"] == np.count_nonzero((pb >= 0.5) & (pa < 0.5)) * res ** 2
+    assert s["area_m2"]["only_b_m2"] == np.count_nonzero((pb >= 0.5) & (pa < 0.5)) * res**2
     md = (out / "report.md").read_text(encoding="utf-8")
     assert "environment 'clear' is defined differently by the two runs" in md
     # the far field, too: A (fog) sees less far along the lane than B (clear air)
@@ -95,9 +126,9 @@ def test_compare_grid_is_the_default_jobs() -> None:
     assert COMPARE_GRID == DEFAULT_GRID and COMPARE_HEADING_DEG == COVERAGE_HEADING_DEG
 
 
-def test_unreadable_coverage_map_is_one_line_exit_2(cmp: Path, tmp_path: Path,
-                                                    capsys: pytest.CaptureFixture[str]
-                                                    ) -> None:
+def test_unreadable_coverage_map_is_one_line_exit_2(
+    cmp: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     import shutil
 
     run = tmp_path / "run"

@@ -16,8 +16,9 @@ from tests.conftest import make_scene
 
 def test_path_is_feasible_and_consistent(system_b: System) -> None:
     scene = make_scene(system_b, "car", "fog_50")
-    c = corridor_search(scene, -40.0, 6.0, [(-5.625 - 1.875, -3.75), (3.75, 7.5)],
-                        speed_rel=8.0, lateral_res=0.5)
+    c = corridor_search(
+        scene, -40.0, 6.0, [(-5.625 - 1.875, -3.75), (3.75, 7.5)], speed_rel=8.0, lateral_res=0.5
+    )
     assert c.x[0] == pytest.approx(-40.0) and c.x[-1] >= 6.0 - 1e-9
     assert np.all(np.diff(c.x) > 0) and np.all(np.diff(c.t) == pytest.approx(0.05))
     assert np.all(np.abs(np.diff(c.y)) <= 0.5 + 1e-9)  # at most one row per cycle
@@ -30,15 +31,17 @@ def test_path_is_feasible_and_consistent(system_b: System) -> None:
 def test_matches_brute_force_on_a_small_lattice(system_a: System) -> None:
     """Enumerate every lattice path on a tiny problem: Dijkstra finds the best one."""
     scene = make_scene(system_a, "pedestrian", "fog_50")
-    c = corridor_search(scene, -20.0, -16.0, [(-6.0, -4.0)], speed_rel=20.0,
-                        lateral_res=0.5)  # 5 columns x 4 rows
+    c = corridor_search(
+        scene, -20.0, -16.0, [(-6.0, -4.0)], speed_rel=20.0, lateral_res=0.5
+    )  # 5 columns x 4 rows
     from sensorgap.coverage import evaluate_points
 
     xs = -20.0 + np.arange(5) * 1.0
     ys = -6.0 + 0.25 + np.arange(4) * 0.5
     X, Y = np.meshgrid(xs, ys, indexing="ij")
-    pd = evaluate_points(scene, np.column_stack([X.ravel(), Y.ravel(),
-                                                 np.full(X.size, 0.9)])).fused.reshape(5, 4)
+    pd = evaluate_points(
+        scene, np.column_stack([X.ravel(), Y.ravel(), np.full(X.size, 0.9)])
+    ).fused.reshape(5, 4)
     cost = np.where(pd >= 1.0, CERTAIN_COST, -np.log1p(-np.minimum(pd, 1.0)))
     best = math.inf
     for rows in itertools.product(range(4), repeat=5):
@@ -53,19 +56,25 @@ def test_rear_blind_side_is_preferred(system_b: System) -> None:
     scene = make_scene(system_b, "car", "rain_25")
     lanes = [(-7.5, -3.75)]
     c = corridor_search(scene, -60.0, 0.0, lanes, speed_rel=10.0, lateral_res=0.25)
-    straight = corridor_search(scene, -60.0, 0.0, [(-5.75, -5.5)], speed_rel=10.0,
-                               lateral_res=0.25)
+    straight = corridor_search(scene, -60.0, 0.0, [(-5.75, -5.5)], speed_rel=10.0, lateral_res=0.25)
     assert c.p_undetected >= straight.p_undetected
 
 
-@pytest.mark.parametrize(("kw", "pattern"), [
-    ({"speed_rel": 0.0}, "relative speed must be > 0"),
-    ({"x_goal": -50.0}, "must lie ahead of start"),
-    ({"lanes": [(1.0, 0.0)]}, "lo < hi"),
-])
+@pytest.mark.parametrize(
+    ("kw", "pattern"),
+    [
+        ({"speed_rel": 0.0}, "relative speed must be > 0"),
+        ({"x_goal": -50.0}, "must lie ahead of start"),
+        ({"lanes": [(1.0, 0.0)]}, "lo < hi"),
+    ],
+)
 def test_bad_input(system_a: System, kw: dict[str, object], pattern: str) -> None:
-    args: dict[str, object] = {"x_start": -40.0, "x_goal": 5.0, "lanes": [(-5.0, -2.0)],
-                               "speed_rel": 5.0}
+    args: dict[str, object] = {
+        "x_start": -40.0,
+        "x_goal": 5.0,
+        "lanes": [(-5.0, -2.0)],
+        "speed_rel": 5.0,
+    }
     args.update(kw)
     with pytest.raises(InputError, match=pattern):
         corridor_search(make_scene(system_a), **args)  # type: ignore[arg-type]
@@ -78,14 +87,48 @@ def test_corridor_cli(tmp_path: object, capsys: pytest.CaptureFixture[str]) -> N
     from sensorgap.cli import main
 
     out = Path(str(tmp_path)) / "c"
-    assert main(["corridor", "--vehicle", "system_b", "--environment", "fog_50", "--target",
-                 "car", "--lanes", "-7.5:-3.75", "--start", "-40", "--out", str(out)]) == 0
+    assert (
+        main(
+            [
+                "corridor",
+                "--vehicle",
+                "system_b",
+                "--environment",
+                "fog_50",
+                "--target",
+                "car",
+                "--lanes",
+                "-7.5:-3.75",
+                "--start",
+                "-40",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     summary = json.loads((out / "summary.json").read_text())
     assert math.isfinite(summary["log10_p_undetected"]) and summary["log10_p_undetected"] <= 0
     lines = (out / "corridor.csv").read_text().splitlines()
     assert lines[0] == "t,x,y,heading,pd" and len(lines) > 50
     assert (out / "corridor.png").is_file() and (out / "manifest.json").is_file()
     capsys.readouterr()
-    assert main(["corridor", "--vehicle", "system_b", "--environment", "fog_50", "--target",
-                 "car", "--lanes", "3:1", "--out", str(out / "bad")]) == 2
+    assert (
+        main(
+            [
+                "corridor",
+                "--vehicle",
+                "system_b",
+                "--environment",
+                "fog_50",
+                "--target",
+                "car",
+                "--lanes",
+                "3:1",
+                "--out",
+                str(out / "bad"),
+            ]
+        )
+        == 2
+    )
     assert "--lanes" in capsys.readouterr().err and not (out / "bad").exists()

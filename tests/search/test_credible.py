@@ -32,7 +32,8 @@ def lookup_a() -> Evaluator:
 
 @pytest.mark.parametrize("name", family_presets())
 def test_every_family_yields_threats_and_only_possible_encounters(
-        name: str, lookup_a: Evaluator) -> None:
+    name: str, lookup_a: Evaluator
+) -> None:
     """No feasible candidate starts with overlapping bodies or runs into the ego's side or
     rear; every family produces targets that become a threat (the search objective above
     the never-a-threat floor), overtake_left included."""
@@ -48,8 +49,7 @@ def test_every_family_yields_threats_and_only_possible_encounters(
     # ego's front: the bodies' relation one step before the collision step, recomputed here
     batch = prob.family.generate_batch(d.params)
     rows = np.flatnonzero(ok)
-    bt = prob.evaluator.evaluate_batch(batch, d.env_names, prob.environments, d.sun_deg,
-                                       rows=rows)
+    bt = prob.evaluator.evaluate_batch(batch, d.env_names, prob.environments, d.sun_deg, rows=rows)
     body = system.config.vehicle
     tgt = load_target(prob.family.target_class)
     assert bt.encounter is not None and bt.psi is not None
@@ -57,19 +57,31 @@ def test_every_family_yields_threats_and_only_possible_encounters(
         k = int(bt.encounter.collide_step[j])
         assert k > 0
         psi = bt.psi[j, k - 1]
-        rear = bt.x[j, k - 1] - 0.5 * (abs(math.cos(psi)) * tgt.length_m
-                                   + abs(math.sin(psi)) * tgt.width_m)
+        rear = bt.x[j, k - 1] - 0.5 * (
+            abs(math.cos(psi)) * tgt.length_m + abs(math.sin(psi)) * tgt.width_m
+        )
         assert rear >= body.x_front_m - 0.5
 
 
 def test_overlap_at_start_is_infeasible() -> None:
-    prob = SearchProblem(load_family("cut_in_right"), {"clear": ENVS["clear"]},
-                         Evaluator(load_system("system_a"), "lookup"))
+    prob = SearchProblem(
+        load_family("cut_in_right"),
+        {"clear": ENVS["clear"]},
+        Evaluator(load_system("system_a"), "lookup"),
+    )
     # the target starts 1.5 m ahead of the ego's rear axle in the next lane and merges
     # into the ego within 2.5 s: its body would move into the ego's side
-    p = {"ego_s0_m": 300.0, "ego_speed_m_s": 25.0, "target_speed_m_s": 25.0, "dx0_m": 1.5,
-         "lc_start_s": 0.5, "lc_duration_s": 2.5, "shape": "cosine"}
+    p = {
+        "ego_s0_m": 300.0,
+        "ego_speed_m_s": 25.0,
+        "target_speed_m_s": 25.0,
+        "dx0_m": 1.5,
+        "lc_start_s": 0.5,
+        "lc_duration_s": 2.5,
+        "shape": "cosine",
+    }
     from sensorgap.search.problem import Candidate
+
     r = prob.evaluate(Candidate("cut_in_right", "clear", None, p))
     assert not r.feasible
     assert "impossible encounter" in r.note and "side" in r.note
@@ -80,12 +92,15 @@ def test_rear_end_at_speed_is_possible(speed: float) -> None:
     """Running into a stopped car in a curve is a front contact at any speed: at the
     first overlapping step the bodies overlap by up to one step's closing distance (1.5 m
     at 30 m/s), which must not read as the target moving into the ego's side."""
-    prob = SearchProblem(load_family("slow_ahead_curve"), {"clear": ENVS["clear"]},
-                         Evaluator(load_system("system_a"), "lookup"))
+    prob = SearchProblem(
+        load_family("slow_ahead_curve"),
+        {"clear": ENVS["clear"]},
+        Evaluator(load_system("system_a"), "lookup"),
+    )
     from sensorgap.search.problem import Candidate
+
     for s0 in (450.0, 600.0, 700.0):
-        p = {"ego_s0_m": s0, "ego_speed_m_s": speed, "target_speed_m_s": 0.0,
-             "gap0_m": 5.0 * speed}
+        p = {"ego_s0_m": s0, "ego_speed_m_s": speed, "target_speed_m_s": 0.0, "gap0_m": 5.0 * speed}
         r = prob.evaluate(Candidate("slow_ahead_curve", "clear", None, p))
         assert r.feasible, r.note
         assert r.metrics["t_threat_s"] >= 0.0
@@ -99,16 +114,28 @@ def test_ranked_rows_reproduce_with_evaluate_and_glare_headline(tmp_path: Path) 
     0.01 on them, with the sensors that save it named."""
     fams = family_presets()
     run_b = tmp_path / "b"
-    out = run_search("system_b", fams, ["glare_front_right"], 20_000, 1, 10, run_b,
-                     progress=False)
+    out = run_search("system_b", fams, ["glare_front_right"], 20_000, 1, 10, run_b, progress=False)
     top = out.ranking[:10]
-    glare = [r for r in top if r["dominant_effect"] == "glare"
-             and r["class"] == "sensor-critical" and r["collision_probability"] >= 0.1]
+    glare = [
+        r
+        for r in top
+        if r["dominant_effect"] == "glare"
+        and r["class"] == "sensor-critical"
+        and r["collision_probability"] >= 0.1
+    ]
     assert len(glare) >= 3, [(r["family"], r["dominant_effect"]) for r in top]
     for row in out.ranking:
-        args = ["evaluate", "--vehicle", "system_b", "--family", row["family"],
-                "--environment", row["environment"].split("@")[0],
-                "--out", str(tmp_path / f"ev{row['rank']}")]
+        args = [
+            "evaluate",
+            "--vehicle",
+            "system_b",
+            "--family",
+            row["family"],
+            "--environment",
+            row["environment"].split("@")[0],
+            "--out",
+            str(tmp_path / f"ev{row['rank']}"),
+        ]
         if row["sun_azimuth_deg"] is not None:
             args += ["--sun", f"{row['sun_azimuth_deg']!r}/{row['sun_elevation_deg']!r}"]
         p = load_family(row["family"])
@@ -127,8 +154,11 @@ def test_ranked_rows_reproduce_with_evaluate_and_glare_headline(tmp_path: Path) 
     run_a = tmp_path / "a"
     run_search("system_a", fams, ["glare_front_right"], 700, 1, 3, run_a, progress=False)
     cmp = {r["scenario_id"]: r for r in compare_runs(run_a, run_b)}
-    saved = [cmp[row["scenario_id"]] for row in glare
-             if cmp[row["scenario_id"]]["collision_probability_System A"] <= 0.01]
+    saved = [
+        cmp[row["scenario_id"]]
+        for row in glare
+        if cmp[row["scenario_id"]]["collision_probability_System A"] <= 0.01
+    ]
     assert len(saved) >= 3, [cmp[r["scenario_id"]]["why"] for r in glare]
     for c in saved:
         assert c["critical_for"] == "System B"
@@ -145,8 +175,7 @@ def test_system_a_ranked_bodies_are_unseen_at_the_named_step(tmp_path: Path) -> 
     from sensorgap.search.ranking import explain
 
     fams = family_presets()
-    out = run_search("system_a", fams, list(ENVS), 7000, 1, 20, tmp_path / "a",
-                     progress=False)
+    out = run_search("system_a", fams, list(ENVS), 7000, 1, 20, tmp_path / "a", progress=False)
     assert out.ranking, "System A has sensor-critical scenarios in snow and fog"
     system = load_system("system_a")
     ev = Evaluator(system, "exact")
@@ -154,21 +183,27 @@ def test_system_a_ranked_bodies_are_unseen_at_the_named_step(tmp_path: Path) -> 
         assert row["class"] == "sensor-critical" and row["collision_probability"] >= 1e-6
         prob = SearchProblem(load_family(row["family"]), ENVS, ev)
         from sensorgap.search.compare import candidate_of
+
         cand = candidate_of(row, prob)
         ex = explain(prob, cand)
         assert ex.step_t_s == pytest.approx(row["named_step_t_s"], abs=1e-12)
         tr = ev.trace(prob.scenario(cand), prob.environment(cand), prob.family.duration_s)
         k = int(round(ex.step_t_s / 0.05))
         env = prob.environment(cand)
-        occ = None if tr.occluders is None else tr.occluders[k:k + 1]  # what hides it
-        pd = ev.per_sensor_pd(env, ev.target(prob.family.target_class), tr.heading[k:k + 1],
-                              tr.x[k:k + 1], tr.y[k:k + 1], psi=tr.psi[k:k + 1],
-                              occluders=occ)[:, 0]
+        occ = None if tr.occluders is None else tr.occluders[k : k + 1]  # what hides it
+        pd = ev.per_sensor_pd(
+            env,
+            ev.target(prob.family.target_class),
+            tr.heading[k : k + 1],
+            tr.x[k : k + 1],
+            tr.y[k : k + 1],
+            psi=tr.psi[k : k + 1],
+            occluders=occ,
+        )[:, 0]
         assert pd.max() < 0.9, (row["rank"], row["reason"])
 
 
-def test_one_encounter_elsewhere_on_a_curve_is_one_row(monkeypatch: pytest.MonkeyPatch
-                                                      ) -> None:
+def test_one_encounter_elsewhere_on_a_curve_is_one_row(monkeypatch: pytest.MonkeyPatch) -> None:
     """The default job ranked the same stopped-car encounter twice: the ego at s = 608 and
     861 m of the same constant-radius curve, P(collision) 1e-7 apart, while 'same outcome'
     meant equal to 1e-9. Within ``SAME_OUTCOME`` it is one row (and two without it)."""
@@ -177,11 +212,16 @@ def test_one_encounter_elsewhere_on_a_curve_is_one_row(monkeypatch: pytest.Monke
     from sensorgap.search.problem import Candidate, SearchProblem
 
     fam = load_family("slow_ahead_curve")
-    prob = SearchProblem(fam, {"rain_25": load_environments()["rain_25"]},
-                         Evaluator(load_system("system_a"), "exact"))
+    prob = SearchProblem(
+        fam,
+        {"rain_25": load_environments()["rain_25"]},
+        Evaluator(load_system("system_a"), "exact"),
+    )
     base = {"ego_speed_m_s": 35.8243, "gap0_m": 148.4673, "target_speed_m_s": 0.0444}
-    res = [prob.evaluate(Candidate(fam.name, "rain_25", None, {**base, "ego_s0_m": s0}))
-           for s0 in (607.9775, 860.808)]
+    res = [
+        prob.evaluate(Candidate(fam.name, "rain_25", None, {**base, "ego_s0_m": s0}))
+        for s0 in (607.9775, 860.808)
+    ]
     a, b = (r.metrics for r in res)
     assert ranking.classify(res[0]) == ranking.classify(res[1]) == "sensor-critical"
     assert 0.0 < abs(a["collision_probability"] - b["collision_probability"]) < 1e-5

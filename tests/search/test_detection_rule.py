@@ -14,9 +14,20 @@ from tests.search.metric_oracles import at_least_m_of_window, detection_index
 def trace(pd: list[float], rule: DetectionRule) -> Trace:
     n = len(pd)
     z = np.zeros(n)
-    return Trace(t=np.arange(n) * 0.05, x=z, y=z, pd=np.array(pd), ttc=np.full(n, np.inf),
-                 headway=np.full(n, np.inf), distance=z, ego_speed=z, heading=z,
-                 collided=False, duration_s=n * 0.05, rule=rule)
+    return Trace(
+        t=np.arange(n) * 0.05,
+        x=z,
+        y=z,
+        pd=np.array(pd),
+        ttc=np.full(n, np.inf),
+        headway=np.full(n, np.inf),
+        distance=z,
+        ego_speed=z,
+        heading=z,
+        collided=False,
+        duration_s=n * 0.05,
+        rule=rule,
+    )
 
 
 def test_poisson_binomial_by_hand() -> None:
@@ -26,8 +37,9 @@ def test_poisson_binomial_by_hand() -> None:
     # k=2: P(>=2 of {0.5,0.5,0.9}) = 0.25*0.1 + 2*0.5*0.5*0.9 + 0.25*0.9 = 0.7
     np.testing.assert_allclose(got, [0.0, 0.25, 0.7], atol=1e-15)
     # the package's batch version (one implementation, row-wise) gives the same
-    np.testing.assert_allclose(at_least_m_of_window_batch(pd[None, :], 2, 3)[0],
-                               [0.0, 0.25, 0.7], atol=1e-15)
+    np.testing.assert_allclose(
+        at_least_m_of_window_batch(pd[None, :], 2, 3)[0], [0.0, 0.25, 0.7], atol=1e-15
+    )
 
 
 def test_m_of_n_is_stricter_than_cumulative() -> None:

@@ -13,34 +13,62 @@ from sensorgap.cli import main  # noqa: E402
 from sensorgap.search.executors import DaskExecutor  # noqa: E402
 from sensorgap.search.run import run_search  # noqa: E402
 
-KW = {"vehicle": "system_b", "families": ["cut_in_left", "crossing_pedestrian"],
-      "environments": ["clear", "glare_front_right"], "budget": 600, "seed": 3, "top": 6,
-      "strategy": "de"}
+KW = {
+    "vehicle": "system_b",
+    "families": ["cut_in_left", "crossing_pedestrian"],
+    "environments": ["clear", "glare_front_right"],
+    "budget": 600,
+    "seed": 3,
+    "top": 6,
+    "strategy": "de",
+}
 
 
 @pytest.mark.slow
 def test_dask_gives_the_local_ranking(tmp_path: Path) -> None:
     run_search(out=tmp_path / "local", **KW)  # type: ignore[arg-type]
-    run_search(out=tmp_path / "dask", executor="dask", workers=2,  # type: ignore[arg-type]
-               **KW)
+    run_search(
+        out=tmp_path / "dask",
+        executor="dask",
+        workers=2,  # type: ignore[arg-type]
+        **KW,
+    )
     for name in ("ranking.csv", "ranking.json"):
         assert (tmp_path / "local" / name).read_bytes() == (tmp_path / "dask" / name).read_bytes()
 
 
-def test_unreachable_scheduler_is_one_line(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
-                                           capsys: pytest.CaptureFixture[str]) -> None:
+def test_unreachable_scheduler_is_one_line(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
     # Dask retries a refused connection until the executor's timeout (10 s by default):
     # 1 s here gives the same refusal without the suite waiting 9 s for it
     init = DaskExecutor.__init__
 
-    def quick_init(self: DaskExecutor, address: str | None = None, workers: int = 2,
-                   timeout_s: float = 1.0) -> None:
+    def quick_init(
+        self: DaskExecutor, address: str | None = None, workers: int = 2, timeout_s: float = 1.0
+    ) -> None:
         init(self, address, workers, timeout_s=1.0)
 
     monkeypatch.setattr(DaskExecutor, "__init__", quick_init)
-    code = main(["search", "--vehicle", "system_b", "--families", "crossing_pedestrian",
-                 "--environments", "clear", "--budget", "10", "--executor", "dask",
-                 "--scheduler", "tcp://127.0.0.1:9", "--out", str(tmp_path / "o")])
+    code = main(
+        [
+            "search",
+            "--vehicle",
+            "system_b",
+            "--families",
+            "crossing_pedestrian",
+            "--environments",
+            "clear",
+            "--budget",
+            "10",
+            "--executor",
+            "dask",
+            "--scheduler",
+            "tcp://127.0.0.1:9",
+            "--out",
+            str(tmp_path / "o"),
+        ]
+    )
     err = capsys.readouterr().err.strip()
     assert code == 2 and "cannot reach the Dask scheduler" in err
     assert len(err.splitlines()) == 1

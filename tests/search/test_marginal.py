@@ -39,8 +39,12 @@ def test_classes_by_the_reference_margin() -> None:
 
 
 def test_the_search_steers_away_from_marginal_encounters() -> None:
-    obj = search_objective(np.array([-1.0, -1.0, -1.0]), np.zeros(3),
-                           np.array([0.9, 0.9, 0.9]), np.array([0.0, 0.0, 1.0]),
-                           np.array([0.1, 0.5, np.nan]))
+    obj = search_objective(
+        np.array([-1.0, -1.0, -1.0]),
+        np.zeros(3),
+        np.array([0.9, 0.9, 0.9]),
+        np.array([0.0, 0.0, 1.0]),
+        np.array([0.1, 0.5, np.nan]),
+    )
     assert obj[0] == OBJECTIVE_UNAVOIDABLE and obj[2] == OBJECTIVE_UNAVOIDABLE
     assert obj[1] == np.log10(0.9)

@@ -31,9 +31,17 @@ def test_occluders_stand_where_planned() -> None:
     lane; the parked cars stand still beside the crossing line, gap apart; the cut-out
     lead ends in the other lane."""
     fam = load_family("cut_in_behind_truck")
-    p = {"ego_s0_m": 200.0, "ego_speed_m_s": 30.0, "truck_speed_m_s": 20.0,
-         "truck_dx_m": 30.0, "target_gap_m": 5.0, "speed_delta_m_s": 2.0, "lc_start_s": 3.0,
-         "lc_duration_s": 5.0, "shape": "cosine"}
+    p = {
+        "ego_s0_m": 200.0,
+        "ego_speed_m_s": 30.0,
+        "truck_speed_m_s": 20.0,
+        "truck_dx_m": 30.0,
+        "target_gap_m": 5.0,
+        "speed_delta_m_s": 2.0,
+        "lc_start_s": 3.0,
+        "lc_duration_s": 5.0,
+        "shape": "cosine",
+    }
     sc = fam.generate(p)
     (truck,) = sc.occluders
     t = load_target("truck")
@@ -41,26 +49,36 @@ def test_occluders_stand_where_planned() -> None:
     ex, ey, h = sc.ego.x[0], sc.ego.y[0], sc.ego.heading[0]
     # 30 m ahead, one 3.75 m lane to the right (the straight: exact)
     assert _lateral(truck.path.x[0], truck.path.y[0], ex, ey, h) == pytest.approx(
-        (30.0, -3.75), abs=1e-9)
+        (30.0, -3.75), abs=1e-9
+    )
     # the car: 0.5 * 12 + 5 + 0.5 * 4.5 ahead of the truck's centre, two lanes right
     assert _lateral(sc.target.x[0], sc.target.y[0], ex, ey, h) == pytest.approx(
-        (30.0 + 13.25, -7.5), abs=1e-9)
+        (30.0 + 13.25, -7.5), abs=1e-9
+    )
     # after the lane change (3 + 5 s) it is in the ego lane, 2 m/s faster than the truck
     k = int(round(8.0 / 0.05))
-    along, left = _lateral(sc.target.x[k], sc.target.y[k], sc.ego.x[k], sc.ego.y[k],
-                           sc.ego.heading[k])
+    along, left = _lateral(
+        sc.target.x[k], sc.target.y[k], sc.ego.x[k], sc.ego.y[k], sc.ego.heading[k]
+    )
     assert left == pytest.approx(0.0, abs=1e-9)
     assert along == pytest.approx(43.25 + (22.0 - 30.0) * 8.0, abs=1e-9)
     assert np.all(np.abs(np.diff(truck.path.x)) > 0)  # it drives
     # the bodies never overlap: the car's rear stays ahead of the truck's front bumper
-    gap = (_lateral(sc.target.x, sc.target.y, truck.path.x, truck.path.y, truck.path.heading)[0]
-           - 0.5 * (t.length_m + load_target("car").length_m))
+    gap = _lateral(sc.target.x, sc.target.y, truck.path.x, truck.path.y, truck.path.heading)[
+        0
+    ] - 0.5 * (t.length_m + load_target("car").length_m)
     assert np.min(gap) == pytest.approx(5.0, abs=1e-6)
 
     fam = load_family("pedestrian_behind_parked_cars")
-    p = {"ego_s0_m": 95.0, "ego_speed_m_s": 8.0, "cross_ahead_m": 30.0,
-         "target_speed_m_s": 1.4, "conflict_offset_s": 0.0, "parked_gap_m": 1.5,
-         "side": "right"}
+    p = {
+        "ego_s0_m": 95.0,
+        "ego_speed_m_s": 8.0,
+        "cross_ahead_m": 30.0,
+        "target_speed_m_s": 1.4,
+        "conflict_offset_s": 0.0,
+        "parked_gap_m": 1.5,
+        "side": "right",
+    }
     sc = fam.generate(p)
     a, b = sc.occluders
     for o in (a, b):
@@ -79,8 +97,15 @@ def test_occluders_stand_where_planned() -> None:
     assert ped == pytest.approx(-(1.625 + 2.0), abs=1e-6)
 
     fam = load_family("cut_out_reveal")
-    p = {"ego_s0_m": 100.0, "ego_speed_m_s": 25.0, "lead_gap_m": 30.0, "cut_out_s": 1.0,
-         "target_speed_m_s": 0.0, "reveal_s": 1.0, "lc_duration_s": 3.0}
+    p = {
+        "ego_s0_m": 100.0,
+        "ego_speed_m_s": 25.0,
+        "lead_gap_m": 30.0,
+        "cut_out_s": 1.0,
+        "target_speed_m_s": 0.0,
+        "reveal_s": 1.0,
+        "lc_duration_s": 3.0,
+    }
     sc = fam.generate(p)
     (lead,) = sc.occluders
     # at the end the lead is one lane (3.5 m) to the side of the ego's lane centre line
@@ -115,12 +140,17 @@ def test_occlusion_only_lowers_pd(name: str) -> None:
     assert np.any(a.pd_confirm < b.pd_confirm - 0.1)
 
 
-@pytest.mark.parametrize(("name", "vehicle", "n", "occluder"), [
-    ("cut_out_reveal", "system_a", 3000, "lead car"),
-    ("cut_out_reveal", "system_b", 3000, "lead car"),
-    ("pedestrian_behind_parked_cars", "system_b", 1000, "parked car")])
-def test_occlusion_decides_and_the_reason_says_so(name: str, vehicle: str, n: int,
-                                                   occluder: str) -> None:
+@pytest.mark.parametrize(
+    ("name", "vehicle", "n", "occluder"),
+    [
+        ("cut_out_reveal", "system_a", 3000, "lead car"),
+        ("cut_out_reveal", "system_b", 3000, "lead car"),
+        ("pedestrian_behind_parked_cars", "system_b", 1000, "parked car"),
+    ],
+)
+def test_occlusion_decides_and_the_reason_says_so(
+    name: str, vehicle: str, n: int, occluder: str
+) -> None:
     """Clear, no sun, exact: candidates that are sensor-critical (P(collision) >= 0.1,
     perfect perception avoids it) with the occluders and not without them (occlusion
     switched off: P(collision) <= 1e-6 or unavoidable); their reason names occlusion as

@@ -46,29 +46,55 @@ F64 = NDArray[np.float64]
 Case = tuple[float, F64, F64, F64, float, F64, F64, F64]
 
 
-def _straight(v0: float, gap: float, lateral: float = 0.0, vt: float = 0.0,
-              margin: float = 0.5, horizon: float = 6.0) -> Encounter:
+def _straight(
+    v0: float,
+    gap: float,
+    lateral: float = 0.0,
+    vt: float = 0.0,
+    margin: float = 0.5,
+    horizon: float = 6.0,
+) -> Encounter:
     """Ego at v0 along the x axis; a car ahead (same heading, speed vt) whose rear is ``gap``
     m ahead of the ego's front bumper at t = 0, ``lateral`` m to the left."""
     t = np.arange(T) * DT
     z = np.zeros((1, T))
     tx = (X_FRONT + gap + CAR_L / 2 + vt * t)[None]
-    return encounter_geometry((v0 * t)[None], z, z, np.full((1, T), v0), tx, z + lateral, z,
-                              np.full((1, T), vt), DT, (CAR_L, CAR_W), BODY, margin, horizon)
+    return encounter_geometry(
+        (v0 * t)[None],
+        z,
+        z,
+        np.full((1, T), v0),
+        tx,
+        z + lateral,
+        z,
+        np.full((1, T), vt),
+        DT,
+        (CAR_L, CAR_W),
+        BODY,
+        margin,
+        horizon,
+    )
 
 
 def _stop_distance(v0: float, jerk: float, amax: float) -> float:
     """Jerk-limited braking distance by hand: ramp t1 = A/J covers v0 t1 - J t1^3/6 and
     leaves v1 = v0 - J t1^2/2, then v1^2/(2A) at constant deceleration."""
     t1 = amax / jerk
-    d1 = v0 * t1 - jerk * t1 ** 3 / 6.0
+    d1 = v0 * t1 - jerk * t1**3 / 6.0
     v1 = v0 - 0.5 * jerk * t1 * t1
     return d1 + v1 * v1 / (2.0 * amax)
 
 
-def _outcome(enc: Encounter, pd: ArrayLike, lat: float = 0.3, jerk: float = 12.0,
-             decel: float = 8.0, m: int = 3, n: int = 5,
-             n_valid: ArrayLike | None = None) -> Outcome:
+def _outcome(
+    enc: Encounter,
+    pd: ArrayLike,
+    lat: float = 0.3,
+    jerk: float = 12.0,
+    decel: float = 8.0,
+    m: int = 3,
+    n: int = 5,
+    n_valid: ArrayLike | None = None,
+) -> Outcome:
     pd = np.broadcast_to(np.asarray(pd, dtype=float), enc.lo.shape)
     nv = np.full(enc.lo.shape[0], T) if n_valid is None else np.asarray(n_valid)
     return reaction_outcome(enc, pd, nv, m, n, lat, jerk, np.full(enc.lo.shape[0], decel))
@@ -77,11 +103,13 @@ def _outcome(enc: Encounter, pd: ArrayLike, lat: float = 0.3, jerk: float = 12.0
 # ----------------------------------------------------------------- closed forms
 
 
-@pytest.mark.parametrize(("v0", "gap", "lat", "mu"), [(20.0, 60.0, 0.3, 0.9),
-                                                       (30.0, 120.0, 0.5, 0.6),
-                                                       (13.9, 60.0, 0.2, 0.2)])
-def test_t_safe_equals_the_closed_form_stopping_answer(v0: float, gap: float, lat: float,
-                                                        mu: float) -> None:
+@pytest.mark.parametrize(
+    ("v0", "gap", "lat", "mu"),
+    [(20.0, 60.0, 0.3, 0.9), (30.0, 120.0, 0.5, 0.6), (13.9, 60.0, 0.2, 0.2)],
+)
+def test_t_safe_equals_the_closed_form_stopping_answer(
+    v0: float, gap: float, lat: float, mu: float
+) -> None:
     # Stopped car ahead, straight road. By hand: confirmed at t_c (the target is a threat
     # from t = 0: gap < v0 * 6 s), the ego travels v0 (t_c + lat) + the jerk-limited stop;
     # it avoids the car while that is < gap, so t_c* = (gap - v0 lat - d_stop) / v0 and
@@ -95,7 +123,8 @@ def test_t_safe_equals_the_closed_form_stopping_answer(v0: float, gap: float, la
     assert enc.threat_step[0] == 0
     assert tc - DT - 1e-9 <= o.t_safe_s[0] <= tc + 1e-9
     assert stopping_distance(v0, lat, 12.0, amax) == pytest.approx(
-        v0 * lat + _stop_distance(v0, 12.0, amax), rel=1e-12)
+        v0 * lat + _stop_distance(v0, 12.0, amax), rel=1e-12
+    )
     # Pd = 1 confirms 3 of 5 at step 2 (0.10 s < t_c*): avoided; perfect perception too
     assert o.collision_probability[0] == 0.0
     assert o.collision_perfect[0] == 0.0
@@ -105,14 +134,32 @@ def test_t_safe_equals_the_closed_form_stopping_answer(v0: float, gap: float, la
     assert o.perfect_margin_s[0] == pytest.approx(o.t_safe_s[0] - 2 * DT)
     # ... and a reference that only sees the car from step 10 (e.g. behind a lead car)
     # confirms at step 10: its margin shrinks by 8 steps; never seen: it collides too
-    late = reaction_outcome(enc, np.ones((1, T)), np.array([T]), 3, 5, lat, 12.0,
-                            np.array([amax]), perfect_step=np.array([10]))
+    late = reaction_outcome(
+        enc,
+        np.ones((1, T)),
+        np.array([T]),
+        3,
+        5,
+        lat,
+        12.0,
+        np.array([amax]),
+        perfect_step=np.array([10]),
+    )
     if o.t_safe_s[0] >= 10 * DT:
         assert late.perfect_margin_s[0] == pytest.approx(o.t_safe_s[0] - 10 * DT)
     else:  # too late even for perfect perception (the snow case): it collides
         assert late.collision_perfect[0] == 1.0 and math.isnan(late.perfect_margin_s[0])
-    blind = reaction_outcome(enc, np.ones((1, T)), np.array([T]), 3, 5, lat, 12.0,
-                             np.array([amax]), perfect_step=np.array([-1]))
+    blind = reaction_outcome(
+        enc,
+        np.ones((1, T)),
+        np.array([T]),
+        3,
+        5,
+        lat,
+        12.0,
+        np.array([amax]),
+        perfect_step=np.array([-1]),
+    )
     assert blind.collision_perfect[0] == 1.0 and math.isnan(blind.perfect_margin_s[0])
     # never detected: no braking, impact at the full closing speed v0 (the target stands)
     never = _outcome(enc, 0.0, lat=lat, decel=amax)
@@ -136,8 +183,8 @@ def test_late_confirmation_hits_at_the_closed_form_speed() -> None:
     assert o.collision_probability[0] == 1.0
     tau = 0.6
     for _ in range(50):  # Newton
-        tau -= (20 * tau - 2 * tau ** 3 - 12) / (20 - 6 * tau ** 2)
-    v_hand = 20 - 6 * tau ** 2
+        tau -= (20 * tau - 2 * tau**3 - 12) / (20 - 6 * tau**2)
+    v_hand = 20 - 6 * tau**2
     # the overlap is seen at the first 0.05 s step after contact: the speed there is lower
     # by at most J tau dt = 12 * 0.62 * 0.05 = 0.37 m/s. Tolerance 0.4 m/s.
     assert 3.6 * (v_hand - 0.4) <= o.impact_speed_kmh[0] <= 3.6 * v_hand + 1e-9
@@ -170,10 +217,11 @@ def test_lost_distance_and_braked_speed_match_closed_forms() -> None:
     v0, j, a = 25.0, 12.0, 8.0
     t1 = a / j
     assert lost_distance(0.0, v0, j, a) == 0.0
-    assert lost_distance(t1, v0, j, a) == pytest.approx(j * t1 ** 3 / 6.0, rel=1e-12)
+    assert lost_distance(t1, v0, j, a) == pytest.approx(j * t1**3 / 6.0, rel=1e-12)
     big = 100.0
-    assert lost_distance(big, v0, j, a) == pytest.approx(v0 * big - _stop_distance(v0, j, a),
-                                                         rel=1e-12)
+    assert lost_distance(big, v0, j, a) == pytest.approx(
+        v0 * big - _stop_distance(v0, j, a), rel=1e-12
+    )
     assert braked_speed(t1, v0, j, a) == pytest.approx(v0 - 0.5 * j * t1 * t1, rel=1e-12)
     assert braked_speed(big, v0, j, a) == 0.0
     # slow enough to stop during the ramp (v0 < A^2 / (2 J)): t_s = sqrt(2 v0 / J) and the
@@ -195,15 +243,16 @@ def _brute_first(pd: F64, m: int, n: int, n_valid: int) -> F64:
         p = math.prod(pd[k] if b else 1.0 - pd[k] for k, b in enumerate(bits))
         first = t
         for k in range(n_valid):
-            if sum(bits[max(0, k - n + 1):k + 1]) >= m:
+            if sum(bits[max(0, k - n + 1) : k + 1]) >= m:
                 first = k
                 break
         out[first] += p
     return out
 
 
-@pytest.mark.parametrize(("m", "n", "n_valid"), [(2, 3, 10), (3, 5, 10), (1, 1, 10),
-                                                  (3, 5, 6), (4, 4, 10)])
+@pytest.mark.parametrize(
+    ("m", "n", "n_valid"), [(2, 3, 10), (3, 5, 10), (1, 1, 10), (3, 5, 6), (4, 4, 10)]
+)
 def test_first_confirmation_equals_enumeration(m: int, n: int, n_valid: int) -> None:
     rng = np.random.default_rng(m * 10 + n + n_valid)
     pd = rng.random(10)
@@ -253,11 +302,18 @@ def test_path_ttc_is_the_time_to_the_open_loop_collision() -> None:
 
 
 @settings(max_examples=40, deadline=None)
-@given(seed=st.integers(0, 2**32 - 1), level=st.floats(0.0, 1.0), lat1=st.floats(0.0, 1.5),
-       extra=st.floats(0.0, 1.5), gap=st.floats(15.0, 100.0), v0=st.floats(8.0, 35.0),
-       lead=st.floats(0.0, 0.5))
-def test_properties_car_ahead(seed: int, level: float, lat1: float, extra: float, gap: float,
-                              v0: float, lead: float) -> None:
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    level=st.floats(0.0, 1.0),
+    lat1=st.floats(0.0, 1.5),
+    extra=st.floats(0.0, 1.5),
+    gap=st.floats(15.0, 100.0),
+    v0=st.floats(8.0, 35.0),
+    lead=st.floats(0.0, 0.5),
+)
+def test_properties_car_ahead(
+    seed: int, level: float, lat1: float, extra: float, gap: float, v0: float, lead: float
+) -> None:
     """A stopped or slower car ahead (later braking never helps there): probability in
     [0, 1], non-decreasing in latency, impact speed <= closing speed, perfect perception
     never worse than any Pd (per-step random Pd)."""
@@ -281,35 +337,68 @@ def test_rows_are_independent_and_only_allowed_fields_are_nan() -> None:
     """A mixed batch equals its rows evaluated one by one; outputs are finite except the
     documented NaN cases."""
     rng = np.random.default_rng(11)
-    cases = [_random_case(np.random.default_rng(s), radius, kind)
-             for s, (radius, kind) in enumerate(itertools.product(
-                 (math.inf, 300.0, 60.0), ("cut_in", "ahead", "beside")))]
+    cases = [
+        _random_case(np.random.default_rng(s), radius, kind)
+        for s, (radius, kind) in enumerate(
+            itertools.product((math.inf, 300.0, 60.0), ("cut_in", "ahead", "beside"))
+        )
+    ]
     arrays = [np.stack([c[i] for c in cases]) for i in (1, 2, 3, 5, 6, 7)]
     ex, ey, eh, tx, ty, th = arrays
     v0 = np.array([c[0] for c in cases])
     vt = np.array([c[4] for c in cases])
     b = len(cases)
     pd = rng.random((b, T))
-    enc = encounter_geometry(ex, ey, eh, np.repeat(v0[:, None], T, 1), tx, ty, th,
-                             np.repeat(vt[:, None], T, 1), DT, (CAR_L, CAR_W), BODY, 0.5, 6.0)
+    enc = encounter_geometry(
+        ex,
+        ey,
+        eh,
+        np.repeat(v0[:, None], T, 1),
+        tx,
+        ty,
+        th,
+        np.repeat(vt[:, None], T, 1),
+        DT,
+        (CAR_L, CAR_W),
+        BODY,
+        0.5,
+        6.0,
+    )
     nv = np.where(enc.collide_step >= 0, enc.collide_step + 1, T)
     o = reaction_outcome(enc, pd, nv, 3, 5, 0.3, 12.0, np.full(b, 8.0))
     for r in range(b):
-        e1 = encounter_geometry(ex[r:r + 1], ey[r:r + 1], eh[r:r + 1], np.full((1, T), v0[r]),
-                                tx[r:r + 1], ty[r:r + 1], th[r:r + 1], np.full((1, T), vt[r]),
-                                DT, (CAR_L, CAR_W), BODY, 0.5, 6.0)
-        o1 = reaction_outcome(e1, pd[r:r + 1], nv[r:r + 1], 3, 5, 0.3, 12.0, np.array([8.0]))
+        e1 = encounter_geometry(
+            ex[r : r + 1],
+            ey[r : r + 1],
+            eh[r : r + 1],
+            np.full((1, T), v0[r]),
+            tx[r : r + 1],
+            ty[r : r + 1],
+            th[r : r + 1],
+            np.full((1, T), vt[r]),
+            DT,
+            (CAR_L, CAR_W),
+            BODY,
+            0.5,
+            6.0,
+        )
+        o1 = reaction_outcome(e1, pd[r : r + 1], nv[r : r + 1], 3, 5, 0.3, 12.0, np.array([8.0]))
         for name in o.__dataclass_fields__:
             np.testing.assert_array_equal(getattr(o, name)[r], getattr(o1, name)[0])
     assert (enc.collide_step >= 0).any() and (enc.collide_step < 0).any()
-    for name in ("collision_probability", "impact_speed_kmh", "collision_perfect",
-                 "impact_speed_perfect_kmh"):
+    for name in (
+        "collision_probability",
+        "impact_speed_kmh",
+        "collision_perfect",
+        "impact_speed_perfect_kmh",
+    ):
         assert np.all(np.isfinite(getattr(o, name)))
     assert np.all((o.collision_probability >= 0) & (o.collision_probability <= 1))
     assert np.all(np.isin(o.collision_perfect, (0.0, 1.0)))
     assert np.array_equal(np.isnan(o.t_threat_s), enc.threat_step < 0)
-    assert np.array_equal(np.isnan(o.detection_margin_s),
-                          np.isnan(o.t_safe_s) | np.isnan(o.t_confirm_median_s))
+    assert np.array_equal(
+        np.isnan(o.detection_margin_s), np.isnan(o.t_safe_s) | np.isnan(o.t_confirm_median_s)
+    )
     assert np.all(o.impact_speed_kmh[o.collision_probability == 0] == 0.0)
 
 
@@ -318,12 +407,27 @@ def test_collision_outcome_uses_friction_and_the_reaction_model() -> None:
     t = np.arange(T) * DT
     z = np.zeros((1, T))
     tx = np.full((1, T), X_FRONT + 80.0 + CAR_L / 2)  # stopped car 80 m ahead, 15 m/s
-    args = ((15.0 * t)[None], z, z, np.full((1, T), 15.0), tx, z, z, z, DT, (CAR_L, CAR_W),
-            BODY, np.ones((1, T)), np.array([T]), r)
+    args = (
+        (15.0 * t)[None],
+        z,
+        z,
+        np.full((1, T), 15.0),
+        tx,
+        z,
+        z,
+        z,
+        DT,
+        (CAR_L, CAR_W),
+        BODY,
+        np.ones((1, T)),
+        np.array([T]),
+        r,
+    )
     enc, dry = collision_outcome(*args, mu=0.9)
     _, snow = collision_outcome(*args, mu=0.2)
-    want = reaction_outcome(enc, np.ones((1, T)), np.array([T]), 3, 5, 0.3, 12.0,
-                            np.array([0.2 * G_M_S2]))
+    want = reaction_outcome(
+        enc, np.ones((1, T)), np.array([T]), 3, 5, 0.3, 12.0, np.array([0.2 * G_M_S2])
+    )
     assert snow.t_safe_s[0] == want.t_safe_s[0]
     # less friction: confirm earlier. By hand (one step): t_safe = (80 - 15 * 0.3 -
     # d_stop) / 15 with d_stop(mu 0.2) = 57.8 m and d_stop(mu 0.9) = 13.9 m
@@ -339,8 +443,13 @@ def _corners(x: F64, y: F64, h: F64, front: float, rear: float, w: float) -> F64
     """(T, 4, 2) corners of boxes at poses (T,)."""
     c, s = np.cos(h), np.sin(h)
     pts = np.array([[front, w / 2], [front, -w / 2], [rear, -w / 2], [rear, w / 2]])
-    return np.stack([x[:, None] + c[:, None] * pts[:, 0] - s[:, None] * pts[:, 1],
-                     y[:, None] + s[:, None] * pts[:, 0] + c[:, None] * pts[:, 1]], axis=-1)
+    return np.stack(
+        [
+            x[:, None] + c[:, None] * pts[:, 0] - s[:, None] * pts[:, 1],
+            y[:, None] + s[:, None] * pts[:, 0] + c[:, None] * pts[:, 1],
+        ],
+        axis=-1,
+    )
 
 
 def _separation(a: F64, b: F64) -> F64:
@@ -398,8 +507,10 @@ def _brute(case: Case, ko: int, lat: float, jerk: float, amax: float) -> tuple[F
     sp = v0 * t
     q = sp - np.array([lost_distance(tt - tb, v0, jerk, amax) for tt in t])
     x, y, h = np.interp(q, sp, ex), np.interp(q, sp, ey), np.interp(q, sp, eh)
-    g = _separation(_corners(x, y, h, X_FRONT, X_REAR, EGO_W),
-                    _corners(tx, ty, th, CAR_L / 2, -CAR_L / 2, CAR_W))
+    g = _separation(
+        _corners(x, y, h, X_FRONT, X_REAR, EGO_W),
+        _corners(tx, ty, th, CAR_L / 2, -CAR_L / 2, CAR_W),
+    )
     vb = np.array([braked_speed(tt - tb, v0, jerk, amax) for tt in t])
     rel = np.hypot(vb * np.cos(h) - vt * np.cos(th), vb * np.sin(h) - vt * np.sin(th))
     return g, rel
@@ -422,9 +533,21 @@ def test_interval_method_equals_brute_force_box_tests(seed: int, radius: float) 
     lat, jerk, amax = 0.3, 12.0, 8.0
     case = _random_case(rng, radius, ("cut_in", "ahead")[seed % 2])
     v0, ex, ey, eh, vt, tx, ty, th = case
-    enc = encounter_geometry(ex[None], ey[None], eh[None], np.full((1, T), v0), tx[None],
-                             ty[None], th[None], np.full((1, T), vt), DT, (CAR_L, CAR_W),
-                             BODY, 0.5, 6.0)
+    enc = encounter_geometry(
+        ex[None],
+        ey[None],
+        eh[None],
+        np.full((1, T), v0),
+        tx[None],
+        ty[None],
+        th[None],
+        np.full((1, T), vt),
+        DT,
+        (CAR_L, CAR_W),
+        BODY,
+        0.5,
+        6.0,
+    )
     g0, rel0 = _brute(case, T, lat, jerk, amax)
     hits = np.flatnonzero(g0 <= 0.0)
     kc = int(enc.collide_step[0])
@@ -471,8 +594,16 @@ def test_reaction_presets_load_with_sources() -> None:
     for name in names:
         r = load_reaction(name)
         assert r.confirm_m <= r.confirm_n
-        for key in ("confirm_m", "confirm_n", "latency_s", "jerk_m_s3", "decel_max_m_s2",
-                    "confirm_with", "threat_margin_m", "threat_horizon_s"):
+        for key in (
+            "confirm_m",
+            "confirm_n",
+            "latency_s",
+            "jerk_m_s3",
+            "decel_max_m_s2",
+            "confirm_with",
+            "threat_margin_m",
+            "threat_horizon_s",
+        ):
             assert r.sources[key].strip()
 
 
@@ -531,8 +662,11 @@ def test_friction_and_road_condition() -> None:
 
 
 def test_friction_needs_sources(tmp_path: Path) -> None:
-    p = _write(tmp_path, GOOD + "\n[friction]\ndry = 0.9\nwet = 0.6\nsnow = 0.2\n"
-               "[friction.sources]\ndry = 'a'\nwet = 'b'\n")
+    p = _write(
+        tmp_path,
+        GOOD + "\n[friction]\ndry = 0.9\nwet = 0.6\nsnow = 0.2\n"
+        "[friction.sources]\ndry = 'a'\nwet = 'b'\n",
+    )
     with pytest.raises(InputError, match=r"friction\.sources\.snow: missing source"):
         load_friction(p)
 
@@ -540,17 +674,29 @@ def test_friction_needs_sources(tmp_path: Path) -> None:
 # ------------------------------------------------------------ predicted threat onset
 
 
-def _walker(v0: float, ahead: float, y0: float, vy: float,
-            predict: float) -> tuple[Encounter, F64]:
+def _walker(v0: float, ahead: float, y0: float, vy: float, predict: float) -> tuple[Encounter, F64]:
     """Ego at v0 along the x axis; a 0.5 x 0.5 m pedestrian ``ahead`` m in front of the
     ego's rear axle (standing in x), starting ``y0`` m to the right (y0 < 0) and walking
     towards the ego's path at ``vy`` m/s. Returns the encounter and its y per step."""
     t = np.arange(T) * DT
     z = np.zeros((1, T))
     ty = (y0 + vy * t)[None]
-    enc = encounter_geometry((v0 * t)[None], z, z, np.full((1, T), v0),
-                             np.full((1, T), ahead), ty, np.full((1, T), math.pi / 2),
-                             np.full((1, T), vy), DT, (0.5, 0.5), BODY, 0.5, 6.0, predict)
+    enc = encounter_geometry(
+        (v0 * t)[None],
+        z,
+        z,
+        np.full((1, T), v0),
+        np.full((1, T), ahead),
+        ty,
+        np.full((1, T), math.pi / 2),
+        np.full((1, T), vy),
+        DT,
+        (0.5, 0.5),
+        BODY,
+        0.5,
+        6.0,
+        predict,
+    )
     return enc, ty[0]
 
 
@@ -566,8 +712,7 @@ def test_threat_onset_with_lateral_prediction_by_hand(vy: float, predict: float)
     y0 = -6.0
     enc, ty = _walker(8.0, 40.0, y0, vy, predict)
     bound = -(EGO_W / 2 + 0.5 + 0.25)
-    k_hand = next(k for k in range(T) if ty[k] + (vy * predict if k >= 1 else 0.0)
-                  >= bound - 1e-12)
+    k_hand = next(k for k in range(T) if ty[k] + (vy * predict if k >= 1 else 0.0) >= bound - 1e-12)
     assert enc.threat_step[0] == k_hand
     if predict > 0.0:
         # the prediction moves the onset earlier by predict / dt steps (give or take one)
@@ -582,8 +727,21 @@ def test_prediction_ignores_targets_moving_along_or_away_from_the_path() -> None
     t = np.arange(T) * DT
     z = np.zeros((1, T))
     for ty in (np.full(T, 3.5), 3.5 + 0.5 * t):
-        args = ((20.0 * t)[None], z, z, np.full((1, T), 20.0), (30.0 + 15.0 * t)[None],
-                ty[None], z, np.full((1, T), 15.0), DT, (CAR_L, CAR_W), BODY, 0.5, 6.0)
+        args = (
+            (20.0 * t)[None],
+            z,
+            z,
+            np.full((1, T), 20.0),
+            (30.0 + 15.0 * t)[None],
+            ty[None],
+            z,
+            np.full((1, T), 15.0),
+            DT,
+            (CAR_L, CAR_W),
+            BODY,
+            0.5,
+            6.0,
+        )
         with_p = encounter_geometry(*args, 1.0)
         without = encounter_geometry(*args, 0.0)
         assert with_p.threat_step[0] == without.threat_step[0] == -1
@@ -603,9 +761,22 @@ def test_prediction_on_a_curve_follows_the_path_not_a_straight_line() -> None:
     ao = a + 30.0 / R
     Ro = R - 3.5  # the left lane is inside the left-hand curve
     tx, ty = Ro * np.sin(ao), R - Ro * np.cos(ao)
-    enc = encounter_geometry(ex[None], ey[None], eh[None], np.full((1, T), v), tx[None],
-                             ty[None], ao[None], np.full((1, T), v * Ro / R), DT,
-                             (CAR_L, CAR_W), BODY, 0.5, 6.0, 1.0)
+    enc = encounter_geometry(
+        ex[None],
+        ey[None],
+        eh[None],
+        np.full((1, T), v),
+        tx[None],
+        ty[None],
+        ao[None],
+        np.full((1, T), v * Ro / R),
+        DT,
+        (CAR_L, CAR_W),
+        BODY,
+        0.5,
+        6.0,
+        1.0,
+    )
     assert enc.threat_step[0] == -1
 
 

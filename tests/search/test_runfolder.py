@@ -22,12 +22,14 @@ from sensorgap.search.runfolder import open_run
 
 #: The custom family: a renamed copy of cut_in_left with narrower ranges (chosen so 40
 #: candidates find sensor-critical scenarios).
-NARROW = [("ego_s0_m = [50.0, 700.0]", "ego_s0_m = [100.0, 250.0]"),
-          ("ego_speed_m_s = [15.0, 36.0]", "ego_speed_m_s = [20.0, 26.0]"),
-          ("target_speed_m_s = [10.0, 36.0]", "target_speed_m_s = [12.0, 18.0]"),
-          ("dx0_m = [-15.0, 60.0]", "dx0_m = [35.0, 50.0]"),
-          ("lc_start_s = [0.5, 6.0]", "lc_start_s = [0.5, 1.5]"),
-          ("lc_duration_s = [2.5, 6.0]", "lc_duration_s = [4.5, 6.0]")]
+NARROW = [
+    ("ego_s0_m = [50.0, 700.0]", "ego_s0_m = [100.0, 250.0]"),
+    ("ego_speed_m_s = [15.0, 36.0]", "ego_speed_m_s = [20.0, 26.0]"),
+    ("target_speed_m_s = [10.0, 36.0]", "target_speed_m_s = [12.0, 18.0]"),
+    ("dx0_m = [-15.0, 60.0]", "dx0_m = [35.0, 50.0]"),
+    ("lc_start_s = [0.5, 6.0]", "lc_start_s = [0.5, 1.5]"),
+    ("lc_duration_s = [2.5, 6.0]", "lc_duration_s = [4.5, 6.0]"),
+]
 
 
 def _sha(p: Path) -> str:
@@ -39,8 +41,12 @@ def custom(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     """Custom inputs and the run folder searched with them (exported and reported)."""
     base = tmp_path_factory.mktemp("custom")
     text = (templates_dir() / "environments.toml").read_text(encoding="utf-8")
-    fog = re.sub(r"(\[environments\.clear\]\n(?:.*\n)*?)visibility_m = 23000\.0",
-                 r"\1visibility_m = 50.0", text, count=1)
+    fog = re.sub(
+        r"(\[environments\.clear\]\n(?:.*\n)*?)visibility_m = 23000\.0",
+        r"\1visibility_m = 50.0",
+        text,
+        count=1,
+    )
     assert fog != text
     envs = base / "my_envs.toml"
     envs.write_text(fog, encoding="utf-8")
@@ -52,8 +58,18 @@ def custom(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     family = base / "fams" / "my_cut_in.toml"
     family.write_text(fam, encoding="utf-8")
     run = base / "runs" / "run"
-    run_search("system_b", [str(family)], ["clear"], 40, 3, 3, run, strategy="lhs",
-               environments_file=envs, progress=False)
+    run_search(
+        "system_b",
+        [str(family)],
+        ["clear"],
+        40,
+        3,
+        3,
+        run,
+        strategy="lhs",
+        environments_file=envs,
+        progress=False,
+    )
     return {"base": base, "envs": envs, "family": family, "run": run}
 
 
@@ -95,8 +111,7 @@ def test_export_uses_the_custom_environment_and_family(exported: Path) -> None:
     assert {s["family"] for s in index["scenarios"]} == {"my_cut_in"}
 
 
-def test_report_uses_the_recorded_inputs(exported: Path,
-                                         monkeypatch: pytest.MonkeyPatch) -> None:
+def test_report_uses_the_recorded_inputs(exported: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv("SOURCE_DATE_EPOCH", "1700000000")
     assert main(["report", "--run", str(exported)]) == 0
     md = (exported / "report.md").read_text(encoding="utf-8")
@@ -109,8 +124,9 @@ def test_report_uses_the_recorded_inputs(exported: Path,
     assert any("StVO" in ln and "visibility 50 m" in ln for ln in rows)
 
 
-def test_compare_and_evaluate_rebuild_the_ranked_numbers(custom: dict[str, Path],
-                                                         tmp_path: Path) -> None:
+def test_compare_and_evaluate_rebuild_the_ranked_numbers(
+    custom: dict[str, Path], tmp_path: Path
+) -> None:
     run = custom["run"]
     rows = json.loads((run / "ranking.json").read_text(encoding="utf-8"))["ranking"]
     assert main(["compare", str(run), str(run), "--out", str(tmp_path / "cmp")]) == 0
@@ -120,21 +136,35 @@ def test_compare_and_evaluate_rebuild_the_ranked_numbers(custom: dict[str, Path]
     for r in rows:  # exact numbers of the search, recomputed from the recorded inputs
         assert p[r["scenario_id"]] == pytest.approx(r["collision_probability"], abs=1e-12)
     r = rows[0]
-    argv = ["evaluate", "--run", str(run), "--family", "my_cut_in", "--environment",
-            "clear", "--out", str(tmp_path / "ev")]
+    argv = [
+        "evaluate",
+        "--run",
+        str(run),
+        "--family",
+        "my_cut_in",
+        "--environment",
+        "clear",
+        "--out",
+        str(tmp_path / "ev"),
+    ]
     if r.get("sun_azimuth_deg") is not None:
         argv += ["--sun", f"{r['sun_azimuth_deg']!r}/{r['sun_elevation_deg']!r}"]
-    argv += [f"--param={k[2:]}={v}" for k, v in r.items()
-             if k.startswith("p_") and k[2:] not in ("never_confirmed", "undetected_end")]
+    argv += [
+        f"--param={k[2:]}={v}"
+        for k, v in r.items()
+        if k.startswith("p_") and k[2:] not in ("never_confirmed", "undetected_end")
+    ]
     assert main(argv) == 0
     ev = json.loads((tmp_path / "ev" / "evaluation.json").read_text(encoding="utf-8"))
     assert ev["scenario_id"] == r["scenario_id"]
     assert ev["metrics"]["collision_probability"] == pytest.approx(
-        r["collision_probability"], abs=1e-12)
+        r["collision_probability"], abs=1e-12
+    )
 
 
 def test_a_copied_run_rebuilds_identically_after_the_templates_changed(
-        exported: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    exported: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     monkeypatch.setenv("SOURCE_DATE_EPOCH", "1700000000")
     assert main(["report", "--run", str(exported)]) == 0
     copy = tmp_path / "elsewhere" / exported.name
@@ -147,8 +177,7 @@ def test_a_copied_run_rebuilds_identically_after_the_templates_changed(
     tdir = tmp_path / "templates"
     shutil.copytree(templates_dir(), tdir)
     env = tdir / "environments.toml"
-    env.write_text(env.read_text(encoding="utf-8").replace("23000.0", "9000.0"),
-                   encoding="utf-8")
+    env.write_text(env.read_text(encoding="utf-8").replace("23000.0", "9000.0"), encoding="utf-8")
     veh = tdir / "vehicles" / "system_b.toml"
     veh.write_text(veh.read_text(encoding="utf-8") + "\n# changed\n", encoding="utf-8")
     monkeypatch.setenv("SENSORGAP_TEMPLATES", str(tdir))
@@ -158,10 +187,12 @@ def test_a_copied_run_rebuilds_identically_after_the_templates_changed(
     xosc = sorted(p.name for p in (exported / "scenarios").glob("*.xosc"))
     assert xosc == sorted(p.name for p in (copy / "scenarios").glob("*.xosc"))
     for name in xosc:
-        assert (copy / "scenarios" / name).read_bytes() == \
-            (exported / "scenarios" / name).read_bytes()
-    assert (copy / "roads" / "motorway_r500.xodr").read_bytes() == \
-        (exported / "roads" / "motorway_r500.xodr").read_bytes()
+        assert (copy / "scenarios" / name).read_bytes() == (
+            exported / "scenarios" / name
+        ).read_bytes()
+    assert (copy / "roads" / "motorway_r500.xodr").read_bytes() == (
+        exported / "roads" / "motorway_r500.xodr"
+    ).read_bytes()
 
     def text(folder: Path) -> str:  # the reproduce line names the folder's path
         return (folder / "report.md").read_text(encoding="utf-8").replace(str(folder), "RUN")
@@ -170,12 +201,14 @@ def test_a_copied_run_rebuilds_identically_after_the_templates_changed(
 
 
 def test_a_changed_input_is_named_and_a_modified_copy_refused(
-        custom: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    custom: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     copy = tmp_path / "run"
     shutil.copytree(custom["run"], copy)
     changed = tmp_path / "my_envs.toml"  # the "original" environments file, edited
-    changed.write_text(custom["envs"].read_text(encoding="utf-8") + "\n# edited\n",
-                       encoding="utf-8")
+    changed.write_text(
+        custom["envs"].read_text(encoding="utf-8") + "\n# edited\n", encoding="utf-8"
+    )
     info = json.loads((copy / "run.json").read_text(encoding="utf-8"))
     info["inputs"]["environments"]["path"] = str(changed)
     (copy / "run.json").write_text(json.dumps(info), encoding="utf-8")
@@ -191,17 +224,28 @@ def test_a_changed_input_is_named_and_a_modified_copy_refused(
 
 
 def test_a_run_without_recorded_inputs_is_refused(
-        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     # held-out review round four: such a run was rebuilt from the shipped presets of the
     # same names (with a note), which may silently differ from what was searched
     folder = tmp_path / "old"
     folder.mkdir()
-    (folder / "ranking.json").write_text(json.dumps(
-        {"ranking": [{"rank": 1, "scenario_id": "x", "family": "cut_in_left",
-                      "environment": "clear"}],
-         "settings": {"vehicle_ref": "system_a"}}), encoding="utf-8")
-    with pytest.raises(InputError, match=r"run\.json: inputs: missing: the run does not "
-                       r"record its inputs"):
+    (folder / "ranking.json").write_text(
+        json.dumps(
+            {
+                "ranking": [
+                    {"rank": 1, "scenario_id": "x", "family": "cut_in_left", "environment": "clear"}
+                ],
+                "settings": {"vehicle_ref": "system_a"},
+            }
+        ),
+        encoding="utf-8",
+    )
+    with pytest.raises(
+        InputError,
+        match=r"run\.json: inputs: missing: the run does not "
+        r"record its inputs",
+    ):
         open_run(folder)
     assert main(["export", "--run", str(folder)]) == 2
     err = capsys.readouterr().err.strip().splitlines()

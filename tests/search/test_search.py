@@ -93,12 +93,15 @@ target = "car"
 """
 
 
-@pytest.mark.parametrize(("body", "match"), [
-    ("[parameters]\ngap0_m = [100.0, 50.0]\n", "empty or reversed range"),
-    ("[parameters]\ngap0_m = [50.0, 50.0]\n", "empty or reversed range"),
-    ("[parameters]\nbogus = [1.0, 2.0]\n", "unknown parameter"),
-    ("[parameters]\nego_s0_m = [1000.0, 1200.0]\n", "cannot fit on the road"),
-])
+@pytest.mark.parametrize(
+    ("body", "match"),
+    [
+        ("[parameters]\ngap0_m = [100.0, 50.0]\n", "empty or reversed range"),
+        ("[parameters]\ngap0_m = [50.0, 50.0]\n", "empty or reversed range"),
+        ("[parameters]\nbogus = [1.0, 2.0]\n", "unknown parameter"),
+        ("[parameters]\nego_s0_m = [1000.0, 1200.0]\n", "cannot fit on the road"),
+    ],
+)
 def test_bad_family_files(tmp_path: Path, body: str, match: str) -> None:
     with pytest.raises(InputError, match=match):
         load_family(_write(tmp_path, BASE + body))
@@ -116,16 +119,24 @@ def test_bad_kind_and_unknown_family(tmp_path: Path) -> None:
 def _trace(pd: list[float], ttc: list[float] | None = None, t0: float = 0.0) -> Trace:
     n = len(pd)
     arr = np.zeros(n)
-    return Trace(t=t0 + np.arange(n) * 0.05, x=arr, y=arr, pd=np.array(pd),
-                 ttc=np.array(ttc if ttc is not None else [np.inf] * n), headway=arr + np.inf,
-                 distance=arr + 10.0, ego_speed=arr + 10.0, heading=arr, collided=False,
-                 duration_s=(n - 1) * 0.05)
+    return Trace(
+        t=t0 + np.arange(n) * 0.05,
+        x=arr,
+        y=arr,
+        pd=np.array(pd),
+        ttc=np.array(ttc if ttc is not None else [np.inf] * n),
+        headway=arr + np.inf,
+        distance=arr + 10.0,
+        ego_speed=arr + 10.0,
+        heading=arr,
+        collided=False,
+        duration_s=(n - 1) * 0.05,
+    )
 
 
 def test_metrics_by_hand() -> None:
     # (a window after the 1 s lead-in: t = 1.00 .. 1.35 s)
-    tr = _trace([0.0, 0.5, 0.5, 0.0, 0.0, 0.0, 0.99, 0.2], ttc=[9, 9, 9, 2, 2, 0.5, 0.4, 9],
-                t0=1.0)
+    tr = _trace([0.0, 0.5, 0.5, 0.0, 0.0, 0.0, 0.99, 0.2], ttc=[9, 9, 9, 2, 2, 0.5, 0.4, 9], t0=1.0)
     assert tr.p_undetected[2] == pytest.approx(0.25)
     assert detection_index(tr) == 6  # the reference formulas (tests/search/metric_oracles)
     assert corridor(tr) == (3, 6)
@@ -157,8 +168,7 @@ def test_risk_is_not_assessed_during_the_lead_in() -> None:
     ttc[20] = 0.5  # t = 1.0 s
     pd = [0.0] * n
     pd[3] = 0.5  # one half-chance detection during the lead-in still counts
-    assert compute_all(_trace(pd, ttc), ["risk"])["risk"] == pytest.approx(
-        0.5 * np.exp(-0.25))
+    assert compute_all(_trace(pd, ttc), ["risk"])["risk"] == pytest.approx(0.5 * np.exp(-0.25))
 
 
 def test_lookup_close_to_exact(system_b: System) -> None:
@@ -217,36 +227,59 @@ def test_cem_concentrates_on_optimum() -> None:
     assert best > 0.9
 
 
-@pytest.mark.parametrize(("kw", "match"), [
-    ({"budget": 0}, "^budget: must be within"),
-    ({"environments": ["mars"]}, "unknown environment 'mars'"),
-    ({"families": ["nope"]}, "unknown family"),
-    ({"strategy": "magic"}, "unknown strategy"),
-    ({"seeds": 0}, "^seeds: must be an integer within 1..10, got 0"),
-    ({"seeds": 11}, "^seeds: must be an integer within 1..10, got 11"),
-    ({"seeds": True}, "^seeds: must be an integer"),
-    ({"seeds": 3}, "times seeds \\(3\\)"),
-])
+@pytest.mark.parametrize(
+    ("kw", "match"),
+    [
+        ({"budget": 0}, "^budget: must be within"),
+        ({"environments": ["mars"]}, "unknown environment 'mars'"),
+        ({"families": ["nope"]}, "unknown family"),
+        ({"strategy": "magic"}, "unknown strategy"),
+        ({"seeds": 0}, "^seeds: must be an integer within 1..10, got 0"),
+        ({"seeds": 11}, "^seeds: must be an integer within 1..10, got 11"),
+        ({"seeds": True}, "^seeds: must be an integer"),
+        ({"seeds": 3}, "times seeds \\(3\\)"),
+    ],
+)
 def test_run_bad_input(tmp_path: Path, kw: dict[str, object], match: str) -> None:
-    args: dict[str, object] = {"vehicle": "system_b", "families": FAST,
-                               "environments": ["clear"], "budget": 4, "seed": 0, "top": 3,
-                               "out": tmp_path}
+    args: dict[str, object] = {
+        "vehicle": "system_b",
+        "families": FAST,
+        "environments": ["clear"],
+        "budget": 4,
+        "seed": 0,
+        "top": 3,
+        "out": tmp_path,
+    }
     args.update(kw)
     with pytest.raises(InputError, match=match):
         run_search(**args)  # type: ignore[arg-type]
 
 
 def test_run_deterministic_and_resumes(tmp_path: Path) -> None:
-    kw = {"vehicle": "system_b", "families": ["cut_out_reveal", "slow_ahead_curve"],
-          "environments": ["clear", "snow"], "budget": 60, "seed": 7, "top": 5}
+    kw = {
+        "vehicle": "system_b",
+        "families": ["cut_out_reveal", "slow_ahead_curve"],
+        "environments": ["clear", "snow"],
+        "budget": 60,
+        "seed": 7,
+        "top": 5,
+    }
     a = run_search(out=tmp_path / "a", **kw)  # type: ignore[arg-type]
     b = run_search(out=tmp_path / "b", **kw)  # type: ignore[arg-type]
     csv_a = (tmp_path / "a" / "ranking.csv").read_bytes()
     assert csv_a == (tmp_path / "b" / "ranking.csv").read_bytes()
     assert a.evaluated == 60 and len(a.ranking) >= 1
     header = csv_a.decode().splitlines()[0].split(",")
-    for col in ("rank", "scenario_id", "family", "environment", "risk", "reason",
-                "p_ego_speed_m_s", "t_detect_s"):
+    for col in (
+        "rank",
+        "scenario_id",
+        "family",
+        "environment",
+        "risk",
+        "reason",
+        "p_ego_speed_m_s",
+        "t_detect_s",
+    ):
         assert col in header
     with pytest.raises(InputError, match="add --resume"):
         run_search(out=tmp_path / "a", **kw)  # type: ignore[arg-type]
@@ -264,13 +297,20 @@ def test_seeds_split_the_budget_into_independent_searches(tmp_path: Path) -> Non
     budget); every ranked row says how many of the three found it on their own, by the
     rule of ``ranking.found_by``; deterministic and resumable; another ``seeds`` on resume
     is another search."""
-    kw = {"vehicle": "system_b", "families": ["cut_out_reveal"],
-          "environments": ["clear", "snow"], "budget": 90, "seed": 7, "top": 5,
-          "strategy": "lhs"}
+    kw = {
+        "vehicle": "system_b",
+        "families": ["cut_out_reveal"],
+        "environments": ["clear", "snow"],
+        "budget": 90,
+        "seed": 7,
+        "top": 5,
+        "strategy": "lhs",
+    }
     a = run_search(out=tmp_path / "a", seeds=3, **kw)  # type: ignore[arg-type]
     run_search(out=tmp_path / "b", seeds=3, **kw)  # type: ignore[arg-type]
     assert (tmp_path / "a" / "ranking.csv").read_bytes() == (
-        tmp_path / "b" / "ranking.csv").read_bytes()
+        tmp_path / "b" / "ranking.csv"
+    ).read_bytes()
     one = run_search(out=tmp_path / "one", **{**kw, "budget": 30})  # type: ignore[arg-type]
     ids_a = [r.candidate.scenario_id for r in a.results]
     assert ids_a[:30] == [r.candidate.scenario_id for r in one.results]
@@ -297,29 +337,51 @@ def test_found_by_counts_the_same_weakness_not_the_same_point() -> None:
         c = Candidate(fam, envs[0], None, {"ego_speed_m_s": speed})
         return (Result(c, {}, True), envs, Explanation("", effect, 0.0, {}))
 
-    ranked = [row("cut_in_left", ["rain_5"], "weather", 20.0),
-              row("cut_in_left", ["clear", "snow"], "FOV", 20.0),
-              row("crossing_cyclist", ["fog_50"], "range", 10.0)]
-    tops = [[row("cut_in_left", ["rain_5", "fog_50"], "weather", 31.0)],  # same weakness
-            [row("cut_in_left", ["snow"], "FOV", 12.0),
-             row("cut_in_left", ["rain_5"], "glare", 20.0)],  # other cause: not the first
-            [row("crossing_cyclist", ["clear"], "range", 10.0)]]  # no common environment
+    ranked = [
+        row("cut_in_left", ["rain_5"], "weather", 20.0),
+        row("cut_in_left", ["clear", "snow"], "FOV", 20.0),
+        row("crossing_cyclist", ["fog_50"], "range", 10.0),
+    ]
+    tops = [
+        [row("cut_in_left", ["rain_5", "fog_50"], "weather", 31.0)],  # same weakness
+        [
+            row("cut_in_left", ["snow"], "FOV", 12.0),
+            row("cut_in_left", ["rain_5"], "glare", 20.0),
+        ],  # other cause: not the first
+        [row("crossing_cyclist", ["clear"], "range", 10.0)],
+    ]  # no common environment
     assert found_by(ranked, tops) == [1, 1, 0]
     # the sun searched in a preset: the same preset at another sun position is the same
     sunny = [row("slow_ahead_curve", ["glare_front_right@sun62/5"], "glare", 30.0)]
-    assert found_by(sunny, [[row("slow_ahead_curve", ["glare_front_right@sun57/4"], "glare",
-                                 25.0)], [row("slow_ahead_curve", ["clear@sun62/5"],
-                                              "glare", 30.0)]]) == [1]
+    assert found_by(
+        sunny,
+        [
+            [row("slow_ahead_curve", ["glare_front_right@sun57/4"], "glare", 25.0)],
+            [row("slow_ahead_curve", ["clear@sun62/5"], "glare", 30.0)],
+        ],
+    ) == [1]
     assert found_by(ranked, []) == [0, 0, 0]
 
 
 def test_systems_differ_with_reasons(tmp_path: Path) -> None:
-    kw = {"families": ["slow_ahead_curve"], "environments": ["fog_50", "clear"],
-          "budget": 20, "seed": 3, "top": 5, "strategy": "lhs"}
+    kw = {
+        "families": ["slow_ahead_curve"],
+        "environments": ["fog_50", "clear"],
+        "budget": 20,
+        "seed": 3,
+        "top": 5,
+        "strategy": "lhs",
+    }
     a = run_search("system_a", out=tmp_path / "a", **kw)  # type: ignore[arg-type]
     b = run_search("system_b", out=tmp_path / "b", **kw)  # type: ignore[arg-type]
     assert [r["risk"] for r in a.ranking] != [r["risk"] for r in b.ranking]
     for r in a.ranking + b.ranking:
-        assert r["dominant_effect"] in {"glare", "weather", "partly in view", "range", "FOV",
-                                        "none"}
+        assert r["dominant_effect"] in {
+            "glare",
+            "weather",
+            "partly in view",
+            "range",
+            "FOV",
+            "none",
+        }
         assert r["reason"].startswith(r["dominant_effect"])

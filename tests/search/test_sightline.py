@@ -30,8 +30,14 @@ def _lead_box(x: float, y: float = 0.0) -> list[float]:
     return [x, y, 1.0, 0.0, 2.25, 0.9, 1.5]
 
 
-def _steps(xs: list[float], ys: list[float], boxes: list[list[list[float]]],
-           views: np.ndarray = EYE, m: int = 3, n: int = 5) -> int:
+def _steps(
+    xs: list[float],
+    ys: list[float],
+    boxes: list[list[list[float]]],
+    views: np.ndarray = EYE,
+    m: int = 3,
+    n: int = 5,
+) -> int:
     t = len(xs)
     occ = np.zeros((1, t, max(len(b) for b in boxes), 7))
     for k, bk in enumerate(boxes):
@@ -39,9 +45,20 @@ def _steps(xs: list[float], ys: list[float], boxes: list[list[list[float]]],
             occ[0, k, j] = row
         for j in range(len(bk), occ.shape[2]):  # pad with a box far away behind the ego
             occ[0, k, j] = [-500.0, 0.0, 1.0, 0.0, 0.1, 0.1, 0.1]
-    return int(perfect_confirmation_step(
-        np.array([xs]), np.array([ys]), np.zeros((1, t)), np.array([t]), occ, CAR, views,
-        m, n, np.array([0]))[0])
+    return int(
+        perfect_confirmation_step(
+            np.array([xs]),
+            np.array([ys]),
+            np.zeros((1, t)),
+            np.array([t]),
+            occ,
+            CAR,
+            views,
+            m,
+            n,
+            np.array([0]),
+        )[0]
+    )
 
 
 def test_hidden_behind_a_lead_car_and_beside_it() -> None:
@@ -90,8 +107,9 @@ def test_more_occluders_never_confirm_earlier() -> None:
         xs = list(rng.uniform(10, 60, t))
         ys = list(rng.uniform(-4, 4, t))
         base = [[_lead_box(float(rng.uniform(5, 30)), float(rng.uniform(-3, 3)))]] * t
-        extra = [[*b, _lead_box(float(rng.uniform(5, 30)), float(rng.uniform(-3, 3)))]
-                 for b in base]
+        extra = [
+            [*b, _lead_box(float(rng.uniform(5, 30)), float(rng.uniform(-3, 3)))] for b in base
+        ]
         a, b = _steps(xs, ys, base), _steps(xs, ys, extra)
         assert (b == -1) or (a != -1 and b >= a)
 
@@ -103,8 +121,9 @@ def test_the_reference_is_the_drivers_eye_whatever_the_sensors() -> None:
     body = sysa.config.vehicle
     v = viewpoints(body)
     assert v.shape == (1, 3)
-    assert tuple(v[0]) == pytest.approx((0.55 * body.wheelbase_m, 0.37,
-                                         min(1.2, body.height_m - 0.2)))
+    assert tuple(v[0]) == pytest.approx(
+        (0.55 * body.wheelbase_m, 0.37, min(1.2, body.height_m - 0.2))
+    )
     assert tuple(v[0]) == pytest.approx(driver_eye(body))
     assert Evaluator(sysb, "lookup").perfect_views.shape == (1, 3)
 

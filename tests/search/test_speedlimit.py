@@ -35,11 +35,13 @@ def _closed_form_sight_speed(vis: float, latency: float, jerk: float, a: float) 
     return (-p + math.sqrt(p * p - 4.0 * q)) / 2.0
 
 
-@pytest.mark.parametrize("vis,latency,jerk,a", [(50.0, 0.3, 12.0, 0.9 * G),
-                                                (328.8, 0.3, 12.0, 0.2 * G),
-                                                (120.0, 1.0, 8.0, 0.6 * G)])
-def test_sight_speed_is_the_closed_form_stopping_answer(vis: float, latency: float,
-                                                         jerk: float, a: float) -> None:
+@pytest.mark.parametrize(
+    "vis,latency,jerk,a",
+    [(50.0, 0.3, 12.0, 0.9 * G), (328.8, 0.3, 12.0, 0.2 * G), (120.0, 1.0, 8.0, 0.6 * G)],
+)
+def test_sight_speed_is_the_closed_form_stopping_answer(
+    vis: float, latency: float, jerk: float, a: float
+) -> None:
     """Bisection on the outcome's stopping model equals the hand-solved quadratic (1e-5
     m/s: the bisection stops at 1e-6)."""
     got = sight_speed_m_s(vis, latency, jerk, a)
@@ -57,7 +59,8 @@ def test_visibility_adds_rain_and_snow_extinction() -> None:
     beta = gamma * math.log(10) / 10 + 3.912 / (snow.visibility_m / 1000)  # 1/km
     want = 1000 * 3.912 / beta
     assert Conditions.from_config(snow).meteorological_visibility_m() == pytest.approx(
-        want, abs=0.06)
+        want, abs=0.06
+    )
     assert want < 400  # heavy snow really limits sight
 
 
@@ -68,12 +71,19 @@ def test_the_fifty_kmh_rule_below_fifty_metres() -> None:
     fog30 = ENVS["fog_50"].model_copy(update={"visibility_m": 30.0})
     lim = speed_limit(fog30, react, fr)
     assert lim.speed_m_s == FOG_RULE_SPEED_M_S
-    assert sight_speed_m_s(30.0, react.latency_s, react.jerk_m_s3,
-                           min(react.decel_max_m_s2, fr["dry"] * G)) > FOG_RULE_SPEED_M_S
+    assert (
+        sight_speed_m_s(
+            30.0, react.latency_s, react.jerk_m_s3, min(react.decel_max_m_s2, fr["dry"] * G)
+        )
+        > FOG_RULE_SPEED_M_S
+    )
     lim50 = speed_limit(ENVS["fog_50"], react, fr)
-    assert lim50.speed_m_s == pytest.approx(_closed_form_sight_speed(
-        50.0, react.latency_s, react.jerk_m_s3, min(react.decel_max_m_s2, fr["dry"] * G)),
-        abs=1e-5)
+    assert lim50.speed_m_s == pytest.approx(
+        _closed_form_sight_speed(
+            50.0, react.latency_s, react.jerk_m_s3, min(react.decel_max_m_s2, fr["dry"] * G)
+        ),
+        abs=1e-5,
+    )
     assert "within sight" in lim50.rule
     assert math.isinf(speed_limit(ENVS["clear"], react, fr).speed_m_s)
 
@@ -82,9 +92,11 @@ def test_search_never_drives_above_the_lawful_speed() -> None:
     """Decoded candidates in 50 m fog stay at or below the bound (the whole unit interval
     maps into [low, bound]); in clear weather the family's full range is used; a given
     speed above the bound is an infeasible row whose note names the rule."""
-    prob = SearchProblem(load_family("cut_in_right"),
-                         {"clear": ENVS["clear"], "fog_50": ENVS["fog_50"]},
-                         Evaluator(load_system("system_a"), "lookup"))
+    prob = SearchProblem(
+        load_family("cut_in_right"),
+        {"clear": ENVS["clear"], "fog_50": ENVS["fog_50"]},
+        Evaluator(load_system("system_a"), "lookup"),
+    )
     bound = prob.speed_limits["fog_50"].speed_m_s
     assert 15.0 < bound < 36.0
     u = np.random.default_rng(3).random((4000, prob.dim))

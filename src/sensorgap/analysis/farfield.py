@@ -103,8 +103,12 @@ def path_ahead(
         f = (x_front - a) / (b - a) if b != a else 0.0
         s0 = cum[i0 - 1] + f * seg_len[i0 - 1]
     if cum[-1] - s0 < length_m - 1e-6:
-        raise InputError("target_lane", "", f"only {cum[-1] - s0:.1f} m of the target lane lie "
-                         f"ahead of the ego; {length_m:g} m needed (choose a smaller ego s)")
+        raise InputError(
+            "target_lane",
+            "",
+            f"only {cum[-1] - s0:.1f} m of the target lane lie "
+            f"ahead of the ego; {length_m:g} m needed (choose a smaller ego s)",
+        )
     n = max(1, round(length_m / step_m))
     ds = np.full(n, length_m / n, dtype=np.float64)
     s = np.asarray((np.arange(n) + 0.5) * (length_m / n), dtype=np.float64)
@@ -114,8 +118,13 @@ def path_ahead(
 
 
 def farfield(
-    scene: Scene, path_xy: F64, pose: EgoPose, length_m: float = 303.0, step_m: float = 0.1,
-    height_m: float | None = None, bodies: bool = False,
+    scene: Scene,
+    path_xy: F64,
+    pose: EgoPose,
+    length_m: float = 303.0,
+    step_m: float = 0.1,
+    height_m: float | None = None,
+    bodies: bool = False,
 ) -> FarField:
     """Pd along ``path_xy`` (world polyline, m) seen from ``pose`` (Table IV, Figs. 6-7).
 
@@ -136,10 +145,24 @@ def farfield(
         pd, _ = body_per_sensor_pd(scene, xv, yv, tangent - pose.heading)
         fused = np.asarray(-np.expm1(log_miss_of(pd).sum(axis=0)) + 0.0, dtype=np.float64)
         per = {sensor.id: pd[i] for i, sensor in enumerate(scene.sensors)}
-        return FarField(s=s, ds=ds, world=world, vehicle=np.column_stack([xv, yv]), pd=fused,
-                        per_sensor=per, levels_m=level_lengths(fused, ds))
+        return FarField(
+            s=s,
+            ds=ds,
+            world=world,
+            vehicle=np.column_stack([xv, yv]),
+            pd=fused,
+            per_sensor=per,
+            levels_m=level_lengths(fused, ds),
+        )
     h = scene.target.reference_height_m if height_m is None else height_m
     cov = evaluate_points(scene, np.column_stack([xv, yv, np.full_like(xv, h)]))
     per = {sid: cov.pd[i] for i, sid in enumerate(cov.sensor_ids) if sid in cov.evaluated}
-    return FarField(s=s, ds=ds, world=world, vehicle=np.column_stack([xv, yv]), pd=cov.fused,
-                    per_sensor=per, levels_m=level_lengths(cov.fused, ds))
+    return FarField(
+        s=s,
+        ds=ds,
+        world=world,
+        vehicle=np.column_stack([xv, yv]),
+        pd=cov.fused,
+        per_sensor=per,
+        levels_m=level_lengths(cov.fused, ds),
+    )

@@ -22,8 +22,7 @@ MAX_PLOT_CELLS = 1_500_000
 MAX_BODY_PLOT_CELLS = 80_000
 
 
-def farfield_figure_grid(ff: FarField, height: float,
-                         max_cells: int = MAX_PLOT_CELLS) -> GridSpec:
+def farfield_figure_grid(ff: FarField, height: float, max_cells: int = MAX_PLOT_CELLS) -> GridSpec:
     """A grid around the path (vehicle frame) fine enough to show it, at most
     ``max_cells`` cells."""
     x0 = min(-10.0, float(ff.vehicle[:, 0].min()) - 10.0)
@@ -35,9 +34,14 @@ def farfield_figure_grid(ff: FarField, height: float,
     return GridSpec(x0, x1, y0, y1, res, height)
 
 
-def write_farfield(scene: Scene, ff: FarField, out_dir: Path, title: str,
-                   extra: dict[str, Any] | None = None, bodies: bool = False
-                   ) -> dict[str, Any]:
+def write_farfield(
+    scene: Scene,
+    ff: FarField,
+    out_dir: Path,
+    title: str,
+    extra: dict[str, Any] | None = None,
+    bodies: bool = False,
+) -> dict[str, Any]:
     """Write the far-field files into ``out_dir``; returns the summary. ``bodies``: the
     profile is of target bodies (``farfield(..., bodies=True)``); the map behind the path
     then shows bodies heading as the ego (a coarser grid), else points at the target's
@@ -51,19 +55,36 @@ def write_farfield(scene: Scene, ff: FarField, out_dir: Path, title: str,
         cols.append(f"{sid}.pd")
         data.append(pd)
     write_csv(out_dir / "farfield.csv", cols, data)
-    write_csv(out_dir / "levels.csv", ["level", "metres"],
-              [np.array([k for k, _ in LEVELS]), np.array([ff.levels_m[k] for k, _ in LEVELS])])
-    grid = farfield_figure_grid(ff, scene.target.reference_height_m,
-                                MAX_BODY_PLOT_CELLS if bodies else MAX_PLOT_CELLS)
+    write_csv(
+        out_dir / "levels.csv",
+        ["level", "metres"],
+        [np.array([k for k, _ in LEVELS]), np.array([ff.levels_m[k] for k, _ in LEVELS])],
+    )
+    grid = farfield_figure_grid(
+        ff, scene.target.reference_height_m, MAX_BODY_PLOT_CELLS if bodies else MAX_PLOT_CELLS
+    )
     cov = body_grid(scene, grid, 0.0) if bodies else evaluate_grid(scene, grid, workers=2)
-    fig, (ax, ax2) = plt.subplots(2, 1, figsize=(11.0, 7.5), layout="constrained",
-                                  height_ratios=(3.0, 1.6))
+    fig, (ax, ax2) = plt.subplots(
+        2, 1, figsize=(11.0, 7.5), layout="constrained", height_ratios=(3.0, 1.6)
+    )
     g = cov.grid
-    im = ax.imshow(cov.fused, origin="lower", extent=(g.xmin, g.xmax, g.ymin, g.ymax),
-                   cmap=PD_CMAP, norm=PD_NORM, interpolation="nearest", aspect="equal")
+    im = ax.imshow(
+        cov.fused,
+        origin="lower",
+        extent=(g.xmin, g.xmax, g.ymin, g.ymax),
+        cmap=PD_CMAP,
+        norm=PD_NORM,
+        interpolation="nearest",
+        aspect="equal",
+    )
     draw_vehicle(ax, scene.system, fov=False)
-    ax.plot(ff.vehicle[:, 0], ff.vehicle[:, 1], color="magenta", linewidth=2.0,
-            label="target path (Pd along it below and in farfield.csv)")
+    ax.plot(
+        ff.vehicle[:, 0],
+        ff.vehicle[:, 1],
+        color="magenta",
+        linewidth=2.0,
+        label="target path (Pd along it below and in farfield.csv)",
+    )
     ax.set_xlim(g.xmin, g.xmax)
     ax.set_ylim(g.ymin, g.ymax)
     ax.set_xlabel("x (vehicle frame) [m]")

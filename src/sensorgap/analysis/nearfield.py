@@ -89,8 +89,10 @@ def _check_heights(m: Mount, height_range: tuple[float, float]) -> tuple[float, 
     if not (math.isfinite(lo) and math.isfinite(hi) and lo <= hi):
         raise ValueError(f"height range must be finite with lo <= hi, got {height_range!r}")
     if not (lo <= m.z <= hi):
-        raise ValueError(f"mount height {m.z:g} m lies outside the object height range "
-                         f"{lo:g}..{hi:g} m; widen height_range")
+        raise ValueError(
+            f"mount height {m.z:g} m lies outside the object height range "
+            f"{lo:g}..{hi:g} m; widen height_range"
+        )
     return lo, hi
 
 
@@ -140,8 +142,9 @@ def _theta_candidates(m: Mount, phis: F64, t_lo: float, t_hi: float) -> F64:
     return np.sort(out, axis=1)
 
 
-def _theta_pieces(m: Mount, phis: F64, t_lo: float,
-                  t_hi: float) -> tuple[F64, F64, NDArray[np.bool_]]:
+def _theta_pieces(
+    m: Mount, phis: F64, t_lo: float, t_hi: float
+) -> tuple[F64, F64, NDArray[np.bool_]]:
     """Elementary elevation intervals per direction and whether each is in view."""
     cand = _theta_candidates(m, phis, t_lo, t_hi)
     t1, t2 = cand[:, :-1], cand[:, 1:]
@@ -329,10 +332,12 @@ def _polar_region(m: Mount, fn: PolarFn, dphi_deg: float) -> Area:
         for j in range(k):
             lo_r = np.array([iv[j][0] for _, iv in piece])
             hi_r = np.array([iv[j][1] for _, iv in piece])
-            ring = np.concatenate([
-                np.column_stack([m.x + hi_r * cx, m.y + hi_r * cy]),
-                np.column_stack([m.x + lo_r * cx, m.y + lo_r * cy])[::-1],
-            ])
+            ring = np.concatenate(
+                [
+                    np.column_stack([m.x + hi_r * cx, m.y + hi_r * cy]),
+                    np.column_stack([m.x + lo_r * cx, m.y + lo_r * cy])[::-1],
+                ]
+            )
             poly = Polygon(ring)
             if not poly.is_valid:
                 poly = shapely.make_valid(poly)
@@ -360,8 +365,9 @@ def _deviation_excess(a: F64, b: F64, p: F64, rel: float) -> F64:
     return np.asarray(np.max(dist - tol, axis=-1), dtype=np.float64)
 
 
-def _refine(fn: PolarFn, piece: list[tuple[float, list[Interval]]],
-            dphi: float) -> list[tuple[float, list[Interval]]]:
+def _refine(
+    fn: PolarFn, piece: list[tuple[float, list[Interval]]], dphi: float
+) -> list[tuple[float, list[Interval]]]:
     """Insert directions into a piece (constant structure) until no sampled boundary point
     deviates from the chord of its neighbours by more than ``REFINE_TOL_M`` + ``rel`` x its
     distance from the mount, ``rel = max(REFINE_TOL_REL, dphi^2 / 4)`` (twice the relative
@@ -419,9 +425,11 @@ def _as_area(g: BaseGeometry) -> Area:
     return u if isinstance(u, Polygon | MultiPolygon) else Polygon()
 
 
-def sensor_footprint_any_height(sensor: Sensor | Mount,
-                                height_range: tuple[float, float] = HEIGHT_RANGE_M,
-                                dphi_deg: float = DPHI_DEG) -> Area:
+def sensor_footprint_any_height(
+    sensor: Sensor | Mount,
+    height_range: tuple[float, float] = HEIGHT_RANGE_M,
+    dphi_deg: float = DPHI_DEG,
+) -> Area:
     """Horizontal region (vehicle frame, m) the sensor sees at some height in
     ``height_range`` (field of view and range only, no SNR).
 
@@ -436,8 +444,9 @@ def sensor_footprint_any_height(sensor: Sensor | Mount,
     return _polar_region(m, _any_height_fn(m, lo, hi), dphi_deg)
 
 
-def sensor_footprint_at_height(sensor: Sensor | Mount, z: float,
-                               dphi_deg: float = DPHI_DEG) -> Area:
+def sensor_footprint_at_height(
+    sensor: Sensor | Mount, z: float, dphi_deg: float = DPHI_DEG
+) -> Area:
     """Horizontal region (vehicle frame, m) of the points at height ``z`` (m) inside the
     sensor's field of view and range.
 
@@ -470,22 +479,26 @@ def _window(system: System, extent: Sequence[float] | None, radius: float) -> Po
     if extent is None:
         return near_field_window(system, radius)
     xmin, xmax, ymin, ymax = (float(v) for v in extent)
-    if not (all(math.isfinite(v) for v in (xmin, xmax, ymin, ymax))
-            and xmin < xmax and ymin < ymax):
-        raise ValueError(f"extent must be finite (xmin, xmax, ymin, ymax) with xmin < xmax "
-                         f"and ymin < ymax, got {tuple(extent)!r}")
+    if not (
+        all(math.isfinite(v) for v in (xmin, xmax, ymin, ymax)) and xmin < xmax and ymin < ymax
+    ):
+        raise ValueError(
+            f"extent must be finite (xmin, xmax, ymin, ymax) with xmin < xmax "
+            f"and ymin < ymax, got {tuple(extent)!r}"
+        )
     return box(xmin, ymin, xmax, ymax)
 
 
-def any_height_footprints(system: System, height_range: tuple[float, float] = HEIGHT_RANGE_M,
-                          dphi_deg: float = DPHI_DEG) -> dict[str, Area]:
+def any_height_footprints(
+    system: System, height_range: tuple[float, float] = HEIGHT_RANGE_M, dphi_deg: float = DPHI_DEG
+) -> dict[str, Area]:
     """Any-height footprint of every sensor, by sensor id (file order)."""
-    return {s.id: sensor_footprint_any_height(s, height_range, dphi_deg)
-            for s in system.sensors}
+    return {s.id: sensor_footprint_any_height(s, height_range, dphi_deg) for s in system.sensors}
 
 
-def at_height_footprints(system: System, z: float = MIN_OBJECT_HEIGHT_M,
-                         dphi_deg: float = DPHI_DEG) -> dict[str, Area]:
+def at_height_footprints(
+    system: System, z: float = MIN_OBJECT_HEIGHT_M, dphi_deg: float = DPHI_DEG
+) -> dict[str, Area]:
     """Footprint of every sensor at height ``z`` (m), by sensor id (file order)."""
     return {s.id: sensor_footprint_at_height(s, z, dphi_deg) for s in system.sensors}
 
@@ -496,8 +509,9 @@ def _polygons(g: BaseGeometry) -> list[Polygon]:
     return [p for p in getattr(g, "geoms", []) if isinstance(p, Polygon) and not p.is_empty]
 
 
-def holes(covered: Sequence[BaseGeometry], body: Polygon,
-          window: Polygon | None = None) -> list[Polygon]:
+def holes(
+    covered: Sequence[BaseGeometry], body: Polygon, window: Polygon | None = None
+) -> list[Polygon]:
     """Bounded uncovered regions: the connected components of the complement of the union
     of ``covered`` and ``body`` that do not reach infinity (those lying inside ``window`` if
     given), largest first (ties by position). Regions that touch the outside only at a
@@ -516,23 +530,32 @@ def holes(covered: Sequence[BaseGeometry], body: Polygon,
     return found
 
 
-def blind_spots(system: System, radius: float = NEAR_FIELD_RADIUS_M,
-                height_range: tuple[float, float] = HEIGHT_RANGE_M,
-                dphi_deg: float = DPHI_DEG,
-                footprints: dict[str, Area] | None = None) -> list[Polygon]:
+def blind_spots(
+    system: System,
+    radius: float = NEAR_FIELD_RADIUS_M,
+    height_range: tuple[float, float] = HEIGHT_RANGE_M,
+    dphi_deg: float = DPHI_DEG,
+    footprints: dict[str, Area] | None = None,
+) -> list[Polygon]:
     """Blind spots (paper Fig. 5, blue): regions outside the vehicle footprint, enclosed by
     covered area, that no sensor sees at any height in ``height_range``; only those lying
     inside the near-field window (footprint grown by ``radius`` m). Polygons in m."""
-    fps = footprints if footprints is not None else any_height_footprints(
-        system, height_range, dphi_deg)
-    return holes(list(fps.values()), vehicle_polygon(system),
-                 near_field_window(system, radius))
+    fps = (
+        footprints
+        if footprints is not None
+        else any_height_footprints(system, height_range, dphi_deg)
+    )
+    return holes(list(fps.values()), vehicle_polygon(system), near_field_window(system, radius))
 
 
-def uncovered_at_height(system: System, z: float = MIN_OBJECT_HEIGHT_M,
-                        extent: Sequence[float] | None = None,
-                        radius: float = NEAR_FIELD_RADIUS_M, dphi_deg: float = DPHI_DEG,
-                        footprints: dict[str, Area] | None = None) -> Area:
+def uncovered_at_height(
+    system: System,
+    z: float = MIN_OBJECT_HEIGHT_M,
+    extent: Sequence[float] | None = None,
+    radius: float = NEAR_FIELD_RADIUS_M,
+    dphi_deg: float = DPHI_DEG,
+    footprints: dict[str, Area] | None = None,
+) -> Area:
     """Region (m) of the near-field window outside the vehicle footprint that no sensor
     sees at height ``z`` (paper Fig. 5, green, at 0.1 m). The window is ``extent``
     ``(xmin, xmax, ymin, ymax)`` if given, else the footprint grown by ``radius``."""
@@ -586,8 +609,9 @@ def _seen(m: Mount, px: F64, py: F64, z: float) -> NDArray[np.bool_]:
     return fov_mask(m, xs, ys, zs) & in_range(m, np.sqrt(xs * xs + ys * ys + zs * zs))
 
 
-def _seen_any_height(system: System, gx: F64, gy: F64, heights: F64,
-                     skip: NDArray[np.bool_]) -> NDArray[np.bool_]:
+def _seen_any_height(
+    system: System, gx: F64, gy: F64, heights: F64, skip: NDArray[np.bool_]
+) -> NDArray[np.bool_]:
     seen = np.zeros(gx.shape, dtype=bool)
     fx, fy, flat = gx.ravel(), gy.ravel(), seen.ravel()
     done = skip.ravel()
@@ -605,8 +629,9 @@ def _seen_any_height(system: System, gx: F64, gy: F64, heights: F64,
     return seen
 
 
-def grid_heights(system: System, resolution: float,
-                 height_range: tuple[float, float] = HEIGHT_RANGE_M) -> F64:
+def grid_heights(
+    system: System, resolution: float, height_range: tuple[float, float] = HEIGHT_RANGE_M
+) -> F64:
     """Heights (m) sampled by the grid method: spacing <= ``resolution``, both ends of the
     height range and every mount height inside it."""
     lo, hi = height_range
@@ -616,9 +641,12 @@ def grid_heights(system: System, resolution: float,
     return np.unique(np.array(zs, dtype=np.float64))
 
 
-def grid_blind_spots(system: System, resolution: float,
-                     radius: float = NEAR_FIELD_RADIUS_M,
-                     height_range: tuple[float, float] = HEIGHT_RANGE_M) -> GridNearField:
+def grid_blind_spots(
+    system: System,
+    resolution: float,
+    radius: float = NEAR_FIELD_RADIUS_M,
+    height_range: tuple[float, float] = HEIGHT_RANGE_M,
+) -> GridNearField:
     """Blind spots on a grid over the near-field window: cells whose centre is outside the
     vehicle footprint and seen by no sensor at any sampled height (``grid_heights``),
     grouped into 4-connected components; components touching the window border are not
@@ -629,8 +657,7 @@ def grid_blind_spots(system: System, resolution: float,
         _check_heights(s.mount, height_range)
     gx, gy, area, ext = _cells(near_field_window(system, radius), resolution)
     body = _in_body(system, gx, gy)
-    seen = _seen_any_height(system, gx, gy, grid_heights(system, resolution, height_range),
-                            body)
+    seen = _seen_any_height(system, gx, gy, grid_heights(system, resolution, height_range), body)
     free = ~seen & ~body
     labels, _ = ndimage.label(free)
     border = np.unique(np.concatenate([labels[0], labels[-1], labels[:, 0], labels[:, -1]]))
@@ -638,9 +665,13 @@ def grid_blind_spots(system: System, resolution: float,
     return GridNearField(ext, resolution, mask, area, float(np.sum(area[mask])))
 
 
-def grid_uncovered_at_height(system: System, z: float = MIN_OBJECT_HEIGHT_M,
-                             resolution: float = 0.05, extent: Sequence[float] | None = None,
-                             radius: float = NEAR_FIELD_RADIUS_M) -> GridNearField:
+def grid_uncovered_at_height(
+    system: System,
+    z: float = MIN_OBJECT_HEIGHT_M,
+    resolution: float = 0.05,
+    extent: Sequence[float] | None = None,
+    radius: float = NEAR_FIELD_RADIUS_M,
+) -> GridNearField:
     """Cells of the near-field window, centre outside the vehicle footprint, that no sensor
     sees at height ``z`` (m)."""
     gx, gy, area, ext = _cells(_window(system, extent, radius), resolution)
@@ -655,8 +686,12 @@ def grid_uncovered_at_height(system: System, z: float = MIN_OBJECT_HEIGHT_M,
 
 # --------------------------------------------------------------------------- outputs
 
-_TYPE_COLOURS = {"camera": "tab:orange", "radar": "tab:red", "lidar": "tab:cyan",
-                 "ultrasonic": "tab:pink"}
+_TYPE_COLOURS = {
+    "camera": "tab:orange",
+    "radar": "tab:red",
+    "lidar": "tab:cyan",
+    "ultrasonic": "tab:pink",
+}
 
 
 def _r(v: float) -> float:
@@ -673,15 +708,24 @@ def _path_patch(geom: BaseGeometry, **kw: Any) -> Any:
         for ring in (poly.exterior, *poly.interiors):
             xy = np.asarray(ring.coords)
             verts.extend(xy.tolist())
-            codes.extend([int(MplPath.MOVETO)] + [int(MplPath.LINETO)] * (len(xy) - 2)
-                         + [int(MplPath.CLOSEPOLY)])
+            codes.extend(
+                [int(MplPath.MOVETO)]
+                + [int(MplPath.LINETO)] * (len(xy) - 2)
+                + [int(MplPath.CLOSEPOLY)]
+            )
     if not verts:
         return None
     return PathPatch(MplPath(verts, codes), **kw)
 
 
-def nearfield_figure(system: System, window: Polygon, footprints: dict[str, Area],
-                     spots: list[Polygon], uncovered: BaseGeometry, z: float) -> Any:
+def nearfield_figure(
+    system: System,
+    window: Polygon,
+    footprints: dict[str, Area],
+    spots: list[Polygon],
+    uncovered: BaseGeometry,
+    z: float,
+) -> Any:
     """Fig. 5 style: vehicle, sensor footprints (outlines), blind spots blue, area not
     covered at height ``z`` green; axes in metres, equal aspect; the legend below the
     plot."""
@@ -694,22 +738,28 @@ def nearfield_figure(system: System, window: Polygon, footprints: dict[str, Area
     xmin, ymin, xmax, ymax = window.bounds
     aspect = (ymax - ymin) / (xmax - xmin)
     fig, ax = plt.subplots(figsize=(9.0, max(3.5, 9.0 * aspect + 1.3)), layout="constrained")
-    if (p := _path_patch(uncovered, facecolor="tab:green", edgecolor="none", alpha=0.55,
-                         zorder=1)) is not None:
+    if (
+        p := _path_patch(uncovered, facecolor="tab:green", edgecolor="none", alpha=0.55, zorder=1)
+    ) is not None:
         ax.add_patch(p)
     for spot in spots:
-        if (p := _path_patch(spot, facecolor="tab:blue", edgecolor="navy", linewidth=0.6,
-                             zorder=3)) is not None:
+        if (
+            p := _path_patch(spot, facecolor="tab:blue", edgecolor="navy", linewidth=0.6, zorder=3)
+        ) is not None:
             ax.add_patch(p)
     types_used = []
     for s in system.sensors:
         colour = _TYPE_COLOURS.get(s.type_name, "tab:gray")
         clipped = shapely.intersection(footprints[s.id], window.buffer(1.0, join_style=2))
-        if (p := _path_patch(clipped, facecolor=colour, edgecolor="none", alpha=0.07,
-                             zorder=0)) is not None:
+        if (
+            p := _path_patch(clipped, facecolor=colour, edgecolor="none", alpha=0.07, zorder=0)
+        ) is not None:
             ax.add_patch(p)
-        if (p := _path_patch(clipped, facecolor="none", edgecolor=colour, linewidth=0.5,
-                             alpha=0.7, zorder=2)) is not None:
+        if (
+            p := _path_patch(
+                clipped, facecolor="none", edgecolor=colour, linewidth=0.5, alpha=0.7, zorder=2
+            )
+        ) is not None:
             ax.add_patch(p)
         ax.plot([s.mount.x], [s.mount.y], marker="o", markersize=2.5, color=colour, zorder=6)
         if s.type_name not in types_used:
@@ -721,24 +771,39 @@ def nearfield_figure(system: System, window: Polygon, footprints: dict[str, Area
     ax.set_xlabel("x (vehicle frame) [m]")
     ax.set_ylabel("y (vehicle frame) [m]")
     area = sum(sp.area for sp in spots)
-    ax.set_title(f"{plain_text(system.name)}: blind spots {area:.2f} m$^2$ (blue), not covered at "
-                 f"{z:g} m (green)", fontsize=10)
+    ax.set_title(
+        f"{plain_text(system.name)}: blind spots {area:.2f} m$^2$ (blue), not covered at "
+        f"{z:g} m (green)",
+        fontsize=10,
+    )
     handles: list[Any] = [
         Patch(facecolor="tab:blue", edgecolor="navy", label="blind spot (no sensor, any height)"),
         Patch(facecolor="tab:green", alpha=0.55, label=f"not covered at {z:g} m"),
     ]
-    handles += [Line2D([], [], color=_TYPE_COLOURS.get(t, "tab:gray"), linewidth=1.0,
-                       label=f"{t} footprint (any height)") for t in types_used]
+    handles += [
+        Line2D(
+            [],
+            [],
+            color=_TYPE_COLOURS.get(t, "tab:gray"),
+            linewidth=1.0,
+            label=f"{t} footprint (any height)",
+        )
+        for t in types_used
+    ]
     # below the plot, never over the blind spots or the sensors
-    fig.legend(handles=handles, loc="outside lower center", ncol=3, fontsize=7,
-               frameon=False)
+    fig.legend(handles=handles, loc="outside lower center", ncol=3, fontsize=7, frameon=False)
     return fig
 
 
-def write_nearfield(system: System, out_dir: Path, resolution: float = 0.05,
-                    radius: float = NEAR_FIELD_RADIUS_M,
-                    height_range: tuple[float, float] = HEIGHT_RANGE_M,
-                    z: float = MIN_OBJECT_HEIGHT_M, dphi_deg: float = DPHI_DEG) -> dict[str, Any]:
+def write_nearfield(
+    system: System,
+    out_dir: Path,
+    resolution: float = 0.05,
+    radius: float = NEAR_FIELD_RADIUS_M,
+    height_range: tuple[float, float] = HEIGHT_RANGE_M,
+    z: float = MIN_OBJECT_HEIGHT_M,
+    dphi_deg: float = DPHI_DEG,
+) -> dict[str, Any]:
     """Write ``nearfield.json`` and ``nearfield.png`` into ``out_dir``; return the summary.
 
     Summary keys: ``system``, ``window``, ``height_range_m``, ``blind_spot_m2`` (exact,
@@ -751,9 +816,12 @@ def write_nearfield(system: System, out_dir: Path, resolution: float = 0.05,
     lo, hi = height_range
     for sensor in system.sensors:
         if not (lo <= sensor.mount.z <= hi):
-            raise InputError(system.source, f"sensors[id={sensor.id}].position_m",
-                             f"mount height {sensor.mount.z:g} m is outside the near-field "
-                             f"object heights {lo:g}..{hi:g} m")
+            raise InputError(
+                system.source,
+                f"sensors[id={sensor.id}].position_m",
+                f"mount height {sensor.mount.z:g} m is outside the near-field "
+                f"object heights {lo:g}..{hi:g} m",
+            )
     win = near_field_window(system, radius)
     fp_any = any_height_footprints(system, height_range, dphi_deg)
     fp_z = at_height_footprints(system, z, dphi_deg)
@@ -766,15 +834,26 @@ def write_nearfield(system: System, out_dir: Path, resolution: float = 0.05,
     xmin, ymin, xmax, ymax = win.bounds
     summary: dict[str, Any] = {
         "system": system.name,
-        "window": {"definition": f"vehicle footprint rectangle grown by {radius:g} m",
-                   "radius_m": _r(radius), "xmin": _r(xmin), "xmax": _r(xmax),
-                   "ymin": _r(ymin), "ymax": _r(ymax), "area_m2": _r(win.area)},
+        "window": {
+            "definition": f"vehicle footprint rectangle grown by {radius:g} m",
+            "radius_m": _r(radius),
+            "xmin": _r(xmin),
+            "xmax": _r(xmax),
+            "ymin": _r(ymin),
+            "ymax": _r(ymax),
+            "area_m2": _r(win.area),
+        },
         "height_range_m": [_r(height_range[0]), _r(height_range[1])],
         "blind_spot_m2": {
             "exact": _r(exact_bs),
-            "holes": [{"area_m2": _r(p.area), "centroid_m": [_r(p.centroid.x),
-                                                              _r(p.centroid.y)],
-                       "bounds_m": [_r(v) for v in p.bounds]} for p in spots],
+            "holes": [
+                {
+                    "area_m2": _r(p.area),
+                    "centroid_m": [_r(p.centroid.x), _r(p.centroid.y)],
+                    "bounds_m": [_r(v) for v in p.bounds],
+                }
+                for p in spots
+            ],
             "grid": _r(g_bs.area),
             "resolution_m": _r(resolution),
             "difference": _r(g_bs.area - exact_bs),
@@ -789,9 +868,9 @@ def write_nearfield(system: System, out_dir: Path, resolution: float = 0.05,
         },
         "method": {
             "exact": f"polar boundary sampled every {dphi_deg:g} deg, structural changes "
-                     "located to 1e-12 rad, shapely overlay snapped to 1e-9 m",
+            "located to 1e-12 rad, shapely overlay snapped to 1e-9 m",
             "grid": "cell centres, fov_mask/in_range at heights every <= resolution plus "
-                    "the range ends and mount heights; 4-connected holes",
+            "the range ends and mount heights; 4-connected holes",
             "grid_heights": len(grid_heights(system, resolution, height_range)),
             "self_occlusion": False,
         },

@@ -76,15 +76,15 @@ def target_path(net: RoadNetwork, setup: FarFieldSetup, step_m: float = 0.5) -> 
     return np.column_stack([x, y])
 
 
-def run_farfield(system: System, env_name: str, setup: FarFieldSetup,
-                 net: RoadNetwork, bodies: bool = False) -> tuple[Scene, FarField]:
+def run_farfield(
+    system: System, env_name: str, setup: FarFieldSetup, net: RoadNetwork, bodies: bool = False
+) -> tuple[Scene, FarField]:
     """The far-field profile of one system in one environment (``bodies``: the target as
     its body heading along the lane; False: a point, the paper's setting)."""
     pose = ego_pose(net, setup)
     env = load_environment(env_name)
     scene = Scene(system, load_target(setup.target), Conditions.from_config(env, pose.heading))
-    return scene, farfield(scene, target_path(net, setup), pose, setup.length_m,
-                           bodies=bodies)
+    return scene, farfield(scene, target_path(net, setup), pose, setup.length_m, bodies=bodies)
 
 
 def _md_table(header: list[str], rows: list[list[str]]) -> str:
@@ -93,8 +93,9 @@ def _md_table(header: list[str], rows: list[list[str]]) -> str:
     return "\n".join(lines)
 
 
-def run_paper(out: Path, setup: FarFieldSetup | None = None,
-              nearfield_resolution_m: float = 0.05) -> dict[str, Any]:
+def run_paper(
+    out: Path, setup: FarFieldSetup | None = None, nearfield_resolution_m: float = 0.05
+) -> dict[str, Any]:
     """Write table_iv.csv, nearfield.csv, paper.md and the figures into ``out``."""
     from sensorgap.analysis.nearfield import write_nearfield
 
@@ -106,20 +107,28 @@ def run_paper(out: Path, setup: FarFieldSetup | None = None,
     near: dict[str, dict[str, Any]] = {}
     for key, system in systems.items():
         near[key] = write_nearfield(system, out / f"nearfield_{key}", nearfield_resolution_m)
-    write_csv(out / "nearfield.csv", ["system", "blind_spot_m2", "uncovered_0p1m_m2"], [
-        np.array(list(near)),
-        np.array([near[k]["blind_spot_m2"]["exact"] for k in near]),
-        np.array([near[k]["uncovered_0p1m_m2"]["exact"] for k in near]),
-    ])
+    write_csv(
+        out / "nearfield.csv",
+        ["system", "blind_spot_m2", "uncovered_0p1m_m2"],
+        [
+            np.array(list(near)),
+            np.array([near[k]["blind_spot_m2"]["exact"] for k in near]),
+            np.array([near[k]["uncovered_0p1m_m2"]["exact"] for k in near]),
+        ],
+    )
 
     ours: dict[tuple[str, str], dict[str, float]] = {}
     for key, system in systems.items():
         for cond, env_name in CONDITIONS.items():
             scene, ff = run_farfield(system, env_name, setup, net)
             ours[(key, cond)] = ff.levels_m
-            write_farfield(scene, ff, out / f"farfield_{key}_{cond}",
-                           f"System {key}, {cond} ({env_name}): car path in the right lane",
-                           extra={"setup": setup.__dict__})
+            write_farfield(
+                scene,
+                ff,
+                out / f"farfield_{key}_{cond}",
+                f"System {key}, {cond} ({env_name}): car path in the right lane",
+                extra={"setup": setup.__dict__},
+            )
     rows_sys, rows_cond, rows_level, rows_m = [], [], [], []
     for (key, cond), levels in ours.items():
         for level, _ in LEVELS:
@@ -127,9 +136,16 @@ def run_paper(out: Path, setup: FarFieldSetup | None = None,
             rows_cond.append(cond)
             rows_level.append(level)
             rows_m.append(round(levels[level], 1))
-    write_csv(out / "table_iv.csv", ["system", "condition", "level", "metres"],
-              [np.array(rows_sys), np.array(rows_cond), np.array(rows_level),
-               np.array(rows_m, dtype=np.float64)])
+    write_csv(
+        out / "table_iv.csv",
+        ["system", "condition", "level", "metres"],
+        [
+            np.array(rows_sys),
+            np.array(rows_cond),
+            np.array(rows_level),
+            np.array(rows_m, dtype=np.float64),
+        ],
+    )
     # the paper's glare: eq. 10 on every pixel, as a veil so strong that it blinds the
     # whole image (docs/models.md "Direct sun"); only B's glare cells depend on it
     from sensorgap.analysis.sensitivity import with_camera_field
@@ -138,24 +154,38 @@ def run_paper(out: Path, setup: FarFieldSetup | None = None,
     _, ff_whole = run_farfield(whole, CONDITIONS["glare"], setup, net)
     checks = qualitative_checks(ours, near)
     sens = sensitivity_rows(systems, setup, net, ours)
-    write_csv(out / "sensitivity.csv",
-              ["parameter", "value", "unit", "used_by", "max_change_m", "cell",
-               "nearfield_change_m2"],
-              [np.array([r["parameter"] for r in sens]),
-               np.array([r["value"] for r in sens], dtype=np.float64),
-               np.array([r["unit"] for r in sens]), np.array([r["used_by"] for r in sens]),
-               np.array([r["max_change_m"] for r in sens], dtype=np.float64),
-               np.array([r["cell"] for r in sens]),
-               np.array([r["nearfield_change_m2"] for r in sens], dtype=np.float64)])
-    atomic_write_text(out / "paper.md", paper_markdown(ours, near, checks, setup, sens,
-                                                       ff_whole.levels_m))
-    return {"table_iv": {f"{k[0]}_{k[1]}": v for k, v in ours.items()}, "nearfield": near,
-            "checks": checks, "sensitivity": sens, "b_glare_whole_image": ff_whole.levels_m}
+    write_csv(
+        out / "sensitivity.csv",
+        ["parameter", "value", "unit", "used_by", "max_change_m", "cell", "nearfield_change_m2"],
+        [
+            np.array([r["parameter"] for r in sens]),
+            np.array([r["value"] for r in sens], dtype=np.float64),
+            np.array([r["unit"] for r in sens]),
+            np.array([r["used_by"] for r in sens]),
+            np.array([r["max_change_m"] for r in sens], dtype=np.float64),
+            np.array([r["cell"] for r in sens]),
+            np.array([r["nearfield_change_m2"] for r in sens], dtype=np.float64),
+        ],
+    )
+    atomic_write_text(
+        out / "paper.md", paper_markdown(ours, near, checks, setup, sens, ff_whole.levels_m)
+    )
+    return {
+        "table_iv": {f"{k[0]}_{k[1]}": v for k, v in ours.items()},
+        "nearfield": near,
+        "checks": checks,
+        "sensitivity": sens,
+        "b_glare_whole_image": ff_whole.levels_m,
+    }
 
 
-def sensitivity_rows(systems: dict[str, System], setup: FarFieldSetup, net: RoadNetwork,
-                     ours: dict[tuple[str, str], dict[str, float]],
-                     nearfield_resolution_m: float = 0.25) -> list[dict[str, Any]]:
+def sensitivity_rows(
+    systems: dict[str, System],
+    setup: FarFieldSetup,
+    net: RoadNetwork,
+    ours: dict[tuple[str, str], dict[str, float]],
+    nearfield_resolution_m: float = 0.25,
+) -> list[dict[str, Any]]:
     """Each calibrated parameter (``analysis.sensitivity.KNOBS``) at both ends of its
     plausible range: the largest change of a Table IV cell against ``ours`` (m) and which
     cell, and the largest change of a blind-spot area (m2, grid of
@@ -178,51 +208,79 @@ def sensitivity_rows(systems: dict[str, System], setup: FarFieldSetup, net: Road
                 users.append(key)
                 if [x.mount for x in varied.sensors] != [x.mount for x in system.sensors]:
                     # the blind spots depend on the mounts and fields of view only
-                    near_d = max(near_d, abs(grid_blind_spots(
-                        varied, nearfield_resolution_m).area - base_near(key)))
+                    near_d = max(
+                        near_d,
+                        abs(grid_blind_spots(varied, nearfield_resolution_m).area - base_near(key)),
+                    )
                 for cond, env_name in CONDITIONS.items():
                     levels = run_farfield(varied, env_name, setup, net)[1].levels_m
                     for level, _ in LEVELS:
                         d = levels[level] - ours[(key, cond)][level]
                         if abs(d) > abs(worst):
                             worst, cell = d, f"{key} {cond} {level}"
-            rows.append({"parameter": knob.label, "value": value, "unit": knob.unit,
-                         "shipped": knob.shipped, "used_by": "/".join(users) or "none",
-                         "max_change_m": round(worst, 1), "cell": cell or "-",
-                         "nearfield_change_m2": round(near_d, 4)})
+            rows.append(
+                {
+                    "parameter": knob.label,
+                    "value": value,
+                    "unit": knob.unit,
+                    "shipped": knob.shipped,
+                    "used_by": "/".join(users) or "none",
+                    "max_change_m": round(worst, 1),
+                    "cell": cell or "-",
+                    "nearfield_change_m2": round(near_d, 4),
+                }
+            )
     return rows
 
 
-def qualitative_checks(ours: dict[tuple[str, str], dict[str, float]],
-                       near: dict[str, dict[str, Any]]) -> dict[str, bool]:
+def qualitative_checks(
+    ours: dict[tuple[str, str], dict[str, float]], near: dict[str, dict[str, Any]]
+) -> dict[str, bool]:
     """The paper's qualitative conclusions, evaluated on our numbers."""
-    a_n, b_n, a_g, b_g = (ours[("A", "normal")], ours[("B", "normal")], ours[("A", "glare")],
-                          ours[("B", "glare")])
+    a_n, b_n, a_g, b_g = (
+        ours[("A", "normal")],
+        ours[("B", "normal")],
+        ours[("A", "glare")],
+        ours[("B", "glare")],
+    )
     return {
-        "near field: B's blind-spot area < A's":
-            near["B"]["blind_spot_m2"]["exact"] < near["A"]["blind_spot_m2"]["exact"],
+        "near field: B's blind-spot area < A's": near["B"]["blind_spot_m2"]["exact"]
+        < near["A"]["blind_spot_m2"]["exact"],
         "normal: B >= A at Pd >= 0.5": b_n["pd>=0.5"] >= a_n["pd>=0.5"],
-        "glare: A unchanged (every level within 2 m)":
-            all(abs(a_g[k] - a_n[k]) <= 2.0 for k, _ in LEVELS),
+        "glare: A unchanged (every level within 2 m)": all(
+            abs(a_g[k] - a_n[k]) <= 2.0 for k, _ in LEVELS
+        ),
         "glare: B's Pd = 1.0 distance about 0 m (< 5 m)": b_g["pd=1.0"] < 5.0,
         "glare: B < A at Pd = 1.0, >= 0.8 and >= 0.5 (the paper: at every level; "
-        "Pd > 0 differs by our glare model)": all(b_g[k] < a_g[k] for k in
-                                                  ("pd=1.0", "pd>=0.8", "pd>=0.5")),
+        "Pd > 0 differs by our glare model)": all(
+            b_g[k] < a_g[k] for k in ("pd=1.0", "pd>=0.8", "pd>=0.5")
+        ),
     }
 
 
-def paper_markdown(ours: dict[tuple[str, str], dict[str, float]],
-                   near: dict[str, dict[str, Any]], checks: dict[str, bool],
-                   setup: FarFieldSetup, sens: list[dict[str, Any]] | None = None,
-                   whole_image: dict[str, float] | None = None) -> str:
+def paper_markdown(
+    ours: dict[tuple[str, str], dict[str, float]],
+    near: dict[str, dict[str, Any]],
+    checks: dict[str, bool],
+    setup: FarFieldSetup,
+    sens: list[dict[str, Any]] | None = None,
+    whole_image: dict[str, float] | None = None,
+) -> str:
     """paper.md: our numbers next to the paper's, per-cell differences, explanations."""
-    out = ["# sensorgap vs Ponn et al. 2019 (results section)", "",
-           "Generated by `sensorgap paper`. Models: docs/models.md; parameters and their "
-           "sources: templates/.", "", "## Table IV: cumulated path length per Pd level (m)", "",
-           f"Road `{setup.road}` (road {setup.road_id}), ego in lane {setup.ego_lane} at "
-           f"s = {setup.ego_s_m:g} m, target ({setup.target}) path on the centre of lane "
-           f"{setup.target_lane}, {setup.length_m:g} m ahead of the ego's front bumper, "
-           f"at the target's reference height. Tolerance +-{TABLE_IV_TOLERANCE_M:g} m.", ""]
+    out = [
+        "# sensorgap vs Ponn et al. 2019 (results section)",
+        "",
+        "Generated by `sensorgap paper`. Models: docs/models.md; parameters and their "
+        "sources: templates/.",
+        "",
+        "## Table IV: cumulated path length per Pd level (m)",
+        "",
+        f"Road `{setup.road}` (road {setup.road_id}), ego in lane {setup.ego_lane} at "
+        f"s = {setup.ego_s_m:g} m, target ({setup.target}) path on the centre of lane "
+        f"{setup.target_lane}, {setup.length_m:g} m ahead of the ego's front bumper, "
+        f"at the target's reference height. Tolerance +-{TABLE_IV_TOLERANCE_M:g} m.",
+        "",
+    ]
     header = ["level"] + [f"{k} {c}: ours / paper / diff" for k, c in ours]
     rows = []
     worst = 0.0
@@ -239,54 +297,98 @@ def paper_markdown(ours: dict[tuple[str, str], dict[str, float]],
             # the printed difference is that of the printed (rounded) values: they add up
             row.append(f"{o:.0f} / {p:.0f} / {float(f'{o:.0f}') - p:+.0f}{flag}")
         rows.append(row)
-    out += [_md_table(header, rows), "",
-            f"Largest difference: {worst:.0f} m "
-            f"({'within' if worst <= TABLE_IV_TOLERANCE_M else 'outside'} the tolerance), "
-            "not counting the cells marked (glare model).", ""]
+    out += [
+        _md_table(header, rows),
+        "",
+        f"Largest difference: {worst:.0f} m "
+        f"({'within' if worst <= TABLE_IV_TOLERANCE_M else 'outside'} the tolerance), "
+        "not counting the cells marked (glare model).",
+        "",
+    ]
     if whole_image is not None:
-        cells = ", ".join(f"{lab} {whole_image[lv]:.0f} m (paper "
-                          f"{PAPER_TABLE_IV[('B', 'glare')][lv]:.0f})"
-                          for lv, lab in LEVELS)
-        out += ["(glare model): the paper adds the sun's whole flux through the aperture "
-                "(eq. 10) to every pixel, so a camera the sun shines into sees nothing "
-                "anywhere in its image. sensorgap adds the veiling glare on the target's "
-                "image, falling with the target's angle from the sun (Stiles-Holladay, "
-                "docs/models.md): along the far part of the path, 15-30 deg from the sun, "
-                "B's cameras keep a small Pd, so B's Pd > 0 stretch is longer than the "
-                "paper's. With the paper's whole-image glare (veiling glare constant "
-                f"{WHOLE_IMAGE_VEIL_K:g} instead of 10) B under glare gives: {cells}.", ""]
+        cells = ", ".join(
+            f"{lab} {whole_image[lv]:.0f} m (paper {PAPER_TABLE_IV[('B', 'glare')][lv]:.0f})"
+            for lv, lab in LEVELS
+        )
+        out += [
+            "(glare model): the paper adds the sun's whole flux through the aperture "
+            "(eq. 10) to every pixel, so a camera the sun shines into sees nothing "
+            "anywhere in its image. sensorgap adds the veiling glare on the target's "
+            "image, falling with the target's angle from the sun (Stiles-Holladay, "
+            "docs/models.md): along the far part of the path, 15-30 deg from the sun, "
+            "B's cameras keep a small Pd, so B's Pd > 0 stretch is longer than the "
+            "paper's. With the paper's whole-image glare (veiling glare constant "
+            f"{WHOLE_IMAGE_VEIL_K:g} instead of 10) B under glare gives: {cells}.",
+            "",
+        ]
     out += ["## Near field: blind spots (m2)", ""]
     nrows: list[list[str]] = []
     for name, result in near.items():
         exact = result["blind_spot_m2"]["exact"]
         paper = PAPER_BLIND_SPOT_M2[name]
         rel = (exact - paper) / paper
-        nrows.append([name, f"{exact:.2f}", f"{paper:.2f}", f"{rel:+.0%}",
-                      f"{result['uncovered_0p1m_m2']['exact']:.2f}"])
-    out += [_md_table(["system", "blind spots, ours", "paper", "difference",
-                       "not covered at 0.1 m, ours"], nrows), "",
-            f"Tolerance +-{NEARFIELD_TOLERANCE:.0%}. The side cameras' aims (pitch of A's "
-            "mirror cameras, yaw of B's rear-facing fender cameras) are not given by the "
-            "paper: they were chosen to reproduce these areas (calibrated on Fig. 5; "
-            "docs/nearfield.md and the vehicle files' source notes), so this agreement too "
-            "shows reproduction, not prediction.", ""]
+        nrows.append(
+            [
+                name,
+                f"{exact:.2f}",
+                f"{paper:.2f}",
+                f"{rel:+.0%}",
+                f"{result['uncovered_0p1m_m2']['exact']:.2f}",
+            ]
+        )
+    out += [
+        _md_table(
+            ["system", "blind spots, ours", "paper", "difference", "not covered at 0.1 m, ours"],
+            nrows,
+        ),
+        "",
+        f"Tolerance +-{NEARFIELD_TOLERANCE:.0%}. The side cameras' aims (pitch of A's "
+        "mirror cameras, yaw of B's rear-facing fender cameras) are not given by the "
+        "paper: they were chosen to reproduce these areas (calibrated on Fig. 5; "
+        "docs/nearfield.md and the vehicle files' source notes), so this agreement too "
+        "shows reproduction, not prediction.",
+        "",
+    ]
     if sens:
-        out += ["## Sensitivity to the calibrated parameters", "",
-                "Seven global values were tuned to reproduce Table IV (docs/models.md, "
-                "'Calibrated values'). Each at the ends of its plausible range, the others as "
-                "shipped: the largest change of any Table IV cell (A/B, normal/glare) and of a "
-                "blind-spot area (0.25 m grid).", "",
-                _md_table(["parameter", "shipped", "set to", "used by", "largest Table IV "
-                           "change", "cell", "blind-spot change"],
-                          [[r["parameter"], _quantity(r["shipped"], r["unit"]),
-                            _quantity(r["value"], r["unit"]), r["used_by"],
-                            f"{r['max_change_m']:+.0f} m", r["cell"],
-                            f"{r['nearfield_change_m2']:.2f} m2"] for r in sens]), "",
-                "**Agreement with the paper shows that the model can reproduce it with "
-                "plausible parameters, not that it predicts it**: about eight global values "
-                "fit about twelve cells, and single values within their plausible ranges move "
-                "cells by as much as the table above shows. The near field (blind spots) is a "
-                "field-of-view property none of these values enters.", ""]
+        out += [
+            "## Sensitivity to the calibrated parameters",
+            "",
+            "Seven global values were tuned to reproduce Table IV (docs/models.md, "
+            "'Calibrated values'). Each at the ends of its plausible range, the others as "
+            "shipped: the largest change of any Table IV cell (A/B, normal/glare) and of a "
+            "blind-spot area (0.25 m grid).",
+            "",
+            _md_table(
+                [
+                    "parameter",
+                    "shipped",
+                    "set to",
+                    "used by",
+                    "largest Table IV change",
+                    "cell",
+                    "blind-spot change",
+                ],
+                [
+                    [
+                        r["parameter"],
+                        _quantity(r["shipped"], r["unit"]),
+                        _quantity(r["value"], r["unit"]),
+                        r["used_by"],
+                        f"{r['max_change_m']:+.0f} m",
+                        r["cell"],
+                        f"{r['nearfield_change_m2']:.2f} m2",
+                    ]
+                    for r in sens
+                ],
+            ),
+            "",
+            "**Agreement with the paper shows that the model can reproduce it with "
+            "plausible parameters, not that it predicts it**: about eight global values "
+            "fit about twelve cells, and single values within their plausible ranges move "
+            "cells by as much as the table above shows. The near field (blind spots) is a "
+            "field-of-view property none of these values enters.",
+            "",
+        ]
     out += ["## The paper's qualitative conclusions", ""]
     out += [f"- [{'x' if ok else ' '}] {name}" for name, ok in checks.items()]
     out += ["", "## Where and why we differ", "", *EXPLANATIONS, glare_note(ours), ""]
@@ -309,14 +411,18 @@ def glare_note(ours: dict[tuple[str, str], dict[str, float]]) -> str:
     diffs = {k: ours[("A", "glare")][k] - ours[("A", "normal")][k] for k, _ in LEVELS}
     changed = {k: d for k, d in diffs.items() if abs(d) > 0.05}
     if not changed:
-        return ("- Glare leaves A unchanged at every level, as in the paper: the sun from the "
-                "front right blinds A's front cameras, but the lidar and radars cover the whole "
-                "path (the lidar's 3.2 deg vertical field of view reaches the 0.75 m plane from "
-                "close in because it is mounted at 0.65 m, an estimate).")
+        return (
+            "- Glare leaves A unchanged at every level, as in the paper: the sun from the "
+            "front right blinds A's front cameras, but the lidar and radars cover the whole "
+            "path (the lidar's 3.2 deg vertical field of view reaches the 0.75 m plane from "
+            "close in because it is mounted at 0.65 m, an estimate)."
+        )
     listed = ", ".join(f"{k} {d:+.1f} m" for k, d in changed.items())
-    return (f"- Glare changes A by {listed}: where the path is seen with certainty only by a "
-            "camera the low sun from the front right blinds (outside the lidar's field of "
-            "view). The paper reports A unchanged.")
+    return (
+        f"- Glare changes A by {listed}: where the path is seen with certainty only by a "
+        "camera the low sun from the front right blinds (outside the lidar's field of "
+        "view). The paper reports A unchanged."
+    )
 
 
 EXPLANATIONS = [

@@ -51,12 +51,21 @@ KNOBS: tuple[Knob, ...] = (
     Knob("radar noise bandwidth", "noise_bandwidth_hz", "radar", 600e3, 200e3, 1e6, "Hz"),
     Knob("lidar receiver aperture", "receiver_diameter_m", "lidar", 0.010, 0.010, 0.025, "m"),
     Knob("lidar optics loss", "system_loss_db", "lidar", 3.5, 2.0, 5.0, "dB"),
-    Knob("camera exposure", "integration_time_s", "camera", 2e-4, 1e-5, 1e-2, "s",
-         (("noise_bandwidth_hz", lambda t: 1.0 / t),)),
+    Knob(
+        "camera exposure",
+        "integration_time_s",
+        "camera",
+        2e-4,
+        1e-5,
+        1e-2,
+        "s",
+        (("noise_bandwidth_hz", lambda t: 1.0 / t),),
+    ),
     Knob("camera/lidar ROC half width", "roc.half_width_db", None, 12.0, 3.0, 15.0, "dB"),
     Knob("radar/ultrasonic detection floor", "roc.floor_db", None, 7.5, 0.0, 10.0, "dB"),
-    Knob("System B radar antenna gains", "tx_gain_dbi+rx_gain_dbi", "radar", 22.0, 20.0,
-         30.0, "dBi"),
+    Knob(
+        "System B radar antenna gains", "tx_gain_dbi+rx_gain_dbi", "radar", 22.0, 20.0, 30.0, "dBi"
+    ),
 )
 
 
@@ -77,8 +86,11 @@ def vary(cfg: VehicleConfig, knob: Knob, value: float) -> tuple[VehicleConfig, i
     for name, dev in cfg.devices.items():
         data: dict[str, Any] = dev.model_dump()
         if knob.field == "roc.half_width_db":
-            if dev.roc is not None and dev.roc.kind == "smoothstep" and dev.type in (
-                    "camera", "lidar"):
+            if (
+                dev.roc is not None
+                and dev.roc.kind == "smoothstep"
+                and dev.type in ("camera", "lidar")
+            ):
                 data["roc"] = {**dev.roc.model_dump(), "half_width_db": value}
                 changed += 1
         elif dev.type == knob.device_type:
@@ -105,6 +117,12 @@ def with_camera_field(system: System, field: str, value: float) -> System:
     """The system rebuilt with ``field`` set to ``value`` on every camera device (e.g. the
     paper's whole-image glare: ``veiling_glare_k`` at its largest value)."""
     cfg = system.config
-    devices = {name: (DeviceConfig.model_validate({**dev.model_dump(), field: float(value)})
-                      if dev.type == "camera" else dev) for name, dev in cfg.devices.items()}
+    devices = {
+        name: (
+            DeviceConfig.model_validate({**dev.model_dump(), field: float(value)})
+            if dev.type == "camera"
+            else dev
+        )
+        for name, dev in cfg.devices.items()
+    }
     return build_system(cfg.model_copy(update={"devices": devices}), system.source)

@@ -39,8 +39,7 @@ def _name_chars(v: str) -> str:
 
 
 #: A user-given name: 1-64 characters from ``NAME_CHARS``.
-Name = Annotated[str, Field(min_length=1, max_length=MAX_NAME_CHARS),
-                 AfterValidator(_name_chars)]
+Name = Annotated[str, Field(min_length=1, max_length=MAX_NAME_CHARS), AfterValidator(_name_chars)]
 
 
 class Strict(BaseModel):
@@ -54,8 +53,11 @@ class Strict(BaseModel):
 #: digits with an optional point, optional exponent; no '_' digit separators (Python's
 #: ``float('1_000')`` accepts them), no inner spaces. 'nan' and 'inf' are read as such, so
 #: that the option's own check names the allowed range.
-_DECIMAL = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?"
-                      r"|[+-]?(?:nan|inf|infinity)", re.IGNORECASE)
+_DECIMAL = re.compile(
+    r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?"
+    r"|[+-]?(?:nan|inf|infinity)",
+    re.IGNORECASE,
+)
 _INTEGER = re.compile(r"[+-]?[0-9]+")
 
 

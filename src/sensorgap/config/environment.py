@@ -26,7 +26,10 @@ class SunConfig(Strict):
         default=True, description="Sun disc visible (clear sky); False under overcast/fog"
     )
     direct_irradiance_w_m2: float = Field(
-        default=480.0, ge=0.0, le=1.0e4, allow_inf_nan=False,
+        default=480.0,
+        ge=0.0,
+        le=1.0e4,
+        allow_inf_nan=False,
         description="Direct-normal irradiance in the camera band, W/m2 (for glare, eq. 10)",
     )
 
@@ -50,24 +53,41 @@ class EnvironmentConfig(Strict):
     snow_mm_h: float = Field(default=0.0, ge=0.0, le=100.0, allow_inf_nan=False)
     snow_wet: bool = False
     visibility_m: float = Field(
-        default=23000.0, ge=1.0, le=1.0e6, allow_inf_nan=False,
+        default=23000.0,
+        ge=1.0,
+        le=1.0e6,
+        allow_inf_nan=False,
         description="Meteorological optical range, m (23 km = standard clear air)",
     )
     fog_lwc_g_m3: float | None = Field(
-        default=None, ge=0.0, le=5.0, allow_inf_nan=False,
+        default=None,
+        ge=0.0,
+        le=5.0,
+        allow_inf_nan=False,
         description="Fog liquid water content, g/m3; default derived from visibility (Kunkel 1984)",
     )
     temperature_c: float = Field(default=15.0, ge=-60.0, le=60.0, allow_inf_nan=False)
     relative_humidity_pct: float = Field(default=50.0, ge=0.0, le=100.0, allow_inf_nan=False)
-    pressure_hpa: float = Field(default=1013.25, ge=500.0, le=1100.0, allow_inf_nan=False,
-                                description="Total barometric pressure (roads: ~500-1100), hPa")
+    pressure_hpa: float = Field(
+        default=1013.25,
+        ge=500.0,
+        le=1100.0,
+        allow_inf_nan=False,
+        description="Total barometric pressure (roads: ~500-1100), hPa",
+    )
     water_vapour_g_m3: float = Field(default=7.5, ge=0.0, le=50.0, allow_inf_nan=False)
     irradiance_w_m2: float = Field(
-        default=534.0, ge=0.0, le=1.0e4, allow_inf_nan=False,
+        default=534.0,
+        ge=0.0,
+        le=1.0e4,
+        allow_inf_nan=False,
         description="Irradiance on objects in the camera band (E_sun of eq. 6), W/m2",
     )
     roc_shift_db: float = Field(
-        default=0.0, ge=-100.0, le=100.0, allow_inf_nan=False,
+        default=0.0,
+        ge=-100.0,
+        le=100.0,
+        allow_inf_nan=False,
         description="SNR penalty of the ROC in this weather (paper: curves shifted), dB",
     )
     sun: SunConfig | None = None

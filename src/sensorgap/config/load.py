@@ -62,8 +62,11 @@ def read_toml(path: Path) -> dict[str, Any]:
     except RecursionError:
         data = None
     if data is None or toml_depth(data) > MAX_TOML_DEPTH:
-        raise InputError(path, "", f"tables and arrays nested too deeply; at most "
-                         f"{MAX_TOML_DEPTH} levels allowed")
+        raise InputError(
+            path,
+            "",
+            f"tables and arrays nested too deeply; at most {MAX_TOML_DEPTH} levels allowed",
+        )
     return data
 
 
@@ -73,7 +76,7 @@ def short(value: object) -> str:
     text = repr(value)
     if len(text) <= MAX_QUOTED_CHARS:
         return text
-    return f"{text[:MAX_QUOTED_CHARS - 20]}... ({len(text)} characters)"
+    return f"{text[: MAX_QUOTED_CHARS - 20]}... ({len(text)} characters)"
 
 
 def _loc(loc: tuple[int | str, ...]) -> str:
@@ -83,8 +86,7 @@ def _loc(loc: tuple[int | str, ...]) -> str:
             out += f"[{part}]"
         else:
             part = str(part)
-            out += ("." if out else "") + (part if len(part) <= MAX_QUOTED_CHARS
-                                           else short(part))
+            out += ("." if out else "") + (part if len(part) <= MAX_QUOTED_CHARS else short(part))
     return out
 
 
@@ -148,8 +150,12 @@ def load_vehicle(name_or_path: str | Path) -> tuple[VehicleConfig, Path]:
 
         names = reaction_presets()
         if reaction not in names:
-            raise InputError(path, "reaction", f"unknown reaction model {reaction[:64]!r}; "
-                             f"presets: {', '.join(names)} (or a path to a .toml file)")
+            raise InputError(
+                path,
+                "reaction",
+                f"unknown reaction model {reaction[:64]!r}; "
+                f"presets: {', '.join(names)} (or a path to a .toml file)",
+            )
     return cfg, path
 
 
@@ -158,9 +164,7 @@ def environments_path() -> Path:
     return templates_dir() / "environments.toml"
 
 
-def _named_tables(
-    model: type[M], path: Path, key: str
-) -> dict[str, M]:
+def _named_tables(model: type[M], path: Path, key: str) -> dict[str, M]:
     data = read_toml(path)
     tables = data.get(key)
     if not isinstance(tables, dict) or not tables:
@@ -186,8 +190,9 @@ def load_environment(name: str, path: Path | None = None) -> EnvironmentConfig:
     """One environment preset by name; unknown names list what is allowed."""
     envs = load_environments(path)
     if name not in envs:
-        raise InputError("environment", "", f"unknown environment {name!r}; presets: "
-                         f"{', '.join(envs)}")
+        raise InputError(
+            "environment", "", f"unknown environment {name!r}; presets: {', '.join(envs)}"
+        )
     return envs[name]
 
 
@@ -200,6 +205,5 @@ def load_target(name: str, path: Path | None = None) -> TargetConfig:
     """One target class by name."""
     targets = load_targets(path)
     if name not in targets:
-        raise InputError("target", "", f"unknown target {name!r}; allowed: "
-                         f"{', '.join(targets)}")
+        raise InputError("target", "", f"unknown target {name!r}; allowed: {', '.join(targets)}")
     return targets[name]

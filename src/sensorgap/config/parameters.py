@@ -30,18 +30,30 @@ PARAMETER_BOUNDS: dict[str, Bound] = {
     # + 2 SD. The shortest means reported are 1.25 s and 1.95 s (an early study reviewed by
     # Toledo & Zohar 2007, "Modeling duration of lane changes", TRR 1999), and about 1.5 s
     # to execute the change (Finnegan & Green 1990, UMTRI-90-34): 1 s is below any of them.
-    "lc_duration_s": Bound(1.0, 10.0, "s", "lane changes take 1-10 s: Olsen et al. 2002, "
-                           "6.28 +- 2.0 s; Toledo & Zohar 2007"),
+    "lc_duration_s": Bound(
+        1.0,
+        10.0,
+        "s",
+        "lane changes take 1-10 s: Olsen et al. 2002, 6.28 +- 2.0 s; Toledo & Zohar 2007",
+    ),
 }
 
 
 #: Bounds by unit suffix, for parameters without their own entry (any family's, plugins'
 #: included): a speed of a road user, m/s, and a distance or position along the road, m.
 SUFFIX_BOUNDS: dict[str, Bound] = {
-    "_speed_m_s": Bound(0.0, 100.0, "m/s", "road users move forwards at up to 360 km/h; "
-                        "estimate: above any road vehicle's top speed"),
-    "_m": Bound(-10_000.0, 10_000.0, "m", "a scene within 10 km of the ego: the largest "
-                "sensor range, docs/limits.md"),
+    "_speed_m_s": Bound(
+        0.0,
+        100.0,
+        "m/s",
+        "road users move forwards at up to 360 km/h; estimate: above any road vehicle's top speed",
+    ),
+    "_m": Bound(
+        -10_000.0,
+        10_000.0,
+        "m",
+        "a scene within 10 km of the ego: the largest sensor range, docs/limits.md",
+    ),
 }
 
 
@@ -60,6 +72,5 @@ def bound_error(name: str, value: float) -> str | None:
     if b is None:
         return None
     if not (math.isfinite(value) and b.low <= value <= b.high):
-        return (f"must be within {b.low:g}..{b.high:g} {b.unit} ({b.source}), "
-                f"got {value:g}")
+        return f"must be within {b.low:g}..{b.high:g} {b.unit} ({b.source}), got {value:g}"
     return None

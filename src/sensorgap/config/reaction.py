@@ -71,27 +71,41 @@ class ReactionConfig(Strict):
     description: str = ""
     confirm_m: int = Field(ge=1, le=12, description="M of the M-of-N confirmation, cycles")
     confirm_n: int = Field(ge=1, le=12, description="N of the M-of-N confirmation, cycles")
-    latency_s: float = Field(ge=0.0, le=10.0, allow_inf_nan=False,
-                             description="Confirmation (or threat onset) to brake onset, s")
-    jerk_m_s3: float = Field(ge=0.1, le=1000.0, allow_inf_nan=False,
-                             description="Brake ramp, m/s3")
-    decel_max_m_s2: float = Field(gt=0.0, le=20.0, allow_inf_nan=False,
-                                  description="Deceleration limit before friction, m/s2")
+    latency_s: float = Field(
+        ge=0.0,
+        le=10.0,
+        allow_inf_nan=False,
+        description="Confirmation (or threat onset) to brake onset, s",
+    )
+    jerk_m_s3: float = Field(ge=0.1, le=1000.0, allow_inf_nan=False, description="Brake ramp, m/s3")
+    decel_max_m_s2: float = Field(
+        gt=0.0, le=20.0, allow_inf_nan=False, description="Deceleration limit before friction, m/s2"
+    )
     confirm_with: tuple[SensorType, ...] = Field(
-        min_length=1, description="Sensor types whose detections confirm a target")
-    threat_margin_m: float = Field(ge=0.0, le=10.0, allow_inf_nan=False,
-                                   description="Lateral widening of the threat test, m")
-    threat_horizon_s: float = Field(gt=0.0, le=30.0, allow_inf_nan=False,
-                                    description="Planned path ahead in the threat test, s")
-    threat_prediction_s: float = Field(0.0, ge=0.0, le=5.0, allow_inf_nan=False,
-                                       description="Lateral prediction in the threat test, s")
+        min_length=1, description="Sensor types whose detections confirm a target"
+    )
+    threat_margin_m: float = Field(
+        ge=0.0, le=10.0, allow_inf_nan=False, description="Lateral widening of the threat test, m"
+    )
+    threat_horizon_s: float = Field(
+        gt=0.0, le=30.0, allow_inf_nan=False, description="Planned path ahead in the threat test, s"
+    )
+    threat_prediction_s: float = Field(
+        0.0,
+        ge=0.0,
+        le=5.0,
+        allow_inf_nan=False,
+        description="Lateral prediction in the threat test, s",
+    )
     sources: dict[str, str] = Field(default_factory=dict)
 
     def label(self) -> str:
         """Short text for settings and reports."""
-        return (f"{self.name}: {self.confirm_m}/{self.confirm_n} confirmation by "
-                f"{'/'.join(self.confirm_with)}, latency {self.latency_s:g} s, "
-                f"{self.decel_max_m_s2:g} m/s2 (jerk {self.jerk_m_s3:g} m/s3)")
+        return (
+            f"{self.name}: {self.confirm_m}/{self.confirm_n} confirmation by "
+            f"{'/'.join(self.confirm_with)}, latency {self.latency_s:g} s, "
+            f"{self.decel_max_m_s2:g} m/s2 (jerk {self.jerk_m_s3:g} m/s3)"
+        )
 
 
 def reactions_path() -> Path:
@@ -111,8 +125,9 @@ def reaction_presets() -> list[str]:
     return list(_tables(reactions_path()))
 
 
-def load_reaction(name_or_path: str | Path | None = None,
-                  presets: Path | None = None) -> ReactionConfig:
+def load_reaction(
+    name_or_path: str | Path | None = None, presets: Path | None = None
+) -> ReactionConfig:
     """A reaction model: None gives ``DEFAULT_REACTION``; a preset name of
     ``templates/reactions.toml``; or a path to a TOML file of the same layout (its first
     ``[reactions.<name>]`` table). ``presets``: the file a name is looked up in instead of
@@ -128,8 +143,12 @@ def load_reaction(name_or_path: str | Path | None = None,
     if name is None:
         name = next(iter(data))
     if name not in data:
-        raise InputError(path, "reactions", f"unknown reaction model {name!r}; presets: "
-                         f"{', '.join(data)} (or give a path to a .toml file)")
+        raise InputError(
+            path,
+            "reactions",
+            f"unknown reaction model {name!r}; presets: "
+            f"{', '.join(data)} (or give a path to a .toml file)",
+        )
     raw = data[name]
     if not isinstance(raw, dict):
         raise InputError(path, f"reactions.{name}", "must be a table")
@@ -138,32 +157,43 @@ def load_reaction(name_or_path: str | Path | None = None,
         allowed = get_args(SensorType)
         for i, v in enumerate(raw["confirm_with"]):  # one line per file, not pydantic's two
             if v not in allowed:
-                raise InputError(path, f"reactions.{name}.confirm_with[{i}]",
-                                 f"unknown sensor type {str(v)[:80]!r}; allowed: "
-                                 f"{', '.join(allowed)}")
+                raise InputError(
+                    path,
+                    f"reactions.{name}.confirm_with[{i}]",
+                    f"unknown sensor type {str(v)[:80]!r}; allowed: {', '.join(allowed)}",
+                )
         raw["confirm_with"] = tuple(raw["confirm_with"])
     try:
         cfg = ReactionConfig.model_validate({"name": name, **raw})
     except ValidationError as exc:
         raise validation_to_input_error(path, exc, prefix=f"reactions.{name}") from None
     if cfg.confirm_m > cfg.confirm_n:
-        raise InputError(path, f"reactions.{name}.confirm_m",
-                         f"must be <= confirm_n ({cfg.confirm_n}), got {cfg.confirm_m}")
+        raise InputError(
+            path,
+            f"reactions.{name}.confirm_m",
+            f"must be <= confirm_n ({cfg.confirm_n}), got {cfg.confirm_m}",
+        )
     if len(set(cfg.confirm_with)) != len(cfg.confirm_with):
         raise InputError(path, f"reactions.{name}.confirm_with", "lists a sensor type twice")
     for key in ReactionConfig.model_fields:
-        if key in _NOT_PARAMETERS or (key not in cfg.model_fields_set
-                                      and ReactionConfig.model_fields[key].default is not None
-                                      and not ReactionConfig.model_fields[key].is_required()):
+        if key in _NOT_PARAMETERS or (
+            key not in cfg.model_fields_set
+            and ReactionConfig.model_fields[key].default is not None
+            and not ReactionConfig.model_fields[key].is_required()
+        ):
             continue  # an optional parameter left at its default needs no source
         if not cfg.sources.get(key, "").strip():
-            raise InputError(path, f"reactions.{name}.sources.{key}",
-                             "missing source: name the standard, paper or data sheet, or "
-                             "write 'estimate: <why>'")
+            raise InputError(
+                path,
+                f"reactions.{name}.sources.{key}",
+                "missing source: name the standard, paper or data sheet, or "
+                "write 'estimate: <why>'",
+            )
     unknown = sorted(set(cfg.sources) - set(ReactionConfig.model_fields))
     if unknown:
-        raise InputError(path, f"reactions.{name}.sources.{unknown[0]}",
-                         "source for an unknown parameter")
+        raise InputError(
+            path, f"reactions.{name}.sources.{unknown[0]}", "source for an unknown parameter"
+        )
     return cfg
 
 
@@ -192,18 +222,27 @@ def load_friction(path: Path | None = None) -> dict[str, float]:
         raise InputError(path, "friction.sources", "must be a table")
     unknown = sorted(set(data) - {*ROAD_CONDITIONS, "sources"})
     if unknown:
-        raise InputError(path, f"friction.{unknown[0]}",
-                         f"unknown road condition; allowed: {', '.join(ROAD_CONDITIONS)}")
+        raise InputError(
+            path,
+            f"friction.{unknown[0]}",
+            f"unknown road condition; allowed: {', '.join(ROAD_CONDITIONS)}",
+        )
     out: dict[str, float] = {}
     for cond in ROAD_CONDITIONS:
         v = data.get(cond)
         if isinstance(v, bool) or not isinstance(v, int | float) or not 0.0 < float(v) <= 2.0:
-            raise InputError(path, f"friction.{cond}",
-                             f"must be a number in (0, 2] (peak friction coefficient), got {v!r}")
+            raise InputError(
+                path,
+                f"friction.{cond}",
+                f"must be a number in (0, 2] (peak friction coefficient), got {v!r}",
+            )
         src = sources.get(cond)
         if not isinstance(src, str) or not src.strip():
-            raise InputError(path, f"friction.sources.{cond}",
-                             "missing source: name the reference, or write 'estimate: <why>'")
+            raise InputError(
+                path,
+                f"friction.sources.{cond}",
+                "missing source: name the reference, or write 'estimate: <why>'",
+            )
         out[cond] = float(v)
     return out
 

@@ -18,17 +18,22 @@ class TargetConfig(Strict):
     name: Name
     description: str = ""
     rcs_m2: float = Field(
-        ge=1.0e-6, le=1.0e4, allow_inf_nan=False,
-        description="Cross-section for active sensors, m2 (paper Sec. III)")
+        ge=1.0e-6,
+        le=1.0e4,
+        allow_inf_nan=False,
+        description="Cross-section for active sensors, m2 (paper Sec. III)",
+    )
     camera_cross_section_m2: float = Field(
-        ge=1.0e-6, le=1.0e3, allow_inf_nan=False,
-        description="Geometric cross-section, m2 (paper)")
+        ge=1.0e-6, le=1.0e3, allow_inf_nan=False, description="Geometric cross-section, m2 (paper)"
+    )
     length_m: float = Field(ge=0.01, le=50.0, allow_inf_nan=False)
     width_m: float = Field(ge=0.01, le=10.0, allow_inf_nan=False)
     height_m: float = Field(ge=0.01, le=10.0, allow_inf_nan=False)
     reference_height_m: float = Field(
-        ge=0.0, le=10.0, allow_inf_nan=False,
-        description="Height at which coverage is evaluated for this class, m"
+        ge=0.0,
+        le=10.0,
+        allow_inf_nan=False,
+        description="Height at which coverage is evaluated for this class, m",
     )
     lidar_reflectance: float = Field(
         ge=1.0e-6, le=1.0, description="Diffuse reflectance at the lidar wavelength (extended law)"
@@ -36,14 +41,21 @@ class TargetConfig(Strict):
     camera_reflectance: float = Field(
         ge=1.0e-6, le=1.0, description="Diffuse reflectance in the camera band (rho/pi term)"
     )
-    max_speed_m_s: float = Field(default=70.0, ge=0.1, le=150.0, allow_inf_nan=False,
-                                 description="Upper bound for trajectories, m/s")
+    max_speed_m_s: float = Field(
+        default=70.0,
+        ge=0.1,
+        le=150.0,
+        allow_inf_nan=False,
+        description="Upper bound for trajectories, m/s",
+    )
     sources: dict[str, str] = Field(default_factory=dict)
 
     @model_validator(mode="after")
     def _reference_on_body(self) -> TargetConfig:
         if self.reference_height_m > self.height_m:
-            raise ValueError(f"reference_height_m ({self.reference_height_m:g} m) must not "
-                             f"exceed height_m ({self.height_m:g} m): coverage is evaluated "
-                             "at a height on the target's body")
+            raise ValueError(
+                f"reference_height_m ({self.reference_height_m:g} m) must not "
+                f"exceed height_m ({self.height_m:g} m): coverage is evaluated "
+                "at a height on the target's body"
+            )
         return self

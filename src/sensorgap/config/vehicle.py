@@ -43,9 +43,7 @@ class RocConfig(Strict):
     @model_validator(mode="after")
     def _albersheim_range(self) -> RocConfig:
         if self.kind == "albersheim" and not (1e-7 <= self.pfa <= 1e-3):
-            raise ValueError(
-                f"albersheim is valid for 1e-7 <= pfa <= 1e-3 only, got {self.pfa:g}"
-            )
+            raise ValueError(f"albersheim is valid for 1e-7 <= pfa <= 1e-3 only, got {self.pfa:g}")
         return self
 
 
@@ -82,8 +80,12 @@ class MountConfig(Strict):
     hfov_deg: float = Field(gt=0.0, le=360.0, allow_inf_nan=False)
     vfov_deg: float = Field(gt=0.0, le=180.0, allow_inf_nan=False)
     min_range_m: float = Field(default=0.0, ge=0.0, le=MAX_RANGE_M, allow_inf_nan=False)
-    max_range_m: float = Field(ge=0.01, le=MAX_RANGE_M, allow_inf_nan=False,
-                               description="Detection range limit, m (at most 10 km)")
+    max_range_m: float = Field(
+        ge=0.01,
+        le=MAX_RANGE_M,
+        allow_inf_nan=False,
+        description="Detection range limit, m (at most 10 km)",
+    )
     source: str = Field(description="Where pose, field of view and range come from")
 
     @field_validator("position_m")
@@ -158,9 +160,12 @@ class VehicleConfig(Strict):
     schema_version: Literal[1] = 1
     vehicle: BodyConfig
     reaction: str = Field(
-        default="ads_default", min_length=1, max_length=200,
+        default="ads_default",
+        min_length=1,
+        max_length=200,
         description="Reaction model of the vehicle under test: a preset of "
-                    "templates/reactions.toml or a path to a TOML file with one")
+        "templates/reactions.toml or a path to a TOML file with one",
+    )
     roc: RocConfig = Field(default_factory=RocConfig)
     devices: dict[str, DeviceConfig] = Field(max_length=MAX_SENSORS)
     sensors: list[MountConfig] = Field(min_length=1, max_length=MAX_SENSORS)

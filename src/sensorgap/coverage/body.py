@@ -60,8 +60,12 @@ HEIGHT_FRACTIONS = (0.25, 0.75)
 #: on its surface).
 EGO_SHRINK_M = 0.05
 #: Minimum visible fraction of the facing outline per sensor type (see the module text).
-MIN_VISIBLE_FRACTION: dict[str, float] = {"camera": 0.5, "lidar": 0.1, "radar": 0.0,
-                                          "ultrasonic": 0.0}
+MIN_VISIBLE_FRACTION: dict[str, float] = {
+    "camera": 0.5,
+    "lidar": 0.1,
+    "radar": 0.0,
+    "ultrasonic": 0.0,
+}
 #: For sensor types not listed above.
 DEFAULT_MIN_VISIBLE_FRACTION = 0.0
 #: Skip poses whose outline cannot reach a sensor's range or horizontal field of view
@@ -93,9 +97,12 @@ class BodySamples:
 def _samples(length: float, width: float, height: float) -> BodySamples:
     xs, ys, nxs, nys = [], [], [], []
     hl, hw = 0.5 * length, 0.5 * width
-    for (cx, cy, nx, ny, span, along_x) in (
-            (hl, 0.0, 1.0, 0.0, width, False), (-hl, 0.0, -1.0, 0.0, width, False),
-            (0.0, hw, 0.0, 1.0, length, True), (0.0, -hw, 0.0, -1.0, length, True)):
+    for cx, cy, nx, ny, span, along_x in (
+        (hl, 0.0, 1.0, 0.0, width, False),
+        (-hl, 0.0, -1.0, 0.0, width, False),
+        (0.0, hw, 0.0, 1.0, length, True),
+        (0.0, -hw, 0.0, -1.0, length, True),
+    ):
         k = max(1, math.ceil(span / SPACING_M))
         u = (np.arange(k) + 0.5) / k * span - 0.5 * span
         xs.append(cx + (u if along_x else 0.0 * u))
@@ -106,8 +113,7 @@ def _samples(length: float, width: float, height: float) -> BodySamples:
     bnx, bny = np.concatenate(nxs), np.concatenate(nys)
     nh = len(HEIGHT_FRACTIONS)
     z = np.repeat(np.asarray(HEIGHT_FRACTIONS) * height, bx.size)
-    return BodySamples(np.tile(bx, nh), np.tile(by, nh), z, np.tile(bnx, nh),
-                       np.tile(bny, nh))
+    return BodySamples(np.tile(bx, nh), np.tile(by, nh), z, np.tile(bnx, nh), np.tile(bny, nh))
 
 
 def body_samples(target: TargetConfig) -> BodySamples:
@@ -124,14 +130,16 @@ def _ego_box(scene: Scene) -> tuple[F64, F64]:
     """The ego's box shrunk by ``EGO_SHRINK_M``: (lo, hi) corners, vehicle frame, m."""
     v = scene.system.config.vehicle
     lo = np.array([v.x_rear_m + EGO_SHRINK_M, -0.5 * v.width_m + EGO_SHRINK_M, EGO_SHRINK_M])
-    hi = np.array([v.x_front_m - EGO_SHRINK_M, 0.5 * v.width_m - EGO_SHRINK_M,
-                   v.height_m - EGO_SHRINK_M])
+    hi = np.array(
+        [v.x_front_m - EGO_SHRINK_M, 0.5 * v.width_m - EGO_SHRINK_M, v.height_m - EGO_SHRINK_M]
+    )
     return lo, hi
 
 
 @numba.njit(cache=True, nogil=True)
-def _hidden_by_box(ox: float, oy: float, oz: float, px: float, py: float, pz: float,
-                   lo: F64, hi: F64) -> bool:  # pragma: no cover - compiled
+def _hidden_by_box(
+    ox: float, oy: float, oz: float, px: float, py: float, pz: float, lo: F64, hi: F64
+) -> bool:  # pragma: no cover - compiled
     """True when the segment from ``o`` (a sensor's mount) to ``p`` (a sample) passes
     through the axis-aligned box ``lo``..``hi`` (the ego's own body; slab test), m."""
     o = (ox, oy, oz)
@@ -151,9 +159,18 @@ def _hidden_by_box(ox: float, oy: float, oz: float, px: float, py: float, pz: fl
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _sample_in_view(x: float, y: float, z: float, nx: float, ny: float, mount: F64,
-                    lo: F64, hi: F64, check_ego: bool,
-                    prefilter: bool) -> int:  # pragma: no cover - compiled
+def _sample_in_view(
+    x: float,
+    y: float,
+    z: float,
+    nx: float,
+    ny: float,
+    mount: F64,
+    lo: F64,
+    hi: F64,
+    check_ego: bool,
+    prefilter: bool,
+) -> int:  # pragma: no cover - compiled
     """One sample for one sensor (``_view_kernel``'s tests without the occluders): 0 not
     facing the mount, 1 facing but out of view (loose field-of-view and range test, the
     ego's own box), 2 facing and in view."""
@@ -190,10 +207,22 @@ def _sample_in_view(x: float, y: float, z: float, nx: float, ny: float, mount: F
 
 
 @numba.njit(cache=True, nogil=True)
-def _view_kernel(px: F64, py: F64, pz: F64, nx: F64, ny: F64, near: NDArray[np.int64],
-                 mount: F64, lo: F64, hi: F64, check_ego: bool, prefilter: bool,
-                 occ: F64, flat: NDArray[np.int64],
-                 n_face: NDArray[np.int64]) -> int:  # pragma: no cover - compiled
+def _view_kernel(
+    px: F64,
+    py: F64,
+    pz: F64,
+    nx: F64,
+    ny: F64,
+    near: NDArray[np.int64],
+    mount: F64,
+    lo: F64,
+    hi: F64,
+    check_ego: bool,
+    prefilter: bool,
+    occ: F64,
+    flat: NDArray[np.int64],
+    n_face: NDArray[np.int64],
+) -> int:  # pragma: no cover - compiled
     """The samples of the ``near`` poses of (N, K) arrays that one sensor may see: facing
     its mount, not behind the ego's box (``_hidden_by_box``), passing a slightly loose
     field-of-view and range test (the exact test follows in ``sensor_snr``; the slack only
@@ -216,11 +245,25 @@ def _view_kernel(px: F64, py: F64, pz: F64, nx: F64, ny: F64, near: NDArray[np.i
             if nx[i, j] * (mx - px[i, j]) + ny[i, j] * (my - py[i, j]) <= 0.0:
                 continue
             nf += 1
-            if occ.shape[1] and hidden_by_boxes(mx, my, mz, px[i, j], py[i, j], pz[i, j],
-                                                occ[i if occ.shape[0] > 1 else 0]):
+            if occ.shape[1] and hidden_by_boxes(
+                mx, my, mz, px[i, j], py[i, j], pz[i, j], occ[i if occ.shape[0] > 1 else 0]
+            ):
                 continue
-            if _sample_in_view(px[i, j], py[i, j], pz[i, j], nx[i, j], ny[i, j], mount,
-                               lo, hi, check_ego, prefilter) != 2:
+            if (
+                _sample_in_view(
+                    px[i, j],
+                    py[i, j],
+                    pz[i, j],
+                    nx[i, j],
+                    ny[i, j],
+                    mount,
+                    lo,
+                    hi,
+                    check_ego,
+                    prefilter,
+                )
+                != 2
+            ):
                 continue
             flat[m] = q * k + j
             m += 1
@@ -229,8 +272,9 @@ def _view_kernel(px: F64, py: F64, pz: F64, nx: F64, ny: F64, near: NDArray[np.i
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _pose_near(cx: float, cy: float, rad: float, mount: F64, hfov: float, pitch: float,
-               cull: bool) -> bool:  # pragma: no cover - compiled
+def _pose_near(
+    cx: float, cy: float, rad: float, mount: F64, hfov: float, pitch: float, cull: bool
+) -> bool:  # pragma: no cover - compiled
     """``_near_poses`` for one pose (centre ``cx``, ``cy``, outline radius ``rad``, m) and
     one sensor (``mount``: the ``_mount_row``, its full ``hfov`` and ``pitch``, rad)."""
     if not cull:
@@ -252,10 +296,25 @@ def _pose_near(cx: float, cy: float, rad: float, mount: F64, hfov: float, pitch:
 
 
 @numba.njit(cache=True, nogil=True)
-def _changes_kernel(px: F64, py: F64, pz: F64, nx: F64, ny: F64, cx: F64, cy: F64,
-                    rad: float, mount: F64, hfov: float, pitch: float, cull: bool, lo: F64,
-                    hi: F64, check_ego: bool, occ: F64,
-                    out: NDArray[np.bool_]) -> None:  # pragma: no cover - compiled
+def _changes_kernel(
+    px: F64,
+    py: F64,
+    pz: F64,
+    nx: F64,
+    ny: F64,
+    cx: F64,
+    cy: F64,
+    rad: float,
+    mount: F64,
+    hfov: float,
+    pitch: float,
+    cull: bool,
+    lo: F64,
+    hi: F64,
+    check_ego: bool,
+    occ: F64,
+    out: NDArray[np.bool_],
+) -> None:  # pragma: no cover - compiled
     """Marks in ``out`` the poses (not yet marked) where an occluder of ``occ`` ((N, M, 7)
     or (1, M, 7)) hides at least one sample that one sensor would otherwise see
     (``_sample_in_view`` with the loose prefilter): one pass, stopping at the first;
@@ -274,8 +333,12 @@ def _changes_kernel(px: F64, py: F64, pz: F64, nx: F64, ny: F64, cx: F64, cy: F6
                 continue
             if not hidden_by_boxes(mx, my, mz, px[i, j], py[i, j], pz[i, j], boxes):
                 continue
-            if _sample_in_view(px[i, j], py[i, j], pz[i, j], nx[i, j], ny[i, j], mount,
-                               lo, hi, check_ego, True) == 2:
+            if (
+                _sample_in_view(
+                    px[i, j], py[i, j], pz[i, j], nx[i, j], ny[i, j], mount, lo, hi, check_ego, True
+                )
+                == 2
+            ):
                 out[i] = True
                 break
 
@@ -286,9 +349,22 @@ BodyPoints = tuple[F64, F64, F64, F64, F64]
 
 
 @numba.njit(cache=True, nogil=True)
-def _points_kernel(x: F64, y: F64, cos: F64, sin: F64, bx: F64, by: F64, bz: F64,
-                   bnx: F64, bny: F64, px: F64, py: F64, pz: F64, nx: F64,
-                   ny: F64) -> None:  # pragma: no cover - compiled
+def _points_kernel(
+    x: F64,
+    y: F64,
+    cos: F64,
+    sin: F64,
+    bx: F64,
+    by: F64,
+    bz: F64,
+    bnx: F64,
+    bny: F64,
+    px: F64,
+    py: F64,
+    pz: F64,
+    nx: F64,
+    ny: F64,
+) -> None:  # pragma: no cover - compiled
     """Fills the (N, K) sample positions and normals of N poses (``body_points``; the
     same operations in the same order as the numpy expressions it replaced)."""
     for i in range(x.size):
@@ -312,8 +388,9 @@ def body_points(body: BodySamples, x: F64, y: F64, psi: F64) -> BodyPoints:
     x, y, psi = (np.ascontiguousarray(a, dtype=np.float64).ravel() for a in (x, y, psi))
     shape = (x.size, len(body))
     px, py, pz, nx, ny = (np.empty(shape) for _ in range(5))
-    _points_kernel(x, y, np.cos(psi), np.sin(psi), body.x, body.y, body.z, body.nx, body.ny,
-                   px, py, pz, nx, ny)
+    _points_kernel(
+        x, y, np.cos(psi), np.sin(psi), body.x, body.y, body.z, body.nx, body.ny, px, py, pz, nx, ny
+    )
     return px, py, pz, nx, ny
 
 
@@ -337,16 +414,27 @@ def _near_poses(sensor: Sensor, cx: F64, cy: F64, rad: float) -> NDArray[np.bool
         # and whose outline can reach the horizontal field of view (a pitched sensor's
         # azimuth differs from the vehicle-frame bearing by less than |pitch|: margin)
         dist = np.sqrt(d2)
-        off = np.abs(np.mod(np.arctan2(cy - m.y, cx - m.x) - m.yaw + math.pi, 2.0 * math.pi)
-                     - math.pi)
+        off = np.abs(
+            np.mod(np.arctan2(cy - m.y, cx - m.x) - m.yaw + math.pi, 2.0 * math.pi) - math.pi
+        )
         spread = np.arcsin(np.minimum(1.0, rad / np.maximum(dist, 1e-9)))
         near_mask &= (off - spread <= 0.5 * m.hfov + abs(m.pitch) + 0.05) | (dist <= rad)
     return np.asarray(near_mask)
 
 
-def body_sensor_pd(scene: Scene, sensor: Sensor, cx: F64, cy: F64, px: F64, py: F64,
-                   pz: F64, nx: F64, ny: F64, sun_dirs: F64 | None = None,
-                   occluders: F64 | None = None) -> tuple[F64, F64]:
+def body_sensor_pd(
+    scene: Scene,
+    sensor: Sensor,
+    cx: F64,
+    cy: F64,
+    px: F64,
+    py: F64,
+    pz: F64,
+    nx: F64,
+    ny: F64,
+    sun_dirs: F64 | None = None,
+    occluders: F64 | None = None,
+) -> tuple[F64, F64]:
     """Pd of one sensor for N target bodies with centres ``cx``, ``cy`` (m) given as
     (N, K) samples (``body_points``) and the visible fraction of each body's facing
     outline; ``sun_dirs`` (N, 3) per pose (vehicle frame, NaN rows: no direct sun) or
@@ -362,22 +450,32 @@ def body_sensor_pd(scene: Scene, sensor: Sensor, cx: F64, cy: F64, px: F64, py: 
     if near.size == 0:
         return pd, frac
     lo, hi = _ego_box(scene)
-    inside = bool(np.all(np.array([m.x, m.y, m.z]) > lo) and np.all(
-        np.array([m.x, m.y, m.z]) < hi))
+    inside = bool(np.all(np.array([m.x, m.y, m.z]) > lo) and np.all(np.array([m.x, m.y, m.z]) < hi))
     mount = _mount_row(sensor)
     buf = np.empty(near.size * k, dtype=np.int64)
     n_face = np.empty(near.size, dtype=np.int64)
-    cnt = _view_kernel(np.ascontiguousarray(px), np.ascontiguousarray(py),
-                       np.ascontiguousarray(pz), np.ascontiguousarray(nx),
-                       np.ascontiguousarray(ny), near.astype(np.int64), mount, lo, hi,
-                       not inside, CULL, _occ3(occluders, n), buf, n_face)
+    cnt = _view_kernel(
+        np.ascontiguousarray(px),
+        np.ascontiguousarray(py),
+        np.ascontiguousarray(pz),
+        np.ascontiguousarray(nx),
+        np.ascontiguousarray(ny),
+        near.astype(np.int64),
+        mount,
+        lo,
+        hi,
+        not inside,
+        CULL,
+        _occ3(occluders, n),
+        buf,
+        n_face,
+    )
     if cnt == 0:
         return pd, frac
     flat = buf[:cnt]  # (near pose q) * K + sample
     src = near[flat // k] * k + flat % k  # into the full (N, K) arrays
     sd = None if sun_dirs is None else sun_dirs[near[flat // k]]
-    idx, snr = sensor_snr(scene, sensor, px.ravel()[src], py.ravel()[src],
-                          pz.ravel()[src], sd)
+    idx, snr = sensor_snr(scene, sensor, px.ravel()[src], py.ravel()[src], pz.ravel()[src], sd)
     if idx.size == 0:
         return pd, frac
     pose = flat[idx] // k  # ascending: samples are listed pose by pose
@@ -396,9 +494,15 @@ def body_sensor_pd(scene: Scene, sensor: Sensor, cx: F64, cy: F64, px: F64, py: 
     return pd, frac
 
 
-def occlusion_changes(scene: Scene, x: F64, y: F64, psi: F64, occluders: F64,
-                      sensors: Sequence[Sensor] | None = None,
-                      points: BodyPoints | None = None) -> NDArray[np.bool_]:
+def occlusion_changes(
+    scene: Scene,
+    x: F64,
+    y: F64,
+    psi: F64,
+    occluders: F64,
+    sensors: Sequence[Sensor] | None = None,
+    points: BodyPoints | None = None,
+) -> NDArray[np.bool_]:
     """(N,) whether the (N, M, 7) ``occluders`` hide any facing, in-view sample of the
     target bodies at x, y (m), psi (rad) from any of ``sensors`` (default: all): geometry
     only (no SNR), so a caller can keep an occlusion-free value where they hide nothing.
@@ -416,10 +520,28 @@ def occlusion_changes(scene: Scene, x: F64, y: F64, psi: F64, occluders: F64,
     rad = _radius(px, py, x, y)
     for sensor in scene.sensors if sensors is None else sensors:
         m = sensor.mount
-        inside = bool(np.all(np.array([m.x, m.y, m.z]) > lo) and np.all(
-            np.array([m.x, m.y, m.z]) < hi))
-        _changes_kernel(px, py, pz, nx, ny, x, y, rad, _mount_row(sensor), float(m.hfov),
-                        float(m.pitch), CULL, lo, hi, not inside, occ, out)
+        inside = bool(
+            np.all(np.array([m.x, m.y, m.z]) > lo) and np.all(np.array([m.x, m.y, m.z]) < hi)
+        )
+        _changes_kernel(
+            px,
+            py,
+            pz,
+            nx,
+            ny,
+            x,
+            y,
+            rad,
+            _mount_row(sensor),
+            float(m.hfov),
+            float(m.pitch),
+            CULL,
+            lo,
+            hi,
+            not inside,
+            occ,
+            out,
+        )
     return out
 
 
@@ -427,11 +549,22 @@ def _mount_row(sensor: Sensor) -> F64:
     """A sensor's mount as the ``_view_kernel`` row."""
     m = sensor.mount
     half_h, half_v = 0.5 * m.hfov, 0.5 * m.vfov
-    return np.array([m.x, m.y, m.z, math.cos(m.yaw), math.sin(m.yaw), math.cos(m.pitch),
-                     math.sin(m.pitch),
-                     math.tan(half_h) if half_h < 0.5 * math.pi else -1.0,
-                     math.tan(half_v) ** 2 if half_v < 0.5 * math.pi else -1.0,
-                     m.min_range, m.max_range, half_h])
+    return np.array(
+        [
+            m.x,
+            m.y,
+            m.z,
+            math.cos(m.yaw),
+            math.sin(m.yaw),
+            math.cos(m.pitch),
+            math.sin(m.pitch),
+            math.tan(half_h) if half_h < 0.5 * math.pi else -1.0,
+            math.tan(half_v) ** 2 if half_v < 0.5 * math.pi else -1.0,
+            m.min_range,
+            m.max_range,
+            half_h,
+        ]
+    )
 
 
 def _occ3(occluders: F64 | None, n: int) -> F64:
@@ -453,11 +586,16 @@ def _radius(px: F64, py: F64, cx: F64, cy: F64) -> float:
     return float(np.sqrt(np.max((px[0] - cx[0]) ** 2 + (py[0] - cy[0]) ** 2)))
 
 
-def body_per_sensor_pd(scene: Scene, x: F64, y: F64, psi: F64,
-                       sun_dirs: F64 | None = None,
-                       sensors: Sequence[Sensor] | None = None,
-                       occluders: F64 | None = None,
-                       points: BodyPoints | None = None) -> tuple[F64, F64]:
+def body_per_sensor_pd(
+    scene: Scene,
+    x: F64,
+    y: F64,
+    psi: F64,
+    sun_dirs: F64 | None = None,
+    sensors: Sequence[Sensor] | None = None,
+    occluders: F64 | None = None,
+    points: BodyPoints | None = None,
+) -> tuple[F64, F64]:
     """(S, N) Pd and visible fraction of every sensor (default: the scene's) for N target
     bodies at vehicle-frame centres x, y (m) and relative headings psi (rad), with
     ``occluders`` (see ``body_sensor_pd``; ``None``: none); ``points``: the bodies'
@@ -469,22 +607,33 @@ def body_per_sensor_pd(scene: Scene, x: F64, y: F64, psi: F64,
     pd = np.zeros((len(sens), len(x)))
     frac = np.zeros((len(sens), len(x)))
     for row, s in enumerate(sens):
-        pd[row], frac[row] = body_sensor_pd(scene, s, x, y, px, py, pz, nx, ny, sun_dirs,
-                                            occluders)
+        pd[row], frac[row] = body_sensor_pd(scene, s, x, y, px, py, pz, nx, ny, sun_dirs, occluders)
     return pd, frac
 
 
-def body_log_miss(scene: Scene, x: F64, y: F64, psi: F64, sun_dirs: F64 | None = None,
-                  sensors: Sequence[Sensor] | None = None,
-                  occluders: F64 | None = None) -> F64:
+def body_log_miss(
+    scene: Scene,
+    x: F64,
+    y: F64,
+    psi: F64,
+    sun_dirs: F64 | None = None,
+    sensors: Sequence[Sensor] | None = None,
+    occluders: F64 | None = None,
+) -> F64:
     """Fused ln P_miss (eq. 11 in the log domain) of N target bodies (see
     ``body_per_sensor_pd``)."""
     pd, _ = body_per_sensor_pd(scene, x, y, psi, sun_dirs, sensors, occluders)
     return np.asarray(log_miss_of(pd).sum(axis=0), dtype=np.float64)
 
 
-def body_grid(scene: Scene, grid: GridSpec, heading_rad: float, per_sensor: bool = False,
-              chunk: int = 20_000, occluders: F64 | None = None) -> GridCoverage:
+def body_grid(
+    scene: Scene,
+    grid: GridSpec,
+    heading_rad: float,
+    per_sensor: bool = False,
+    chunk: int = 20_000,
+    occluders: F64 | None = None,
+) -> GridCoverage:
     """Coverage of target *bodies* centred at the grid's cells at one heading relative to
     the ego (rad): fused Pd per cell (and per sensor), in chunks of ``chunk`` cells, with
     static ``occluders`` ((M, 7), ``coverage.occluders``). The grid's height is not used:
@@ -495,9 +644,9 @@ def body_grid(scene: Scene, grid: GridSpec, heading_rad: float, per_sensor: bool
     per = np.zeros((len(scene.sensors), x.size)) if per_sensor else None
     for a in range(0, x.size, chunk):
         sl = slice(a, min(a + chunk, x.size))
-        pd, _ = body_per_sensor_pd(scene, x[sl], y[sl], np.full(sl.stop - sl.start,
-                                                                heading_rad),
-                                   occluders=occluders)
+        pd, _ = body_per_sensor_pd(
+            scene, x[sl], y[sl], np.full(sl.stop - sl.start, heading_rad), occluders=occluders
+        )
         fused[sl] = -np.expm1(log_miss_of(pd).sum(axis=0))
         if per is not None:
             per[:, sl] = pd

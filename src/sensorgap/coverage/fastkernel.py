@@ -38,11 +38,21 @@ def mount_constants(m: Mount) -> F64:
         mode, th = _H_WIDE, math.tan(math.pi - half_h)
     v_all = 1.0 if half_v >= 0.5 * math.pi else 0.0
     tv2 = 0.0 if v_all else math.tan(half_v) ** 2
-    return np.array([
-        math.cos(m.yaw), math.sin(m.yaw), math.cos(m.pitch), math.sin(m.pitch),
-        1.0 if m.pitch != 0.0 else 0.0, float(mode), th, v_all, tv2,
-        m.min_range, m.max_range,
-    ])
+    return np.array(
+        [
+            math.cos(m.yaw),
+            math.sin(m.yaw),
+            math.cos(m.pitch),
+            math.sin(m.pitch),
+            1.0 if m.pitch != 0.0 else 0.0,
+            float(mode),
+            th,
+            v_all,
+            tv2,
+            m.min_range,
+            m.max_range,
+        ]
+    )
 
 
 @numba.njit(cache=True, nogil=True, fastmath=False)
@@ -132,7 +142,11 @@ def roc_constants(roc: RocConfig, shift_db: float) -> tuple[int, F64] | None:
 
 @numba.njit(cache=True, nogil=True, fastmath=False)
 def accumulate_log_miss(
-    snr_db: F64, flat: NDArray[np.int64], code: int, c: F64, log_miss: F64,
+    snr_db: F64,
+    flat: NDArray[np.int64],
+    code: int,
+    c: F64,
+    log_miss: F64,
     certain: NDArray[np.bool_],
 ) -> None:
     """Add ``log(1 - Pd)`` of each cell into ``log_miss`` (flat view) and flag Pd = 1 cells

@@ -29,8 +29,9 @@ GLARE_W_MIN = 1e-9
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def bilerp(ax: float, ay: float, a: float, b: float, c: float,
-           d: float) -> float:  # pragma: no cover - compiled
+def bilerp(
+    ax: float, ay: float, a: float, b: float, c: float, d: float
+) -> float:  # pragma: no cover - compiled
     """Bilinear interpolation at fractions ``ax``, ``ay`` in [0, 1] of a cell whose corner
     values are ``a`` (i, j), ``b`` (i + 1, j), ``c`` (i, j + 1), ``d`` (i + 1, j + 1): the
     one formula of every compiled map lookup."""
@@ -56,9 +57,17 @@ def _azimuth_off(a: float, yaw: float) -> float:  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, nogil=True)
-def _cone_weight(dx: float, dy: float, dz: float, rot: F64, c: int, half_h: float,
-                 half_v: float, margin: float,
-                 cos_bound: float) -> float:  # pragma: no cover - compiled
+def _cone_weight(
+    dx: float,
+    dy: float,
+    dz: float,
+    rot: F64,
+    c: int,
+    half_h: float,
+    half_v: float,
+    margin: float,
+    cos_bound: float,
+) -> float:  # pragma: no cover - compiled
     """Glare weight of a vehicle-frame sun unit vector for cone ``c`` of stacked (C, 3, 3)
     rotations (indexed, not sliced: no array view per call in the hot loop)."""
     xx = dx * rot[c, 0, 0] + dy * rot[c, 1, 0] + dz * rot[c, 2, 0]
@@ -72,8 +81,9 @@ def _cone_weight(dx: float, dy: float, dz: float, rot: F64, c: int, half_h: floa
 
 
 @numba.njit(cache=True, nogil=True)
-def _level_weight(a: float, el: float, yaw: float, half_h: float, half_v: float,
-                  margin: float) -> float:  # pragma: no cover - compiled
+def _level_weight(
+    a: float, el: float, yaw: float, half_h: float, half_v: float, margin: float
+) -> float:  # pragma: no cover - compiled
     """Glare weight for a level camera (pitch 0): the sun's sensor azimuth is its
     vehicle-frame azimuth ``a`` minus ``yaw``, its elevation ``el`` (rad)."""
     eh = max(0.0, _azimuth_off(a, yaw) - half_h)
@@ -82,13 +92,19 @@ def _level_weight(a: float, el: float, yaw: float, half_h: float, half_v: float,
 
 
 @numba.njit(cache=True, nogil=True)
-def glare_cone_weight(dx: float, dy: float, dz: float, rot: F64, half_h: float,
-                      half_v: float, margin: float,
-                      cos_bound: float) -> float:  # pragma: no cover - compiled
+def glare_cone_weight(
+    dx: float,
+    dy: float,
+    dz: float,
+    rot: F64,
+    half_h: float,
+    half_v: float,
+    margin: float,
+    cos_bound: float,
+) -> float:  # pragma: no cover - compiled
     """Glare weight of one vehicle-frame sun unit vector for one ``GlareCone`` (3x3
     ``rot``)."""
-    return _cone_weight(dx, dy, dz, rot.reshape(1, 3, 3), 0, half_h, half_v, margin,
-                        cos_bound)
+    return _cone_weight(dx, dy, dz, rot.reshape(1, 3, 3), 0, half_h, half_v, margin, cos_bound)
 
 
 def cone_cos_bound(half_h: float, half_v: float, margin: float) -> float:
@@ -100,16 +116,38 @@ def cone_cos_bound(half_h: float, half_v: float, margin: float) -> float:
 
 
 @numba.njit(cache=True, nogil=True)
-def lookup_pass(total: F32, x0: float, y0: float, inv_res: float, x: F64, y: F64,
-                heading: F64, psi: F64, n: I64, rows: I64, sun: F64, rot: F64, half_h: F64,
-                half_v: F64, margin: F64, cos_bound: F64, yaw: F64,
-                level: NDArray[np.bool_], mount_xy: F64, reach2: F64, signal: F32,
-                has_signal: NDArray[np.bool_], keep_unseen: bool, near_view: NDArray[np.bool_],
-                out: F64,
-                outside: I64,
-                glare_idx: I64,
-                glare_w: F64, glare_state: NDArray[np.int8],
-                counts: I64) -> None:  # pragma: no cover - compiled
+def lookup_pass(
+    total: F32,
+    x0: float,
+    y0: float,
+    inv_res: float,
+    x: F64,
+    y: F64,
+    heading: F64,
+    psi: F64,
+    n: I64,
+    rows: I64,
+    sun: F64,
+    rot: F64,
+    half_h: F64,
+    half_v: F64,
+    margin: F64,
+    cos_bound: F64,
+    yaw: F64,
+    level: NDArray[np.bool_],
+    mount_xy: F64,
+    reach2: F64,
+    signal: F32,
+    has_signal: NDArray[np.bool_],
+    keep_unseen: bool,
+    near_view: NDArray[np.bool_],
+    out: F64,
+    outside: I64,
+    glare_idx: I64,
+    glare_w: F64,
+    glare_state: NDArray[np.int8],
+    counts: I64,
+) -> None:  # pragma: no cover - compiled
     """For each row r in ``rows`` and step k < n[r] of (B, T) vehicle-frame positions (m):
     ``out[r, k]`` = bilinear ``total[h]`` (``total``: (H, ny, nx) maps, one per bin of the
     target's heading relative to the ego over a half turn, ``h = round(psi mod pi / (pi /
@@ -174,11 +212,11 @@ def lookup_pass(total: F32, x0: float, y0: float, inv_res: float, x: F64, y: F64
                 if mode[c] == 2 and turn == 0.0:
                     mode[c] = 1
                     if level[c]:
-                        wc[c] = _level_weight(a0, el, yaw[c], half_h[c], half_v[c],
-                                              margin[c])
+                        wc[c] = _level_weight(a0, el, yaw[c], half_h[c], half_v[c], margin[c])
                     else:
-                        wc[c] = _cone_weight(dx0, dy0, sel, rot, c, half_h[c], half_v[c],
-                                             margin[c], cos_bound[c])
+                        wc[c] = _cone_weight(
+                            dx0, dy0, sel, rot, c, half_h[c], half_v[c], margin[c], cos_bound[c]
+                        )
                 if mode[c] == 1 and not wc[c] > 0.0:
                     mode[c] = 0
                 n_active += int(mode[c] != 0)
@@ -198,8 +236,7 @@ def lookup_pass(total: F32, x0: float, y0: float, inv_res: float, x: F64, y: F64
             if n_bins > 1:
                 h = int(round((psi[r, k] % math.pi) / bin_w)) % n_bins
             tot = total[h]
-            out[r, k] = bilerp(ax, ay, tot[j, i], tot[j, i + 1], tot[j + 1, i],
-                               tot[j + 1, i + 1])
+            out[r, k] = bilerp(ax, ay, tot[j, i], tot[j, i + 1], tot[j + 1, i], tot[j + 1, i + 1])
             if n_active == 0:
                 continue
             a = sun[r, 1]  # vehicle-frame azimuth of the sun, rad
@@ -220,8 +257,9 @@ def lookup_pass(total: F32, x0: float, y0: float, inv_res: float, x: F64, y: F64
                         dx = cel * math.cos(a)
                         dy = cel * math.sin(a)
                         have_d = True
-                    w = _cone_weight(dx, dy, sel, rot, c, half_h[c], half_v[c], margin[c],
-                                     cos_bound[c])
+                    w = _cone_weight(
+                        dx, dy, sel, rot, c, half_h[c], half_v[c], margin[c], cos_bound[c]
+                    )
                 if not w > 0.0:
                     continue
                 st = 2
@@ -231,9 +269,12 @@ def lookup_pass(total: F32, x0: float, y0: float, inv_res: float, x: F64, y: F64
                     if ox * ox + oy * oy > reach2[c]:  # every corner cell beyond its range
                         continue
                     sg = signal[c]
-                    n_in = (int(np.isfinite(sg[j, i])) + int(np.isfinite(sg[j, i + 1]))
-                            + int(np.isfinite(sg[j + 1, i]))
-                            + int(np.isfinite(sg[j + 1, i + 1])))
+                    n_in = (
+                        int(np.isfinite(sg[j, i]))
+                        + int(np.isfinite(sg[j, i + 1]))
+                        + int(np.isfinite(sg[j + 1, i]))
+                        + int(np.isfinite(sg[j + 1, i + 1]))
+                    )
                     if n_in == 0:
                         if not keep_unseen:
                             continue  # out of its view: Pd = 0 with or without glare
@@ -250,9 +291,19 @@ def lookup_pass(total: F32, x0: float, y0: float, inv_res: float, x: F64, y: F64
 
 
 @numba.njit(cache=True, nogil=True)
-def outline_order_pass(layer: F32, x0: float, y0: float, inv_res: float, ox: I64, oy: I64,
-                       q: int, xs: F64, ys: F64, psi: F64,
-                       out: F64) -> None:  # pragma: no cover - compiled
+def outline_order_pass(
+    layer: F32,
+    x0: float,
+    y0: float,
+    inv_res: float,
+    ox: I64,
+    oy: I64,
+    q: int,
+    xs: F64,
+    ys: F64,
+    psi: F64,
+    out: F64,
+) -> None:  # pragma: no cover - compiled
     """One sensor's part of the body maps (``LogMissMaps.body_totals``) at M target
     centres, interpolated as ``lookup_pass`` interpolates the totals: at each of the four
     cells around a centre (``x0``, ``y0``: first cell centre, m; ``inv_res``: cells per
@@ -313,8 +364,7 @@ def near_view_mask(signal: F32, reach_cells: int) -> NDArray[np.bool_]:
     j1 = np.clip(np.arange(ny) + k + 1, 0, ny)
     i0 = np.clip(np.arange(nx) - k, 0, nx)
     i1 = np.clip(np.arange(nx) + k + 1, 0, nx)
-    box = (ii[:, j1][:, :, i1] - ii[:, j0][:, :, i1] - ii[:, j1][:, :, i0]
-           + ii[:, j0][:, :, i0])
+    box = ii[:, j1][:, :, i1] - ii[:, j0][:, :, i1] - ii[:, j1][:, :, i0] + ii[:, j0][:, :, i0]
     return np.asarray(box > 0)
 
 

@@ -76,13 +76,15 @@ class GridSpec:
 
     def xs(self) -> F64:
         """Cell-centre x coordinates, m."""
-        return np.asarray(self.xmin + (np.arange(self.nx) + 0.5) * self.resolution,
-                          dtype=np.float64)
+        return np.asarray(
+            self.xmin + (np.arange(self.nx) + 0.5) * self.resolution, dtype=np.float64
+        )
 
     def ys(self) -> F64:
         """Cell-centre y coordinates, m."""
-        return np.asarray(self.ymin + (np.arange(self.ny) + 0.5) * self.resolution,
-                          dtype=np.float64)
+        return np.asarray(
+            self.ymin + (np.arange(self.ny) + 0.5) * self.resolution, dtype=np.float64
+        )
 
 
 @dataclass
@@ -137,9 +139,7 @@ def evaluate_grid(
     for s, *_ in boxes:
         scene.prepared(s)  # prepare once, before threads start
     pd_out = {s.id: np.zeros((ny, nx)) for s, *_ in boxes} if per_sensor else {}
-    snr_out = (
-        {s.id: np.full((ny, nx), SNR_NOT_IN_VIEW_DB) for s, *_ in boxes} if per_sensor else {}
-    )
+    snr_out = {s.id: np.full((ny, nx), SNR_NOT_IN_VIEW_DB) for s, *_ in boxes} if per_sensor else {}
     n_tiles = max(1, math.ceil(grid.cells / tile_cells))
     if workers > 1:
         n_tiles = math.ceil(n_tiles / workers) * workers  # balanced across workers
@@ -149,9 +149,12 @@ def evaluate_grid(
         # Fused-only: sensors whose ROC reaches exactly 1 first, then far-reaching, wide
         # ones; cells detected with certainty (Pd = 1 is absorbing in eq. 11) are skipped by
         # later sensors (exact).
-        boxes.sort(key=lambda b: (snr_db_for_zero_detection(b[0].roc) is None
-                                  or b[0].roc.kind == "paper",
-                                  -(b[0].mount.max_range ** 2) * min(b[0].mount.hfov, 6.3)))
+        boxes.sort(
+            key=lambda b: (
+                snr_db_for_zero_detection(b[0].roc) is None or b[0].roc.kind == "paper",
+                -(b[0].mount.max_range ** 2) * min(b[0].mount.hfov, 6.3),
+            )
+        )
 
     if not (0.0 <= saturation_eps < 1.0):
         raise ValueError(f"saturation_eps must be in [0, 1), got {saturation_eps}")
@@ -177,9 +180,14 @@ def evaluate_grid(
                 skip = acc.certain[a - r0 : b - r0, ix0:ix1]
                 if log_eps > -math.inf:
                     skip = skip | (acc.log_miss[a - r0 : b - r0, ix0:ix1] <= log_eps)
-            flat, r, az, el = subgrid_geometry(xs[ix0:ix1] - m.x, ys[a:b] - m.y,
-                                               grid.height - m.z, consts[s.id], skip,
-                                               prepared.uses_angles)
+            flat, r, az, el = subgrid_geometry(
+                xs[ix0:ix1] - m.x,
+                ys[a:b] - m.y,
+                grid.height - m.z,
+                consts[s.id],
+                skip,
+                prepared.uses_angles,
+            )
             if flat.size == 0:
                 continue
             if not prepared.uses_angles:
@@ -204,5 +212,6 @@ def evaluate_grid(
     else:
         for t in tiles:
             run_tile(t)
-    return GridCoverage(grid=grid, fused=fused, evaluated=[s.id for s, *_ in boxes],
-                        pd=pd_out, snr_db=snr_out)
+    return GridCoverage(
+        grid=grid, fused=fused, evaluated=[s.id for s, *_ in boxes], pd=pd_out, snr_db=snr_out
+    )

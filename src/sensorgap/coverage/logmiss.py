@@ -72,8 +72,9 @@ def glare_weights(sensor: Sensor, sun_dirs: F64 | None, index: IntArr) -> F64 | 
     return w if bool(np.any(w > 0.0)) else None
 
 
-def _glare_at(sensor: Sensor, x: F64, y: F64, z: F64 | float, sun_dirs: F64,
-              weights: F64) -> tuple[F64, F64]:
+def _glare_at(
+    sensor: Sensor, x: F64, y: F64, z: F64 | float, sun_dirs: F64, weights: F64
+) -> tuple[F64, F64]:
     """Glare factors (``models.base.glare_factors``) of a camera at vehicle-frame points
     (m) with their sun directions and glare weights, and the points' ranges (m)."""
     m = sensor.mount
@@ -83,9 +84,16 @@ def _glare_at(sensor: Sensor, x: F64, y: F64, z: F64 | float, sun_dirs: F64,
     return fac, np.sqrt(dx * dx + dy * dy + dz * dz)
 
 
-def _glared_from_maps(maps: LogMissMaps, scene: Scene, row: int, x: F64, y: F64,
-                      z: F64 | float, sun_dirs: F64, weights: F64
-                      ) -> tuple[F64, NDArray[np.int8]]:
+def _glared_from_maps(
+    maps: LogMissMaps,
+    scene: Scene,
+    row: int,
+    x: F64,
+    y: F64,
+    z: F64 | float,
+    sun_dirs: F64,
+    weights: F64,
+) -> tuple[F64, NDArray[np.int8]]:
     """A glared camera's ln(1 - Pd) at vehicle-frame points (m) from its signal map (the
     one glare correction of every lookup): the ROC of ``snr_from_signal`` of the
     interpolated signal with each point's glare factor (sun directions, glare weights)
@@ -100,16 +108,16 @@ def _glared_from_maps(maps: LogMissMaps, scene: Scene, row: int, x: F64, y: F64,
     sig, state = maps.interpolate_signal(row, x, y)
     ok = np.flatnonzero(state == 1)
     if ok.size:
-        zz: F64 | float = (z if isinstance(z, float)
-                           else np.asarray(z, dtype=np.float64)[ok])
+        zz: F64 | float = z if isinstance(z, float) else np.asarray(z, dtype=np.float64)[ok]
         fac, rng = _glare_at(s, x[ok], y[ok], zz, sun_dirs[ok], weights[ok])
         snr = clip_snr_db(prepared.snr_from_signal(sig[ok], fac, rng))
         new[ok] = log_miss_of(detection_probability(snr, s.roc, scene.roc_shift_db))
     return new, state
 
 
-def sensor_snr(scene: Scene, sensor: Sensor, x: F64, y: F64, z: F64,
-               sun_dirs: F64 | None = None) -> tuple[IntArr, F64]:
+def sensor_snr(
+    scene: Scene, sensor: Sensor, x: F64, y: F64, z: F64, sun_dirs: F64 | None = None
+) -> tuple[IntArr, F64]:
     """SNR (dB) of one sensor at flat vehicle-frame points (m) with a per-point sun.
 
     ``sun_dirs``: (N, 3) unit vectors to the sun in the vehicle frame (rows of NaN: no
@@ -141,16 +149,23 @@ def sensor_snr(scene: Scene, sensor: Sensor, x: F64, y: F64, z: F64,
     return idx, snr
 
 
-def sensor_pd(scene: Scene, sensor: Sensor, x: F64, y: F64, z: F64,
-              sun_dirs: F64 | None = None) -> tuple[IntArr, F64]:
+def sensor_pd(
+    scene: Scene, sensor: Sensor, x: F64, y: F64, z: F64, sun_dirs: F64 | None = None
+) -> tuple[IntArr, F64]:
     """Pd of one sensor at flat vehicle-frame points (m) with a per-point sun (see
     ``sensor_snr``). Returns ``(index, pd)`` for the points in view."""
     idx, snr = sensor_snr(scene, sensor, x, y, z, sun_dirs)
     return idx, detection_probability(snr, sensor.roc, scene.roc_shift_db)
 
 
-def exact_log_miss(scene: Scene, x: F64, y: F64, z: F64, sun_dirs: F64 | None = None,
-                   sensors: Sequence[Sensor] | None = None) -> F64:
+def exact_log_miss(
+    scene: Scene,
+    x: F64,
+    y: F64,
+    z: F64,
+    sun_dirs: F64 | None = None,
+    sensors: Sequence[Sensor] | None = None,
+) -> F64:
     """Fused ln P_miss at flat points (m), exact, per-point sun (see ``sensor_pd``)."""
     out = np.zeros(len(x))
     for s in scene.sensors if sensors is None else sensors:
@@ -160,8 +175,7 @@ def exact_log_miss(scene: Scene, x: F64, y: F64, z: F64, sun_dirs: F64 | None = 
     return out
 
 
-def per_sensor_pd(scene: Scene, x: F64, y: F64, z: F64,
-                  sun_dirs: F64 | None = None) -> F64:
+def per_sensor_pd(scene: Scene, x: F64, y: F64, z: F64, sun_dirs: F64 | None = None) -> F64:
     """(S, N) Pd of every sensor of the scene at flat points (m), exact, per-point sun."""
     out = np.zeros((len(scene.sensors), len(x)))
     for row, s in enumerate(scene.sensors):
@@ -171,8 +185,16 @@ def per_sensor_pd(scene: Scene, x: F64, y: F64, z: F64,
 
 
 @numba.njit(cache=True, nogil=True)
-def _bilinear(img: F32, x0: float, y0: float, inv_res: float, xs: F64, ys: F64,
-              out: F64, inside: NDArray[np.bool_]) -> None:  # pragma: no cover - compiled
+def _bilinear(
+    img: F32,
+    x0: float,
+    y0: float,
+    inv_res: float,
+    xs: F64,
+    ys: F64,
+    out: F64,
+    inside: NDArray[np.bool_],
+) -> None:  # pragma: no cover - compiled
     ny, nx = img.shape
     for k in range(xs.size):
         fx = (xs[k] - x0) * inv_res
@@ -190,8 +212,16 @@ def _bilinear(img: F32, x0: float, y0: float, inv_res: float, xs: F64, ys: F64,
 
 
 @numba.njit(cache=True, nogil=True)
-def _bilinear_finite(img: F32, x0: float, y0: float, inv_res: float, xs: F64, ys: F64,
-                     out: F64, state: NDArray[np.int8]) -> None:  # pragma: no cover
+def _bilinear_finite(
+    img: F32,
+    x0: float,
+    y0: float,
+    inv_res: float,
+    xs: F64,
+    ys: F64,
+    out: F64,
+    state: NDArray[np.int8],
+) -> None:  # pragma: no cover
     """Bilinear interpolation of a map that is NaN out of view. ``state``: 1 = all four
     corner cells in view (interpolated), 0 = none (out of view), 2 = some (the edge of the
     field of view) or outside the map."""
@@ -206,8 +236,7 @@ def _bilinear_finite(img: F32, x0: float, y0: float, inv_res: float, xs: F64, ys
         i = min(int(fx), nx - 2)
         j = min(int(fy), ny - 2)
         a, b, c, d = img[j, i], img[j, i + 1], img[j + 1, i], img[j + 1, i + 1]
-        n_in = (int(np.isfinite(a)) + int(np.isfinite(b)) + int(np.isfinite(c))
-                + int(np.isfinite(d)))
+        n_in = int(np.isfinite(a)) + int(np.isfinite(b)) + int(np.isfinite(c)) + int(np.isfinite(d))
         if n_in == 0:
             state[k] = 0
             continue
@@ -284,7 +313,8 @@ class LogMissMaps:
         """The signal maps of ``sensors`` stacked (C, ny, nx) (all NaN for a sensor without
         one) and which have one; cached per sensor tuple."""
         cache: dict[tuple[int, ...], tuple[F32, NDArray[np.bool_]]] = self.__dict__.setdefault(
-            "_signal_stacks", {})
+            "_signal_stacks", {}
+        )
         hit = cache.get(sensors)
         if hit is None:
             ny, nx = self.total.shape
@@ -296,8 +326,13 @@ class LogMissMaps:
             hit = cache[sensors] = (stack, has)
         return hit
 
-    def body_totals(self, outline_xy: F64, subset: tuple[int, ...], n_bins: int,
-                    order: tuple[int, ...] | None = None) -> F32:
+    def body_totals(
+        self,
+        outline_xy: F64,
+        subset: tuple[int, ...],
+        n_bins: int,
+        order: tuple[int, ...] | None = None,
+    ) -> F32:
         """(H, ny, nx) fused ln(1 - Pd) of target *bodies* for ``n_bins`` relative headings
         (bin h: h * pi / H rad; a box is symmetric under a half turn), over the sensor rows
         ``subset``: per sensor, the ``order[i]``-th best (0: the smallest) ln(1 - Pd) of
@@ -312,7 +347,8 @@ class LogMissMaps:
         order = order or (0,) * len(subset)
         key = (outline_xy.tobytes(), subset, n_bins, order)
         cache: dict[tuple[bytes, tuple[int, ...], int, tuple[int, ...]], F32] = (
-            self.__dict__.setdefault("_body_totals", {}))
+            self.__dict__.setdefault("_body_totals", {})
+        )
         hit = cache.get(key)
         if hit is not None:
             return hit
@@ -323,15 +359,24 @@ class LogMissMaps:
         for row in subset:
             rows_any = np.flatnonzero(np.any(self.layers[row] < 0.0, axis=1))
             cols_any = np.flatnonzero(np.any(self.layers[row] < 0.0, axis=0))
-            boxes[row] = (None if rows_any.size == 0 else
-                          (int(rows_any[0]), int(rows_any[-1]) + 1, int(cols_any[0]),
-                           int(cols_any[-1]) + 1))
+            boxes[row] = (
+                None
+                if rows_any.size == 0
+                else (
+                    int(rows_any[0]),
+                    int(rows_any[-1]) + 1,
+                    int(cols_any[0]),
+                    int(cols_any[-1]) + 1,
+                )
+            )
         for h in range(n_bins):
             a = h * math.pi / n_bins
-            ox = np.rint((math.cos(a) * outline_xy[:, 0] - math.sin(a) * outline_xy[:, 1])
-                         / res).astype(int)
-            oy = np.rint((math.sin(a) * outline_xy[:, 0] + math.cos(a) * outline_xy[:, 1])
-                         / res).astype(int)
+            ox = np.rint(
+                (math.cos(a) * outline_xy[:, 0] - math.sin(a) * outline_xy[:, 1]) / res
+            ).astype(int)
+            oy = np.rint(
+                (math.sin(a) * outline_xy[:, 0] + math.cos(a) * outline_xy[:, 1]) / res
+            ).astype(int)
             offs = list(zip(ox.tolist(), oy.tolist(), strict=True))
             px = max(abs(v) for v in ox.tolist())
             py = max(abs(v) for v in oy.tolist())
@@ -348,12 +393,14 @@ class LogMissMaps:
                 if k == 0:
                     best = np.zeros((cy, cx), dtype=np.float32)
                     for dx, dy in set(offs):
-                        np.minimum(best, padded[py + dy:py + dy + cy, px + dx:px + dx + cx],
-                                   out=best)
+                        np.minimum(
+                            best, padded[py + dy : py + dy + cy, px + dx : px + dx + cx], out=best
+                        )
                     out[h, j0:j1, i0:i1] += best
                     continue
-                stack = np.stack([padded[py + dy:py + dy + cy, px + dx:px + dx + cx]
-                                  for dx, dy in offs])
+                stack = np.stack(
+                    [padded[py + dy : py + dy + cy, px + dx : px + dx + cx] for dx, dy in offs]
+                )
                 out[h, j0:j1, i0:i1] += np.partition(stack, k, axis=0)[k]
         hit = cache[key] = out.astype(np.float32)
         return hit
@@ -364,8 +411,9 @@ class LogMissMaps:
         ``pad`` is 0 (unused). Cached per (sensors, pad)."""
         if pad <= 0.0:
             return np.zeros((1, 1, 1), dtype=bool)
-        cache: dict[tuple[tuple[int, ...], float], NDArray[np.bool_]] = (
-            self.__dict__.setdefault("_near_view", {}))
+        cache: dict[tuple[tuple[int, ...], float], NDArray[np.bool_]] = self.__dict__.setdefault(
+            "_near_view", {}
+        )
         hit = cache.get((sensors, pad))
         if hit is None:
             stack, _ = self.signal_stack(sensors)
@@ -376,23 +424,33 @@ class LogMissMaps:
     @property
     def nbytes(self) -> int:
         """Memory held by the maps, bytes."""
-        extra = [*self.__dict__.get("_body_totals", {}).values(),
-                 *self.__dict__.get("_near_view", {}).values()]
-        return int(self.layers.nbytes + self.total.nbytes
-                   + sum(v.nbytes for v in self.signal.values())
-                   + sum(v.nbytes for v in extra))
+        extra = [
+            *self.__dict__.get("_body_totals", {}).values(),
+            *self.__dict__.get("_near_view", {}).values(),
+        ]
+        return int(
+            self.layers.nbytes
+            + self.total.nbytes
+            + sum(v.nbytes for v in self.signal.values())
+            + sum(v.nbytes for v in extra)
+        )
 
-    def interpolate_signal(self, sensor: int, x: F64, y: F64
-                           ) -> tuple[F64, NDArray[np.int8]]:
+    def interpolate_signal(self, sensor: int, x: F64, y: F64) -> tuple[F64, NDArray[np.int8]]:
         """Bilinear received signal (dB) of a glare-prone sensor and the state of each
         point (see ``_bilinear_finite``: 1 interpolated, 0 out of view, 2 edge)."""
         g = self.grid
         out = np.empty(len(x))
         state = np.empty(len(x), dtype=np.int8)
-        _bilinear_finite(self.signal[sensor], g.xmin + 0.5 * g.resolution,
-                         g.ymin + 0.5 * g.resolution, 1.0 / g.resolution,
-                         np.ascontiguousarray(x, dtype=np.float64),
-                         np.ascontiguousarray(y, dtype=np.float64), out, state)
+        _bilinear_finite(
+            self.signal[sensor],
+            g.xmin + 0.5 * g.resolution,
+            g.ymin + 0.5 * g.resolution,
+            1.0 / g.resolution,
+            np.ascontiguousarray(x, dtype=np.float64),
+            np.ascontiguousarray(y, dtype=np.float64),
+            out,
+            state,
+        )
         return out, state
 
     def interpolate(self, layer: int | None, x: F64, y: F64) -> tuple[F64, NDArray[np.bool_]]:
@@ -402,14 +460,22 @@ class LogMissMaps:
         img = self.total if layer is None else self.layers[layer]
         out = np.empty(len(x))
         inside = np.empty(len(x), dtype=bool)
-        _bilinear(img, g.xmin + 0.5 * g.resolution, g.ymin + 0.5 * g.resolution,
-                  1.0 / g.resolution, np.ascontiguousarray(x, dtype=np.float64),
-                  np.ascontiguousarray(y, dtype=np.float64), out, inside)
+        _bilinear(
+            img,
+            g.xmin + 0.5 * g.resolution,
+            g.ymin + 0.5 * g.resolution,
+            1.0 / g.resolution,
+            np.ascontiguousarray(x, dtype=np.float64),
+            np.ascontiguousarray(y, dtype=np.float64),
+            out,
+            inside,
+        )
         return out, inside
 
 
-def lookup_log_miss(maps: LogMissMaps, scene: Scene, x: F64, y: F64, z: F64,
-                    sun_dirs: F64 | None = None) -> tuple[F64, int]:
+def lookup_log_miss(
+    maps: LogMissMaps, scene: Scene, x: F64, y: F64, z: F64, sun_dirs: F64 | None = None
+) -> tuple[F64, int]:
     """Fused ln P_miss at flat points (m) from the maps, exact where the maps cannot
     answer (outside the map; glared cameras). Returns the values and how many point-sensor
     pairs were evaluated exactly."""
@@ -433,8 +499,7 @@ def lookup_log_miss(maps: LogMissMaps, scene: Scene, x: F64, y: F64, z: F64,
         if g.size == 0:
             continue
         layer, _ = maps.interpolate(row, x[g], y[g])
-        new, state = _glared_from_maps(maps, scene, row, x[g], y[g], z[g], sun_dirs[g],
-                                       w[w > 0.0])
+        new, state = _glared_from_maps(maps, scene, row, x[g], y[g], z[g], sun_dirs[g], w[w > 0.0])
         edge = np.flatnonzero(state == 2)
         if edge.size:  # at the edge of the field of view: exact
             ge = g[edge]
@@ -480,18 +545,22 @@ def _cones(scene: Scene, subset: frozenset[int] | None = None) -> _Cones | None:
     hh = np.array([c.half_h for c in cones], dtype=np.float64)
     hv = np.array([c.half_v for c in cones], dtype=np.float64)
     mg = np.array([c.margin for c in cones], dtype=np.float64)
-    return _Cones(tuple(rows),
-                  np.ascontiguousarray(np.array([c.rotation for c in cones],
-                                                dtype=np.float64).reshape(-1, 3, 3)),
-                  hh, hv, mg,
-                  np.array([cone_cos_bound(a, b, m) for a, b, m in zip(hh, hv, mg,
-                                                                       strict=True)]),
-                  np.array([c.yaw for c in cones], dtype=np.float64),
-                  np.array([c.pitch == 0.0 for c in cones], dtype=bool),
-                  np.array([[scene.sensors[r].mount.x, scene.sensors[r].mount.y]
-                            for r in rows], dtype=np.float64).reshape(-1, 2),
-                  np.array([scene.sensors[r].mount.max_range for r in rows],
-                           dtype=np.float64))
+    return _Cones(
+        tuple(rows),
+        np.ascontiguousarray(
+            np.array([c.rotation for c in cones], dtype=np.float64).reshape(-1, 3, 3)
+        ),
+        hh,
+        hv,
+        mg,
+        np.array([cone_cos_bound(a, b, m) for a, b, m in zip(hh, hv, mg, strict=True)]),
+        np.array([c.yaw for c in cones], dtype=np.float64),
+        np.array([c.pitch == 0.0 for c in cones], dtype=bool),
+        np.array(
+            [[scene.sensors[r].mount.x, scene.sensors[r].mount.y] for r in rows], dtype=np.float64
+        ).reshape(-1, 2),
+        np.array([scene.sensors[r].mount.max_range for r in rows], dtype=np.float64),
+    )
 
 
 #: Evaluates points exactly: flat indices into the (B, T) tracks -> fused ln P_miss.
@@ -521,9 +590,18 @@ class TrackLookup:
     order: dict[int, int] | None = None
 
 
-def lookup_log_miss_tracks(maps: LogMissMaps, scene: Scene, x: F64, y: F64, heading: F64,
-                           n: NDArray[np.int64], rows: NDArray[np.int64], sun: F64,
-                           out: F64, how: TrackLookup | None = None) -> int:
+def lookup_log_miss_tracks(
+    maps: LogMissMaps,
+    scene: Scene,
+    x: F64,
+    y: F64,
+    heading: F64,
+    n: NDArray[np.int64],
+    rows: NDArray[np.int64],
+    sun: F64,
+    out: F64,
+    how: TrackLookup | None = None,
+) -> int:
     """``lookup_log_miss`` along (B, T) tracks in one compiled pass (``fastlookup``):
     writes the fused ln P_miss of the first ``n[r]`` steps of each row r in ``rows`` into
     ``out`` (B, T). ``x``, ``y``: vehicle-frame target positions (m); ``heading``: ego
@@ -546,8 +624,7 @@ def lookup_log_miss_tracks(maps: LogMissMaps, scene: Scene, x: F64, y: F64, head
 
     if how is None:
         exact_points, exact_camera = point_evaluators(scene, xf, yf, z0, dirs_at)
-        how = TrackLookup(maps.total[None], np.zeros(x.shape), None, exact_points,
-                          exact_camera)
+        how = TrackLookup(maps.total[None], np.zeros(x.shape), None, exact_points, exact_camera)
     cones = _cones(scene, how.subset)
     rows = np.ascontiguousarray(rows, dtype=np.int64)
     if cones is None:  # a glare model without a cone form: exact along the whole tracks
@@ -558,8 +635,11 @@ def lookup_log_miss_tracks(maps: LogMissMaps, scene: Scene, x: F64, y: F64, head
         return int(flat.size * len(scene.sensors))
     n_pts = int(np.sum(n[rows]))
     n_cam = len(cones.sensors)
-    pad = 0.0 if how.outline is None else float(np.max(np.hypot(how.outline[:, 0],
-                                                                how.outline[:, 1])))
+    pad = (
+        0.0
+        if how.outline is None
+        else float(np.max(np.hypot(how.outline[:, 0], how.outline[:, 1])))
+    )
     outside = np.empty(n_pts, dtype=np.int64)
     glare_idx = np.empty((n_cam, n_pts), dtype=np.int64)
     glare_w = np.empty((n_cam, n_pts), dtype=np.float64)
@@ -567,18 +647,41 @@ def lookup_log_miss_tracks(maps: LogMissMaps, scene: Scene, x: F64, y: F64, head
     counts = np.zeros(1 + n_cam, dtype=np.int64)
     g = maps.grid
     signal, has_signal = maps.signal_stack(cones.sensors)
-    lookup_pass(how.totals, g.xmin + 0.5 * g.resolution, g.ymin + 0.5 * g.resolution,
-                1.0 / g.resolution, x, y, heading,
-                np.ascontiguousarray(how.psi, dtype=np.float64),
-                np.ascontiguousarray(n, dtype=np.int64),
-                rows, np.ascontiguousarray(sun, dtype=np.float64), cones.rot, cones.half_h,
-                cones.half_v, cones.margin, cones.cos_bound, cones.yaw, cones.level,
-                cones.mount_xy, (cones.max_range + 1.5 * g.resolution + pad) ** 2, signal,
-                has_signal, pad > 0.0, maps.near_view(cones.sensors, pad), out, outside,
-                glare_idx, glare_w, glare_state, counts)
+    lookup_pass(
+        how.totals,
+        g.xmin + 0.5 * g.resolution,
+        g.ymin + 0.5 * g.resolution,
+        1.0 / g.resolution,
+        x,
+        y,
+        heading,
+        np.ascontiguousarray(how.psi, dtype=np.float64),
+        np.ascontiguousarray(n, dtype=np.int64),
+        rows,
+        np.ascontiguousarray(sun, dtype=np.float64),
+        cones.rot,
+        cones.half_h,
+        cones.half_v,
+        cones.margin,
+        cones.cos_bound,
+        cones.yaw,
+        cones.level,
+        cones.mount_xy,
+        (cones.max_range + 1.5 * g.resolution + pad) ** 2,
+        signal,
+        has_signal,
+        pad > 0.0,
+        maps.near_view(cones.sensors, pad),
+        out,
+        outside,
+        glare_idx,
+        glare_w,
+        glare_state,
+        counts,
+    )
     n_exact = 0
     if counts[0]:
-        o = outside[:counts[0]]
+        o = outside[: counts[0]]
         of[o] = how.exact_points(o)
         n_exact += o.size * len(scene.sensors)
     for c, row in enumerate(cones.sensors):
@@ -595,13 +698,17 @@ def lookup_log_miss_tracks(maps: LogMissMaps, scene: Scene, x: F64, y: F64, head
             st = glare_state[c, :m]
             e = np.flatnonzero(st != 1)
             if e.size:
-                of[gi[e]] = np.minimum(of[gi[e]] + _glared_outline(
-                    maps, scene, row, gi[e], wg[e], xf, yf, how, dirs_at, z0), 0.0)
+                of[gi[e]] = np.minimum(
+                    of[gi[e]]
+                    + _glared_outline(maps, scene, row, gi[e], wg[e], xf, yf, how, dirs_at, z0),
+                    0.0,
+                )
             keep = np.flatnonzero(st == 1)  # all four cells in view (lookup_pass)
             if keep.size:
                 layer = _outline_layer(maps, row, gi[keep], xf, yf, how)
-                new, _ = _glared_from_maps(maps, scene, row, xs[keep], ys[keep], z0, sd[keep],
-                                           wg[keep])
+                new, _ = _glared_from_maps(
+                    maps, scene, row, xs[keep], ys[keep], z0, sd[keep], wg[keep]
+                )
                 of[gi[keep]] = np.minimum(of[gi[keep]] + new - layer, 0.0)
             continue
         layer, _ = maps.interpolate(row, xs, ys)
@@ -614,20 +721,27 @@ def lookup_log_miss_tracks(maps: LogMissMaps, scene: Scene, x: F64, y: F64, head
     return n_exact
 
 
-def point_evaluators(scene: Scene, xf: F64, yf: F64, z0: float,
-                     dirs_at: Callable[[NDArray[np.int64]], F64],
-                     sensors: Sequence[Sensor] | None = None
-                     ) -> tuple[ExactPoints, ExactCamera]:
+def point_evaluators(
+    scene: Scene,
+    xf: F64,
+    yf: F64,
+    z0: float,
+    dirs_at: Callable[[NDArray[np.int64]], F64],
+    sensors: Sequence[Sensor] | None = None,
+) -> tuple[ExactPoints, ExactCamera]:
     """Exact evaluators at the target centres of flat (B * T) tracks at height ``z0`` (m),
     with per-point sun directions ``dirs_at(flat)``: the fused ln P_miss of ``sensors``
     (default: all) and one camera's ln(1 - Pd)."""
+
     def exact_points(flat: NDArray[np.int64]) -> F64:
-        return exact_log_miss(scene, xf[flat], yf[flat], np.full(flat.size, z0),
-                              dirs_at(flat), sensors)
+        return exact_log_miss(
+            scene, xf[flat], yf[flat], np.full(flat.size, z0), dirs_at(flat), sensors
+        )
 
     def exact_camera(row: int, flat: NDArray[np.int64]) -> F64:
-        idx, pd = sensor_pd(scene, scene.sensors[row], xf[flat], yf[flat],
-                            np.full(flat.size, z0), dirs_at(flat))
+        idx, pd = sensor_pd(
+            scene, scene.sensors[row], xf[flat], yf[flat], np.full(flat.size, z0), dirs_at(flat)
+        )
         vals = np.zeros(flat.size)
         vals[idx] = log_miss_of(pd)
         return vals
@@ -635,8 +749,9 @@ def point_evaluators(scene: Scene, xf: F64, yf: F64, z0: float,
     return exact_points, exact_camera
 
 
-def _outline_points(how: TrackLookup, gi: NDArray[np.int64], xf: F64, yf: F64
-                    ) -> tuple[F64, F64, int]:
+def _outline_points(
+    how: TrackLookup, gi: NDArray[np.int64], xf: F64, yf: F64
+) -> tuple[F64, F64, int]:
     """Flat (M * K) vehicle-frame outline points of the bodies at flat track indices."""
     assert how.outline is not None
     psi = how.psi.reshape(-1)[gi]
@@ -653,9 +768,18 @@ def _order_stat(values: F64, k: int, how: TrackLookup, row: int) -> F64:
     return np.asarray(np.partition(values.reshape(-1, k), q, axis=1)[:, q], dtype=np.float64)
 
 
-def _glared_outline(maps: LogMissMaps, scene: Scene, row: int, gi: NDArray[np.int64],
-                    wg: F64, xf: F64, yf: F64, how: TrackLookup,
-                    dirs_at: Callable[[NDArray[np.int64]], F64], z0: float) -> F64:
+def _glared_outline(
+    maps: LogMissMaps,
+    scene: Scene,
+    row: int,
+    gi: NDArray[np.int64],
+    wg: F64,
+    xf: F64,
+    yf: F64,
+    how: TrackLookup,
+    dirs_at: Callable[[NDArray[np.int64]], F64],
+    z0: float,
+) -> F64:
     """Body lookup of a glared camera: the change of its ln(1 - Pd) when its part of the
     body maps (``_outline_layer``) is replaced by the glared layer's best point of the
     body's outline (the same order statistic); outline points at the edge of its view
@@ -668,24 +792,25 @@ def _glared_outline(maps: LogMissMaps, scene: Scene, row: int, gi: NDArray[np.in
         sig, state = maps.interpolate_signal(row, px, py)
         ok = np.flatnonzero(state == 1)
         if ok.size:
-            fo, ro = _glare_at(s, px[ok], py[ok], z0, dirs_at(gi[ok // k]),
-                               np.repeat(wg, k)[ok])
+            fo, ro = _glare_at(s, px[ok], py[ok], z0, dirs_at(gi[ok // k]), np.repeat(wg, k)[ok])
             snr = clip_snr_db(prepared.snr_from_signal(sig[ok], fo, ro))
             new[ok] = log_miss_of(detection_probability(snr, s.roc, scene.roc_shift_db))
     else:
         state = np.full(px.size, 2, dtype=np.int8)
     edge = np.flatnonzero(state == 2)
     if edge.size:
-        idx, pd = sensor_pd(scene, s, px[edge], py[edge], np.full(edge.size, z0),
-                            dirs_at(gi[edge // k]))
+        idx, pd = sensor_pd(
+            scene, s, px[edge], py[edge], np.full(edge.size, z0), dirs_at(gi[edge // k])
+        )
         vals = np.zeros(edge.size)
         vals[idx] = log_miss_of(pd)
         new[edge] = vals
     return _order_stat(new, k, how, row) - _outline_layer(maps, row, gi, xf, yf, how)
 
 
-def _outline_layer(maps: LogMissMaps, row: int, gi: NDArray[np.int64], xf: F64, yf: F64,
-                   how: TrackLookup) -> F64:
+def _outline_layer(
+    maps: LogMissMaps, row: int, gi: NDArray[np.int64], xf: F64, yf: F64, how: TrackLookup
+) -> F64:
     """A camera's part of the body maps ``how.totals`` at flat track indices, exactly as
     ``LogMissMaps.body_totals`` built it (the ``how.order``-th best of its layer over the
     outline rotated to the step's heading bin and rounded to whole cells), interpolated
@@ -697,28 +822,40 @@ def _outline_layer(maps: LogMissMaps, row: int, gi: NDArray[np.int64], xf: F64, 
     g = maps.grid
     ox, oy = _outline_offsets(how.outline, how.totals.shape[0], g.resolution)
     out = np.empty(gi.size)
-    outline_order_pass(maps.layers[row], g.xmin + 0.5 * g.resolution,
-                       g.ymin + 0.5 * g.resolution, 1.0 / g.resolution, ox, oy,
-                       0 if how.order is None else how.order.get(row, 0),
-                       np.ascontiguousarray(xf[gi]), np.ascontiguousarray(yf[gi]),
-                       np.ascontiguousarray(how.psi.reshape(-1)[gi], dtype=np.float64), out)
+    outline_order_pass(
+        maps.layers[row],
+        g.xmin + 0.5 * g.resolution,
+        g.ymin + 0.5 * g.resolution,
+        1.0 / g.resolution,
+        ox,
+        oy,
+        0 if how.order is None else how.order.get(row, 0),
+        np.ascontiguousarray(xf[gi]),
+        np.ascontiguousarray(yf[gi]),
+        np.ascontiguousarray(how.psi.reshape(-1)[gi], dtype=np.float64),
+        out,
+    )
     return out
 
 
 @functools.lru_cache(maxsize=64)
-def _outline_offsets_cached(outline: bytes, k: int, n_bins: int, res: float
-                            ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+def _outline_offsets_cached(
+    outline: bytes, k: int, n_bins: int, res: float
+) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
     xy = np.frombuffer(outline, dtype=np.float64).reshape(k, 2)
     a = np.arange(n_bins) * math.pi / n_bins
-    ox = np.rint((np.cos(a)[:, None] * xy[None, :, 0] - np.sin(a)[:, None] * xy[None, :, 1])
-                 / res).astype(np.int64)
-    oy = np.rint((np.sin(a)[:, None] * xy[None, :, 0] + np.cos(a)[:, None] * xy[None, :, 1])
-                 / res).astype(np.int64)
+    ox = np.rint(
+        (np.cos(a)[:, None] * xy[None, :, 0] - np.sin(a)[:, None] * xy[None, :, 1]) / res
+    ).astype(np.int64)
+    oy = np.rint(
+        (np.sin(a)[:, None] * xy[None, :, 0] + np.cos(a)[:, None] * xy[None, :, 1]) / res
+    ).astype(np.int64)
     return ox, oy
 
 
-def _outline_offsets(outline: F64, n_bins: int, res: float
-                     ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+def _outline_offsets(
+    outline: F64, n_bins: int, res: float
+) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
     """(H, K) whole-cell offsets of a (K, 2) outline (m) rotated to each of ``n_bins``
     heading bins (bin h: h * pi / H rad), as ``LogMissMaps.body_totals`` rounds them."""
     xy = np.ascontiguousarray(outline, dtype=np.float64)

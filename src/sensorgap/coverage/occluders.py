@@ -47,24 +47,40 @@ class Occluder:
     label: str = "occluder"
 
     @classmethod
-    def of_target(cls, target: TargetConfig, x: float, y: float, heading_rad: float
-                  ) -> Occluder:
+    def of_target(cls, target: TargetConfig, x: float, y: float, heading_rad: float) -> Occluder:
         """An occluder the size of a target class from targets.toml (its box)."""
-        return cls(x, y, heading_rad, float(target.length_m), float(target.width_m),
-                   float(target.height_m), target.name)
+        return cls(
+            x,
+            y,
+            heading_rad,
+            float(target.length_m),
+            float(target.width_m),
+            float(target.height_m),
+            target.name,
+        )
 
     def row(self) -> F64:
         """This occluder as one row of ``COLUMNS``."""
-        return np.array([self.x, self.y, math.cos(self.heading), math.sin(self.heading),
-                         0.5 * self.length, 0.5 * self.width, self.height])
+        return np.array(
+            [
+                self.x,
+                self.y,
+                math.cos(self.heading),
+                math.sin(self.heading),
+                0.5 * self.length,
+                0.5 * self.width,
+                self.height,
+            ]
+        )
 
     def corners(self) -> F64:
         """(4, 2) footprint corners, vehicle frame, m (counter-clockwise)."""
         c, s = math.cos(self.heading), math.sin(self.heading)
         hl, hw = 0.5 * self.length, 0.5 * self.width
         local = np.array([[hl, hw], [-hl, hw], [-hl, -hw], [hl, -hw]])
-        return np.column_stack([self.x + c * local[:, 0] - s * local[:, 1],
-                                self.y + s * local[:, 0] + c * local[:, 1]])
+        return np.column_stack(
+            [self.x + c * local[:, 0] - s * local[:, 1], self.y + s * local[:, 0] + c * local[:, 1]]
+        )
 
 
 def occluder_array(occluders: Sequence[Occluder] | None) -> F64:
@@ -75,8 +91,9 @@ def occluder_array(occluders: Sequence[Occluder] | None) -> F64:
 
 
 @numba.njit(cache=True, nogil=True)
-def hidden_by_boxes(ox: float, oy: float, oz: float, px: float, py: float, pz: float,
-                    boxes: F64) -> bool:  # pragma: no cover - compiled
+def hidden_by_boxes(
+    ox: float, oy: float, oz: float, px: float, py: float, pz: float, boxes: F64
+) -> bool:  # pragma: no cover - compiled
     """True when the segment from ``o`` (a sensor's mount) to ``p`` (a target sample), m,
     passes through any box of ``boxes`` (rows of ``COLUMNS``; slab test in each box's
     frame, z from 0 to its height)."""
@@ -108,8 +125,7 @@ def hidden_by_boxes(ox: float, oy: float, oz: float, px: float, py: float, pz: f
     return False
 
 
-def ego_frame_boxes(ex: F64, ey: F64, eh: F64, ox: F64, oy: F64, oh: F64,
-                    sizes: F64) -> F64:
+def ego_frame_boxes(ex: F64, ey: F64, eh: F64, ox: F64, oy: F64, oh: F64, sizes: F64) -> F64:
     """Occluder boxes in the ego's vehicle frame at every step: ego rear-axle states ``ex``,
     ``ey`` (m), ``eh`` (rad), each (B, T); occluder centre states ``ox``, ``oy``, ``oh``,
     each (M, B, T); ``sizes`` (M, 3) length, width, height (m). Returns (B, T, M, 7) rows
@@ -130,8 +146,9 @@ def ego_frame_boxes(ex: F64, ey: F64, eh: F64, ox: F64, oy: F64, oh: F64,
     return out
 
 
-def may_hide(boxes: F64, x: F64, y: F64, target_radius: float, mount_radius: float
-             ) -> NDArray[np.bool_]:
+def may_hide(
+    boxes: F64, x: F64, y: F64, target_radius: float, mount_radius: float
+) -> NDArray[np.bool_]:
     """(N,) whether any of the (N, M, 7) boxes may hide part of a target body centred at
     ``x``, ``y`` (m, vehicle frame; ``target_radius``: its footprint's half diagonal, m)
     from a sensor mounted within ``mount_radius`` (m) of the origin: a box whose footprint
@@ -169,5 +186,12 @@ def shadow_polygon(occ: Occluder, mount_xy: tuple[float, float], reach_m: float)
     return np.asarray(np.vstack([a, b, far(b), far(a)]), dtype=np.float64)
 
 
-__all__ = ["COLUMNS", "Occluder", "ego_frame_boxes", "hidden_by_boxes", "may_hide",
-           "occluder_array", "shadow_polygon"]
+__all__ = [
+    "COLUMNS",
+    "Occluder",
+    "ego_frame_boxes",
+    "hidden_by_boxes",
+    "may_hide",
+    "occluder_array",
+    "shadow_polygon",
+]

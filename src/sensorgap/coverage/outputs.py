@@ -49,22 +49,37 @@ def probe_csv(cov: PointCoverage) -> bytes:
     return csv_bytes(cols, data)
 
 
-def compute_coverage(scene: Scene, grid: GridSpec, per_sensor: bool = False,
-                     workers: int = 1, heading_deg: float | None = None,
-                     occluders: Sequence[Occluder] = ()) -> GridCoverage:
+def compute_coverage(
+    scene: Scene,
+    grid: GridSpec,
+    per_sensor: bool = False,
+    workers: int = 1,
+    heading_deg: float | None = None,
+    occluders: Sequence[Occluder] = (),
+) -> GridCoverage:
     """The coverage ``write_coverage`` writes (points, or bodies at ``heading_deg`` with
     ``occluders``), without writing anything: safe on worker threads (no figures)."""
     from sensorgap.coverage.body import body_grid
 
     if heading_deg is None:
         return evaluate_grid(scene, grid, per_sensor=per_sensor, workers=workers)
-    return body_grid(scene, grid, math.radians(heading_deg), per_sensor=per_sensor,
-                     occluders=occluder_array(occluders) if occluders else None)
+    return body_grid(
+        scene,
+        grid,
+        math.radians(heading_deg),
+        per_sensor=per_sensor,
+        occluders=occluder_array(occluders) if occluders else None,
+    )
 
 
 def write_coverage(
-    scene: Scene, grid: GridSpec, out_dir: Path, per_sensor: bool = False, workers: int = 1,
-    heading_deg: float | None = None, occluders: Sequence[Occluder] = (),
+    scene: Scene,
+    grid: GridSpec,
+    out_dir: Path,
+    per_sensor: bool = False,
+    workers: int = 1,
+    heading_deg: float | None = None,
+    occluders: Sequence[Occluder] = (),
     cov: GridCoverage | None = None,
 ) -> dict[str, Any]:
     """Evaluate ``grid`` and write coverage.npz, coverage.png and summary.json to
@@ -76,32 +91,63 @@ def write_coverage(
         raise ValueError("occluders need target bodies (a heading)")
     if cov is None:
         cov = compute_coverage(scene, grid, per_sensor, workers, heading_deg, occluders)
-    arrays = {"x": grid.xs(), "y": grid.ys(), "pd": cov.fused,
-              "height": np.array(grid.height), "resolution": np.array(grid.resolution)}
+    arrays = {
+        "x": grid.xs(),
+        "y": grid.ys(),
+        "pd": cov.fused,
+        "height": np.array(grid.height),
+        "resolution": np.array(grid.resolution),
+    }
     for sid, pd in cov.pd.items():
         arrays[f"pd.{sid}"] = pd
         if sid in cov.snr_db:
             arrays[f"snr_db.{sid}"] = cov.snr_db[sid]
     out_dir.mkdir(parents=True, exist_ok=True)
     write_npz(out_dir / "coverage.npz", arrays)
-    model = (f"height {grid.height:g} m" if heading_deg is None
-             else f"bodies at heading {heading_deg:g} deg")
-    title = (f"{scene.system.name}: {scene.target.name}, {scene.conditions.env.name}, "
-             f"{model}, {grid.resolution:g} m grid")
+    model = (
+        f"height {grid.height:g} m"
+        if heading_deg is None
+        else f"bodies at heading {heading_deg:g} deg"
+    )
+    title = (
+        f"{scene.system.name}: {scene.target.name}, {scene.conditions.env.name}, "
+        f"{model}, {grid.resolution:g} m grid"
+    )
     if occluders:
         title += f", {len(occluders)} occluder{'s' if len(occluders) > 1 else ''}"
-    save_figure(coverage_figure(cov, scene.system, title, occluders, scene.conditions),
-                out_dir / "coverage.png")
+    save_figure(
+        coverage_figure(cov, scene.system, title, occluders, scene.conditions),
+        out_dir / "coverage.png",
+    )
     summary = {
         **scene_provenance(scene),
-        "grid": {"xmin": grid.xmin, "xmax": grid.xmax, "ymin": grid.ymin, "ymax": grid.ymax,
-                 "resolution_m": grid.resolution, "height_m": grid.height,
-                 "nx": grid.nx, "ny": grid.ny},
-        "target_model": ("point at the grid height" if heading_deg is None
-                         else f"body (coverage.body) at heading {heading_deg:g} deg"),
-        "occluders": [{"label": o.label, "x_m": o.x, "y_m": o.y,
-                       "heading_deg": math.degrees(o.heading), "length_m": o.length,
-                       "width_m": o.width, "height_m": o.height} for o in occluders],
+        "grid": {
+            "xmin": grid.xmin,
+            "xmax": grid.xmax,
+            "ymin": grid.ymin,
+            "ymax": grid.ymax,
+            "resolution_m": grid.resolution,
+            "height_m": grid.height,
+            "nx": grid.nx,
+            "ny": grid.ny,
+        },
+        "target_model": (
+            "point at the grid height"
+            if heading_deg is None
+            else f"body (coverage.body) at heading {heading_deg:g} deg"
+        ),
+        "occluders": [
+            {
+                "label": o.label,
+                "x_m": o.x,
+                "y_m": o.y,
+                "heading_deg": math.degrees(o.heading),
+                "length_m": o.length,
+                "width_m": o.width,
+                "height_m": o.height,
+            }
+            for o in occluders
+        ],
         "area_m2_by_level": pd_levels_area(cov),
         "sensors_evaluated": cov.evaluated,
         "skipped": list(scene.log["skipped"]),

@@ -85,5 +85,6 @@ def evaluate_points(
             snr[row, idx] = s_snr
             pd[row, idx] = s_pd
             acc.add(s_pd, idx)
-    return PointCoverage(points=p, sensor_ids=ids, snr_db=snr, pd=pd, fused=acc.result(),
-                         evaluated=evaluated)
+    return PointCoverage(
+        points=p, sensor_ids=ids, snr_db=snr, pd=pd, fused=acc.result(), evaluated=evaluated
+    )

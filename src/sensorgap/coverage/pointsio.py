@@ -46,25 +46,39 @@ def read_points_csv(path: Path, default_z: float) -> NDArray[np.float64]:
     seen: set[str] = set()
     for n in names:
         if n and n in seen:  # which of the two would be read is not the user's choice
-            raise InputError(path, "header", f"column {n[:40]!r} appears twice; expected "
-                             "one each of x,y[,z]")
+            raise InputError(
+                path, "header", f"column {n[:40]!r} appears twice; expected one each of x,y[,z]"
+            )
         seen.add(n)
     for col in ("x", "y"):
         if col not in names:
-            raise InputError(path, "header", f"missing column {col!r}; expected x,y[,z], "
-                             f"got {','.join(header)!r}")
+            raise InputError(
+                path,
+                "header",
+                f"missing column {col!r}; expected x,y[,z], got {','.join(header)!r}",
+            )
     ix, iy = names.index("x"), names.index("y")
     iz = names.index("z") if "z" in names else None
     rows: list[tuple[float, float, float]] = []
     try:
         return _rows(path, reader, ix, iy, iz, default_z, rows)
     except csv.Error as exc:
-        raise InputError(path, f"line {reader.line_num}", f"not CSV ({exc}); fields are "
-                         f"numbers of at most {MAX_FIELD_CHARS} characters") from None
+        raise InputError(
+            path,
+            f"line {reader.line_num}",
+            f"not CSV ({exc}); fields are numbers of at most {MAX_FIELD_CHARS} characters",
+        ) from None
 
 
-def _rows(path: Path, reader: Any, ix: int, iy: int, iz: int | None, default_z: float,
-          rows: list[tuple[float, float, float]]) -> NDArray[np.float64]:
+def _rows(
+    path: Path,
+    reader: Any,
+    ix: int,
+    iy: int,
+    iz: int | None,
+    default_z: float,
+    rows: list[tuple[float, float, float]],
+) -> NDArray[np.float64]:
     for lineno, row in enumerate(reader, start=2):
         if not row or all(not c.strip() for c in row):
             continue
@@ -77,15 +91,21 @@ def _rows(path: Path, reader: Any, ix: int, iy: int, iz: int | None, default_z: 
                 continue
             cell = row[idx].strip() if idx < len(row) else ""
             if len(cell) > MAX_FIELD_CHARS:
-                raise InputError(path, f"line {lineno}, column {name}", f"field of "
-                                 f"{len(cell)} characters; at most {MAX_FIELD_CHARS} allowed")
+                raise InputError(
+                    path,
+                    f"line {lineno}, column {name}",
+                    f"field of {len(cell)} characters; at most {MAX_FIELD_CHARS} allowed",
+                )
             try:
                 v = parse_decimal(cell)
             except ValueError:
                 v = math.nan
             if not math.isfinite(v) or abs(v) > 1.0e7:
-                raise InputError(path, f"line {lineno}, column {name}",
-                                 f"expected a finite number within +-1e7 m, got {cell!r}")
+                raise InputError(
+                    path,
+                    f"line {lineno}, column {name}",
+                    f"expected a finite number within +-1e7 m, got {cell!r}",
+                )
             vals.append(v)
         rows.append((vals[0], vals[1], vals[2]))
     if not rows:

@@ -46,12 +46,16 @@ def scene_scope(scene: Scene, lo: F64, hi: F64, sun_dirs: F64 | None = None) -> 
     sensors, skipped, glared = [], {}, []
     for s in scene.sensors:
         if not sensor_can_reach_box(s, np.asarray(lo), np.asarray(hi)):
-            skipped[s.id] = (f"{s.type_name} range {s.mount.max_range:g} m cannot reach the "
-                             "scenario's region")
+            skipped[s.id] = (
+                f"{s.type_name} range {s.mount.max_range:g} m cannot reach the scenario's region"
+            )
             continue
         sensors.append(s)
-        if (sun_dirs is not None and len(sun_dirs)
-                and np.any(s.model.glare_weights(s.mount, sun_dirs) > 0.0)):
+        if (
+            sun_dirs is not None
+            and len(sun_dirs)
+            and np.any(s.model.glare_weights(s.mount, sun_dirs) > 0.0)
+        ):
             glared.append(s.id)
     bands = []
     for s in sensors:

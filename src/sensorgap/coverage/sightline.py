@@ -51,8 +51,11 @@ REFERENCE_MIN_VISIBLE_FRACTION = 0.5
 
 def driver_eye(body: BodyConfig) -> tuple[float, float, float]:
     """The driver's eye point of a vehicle body in its frame, m (an estimate, above)."""
-    return (EYE_X_WHEELBASE * body.wheelbase_m, EYE_Y_M,
-            min(EYE_Z_M, body.height_m - EYE_BELOW_ROOF_M))
+    return (
+        EYE_X_WHEELBASE * body.wheelbase_m,
+        EYE_Y_M,
+        min(EYE_Z_M, body.height_m - EYE_BELOW_ROOF_M),
+    )
 
 
 def viewpoints(body: BodyConfig) -> F64:
@@ -63,8 +66,19 @@ def viewpoints(body: BodyConfig) -> F64:
 
 
 @numba.njit(cache=True, nogil=True)
-def _seen(x: float, y: float, psi: float, bx: F64, by: F64, bz: F64, bnx: F64, bny: F64,
-          views: F64, boxes: F64, frac: float) -> bool:  # pragma: no cover - compiled
+def _seen(
+    x: float,
+    y: float,
+    psi: float,
+    bx: F64,
+    by: F64,
+    bz: F64,
+    bnx: F64,
+    bny: F64,
+    views: F64,
+    boxes: F64,
+    frac: float,
+) -> bool:  # pragma: no cover - compiled
     """Whether, from some viewpoint, at least ``frac`` of the body's outline samples facing
     it (at x, y, psi) have a free line of sight past ``boxes``."""
     if boxes.shape[0] == 0:
@@ -105,16 +119,30 @@ def _seen(x: float, y: float, psi: float, bx: F64, by: F64, bz: F64, bnx: F64, b
 
 
 @numba.njit(cache=True, nogil=True)
-def _first_seen_kernel(x: F64, y: F64, psi: F64, n_valid: I64, rows: I64, occ: F64,
-                       bx: F64, by: F64, bz: F64, bnx: F64, bny: F64, views: F64, m: int,
-                       n: int, frac: float, out: I64) -> None:  # pragma: no cover - compiled
+def _first_seen_kernel(
+    x: F64,
+    y: F64,
+    psi: F64,
+    n_valid: I64,
+    rows: I64,
+    occ: F64,
+    bx: F64,
+    by: F64,
+    bz: F64,
+    bnx: F64,
+    bny: F64,
+    views: F64,
+    m: int,
+    n: int,
+    frac: float,
+    out: I64,
+) -> None:  # pragma: no cover - compiled
     mask = (1 << n) - 1
     for r in rows:
         bits = 0
         out[r] = -1
         for k in range(n_valid[r]):
-            hit = _seen(x[r, k], y[r, k], psi[r, k], bx, by, bz, bnx, bny, views, occ[r, k],
-                        frac)
+            hit = _seen(x[r, k], y[r, k], psi[r, k], bx, by, bz, bnx, bny, views, occ[r, k], frac)
             bits = ((bits << 1) | (1 if hit else 0)) & mask
             count = 0
             b = bits
@@ -126,9 +154,18 @@ def _first_seen_kernel(x: F64, y: F64, psi: F64, n_valid: I64, rows: I64, occ: F
                 break
 
 
-def perfect_confirmation_step(x: F64, y: F64, psi: F64, n_valid: I64, occluders: F64,
-                              target: TargetConfig, views: F64, confirm_m: int,
-                              confirm_n: int, rows: I64) -> I64:
+def perfect_confirmation_step(
+    x: F64,
+    y: F64,
+    psi: F64,
+    n_valid: I64,
+    occluders: F64,
+    target: TargetConfig,
+    views: F64,
+    confirm_m: int,
+    confirm_n: int,
+    rows: I64,
+) -> I64:
     """(B,) the step at which perfect perception confirms the target (M of the last N
     steps seen, module docstring): target centres ``x``, ``y`` (m) and headings ``psi``
     (rad) in the ego frame, (B, T); ``occluders`` (B, T, M, 7) ego-frame boxes
@@ -139,10 +176,22 @@ def perfect_confirmation_step(x: F64, y: F64, psi: F64, n_valid: I64, occluders:
     if rows.size == 0:
         return out
     body = body_samples(target)
-    _first_seen_kernel(np.ascontiguousarray(x), np.ascontiguousarray(y),
-                       np.ascontiguousarray(psi), np.ascontiguousarray(n_valid, np.int64),
-                       np.ascontiguousarray(rows, np.int64), np.ascontiguousarray(occluders),
-                       body.x, body.y, body.z, body.nx, body.ny,
-                       np.ascontiguousarray(views), int(confirm_m), int(confirm_n),
-                       REFERENCE_MIN_VISIBLE_FRACTION, out)
+    _first_seen_kernel(
+        np.ascontiguousarray(x),
+        np.ascontiguousarray(y),
+        np.ascontiguousarray(psi),
+        np.ascontiguousarray(n_valid, np.int64),
+        np.ascontiguousarray(rows, np.int64),
+        np.ascontiguousarray(occluders),
+        body.x,
+        body.y,
+        body.z,
+        body.nx,
+        body.ny,
+        np.ascontiguousarray(views),
+        int(confirm_m),
+        int(confirm_n),
+        REFERENCE_MIN_VISIBLE_FRACTION,
+        out,
+    )
     return out

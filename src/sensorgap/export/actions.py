@@ -22,8 +22,10 @@ SUT_CONTROLLER = "SystemUnderTest"
 DEFAULT_EGO_CONTROLLER = "ExternalController"
 #: Declared parameters of the ego's controller (string values as written).
 EGO_CONTROLLER_PARAMETERS: dict[str, str | float] = {
-    "ego_controller": DEFAULT_EGO_CONTROLLER, "ego_controller_longitudinal": "false",
-    "ego_controller_lateral": "false"}
+    "ego_controller": DEFAULT_EGO_CONTROLLER,
+    "ego_controller_longitudinal": "false",
+    "ego_controller_lateral": "false",
+}
 #: OpenSCENARIO dynamics shape per lane-change blend. The cosine blend is the sinusoidal
 #: shape exactly. The quintic (minimum-jerk) blend has no counterpart; of the standard's
 #: shapes sinusoidal is the closest in position (largest difference 4.4 % of the lane
@@ -62,8 +64,9 @@ class Build:
         return self.spec.family.settings
 
     def event(self, actor: str, name: str, action: Any, trigger: Any) -> xosc.Event:
-        ev = xosc.Event(name, xosc.Priority.override if self.minor >= 2
-                        else xosc.Priority.overwrite)
+        ev = xosc.Event(
+            name, xosc.Priority.override if self.minor >= 2 else xosc.Priority.overwrite
+        )
         ev.add_action(f"{name}_action", action)
         ev.add_trigger(trigger)
         self.events.setdefault(actor, []).append(ev)
@@ -107,8 +110,9 @@ def lane_speed(b: Build, lane: int, speed: str, s0: float, s1: float) -> str | f
     return b.p.expr(f"({speed}) * {number(f)}")
 
 
-def lane_start(b: Build, name: str, lane: int, tr: int, ahead: str, speed: str,
-                until_s: float | None = None) -> float:
+def lane_start(
+    b: Build, name: str, lane: int, tr: int, ahead: str, speed: str, until_s: float | None = None
+) -> float:
     """``name`` starts in ``lane`` ``ahead`` (expression) of the ego's start at ``speed``
     (expression, m/s of road s; written as lane speed over the stretch it covers in this
     lane until ``until_s``, default the duration); returns its start s, m."""
@@ -117,8 +121,7 @@ def lane_start(b: Build, name: str, lane: int, tr: int, ahead: str, speed: str,
     s0 = b.p.value(s_text)
     until = b.spec.family.duration_s if until_s is None else until_s
     v = lane_speed(b, lane, speed, s0, s0 + tr * b.p.value(speed) * until)
-    b.init.append((name, xosc.TeleportAction(xosc.LanePosition(b.p.expr(s_text), 0.0, lane,
-                                                               rid))))
+    b.init.append((name, xosc.TeleportAction(xosc.LanePosition(b.p.expr(s_text), 0.0, lane, rid))))
     b.init.append((name, xosc.AbsoluteSpeedAction(v, step_dynamics())))
     return s0
 
@@ -130,12 +133,14 @@ def step_dynamics() -> xosc.TransitionDynamics:
 def after_start(name: str) -> xosc.ValueTrigger:
     """Fires at the first step after the initialisation (time > 0): init actions are done,
     so no event overrides a running init action (esmini's "conflicting domain")."""
-    return xosc.ValueTrigger(name, 0.0, xosc.ConditionEdge.none,
-                             xosc.SimulationTimeCondition(0.0, xosc.Rule.greaterThan))
+    return xosc.ValueTrigger(
+        name, 0.0, xosc.ConditionEdge.none, xosc.SimulationTimeCondition(0.0, xosc.Rule.greaterThan)
+    )
 
 
-def gap_trigger(b: Build, name: str, actor: str, reference: str, gap_expr: str,
-                 closing: float) -> xosc.EntityTrigger:
+def gap_trigger(
+    b: Build, name: str, actor: str, reference: str, gap_expr: str, closing: float
+) -> xosc.EntityTrigger:
     """Fires when ``actor``'s longitudinal distance (origin to origin, road s) to
     ``reference`` reaches the planned signed gap ``gap_expr`` (m, + = actor ahead) that
     changes at ``closing`` (m/s, d gap / dt). OpenSCENARIO conditions compare the absolute
@@ -146,33 +151,54 @@ def gap_trigger(b: Build, name: str, actor: str, reference: str, gap_expr: str,
     grows = gap * closing > 0.0
     text = gap_expr if gap >= 0.0 else f"-({gap_expr})"
     cond = xosc.RelativeDistanceCondition(
-        b.p.expr(text), xosc.Rule.greaterThan if grows else xosc.Rule.lessThan,
-        xosc.RelativeDistanceType.longitudinal, reference, alongroute=False, freespace=False,
-        coordinate_system=xosc.CoordinateSystem.road)
+        b.p.expr(text),
+        xosc.Rule.greaterThan if grows else xosc.Rule.lessThan,
+        xosc.RelativeDistanceType.longitudinal,
+        reference,
+        alongroute=False,
+        freespace=False,
+        coordinate_system=xosc.CoordinateSystem.road,
+    )
     return xosc.EntityTrigger(name, 0.0, xosc.ConditionEdge.rising, cond, actor)
 
 
-def lane_change(b: Build, actor: str, name: str, lane: int | None, shape: str,
-                 duration: str, trigger: xosc.EntityTrigger | xosc.ValueTrigger,
-                 time_s: float, reference: str,
-                 speed: tuple[str, int, float, float] | None = None) -> None:
+def lane_change(
+    b: Build,
+    actor: str,
+    name: str,
+    lane: int | None,
+    shape: str,
+    duration: str,
+    trigger: xosc.EntityTrigger | xosc.ValueTrigger,
+    time_s: float,
+    reference: str,
+    speed: tuple[str, int, float, float] | None = None,
+) -> None:
     """``actor`` changes into ``lane`` (None: the ego's lane) with ``shape`` over
     ``duration`` (expression, s) when ``trigger`` fires (planned at ``time_s``); with
     ``speed`` = (planned speed expression, new lane, stretch from s, to s) its lane speed
     changes with the same shape to the new lane's over the same time."""
     dyn = xosc.TransitionDynamics(shape, xosc.DynamicsDimension.time, duration)
-    action = (xosc.RelativeLaneChangeAction(0, EGO, dyn) if lane is None
-              else xosc.AbsoluteLaneChangeAction(lane, dyn))
+    action = (
+        xosc.RelativeLaneChangeAction(0, EGO, dyn)
+        if lane is None
+        else xosc.AbsoluteLaneChangeAction(lane, dyn)
+    )
     ev = b.event(actor, name, action, trigger)
     if speed is not None:
         v = lane_speed(b, speed[1], speed[0], speed[2], speed[3])
-        ev.add_action(f"{name}_lane_speed", xosc.AbsoluteSpeedAction(
-            v, xosc.TransitionDynamics(shape, xosc.DynamicsDimension.time, duration)))
+        ev.add_action(
+            f"{name}_lane_speed",
+            xosc.AbsoluteSpeedAction(
+                v, xosc.TransitionDynamics(shape, xosc.DynamicsDimension.time, duration)
+            ),
+        )
     b.triggers.append(PlannedTrigger(name, actor, reference, time_s))
 
 
-def after_change(b: Build, tr: int, s0: float, speed: str, t_start: float,
-                  t_end: float) -> tuple[float, float]:
+def after_change(
+    b: Build, tr: int, s0: float, speed: str, t_start: float, t_end: float
+) -> tuple[float, float]:
     """The road-s stretch an entity starting at ``s0`` at ``speed`` covers from the end of
     its lane change (``t_start`` + duration = ``t_end``; the start if it ends after the
     scenario) to the scenario's end."""

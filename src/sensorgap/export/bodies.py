@@ -43,30 +43,42 @@ def planned_boxes(spec: ScenarioSpec) -> dict[str, PlannedBox]:
     ahead = 0.5 * (body.x_front_m + body.x_rear_m)  # rear axle -> box centre, m
     ego = spec.scenario.ego
     c, s = np.cos(ego.heading), np.sin(ego.heading)
-    out = {EGO: PlannedBox(Trajectory(ego.t, ego.x + ahead * c, ego.y + ahead * s,
-                                      ego.heading, ego.speed),
-                           body.length_m, body.width_m),
-           TARGET: PlannedBox(spec.scenario.target, spec.target.length_m,
-                              spec.target.width_m)}
+    out = {
+        EGO: PlannedBox(
+            Trajectory(ego.t, ego.x + ahead * c, ego.y + ahead * s, ego.heading, ego.speed),
+            body.length_m,
+            body.width_m,
+        ),
+        TARGET: PlannedBox(spec.scenario.target, spec.target.length_m, spec.target.width_m),
+    }
     for occ in spec.scenario.occluders:
         out[occluder_name(occ.label)] = PlannedBox(occ.path, occ.length_m, occ.width_m)
     return out
 
 
-def box_points(cx: F64, cy: F64, heading: F64, length: F64 | float,
-               width: F64 | float) -> F64:
+def box_points(cx: F64, cy: F64, heading: F64, length: F64 | float, width: F64 | float) -> F64:
     """(n, 5, 2) centre and corners (front left, front right, rear right, rear left) of
     boxes with centres ``cx, cy`` (m), ``heading`` (rad) and ``length``, ``width`` (m)."""
     c, s = np.cos(heading), np.sin(heading)
     hl = 0.5 * np.broadcast_to(np.asarray(length, dtype=np.float64), np.shape(cx))
     hw = 0.5 * np.broadcast_to(np.asarray(width, dtype=np.float64), np.shape(cx))
     pts = [(0.0 * hl, 0.0 * hw), (hl, hw), (hl, -hw), (-hl, -hw), (-hl, hw)]
-    return np.stack([np.stack([cx + c * u - s * v, cy + s * u + c * v], axis=-1)
-                     for u, v in pts], axis=1)
+    return np.stack(
+        [np.stack([cx + c * u - s * v, cy + s * u + c * v], axis=-1) for u, v in pts], axis=1
+    )
 
 
-def box_deviation(plan: PlannedBox, t: F64, x: F64, y: F64, heading: F64, bb_x: F64,
-                  bb_y: F64, length: F64, width: F64) -> float:
+def box_deviation(
+    plan: PlannedBox,
+    t: F64,
+    x: F64,
+    y: F64,
+    heading: F64,
+    bb_x: F64,
+    bb_y: F64,
+    length: F64,
+    width: F64,
+) -> float:
     """Largest distance (m) of a logged box's centre or corners from the planned box's at
     the logged times ``t`` (s) within the plan; the logged box from the entity's origin
     ``x, y`` (m), ``heading`` (rad) and esmini's ``bb_x, bb_y`` (box centre in the
@@ -80,6 +92,11 @@ def box_deviation(plan: PlannedBox, t: F64, x: F64, y: F64, heading: F64, bb_x: 
     cy = y + s * bb_x[keep] + c * bb_y[keep]
     logged = box_points(cx, cy, heading, length[keep], width[keep])
     p = plan.centre
-    planned = box_points(np.interp(t, p.t, p.x), np.interp(t, p.t, p.y),
-                         np.interp(t, p.t, p.heading), plan.length_m, plan.width_m)
+    planned = box_points(
+        np.interp(t, p.t, p.x),
+        np.interp(t, p.t, p.y),
+        np.interp(t, p.t, p.heading),
+        plan.length_m,
+        plan.width_m,
+    )
     return float(np.max(np.hypot(*(logged - planned).transpose(2, 0, 1))))

@@ -34,8 +34,14 @@ class BrakeStep:
     rate_m_s2: float
 
 
-def brake_steps(t_brake_s: float, v0_m_s: float, jerk_m_s3: float, decel_m_s2: float,
-                step_s: float, factor: float = 1.0) -> list[BrakeStep]:
+def brake_steps(
+    t_brake_s: float,
+    v0_m_s: float,
+    jerk_m_s3: float,
+    decel_m_s2: float,
+    step_s: float,
+    factor: float = 1.0,
+) -> list[BrakeStep]:
     """The speed actions of a jerk-limited braking from ``v0_m_s`` (m/s) starting at
     ``t_brake_s`` (s): the ramp (``jerk_m_s3``, m/s3, up to ``decel_m_s2``, m/s2) one
     ``step_s`` (s) at a time, then constant deceleration to 0; speeds and rates times
@@ -54,8 +60,13 @@ def brake_steps(t_brake_s: float, v0_m_s: float, jerk_m_s3: float, decel_m_s2: f
         if v_b <= 0.0:  # stops during the ramp: the time to standstill within this step
             t_stop = math.sqrt(2.0 * v0_m_s / jerk_m_s3)
             tau1 = max(t_stop, tau + 1e-9)
-        out.append(BrakeStep(t_brake_s + tau, factor * max(v_b, 0.0),
-                             factor * (v_a - max(v_b, 0.0)) / (tau1 - tau)))
+        out.append(
+            BrakeStep(
+                t_brake_s + tau,
+                factor * max(v_b, 0.0),
+                factor * (v_a - max(v_b, 0.0)) / (tau1 - tau),
+            )
+        )
         if v_b <= 0.0:
             return out
         tau = tau1
@@ -68,14 +79,29 @@ def brake_events(steps: list[BrakeStep], minor: int, step_s: float) -> list[xosc
     by ``SimulationTime > start - step / 2``."""
     events = []
     for i, st in enumerate(steps):
-        ev = xosc.Event(f"ego_brake_{i}", xosc.Priority.override if minor >= 2
-                        else xosc.Priority.overwrite)
-        ev.add_action(f"ego_brake_{i}_action", xosc.AbsoluteSpeedAction(
-            float(round(st.speed_m_s, 6)), xosc.TransitionDynamics(
-                xosc.DynamicsShapes.linear, xosc.DynamicsDimension.rate,
-                float(round(st.rate_m_s2, 6)))))
-        ev.add_trigger(xosc.ValueTrigger(
-            f"ego_brake_{i}_time", 0.0, xosc.ConditionEdge.none, xosc.SimulationTimeCondition(
-                float(round(st.start_s - 0.5 * step_s, 6)), xosc.Rule.greaterThan)))
+        ev = xosc.Event(
+            f"ego_brake_{i}", xosc.Priority.override if minor >= 2 else xosc.Priority.overwrite
+        )
+        ev.add_action(
+            f"ego_brake_{i}_action",
+            xosc.AbsoluteSpeedAction(
+                float(round(st.speed_m_s, 6)),
+                xosc.TransitionDynamics(
+                    xosc.DynamicsShapes.linear,
+                    xosc.DynamicsDimension.rate,
+                    float(round(st.rate_m_s2, 6)),
+                ),
+            ),
+        )
+        ev.add_trigger(
+            xosc.ValueTrigger(
+                f"ego_brake_{i}_time",
+                0.0,
+                xosc.ConditionEdge.none,
+                xosc.SimulationTimeCondition(
+                    float(round(st.start_s - 0.5 * step_s, 6)), xosc.Rule.greaterThan
+                ),
+            )
+        )
         events.append(ev)
     return events

@@ -62,12 +62,16 @@ def _lanes(spec: ScenarioSpec) -> dict[str, list[int]]:
     return {str(st["road_id"]): lanes}
 
 
-def write_xosc(spec: ScenarioSpec, path: Path, road_rel: str, version: str,
-               style: str = DEFAULT_STYLE) -> None:
+def write_xosc(
+    spec: ScenarioSpec, path: Path, road_rel: str, version: str, style: str = DEFAULT_STYLE
+) -> None:
     """One scenario's OpenSCENARIO file (atomically) in ``style``, its road referenced as
     ``road_rel`` (relative to the file)."""
-    sc = (build_scenario(spec, road_rel, version) if style == "replay"
-          else build_maneuver_scenario(spec, road_rel, version)[0])
+    sc = (
+        build_scenario(spec, road_rel, version)
+        if style == "replay"
+        else build_maneuver_scenario(spec, road_rel, version)[0]
+    )
     with atomic_path(path) as tmp:
         sc.write_xml(str(tmp), prettyprint=True)
 
@@ -84,13 +88,20 @@ def _coverage_maps(specs: list[ScenarioSpec], out: Path) -> list[Path]:
         env = sp.environment.model_copy(update={"sun": None})
         target = load_target(sp.target.name)
         grid = GridSpec(xmin, xmax, ymin, ymax, res, target.reference_height_m)
-        cov = evaluate_grid(Scene(sp.system, target, Conditions(env=env, sun_direction=None)),
-                            grid, workers=2)
+        cov = evaluate_grid(
+            Scene(sp.system, target, Conditions(env=env, sun_direction=None)), grid, workers=2
+        )
         stem = f"{target.name}_{sp.environment_name}"
-        write_npz(out / f"{stem}.npz", {"pd": cov.fused.astype(np.float32), "xs": grid.xs(),
-                                         "ys": grid.ys()})
-        fig = coverage_figure(cov, sp.system, f"{sp.system.name}: {target.name}, "
-                              f"{sp.environment_name} (no sun), Pd used by the search lookup")
+        write_npz(
+            out / f"{stem}.npz",
+            {"pd": cov.fused.astype(np.float32), "xs": grid.xs(), "ys": grid.ys()},
+        )
+        fig = coverage_figure(
+            cov,
+            sp.system,
+            f"{sp.system.name}: {target.name}, "
+            f"{sp.environment_name} (no sun), Pd used by the search lookup",
+        )
         save_figure(fig, out / f"{stem}.png", dpi=80)
         written += [out / f"{stem}.npz", out / f"{stem}.png"]
     return written
@@ -104,8 +115,12 @@ def _inside_only(out: Path) -> None:
         subs += sorted((out / INPUTS_DIR).iterdir())
     for p in subs:
         if p.is_symlink():
-            raise InputError(p, "", "is a symbolic link; export writes only inside the "
-                             "catalog folder (remove the link or choose another --out)")
+            raise InputError(
+                p,
+                "",
+                "is a symbolic link; export writes only inside the "
+                "catalog folder (remove the link or choose another --out)",
+            )
 
 
 #: What an export writes into its folder (``filesio.refuse_if_changed``): everything else
@@ -113,16 +128,22 @@ def _inside_only(out: Path) -> None:
 EXPORT_WRITES = ("scenarios/", "roads/", "coverage/*", "catalog.json", "simulation.csv")
 
 
-def export_catalog(run_dir: Path, out_dir: Path | None = None,
-                   osc_version: str = DEFAULT_VERSION, top: int | None = None,
-                   coverage: bool = True, style: str = DEFAULT_STYLE) -> dict[str, Any]:
+def export_catalog(
+    run_dir: Path,
+    out_dir: Path | None = None,
+    osc_version: str = DEFAULT_VERSION,
+    top: int | None = None,
+    coverage: bool = True,
+    style: str = DEFAULT_STYLE,
+) -> dict[str, Any]:
     """Write the catalog of a search run in ``style`` (see the module docstring); returns
     the index."""
     if style not in STYLES:
         raise InputError("style", "", f"must be one of {', '.join(STYLES)}, got {style!r}")
     if osc_version not in VERSIONS:
-        raise InputError("osc_version", "", f"must be one of {', '.join(VERSIONS)}, "
-                         f"got {osc_version!r}")
+        raise InputError(
+            "osc_version", "", f"must be one of {', '.join(VERSIONS)}, got {osc_version!r}"
+        )
     if top is not None and top < 1:
         raise InputError("top", "", f"must be >= 1, got {top}")
     run = read_run(Path(run_dir))
@@ -131,13 +152,20 @@ def export_catalog(run_dir: Path, out_dir: Path | None = None,
     if style == "maneuver":
         for sp in specs:
             if not supported(sp):
-                raise InputError("style", "", f"family {sp.family.name} (kind "
-                                 f"{sp.family.kind.name}) has no maneuver form; use "
-                                 "--style replay")
+                raise InputError(
+                    "style",
+                    "",
+                    f"family {sp.family.name} (kind "
+                    f"{sp.family.kind.name}) has no maneuver form; use "
+                    "--style replay",
+                )
     _inside_only(out)
     in_place = out.resolve() == run.folder.resolve()
-    writes = EXPORT_WRITES if in_place else (*EXPORT_WRITES, "ranking.csv", "ranking.json",
-                                             "run.json", f"{INPUTS_DIR}/")
+    writes = (
+        EXPORT_WRITES
+        if in_place
+        else (*EXPORT_WRITES, "ranking.csv", "ranking.json", "run.json", f"{INPUTS_DIR}/")
+    )
     refuse_if_changed(out, writes)
     (out / "scenarios").mkdir(parents=True, exist_ok=True)
     (out / "roads").mkdir(parents=True, exist_ok=True)
@@ -166,23 +194,35 @@ def export_catalog(run_dir: Path, out_dir: Path | None = None,
         if errs:
             raise ExportError(f"{path}: not valid OpenSCENARIO {osc_version}: {errs[0]}")
         vru = sp.target.name in ("pedestrian", "bike")
-        sem = semantic_errors(path, nets[road_src.name], _lanes(sp),
-                              tolerance_by_path={"Target_path": FOOTWAY_M,
-                                                 "Target_crossing": FOOTWAY_M}
-                              if vru else None)
+        sem = semantic_errors(
+            path,
+            nets[road_src.name],
+            _lanes(sp),
+            tolerance_by_path={"Target_path": FOOTWAY_M, "Target_crossing": FOOTWAY_M}
+            if vru
+            else None,
+        )
         if sem:
             raise ExportError(f"{path}: {sem[0]}")
         files[f"scenarios/{path.name}"] = {"role": "scenario", "scenario_id": sp.scenario_id}
-        scenarios.append({
-            "rank": sp.rank, "scenario_id": sp.scenario_id, "family": sp.family.name,
-            "environment": sp.environment_name,
-            "sun_deg": None if sp.sun_deg is None else list(sp.sun_deg),
-            "target": sp.target.name, "risk": sp.metrics.get("risk", 0.0),
-            "log10_risk": sp.metrics.get("log10_risk", -300.0),
-            "file": f"scenarios/{path.name}", "road": f"roads/{road_src.name}",
-            "duration_s": sp.family.duration_s, "xsd": f"OpenSCENARIO {osc_version}: valid",
-            "semantic_checks": "passed", "reason": sp.reason,
-        })
+        scenarios.append(
+            {
+                "rank": sp.rank,
+                "scenario_id": sp.scenario_id,
+                "family": sp.family.name,
+                "environment": sp.environment_name,
+                "sun_deg": None if sp.sun_deg is None else list(sp.sun_deg),
+                "target": sp.target.name,
+                "risk": sp.metrics.get("risk", 0.0),
+                "log10_risk": sp.metrics.get("log10_risk", -300.0),
+                "file": f"scenarios/{path.name}",
+                "road": f"roads/{road_src.name}",
+                "duration_s": sp.family.duration_s,
+                "xsd": f"OpenSCENARIO {osc_version}: valid",
+                "semantic_checks": "passed",
+                "reason": sp.reason,
+            }
+        )
     # the catalog folder holds this export only: scenario and road files of an earlier
     # (larger) export and its simulation results are removed
     for sub, pattern in (("scenarios", "*.xosc"), ("roads", "*.xodr")):
@@ -199,10 +239,15 @@ def export_catalog(run_dir: Path, out_dir: Path | None = None,
     for rel, meta in files.items():
         p = out / rel
         meta.update({"bytes": p.stat().st_size, "sha256": _sha(p)})
-    index = {"vehicle": specs[0].system.name if specs else run.vehicle_ref,
-             "vehicle_ref": run.vehicle_ref, "osc_version": osc_version, "style": style,
-             "scenarios": scenarios, "files": files,
-             "search_settings": run.settings}
+    index = {
+        "vehicle": specs[0].system.name if specs else run.vehicle_ref,
+        "vehicle_ref": run.vehicle_ref,
+        "osc_version": osc_version,
+        "style": style,
+        "scenarios": scenarios,
+        "files": files,
+        "search_settings": run.settings,
+    }
     write_json(out / "catalog.json", index)
     write_manifest(out, writes)
     return index

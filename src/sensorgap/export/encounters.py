@@ -40,14 +40,28 @@ def _cut_in(b: Build) -> None:
     tr = travel_direction(sp.family.network, str(b.st["road_id"]), int(b.st["ego_lane"]))
     off = number(origin_offset(sp.target))
     t_s, t_e = float(p["lc_start_s"]), float(p["lc_start_s"]) + float(p["lc_duration_s"])
-    s0 = lane_start(b, TARGET, int(b.st["target_lane"]), tr, f"$dx0_m - {off}",
-                     "$target_speed_m_s", t_s)
+    s0 = lane_start(
+        b, TARGET, int(b.st["target_lane"]), tr, f"$dx0_m - {off}", "$target_speed_m_s", t_s
+    )
     gap = f"$dx0_m - {off} + ($target_speed_m_s - $ego_speed_m_s) * $lc_start_s"
     dv = float(p["target_speed_m_s"]) - float(p["ego_speed_m_s"])
     trig = gap_trigger(b, "cut_in_gap", TARGET, EGO, gap, dv)
-    lane_change(b, TARGET, "cut_in", None, declare_shape(b), b.p.ref("lc_duration_s"),
-                 trig, t_s, EGO, ("$target_speed_m_s", int(b.st["ego_lane"]),
-                                  *after_change(b, tr, s0, "$target_speed_m_s", t_s, t_e)))
+    lane_change(
+        b,
+        TARGET,
+        "cut_in",
+        None,
+        declare_shape(b),
+        b.p.ref("lc_duration_s"),
+        trig,
+        t_s,
+        EGO,
+        (
+            "$target_speed_m_s",
+            int(b.st["ego_lane"]),
+            *after_change(b, tr, s0, "$target_speed_m_s", t_s, t_e),
+        ),
+    )
 
 
 def _cut_in_behind_truck(b: Build) -> None:
@@ -57,21 +71,34 @@ def _cut_in_behind_truck(b: Build) -> None:
     side = int(b.st["target_lane"])
     name = occluder_name(sp.scenario.occluders[0].label)
     b.entities.append((name, truck))
-    lane_start(b, name, int(b.st["occluder_lane"]), tr,
-                f"$truck_dx_m - {number(origin_offset(truck))}",
-                "$truck_speed_m_s")
+    lane_start(
+        b,
+        name,
+        int(b.st["occluder_lane"]),
+        tr,
+        f"$truck_dx_m - {number(origin_offset(truck))}",
+        "$truck_speed_m_s",
+    )
     half = number(0.5 * truck.length_m + 0.5 * sp.target.length_m - origin_offset(sp.target))
     ahead = f"$truck_dx_m + $target_gap_m + {half}"
     speed = "$truck_speed_m_s + $speed_delta_m_s"
     t_s, t_e = float(p["lc_start_s"]), float(p["lc_start_s"]) + float(p["lc_duration_s"])
     s0 = lane_start(b, TARGET, side, tr, ahead, speed, t_s)
     gap = f"{ahead} + ($truck_speed_m_s + $speed_delta_m_s - $ego_speed_m_s) * $lc_start_s"
-    dv = (float(p["truck_speed_m_s"]) + float(p["speed_delta_m_s"])
-          - float(p["ego_speed_m_s"]))
+    dv = float(p["truck_speed_m_s"]) + float(p["speed_delta_m_s"]) - float(p["ego_speed_m_s"])
     trig = gap_trigger(b, "cut_in_gap", TARGET, EGO, gap, dv)
-    lane_change(b, TARGET, "cut_in", None, declare_shape(b), b.p.ref("lc_duration_s"),
-                 trig, t_s, EGO, (speed, int(b.st["ego_lane"]),
-                                  *after_change(b, tr, s0, speed, t_s, t_e)))
+    lane_change(
+        b,
+        TARGET,
+        "cut_in",
+        None,
+        declare_shape(b),
+        b.p.ref("lc_duration_s"),
+        trig,
+        t_s,
+        EGO,
+        (speed, int(b.st["ego_lane"]), *after_change(b, tr, s0, speed, t_s, t_e)),
+    )
 
 
 def _overtake(b: Build) -> None:
@@ -82,17 +109,31 @@ def _overtake(b: Build) -> None:
     t_m = (float(p["merge_gap_m"]) - float(p["dx0_m"])) / float(p["speed_delta_m_s"])
     t_e = t_m + float(p["merge_duration_s"])
     s0 = lane_start(b, TARGET, int(b.st["target_lane"]), tr, f"$dx0_m - {off}", v0, t_m)
-    trig = gap_trigger(b, "merge_gap", TARGET, EGO, f"$merge_gap_m - {off}",
-                        float(p["speed_delta_m_s"]))
+    trig = gap_trigger(
+        b, "merge_gap", TARGET, EGO, f"$merge_gap_m - {off}", float(p["speed_delta_m_s"])
+    )
     b.p.values["lane_change_shape"] = "sinusoidal"
     stretch = after_change(b, tr, s0, v0, t_m, t_e)
-    lane_change(b, TARGET, "merge", None, b.p.ref("lane_change_shape"),
-                 b.p.ref("merge_duration_s"), trig, t_m, EGO, (v0, lane, *stretch))
+    lane_change(
+        b,
+        TARGET,
+        "merge",
+        None,
+        b.p.ref("lane_change_shape"),
+        b.p.ref("merge_duration_s"),
+        trig,
+        t_m,
+        EGO,
+        (v0, lane, *stretch),
+    )
     vf = b.p.value("$ego_speed_m_s - $final_delta_m_s")
-    speed = (lane_speed(b, lane, "$ego_speed_m_s - $final_delta_m_s", *stretch)
-             if vf > 0.0 else 0.0)
-    brake = xosc.AbsoluteSpeedAction(speed, xosc.TransitionDynamics(
-        xosc.DynamicsShapes.linear, xosc.DynamicsDimension.rate, b.p.ref("decel_m_s2")))
+    speed = lane_speed(b, lane, "$ego_speed_m_s - $final_delta_m_s", *stretch) if vf > 0.0 else 0.0
+    brake = xosc.AbsoluteSpeedAction(
+        speed,
+        xosc.TransitionDynamics(
+            xosc.DynamicsShapes.linear, xosc.DynamicsDimension.rate, b.p.ref("decel_m_s2")
+        ),
+    )
     # it brakes brake_delay_s after the merge, still at the overtaking speed: at the gap
     # the merge's gap grows to in (merge_duration_s + brake_delay_s)
     gap = f"$merge_gap_m - {off} + $speed_delta_m_s * ($merge_duration_s + $brake_delay_s)"
@@ -104,8 +145,14 @@ def _overtake(b: Build) -> None:
 def _slow_ahead(b: Build) -> None:
     sp = b.spec
     tr = travel_direction(sp.family.network, str(b.st["road_id"]), int(b.st["lane"]))
-    lane_start(b, TARGET, int(b.st["lane"]), tr,
-                f"$gap0_m - {number(origin_offset(sp.target))}", "$target_speed_m_s")
+    lane_start(
+        b,
+        TARGET,
+        int(b.st["lane"]),
+        tr,
+        f"$gap0_m - {number(origin_offset(sp.target))}",
+        "$target_speed_m_s",
+    )
 
 
 def _cut_out_reveal(b: Build) -> None:
@@ -116,22 +163,34 @@ def _cut_out_reveal(b: Build) -> None:
     name = occluder_name(sp.scenario.occluders[0].label)
     b.entities.append((name, lead))
     t_s, t_e = float(p["cut_out_s"]), float(p["cut_out_s"]) + float(p["lc_duration_s"])
-    s_lead = lane_start(b, name, lane, tr, f"$lead_gap_m - {number(origin_offset(lead))}",
-                         "$ego_speed_m_s", t_s)
+    s_lead = lane_start(
+        b, name, lane, tr, f"$lead_gap_m - {number(origin_offset(lead))}", "$ego_speed_m_s", t_s
+    )
     half = number(0.5 * (lead.length_m + sp.target.length_m) - origin_offset(sp.target))
-    reveal = (f"($cut_out_s + $lc_duration_s + $reveal_s) * ($ego_speed_m_s - "
-              f"$target_speed_m_s) + {half}")
+    reveal = (
+        f"($cut_out_s + $lc_duration_s + $reveal_s) * ($ego_speed_m_s - $target_speed_m_s) + {half}"
+    )
     lane_start(b, TARGET, lane, tr, f"$lead_gap_m + {reveal}", "$target_speed_m_s")
     # the lead pulls out when the ego is at the planned distance to the hidden target
-    gap = (f"$lead_gap_m + ($lc_duration_s + $reveal_s) * ($ego_speed_m_s - "
-           f"$target_speed_m_s) + {half}")
+    gap = (
+        f"$lead_gap_m + ($lc_duration_s + $reveal_s) * ($ego_speed_m_s - "
+        f"$target_speed_m_s) + {half}"
+    )
     closing = float(p["target_speed_m_s"]) - float(p["ego_speed_m_s"])
     trig = gap_trigger(b, "reveal_gap", TARGET, EGO, gap, closing)
     b.p.values["lane_change_shape"] = "sinusoidal"
-    lane_change(b, name, "cut_out", other, b.p.ref("lane_change_shape"),
-                 b.p.ref("lc_duration_s"), trig, t_s, EGO, (
-                     "$ego_speed_m_s", other,
-                     *after_change(b, tr, s_lead, "$ego_speed_m_s", t_s, t_e)))
+    lane_change(
+        b,
+        name,
+        "cut_out",
+        other,
+        b.p.ref("lane_change_shape"),
+        b.p.ref("lc_duration_s"),
+        trig,
+        t_s,
+        EGO,
+        ("$ego_speed_m_s", other, *after_change(b, tr, s_lead, "$ego_speed_m_s", t_s, t_e)),
+    )
     # the triggering entity is the target (its distance to the ego); the action the lead's
     b.triggers[-1] = PlannedTrigger("cut_out", TARGET, EGO, float(p["cut_out_s"]))
 
@@ -170,8 +229,12 @@ def _crossing(b: Build) -> None:
         lat = (path.x[k] - xr) * -math.sin(hr) + (path.y[k] - yr) * math.cos(hr)
         rel = float(path.heading[k]) - hr
         rel = math.atan2(math.sin(rel), math.cos(rel))
-        return xosc.RoadPosition(s_c, fmt(lat), rid, xosc.Orientation(
-            h=fmt(rel), reference=xosc.ReferenceContext.relative))
+        return xosc.RoadPosition(
+            s_c,
+            fmt(lat),
+            rid,
+            xosc.Orientation(h=fmt(rel), reference=xosc.ReferenceContext.relative),
+        )
 
     moving = np.flatnonzero(path.speed > 1e-9)
     last = int(moving[-1]) + 1 if len(moving) else 0
@@ -187,15 +250,22 @@ def _crossing(b: Build) -> None:
         # the ego's rear axle is cross_ahead - ego_speed * t_dep = ego_speed * (tau_c -
         # conflict_offset) before the crossing line, tau_c = time from departure to the
         # ego lane's centre
-        tau_c = float(p["cross_ahead_m"]) / float(p["ego_speed_m_s"]) + float(
-            p["conflict_offset_s"]) - t_dep
+        tau_c = (
+            float(p["cross_ahead_m"]) / float(p["ego_speed_m_s"])
+            + float(p["conflict_offset_s"])
+            - t_dep
+        )
         gap = f"$ego_speed_m_s * ({number(tau_c)} - $conflict_offset_s)"
         cond = xosc.RelativeDistanceCondition(
-            b.p.expr(gap), xosc.Rule.lessThan, xosc.RelativeDistanceType.longitudinal,
-            TARGET, alongroute=False, freespace=False,
-            coordinate_system=xosc.CoordinateSystem.entity)
-        trig: Any = xosc.EntityTrigger("crossing_gap", 0.0, xosc.ConditionEdge.rising, cond,
-                                       EGO)
+            b.p.expr(gap),
+            xosc.Rule.lessThan,
+            xosc.RelativeDistanceType.longitudinal,
+            TARGET,
+            alongroute=False,
+            freespace=False,
+            coordinate_system=xosc.CoordinateSystem.entity,
+        )
+        trig: Any = xosc.EntityTrigger("crossing_gap", 0.0, xosc.ConditionEdge.rising, cond, EGO)
         timing = xosc.ReferenceContext.relative
         b.triggers.append(PlannedTrigger("cross", EGO, TARGET, t_dep))
     else:
@@ -209,10 +279,16 @@ def _crossing(b: Build) -> None:
     b.event(TARGET, "cross", follow, trig)
     if last < len(path.t) - 1:  # it stops on the far footway: hold it there
         stop = xosc.AbsoluteSpeedAction(0.0, step_dynamics())
-        done = xosc.ValueTrigger("crossed", 0.0, xosc.ConditionEdge.none,
-                                 xosc.StoryboardElementStateCondition(
-                                     xosc.StoryboardElementType.action, "cross_action",
-                                     xosc.StoryboardElementState.endTransition))
+        done = xosc.ValueTrigger(
+            "crossed",
+            0.0,
+            xosc.ConditionEdge.none,
+            xosc.StoryboardElementStateCondition(
+                xosc.StoryboardElementType.action,
+                "cross_action",
+                xosc.StoryboardElementState.endTransition,
+            ),
+        )
         b.event(TARGET, "stand", stop, done)
 
 
@@ -226,13 +302,18 @@ def _crossing_behind_parked(b: Build) -> None:
         h = float(occ.path.heading[0])
         x = float(occ.path.x[0]) - d * math.cos(h)
         y = float(occ.path.y[0]) - d * math.sin(h)
-        b.init.append((name, xosc.TeleportAction(xosc.WorldPosition(fmt(x), fmt(y), 0.0,
-                                                                    fmt(h)))))
+        b.init.append((name, xosc.TeleportAction(xosc.WorldPosition(fmt(x), fmt(y), 0.0, fmt(h)))))
 
 
-KINDS = {"cut_in": _cut_in, "overtake": _overtake, "slow_ahead": _slow_ahead,
-         "crossing": _crossing, "cut_in_behind_occluder": _cut_in_behind_truck,
-         "cut_out_reveal": _cut_out_reveal, "crossing_behind_parked": _crossing_behind_parked}
+KINDS = {
+    "cut_in": _cut_in,
+    "overtake": _overtake,
+    "slow_ahead": _slow_ahead,
+    "crossing": _crossing,
+    "cut_in_behind_occluder": _cut_in_behind_truck,
+    "cut_out_reveal": _cut_out_reveal,
+    "crossing_behind_parked": _crossing_behind_parked,
+}
 
 
 def supported(spec: ScenarioSpec) -> bool:

@@ -31,8 +31,13 @@ from sensorgap.export.xosc import DEFAULT_VERSION, build_scenario
 class CriticalScenarios(ScenarioGenerator):
     """The critical scenarios of a search run as a scenariogeneration generator."""
 
-    def __init__(self, run_dir: str | Path, osc_version: str = DEFAULT_VERSION,
-                 top: int | None = None, style: str = DEFAULT_STYLE) -> None:
+    def __init__(
+        self,
+        run_dir: str | Path,
+        osc_version: str = DEFAULT_VERSION,
+        top: int | None = None,
+        style: str = DEFAULT_STYLE,
+    ) -> None:
         super().__init__()
         if style not in STYLES:
             raise ValueError(f"style must be one of {', '.join(STYLES)}, got {style!r}")
@@ -50,8 +55,7 @@ class CriticalScenarios(ScenarioGenerator):
         row = dict(self._rows[int(rank)])
         for k, v in overrides.items():
             row[f"p_{k}"] = v
-        return ScenarioSpec.from_row(row, self.system, self.run.folder / "ranking.json",
-                                     self.run)
+        return ScenarioSpec.from_row(row, self.system, self.run.folder / "ranking.json", self.run)
 
     def scenario(self, **kwargs: Any) -> xosc.Scenario:
         """The OpenSCENARIO object for one permutation (``rank`` plus overrides)."""
@@ -62,16 +66,22 @@ class CriticalScenarios(ScenarioGenerator):
             return build_scenario(sp, str(sp.road_path), self.osc_version)
         return build_maneuver_scenario(sp, str(sp.road_path), self.osc_version)[0]
 
-    def generate(self, generation_folder: str, override_parameters: Any = None,
-                 write_relative_road_path: bool = True) -> tuple[list[str], list[str]]:
+    def generate(
+        self,
+        generation_folder: str,
+        override_parameters: Any = None,
+        write_relative_road_path: bool = True,
+    ) -> tuple[list[str], list[str]]:
         """Write the scenarios (and their roads) into ``generation_folder`` in the CLI's
         layout (``scenarios/``, ``roads/``, relative road paths; see the module docstring);
         returns (scenario files, road files) as ScenarioGenerator does."""
         params = self.parameters if override_parameters is None else override_parameters
         if isinstance(params, dict):
             keys = list(params)
-            combos = [dict(zip(keys, values, strict=True))
-                      for values in itertools.product(*(params[k] for k in keys))]
+            combos = [
+                dict(zip(keys, values, strict=True))
+                for values in itertools.product(*(params[k] for k in keys))
+            ]
         else:
             combos = [dict(c) for c in params]
         sweep = any(len(c) > 1 for c in combos)
@@ -90,7 +100,6 @@ class CriticalScenarios(ScenarioGenerator):
                 road_files.append(str(road))
             name = f"{sp.scenario_id}_{k}" if sweep else sp.scenario_id
             path = out / "scenarios" / f"{name}.xosc"
-            write_xosc(sp, path, f"../roads/{sp.road_path.name}", self.osc_version,
-                       self.style)
+            write_xosc(sp, path, f"../roads/{sp.road_path.name}", self.osc_version, self.style)
             scenario_files.append(str(path))
         return scenario_files, road_files

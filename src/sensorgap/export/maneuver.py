@@ -51,20 +51,41 @@ from sensorgap.export.spec import ScenarioSpec
 from sensorgap.scenarios.kinds import travel_direction
 from sensorgap.scenarios.trajectory import Trajectory
 
-__all__ = ["DEFAULT_EGO_CONTROLLER", "EGO", "LANE_CHANGE_SHAPE", "SUT_CONTROLLER", "TARGET",
-           "PlannedTrigger", "build_maneuver_scenario", "maneuver_triggers", "occluder_name",
-           "planned_origins", "supported"]
+__all__ = [
+    "DEFAULT_EGO_CONTROLLER",
+    "EGO",
+    "LANE_CHANGE_SHAPE",
+    "SUT_CONTROLLER",
+    "TARGET",
+    "PlannedTrigger",
+    "build_maneuver_scenario",
+    "maneuver_triggers",
+    "occluder_name",
+    "planned_origins",
+    "supported",
+]
 
 
 def _ego(b: Build) -> None:
     """The ego: lane position from the declared parameters; its controller is activated
     (or left inactive: keep lane and speed) at the first step."""
     lane = int(b.st.get("ego_lane", b.st.get("lane", 0)))
-    b.init.append((EGO, xosc.TeleportAction(xosc.LanePosition(
-        b.p.ref("ego_s0_m"), 0.0, lane, str(b.st["road_id"])))))
-    b.event(EGO, "ego_controller", xosc.ActivateControllerAction(
-        b.p.ref("ego_controller_lateral"), b.p.ref("ego_controller_longitudinal")),
-            after_start("ego_controller_start"))
+    b.init.append(
+        (
+            EGO,
+            xosc.TeleportAction(
+                xosc.LanePosition(b.p.ref("ego_s0_m"), 0.0, lane, str(b.st["road_id"]))
+            ),
+        )
+    )
+    b.event(
+        EGO,
+        "ego_controller",
+        xosc.ActivateControllerAction(
+            b.p.ref("ego_controller_lateral"), b.p.ref("ego_controller_longitudinal")
+        ),
+        after_start("ego_controller_start"),
+    )
 
 
 def _ego_speed(b: Build) -> None:
@@ -74,15 +95,18 @@ def _ego_speed(b: Build) -> None:
     lane = int(b.st.get("ego_lane", b.st.get("lane", 0)))
     tr = travel_direction(b.spec.family.network, str(b.st["road_id"]), lane)
     s0, v = b.p.value("$ego_s0_m"), b.p.value("$ego_speed_m_s")
-    until = min([t.time_s for t in b.triggers if t.time_s > 0.0],
-                default=b.spec.family.duration_s)
+    until = min([t.time_s for t in b.triggers if t.time_s > 0.0], default=b.spec.family.duration_s)
     speed = lane_speed(b, lane, "$ego_speed_m_s", s0, s0 + tr * v * until)
     b.init.insert(1, (EGO, xosc.AbsoluteSpeedAction(speed, step_dynamics())))
 
 
-def build_maneuver_scenario(spec: ScenarioSpec, road_relpath: str, version: str,
-                            ego_brake: list[BrakeStep] | None = None,
-                            step_s: float = 0.05) -> tuple[xosc.Scenario, list[PlannedTrigger]]:
+def build_maneuver_scenario(
+    spec: ScenarioSpec,
+    road_relpath: str,
+    version: str,
+    ego_brake: list[BrakeStep] | None = None,
+    step_s: float = 0.05,
+) -> tuple[xosc.Scenario, list[PlannedTrigger]]:
     """The OpenSCENARIO object of one ranked scenario in the ``maneuver`` style and its
     relative triggers (see the module docstring); with ``ego_brake`` the ego brakes so
     (``simulate --ego-reaction``; ``step_s``: the simulation step, s)."""
@@ -97,8 +121,10 @@ def build_maneuver_scenario(spec: ScenarioSpec, road_relpath: str, version: str,
 
     kind = spec.family.kind.name
     if kind not in KINDS:
-        raise ValueError(f"family kind {kind!r} has no maneuver form; allowed: "
-                         f"{', '.join(sorted(KINDS))} (export it with --style replay)")
+        raise ValueError(
+            f"family kind {kind!r} has no maneuver form; allowed: "
+            f"{', '.join(sorted(KINDS))} (export it with --style replay)"
+        )
     minor = set_version(version)
     values: dict[str, str | float] = dict(spec.params)
     values.update(EGO_CONTROLLER_PARAMETERS)
@@ -115,8 +141,7 @@ def build_maneuver_scenario(spec: ScenarioSpec, road_relpath: str, version: str,
     entities = xosc.Entities()
     props = xosc.Properties()
     props.add_property("esminiController", b.p.ref("ego_controller"))
-    entities.add_scenario_object(EGO, ego_entity(spec),
-                                 xosc.Controller(SUT_CONTROLLER, props))
+    entities.add_scenario_object(EGO, ego_entity(spec), xosc.Controller(SUT_CONTROLLER, props))
     for name, cfg in b.entities:
         entities.add_scenario_object(name, actor_entity(name, cfg))
     init = xosc.Init()
@@ -136,14 +161,26 @@ def build_maneuver_scenario(spec: ScenarioSpec, road_relpath: str, version: str,
     story.add_act(act)
     stop = xosc.Trigger("stop")
     hit = xosc.ConditionGroup("stop")
-    hit.add_condition(xosc.EntityTrigger("ego_hits_target", 0.0, xosc.ConditionEdge.none,
-                                         xosc.CollisionCondition(TARGET), EGO,
-                                         triggeringpoint="stop"))
+    hit.add_condition(
+        xosc.EntityTrigger(
+            "ego_hits_target",
+            0.0,
+            xosc.ConditionEdge.none,
+            xosc.CollisionCondition(TARGET),
+            EGO,
+            triggeringpoint="stop",
+        )
+    )
     end = xosc.ConditionGroup("stop")
-    end.add_condition(xosc.ValueTrigger(
-        "end", 0.0, xosc.ConditionEdge.rising,
-        xosc.SimulationTimeCondition(fmt(spec.family.duration_s), xosc.Rule.greaterThan),
-        "stop"))
+    end.add_condition(
+        xosc.ValueTrigger(
+            "end",
+            0.0,
+            xosc.ConditionEdge.rising,
+            xosc.SimulationTimeCondition(fmt(spec.family.duration_s), xosc.Rule.greaterThan),
+            "stop",
+        )
+    )
     stop.add_conditiongroup(hit)
     stop.add_conditiongroup(end)
     sb = xosc.StoryBoard(init, stop)
@@ -159,8 +196,10 @@ def ego_speed_factor(spec: ScenarioSpec) -> float:
     lane = int(spec.family.settings.get("ego_lane", spec.family.settings.get("lane", 0)))
     tr = travel_direction(spec.family.network, str(spec.family.settings["road_id"]), lane)
     s0, v = float(spec.params["ego_s0_m"]), float(spec.params["ego_speed_m_s"])
-    until = min([t.time_s for t in maneuver_triggers(spec) if t.time_s > 0.0],
-                default=spec.family.duration_s)
+    until = min(
+        [t.time_s for t in maneuver_triggers(spec) if t.time_s > 0.0],
+        default=spec.family.duration_s,
+    )
     return lane_speed_factor(spec, lane, s0, s0 + tr * v * until)
 
 
@@ -181,8 +220,10 @@ def planned_origins(spec: ScenarioSpec) -> dict[str, Trajectory]:
     axle; pedestrians: centre), by entity name."""
     from sensorgap.export.xosc import origin_path
 
-    out = {EGO: spec.scenario.ego,
-           TARGET: origin_path(spec.scenario.target, origin_offset(spec.target))}
+    out = {
+        EGO: spec.scenario.ego,
+        TARGET: origin_path(spec.scenario.target, origin_offset(spec.target)),
+    }
     occ_class = spec.family.settings.get("occluder")
     for occ in spec.scenario.occluders:
         cfg = load_target(str(occ_class))

@@ -46,9 +46,19 @@ MAX_IMPACT_DIFF_KMH = 2.0
 #: The confirmation quantiles run: column prefix -> cumulative probability.
 QUANTILES = {"median": 0.5, "p90": 0.9}
 COLUMNS = ["t_threat_s", "reaction_decel_m_s2"] + [
-    f"react_{q}_{c}" for q in QUANTILES for c in (
-        "t_confirm_s", "t_brake_s", "collision_predicted_s", "collision_esmini_s",
-        "impact_predicted_kmh", "impact_esmini_kmh", "agrees", "within_plan")]
+    f"react_{q}_{c}"
+    for q in QUANTILES
+    for c in (
+        "t_confirm_s",
+        "t_brake_s",
+        "collision_predicted_s",
+        "collision_esmini_s",
+        "impact_predicted_kmh",
+        "impact_esmini_kmh",
+        "agrees",
+        "within_plan",
+    )
+]
 
 
 @dataclass(frozen=True)
@@ -65,9 +75,12 @@ class Prediction:
 
 def planned_batch(spec: ScenarioSpec, evaluator: Evaluator) -> BatchTrace:
     """The planned scenario evaluated exactly (a batch of one, as the search does)."""
-    return evaluator.evaluate_batch(ScenarioBatch.of(spec.scenario), ["env"],
-                                    {"env": spec.environment},
-                                    duration_s=spec.family.duration_s)
+    return evaluator.evaluate_batch(
+        ScenarioBatch.of(spec.scenario),
+        ["env"],
+        {"env": spec.environment},
+        duration_s=spec.family.duration_s,
+    )
 
 
 def confirmation_steps(bt: BatchTrace, evaluator: Evaluator) -> dict[str, int | None]:
@@ -91,9 +104,10 @@ def predict(bt: BatchTrace, evaluator: Evaluator, k: int) -> Prediction:
     t = enc.lo.shape[1]
     dt = enc.dt
     pd = np.zeros((1, t))
-    pd[0, max(k - r.confirm_m + 1, 0):k + 1] = 1.0
-    out = reaction_outcome(enc, pd, bt.n, r.confirm_m, r.confirm_n, r.latency_s,
-                           r.jerk_m_s3, bt.decel_m_s2)
+    pd[0, max(k - r.confirm_m + 1, 0) : k + 1] = 1.0
+    out = reaction_outcome(
+        enc, pd, bt.n, r.confirm_m, r.confirm_n, r.latency_s, r.jerk_m_s3, bt.decel_m_s2
+    )
     kt, kc = int(enc.threat_step[0]), int(enc.collide_step[0])
     t_b = max(k, kt) * dt + r.latency_s
     hit = None
@@ -110,8 +124,13 @@ def predict(bt: BatchTrace, evaluator: Evaluator, k: int) -> Prediction:
     collides = float(out.collision_probability[0]) >= 0.5
     if collides != (hit is not None):
         raise RuntimeError(f"collision step search disagrees with the kernel at k = {k}")
-    return Prediction(k, k * dt, t_b, None if hit is None else hit * dt,
-                      float(out.impact_speed_kmh[0]) if collides else None)
+    return Prediction(
+        k,
+        k * dt,
+        t_b,
+        None if hit is None else hit * dt,
+        float(out.impact_speed_kmh[0]) if collides else None,
+    )
 
 
 def clearance_m(bt: BatchTrace, evaluator: Evaluator, pred: Prediction, t_s: float) -> float:
@@ -122,13 +141,19 @@ def clearance_m(bt: BatchTrace, evaluator: Evaluator, pred: Prediction, t_s: flo
     assert enc is not None and bt.decel_m_s2 is not None
     j = min(int(round(t_s / enc.dt)), enc.lo.shape[1] - 1)
     v0, r = float(enc.v0[0]), evaluator.reaction
-    pos = v0 * enc.dt * j - float(lost_distance(j * enc.dt - pred.t_brake_s, v0,
-                                                 r.jerk_m_s3, float(bt.decel_m_s2[0])))
+    pos = v0 * enc.dt * j - float(
+        lost_distance(j * enc.dt - pred.t_brake_s, v0, r.jerk_m_s3, float(bt.decel_m_s2[0]))
+    )
     return float(enc.lo[0, j] - pos)
 
 
-def within_plan(bt: BatchTrace, evaluator: Evaluator, pred: Prediction,
-                esmini_s: float | None, esmini_kmh: float | None) -> bool:
+def within_plan(
+    bt: BatchTrace,
+    evaluator: Evaluator,
+    pred: Prediction,
+    esmini_s: float | None,
+    esmini_kmh: float | None,
+) -> bool:
     """Whether esmini's reaction outcome is the prediction's up to how closely esmini's
     ego follows the plan (``simulate.MAX_DEVIATION_M``, 0.5 m, the catalog's check): two
     impact speeds (None: no collision, taken as 0) whose braking distances differ by at
@@ -147,8 +172,14 @@ def within_plan(bt: BatchTrace, evaluator: Evaluator, pred: Prediction,
     return abs(vp * vp - ve * ve) <= 2.0 * float(bt.decel_m_s2[0]) * MAX_DEVIATION_M + 1e-12
 
 
-def braking(spec: ScenarioSpec, evaluator: Evaluator, bt: BatchTrace, pred: Prediction,
-            style: str, step_s: float) -> list[BrakeStep]:
+def braking(
+    spec: ScenarioSpec,
+    evaluator: Evaluator,
+    bt: BatchTrace,
+    pred: Prediction,
+    style: str,
+    step_s: float,
+) -> list[BrakeStep]:
     """The brake steps of a prediction in ``style`` (none when the ego would brake only
     after the open-loop collision or the scenario's end)."""
     enc = bt.encounter
@@ -163,20 +194,33 @@ def braking(spec: ScenarioSpec, evaluator: Evaluator, bt: BatchTrace, pred: Pred
     else:  # the replay ego's world speed along its path at the brake onset
         ego = spec.scenario.ego
         i = min(max(int(round(pred.t_brake_s / enc.dt)), 1), len(ego.t) - 1)
-        factor = float(np.hypot(ego.x[i] - ego.x[i - 1], ego.y[i] - ego.y[i - 1])
-                       / (ego.t[i] - ego.t[i - 1])) / v0
+        factor = (
+            float(
+                np.hypot(ego.x[i] - ego.x[i - 1], ego.y[i] - ego.y[i - 1])
+                / (ego.t[i] - ego.t[i - 1])
+            )
+            / v0
+        )
     r = evaluator.reaction
-    return brake_steps(pred.t_brake_s, v0, r.jerk_m_s3, float(bt.decel_m_s2[0]), step_s,
-                       factor)
+    return brake_steps(pred.t_brake_s, v0, r.jerk_m_s3, float(bt.decel_m_s2[0]), step_s, factor)
 
 
-def write_reaction_file(spec: ScenarioSpec, road: Path, style: str, version: str,
-                        steps: list[BrakeStep], path: Path, step_s: float) -> None:
+def write_reaction_file(
+    spec: ScenarioSpec,
+    road: Path,
+    style: str,
+    version: str,
+    steps: list[BrakeStep],
+    path: Path,
+    step_s: float,
+) -> None:
     """The scenario in ``style`` with the ego braking (``steps``), its road referenced by
     its absolute path."""
-    sc = (build_scenario(spec, str(road.resolve()), version, steps, step_s)
-          if style == "replay" else
-          build_maneuver_scenario(spec, str(road.resolve()), version, steps, step_s)[0])
+    sc = (
+        build_scenario(spec, str(road.resolve()), version, steps, step_s)
+        if style == "replay"
+        else build_maneuver_scenario(spec, str(road.resolve()), version, steps, step_s)[0]
+    )
     with atomic_path(path) as tmp:
         sc.write_xml(str(tmp), prettyprint=True)
 
@@ -204,9 +248,18 @@ class ReactionRun:
     error: str = ""
 
 
-def run_reaction(spec: ScenarioSpec, evaluator: Evaluator, bt: BatchTrace, k: int,
-                 esmini: Path, style: str, version: str, road: Path, timeout_s: float,
-                 step_s: float) -> ReactionRun:
+def run_reaction(
+    spec: ScenarioSpec,
+    evaluator: Evaluator,
+    bt: BatchTrace,
+    k: int,
+    esmini: Path,
+    style: str,
+    version: str,
+    road: Path,
+    timeout_s: float,
+    step_s: float,
+) -> ReactionRun:
     """Confirmation at step ``k``: predict, brake the ego in esmini, compare."""
     from sensorgap.export.simulate import COLLISION_RE, parse_esmini_csv, run_esmini
 
@@ -229,14 +282,24 @@ def run_reaction(spec: ScenarioSpec, evaluator: Evaluator, bt: BatchTrace, k: in
         t_sim = None  # esmini's step past the duration (as the plain run)
     v_sim = impact_kmh(sim, t_sim) if t_sim is not None else None
     agree = (pred.collision_s is None and t_sim is None) or (
-        pred.collision_s is not None and v_sim is not None and pred.impact_kmh is not None
-        and abs(v_sim - pred.impact_kmh) <= MAX_IMPACT_DIFF_KMH)
+        pred.collision_s is not None
+        and v_sim is not None
+        and pred.impact_kmh is not None
+        and abs(v_sim - pred.impact_kmh) <= MAX_IMPACT_DIFF_KMH
+    )
     return ReactionRun(pred, t_sim, v_sim, agree)
 
 
-def reaction_columns(spec: ScenarioSpec, evaluator: Evaluator, esmini: Path, style: str,
-                     version: str, road: Path, timeout_s: float,
-                     step_s: float) -> tuple[dict[str, Any], list[str]]:
+def reaction_columns(
+    spec: ScenarioSpec,
+    evaluator: Evaluator,
+    esmini: Path,
+    style: str,
+    version: str,
+    road: Path,
+    timeout_s: float,
+    step_s: float,
+) -> tuple[dict[str, Any], list[str]]:
     """The ``react_*`` columns of one scenario (module docstring) and messages."""
     bt = planned_batch(spec, evaluator)
     enc = bt.encounter
@@ -244,45 +307,72 @@ def reaction_columns(spec: ScenarioSpec, evaluator: Evaluator, esmini: Path, sty
     kt = int(enc.threat_step[0])
     row: dict[str, Any] = {
         "t_threat_s": "" if kt < 0 else round(kt * enc.dt, 3),
-        "reaction_decel_m_s2": round(float(bt.decel_m_s2[0]), 4)}
+        "reaction_decel_m_s2": round(float(bt.decel_m_s2[0]), 4),
+    }
     msgs = []
     med = bt.outcome_row(0).get("t_confirm_median_s", math.nan)
     steps = confirmation_steps(bt, evaluator)
     if steps["median"] is not None and spec.metrics.get("t_confirm_median_s") is not None:
         ranked = spec.metrics["t_confirm_median_s"]
         if math.isfinite(ranked) and abs(ranked - steps["median"] * enc.dt) > 1e-9:
-            msgs.append(f"median confirmation {steps['median'] * enc.dt:g} s differs from "
-                        f"the ranking's {ranked:g} s")
+            msgs.append(
+                f"median confirmation {steps['median'] * enc.dt:g} s differs from "
+                f"the ranking's {ranked:g} s"
+            )
     for q, k in steps.items():
         if k is None or not math.isfinite(med):
-            msgs.append(f"{q}: no collision to avoid or not confirmed with that "
-                        "probability (no run)")
+            msgs.append(
+                f"{q}: no collision to avoid or not confirmed with that probability (no run)"
+            )
             continue
-        run = run_reaction(spec, evaluator, bt, k, esmini, style, version, road, timeout_s,
-                           step_s)
+        run = run_reaction(spec, evaluator, bt, k, esmini, style, version, road, timeout_s, step_s)
         pred = run.prediction
         if run.error:
             msgs.append(f"{q}: {run.error}")
-        row.update({
-            f"react_{q}_t_confirm_s": round(pred.t_confirm_s, 3),
-            f"react_{q}_t_brake_s": round(pred.t_brake_s, 3),
-            f"react_{q}_collision_predicted_s": ("" if pred.collision_s is None
-                                                 else round(pred.collision_s, 3)),
-            f"react_{q}_collision_esmini_s": ("" if run.collision_s is None
-                                              else round(run.collision_s, 3)),
-            f"react_{q}_impact_predicted_kmh": ("" if pred.impact_kmh is None
-                                                else round(pred.impact_kmh, 2)),
-            f"react_{q}_impact_esmini_kmh": ("" if run.impact_kmh is None
-                                             else round(run.impact_kmh, 2)),
-            f"react_{q}_agrees": "yes" if run.agrees else "no",
-            f"react_{q}_within_plan": "" if run.error else (
-                "yes" if run.agrees or within_plan(bt, evaluator, pred, run.collision_s,
-                                                   run.impact_kmh) else "no")})
+        row.update(
+            {
+                f"react_{q}_t_confirm_s": round(pred.t_confirm_s, 3),
+                f"react_{q}_t_brake_s": round(pred.t_brake_s, 3),
+                f"react_{q}_collision_predicted_s": (
+                    "" if pred.collision_s is None else round(pred.collision_s, 3)
+                ),
+                f"react_{q}_collision_esmini_s": (
+                    "" if run.collision_s is None else round(run.collision_s, 3)
+                ),
+                f"react_{q}_impact_predicted_kmh": (
+                    "" if pred.impact_kmh is None else round(pred.impact_kmh, 2)
+                ),
+                f"react_{q}_impact_esmini_kmh": (
+                    "" if run.impact_kmh is None else round(run.impact_kmh, 2)
+                ),
+                f"react_{q}_agrees": "yes" if run.agrees else "no",
+                f"react_{q}_within_plan": ""
+                if run.error
+                else (
+                    "yes"
+                    if run.agrees
+                    or within_plan(bt, evaluator, pred, run.collision_s, run.impact_kmh)
+                    else "no"
+                ),
+            }
+        )
         if not run.agrees and not run.error:
             msgs.append(f"{q}: esmini's reaction outcome differs from the prediction")
     return row, msgs
 
 
-__all__ = ["COLUMNS", "DEFAULT_VERSION", "MAX_IMPACT_DIFF_KMH", "Prediction", "QUANTILES",
-           "ReactionRun", "braking", "confirmation_steps", "predict", "reaction_columns",
-           "clearance_m", "run_reaction", "within_plan"]
+__all__ = [
+    "COLUMNS",
+    "DEFAULT_VERSION",
+    "MAX_IMPACT_DIFF_KMH",
+    "Prediction",
+    "QUANTILES",
+    "ReactionRun",
+    "braking",
+    "confirmation_steps",
+    "predict",
+    "reaction_columns",
+    "clearance_m",
+    "run_reaction",
+    "within_plan",
+]

@@ -53,13 +53,34 @@ DEFAULT_STEP_S = 0.05
 #: and the relative position (triggering entity in the reference entity's frame), m.
 MAX_TRIGGER_DT_S = 0.1
 MAX_TRIGGER_REL_M = 0.5
-COLUMNS = ["scenario_id", "rank", "style", "status", "message", "ran_to_end", "end_time_s",
-           "max_dev_ego_m", "max_dev_target_m", "max_dev_relative_m", "within_0p5m",
-           "max_dev_body_m", "bodies", "bodies_within_0p05m",
-           "collision_planned_s", "collision_esmini_s", "collision_agrees", "triggers",
-           "trigger_max_dt_s",
-           "trigger_max_rel_dev_m", "trigger_agrees", "mean_pd_planned", "mean_pd_simulated",
-           "log10_risk_planned", "log10_risk_simulated", "esmini_wall_s"]
+COLUMNS = [
+    "scenario_id",
+    "rank",
+    "style",
+    "status",
+    "message",
+    "ran_to_end",
+    "end_time_s",
+    "max_dev_ego_m",
+    "max_dev_target_m",
+    "max_dev_relative_m",
+    "within_0p5m",
+    "max_dev_body_m",
+    "bodies",
+    "bodies_within_0p05m",
+    "collision_planned_s",
+    "collision_esmini_s",
+    "collision_agrees",
+    "triggers",
+    "trigger_max_dt_s",
+    "trigger_max_rel_dev_m",
+    "trigger_agrees",
+    "mean_pd_planned",
+    "mean_pd_simulated",
+    "log10_risk_planned",
+    "log10_risk_simulated",
+    "esmini_wall_s",
+]
 
 
 def find_esmini(path: str | None) -> Path:
@@ -67,8 +88,12 @@ def find_esmini(path: str | None) -> Path:
     ``InputError`` (one line) when there is none."""
     cand = path or os.environ.get("SENSORGAP_ESMINI") or shutil.which("esmini")
     if not cand:
-        raise InputError("esmini", "", "esmini is not installed: give --esmini PATH (or put "
-                         "esmini on PATH); it is not on any package registry")
+        raise InputError(
+            "esmini",
+            "",
+            "esmini is not installed: give --esmini PATH (or put "
+            "esmini on PATH); it is not on any package registry",
+        )
     p = Path(cand)
     if not (p.is_file() and os.access(p, os.X_OK)):
         raise InputError("esmini", "", f"{p} is not an executable file")
@@ -101,7 +126,7 @@ def parse_esmini_csv(path: Path) -> SimPaths:
         raise ValueError(f"{path}: column #{k} {name} missing")
 
     n_ent = max(int(c.split()[0][1:]) for c in cols if c.startswith("#"))
-    body = [(n, ln) for n, ln in enumerate(lines[head + 1:], start=head + 2) if ln.strip()]
+    body = [(n, ln) for n, ln in enumerate(lines[head + 1 :], start=head + 2) if ln.strip()]
     rows = [[v.strip() for v in ln.split(",")] for _, ln in body]
     if not rows:
         raise ValueError(f"{path}: no data rows in esmini's CSV log")
@@ -110,8 +135,10 @@ def parse_esmini_csv(path: Path) -> SimPaths:
         need = max(idx)
         short = next((k for k, r in enumerate(rows) if len(r) <= need), None)
         if short is not None:
-            raise ValueError(f"{path}: line {body[short][0]}: {len(rows[short])} fields, "
-                             f"no column {need + 1} ({cols[need]}; a truncated log?)")
+            raise ValueError(
+                f"{path}: line {body[short][0]}: {len(rows[short])} fields, "
+                f"no column {need + 1} ({cols[need]}; a truncated log?)"
+            )
 
     def floats(idx: list[int]) -> F64:
         fields(idx)
@@ -122,8 +149,14 @@ def parse_esmini_csv(path: Path) -> SimPaths:
     for k in range(1, n_ent + 1):
         fields([col(k, "Entity_Name")])
         name = rows[0][col(k, "Entity_Name")]
-        arr = floats([col(k, "World_Position_X"), col(k, "World_Position_Y"),
-                      col(k, "World_Heading_Angle"), col(k, "Current_Speed")])
+        arr = floats(
+            [
+                col(k, "World_Position_X"),
+                col(k, "World_Position_Y"),
+                col(k, "World_Heading_Angle"),
+                col(k, "Current_Speed"),
+            ]
+        )
         out[name] = (t, arr[:, 0], arr[:, 1], np.unwrap(arr[:, 2]), arr[:, 3])
         try:
             bb = floats([col(k, n) for n in ("bb_x", "bb_y", "bb_length", "bb_width")])
@@ -142,16 +175,23 @@ def _deviation(planned: Trajectory, t: F64, x: F64, y: F64) -> float:
     return float(np.max(np.hypot(x[keep] - px, y[keep] - py))) if keep.any() else float("inf")
 
 
-def _simulated_scenario(sim: SimPaths, planned: Scenario,
-                        occluder_class: str | None = None) -> Scenario:
+def _simulated_scenario(
+    sim: SimPaths, planned: Scenario, occluder_class: str | None = None
+) -> Scenario:
     """The scenario esmini played: ego and target (and the occluders the file has as
     entities, the maneuver style) from the log at the planned times; occluders the file
     does not have (the replay style) stay where the plan has them."""
+
     def traj(name: str, ref: Trajectory) -> Trajectory:
         t, x, y, h, v = sim.states[name]
         tt = ref.t
-        return Trajectory(tt, np.interp(tt, t, x), np.interp(tt, t, y), np.interp(tt, t, h),
-                          np.abs(np.interp(tt, t, v)))
+        return Trajectory(
+            tt,
+            np.interp(tt, t, x),
+            np.interp(tt, t, y),
+            np.interp(tt, t, h),
+            np.abs(np.interp(tt, t, v)),
+        )
 
     # esmini logs each entity's origin: the target's rear axle -> back to its box centre
     ahead = target_origin_offset(load_target(planned.target_class))
@@ -162,18 +202,26 @@ def _simulated_scenario(sim: SimPaths, planned: Scenario,
             back = target_origin_offset(load_target(occluder_class))
             occ = replace(occ, path=origin_path(traj(name, occ.path), -back))
         occs.append(occ)
-    return Scenario(traj(EGO, planned.ego),
-                    origin_path(traj(TARGET, planned.target), -ahead), planned.target_class,
-                    tuple(occs))
+    return Scenario(
+        traj(EGO, planned.ego),
+        origin_path(traj(TARGET, planned.target), -ahead),
+        planned.target_class,
+        tuple(occs),
+    )
 
 
 #: esmini's log line of the first contact of the ego and the target (``--collision``;
 #: contacts with occluders are not collisions of the plan).
-COLLISION_RE = re.compile(r"\[(\d+(?:\.\d+)?)\] \[\w+\] Collision between "
-                          rf"(?:{EGO} and {TARGET}|{TARGET} and {EGO})\b")
+COLLISION_RE = re.compile(
+    r"\[(\d+(?:\.\d+)?)\] \[\w+\] Collision between "
+    rf"(?:{EGO} and {TARGET}|{TARGET} and {EGO})\b"
+)
 #: esmini's log line of an event starting.
-EVENT_START_RE = re.compile(r"^\[(-?\d+(?:\.\d+)?)\] \[\w+\] (\S+) standbyState -> "
-                            r"startTransition -> runningState", re.M)
+EVENT_START_RE = re.compile(
+    r"^\[(-?\d+(?:\.\d+)?)\] \[\w+\] (\S+) standbyState -> "
+    r"startTransition -> runningState",
+    re.M,
+)
 
 
 def event_starts(text: str) -> dict[str, float]:
@@ -185,12 +233,10 @@ def event_starts(text: str) -> dict[str, float]:
 
 
 def _pose_at(t: F64, x: F64, y: F64, h: F64, at: float) -> tuple[float, float, float]:
-    return (float(np.interp(at, t, x)), float(np.interp(at, t, y)),
-            float(np.interp(at, t, h)))
+    return (float(np.interp(at, t, x)), float(np.interp(at, t, y)), float(np.interp(at, t, h)))
 
 
-def _relative(actor: tuple[float, float, float],
-              ref: tuple[float, float, float]) -> F64:
+def _relative(actor: tuple[float, float, float], ref: tuple[float, float, float]) -> F64:
     """``actor``'s position in ``ref``'s frame (longitudinal, lateral), m."""
     dx, dy = actor[0] - ref[0], actor[1] - ref[1]
     c, s = math.cos(ref[2]), math.sin(ref[2])
@@ -210,15 +256,18 @@ def relative_deviation(spec: ScenarioSpec, sim: SimPaths) -> float:
     for k in np.flatnonzero(keep):
         t = float(te[k])
         ego_p = _pose_at(pe.t, pe.x, pe.y, pe.heading, t)
-        rel_e = _relative((float(np.interp(t, tt, xt)), float(np.interp(t, tt, yt)), 0.0),
-                          (float(xe[k]), float(ye[k]), ego_p[2]))
+        rel_e = _relative(
+            (float(np.interp(t, tt, xt)), float(np.interp(t, tt, yt)), 0.0),
+            (float(xe[k]), float(ye[k]), ego_p[2]),
+        )
         rel_p = _relative(_pose_at(pt.t, pt.x, pt.y, pt.heading, t), ego_p)
         worst = max(worst, float(np.hypot(*(rel_e - rel_p))))
     return worst
 
 
-def trigger_checks(spec: ScenarioSpec, sim: SimPaths, starts: dict[str, float],
-                   step_s: float = DEFAULT_STEP_S) -> list[tuple[str, float, float]]:
+def trigger_checks(
+    spec: ScenarioSpec, sim: SimPaths, starts: dict[str, float], step_s: float = DEFAULT_STEP_S
+) -> list[tuple[str, float, float]]:
     """Per relative trigger of the maneuver style: (event; esmini's start minus the
     plan's, s; how far the triggering entity's position relative to the reference entity
     (in the reference's own frame, as the condition sees it) passed from the plan's
@@ -234,17 +283,20 @@ def trigger_checks(spec: ScenarioSpec, sim: SimPaths, starts: dict[str, float],
             out.append((trig.event, math.inf, math.inf))
             continue
         a, r = sim.states[trig.actor], sim.states[trig.reference]
-        r0, r1 = (_relative(_pose_at(a[0], a[1], a[2], a[3], t), _pose_at(r[0], r[1], r[2],
-                                                                          r[3], t))
-                  for t in (max(t_e - step_s, 0.0), t_e))
+        r0, r1 = (
+            _relative(_pose_at(a[0], a[1], a[2], a[3], t), _pose_at(r[0], r[1], r[2], r[3], t))
+            for t in (max(t_e - step_s, 0.0), t_e)
+        )
         pa, pr = plans[trig.actor], plans[trig.reference]
-        rel_p = _relative(_pose_at(pa.t, pa.x, pa.y, pa.heading, trig.time_s),
-                          _pose_at(pr.t, pr.x, pr.y, pr.heading, trig.time_s))
+        rel_p = _relative(
+            _pose_at(pa.t, pa.x, pa.y, pa.heading, trig.time_s),
+            _pose_at(pr.t, pr.x, pr.y, pr.heading, trig.time_s),
+        )
         seg = r1 - r0
-        lam = float(np.clip(np.dot(rel_p - r0, seg) / max(float(np.dot(seg, seg)), 1e-18),
-                            0.0, 1.0))
-        out.append((trig.event, t_e - trig.time_s,
-                    float(np.hypot(*(r0 + lam * seg - rel_p)))))
+        lam = float(
+            np.clip(np.dot(rel_p - r0, seg) / max(float(np.dot(seg, seg)), 1e-18), 0.0, 1.0)
+        )
+        out.append((trig.event, t_e - trig.time_s, float(np.hypot(*(r0 + lam * seg - rel_p)))))
     return out
 
 
@@ -259,20 +311,31 @@ def body_deviations(spec: ScenarioSpec, sim: SimPaths) -> dict[str, float]:
     return out
 
 
-def run_esmini(esmini: Path, xosc: Path, tmp: Path, timeout_s: float,
-               step_s: float) -> tuple[Path, str] | str:
+def run_esmini(
+    esmini: Path, xosc: Path, tmp: Path, timeout_s: float, step_s: float
+) -> tuple[Path, str] | str:
     """Run one scenario file in esmini (headless, fixed step ``step_s`` s, ``--collision``)
     in the folder ``tmp`` under the hard limit ``timeout_s`` (s): (its CSV log, its text
     log), or a one-line reason it failed (``timeout: ...``, ``error: ...``, ``crashed:
     ...``)."""
     log = tmp / "log.csv"
     text_log = tmp / "esmini.txt"
-    cmd = [str(esmini), "--headless", "--osc", str(xosc.resolve()), "--fixed_timestep",
-           repr(step_s), "--csv_logger", str(log), "--collision", "--disable_stdout",
-           "--logfile_path", str(text_log)]
+    cmd = [
+        str(esmini),
+        "--headless",
+        "--osc",
+        str(xosc.resolve()),
+        "--fixed_timestep",
+        repr(step_s),
+        "--csv_logger",
+        str(log),
+        "--collision",
+        "--disable_stdout",
+        "--logfile_path",
+        str(text_log),
+    ]
     try:
-        proc = subprocess.run(cmd, cwd=tmp, capture_output=True, timeout=timeout_s,
-                              check=False)
+        proc = subprocess.run(cmd, cwd=tmp, capture_output=True, timeout=timeout_s, check=False)
     except subprocess.TimeoutExpired:
         return f"timeout: esmini did not finish within {timeout_s:g} s (killed)"
     except OSError as exc:
@@ -285,11 +348,17 @@ def run_esmini(esmini: Path, xosc: Path, tmp: Path, timeout_s: float,
     return log, text
 
 
-def run_one(esmini: Path, xosc: Path, spec: ScenarioSpec, evaluator: Evaluator,
-            timeout_s: float, step_s: float, style: str = "replay") -> dict[str, Any]:
+def run_one(
+    esmini: Path,
+    xosc: Path,
+    spec: ScenarioSpec,
+    evaluator: Evaluator,
+    timeout_s: float,
+    step_s: float,
+    style: str = "replay",
+) -> dict[str, Any]:
     """Simulate one scenario of an export ``style``; a row of ``simulation.csv``."""
-    row: dict[str, Any] = {"scenario_id": spec.scenario_id, "rank": spec.rank,
-                           "style": style}
+    row: dict[str, Any] = {"scenario_id": spec.scenario_id, "rank": spec.rank, "style": style}
     with tempfile.TemporaryDirectory(prefix="sensorgap-esmini-") as tmp:
         t0 = time.perf_counter()
         res = run_esmini(esmini, xosc, Path(tmp), timeout_s, step_s)
@@ -310,8 +379,9 @@ def run_one(esmini: Path, xosc: Path, spec: ScenarioSpec, evaluator: Evaluator,
     planned = spec.scenario
     dev_e = _deviation(planned.ego, *sim.states[EGO][:3])
     # the target's logged origin is its rear axle (vehicles): compare with that point's plan
-    dev_t = _deviation(origin_path(planned.target, target_origin_offset(spec.target)),
-                       *sim.states[TARGET][:3])
+    dev_t = _deviation(
+        origin_path(planned.target, target_origin_offset(spec.target)), *sim.states[TARGET][:3]
+    )
     bodies = body_deviations(spec, sim)
     dev_b = max(bodies.values(), default=math.inf)
     bodies_ok = dev_b <= MAX_BODY_DEV_M
@@ -331,43 +401,52 @@ def run_one(esmini: Path, xosc: Path, spec: ScenarioSpec, evaluator: Evaluator,
     late = t_sim is not None and t_sim > spec.family.duration_s + 1e-9
     if late:  # the step esmini takes past the duration: outside the plan, not compared
         t_sim = None
-    end = (t_sim if style == "maneuver" and t_sim is not None
-           else spec.family.duration_s)
+    end = t_sim if style == "maneuver" and t_sim is not None else spec.family.duration_s
     to_end = t_end >= end - step_s - 1e-9
     agree = (t_plan is None and t_sim is None) or (
-        t_plan is not None and t_sim is not None and abs(t_plan - t_sim) <= step_s + 1e-9)
+        t_plan is not None and t_sim is not None and abs(t_plan - t_sim) <= step_s + 1e-9
+    )
     trig = trigger_checks(spec, sim, event_starts(text), step_s) if style == "maneuver" else []
     dt_max = max((abs(c[1]) for c in trig), default=0.0)
     rel_max = max((c[2] for c in trig), default=0.0)
     trig_ok = dt_max <= MAX_TRIGGER_DT_S + 1e-9 and rel_max <= MAX_TRIGGER_REL_M
-    msgs = [m for m, bad in (("path deviates by more than 0.5 m", not ok),
-                             (f"stopped at {t_end:g} s before the end", not to_end),
-                             ("collision differs from the plan", not agree),
-                             ("a trigger differs from the plan by more than 0.1 s / 0.5 m",
-                              not trig_ok),
-                             ("a body is more than 0.05 m from the plan",
-                              style == "replay" and not bodies_ok),
-                             ("esmini's first collision is after the planned duration (not "
-                              "compared)", late)) if bad]
-    return {**row, "status": "ok" if to_end else "stopped early", "message": "; ".join(msgs),
-            "ran_to_end": "yes" if to_end else "no", "end_time_s": round(t_end, 3),
-            "max_dev_ego_m": round(dev_e, 4), "max_dev_target_m": round(dev_t, 4),
-            "max_dev_relative_m": round(dev_r, 4),
-            "within_0p5m": "yes" if ok else "no",
-            "max_dev_body_m": round(dev_b, 4) if bodies else "",
-            "bodies": " ".join(f"{n}:{d:.4f}" for n, d in bodies.items()),
-            "bodies_within_0p05m": ("yes" if bodies_ok else "no") if bodies else "",
-            "collision_planned_s": "" if t_plan is None else round(t_plan, 3),
-            "collision_esmini_s": "" if t_sim is None else round(t_sim, 3),
-            "collision_agrees": "yes" if agree else "no",
-            "triggers": " ".join(f"{e}:{dt:+.3f}s/{d:.3f}m" for e, dt, d in trig),
-            "trigger_max_dt_s": round(dt_max, 4) if trig else "",
-            "trigger_max_rel_dev_m": round(rel_max, 4) if trig else "",
-            "trigger_agrees": ("yes" if trig_ok else "no") if trig else "",
-            "mean_pd_planned": round(m_p["mean_pd"], 6),
-            "mean_pd_simulated": round(m_s["mean_pd"], 6),
-            "log10_risk_planned": round(m_p["log10_risk"], 4),
-            "log10_risk_simulated": round(m_s["log10_risk"], 4)}
+    msgs = [
+        m
+        for m, bad in (
+            ("path deviates by more than 0.5 m", not ok),
+            (f"stopped at {t_end:g} s before the end", not to_end),
+            ("collision differs from the plan", not agree),
+            ("a trigger differs from the plan by more than 0.1 s / 0.5 m", not trig_ok),
+            ("a body is more than 0.05 m from the plan", style == "replay" and not bodies_ok),
+            ("esmini's first collision is after the planned duration (not compared)", late),
+        )
+        if bad
+    ]
+    return {
+        **row,
+        "status": "ok" if to_end else "stopped early",
+        "message": "; ".join(msgs),
+        "ran_to_end": "yes" if to_end else "no",
+        "end_time_s": round(t_end, 3),
+        "max_dev_ego_m": round(dev_e, 4),
+        "max_dev_target_m": round(dev_t, 4),
+        "max_dev_relative_m": round(dev_r, 4),
+        "within_0p5m": "yes" if ok else "no",
+        "max_dev_body_m": round(dev_b, 4) if bodies else "",
+        "bodies": " ".join(f"{n}:{d:.4f}" for n, d in bodies.items()),
+        "bodies_within_0p05m": ("yes" if bodies_ok else "no") if bodies else "",
+        "collision_planned_s": "" if t_plan is None else round(t_plan, 3),
+        "collision_esmini_s": "" if t_sim is None else round(t_sim, 3),
+        "collision_agrees": "yes" if agree else "no",
+        "triggers": " ".join(f"{e}:{dt:+.3f}s/{d:.3f}m" for e, dt, d in trig),
+        "trigger_max_dt_s": round(dt_max, 4) if trig else "",
+        "trigger_max_rel_dev_m": round(rel_max, 4) if trig else "",
+        "trigger_agrees": ("yes" if trig_ok else "no") if trig else "",
+        "mean_pd_planned": round(m_p["mean_pd"], 6),
+        "mean_pd_simulated": round(m_s["mean_pd"], 6),
+        "log10_risk_planned": round(m_p["log10_risk"], 4),
+        "log10_risk_simulated": round(m_s["log10_risk"], 4),
+    }
 
 
 def read_catalog_index(path: Path) -> tuple[dict[str, Any], list[dict[str, Any]]]:
@@ -388,27 +467,43 @@ def read_catalog_index(path: Path) -> tuple[dict[str, Any], list[dict[str, Any]]
         raise InputError(path, "scenarios", "malformed catalog index: expected a list")
     for i, entry in enumerate(entries):
         if not isinstance(entry, dict):
-            raise InputError(path, f"scenarios[{i}]", "malformed catalog index: expected "
-                             f"an object, got {type(entry).__name__}")
+            raise InputError(
+                path,
+                f"scenarios[{i}]",
+                f"malformed catalog index: expected an object, got {type(entry).__name__}",
+            )
         for key in ("scenario_id", "file", "road"):
             v = entry.get(key)
             if key == "road" and v is None:
                 continue
-            if not isinstance(v, str) or not v or Path(v).is_absolute() \
-                    or (key != "scenario_id" and ".." in Path(v).parts):
-                raise InputError(path, f"scenarios[{i}].{key}", "malformed catalog index: "
-                                 "expected " + ("a string" if key == "scenario_id" else
-                                                "a relative path inside the catalog"))
+            if (
+                not isinstance(v, str)
+                or not v
+                or Path(v).is_absolute()
+                or (key != "scenario_id" and ".." in Path(v).parts)
+            ):
+                raise InputError(
+                    path,
+                    f"scenarios[{i}].{key}",
+                    "malformed catalog index: "
+                    "expected "
+                    + (
+                        "a string" if key == "scenario_id" else "a relative path inside the catalog"
+                    ),
+                )
     for key in ("style", "osc_version"):
         if not isinstance(index.get(key, ""), str):
             raise InputError(path, key, "malformed catalog index: expected a string")
     return index, entries
 
 
-def simulate_catalog(catalog: Path, esmini: str | None = None,
-                     timeout_s: float = DEFAULT_TIMEOUT_S,
-                     step_s: float = DEFAULT_STEP_S,
-                     ego_reaction: bool = False) -> list[dict[str, Any]]:
+def simulate_catalog(
+    catalog: Path,
+    esmini: str | None = None,
+    timeout_s: float = DEFAULT_TIMEOUT_S,
+    step_s: float = DEFAULT_STEP_S,
+    ego_reaction: bool = False,
+) -> list[dict[str, Any]]:
     """Run every scenario of ``catalog`` (see the module docstring); with
     ``ego_reaction`` also the reaction runs (``export.reaction``: columns ``react_*``);
     writes ``simulation.csv`` and returns its rows."""
@@ -417,8 +512,9 @@ def simulate_catalog(catalog: Path, esmini: str | None = None,
     if not catalog.is_dir():
         raise InputError(catalog, "", "catalog folder does not exist")
     if not index_path.is_file():
-        raise InputError(index_path, "", "not a catalog (catalog.json is missing); run "
-                         "`sensorgap export` first")
+        raise InputError(
+            index_path, "", "not a catalog (catalog.json is missing); run `sensorgap export` first"
+        )
     if not (0.0 < timeout_s <= 86_400.0):
         raise InputError("timeout", "", f"must be within 0..86400 s, got {timeout_s!r}")
     if not (0.0 < step_s <= 1.0):
@@ -438,8 +534,7 @@ def simulate_catalog(catalog: Path, esmini: str | None = None,
             rows.append({**base, "status": "missing", "message": f"{xosc} does not exist"})
             continue
         if sid not in by_id:
-            rows.append({**base, "status": "missing",
-                         "message": "scenario not in ranking.json"})
+            rows.append({**base, "status": "missing", "message": "scenario not in ranking.json"})
             continue
         spec = ScenarioSpec.from_row(by_id[sid], system, catalog / "ranking.json", run)
         style = str(index.get("style", "replay"))
@@ -448,8 +543,15 @@ def simulate_catalog(catalog: Path, esmini: str | None = None,
             from sensorgap.export.reaction import reaction_columns
 
             cols, msgs = reaction_columns(
-                spec, evaluator, exe, style, str(index.get("osc_version", "1.2")),
-                catalog / str(entry.get("road", "")), timeout_s, step_s)
+                spec,
+                evaluator,
+                exe,
+                style,
+                str(index.get("osc_version", "1.2")),
+                catalog / str(entry.get("road", "")),
+                timeout_s,
+                step_s,
+            )
             row.update(cols)
             row["message"] = "; ".join(m for m in [row.get("message", ""), *msgs] if m)
         rows.append(row)

@@ -52,17 +52,24 @@ class ScenarioSpec:
         return resolve_road(str(self.family.settings["road"]))
 
     @classmethod
-    def from_row(cls, row: dict[str, Any], system: System,
-                 source: Path | str = "ranking.json",
-                 run: RunFolder | None = None) -> ScenarioSpec:
+    def from_row(
+        cls,
+        row: dict[str, Any],
+        system: System,
+        source: Path | str = "ranking.json",
+        run: RunFolder | None = None,
+    ) -> ScenarioSpec:
         """Rebuild a ranking row (``InputError`` naming ``source`` if it is inconsistent)
         from the inputs ``run`` recorded (family, its road, environments, targets); without
         ``run``, from the shipped presets."""
         at = _row_label(row, run)
         field = "family"
         try:
-            family = (run.family(str(row["family"])) if run is not None
-                      else load_family(str(row["family"])))
+            family = (
+                run.family(str(row["family"]))
+                if run is not None
+                else load_family(str(row["family"]))
+            )
             params: dict[str, ParamValue] = {}
             for p in family.space:
                 field = f"p_{p.name}"
@@ -79,14 +86,28 @@ class ScenarioSpec:
                 az = _finite(row["sun_azimuth_deg"])
                 field = "sun_elevation_deg"
                 sun = (az, _finite(row["sun_elevation_deg"]))
-                env = env.model_copy(update={"sun": env.sun.model_copy(update={
-                    "azimuth_deg": sun[0], "elevation_deg": sun[1], "frame": "world"})})
+                env = env.model_copy(
+                    update={
+                        "sun": env.sun.model_copy(
+                            update={
+                                "azimuth_deg": sun[0],
+                                "elevation_deg": sun[1],
+                                "frame": "world",
+                            }
+                        )
+                    }
+                )
             field = "environment"
-            label = (env_name if sun is None
-                     else Candidate(str(row["family"]), env_name, sun, {}).environment_label)
+            label = (
+                env_name
+                if sun is None
+                else Candidate(str(row["family"]), env_name, sun, {}).environment_label
+            )
             if str(row["environment"]) != label:
-                raise ValueError(f"{str(row['environment'])[:64]!r} does not match the row's "
-                                 f"environment and sun columns (expected {label!r})")
+                raise ValueError(
+                    f"{str(row['environment'])[:64]!r} does not match the row's "
+                    f"environment and sun columns (expected {label!r})"
+                )
         except KeyError:
             raise InputError(source, f"{at}.{field}", "missing") from None
         except (TypeError, ValueError) as exc:
@@ -97,10 +118,25 @@ class ScenarioSpec:
             raise InputError(source, at, f"cannot rebuild the scenario: {exc}") from None
         metrics = {k: float(row[k]) for k in metric_names() if isinstance(row.get(k), int | float)}
         targets = run.targets() if run is not None else None
-        target = (targets[scenario.target_class] if targets is not None
-                  and scenario.target_class in targets else load_target(scenario.target_class))
-        return cls(str(row["scenario_id"]), int(row["rank"]), family, params, env_name, env,
-                   sun, scenario, target, system, metrics, str(row.get("reason", "")))
+        target = (
+            targets[scenario.target_class]
+            if targets is not None and scenario.target_class in targets
+            else load_target(scenario.target_class)
+        )
+        return cls(
+            str(row["scenario_id"]),
+            int(row["rank"]),
+            family,
+            params,
+            env_name,
+            env,
+            sun,
+            scenario,
+            target,
+            system,
+            metrics,
+            str(row.get("reason", "")),
+        )
 
 
 def _row_label(row: dict[str, Any], run: RunFolder | None) -> str:

@@ -16,8 +16,12 @@ from sensorgap.roads import RoadNetwork
 from sensorgap.scenarios.kinds import FOOTWAY_M as CROSSING_FOOTWAY_M
 
 #: XSD file per OpenSCENARIO version, in scenariogeneration's ``schemas`` folder.
-OSC_XSD = {"1.0": "OpenSCENARIO_1_0.xsd", "1.1": "OpenSCENARIO_1_1.xsd",
-           "1.2": "OpenSCENARIO_1_2.xsd", "1.3": "OpenSCENARIO_1_3_1.xsd"}
+OSC_XSD = {
+    "1.0": "OpenSCENARIO_1_0.xsd",
+    "1.1": "OpenSCENARIO_1_1.xsd",
+    "1.2": "OpenSCENARIO_1_2.xsd",
+    "1.3": "OpenSCENARIO_1_3_1.xsd",
+}
 ODR_XSD = "opendrive_17_core.xsd"
 
 
@@ -56,9 +60,13 @@ def xsd_errors(path: Path, version: str | None = None) -> list[str]:
 FOOTWAY_M = CROSSING_FOOTWAY_M + 0.5
 
 
-def semantic_errors(xosc_path: Path, net: RoadNetwork, lanes: dict[str, list[int]],
-                    tolerance_m: float = 0.5,
-                    tolerance_by_path: dict[str, float] | None = None) -> list[str]:
+def semantic_errors(
+    xosc_path: Path,
+    net: RoadNetwork,
+    lanes: dict[str, list[int]],
+    tolerance_m: float = 0.5,
+    tolerance_by_path: dict[str, float] | None = None,
+) -> list[str]:
     """Our own checks of a scenario file: every entity referenced by an action exists; the
     declared lanes exist on the road; every trajectory vertex lies on the road (within
     ``tolerance_m`` of its lanes, or the trajectory's own tolerance in
@@ -101,8 +109,10 @@ def semantic_errors(xosc_path: Path, net: RoadNetwork, lanes: dict[str, list[int
 def declared_parameters(tree: etree._ElementTree) -> dict[str, str]:
     """The file's global ParameterDeclarations: name -> value (as written)."""
     decl = tree.find("ParameterDeclarations")
-    return {str(p.get("name")): str(p.get("value"))
-            for p in ([] if decl is None else decl.iter("ParameterDeclaration"))}
+    return {
+        str(p.get("name")): str(p.get("value"))
+        for p in ([] if decl is None else decl.iter("ParameterDeclaration"))
+    }
 
 
 def parameter_errors(tree: etree._ElementTree) -> list[str]:

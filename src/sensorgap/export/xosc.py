@@ -75,8 +75,9 @@ def origin_path(tr: Trajectory, ahead_m: float) -> Trajectory:
     if ahead_m == 0.0:
         return tr
     c, s = np.cos(tr.heading), np.sin(tr.heading)
-    return Trajectory(t=tr.t, x=tr.x - ahead_m * c, y=tr.y - ahead_m * s,
-                      heading=tr.heading, speed=tr.speed)
+    return Trajectory(
+        t=tr.t, x=tr.x - ahead_m * c, y=tr.y - ahead_m * s, heading=tr.heading, speed=tr.speed
+    )
 
 
 #: esmini merges consecutive trajectory vertices closer than this (its ``--traj_filter``
@@ -121,15 +122,16 @@ def filtered_vertices(x: np.ndarray, y: np.ndarray, idx: list[int] | None = None
     pos = {k: i for i, k in enumerate(idx)}
     keep = [anchors[0]]
     for u, v in zip(anchors, anchors[1:], strict=False):
-        between = [k for k in idx[pos[u] + 1:pos[v]] if dist(k, keep[-1]) >= gap]
+        between = [k for k in idx[pos[u] + 1 : pos[v]] if dist(k, keep[-1]) >= gap]
         picked: list[int] = []
         for k in between:
             if dist(k, picked[-1] if picked else keep[-1]) >= gap:
                 picked.append(k)
         # towards a stand-still or the end: the sample nearest to it at the spacing
         last = next((k for k in reversed(between) if dist(k, v) >= gap), None)
-        while picked and (last is None or dist(picked[-1], last) < gap
-                          or pos[picked[-1]] >= pos[last]):
+        while picked and (
+            last is None or dist(picked[-1], last) < gap or pos[picked[-1]] >= pos[last]
+        ):
             picked.pop()
         keep += [*picked, *([] if last is None else [last]), v]
     return keep
@@ -143,23 +145,37 @@ def _fmt(v: float) -> float:
 def _follow(name: str, tr: Trajectory) -> xosc.FollowTrajectoryAction:
     keep = filtered_vertices(tr.x, tr.y)
     traj = xosc.Trajectory(f"{name}_path", False)
-    traj.add_shape(xosc.Polyline(
-        [_fmt(float(tr.t[k])) for k in keep],
-        [xosc.WorldPosition(_fmt(float(tr.x[k])), _fmt(float(tr.y[k])), 0.0,
-                            _fmt(float(tr.heading[k]))) for k in keep]))
-    return xosc.FollowTrajectoryAction(traj, xosc.FollowingMode.position,
-                                       xosc.ReferenceContext.absolute, 1.0, 0.0)
+    traj.add_shape(
+        xosc.Polyline(
+            [_fmt(float(tr.t[k])) for k in keep],
+            [
+                xosc.WorldPosition(
+                    _fmt(float(tr.x[k])), _fmt(float(tr.y[k])), 0.0, _fmt(float(tr.heading[k]))
+                )
+                for k in keep
+            ],
+        )
+    )
+    return xosc.FollowTrajectoryAction(
+        traj, xosc.FollowingMode.position, xosc.ReferenceContext.absolute, 1.0, 0.0
+    )
 
 
 def ego_entity(spec: ScenarioSpec) -> xosc.Vehicle:
     body = spec.system.config.vehicle
-    bb = xosc.BoundingBox(body.width_m, body.length_m, body.height_m,
-                          _fmt(0.5 * (body.x_front_m + body.x_rear_m)), 0.0,
-                          0.5 * body.height_m)
+    bb = xosc.BoundingBox(
+        body.width_m,
+        body.length_m,
+        body.height_m,
+        _fmt(0.5 * (body.x_front_m + body.x_rear_m)),
+        0.0,
+        0.5 * body.height_m,
+    )
     front = xosc.Axle(0.5, 0.65, _fmt(0.85 * body.width_m), _fmt(body.wheelbase_m), 0.33)
     rear = xosc.Axle(0.0, 0.65, _fmt(0.85 * body.width_m), 0.0, 0.33)
-    return xosc.Vehicle(EGO, xosc.VehicleCategory.car, bb, front, rear,
-                        _fmt(body.max_speed_m_s), 10.0, 10.0)
+    return xosc.Vehicle(
+        EGO, xosc.VehicleCategory.car, bb, front, rear, _fmt(body.max_speed_m_s), 10.0, 10.0
+    )
 
 
 def actor_entity(name: str, t: TargetConfig) -> xosc.Vehicle | xosc.Pedestrian:
@@ -168,10 +184,12 @@ def actor_entity(name: str, t: TargetConfig) -> xosc.Vehicle | xosc.Pedestrian:
     d = target_origin_offset(t)  # origin at the rear axle: the box centre is d ahead
     bb = xosc.BoundingBox(t.width_m, t.length_m, t.height_m, _fmt(d), 0.0, 0.5 * t.height_m)
     if t.name == "pedestrian":
-        return xosc.Pedestrian(name, 80.0, xosc.PedestrianCategory.pedestrian, bb,
-                               model="pedestrian")
-    category = {"bike": xosc.VehicleCategory.bicycle,
-                "truck": xosc.VehicleCategory.truck}.get(t.name, xosc.VehicleCategory.car)
+        return xosc.Pedestrian(
+            name, 80.0, xosc.PedestrianCategory.pedestrian, bb, model="pedestrian"
+        )
+    category = {"bike": xosc.VehicleCategory.bicycle, "truck": xosc.VehicleCategory.truck}.get(
+        t.name, xosc.VehicleCategory.car
+    )
     wheel = 0.6 if t.name == "bike" else 0.8
     front = xosc.Axle(0.5, wheel, _fmt(0.85 * t.width_m), _fmt(2.0 * d), wheel / 2)
     rear = xosc.Axle(0.0, wheel, _fmt(0.85 * t.width_m), 0.0, wheel / 2)
@@ -194,7 +212,7 @@ def environment(spec: ScenarioSpec, minor: int) -> xosc.Environment:
     elif env.rain_mm_h > 0.0:
         precip_type, mm_h = xosc.PrecipitationType.rain, env.rain_mm_h
     intensity_p = min(mm_h / RAIN_FULL_SCALE_MM_H, 1.0) if minor == 0 else mm_h
-    cloud = (xosc.CloudState.free if minor < 2 else xosc.FractionalCloudCover.zeroOktas)
+    cloud = xosc.CloudState.free if minor < 2 else xosc.FractionalCloudCover.zeroOktas
     if sun is None or not sun.visible:
         cloud = xosc.CloudState.overcast if minor < 2 else xosc.FractionalCloudCover.eightOktas
     weather = xosc.Weather(
@@ -203,27 +221,41 @@ def environment(spec: ScenarioSpec, minor: int) -> xosc.Environment:
         temperature=None if minor == 0 else _fmt(env.temperature_c + 273.15),
         sun=xosc.Sun(_fmt(intensity), _fmt(az), _fmt(el)),
         fog=xosc.Fog(int(round(min(env.visibility_m, 1.0e6)))),
-        precipitation=xosc.Precipitation(precip_type, _fmt(intensity_p)))
+        precipitation=xosc.Precipitation(precip_type, _fmt(intensity_p)),
+    )
     wet = mm_h > 0.0
     return xosc.Environment(
-        f"{spec.environment_name}", xosc.TimeOfDay(False, 2026, 6, 21, 12, 0, 0), weather,
-        xosc.RoadCondition(WET_FRICTION if wet else 1.0))
+        f"{spec.environment_name}",
+        xosc.TimeOfDay(False, 2026, 6, 21, 12, 0, 0),
+        weather,
+        xosc.RoadCondition(WET_FRICTION if wet else 1.0),
+    )
 
 
 def description(spec: ScenarioSpec) -> str:
     """FileHeader description: what, where, how critical (one line)."""
     m = spec.metrics
-    keys = ("risk", "log10_risk", "t_detect_s", "ttc_at_detect_s", "min_ttc_s", "mean_pd",
-            "corridor_s")
+    keys = (
+        "risk",
+        "log10_risk",
+        "t_detect_s",
+        "ttc_at_detect_s",
+        "min_ttc_s",
+        "mean_pd",
+        "corridor_s",
+    )
     vals = ", ".join(f"{k}={m[k]:.6g}" for k in keys if k in m)
     sun = "" if spec.sun_deg is None else f", sun {spec.sun_deg[0]:g}/{spec.sun_deg[1]:g} deg"
-    return (f"sensorgap critical scenario {spec.scenario_id} (rank {spec.rank}) for "
-            f"{spec.system.name}: family {spec.family.name}, environment "
-            f"{spec.environment_name}{sun}, target {spec.target.name}; {vals}")
+    return (
+        f"sensorgap critical scenario {spec.scenario_id} (rank {spec.rank}) for "
+        f"{spec.system.name}: family {spec.family.name}, environment "
+        f"{spec.environment_name}{sun}, target {spec.target.name}; {vals}"
+    )
 
 
-def declarations(spec: ScenarioSpec,
-                 extra: dict[str, str | float] | None = None) -> xosc.ParameterDeclarations:
+def declarations(
+    spec: ScenarioSpec, extra: dict[str, str | float] | None = None
+) -> xosc.ParameterDeclarations:
     """Every searched parameter with its value, the environment and the sun, then
     ``extra`` (parameters of the maneuver style) in their order."""
     params = xosc.ParameterDeclarations()
@@ -231,24 +263,30 @@ def declarations(spec: ScenarioSpec,
         if isinstance(value, str):
             params.add_parameter(xosc.Parameter(name, xosc.ParameterType.string, value))
         else:
-            params.add_parameter(xosc.Parameter(name, xosc.ParameterType.double,
-                                                repr(float(value))))
-    params.add_parameter(xosc.Parameter("environment", xosc.ParameterType.string,
-                                        spec.environment_name))
+            params.add_parameter(
+                xosc.Parameter(name, xosc.ParameterType.double, repr(float(value)))
+            )
+    params.add_parameter(
+        xosc.Parameter("environment", xosc.ParameterType.string, spec.environment_name)
+    )
     if spec.sun_deg is not None:
-        params.add_parameter(xosc.Parameter("sun_azimuth_deg", xosc.ParameterType.double,
-                                            repr(spec.sun_deg[0])))
-        params.add_parameter(xosc.Parameter("sun_elevation_deg", xosc.ParameterType.double,
-                                            repr(spec.sun_deg[1])))
+        params.add_parameter(
+            xosc.Parameter("sun_azimuth_deg", xosc.ParameterType.double, repr(spec.sun_deg[0]))
+        )
+        params.add_parameter(
+            xosc.Parameter("sun_elevation_deg", xosc.ParameterType.double, repr(spec.sun_deg[1]))
+        )
     for name, value in (extra or {}).items():
         if isinstance(value, bool):
-            params.add_parameter(xosc.Parameter(name, xosc.ParameterType.boolean,
-                                                str(value).lower()))
+            params.add_parameter(
+                xosc.Parameter(name, xosc.ParameterType.boolean, str(value).lower())
+            )
         elif isinstance(value, str):
             params.add_parameter(xosc.Parameter(name, xosc.ParameterType.string, value))
         else:
-            params.add_parameter(xosc.Parameter(name, xosc.ParameterType.double,
-                                                repr(float(value))))
+            params.add_parameter(
+                xosc.Parameter(name, xosc.ParameterType.double, repr(float(value)))
+            )
     return params
 
 
@@ -260,19 +298,35 @@ def set_version(version: str) -> int:
     return minor
 
 
-def assemble(spec: ScenarioSpec, params: xosc.ParameterDeclarations,
-             entities: xosc.Entities, storyboard: xosc.StoryBoard, road_relpath: str,
-             minor: int) -> xosc.Scenario:
+def assemble(
+    spec: ScenarioSpec,
+    params: xosc.ParameterDeclarations,
+    entities: xosc.Entities,
+    storyboard: xosc.StoryBoard,
+    road_relpath: str,
+    minor: int,
+) -> xosc.Scenario:
     """The Scenario object with our FileHeader (description, author, fixed date)."""
-    return xosc.Scenario(description(spec), "sensorgap", params, entities, storyboard,
-                         xosc.RoadNetwork(roadfile=road_relpath), xosc.Catalog(),
-                         osc_minor_version=minor, creation_date=CREATION_DATE)
+    return xosc.Scenario(
+        description(spec),
+        "sensorgap",
+        params,
+        entities,
+        storyboard,
+        xosc.RoadNetwork(roadfile=road_relpath),
+        xosc.Catalog(),
+        osc_minor_version=minor,
+        creation_date=CREATION_DATE,
+    )
 
 
-def build_scenario(spec: ScenarioSpec, road_relpath: str,
-                   version: str = DEFAULT_VERSION,
-                   ego_brake: list[BrakeStep] | None = None,
-                   step_s: float = 0.05) -> xosc.Scenario:
+def build_scenario(
+    spec: ScenarioSpec,
+    road_relpath: str,
+    version: str = DEFAULT_VERSION,
+    ego_brake: list[BrakeStep] | None = None,
+    step_s: float = 0.05,
+) -> xosc.Scenario:
     """The OpenSCENARIO object of one ranked scenario in the ``replay`` style. With
     ``ego_brake`` (``simulate --ego-reaction``) the ego's path ends one ``step_s`` (s)
     before the first brake step (the default controller keeps its lane and speed for that
@@ -292,24 +346,36 @@ def build_scenario(spec: ScenarioSpec, road_relpath: str,
         n = int(np.searchsorted(ego.t, ego_brake[0].start_s - step_s + 1e-9, side="right"))
         n = max(n, 2)
         ego = Trajectory(ego.t[:n], ego.x[:n], ego.y[:n], ego.heading[:n], ego.speed[:n])
-    paths = ((EGO, ego),
-             (TARGET, origin_path(spec.scenario.target, target_origin_offset(spec.target))))
+    paths = (
+        (EGO, ego),
+        (TARGET, origin_path(spec.scenario.target, target_origin_offset(spec.target))),
+    )
     for name, tr in paths:
-        init.add_init_action(name, xosc.TeleportAction(xosc.WorldPosition(
-            _fmt(float(tr.x[0])), _fmt(float(tr.y[0])), 0.0, _fmt(float(tr.heading[0])))))
+        init.add_init_action(
+            name,
+            xosc.TeleportAction(
+                xosc.WorldPosition(
+                    _fmt(float(tr.x[0])), _fmt(float(tr.y[0])), 0.0, _fmt(float(tr.heading[0]))
+                )
+            ),
+        )
         if name == EGO:
-            init.add_init_action(name, xosc.AbsoluteSpeedAction(_fmt(float(tr.speed[0])),
-                                                                step))
+            init.add_init_action(name, xosc.AbsoluteSpeedAction(_fmt(float(tr.speed[0])), step))
         else:  # from the first step on: not moved along the road by a default controller
             init.add_init_action(name, _follow(name, tr))
 
-    start = xosc.ValueTrigger("start", 0.0, xosc.ConditionEdge.none,
-                              xosc.SimulationTimeCondition(0.0, xosc.Rule.greaterThan))
+    start = xosc.ValueTrigger(
+        "start",
+        0.0,
+        xosc.ConditionEdge.none,
+        xosc.SimulationTimeCondition(0.0, xosc.Rule.greaterThan),
+    )
     story = xosc.Story("critical_scenario")
     act = xosc.Act("follow_evaluated_paths", start)
     for name, tr in paths[:1]:
-        event = xosc.Event(f"{name}_follow", xosc.Priority.override
-                           if minor >= 2 else xosc.Priority.overwrite)
+        event = xosc.Event(
+            f"{name}_follow", xosc.Priority.override if minor >= 2 else xosc.Priority.overwrite
+        )
         event.add_action(f"{name}_trajectory", _follow(name, tr))
         event.add_trigger(start)
         man = xosc.Maneuver(f"{name}_maneuver")
@@ -322,9 +388,12 @@ def build_scenario(spec: ScenarioSpec, road_relpath: str,
         act.add_maneuver_group(group)
     story.add_act(act)
     stop = xosc.ValueTrigger(
-        "end", 0.0, xosc.ConditionEdge.rising,
+        "end",
+        0.0,
+        xosc.ConditionEdge.rising,
         xosc.SimulationTimeCondition(_fmt(spec.family.duration_s), xosc.Rule.greaterThan),
-        "stop")
+        "stop",
+    )
     sb = xosc.StoryBoard(init, stop)
     sb.add_story(story)
     return assemble(spec, params, entities, sb, road_relpath, minor)

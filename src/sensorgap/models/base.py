@@ -75,9 +75,7 @@ class SensorModel(ABC):
         """The band this sensor works in (selects the weather attenuation)."""
 
     @abstractmethod
-    def prepare(
-        self, mount: Mount, target: TargetConfig, conditions: Conditions
-    ) -> PreparedSensor:
+    def prepare(self, mount: Mount, target: TargetConfig, conditions: Conditions) -> PreparedSensor:
         """Fold every scene constant into a ``PreparedSensor``."""
 
     def may_be_glared(self, mount: Mount, conditions: Conditions) -> bool:
@@ -122,9 +120,15 @@ class GlareCone:
     pitch: float = 0.0
 
 
-
-def glare_factors(model: SensorModel, mount: Mount, dx: F64, dy: F64, dz: F64 | float,
-                  sun_directions: F64, weights: F64 | None = None) -> F64:
+def glare_factors(
+    model: SensorModel,
+    mount: Mount,
+    dx: F64,
+    dy: F64,
+    dz: F64 | float,
+    sun_directions: F64,
+    weights: F64 | None = None,
+) -> F64:
     """Per-point glare factor ``g`` of ``PreparedSensor.snr_db_glare``: the glare weight of
     each point's sun direction ((N, 3), vehicle frame, NaN rows: none; or the given
     ``weights``) times the falloff with the angle between that sun and the line of sight

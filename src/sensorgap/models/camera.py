@@ -59,8 +59,9 @@ _MIN_IFOV_RAD = 1.0e-9  # a zero-width camera still gets a finite pixel angle
 class CameraParams(Strict):
     """Physical parameters of a camera (eq. 6-10)."""
 
-    wavelength_m: float = Field(default=550e-9, ge=3.0e-7, le=1.5e-5,
-                                description="Centre wavelength for h nu, m")
+    wavelength_m: float = Field(
+        default=550e-9, ge=3.0e-7, le=1.5e-5, description="Centre wavelength for h nu, m"
+    )
     pixels_h: int = Field(ge=1, le=100_000, description="Horizontal pixel count")
     pixels_v: int = Field(ge=1, le=100_000, description="Vertical pixel count")
     pixel_pitch_m: float = Field(ge=1.0e-7, le=1.0e-4, description="Pixel pitch, m")
@@ -69,18 +70,27 @@ class CameraParams(Strict):
     integration_time_s: float = Field(ge=1.0e-7, le=1.0, description="t_int, s")
     noise_bandwidth_hz: float = Field(ge=1.0, le=1.0e12, description="B_n, Hz")
     system_noise_temperature_k: float = Field(ge=1.0, le=1.0e7, description="T_sys, K")
-    system_loss_db: float = Field(default=0.0, ge=0.0, le=100.0,
-                                  description="Lens/windscreen transmission loss, dB")
-    fov_edge_loss_db: float = Field(default=3.0, ge=0.0, le=60.0,
-                                    description="Relative illumination loss at the FOV edge, dB")
-    glare_margin_deg: float = Field(default=10.0, ge=0.0, le=90.0,
-                                    description="Sun angle outside the FOV still glaring, deg")
+    system_loss_db: float = Field(
+        default=0.0, ge=0.0, le=100.0, description="Lens/windscreen transmission loss, dB"
+    )
+    fov_edge_loss_db: float = Field(
+        default=3.0, ge=0.0, le=60.0, description="Relative illumination loss at the FOV edge, dB"
+    )
+    glare_margin_deg: float = Field(
+        default=10.0, ge=0.0, le=90.0, description="Sun angle outside the FOV still glaring, deg"
+    )
     veiling_glare_k: float = Field(
-        default=10.0, ge=0.0, le=1.0e4,
-        description="k of L_veil = k E_glare / theta^2 (theta in deg), (cd/m2)/lx deg2")
+        default=10.0,
+        ge=0.0,
+        le=1.0e4,
+        description="k of L_veil = k E_glare / theta^2 (theta in deg), (cd/m2)/lx deg2",
+    )
     veiling_glare_min_deg: float = Field(
-        default=1.0, gt=0.0, le=30.0,
-        description="Sun-target angle below which the veil is held constant, deg")
+        default=1.0,
+        gt=0.0,
+        le=30.0,
+        description="Sun-target angle below which the veil is held constant, deg",
+    )
 
 
 @register
@@ -123,9 +133,14 @@ class Camera(SensorModel):
 
     def glare_cone(self, mount: Mount) -> GlareCone:
         """``glare_weights`` as a ``GlareCone`` (the same weight, for compiled lookups)."""
-        return GlareCone(np.ascontiguousarray(mount.rotation()), 0.5 * mount.hfov,
-                         0.5 * mount.vfov, math.radians(self.params.glare_margin_deg),
-                         mount.yaw, mount.pitch)
+        return GlareCone(
+            np.ascontiguousarray(mount.rotation()),
+            0.5 * mount.hfov,
+            0.5 * mount.vfov,
+            math.radians(self.params.glare_margin_deg),
+            mount.yaw,
+            mount.pitch,
+        )
 
     def glare_falloff(self, cos_sep: F64) -> F64:
         """Veiling glare relative to its value at ``veiling_glare_min_deg``:
@@ -139,9 +154,7 @@ class Camera(SensorModel):
         """True when the sun is in or within ``glare_margin_deg`` of the field of view."""
         return self.glare_weight(mount, conditions) > 0.0
 
-    def prepare(
-        self, mount: Mount, target: TargetConfig, conditions: Conditions
-    ) -> PreparedSensor:
+    def prepare(self, mount: Mount, target: TargetConfig, conditions: Conditions) -> PreparedSensor:
         """Fold eq. 6-10 constants; the glare term only when the sun can reach this camera."""
         p = self.params
         h_nu = PLANCK_J_S * SPEED_OF_LIGHT_M_S / p.wavelength_m
@@ -174,8 +187,11 @@ class Camera(SensorModel):
             e_dir = env.sun.direct_irradiance_w_m2
         # veil-to-object radiance ratio at theta_min: k E_dir / theta_min^2 / (rho E / pi)
         t_min = p.veiling_glare_min_deg
-        ln_veil0 = math.log(max(p.veiling_glare_k * e_dir, 1e-300)) - 2.0 * math.log(t_min) \
+        ln_veil0 = (
+            math.log(max(p.veiling_glare_k * e_dir, 1e-300))
+            - 2.0 * math.log(t_min)
             + math.log(math.pi / (target.camera_reflectance * max(irr, 1e-300)))
+        )
         glare = e_dir > 0.0 and p.veiling_glare_k > 0.0
         ln_thermal = math.log(thermal)
         gamma = conditions.attenuation_db_km(self.band())
@@ -186,10 +202,12 @@ class Camera(SensorModel):
         if w > 0.0 and glare and conditions.sun_direction is not None:
             sun_s = mount.rotation().T @ np.asarray(conditions.sun_direction, dtype=np.float64)
             off = math.degrees(angle_outside_fov(mount, conditions.sun_direction))
-            effects["glare"] = (f"sun {off:.1f} deg outside the view (weight {w:.3f}); "
-                                f"veiling glare {10.0 * ln_veil0 / math.log(10.0):.1f} dB of "
-                                f"the object's radiance at {t_min:g} deg from the sun, "
-                                "falling as 1/theta^2")
+            effects["glare"] = (
+                f"sun {off:.1f} deg outside the view (weight {w:.3f}); "
+                f"veiling glare {10.0 * ln_veil0 / math.log(10.0):.1f} dB of "
+                f"the object's radiance at {t_min:g} deg from the sun, "
+                "falling as 1/theta^2"
+            )
 
         def signal_db(r: F64, az: F64, el: F64) -> F64:
             lr20 = 20.0 * np.log10(r)
@@ -201,8 +219,9 @@ class Camera(SensorModel):
 
         def snr_from_signal(ne_db: F64, g: F64, r: F64) -> F64:
             ln_ne = ne_db * LN10_OVER_10
-            ln_veil = (np.log(np.maximum(g, 1e-300)) + ln_veil0 + ln_ne
-                       + one_way_db_m * r * LN10_OVER_10)
+            ln_veil = (
+                np.log(np.maximum(g, 1e-300)) + ln_veil0 + ln_ne + one_way_db_m * r * LN10_OVER_10
+            )
             ln_noise = np.logaddexp(0.5 * ln_ne, np.logaddexp(ln_thermal, ln_veil))
             return np.asarray((ln_ne - ln_noise) / LN10_OVER_10, dtype=np.float64)
 
@@ -213,8 +232,9 @@ class Camera(SensorModel):
             ne_db = signal_db(r, az, el)
             if sun_s is not None:
                 ce = np.cos(el)
-                cos_sep = ce * np.cos(az) * sun_s[0] + ce * np.sin(az) * sun_s[1] \
-                    + np.sin(el) * sun_s[2]
+                cos_sep = (
+                    ce * np.cos(az) * sun_s[0] + ce * np.sin(az) * sun_s[1] + np.sin(el) * sun_s[2]
+                )
                 return snr_from_signal(ne_db, w * self.glare_falloff(cos_sep), r)
             ln_ne = ne_db * LN10_OVER_10
             ln_noise = np.logaddexp(0.5 * ln_ne, ln_thermal)
@@ -225,8 +245,12 @@ class Camera(SensorModel):
             terms[f"veil/object at {t_min:g} deg [dB]"] = 10.0 * ln_veil0 / math.log(10.0)
         terms["weather one-way [dB/km]"] = gamma
         terms["focal length [mm]"] = focal * 1e3
-        return PreparedSensor(snr_db=snr_db, terms_db=terms, effects=effects,
-                              uses_angles=edge > 0.0 or sun_s is not None,
-                              snr_db_glare=snr_db_glare if glare else None,
-                              signal_db=signal_db if glare else None,
-                              snr_from_signal=snr_from_signal if glare else None)
+        return PreparedSensor(
+            snr_db=snr_db,
+            terms_db=terms,
+            effects=effects,
+            uses_angles=edge > 0.0 or sun_s is not None,
+            snr_db_glare=snr_db_glare if glare else None,
+            signal_db=signal_db if glare else None,
+            snr_from_signal=snr_from_signal if glare else None,
+        )

@@ -69,8 +69,9 @@ class Conditions:
         return cls(env=env, sun_direction=direction)
 
     @staticmethod
-    def sun_directions(env: EnvironmentConfig,
-                       ego_heading_rad: NDArray[np.float64]) -> NDArray[np.float64] | None:
+    def sun_directions(
+        env: EnvironmentConfig, ego_heading_rad: NDArray[np.float64]
+    ) -> NDArray[np.float64] | None:
         """Vehicle-frame unit vectors to the sun, (N, 3), one per ego heading (rad), the
         vectorised ``from_config(...).sun_direction``; ``None`` when the sun cannot reach
         any sensor (no sun, not visible, at or below the horizon)."""
@@ -83,8 +84,9 @@ class Conditions:
         else:
             az = 0.5 * math.pi - sun.azimuth_rad - h
         el = sun.elevation_rad
-        return np.column_stack([math.cos(el) * np.cos(az), math.cos(el) * np.sin(az),
-                                np.full(h.shape, math.sin(el))])
+        return np.column_stack(
+            [math.cos(el) * np.cos(az), math.cos(el) * np.sin(az), np.full(h.shape, math.sin(el))]
+        )
 
     @property
     def roc_shift_db(self) -> float:

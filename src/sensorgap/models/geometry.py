@@ -111,9 +111,7 @@ def in_range(mount: Mount, r: F64) -> NDArray[np.bool_]:
     return ok
 
 
-def pattern_loss_db(
-    az: F64, el: F64, hfov: float, vfov: float, edge_loss_db: float
-) -> F64:
+def pattern_loss_db(az: F64, el: F64, hfov: float, vfov: float, edge_loss_db: float) -> F64:
     """One-way gain loss over the field of view, dB (>= 0).
 
     Parabolic (Gaussian-beam) pattern in dB, separable in azimuth and elevation:
@@ -158,14 +156,21 @@ def angles_outside_fov(mount: Mount, directions: F64, limit: float = math.inf) -
     a = min(0.5 * mount.hfov + limit, math.pi)
     b = min(0.5 * mount.vfov + limit, 0.5 * math.pi)
     cos_bound = math.cos(a) * math.cos(b) if a < 0.5 * math.pi else -2.0
-    _outside_kernel(d, np.ascontiguousarray(mount.rotation()), 0.5 * mount.hfov,
-                    0.5 * mount.vfov, cos_bound, out)
+    _outside_kernel(
+        d,
+        np.ascontiguousarray(mount.rotation()),
+        0.5 * mount.hfov,
+        0.5 * mount.vfov,
+        cos_bound,
+        out,
+    )
     return out
 
 
 @numba.njit(cache=True, nogil=True)
-def _outside_kernel(d: F64, rot: F64, half_h: float, half_v: float, cos_bound: float,
-                    out: F64) -> None:  # pragma: no cover - compiled
+def _outside_kernel(
+    d: F64, rot: F64, half_h: float, half_v: float, cos_bound: float, out: F64
+) -> None:  # pragma: no cover - compiled
     for k in range(d.shape[0]):
         x = d[k, 0] * rot[0, 0] + d[k, 1] * rot[1, 0] + d[k, 2] * rot[2, 0]
         if not x >= cos_bound:  # NaN (no sun) or certainly beyond the limit
@@ -180,9 +185,7 @@ def _outside_kernel(d: F64, rot: F64, half_h: float, half_v: float, cos_bound: f
         out[k] = math.hypot(ex_h, ex_v)
 
 
-def horizontal_reach_bbox(
-    mount: Mount, height: float
-) -> tuple[float, float, float, float] | None:
+def horizontal_reach_bbox(mount: Mount, height: float) -> tuple[float, float, float, float] | None:
     """Conservative (xmin, xmax, ymin, ymax) in the vehicle frame, m, of the points at
     ``height`` that the sensor can possibly see; ``None`` when it can see none.
 

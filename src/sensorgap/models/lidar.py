@@ -38,10 +38,12 @@ class LidarParams(Strict):
     receiver_diameter_m: float = Field(ge=1.0e-4, le=1.0, description="Aperture diameter, m")
     noise_bandwidth_hz: float = Field(ge=1.0, le=1.0e12, description="B_n ~ 1/tau, Hz")
     system_noise_temperature_k: float = Field(ge=1.0, le=1.0e7, description="T_sys, K")
-    system_loss_db: float = Field(default=0.0, ge=0.0, le=100.0,
-                                  description="Fixed losses (optics transmission), dB")
-    fov_edge_loss_db: float = Field(default=0.0, ge=0.0, le=60.0,
-                                    description="Sensitivity loss at the FOV edge, dB")
+    system_loss_db: float = Field(
+        default=0.0, ge=0.0, le=100.0, description="Fixed losses (optics transmission), dB"
+    )
+    fov_edge_loss_db: float = Field(
+        default=0.0, ge=0.0, le=60.0, description="Sensitivity loss at the FOV edge, dB"
+    )
     target_law: Literal["min", "point"] = "min"
 
 
@@ -57,14 +59,14 @@ class Lidar(SensorModel):
         """Optical band at the laser wavelength."""
         return Band("optical", wavelength_m=self.params.wavelength_m)
 
-    def prepare(
-        self, mount: Mount, target: TargetConfig, conditions: Conditions
-    ) -> PreparedSensor:
+    def prepare(self, mount: Mount, target: TargetConfig, conditions: Conditions) -> PreparedSensor:
         """Fold eq. 4-5 constants; the range law switches at the beam-fill range."""
         p = self.params
         nu = SPEED_OF_LIGHT_M_S / p.wavelength_m
-        noise_w = (2.0 * PLANCK_J_S * nu * p.noise_bandwidth_hz
-                   + BOLTZMANN_J_K * p.noise_bandwidth_hz * p.system_noise_temperature_k)
+        noise_w = (
+            2.0 * PLANCK_J_S * nu * p.noise_bandwidth_hz
+            + BOLTZMANN_J_K * p.noise_bandwidth_hz * p.system_noise_temperature_k
+        )
         area = math.pi * p.receiver_diameter_m**2 / 4.0
         terms = {
             "P_e [dBW]": 10.0 * math.log10(p.peak_power_w),
@@ -76,9 +78,7 @@ class Lidar(SensorModel):
         }
         k_db = math.fsum(terms.values())
         sigma_db = 10.0 * math.log10(target.rcs_m2)
-        fill_db = 10.0 * math.log10(
-            target.lidar_reflectance * math.pi * p.beam_divergence_rad**2
-        )
+        fill_db = 10.0 * math.log10(target.lidar_reflectance * math.pi * p.beam_divergence_rad**2)
         extended = p.target_law == "min"
         gamma = conditions.attenuation_db_km(self.band())
         two_way_db_m = 2.0 * gamma / 1000.0

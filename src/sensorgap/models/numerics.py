@@ -32,4 +32,3 @@ def db(x: float) -> float:
 def clip_snr_db(snr_db: NDArray[np.float64]) -> NDArray[np.float64]:
     """Clip SNR (dB) to [SNR_FLOOR_DB, SNR_CEIL_DB] in place and return it."""
     return np.clip(snr_db, SNR_FLOOR_DB, SNR_CEIL_DB, out=snr_db)
-

@@ -28,10 +28,12 @@ class RadarParams(Strict):
     noise_bandwidth_hz: float = Field(ge=1.0, le=1.0e12, description="B_n ~ 1/tau, Hz")
     noise_figure_db: float = Field(ge=0.0, le=40.0, description="Receiver noise figure F, dB")
     antenna_temperature_k: float = Field(default=290.0, ge=1.0, le=1.0e4, description="K")
-    system_loss_db: float = Field(default=0.0, ge=0.0, le=100.0,
-                                  description="Fixed two-way losses (fascia, cables), dB")
-    fov_edge_loss_db: float = Field(default=3.0, ge=0.0, le=60.0,
-                                    description="One-way antenna gain loss at the FOV edge, dB")
+    system_loss_db: float = Field(
+        default=0.0, ge=0.0, le=100.0, description="Fixed two-way losses (fascia, cables), dB"
+    )
+    fov_edge_loss_db: float = Field(
+        default=3.0, ge=0.0, le=60.0, description="One-way antenna gain loss at the FOV edge, dB"
+    )
 
     @property
     def system_noise_temperature_k(self) -> float:
@@ -51,9 +53,7 @@ class Radar(SensorModel):
         """Radio band at the carrier frequency."""
         return Band("radio", frequency_hz=self.params.frequency_hz)
 
-    def prepare(
-        self, mount: Mount, target: TargetConfig, conditions: Conditions
-    ) -> PreparedSensor:
+    def prepare(self, mount: Mount, target: TargetConfig, conditions: Conditions) -> PreparedSensor:
         """Radar equation with the target's radar cross-section (``rcs_m2``)."""
         p = self.params
         terms = radar_constant_db(

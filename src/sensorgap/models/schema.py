@@ -38,21 +38,26 @@ def vehicle_schema() -> dict[str, Any]:
         params = cls.Params.model_json_schema()
         props = {
             "type": {"const": name},
-            "sources": {"type": "object", "additionalProperties": {"type": "string"},
-                        "description": "source of every parameter (data sheet, paper, "
-                                       "standard or 'estimate: ...')"},
+            "sources": {
+                "type": "object",
+                "additionalProperties": {"type": "string"},
+                "description": "source of every parameter (data sheet, paper, "
+                "standard or 'estimate: ...')",
+            },
             "roc": base["properties"]["roc"],
             **params.get("properties", {}),
         }
         defs.update(params.get("$defs", {}))
         defs.update(base.get("$defs", {}))
-        variants.append({
-            "title": f"{name} device",
-            "type": "object",
-            "additionalProperties": False,
-            "required": ["type", "sources", *params.get("required", [])],
-            "properties": props,
-        })
+        variants.append(
+            {
+                "title": f"{name} device",
+                "type": "object",
+                "additionalProperties": False,
+                "required": ["type", "sources", *params.get("required", [])],
+                "properties": props,
+            }
+        )
     defs["DeviceConfig"] = {"oneOf": variants, "description": DeviceConfig.__doc__}
     schema["$schema"] = "https://json-schema.org/draft/2020-12/schema"
     return schema
@@ -62,8 +67,10 @@ def file_schemas() -> dict[str, Any]:
     """Schemas of the vehicle, environments and targets files, by kind."""
     return {
         "vehicle": vehicle_schema(),
-        "environments": _named_file(EnvironmentConfig.model_json_schema(), "environments",
-                                    "sensorgap environments file"),
-        "targets": _named_file(TargetConfig.model_json_schema(), "targets",
-                               "sensorgap targets file"),
+        "environments": _named_file(
+            EnvironmentConfig.model_json_schema(), "environments", "sensorgap environments file"
+        ),
+        "targets": _named_file(
+            TargetConfig.model_json_schema(), "targets", "sensorgap targets file"
+        ),
     }

@@ -49,8 +49,15 @@ def mount_from_config(m: MountConfig) -> Mount:
     """Degrees-in-file mount -> SI ``Mount`` (rad, m)."""
     x, y, z = m.position_m
     return Mount(
-        x=x, y=y, z=z, yaw=m.yaw_rad, pitch=m.pitch_rad, hfov=m.hfov_rad, vfov=m.vfov_rad,
-        min_range=m.min_range_m, max_range=m.max_range_m,
+        x=x,
+        y=y,
+        z=z,
+        yaw=m.yaw_rad,
+        pitch=m.pitch_rad,
+        hfov=m.hfov_rad,
+        vfov=m.vfov_rad,
+        min_range=m.min_range_m,
+        max_range=m.max_range_m,
     )
 
 
@@ -64,9 +71,11 @@ def build_models(cfg: VehicleConfig, source: Path | str) -> dict[str, SensorMode
     for name, dev in cfg.devices.items():
         cls = registry.get(dev.type)
         if cls is None:
-            raise InputError(source, f"devices.{name}.type",
-                             f"unknown sensor type {dev.type!r}; allowed: "
-                             f"{', '.join(registry.names())}")
+            raise InputError(
+                source,
+                f"devices.{name}.type",
+                f"unknown sensor type {dev.type!r}; allowed: {', '.join(registry.names())}",
+            )
         params = dev.params()
         try:
             validated = cls.Params.model_validate(params)
@@ -74,9 +83,12 @@ def build_models(cfg: VehicleConfig, source: Path | str) -> dict[str, SensorMode
             raise validation_to_input_error(source, exc, prefix=f"devices.{name}") from None
         for key in params:
             if not dev.sources.get(key, "").strip():
-                raise InputError(source, f"devices.{name}.sources.{key}",
-                                 "missing source: name the data sheet, paper or standard, "
-                                 "or write 'estimate: <why>'")
+                raise InputError(
+                    source,
+                    f"devices.{name}.sources.{key}",
+                    "missing source: name the data sheet, paper or standard, "
+                    "or write 'estimate: <why>'",
+                )
         models[name] = cls(validated)
     return models
 
@@ -87,10 +99,16 @@ def build_system(cfg: VehicleConfig, source: Path | str) -> System:
     sensors = []
     for m in cfg.sensors:
         dev = cfg.devices[m.device]
-        sensors.append(Sensor(
-            id=m.id, type_name=dev.type, mount=mount_from_config(m), model=models[m.device],
-            roc=dev.roc or cfg.roc, config=m,
-        ))
+        sensors.append(
+            Sensor(
+                id=m.id,
+                type_name=dev.type,
+                mount=mount_from_config(m),
+                model=models[m.device],
+                roc=dev.roc or cfg.roc,
+                config=m,
+            )
+        )
     return System(config=cfg, source=Path(source), sensors=tuple(sensors))
 
 

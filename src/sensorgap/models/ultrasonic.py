@@ -27,11 +27,11 @@ class UltrasonicParams(Strict):
     tx_gain_dbi: float = Field(ge=-20.0, le=60.0, description="Directivity G_e, dBi")
     rx_gain_dbi: float = Field(ge=-20.0, le=60.0, description="Directivity G_r, dBi")
     noise_bandwidth_hz: float = Field(ge=1.0, le=1.0e9, description="B_n ~ 1/tau, Hz")
-    system_noise_temperature_k: float = Field(ge=1.0, le=1.0e12,
-                                              description="Equivalent T_sys, K")
+    system_noise_temperature_k: float = Field(ge=1.0, le=1.0e12, description="Equivalent T_sys, K")
     system_loss_db: float = Field(default=0.0, ge=0.0, le=100.0, description="dB")
-    fov_edge_loss_db: float = Field(default=3.0, ge=0.0, le=60.0,
-                                    description="One-way directivity loss at the FOV edge, dB")
+    fov_edge_loss_db: float = Field(
+        default=3.0, ge=0.0, le=60.0, description="One-way directivity loss at the FOV edge, dB"
+    )
 
 
 @register
@@ -46,9 +46,7 @@ class Ultrasonic(SensorModel):
         """Acoustic band (attenuation: the paper's constant 1000 dB/km)."""
         return Band("acoustic", frequency_hz=self.params.frequency_hz)
 
-    def prepare(
-        self, mount: Mount, target: TargetConfig, conditions: Conditions
-    ) -> PreparedSensor:
+    def prepare(self, mount: Mount, target: TargetConfig, conditions: Conditions) -> PreparedSensor:
         """Radar equation with the acoustic wavelength at the ambient temperature."""
         p = self.params
         wavelength = speed_of_sound_m_s(conditions.env.temperature_c) / p.frequency_hz

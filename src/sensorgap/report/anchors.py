@@ -27,23 +27,51 @@ def anchors_section(folder: Path) -> Section:
         return Section("anchors", TITLE, [Para(NOT_RUN)])
     try:
         rows = json.loads(path.read_text(encoding="utf-8"))["anchors"]
-        table = [[_num(r["vut_kmh"], ".0f"), _num(r["pedestrian_kmh"], ".0f"), str(r["class"]),
-                  _num(r["collision_probability"], ".2g"), _num(r["impact_speed_kmh"], ".1f"),
-                  _num(r["t_confirm_median_s"], ".2f"), _num(r["t_safe_s"], ".2f"),
-                  str(r.get("dominant_effect", ""))] for r in rows]
+        table = [
+            [
+                _num(r["vut_kmh"], ".0f"),
+                _num(r["pedestrian_kmh"], ".0f"),
+                str(r["class"]),
+                _num(r["collision_probability"], ".2g"),
+                _num(r["impact_speed_kmh"], ".1f"),
+                _num(r["t_confirm_median_s"], ".2f"),
+                _num(r["t_safe_s"], ".2f"),
+                str(r.get("dominant_effect", "")),
+            ]
+            for r in rows
+        ]
         command = str(rows[0]["command"]) if rows else ""
     except (ValueError, KeyError, TypeError, IndexError) as exc:
         raise InputError(path, "", f"malformed anchors file: {exc}") from None
-    return Section("anchors", TITLE, [
-        Para("The public test points of the pedestrian-behind-parked-cars family, evaluated "
-             "exactly for this vehicle and its reaction model (not searched): the vehicle "
-             "at 10-60 km/h, an adult pedestrian walking out at 5 km/h from between cars "
-             "parked at the kerb on the right, the 50 % impact point without braking "
-             "(Euro NCAP AEB VRU test protocol geometry; impact 4.5 s after the start and a "
-             "1 m gap between the parked cars are estimates; docs/search.md)."),
-        Table(["vehicle km/h", "pedestrian km/h", "class", "P(collision)", "impact km/h",
-               "confirmed at s (median)", "t_safe s", "limiting effect"], table,
-              "Anchor cases (anchors/anchors.csv)"),
-        Para("Each row is reproduced by `sensorgap evaluate` with its parameters "
-             "(anchors/anchors.json holds the command of every row), e.g. " + command),
-    ])
+    return Section(
+        "anchors",
+        TITLE,
+        [
+            Para(
+                "The public test points of the pedestrian-behind-parked-cars family, evaluated "
+                "exactly for this vehicle and its reaction model (not searched): the vehicle "
+                "at 10-60 km/h, an adult pedestrian walking out at 5 km/h from between cars "
+                "parked at the kerb on the right, the 50 % impact point without braking "
+                "(Euro NCAP AEB VRU test protocol geometry; impact 4.5 s after the start and a "
+                "1 m gap between the parked cars are estimates; docs/search.md)."
+            ),
+            Table(
+                [
+                    "vehicle km/h",
+                    "pedestrian km/h",
+                    "class",
+                    "P(collision)",
+                    "impact km/h",
+                    "confirmed at s (median)",
+                    "t_safe s",
+                    "limiting effect",
+                ],
+                table,
+                "Anchor cases (anchors/anchors.csv)",
+            ),
+            Para(
+                "Each row is reproduced by `sensorgap evaluate` with its parameters "
+                "(anchors/anchors.json holds the command of every row), e.g. " + command
+            ),
+        ],
+    )

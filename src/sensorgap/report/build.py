@@ -74,15 +74,22 @@ def _object(path: Path, data: Any, field: str = "", key: str | None = None) -> d
     return data
 
 
-def _numbers(path: Path, data: dict[str, Any], field: str, keys: tuple[str, ...],
-             required: tuple[str, ...] = ()) -> None:
+def _numbers(
+    path: Path,
+    data: dict[str, Any],
+    field: str,
+    keys: tuple[str, ...],
+    required: tuple[str, ...] = (),
+) -> None:
     """Each of ``keys`` in ``data`` a number (or null); ``required`` ones present."""
     for k in keys:
         v = data.get(k)
-        if (v is None and k in required) or (v is not None and (
-                isinstance(v, bool) or not isinstance(v, int | float))):
-            raise InputError(path, f"{field}.{k}" if field else k,
-                             f"expected a number, got {v!r:.40}")
+        if (v is None and k in required) or (
+            v is not None and (isinstance(v, bool) or not isinstance(v, int | float))
+        ):
+            raise InputError(
+                path, f"{field}.{k}" if field else k, f"expected a number, got {v!r:.40}"
+            )
 
 
 def read_nearfield(path: Path) -> dict[str, Any]:
@@ -90,8 +97,12 @@ def read_nearfield(path: Path) -> dict[str, Any]:
     d = _object(path, read_json(path))
     bs = _object(path, d, key="blind_spot_m2")
     _numbers(path, bs, "blind_spot_m2", ("exact", "grid", "difference"), ("exact",))
-    _numbers(path, _object(path, d, key="uncovered_0p1m_m2"), "uncovered_0p1m_m2",
-             ("exact", "grid", "difference"))
+    _numbers(
+        path,
+        _object(path, d, key="uncovered_0p1m_m2"),
+        "uncovered_0p1m_m2",
+        ("exact", "grid", "difference"),
+    )
     _numbers(path, _object(path, d, key="window"), "window", ("radius_m",))
     if not isinstance(d.get("method", ""), str | dict):
         raise InputError(path, "method", "expected a string or an object")
@@ -104,8 +115,11 @@ def read_catalog(path: Path) -> dict[str, Any]:
     index, entries = read_catalog_index(path)
     for i, e in enumerate(entries):
         if not isinstance(e.get("road"), str):
-            raise InputError(path, f"scenarios[{i}].road", "malformed catalog index: "
-                             "expected a relative path inside the catalog")
+            raise InputError(
+                path,
+                f"scenarios[{i}].road",
+                "malformed catalog index: expected a relative path inside the catalog",
+            )
     return index
 
 
@@ -131,12 +145,13 @@ def fmt(v: Any, digits: int = 4) -> str:
 
 #: Where the reference notes cited as "physics.md" in parameter sources live.
 PHYSICS_NOTE = (
-    "Sources that cite \"physics.md\" refer to the project's reference notes on parameter "
+    'Sources that cite "physics.md" refer to the project\'s reference notes on parameter '
     "values and on numerical pitfalls of the paper's equations. They are not part of the "
     "repository or of this report: they are kept beside the repository, in the development "
-    "workspace at shared/reference/physics.md. The pitfalls (\"physics.md pitfall N\") are "
+    'workspace at shared/reference/physics.md. The pitfalls ("physics.md pitfall N") are '
     "explained in docs/models.md; for a value, check the primary source named in the same "
-    "entry (a data sheet, a standard or a paper).")
+    "entry (a data sheet, a standard or a paper)."
+)
 
 
 def _vehicle_section(system: System) -> Section:
@@ -144,25 +159,41 @@ def _vehicle_section(system: System) -> Section:
     for s in system.sensors:
         kinds[s.type_name] = kinds.get(s.type_name, 0) + 1
     body = system.config.vehicle
-    return Section("vehicle", f"Vehicle: {system.name}", [
-        Para(f"Source: {system.source.name}. Body {body.length_m} m x {body.width_m} m x "
-             f"{body.height_m} m, wheelbase {body.wheelbase_m} m; vehicle frame ISO 8855 "
-             "(x forward, y left, z up), origin on the ground under the rear axle. "
-             f"{len(system.sensors)} sensors ("
-             + ", ".join(f"{n} {k}" for k, n in kinds.items())
-             + "); their mounts, fields of view, ranges and every physical parameter with "
-             "its source are in the appendix."),
-    ])
+    return Section(
+        "vehicle",
+        f"Vehicle: {system.name}",
+        [
+            Para(
+                f"Source: {system.source.name}. Body {body.length_m} m x {body.width_m} m x "
+                f"{body.height_m} m, wheelbase {body.wheelbase_m} m; vehicle frame ISO 8855 "
+                "(x forward, y left, z up), origin on the ground under the rear axle. "
+                f"{len(system.sensors)} sensors ("
+                + ", ".join(f"{n} {k}" for k, n in kinds.items())
+                + "); their mounts, fields of view, ranges and every physical parameter with "
+                "its source are in the appendix."
+            ),
+        ],
+    )
 
 
 def _sensor_setup_section(system: System) -> Section:
     mounts = []
     for s in system.sensors:
         m = s.mount
-        mounts.append([s.id, s.type_name, f"{m.x:.2f}, {m.y:.2f}, {m.z:.2f}",
-                       f"{math.degrees(m.yaw):.1f}", f"{math.degrees(m.pitch):.1f}",
-                       f"{math.degrees(m.hfov):.1f}", f"{math.degrees(m.vfov):.1f}",
-                       f"{m.min_range:g}", f"{m.max_range:g}", s.roc.kind])
+        mounts.append(
+            [
+                s.id,
+                s.type_name,
+                f"{m.x:.2f}, {m.y:.2f}, {m.z:.2f}",
+                f"{math.degrees(m.yaw):.1f}",
+                f"{math.degrees(m.pitch):.1f}",
+                f"{math.degrees(m.hfov):.1f}",
+                f"{math.degrees(m.vfov):.1f}",
+                f"{m.min_range:g}",
+                f"{m.max_range:g}",
+                s.roc.kind,
+            ]
+        )
     params = []
     for name, dev in system.config.devices.items():
         for key, val in sorted(dev.params().items()):
@@ -170,11 +201,28 @@ def _sensor_setup_section(system: System) -> Section:
                 continue
             params.append([name, dev.type, key, fmt(val, 6), dev.sources.get(key, "")])
     blocks: list[Block] = [
-        Table(["sensor", "type", "position x, y, z [m]", "yaw [deg]", "pitch [deg]",
-               "HFOV [deg]", "VFOV [deg]", "min range [m]", "max range [m]", "ROC"], mounts,
-              "Sensor setup (as the paper's Table III)"),
-        Table(["device", "type", "parameter", "value", "source"], params,
-              "Every physical parameter with its source")]
+        Table(
+            [
+                "sensor",
+                "type",
+                "position x, y, z [m]",
+                "yaw [deg]",
+                "pitch [deg]",
+                "HFOV [deg]",
+                "VFOV [deg]",
+                "min range [m]",
+                "max range [m]",
+                "ROC",
+            ],
+            mounts,
+            "Sensor setup (as the paper's Table III)",
+        ),
+        Table(
+            ["device", "type", "parameter", "value", "source"],
+            params,
+            "Every physical parameter with its source",
+        ),
+    ]
     if any("physics.md" in str(r[4]) for r in params):
         blocks.append(Para(PHYSICS_NOTE))
     return Section("sensor-setup", f"Sensor setup of {system.name}", blocks)
@@ -188,23 +236,67 @@ def _environments_section(settings: dict[str, Any], run: RunFolder) -> Section:
         e = envs.get(name)
         if e is None:
             continue
-        sun = ("none" if e.sun is None else
-               f"az {e.sun.azimuth_deg:g} el {e.sun.elevation_deg:g} deg ({e.sun.frame}, "
-               f"{'visible' if e.sun.visible else 'not visible'})")
-        rows.append([name, fmt(e.rain_mm_h), fmt(e.snow_mm_h), fmt(e.visibility_m),
-                     fmt(e.temperature_c), fmt(e.irradiance_w_m2), fmt(e.roc_shift_db), sun])
-    targets = [[t.name, fmt(t.rcs_m2), fmt(t.camera_cross_section_m2),
-                f"{t.length_m} x {t.width_m} x {t.height_m}", fmt(t.reference_height_m),
-                "; ".join(f"{k}: {v}" for k, v in sorted(t.sources.items()))]
-               for t in run.targets().values()]
-    return Section("environments", "Environments and targets", [
-        Table(["preset", "rain [mm/h]", "snow [mm/h]", "visibility [m]", "temperature [C]",
-               "irradiance [W/m2]", "ROC shift [dB]", "sun"], rows,
-              "Environments (" + _source(run, "environments") + ")"),
-        Table(["target", "RCS [m2]", "camera cross-section [m2]", "l x w x h [m]",
-               "reference height [m]", "sources"], targets,
-              "Target classes (" + _source(run, "targets") + ")"),
-    ])
+        sun = (
+            "none"
+            if e.sun is None
+            else f"az {e.sun.azimuth_deg:g} el {e.sun.elevation_deg:g} deg ({e.sun.frame}, "
+            f"{'visible' if e.sun.visible else 'not visible'})"
+        )
+        rows.append(
+            [
+                name,
+                fmt(e.rain_mm_h),
+                fmt(e.snow_mm_h),
+                fmt(e.visibility_m),
+                fmt(e.temperature_c),
+                fmt(e.irradiance_w_m2),
+                fmt(e.roc_shift_db),
+                sun,
+            ]
+        )
+    targets = [
+        [
+            t.name,
+            fmt(t.rcs_m2),
+            fmt(t.camera_cross_section_m2),
+            f"{t.length_m} x {t.width_m} x {t.height_m}",
+            fmt(t.reference_height_m),
+            "; ".join(f"{k}: {v}" for k, v in sorted(t.sources.items())),
+        ]
+        for t in run.targets().values()
+    ]
+    return Section(
+        "environments",
+        "Environments and targets",
+        [
+            Table(
+                [
+                    "preset",
+                    "rain [mm/h]",
+                    "snow [mm/h]",
+                    "visibility [m]",
+                    "temperature [C]",
+                    "irradiance [W/m2]",
+                    "ROC shift [dB]",
+                    "sun",
+                ],
+                rows,
+                "Environments (" + _source(run, "environments") + ")",
+            ),
+            Table(
+                [
+                    "target",
+                    "RCS [m2]",
+                    "camera cross-section [m2]",
+                    "l x w x h [m]",
+                    "reference height [m]",
+                    "sources",
+                ],
+                targets,
+                "Target classes (" + _source(run, "targets") + ")",
+            ),
+        ],
+    )
 
 
 def _source(run: RunFolder, key: str) -> str:
@@ -223,48 +315,99 @@ def _nearfield_section(folder: Path) -> Section:
         return Section("nearfield", "Near-field blind spots", [Para(NOT_RUN)])
     d = read_nearfield(nf)
     bs, u = d.get("blind_spot_m2", {}), d.get("uncovered_0p1m_m2", {})
-    blocks: list[Any] = [Table(
-        ["quantity", "exact polygons [m2]", "grid [m2]", "difference [m2]"],
-        [["blind spot (no sensor at any height)", fmt(bs.get("exact")), fmt(bs.get("grid")),
-          fmt(bs.get("difference"))],
-         ["uncovered at 0.1 m height", fmt(u.get("exact")), fmt(u.get("grid")),
-          fmt(u.get("difference"))]],
-        f"Near field within {d.get('window', {}).get('radius_m', 5)} m of the body")]
+    blocks: list[Any] = [
+        Table(
+            ["quantity", "exact polygons [m2]", "grid [m2]", "difference [m2]"],
+            [
+                [
+                    "blind spot (no sensor at any height)",
+                    fmt(bs.get("exact")),
+                    fmt(bs.get("grid")),
+                    fmt(bs.get("difference")),
+                ],
+                [
+                    "uncovered at 0.1 m height",
+                    fmt(u.get("exact")),
+                    fmt(u.get("grid")),
+                    fmt(u.get("difference")),
+                ],
+            ],
+            f"Near field within {d.get('window', {}).get('radius_m', 5)} m of the body",
+        )
+    ]
     method = d.get("method")
     if isinstance(method, dict):
-        blocks.append(Para("Method: " + "; ".join(f"{k.replace('_', ' ')}: {v}"
-                                                   for k, v in method.items()) + "."))
+        blocks.append(
+            Para(
+                "Method: "
+                + "; ".join(f"{k.replace('_', ' ')}: {v}" for k, v in method.items())
+                + "."
+            )
+        )
     elif method:
         blocks.append(Para(f"Method: {method}."))
     png = folder / "nearfield" / "nearfield.png"
     if png.is_file():
-        blocks.append(Image(png, "Near-field coverage: blind spots (Fig. 5 style)",
-                            "nearfield/nearfield.png"))
+        blocks.append(
+            Image(png, "Near-field coverage: blind spots (Fig. 5 style)", "nearfield/nearfield.png")
+        )
     return Section("nearfield", "Near-field blind spots", blocks)
 
 
 def _coverage_section(folder: Path) -> Section:
     cov = folder / "coverage"
-    dirs = sorted(p for p in cov.glob("*") if (p / "summary.json").is_file()) \
-        if cov.is_dir() else []
+    dirs = (
+        sorted(p for p in cov.glob("*") if (p / "summary.json").is_file()) if cov.is_dir() else []
+    )
     if not dirs:
         return Section("coverage", "Far-field coverage maps per environment", [Para(NOT_RUN)])
     rows, subs = [], []
     for d in dirs:
         s = _object(d / "summary.json", read_json(d / "summary.json"))
         a = _object(d / "summary.json", s, key="area_m2_by_level")
-        rows.append([d.name, *(fmt(a.get(k)) for k in ("pd=1.0", "pd>=0.8", "pd>=0.5",
-                                                       "pd>0", "pd=0")),
-                     fmt(_object(d / "summary.json", s, key="grid").get("resolution_m"))])
+        rows.append(
+            [
+                d.name,
+                *(fmt(a.get(k)) for k in ("pd=1.0", "pd>=0.8", "pd>=0.5", "pd>0", "pd=0")),
+                fmt(_object(d / "summary.json", s, key="grid").get("resolution_m")),
+            ]
+        )
         if (d / "coverage.png").is_file():
-            subs.append(Section(f"coverage-{d.name}", d.name, [
-                Image(d / "coverage.png", f"Fused Pd, {d.name}: target "
-                      f"{s.get('target_model', 'point')} (same colour scale in every "
-                      "map; vehicle outline and sensor fields of view drawn)",
-                      f"coverage/{d.name}/coverage.png")]))
-    return Section("coverage", "Far-field coverage maps per environment", [
-        Table(["map", "Pd = 1 [m2]", "Pd >= 0.8 [m2]", "Pd >= 0.5 [m2]", "Pd > 0 [m2]",
-               "Pd = 0 [m2]", "cell [m]"], rows, "Area per Pd level")], subs)
+            subs.append(
+                Section(
+                    f"coverage-{d.name}",
+                    d.name,
+                    [
+                        Image(
+                            d / "coverage.png",
+                            f"Fused Pd, {d.name}: target "
+                            f"{s.get('target_model', 'point')} (same colour scale in every "
+                            "map; vehicle outline and sensor fields of view drawn)",
+                            f"coverage/{d.name}/coverage.png",
+                        )
+                    ],
+                )
+            )
+    return Section(
+        "coverage",
+        "Far-field coverage maps per environment",
+        [
+            Table(
+                [
+                    "map",
+                    "Pd = 1 [m2]",
+                    "Pd >= 0.8 [m2]",
+                    "Pd >= 0.5 [m2]",
+                    "Pd > 0 [m2]",
+                    "Pd = 0 [m2]",
+                    "cell [m]",
+                ],
+                rows,
+                "Area per Pd level",
+            )
+        ],
+        subs,
+    )
 
 
 def _farfield_section(folder: Path) -> Section:
@@ -276,49 +419,94 @@ def _farfield_section(folder: Path) -> Section:
     levels = list(dict.fromkeys(r["level"] for r in rows))
     val = {(r["environment"], r["level"]): r["metres"] for r in rows}
     blocks: list[Any] = [
-        Para("Length (m) of the car path in the right lane of roads/motorway_r500.xodr ahead "
-             "of the ego (left lane, 50 m before the clothoid into the R = 500 m curve) at "
-             "each detection level, as in the paper's Table IV."),
-        Table(["level", *envs], [[lv, *(val.get((e, lv), "") for e in envs)]
-                                 for lv in levels], "Table IV style (metres)")]
+        Para(
+            "Length (m) of the car path in the right lane of roads/motorway_r500.xodr ahead "
+            "of the ego (left lane, 50 m before the clothoid into the R = 500 m curve) at "
+            "each detection level, as in the paper's Table IV."
+        ),
+        Table(
+            ["level", *envs],
+            [[lv, *(val.get((e, lv), "") for e in envs)] for lv in levels],
+            "Table IV style (metres)",
+        ),
+    ]
     subs = []
     for e in envs:
         png = folder / "farfield" / e / "farfield.png"
         if png.is_file():
-            subs.append(Section(f"farfield-{e}", e, [Image(
-                png, f"Pd along the target lane, {e}", f"farfield/{e}/farfield.png")]))
+            subs.append(
+                Section(
+                    f"farfield-{e}",
+                    e,
+                    [Image(png, f"Pd along the target lane, {e}", f"farfield/{e}/farfield.png")],
+                )
+            )
     return Section("table-iv", "Table IV: Pd along the lane ahead", blocks, subs)
 
 
-def _per_family_table(search: dict[str, Any] | None, rows: list[dict[str, Any]]
-                      ) -> list[Block]:
+def _per_family_table(search: dict[str, Any] | None, rows: list[dict[str, Any]]) -> list[Block]:
     per = (search or {}).get("per_family")
     if not isinstance(per, dict) or not per:
         return []
     ranked: dict[str, int] = {}
     for r in rows:
         ranked[str(r.get("family"))] = ranked.get(str(r.get("family")), 0) + 1
-    return [Table(["family", "candidates", "feasible", "threats", "sensor-critical (lookup)",
-                   "unavoidable (lookup)", "ranked"],
-                  [[f, *(fmt(d.get(k)) for k in ("budget", "feasible", "threats",
-                                                 "sensor_critical_by_lookup",
-                                                 "unavoidable_by_lookup")),
-                    str(ranked.get(f, 0))] for f, d in per.items()],
-                  "Search per family (summary.json; counts of the lookup evaluation)")]
+    return [
+        Table(
+            [
+                "family",
+                "candidates",
+                "feasible",
+                "threats",
+                "sensor-critical (lookup)",
+                "unavoidable (lookup)",
+                "ranked",
+            ],
+            [
+                [
+                    f,
+                    *(
+                        fmt(d.get(k))
+                        for k in (
+                            "budget",
+                            "feasible",
+                            "threats",
+                            "sensor_critical_by_lookup",
+                            "unavoidable_by_lookup",
+                        )
+                    ),
+                    str(ranked.get(f, 0)),
+                ]
+                for f, d in per.items()
+            ],
+            "Search per family (summary.json; counts of the lookup evaluation)",
+        )
+    ]
 
 
 def _speed_limit_table(search: dict[str, Any] | None) -> list[Block]:
     lims = (search or {}).get("speed_limits")
     if not isinstance(lims, dict) or not lims:
         return []
-    rows = [[str(e), "not bounded" if not isinstance(d, dict) or d.get("speed_kmh") is None
-             else fmt(d.get("speed_kmh")),
-             fmt(d.get("visibility_m")) if isinstance(d, dict) else "",
-             str(d.get("rule", "")) if isinstance(d, dict) else ""]
-            for e, d in lims.items()]
-    return [Table(["environment", "highest ego speed [km/h]", "visibility [m]", "rule"], rows,
-                  "Lawful ego speed per environment (StVO 3(1), driving within sight; "
-                  "docs/search.md 'Speed within sight'): the search never drove faster")]
+    rows = [
+        [
+            str(e),
+            "not bounded"
+            if not isinstance(d, dict) or d.get("speed_kmh") is None
+            else fmt(d.get("speed_kmh")),
+            fmt(d.get("visibility_m")) if isinstance(d, dict) else "",
+            str(d.get("rule", "")) if isinstance(d, dict) else "",
+        ]
+        for e, d in lims.items()
+    ]
+    return [
+        Table(
+            ["environment", "highest ego speed [km/h]", "visibility [m]", "rule"],
+            rows,
+            "Lawful ego speed per environment (StVO 3(1), driving within sight; "
+            "docs/search.md 'Speed within sight'): the search never drove faster",
+        )
+    ]
 
 
 def _param_rows(spec: ScenarioSpec) -> list[list[str]]:
@@ -329,13 +517,18 @@ def _param_rows(spec: ScenarioSpec) -> list[list[str]]:
             text += f" ({v * KMH:.1f} km/h)"
         rows.append([k, text])
     if spec.sun_deg is not None:
-        rows.append(["sun azimuth (compass, world frame) / elevation [deg]",
-                     f"{spec.sun_deg[0]:g} / {spec.sun_deg[1]:g}"])
+        rows.append(
+            [
+                "sun azimuth (compass, world frame) / elevation [deg]",
+                f"{spec.sun_deg[0]:g} / {spec.sun_deg[1]:g}",
+            ]
+        )
     return rows
 
 
-def _scenarios_section(run: RunFolder, out_img: Path, search: dict[str, Any] | None
-                       ) -> tuple[Section, list[list[str]], list[RankedScenario] | None]:
+def _scenarios_section(
+    run: RunFolder, out_img: Path, search: dict[str, Any] | None
+) -> tuple[Section, list[list[str]], list[RankedScenario] | None]:
     folder = run.folder
     if not (folder / "ranking.json").is_file():
         return Section("scenarios", "Critical scenarios", [Para(NOT_RUN)]), [], None
@@ -347,9 +540,11 @@ def _scenarios_section(run: RunFolder, out_img: Path, search: dict[str, Any] | N
     try:
         rule = DetectionRule.parse(str(run.settings.get("detection", "cumulative")))
     except InputError:
-        raise InputError(folder / "ranking.json", "settings.detection", "expected "
-                         "'cumulative' or M/N (e.g. 3/5), got "
-                         f"{run.settings.get('detection')!r}") from None
+        raise InputError(
+            folder / "ranking.json",
+            "settings.detection",
+            f"expected 'cumulative' or M/N (e.g. 3/5), got {run.settings.get('detection')!r}",
+        ) from None
     exact = run.evaluator("exact", rule)
     confirming = tuple(system.sensors[i].id for i in exact.confirm_rows)
     metrics = metric_names()
@@ -365,21 +560,45 @@ def _scenarios_section(run: RunFolder, out_img: Path, search: dict[str, Any] | N
         # the reason's per-sensor causes, recomputed exactly as the search did (its text
         # is the row's reason; tested)
         why = explain_spec(spec, exact)
-        item = RankedScenario(row, spec, tr, why, confirming,
-                              {"file": str(f["file"]), "road": str(f["road"])}
-                              if f and exported is not None else None)
+        item = RankedScenario(
+            row,
+            spec,
+            tr,
+            why,
+            confirming,
+            {"file": str(f["file"]), "road": str(f["road"])}
+            if f and exported is not None
+            else None,
+        )
         ranked.append(item)
         p_look = row.get("lookup_collision_probability")
         p_exact = row.get("collision_probability")
-        errors.append([str(spec.rank), spec.scenario_id, fmt(p_look), fmt(p_exact),
-                       "" if p_look is None or p_exact is None
-                       else fmt(abs(float(p_look) - float(p_exact)))])
-        overview.append([str(spec.rank), spec.scenario_id, str(row.get("class", "")),
-                         spec.family.name, str(row.get("environments")
-                                               or row.get("environment")),
-                         spec.target.name, fmt(p_exact), fmt(row.get("impact_speed_kmh")),
-                         fmt(row.get("t_safe_s")), fmt(row.get("detection_margin_s")),
-                         str(row.get("dominant_effect", ""))])
+        errors.append(
+            [
+                str(spec.rank),
+                spec.scenario_id,
+                fmt(p_look),
+                fmt(p_exact),
+                ""
+                if p_look is None or p_exact is None
+                else fmt(abs(float(p_look) - float(p_exact))),
+            ]
+        )
+        overview.append(
+            [
+                str(spec.rank),
+                spec.scenario_id,
+                str(row.get("class", "")),
+                spec.family.name,
+                str(row.get("environments") or row.get("environment")),
+                spec.target.name,
+                fmt(p_exact),
+                fmt(row.get("impact_speed_kmh")),
+                fmt(row.get("t_safe_s")),
+                fmt(row.get("detection_margin_s")),
+                str(row.get("dominant_effect", "")),
+            ]
+        )
         params = _param_rows(spec)
         mets = [[m, fmt(row.get(m), 6)] for m in metrics if m in row]
         blocks: list[Any] = [
@@ -387,50 +606,104 @@ def _scenarios_section(run: RunFolder, out_img: Path, search: dict[str, Any] | N
             Para(f"Why critical (as the search recorded it): {row.get('reason', '')}"),
             Table(["parameter", "value"], params, "Parameters"),
             Table(["metric", "value"], mets, "Metrics (exact evaluation)"),
-            Image(png, f"Rank {spec.rank}: target path over the Pd map (ego frame), Pd(t) "
-                  "and probability still undetected", f"{REPORT_DIR}/{png.name}")]
+            Image(
+                png,
+                f"Rank {spec.rank}: target path over the Pd map (ego frame), Pd(t) "
+                "and probability still undetected",
+                f"{REPORT_DIR}/{png.name}",
+            ),
+        ]
         if f and exported is not None:
-            blocks.append(Links([(f"{f['file']} (OpenSCENARIO {exported['osc_version']})",
-                                  f["file"]), (f"{f['road']} (OpenDRIVE)", f["road"])]))
+            blocks.append(
+                Links(
+                    [
+                        (f"{f['file']} (OpenSCENARIO {exported['osc_version']})", f["file"]),
+                        (f"{f['road']} (OpenDRIVE)", f["road"]),
+                    ]
+                )
+            )
         else:
             blocks.append(Para("Not exported (run `sensorgap export --run DIR`)."))
-        subs.append(Section(f"scenario-{spec.rank}", f"{spec.rank}. {spec.family.name} in "
-                            f"{row.get('environment')} ({spec.scenario_id})", blocks))
-    head: list[Block] = [Para(
-        f"{len(run.rows)} ranked scenarios of the search (strategy "
-        f"{run.settings.get('strategy')}, proposals by Pd {run.settings.get('pd')}, every "
-        "number here re-evaluated exactly with target bodies). Sensor-critical: a vehicle "
-        "with perfect perception and the same reaction model avoids the collision, this "
-        "one confirms the target too late with the given probability (reaction model: "
-        f"{run.settings.get('reaction', 'the vehicle file')}). Ranked by collision "
-        "probability, then impact speed; scenarios that collide even with perfect "
-        "perception are listed apart (unavoidable.csv). Scenarios start with a path TTC "
-        f">= {START_TTC_S:g} s. Perfect perception is limited to the line of sight: a "
-        "target hidden behind another road user until too late for any sensor or driver "
-        "is unavoidable, not sensor-critical; one that perfect perception avoids by less "
-        "than one confirmation window (0.25 s) is marginal, listed with the unavoidable "
-        "ones (docs/models.md, collision outcome)."),
-            Table(["rank", "scenario", "class", "family", "environments", "target",
-                   "P(collision)", "impact [km/h]", "t_safe [s]", "margin [s]",
-                   "dominant effect"], overview, "Ranking"),
-            *_per_family_table(search, run.rows), *_speed_limit_table(search)]
+        subs.append(
+            Section(
+                f"scenario-{spec.rank}",
+                f"{spec.rank}. {spec.family.name} in {row.get('environment')} ({spec.scenario_id})",
+                blocks,
+            )
+        )
+    head: list[Block] = [
+        Para(
+            f"{len(run.rows)} ranked scenarios of the search (strategy "
+            f"{run.settings.get('strategy')}, proposals by Pd {run.settings.get('pd')}, every "
+            "number here re-evaluated exactly with target bodies). Sensor-critical: a vehicle "
+            "with perfect perception and the same reaction model avoids the collision, this "
+            "one confirms the target too late with the given probability (reaction model: "
+            f"{run.settings.get('reaction', 'the vehicle file')}). Ranked by collision "
+            "probability, then impact speed; scenarios that collide even with perfect "
+            "perception are listed apart (unavoidable.csv). Scenarios start with a path TTC "
+            f">= {START_TTC_S:g} s. Perfect perception is limited to the line of sight: a "
+            "target hidden behind another road user until too late for any sensor or driver "
+            "is unavoidable, not sensor-critical; one that perfect perception avoids by less "
+            "than one confirmation window (0.25 s) is marginal, listed with the unavoidable "
+            "ones (docs/models.md, collision outcome)."
+        ),
+        Table(
+            [
+                "rank",
+                "scenario",
+                "class",
+                "family",
+                "environments",
+                "target",
+                "P(collision)",
+                "impact [km/h]",
+                "t_safe [s]",
+                "margin [s]",
+                "dominant effect",
+            ],
+            overview,
+            "Ranking",
+        ),
+        *_per_family_table(search, run.rows),
+        *_speed_limit_table(search),
+    ]
     return Section("scenarios", "Critical scenarios", head, subs), errors, ranked
 
 
 def _accuracy_section(folder: Path, errors: list[list[str]]) -> Section:
-    blocks: list[Any] = [Table(["setting", "value", "measured error"], [
-        ["search Pd evaluation (proposals only)", "lookup maps of target bodies (outline "
-         "erosion per 15 deg heading bin), bilinear", "see the table below (this run)"],
-        ["reported numbers", "exact evaluation of target bodies", "0 (the reference)"],
-        ["lookup map cell", f"{MAP_RESOLUTION_M} m", "exact at cell centres (points)"],
-        ["grid saturation cull", "fused miss probability <= 1e-10", "|delta Pd| <= 1e-10"],
-        ["lane table step", "0.1 m", "<= 2.5e-6 m (R = 500 m arc)"],
-        ["near-field grid", "0.05 m", "blind-spot area vs exact polygons: see above"],
-    ], "Speed/accuracy settings used")]
+    blocks: list[Any] = [
+        Table(
+            ["setting", "value", "measured error"],
+            [
+                [
+                    "search Pd evaluation (proposals only)",
+                    "lookup maps of target bodies (outline "
+                    "erosion per 15 deg heading bin), bilinear",
+                    "see the table below (this run)",
+                ],
+                ["reported numbers", "exact evaluation of target bodies", "0 (the reference)"],
+                ["lookup map cell", f"{MAP_RESOLUTION_M} m", "exact at cell centres (points)"],
+                ["grid saturation cull", "fused miss probability <= 1e-10", "|delta Pd| <= 1e-10"],
+                ["lane table step", "0.1 m", "<= 2.5e-6 m (R = 500 m arc)"],
+                ["near-field grid", "0.05 m", "blind-spot area vs exact polygons: see above"],
+            ],
+            "Speed/accuracy settings used",
+        )
+    ]
     if errors:
-        blocks.append(Table(["rank", "scenario", "P(collision) proposed (lookup)",
-                             "P(collision) reported (exact)", "abs difference"], errors,
-                            "Lookup vs exact for the ranked scenarios of this run"))
+        blocks.append(
+            Table(
+                [
+                    "rank",
+                    "scenario",
+                    "P(collision) proposed (lookup)",
+                    "P(collision) reported (exact)",
+                    "abs difference",
+                ],
+                errors,
+                "Lookup vs exact for the ranked scenarios of this run",
+            )
+        )
     trade = folder / "tradeoff" / "tradeoff.md"
     if trade.is_file():
         blocks.append(Para("Trade-off measurements: tradeoff/tradeoff.md."))
@@ -478,8 +751,9 @@ def build(folder: Path) -> tuple[str, list[str], Section, list[Section]]:
     settings = {**run.settings, **info.get("settings", {})}
     vehicle = run.vehicle_ref
     if not vehicle:
-        raise InputError(folder, "", "neither run.json nor ranking.json says which vehicle "
-                         "this run is for")
+        raise InputError(
+            folder, "", "neither run.json nor ranking.json says which vehicle this run is for"
+        )
     system = run.system()
     if (folder / "nearfield" / "nearfield.json").is_file():  # checked before any work
         read_nearfield(folder / "nearfield" / "nearfield.json")
@@ -494,12 +768,16 @@ def build(folder: Path) -> tuple[str, list[str], Section, list[Section]]:
             raise InputError(a, "anchors", "expected a list of objects")
     img = folder / REPORT_DIR
     img.mkdir(parents=True, exist_ok=True)
-    search = (read_json(folder / "summary.json") if (folder / "summary.json").is_file()
-              and (folder / "ranking.json").is_file() else None)
+    search = (
+        read_json(folder / "summary.json")
+        if (folder / "summary.json").is_file() and (folder / "ranking.json").is_file()
+        else None
+    )
     if search is not None and not isinstance(search, dict):
         raise InputError(folder / "summary.json", "", "expected a JSON object")
-    for fam, d in (_object(folder / "summary.json", search, key="per_family")
-                   if search is not None else {}).items():
+    for fam, d in (
+        _object(folder / "summary.json", search, key="per_family") if search is not None else {}
+    ).items():
         _object(folder / "summary.json", d, f"per_family.{fam[:40]}")
     scen, errors, ranked = _scenarios_section(run, img, search)
     lve, n_unavoidable = None, 0
@@ -507,32 +785,60 @@ def build(folder: Path) -> tuple[str, list[str], Section, list[Section]]:
         data = run.data
         lve = data.get("lookup_vs_exact") if isinstance(data, dict) else None
         n_unavoidable = len(data.get("unavoidable") or []) if isinstance(data, dict) else 0
-    front = summary_section(folder, system, settings, ranked, search,
-                            lve if isinstance(lve, dict) else None, n_unavoidable)
+    front = summary_section(
+        folder,
+        system,
+        settings,
+        ranked,
+        search,
+        lve if isinstance(lve, dict) else None,
+        n_unavoidable,
+    )
     ver = info.get("versions") or versions()
     repro = info.get("command") or ["sensorgap", "report", "--run", str(folder)]
     sections = [
-        _vehicle_section(system), _nearfield_section(folder),
-        _coverage_section(folder), _farfield_section(folder), scen, anchors_section(folder),
-        Section("assumptions", "Model assumptions and limitations",
-                _paras(ASSUMPTIONS)),
+        _vehicle_section(system),
+        _nearfield_section(folder),
+        _coverage_section(folder),
+        _farfield_section(folder),
+        scen,
+        anchors_section(folder),
+        Section("assumptions", "Model assumptions and limitations", _paras(ASSUMPTIONS)),
         _accuracy_section(folder, errors),
-        Section("reproduce", "Software, configuration and reproduction", [
-            Table(["package", "version"], [[k, str(v)] for k, v in sorted(ver.items())],
-                  "Software versions"),
-            Table(["file", "SHA-256"], [[k, v] for k, v in sorted(
-                info.get("config_sha256", {}).items())], "Configuration files"),
-            Table(["setting", "value"], [[k, json.dumps(v, sort_keys=True)]
-                                         for k, v in sorted(settings.items())], "Settings"),
-            Para("Reproduce with: " + " ".join(repro)),
-            Para("Every file of the folder with its SHA-256: manifest.json."),
-        ]),
-        Section("appendix", "Appendix: sensor setup, parameter sources, environments and "
-                "targets", [], [_sensor_setup_section(system),
-                                  _environments_section(settings, run)]),
+        Section(
+            "reproduce",
+            "Software, configuration and reproduction",
+            [
+                Table(
+                    ["package", "version"],
+                    [[k, str(v)] for k, v in sorted(ver.items())],
+                    "Software versions",
+                ),
+                Table(
+                    ["file", "SHA-256"],
+                    [[k, v] for k, v in sorted(info.get("config_sha256", {}).items())],
+                    "Configuration files",
+                ),
+                Table(
+                    ["setting", "value"],
+                    [[k, json.dumps(v, sort_keys=True)] for k, v in sorted(settings.items())],
+                    "Settings",
+                ),
+                Para("Reproduce with: " + " ".join(repro)),
+                Para("Every file of the folder with its SHA-256: manifest.json."),
+            ],
+        ),
+        Section(
+            "appendix",
+            "Appendix: sensor setup, parameter sources, environments and targets",
+            [],
+            [_sensor_setup_section(system), _environments_section(settings, run)],
+        ),
     ]
-    meta = [f"Run folder: {folder.name}. Vehicle: {system.name} ({vehicle}). "
-            f"Generated (UTC): {utc_now()}"]
+    meta = [
+        f"Run folder: {folder.name}. Vehicle: {system.name} ({vehicle}). "
+        f"Generated (UTC): {utc_now()}"
+    ]
     return f"sensorgap audit report: {system.name}", meta, front, sections
 
 

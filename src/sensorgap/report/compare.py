@@ -55,20 +55,26 @@ def _m2(v: object) -> str:
 
 def _unmade(side: SideMaps, what: str) -> Para:
     """Why a piece of one vehicle is missing (it could not be computed)."""
-    return Para(f"{what} of {side.name}: cannot be computed (the run folder "
-                f"{side.run.folder.name} records no vehicle).")
+    return Para(
+        f"{what} of {side.name}: cannot be computed (the run folder "
+        f"{side.run.folder.name} records no vehicle)."
+    )
 
 
 def _where(side: SideMaps, folder: Path | None) -> str:
     """'from the run ...' or 'computed for this comparison' for a piece's folder."""
     if folder is None:
         return ""
-    return ("computed for this comparison" if side.made in folder.parents
-            else f"from the run {side.run.folder.name}")
+    return (
+        "computed for this comparison"
+        if side.made in folder.parents
+        else f"from the run {side.run.folder.name}"
+    )
 
 
-def _image(path: Path, caption: str, out: Path, tag: str, side: SideMaps | None,
-           name: str) -> Image:
+def _image(
+    path: Path, caption: str, out: Path, tag: str, side: SideMaps | None, name: str
+) -> Image:
     """An image; the file report.md links lies under ``out`` (where it was made, else a
     copy named ``<tag>_<vehicle>_<name>``)."""
     try:
@@ -82,30 +88,46 @@ def _compared(cm: Completed) -> Section:
     items: list[str | tuple[str, str]] = []
     for side in (cm.a, cm.b):
         if side.computed:
-            text = (f"run folder {side.run.folder.name}; computed for this comparison "
-                    "from the run's recorded inputs (vehicle, environments, target "
-                    f"classes): {', '.join(side.computed)} (in {side.made.name}/).")
+            text = (
+                f"run folder {side.run.folder.name}; computed for this comparison "
+                "from the run's recorded inputs (vehicle, environments, target "
+                f"classes): {', '.join(side.computed)} (in {side.made.name}/)."
+            )
         elif not side.coverage and side.nearfield is None:
-            text = (f"run folder {side.run.folder.name}; it records no vehicle: nothing "
-                    "could be computed.")
+            text = (
+                f"run folder {side.run.folder.name}; it records no vehicle: nothing "
+                "could be computed."
+            )
         else:
-            text = (f"run folder {side.run.folder.name}; near field, coverage maps and far "
-                    "field all from the run (nothing computed).")
+            text = (
+                f"run folder {side.run.folder.name}; near field, coverage maps and far "
+                "field all from the run (nothing computed)."
+            )
         items.append((f"{side.name} ({side.tag.upper()}):", text))
     items += [("Note:", n + ".") for n in cm.notes]
-    return Section("compared", "What is compared", [
-        Para("Both vehicles in the same environments on the same grids: what a run folder "
-             "lacks (near field, coverage maps, far field) is computed from that run's "
-             "recorded inputs, never from a shipped preset of the same name."),
-        Bullets(items)])
+    return Section(
+        "compared",
+        "What is compared",
+        [
+            Para(
+                "Both vehicles in the same environments on the same grids: what a run folder "
+                "lacks (near field, coverage maps, far field) is computed from that run's "
+                "recorded inputs, never from a shipped preset of the same name."
+            ),
+            Bullets(items),
+        ],
+    )
 
 
 def _nearfield(cm: Completed, out: Path) -> Section:
     a, b = cm.a, cm.b
     title = "Near-field blind spots"
     if a.nearfield is None or b.nearfield is None:
-        return Section("nearfield", title, [_unmade(s, "The near field") for s in (a, b)
-                                            if s.nearfield is None])
+        return Section(
+            "nearfield",
+            title,
+            [_unmade(s, "The near field") for s in (a, b) if s.nearfield is None],
+        )
     vals: dict[str, tuple[float, float]] = {}
     imgs: list[Block] = []
     for side in (a, b):
@@ -113,33 +135,54 @@ def _nearfield(cm: Completed, out: Path) -> Section:
         assert folder is not None
         d = read_json(folder / "nearfield.json")
         try:
-            vals[side.tag] = (float(d["blind_spot_m2"]["exact"]),
-                              float(d["uncovered_0p1m_m2"]["exact"]))
+            vals[side.tag] = (
+                float(d["blind_spot_m2"]["exact"]),
+                float(d["uncovered_0p1m_m2"]["exact"]),
+            )
         except (KeyError, TypeError, ValueError) as exc:
-            raise InputError(folder / "nearfield.json", "blind_spot_m2.exact",
-                             f"unreadable: {exc}") from None
+            raise InputError(
+                folder / "nearfield.json", "blind_spot_m2.exact", f"unreadable: {exc}"
+            ) from None
         png = folder / "nearfield.png"
         if png.is_file():
-            imgs.append(_image(png, f"{side.name}: near-field coverage "
-                               f"({_where(side, folder)})", out, side.tag, side,
-                               "nearfield.png"))
+            imgs.append(
+                _image(
+                    png,
+                    f"{side.name}: near-field coverage ({_where(side, folder)})",
+                    out,
+                    side.tag,
+                    side,
+                    "nearfield.png",
+                )
+            )
     na, nb = a.name, b.name
-    rows = [["blind spot (no sensor at any height) [m2]", fmt(vals["a"][0]),
-             fmt(vals["b"][0]), fmt(vals["b"][0] - vals["a"][0])],
-            ["uncovered at 0.1 m [m2]", fmt(vals["a"][1]), fmt(vals["b"][1]),
-             fmt(vals["b"][1] - vals["a"][1])]]
-    return Section("nearfield", title, [Table(["quantity", na, nb, f"{nb} - {na}"], rows),
-                                        *imgs])
+    rows = [
+        [
+            "blind spot (no sensor at any height) [m2]",
+            fmt(vals["a"][0]),
+            fmt(vals["b"][0]),
+            fmt(vals["b"][0] - vals["a"][0]),
+        ],
+        [
+            "uncovered at 0.1 m [m2]",
+            fmt(vals["a"][1]),
+            fmt(vals["b"][1]),
+            fmt(vals["b"][1] - vals["a"][1]),
+        ],
+    ]
+    return Section("nearfield", title, [Table(["quantity", na, nb, f"{nb} - {na}"], rows), *imgs])
 
 
 def _coverage(cm: Completed, out: Path) -> Section:
     a, b = cm.a, cm.b
     title = "Coverage maps side by side and their difference"
     if not cm.keys:
-        blocks: list[Block] = [_unmade(s, "The coverage maps") for s in (a, b)
-                               if not s.coverage]
-        return Section("coverage", title, blocks or [Para(
-            "No coverage map in common: " + "; ".join(cm.notes) + ".")])
+        blocks: list[Block] = [_unmade(s, "The coverage maps") for s in (a, b) if not s.coverage]
+        return Section(
+            "coverage",
+            title,
+            blocks or [Para("No coverage map in common: " + "; ".join(cm.notes) + ".")],
+        )
     na, nb = a.name, b.name
     rows = []
     for k in cm.keys:
@@ -147,47 +190,84 @@ def _coverage(cm: Completed, out: Path) -> Section:
         sb = read_json(b.coverage[k] / "summary.json").get("area_m2_by_level", {})
         for lv in LEVELS:
             va, vb = sa.get(lv), sb.get(lv)
-            rows.append([k, lv, _m2(va), _m2(vb),
-                         _m2(None if va is None or vb is None else vb - va)])
+            rows.append(
+                [k, lv, _m2(va), _m2(vb), _m2(None if va is None or vb is None else vb - va)]
+            )
     diff_rows, subs = [], []
     for k in cm.keys:
         if k not in cm.differences:
             continue
         d = read_json(cm.differences[k] / "summary.json")
         ar = d.get("area_m2", {})
-        diff_rows.append([k, *(_m2(ar.get(f)) for f in ("only_a_m2", "only_b_m2", "both_m2",
-                                                          "neither_m2"))])
+        diff_rows.append(
+            [k, *(_m2(ar.get(f)) for f in ("only_a_m2", "only_b_m2", "both_m2", "neither_m2"))]
+        )
         png = cm.differences[k] / "difference.png"
         if png.is_file():
-            subs.append(Section(f"coverage-{slug(k)}", k, [_image(
-                png, f"{k}: A {_where(a, a.coverage[k])}, B {_where(b, b.coverage[k])}; "
-                "difference Pd_A - Pd_B", out, "difference", None, f"{slug(k)}.png")]))
-    return Section("coverage", title, [
-        Para(f"Each figure: the fused Pd of a car body of {na} (A, top) and {nb} (B, middle) "
-             "on one grid in one environment, each with its sensors' fields of view and a "
-             "near-field close-up, and the difference map Pd_A - Pd_B (bottom; blue: A "
-             "detects where B does not, red: the reverse) with both vehicles' sensor "
-             "positions."),
-        Table(["map", f"only {na} detects [m2]", f"only {nb} detects [m2]", "both [m2]",
-               "neither [m2]"], diff_rows,
-              f"Where one vehicle detects (Pd >= {DETECTS_PD:g}) and the other does not "
-              "(difference maps, difference/<map>/)"),
-        Table(["map", "level", f"{na} [m2]", f"{nb} [m2]", f"{nb} - {na} [m2]"], rows,
-              "Area per Pd level")], subs)
+            subs.append(
+                Section(
+                    f"coverage-{slug(k)}",
+                    k,
+                    [
+                        _image(
+                            png,
+                            f"{k}: A {_where(a, a.coverage[k])}, B {_where(b, b.coverage[k])}; "
+                            "difference Pd_A - Pd_B",
+                            out,
+                            "difference",
+                            None,
+                            f"{slug(k)}.png",
+                        )
+                    ],
+                )
+            )
+    return Section(
+        "coverage",
+        title,
+        [
+            Para(
+                f"Each figure: the fused Pd of a car body of {na} (A, top) and {nb} (B, middle) "
+                "on one grid in one environment, each with its sensors' fields of view and a "
+                "near-field close-up, and the difference map Pd_A - Pd_B (bottom; blue: A "
+                "detects where B does not, red: the reverse) with both vehicles' sensor "
+                "positions."
+            ),
+            Table(
+                [
+                    "map",
+                    f"only {na} detects [m2]",
+                    f"only {nb} detects [m2]",
+                    "both [m2]",
+                    "neither [m2]",
+                ],
+                diff_rows,
+                f"Where one vehicle detects (Pd >= {DETECTS_PD:g}) and the other does not "
+                "(difference maps, difference/<map>/)",
+            ),
+            Table(
+                ["map", "level", f"{na} [m2]", f"{nb} [m2]", f"{nb} - {na} [m2]"],
+                rows,
+                "Area per Pd level",
+            ),
+        ],
+        subs,
+    )
 
 
 def _farfield_levels(folder: Path) -> dict[str, float]:
     d = read_json(folder / "summary.json").get("levels_m", {})
-    return {str(k): float(v) for k, v in d.items()
-            if isinstance(v, int | float) and not isinstance(v, bool)}
+    return {
+        str(k): float(v)
+        for k, v in d.items()
+        if isinstance(v, int | float) and not isinstance(v, bool)
+    }
 
 
 def _profile(path: Path) -> tuple[np.ndarray, np.ndarray]:
     """(distance s, fused Pd) of a far-field ``farfield.csv``."""
     rows = read_csv(path)
     try:
-        return (np.array([float(r["s"]) for r in rows]),
-                np.array([float(r["pd"]) for r in rows]))
+        return (np.array([float(r["s"]) for r in rows]), np.array([float(r["pd"]) for r in rows]))
     except (KeyError, TypeError, ValueError) as exc:
         raise InputError(path, "s, pd", f"unreadable far-field profile: {exc}") from None
 
@@ -197,48 +277,82 @@ def _table_iv(cm: Completed, out: Path) -> Section:
     title = "Table IV (metres of the lane ahead) and Pd against distance"
     envs = [e for e in cm.environments if e in a.farfield and e in b.farfield]
     if not envs:
-        blocks: list[Block] = [_unmade(s, "The far field") for s in (a, b)
-                               if not s.farfield]
-        return Section("table-iv", title, blocks or [Para(
-            "No far field in common: " + "; ".join(cm.notes) + ".")])
+        blocks: list[Block] = [_unmade(s, "The far field") for s in (a, b) if not s.farfield]
+        return Section(
+            "table-iv",
+            title,
+            blocks or [Para("No far field in common: " + "; ".join(cm.notes) + ".")],
+        )
     na, nb = a.name, b.name
     rows, curves = [], []
     for e in envs:
         la, lb = _farfield_levels(a.farfield[e]), _farfield_levels(b.farfield[e])
         for lv in LEVELS:
             va, vb = la.get(lv), lb.get(lv)
-            rows.append([e, lv, "" if va is None else f"{va:.1f}",
-                         "" if vb is None else f"{vb:.1f}",
-                         "" if va is None or vb is None else f"{vb - va:+.1f}"])
-        curves.append((e, *_profile(a.farfield[e] / "farfield.csv"),
-                       *_profile(b.farfield[e] / "farfield.csv")))
+            rows.append(
+                [
+                    e,
+                    lv,
+                    "" if va is None else f"{va:.1f}",
+                    "" if vb is None else f"{vb:.1f}",
+                    "" if va is None or vb is None else f"{vb - va:+.1f}",
+                ]
+            )
+        curves.append(
+            (
+                e,
+                *_profile(a.farfield[e] / "farfield.csv"),
+                *_profile(b.farfield[e] / "farfield.csv"),
+            )
+        )
     png = farfield_pair_figure(curves, na, nb, out / "farfield_pd_vs_distance.png")
-    where = "; ".join(f"{s.name}: " + ", ".join(sorted({_where(s, s.farfield[e])
-                                                        for e in envs})) for s in (a, b))
-    return Section("table-iv", title, [
-        Para("Length (m) of the car path in the right lane of motorway_r500 ahead of the ego "
-             "(left lane, 50 m before the clothoid into the R = 500 m curve) at each "
-             f"detection level, as in the paper's Table IV ({where})."),
-        Table(["environment", "level", f"{na} [m]", f"{nb} [m]", f"{nb} - {na} [m]"], rows),
-        Image(png, "Fused Pd of a car body along the right lane against the distance from "
-              f"the front bumper: {na} (A, solid) and {nb} (B, dashed) per environment",
-              png.name)])
+    where = "; ".join(
+        f"{s.name}: " + ", ".join(sorted({_where(s, s.farfield[e]) for e in envs})) for s in (a, b)
+    )
+    return Section(
+        "table-iv",
+        title,
+        [
+            Para(
+                "Length (m) of the car path in the right lane of motorway_r500 ahead of the ego "
+                "(left lane, 50 m before the clothoid into the R = 500 m curve) at each "
+                f"detection level, as in the paper's Table IV ({where})."
+            ),
+            Table(["environment", "level", f"{na} [m]", f"{nb} [m]", f"{nb} - {na} [m]"], rows),
+            Image(
+                png,
+                "Fused Pd of a car body along the right lane against the distance from "
+                f"the front bumper: {na} (A, solid) and {nb} (B, dashed) per environment",
+                png.name,
+            ),
+        ],
+    )
 
 
 def _scenarios(a: Path, b: Path, out: Path) -> Section:
     missing = [f.name for f in (a, b) if not (f / "ranking.json").is_file()]
     if missing:
-        return Section("scenarios", "Critical for one, not the other", [Para(
-            f"No search in {' and '.join(missing)} (ranking.json): the cross-evaluation of "
-            "critical scenarios needs a search of both vehicles (`sensorgap search --out "
-            "RUN` or `sensorgap run`).")])
+        return Section(
+            "scenarios",
+            "Critical for one, not the other",
+            [
+                Para(
+                    f"No search in {' and '.join(missing)} (ranking.json): the cross-evaluation of "
+                    "critical scenarios needs a search of both vehicles (`sensorgap search --out "
+                    "RUN` or `sensorgap run`)."
+                )
+            ],
+        )
     rows = write_comparison(a, b, out)
     counts = Counter((str(r["critical_for"]), str(r["dominant_effect"])) for r in rows)
-    cols = [("scenario_id", "scenario"), ("family", "family"),
-            ("environment", "environment")]
-    names = [k[len("rank_"):] for k in rows[0] if k.startswith("rank_")] if rows else []
-    for key, head in (("rank", "rank"), ("collision_probability", "P(collision)"),
-                      ("impact_speed_kmh", "impact [km/h]"), ("class", "class")):
+    cols = [("scenario_id", "scenario"), ("family", "family"), ("environment", "environment")]
+    names = [k[len("rank_") :] for k in rows[0] if k.startswith("rank_")] if rows else []
+    for key, head in (
+        ("rank", "rank"),
+        ("collision_probability", "P(collision)"),
+        ("impact_speed_kmh", "impact [km/h]"),
+        ("class", "class"),
+    ):
         cols += [(f"{key}_{n}", f"{head} {n}") for n in names]
     cols += [("critical_for", "critical for"), ("dominant_effect", "dominant effect")]
 
@@ -249,20 +363,37 @@ def _scenarios(a: Path, b: Path, out: Path) -> Section:
             return str(v or "")
         return fmt(v, 2) if isinstance(v, float) else fmt(v)
 
-    return Section("scenarios", "Critical for one, not the other", [
-        Para("Every scenario ranked for either vehicle, evaluated exactly for both. Critical "
-             f"for one vehicle only: its collision probability higher by at least {MARGIN_P:g}."),
-        Table(["critical for", "dominant effect", "scenarios"],
-              [[w, e, str(n)] for (w, e), n in sorted(counts.items())], "Summary"),
-        Table([h for _, h in cols], [[cell(k, r.get(k)) for k, _ in cols] for r in rows],
-              "Cross-evaluation (comparison.csv; why: below)"),
-        Bullets([(f"{r['scenario_id']} (critical for {r['critical_for']}):", str(r["why"]))
-                 for r in rows]),
-    ])
+    return Section(
+        "scenarios",
+        "Critical for one, not the other",
+        [
+            Para(
+                "Every scenario ranked for either vehicle, evaluated exactly for both. Critical "
+                f"for one vehicle only: its collision probability higher by at least {MARGIN_P:g}."
+            ),
+            Table(
+                ["critical for", "dominant effect", "scenarios"],
+                [[w, e, str(n)] for (w, e), n in sorted(counts.items())],
+                "Summary",
+            ),
+            Table(
+                [h for _, h in cols],
+                [[cell(k, r.get(k)) for k, _ in cols] for r in rows],
+                "Cross-evaluation (comparison.csv; why: below)",
+            ),
+            Bullets(
+                [
+                    (f"{r['scenario_id']} (critical for {r['critical_for']}):", str(r["why"]))
+                    for r in rows
+                ]
+            ),
+        ],
+    )
 
 
-def write_compare_report(run_a: Path, run_b: Path, out: Path,
-                         workers: int = 2) -> tuple[Path, Path]:
+def write_compare_report(
+    run_a: Path, run_b: Path, out: Path, workers: int = 2
+) -> tuple[Path, Path]:
     """``out/report.html`` and ``out/report.md`` comparing two run folders; what either run
     lacks is computed into ``out`` first (``search.compare_maps.complete_runs``)."""
     run_a, run_b = Path(run_a), Path(run_b)
@@ -272,8 +403,13 @@ def write_compare_report(run_a: Path, run_b: Path, out: Path,
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     cm = complete_runs(run_a, run_b, out, workers=workers)
-    sections = [_compared(cm), _nearfield(cm, out), _coverage(cm, out), _table_iv(cm, out),
-                _scenarios(run_a, run_b, out)]
+    sections = [
+        _compared(cm),
+        _nearfield(cm, out),
+        _coverage(cm, out),
+        _table_iv(cm, out),
+        _scenarios(run_a, run_b, out),
+    ]
     for s in sections:  # Markdown links the PNGs next to the report
         for blk in [*s.blocks, *(x for sub in s.subsections for x in sub.blocks)]:
             if isinstance(blk, Image) and blk.path.resolve() != (out / blk.rel).resolve():

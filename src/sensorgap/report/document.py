@@ -94,8 +94,7 @@ class Section:
     @property
     def short(self) -> bool:
         """No table, figure or subsection: printed without a page of its own."""
-        return not self.subsections and not any(isinstance(b, Table | Image)
-                                                for b in self.blocks)
+        return not self.subsections and not any(isinstance(b, Table | Image) for b in self.blocks)
 
 
 _CSS = """
@@ -135,8 +134,9 @@ def compact_png(data: bytes) -> bytes:
             rgba = im.convert("RGBA")
             rgb = PILImage.new("RGB", im.size, "white")
             rgb.paste(rgba, mask=rgba.getchannel("A"))
-        q = rgb.quantize(colors=256, method=PILImage.Quantize.MEDIANCUT,
-                         dither=PILImage.Dither.NONE)
+        q = rgb.quantize(
+            colors=256, method=PILImage.Quantize.MEDIANCUT, dither=PILImage.Dither.NONE
+        )
         buf = io.BytesIO()
         q.save(buf, "PNG", optimize=True)
     out = buf.getvalue()
@@ -169,53 +169,68 @@ def _html_block(b: Block) -> str:
         return f"<p>{_prose(b.text)}</p>"
     if isinstance(b, Bullets):
         tag = "ol" if b.ordered else "ul"
-        items = "".join(f"<li>{_prose(t)}</li>" if isinstance(t, str) else
-                        f"<li><b>{_prose(t[0])}</b> {_prose(t[1])}</li>"
-                        for t in b.items)
+        items = "".join(
+            f"<li>{_prose(t)}</li>"
+            if isinstance(t, str)
+            else f"<li><b>{_prose(t[0])}</b> {_prose(t[1])}</li>"
+            for t in b.items
+        )
         return f"<{tag}>{items}</{tag}>"
     if isinstance(b, Table):
         cap = f"<caption>{html.escape(b.caption)}</caption>" if b.caption else ""
         head = "".join(f"<th>{_breakable(h)}</th>" for h in b.headers)
-        body = "".join("<tr>" + "".join(f"<td>{_html_cell(c)}</td>" for c in r) + "</tr>"
-                       for r in b.rows)
-        return (f'<div class="tw"><table>{cap}<thead><tr>{head}</tr></thead>'
-                f"<tbody>{body}</tbody></table></div>")
+        body = "".join(
+            "<tr>" + "".join(f"<td>{_html_cell(c)}</td>" for c in r) + "</tr>" for r in b.rows
+        )
+        return (
+            f'<div class="tw"><table>{cap}<thead><tr>{head}</tr></thead>'
+            f"<tbody>{body}</tbody></table></div>"
+        )
     if isinstance(b, Image):
         data = base64.b64encode(compact_png(b.path.read_bytes())).decode("ascii")
         cap = html.escape(b.caption)
-        return (f'<figure><img src="data:image/png;base64,{data}" alt="{cap}">'
-                f"<figcaption>{cap}</figcaption></figure>")
-    items = "".join(f'<li><a href="{html.escape(href)}">{html.escape(text)}</a></li>'
-                    for text, href in b.items)
-    return f"<ul class=\"links\">{items}</ul>"
+        return (
+            f'<figure><img src="data:image/png;base64,{data}" alt="{cap}">'
+            f"<figcaption>{cap}</figcaption></figure>"
+        )
+    items = "".join(
+        f'<li><a href="{html.escape(href)}">{html.escape(text)}</a></li>' for text, href in b.items
+    )
+    return f'<ul class="links">{items}</ul>'
 
 
 def _html_section(s: Section, level: int) -> str:
     cls = ""
     if level == 2:
         cls = ' class="top short"' if s.short else ' class="top"'
-    parts = [f'<section id="{html.escape(s.id)}"{cls}>',
-             f"<h{level}>{html.escape(s.title)}</h{level}>"]
+    parts = [
+        f'<section id="{html.escape(s.id)}"{cls}>',
+        f"<h{level}>{html.escape(s.title)}</h{level}>",
+    ]
     parts += [_html_block(b) for b in s.blocks]
     parts += [_html_section(sub, min(level + 1, 6)) for sub in s.subsections]
     parts.append("</section>")
     return "\n".join(parts)
 
 
-def render_html(title: str, meta: list[str], sections: list[Section],
-                front: Section | None = None) -> str:
+def render_html(
+    title: str, meta: list[str], sections: list[Section], front: Section | None = None
+) -> str:
     """One self-contained HTML page (no scripts, no external resources); ``front`` (the
     summary) comes right after the title, before the table of contents."""
-    toc = "".join(f'<li><a href="#{html.escape(s.id)}">{html.escape(s.title)}</a></li>'
-                  for s in sections)
+    toc = "".join(
+        f'<li><a href="#{html.escape(s.id)}">{html.escape(s.title)}</a></li>' for s in sections
+    )
     metas = "".join(f'<p class="meta">{html.escape(m)}</p>' for m in meta)
     head = "" if front is None else _html_section(front, 2)
     body = "\n".join(_html_section(s, 2) for s in sections)
-    return ("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
-            "<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">"
-            f"<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>"
-            f"<h1>{html.escape(title)}</h1>{metas}{head}"
-            f"<nav><h2>Contents</h2><ol>{toc}</ol></nav>{body}</body></html>\n")
+    return (
+        '<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">'
+        '<meta name="viewport" content="width=device-width, initial-scale=1">'
+        f"<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>"
+        f"<h1>{html.escape(title)}</h1>{metas}{head}"
+        f"<nav><h2>Contents</h2><ol>{toc}</ol></nav>{body}</body></html>\n"
+    )
 
 
 def _md_cell(c: Cell) -> str:
@@ -228,9 +243,11 @@ def _md_block(b: Block) -> str:
     if isinstance(b, Para):
         return b.text
     if isinstance(b, Bullets):
-        return "\n".join(f"{f'{i}.' if b.ordered else '-'} "
-                         + (t if isinstance(t, str) else f"**{t[0]}** {t[1]}")
-                         for i, t in enumerate(b.items, start=1))
+        return "\n".join(
+            f"{f'{i}.' if b.ordered else '-'} "
+            + (t if isinstance(t, str) else f"**{t[0]}** {t[1]}")
+            for i, t in enumerate(b.items, start=1)
+        )
     if isinstance(b, Table):
         lines = [f"*{b.caption}*", ""] if b.caption else []
         lines.append("| " + " | ".join(_md_cell(h) for h in b.headers) + " |")
@@ -249,8 +266,9 @@ def _md_section(s: Section, level: int) -> str:
     return "\n\n".join(parts)
 
 
-def render_markdown(title: str, meta: list[str], sections: list[Section],
-                    front: Section | None = None) -> str:
+def render_markdown(
+    title: str, meta: list[str], sections: list[Section], front: Section | None = None
+) -> str:
     """The same content as Markdown with linked PNGs (``front`` first)."""
     head = [f"# {title}", *meta]
     secs = ([front] if front is not None else []) + sections

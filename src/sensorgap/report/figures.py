@@ -38,13 +38,20 @@ def scenario_trace(spec: ScenarioSpec, evaluator: Evaluator) -> Trace:
     return evaluator.trace(spec.scenario, spec.environment, spec.family.duration_s)
 
 
-def _box(ax: plt.Axes, x: float, y: float, psi: float, length: float, width: float,
-         **kw: object) -> None:
+def _box(
+    ax: plt.Axes, x: float, y: float, psi: float, length: float, width: float, **kw: object
+) -> None:
     """A box (centre x, y in m; heading psi in rad) in the ego frame."""
     c, sn = math.cos(psi), math.sin(psi)
-    corners = [(x + c * u - sn * v, y + sn * u + c * v)
-               for u, v in ((length / 2, width / 2), (-length / 2, width / 2),
-                            (-length / 2, -width / 2), (length / 2, -width / 2))]
+    corners = [
+        (x + c * u - sn * v, y + sn * u + c * v)
+        for u, v in (
+            (length / 2, width / 2),
+            (-length / 2, width / 2),
+            (-length / 2, -width / 2),
+            (length / 2, -width / 2),
+        )
+    ]
     ax.add_patch(Polygon(corners, closed=True, **kw))
 
 
@@ -82,10 +89,20 @@ def scenario_figure(spec: ScenarioSpec, evaluator: Evaluator, tr: Trace, path: P
     i1 = min(int(np.ceil((x1 - g.xmin) / g.resolution)), pd_map.shape[1])
     j0 = max(int(np.floor((y0 - g.ymin) / g.resolution)), 0)
     j1 = min(int(np.ceil((y1 - g.ymin) / g.resolution)), pd_map.shape[0])
-    im = ax.imshow(pd_map[j0:j1, i0:i1], origin="lower",
-                   extent=(g.xmin + i0 * g.resolution, g.xmin + i1 * g.resolution,
-                           g.ymin + j0 * g.resolution, g.ymin + j1 * g.resolution),
-                   cmap=PD_CMAP, norm=PD_NORM, interpolation="nearest", aspect="equal")
+    im = ax.imshow(
+        pd_map[j0:j1, i0:i1],
+        origin="lower",
+        extent=(
+            g.xmin + i0 * g.resolution,
+            g.xmin + i1 * g.resolution,
+            g.ymin + j0 * g.resolution,
+            g.ymin + j1 * g.resolution,
+        ),
+        cmap=PD_CMAP,
+        norm=PD_NORM,
+        interpolation="nearest",
+        aspect="equal",
+    )
     draw_vehicle(ax, spec.system)
     k = named_step(tr)
     pdc = tr.pd if tr.pd_confirm is None else tr.pd_confirm
@@ -94,84 +111,148 @@ def scenario_figure(spec: ScenarioSpec, evaluator: Evaluator, tr: Trace, path: P
     ax.plot(tr.x[0], tr.y[0], "o", color="crimson", zorder=8, label="start")
     if tr.occluders is not None:
         for m, box in enumerate(tr.occluders[k]):
-            _box(ax, float(box[0]), float(box[1]), math.atan2(float(box[3]), float(box[2])),
-                 2.0 * float(box[4]), 2.0 * float(box[5]), facecolor="0.45",
-                 edgecolor="black", linewidth=0.8, zorder=8,
-                 label="occluders at that step" if m == 0 else None)
+            _box(
+                ax,
+                float(box[0]),
+                float(box[1]),
+                math.atan2(float(box[3]), float(box[2])),
+                2.0 * float(box[4]),
+                2.0 * float(box[5]),
+                facecolor="0.45",
+                edgecolor="black",
+                linewidth=0.8,
+                zorder=8,
+                label="occluders at that step" if m == 0 else None,
+            )
     psi = 0.0 if tr.psi is None else float(tr.psi[k])
-    _box(ax, float(tr.x[k]), float(tr.y[k]), psi, spec.target.length_m, spec.target.width_m,
-         facecolor=plt.get_cmap(PD_CMAP)(PD_NORM(float(pdc[k]))), edgecolor="black",
-         linewidth=1.4,
-         zorder=9, label=f"target at t = {tr.t[k]:.2f} s (Pd {pdc[k]:.2f})")
+    _box(
+        ax,
+        float(tr.x[k]),
+        float(tr.y[k]),
+        psi,
+        spec.target.length_m,
+        spec.target.width_m,
+        facecolor=plt.get_cmap(PD_CMAP)(PD_NORM(float(pdc[k]))),
+        edgecolor="black",
+        linewidth=1.4,
+        zorder=9,
+        label=f"target at t = {tr.t[k]:.2f} s (Pd {pdc[k]:.2f})",
+    )
     az = sun_azimuth_deg(spec.environment, float(tr.heading[k]))
     if az is not None:
         span = 0.12 * (x1 - x0)
         a = math.radians(az)
-        ax.annotate("", xy=(x0 + 0.14 * (x1 - x0) + span * math.cos(a) * 0.15,
-                            y1 - 0.2 * (y1 - y0) + span * math.sin(a) * 0.15),
-                    xytext=(x0 + 0.14 * (x1 - x0) + span * math.cos(a),
-                            y1 - 0.2 * (y1 - y0) + span * math.sin(a)),
-                    arrowprops={"arrowstyle": "->", "color": "orange", "lw": 2.0}, zorder=10)
-        ax.text(x0 + 0.02 * (x1 - x0), y0 + 0.05 * (y1 - y0),
-                f"sun: {direction_words(az)}, {spec.environment.sun.elevation_deg:.0f}° high"
-                if spec.environment.sun is not None else "", fontsize=7, color="darkorange",
-                zorder=10)
+        ax.annotate(
+            "",
+            xy=(
+                x0 + 0.14 * (x1 - x0) + span * math.cos(a) * 0.15,
+                y1 - 0.2 * (y1 - y0) + span * math.sin(a) * 0.15,
+            ),
+            xytext=(
+                x0 + 0.14 * (x1 - x0) + span * math.cos(a),
+                y1 - 0.2 * (y1 - y0) + span * math.sin(a),
+            ),
+            arrowprops={"arrowstyle": "->", "color": "orange", "lw": 2.0},
+            zorder=10,
+        )
+        ax.text(
+            x0 + 0.02 * (x1 - x0),
+            y0 + 0.05 * (y1 - y0),
+            f"sun: {direction_words(az)}, {spec.environment.sun.elevation_deg:.0f}° high"
+            if spec.environment.sun is not None
+            else "",
+            fontsize=7,
+            color="darkorange",
+            zorder=10,
+        )
     ax.set_xlim(x0, x1)
     ax.set_ylim(y0, y1)
     ax.set_xlabel("x (ego vehicle frame) [m]")
     ax.set_ylabel("y (ego vehicle frame) [m]")
-    fig.legend(*ax.get_legend_handles_labels(), loc="outside lower left", ncol=2, fontsize=7,
-               frameon=False)
+    fig.legend(
+        *ax.get_legend_handles_labels(), loc="outside lower left", ncol=2, fontsize=7, frameon=False
+    )
     # the colour bar as tall as the map itself (an inset beside it)
     fig.colorbar(im, cax=ax.inset_axes((1.015, 0.0, 0.018, 1.0)), label="$p_d$")
-    ax.set_title(plain_text(f"rank {spec.rank}: {spec.family.name}, {spec.environment_name}; "
-                            f"map: Pd of a {spec.target.name} body there, no sun, "
-                            "no occluders"), fontsize=9)
+    ax.set_title(
+        plain_text(
+            f"rank {spec.rank}: {spec.family.name}, {spec.environment_name}; "
+            f"map: Pd of a {spec.target.name} body there, no sun, "
+            "no occluders"
+        ),
+        fontsize=9,
+    )
     r = evaluator.reaction
     f = first_confirmation(pdc[None, :], np.array([len(pdc)]), r.confirm_m, r.confirm_n)[0]
     bx.plot(tr.t, pdc, color="tab:blue", label="$p_d$ of the confirming sensors")
-    bx.plot(tr.t, np.cumsum(f[:len(pdc)]), color="tab:green",
-            label=f"P(confirmed {r.confirm_m} of {r.confirm_n}) by then")
+    bx.plot(
+        tr.t,
+        np.cumsum(f[: len(pdc)]),
+        color="tab:green",
+        label=f"P(confirmed {r.confirm_m} of {r.confirm_n}) by then",
+    )
     bx.set_ylim(-0.02, 1.02)
     bx.set_xlabel("time [s]")
     bx.set_ylabel("probability")
     cx = bx.twinx()
-    cx.plot(tr.t, np.minimum(tr.ttc, 10.0), color="tab:red", linewidth=1.0,
-            label="path TTC [s] (cut at 10 s)")
+    cx.plot(
+        tr.t,
+        np.minimum(tr.ttc, 10.0),
+        color="tab:red",
+        linewidth=1.0,
+        label="path TTC [s] (cut at 10 s)",
+    )
     cx.set_ylabel("time to collision on the path [s]")
     cx.set_ylim(0.0, 10.5)
-    for key, colour, text in (("t_threat_s", "0.4", "threat onset"),
-                              ("t_safe_s", "black", "t_safe"),
-                              ("t_confirm_median_s", "tab:green", "median confirmation")):
+    for key, colour, text in (
+        ("t_threat_s", "0.4", "threat onset"),
+        ("t_safe_s", "black", "t_safe"),
+        ("t_confirm_median_s", "tab:green", "median confirmation"),
+    ):
         v = tr.extra.get(key)
         if v is not None and math.isfinite(float(v)):
             bx.axvline(float(v), color=colour, linestyle=":", linewidth=1.0, label=text)
     lines = bx.get_lines() + cx.get_lines()
-    fig.legend(lines, [str(ln.get_label()) for ln in lines], loc="outside lower right",
-               ncol=2, fontsize=7, frameon=False)
+    fig.legend(
+        lines,
+        [str(ln.get_label()) for ln in lines],
+        loc="outside lower right",
+        ncol=2,
+        fontsize=7,
+        frameon=False,
+    )
     bx.set_title("detection and confirmation over time (exact)", fontsize=9)
     return save_figure(fig, path, dpi=100)
 
 
-def farfield_pair_figure(curves: list[tuple[str, np.ndarray, np.ndarray, np.ndarray,
-                                            np.ndarray]],
-                         name_a: str, name_b: str, path: Path) -> Path:
+def farfield_pair_figure(
+    curves: list[tuple[str, np.ndarray, np.ndarray, np.ndarray, np.ndarray]],
+    name_a: str,
+    name_b: str,
+    path: Path,
+) -> Path:
     """The far field of two vehicles (the paper's Figs. 6-7 as curves): per environment,
     the fused Pd of each along the target path against the distance from the ego's front
     bumper (m); ``curves``: (environment, s_a, pd_a, s_b, pd_b), distances in m."""
     n = max(1, len(curves))
     ncols = 2 if n > 1 else 1
     nrows = (n + ncols - 1) // ncols
-    fig, axes = plt.subplots(nrows, ncols, figsize=(11.0, 1.9 * nrows + 0.9),
-                             layout="constrained", squeeze=False, sharex=True, sharey=True)
+    fig, axes = plt.subplots(
+        nrows,
+        ncols,
+        figsize=(11.0, 1.9 * nrows + 0.9),
+        layout="constrained",
+        squeeze=False,
+        sharex=True,
+        sharey=True,
+    )
     for k, ax in enumerate(axes.ravel()):
         if k >= len(curves):
             ax.set_visible(False)
             continue
         env, sa, pa, sb, pb = curves[k]
         ax.plot(sa, pa, color="tab:blue", linewidth=1.4, label=f"{name_a} (A)")
-        ax.plot(sb, pb, color="tab:red", linewidth=1.2, linestyle="--",
-                label=f"{name_b} (B)")
+        ax.plot(sb, pb, color="tab:red", linewidth=1.2, linestyle="--", label=f"{name_b} (B)")
         for level in (0.5, 0.8):
             ax.axhline(level, color="grey", linewidth=0.5, linestyle=":")
         ax.set_ylim(-0.02, 1.02)
@@ -181,9 +262,16 @@ def farfield_pair_figure(curves: list[tuple[str, np.ndarray, np.ndarray, np.ndar
             ax.set_ylabel("fused $p_d$", fontsize=8)
         if k >= len(curves) - ncols:
             ax.tick_params(labelbottom=True)
-            ax.set_xlabel("distance along the target lane from the ego's front bumper [m]",
-                          fontsize=8)
+            ax.set_xlabel(
+                "distance along the target lane from the ego's front bumper [m]", fontsize=8
+            )
     handles, labels = axes[0][0].get_legend_handles_labels()
-    fig.legend(handles, [plain_text(t) for t in labels], loc="outside lower center",
-               ncol=2, fontsize=8, frameon=False)
+    fig.legend(
+        handles,
+        [plain_text(t) for t in labels],
+        loc="outside lower center",
+        ncol=2,
+        fontsize=8,
+        frameon=False,
+    )
     return save_figure(fig, path, dpi=90)

@@ -71,17 +71,21 @@ def explain_spec(spec: ScenarioSpec, evaluator: Evaluator) -> Explanation:
     """Per-sensor causes at the named step of a ranked scenario, recomputed exactly as the
     search did (``search.ranking.explain`` with an exact ``evaluator``; its text equals the
     ranking row's reason for the same vehicle, reaction model and detection rule)."""
-    problem = SearchProblem(spec.family, {spec.environment_name: spec.environment},
-                            evaluator, sun_search=False)
-    return explain(problem, Candidate(spec.family.name, spec.environment_name, None,
-                                      dict(spec.params)))
+    problem = SearchProblem(
+        spec.family, {spec.environment_name: spec.environment}, evaluator, sun_search=False
+    )
+    return explain(
+        problem, Candidate(spec.family.name, spec.environment_name, None, dict(spec.params))
+    )
 
 
 # --- the numbers of the ranking's reason (``search.ranking.explain``) ---------------------
 
-_MISSING = re.compile(r"(?P<sid>[\w.-]+) \((?P<eff>occlusion|glare|weather|partly in view|"
-                      r"range): Pd (?P<p>[\d.]+), (?P<b>[\d.]+) (?:without the occluders|"
-                      r"without the sun|in clear air)\)")
+_MISSING = re.compile(
+    r"(?P<sid>[\w.-]+) \((?P<eff>occlusion|glare|weather|partly in view|"
+    r"range): Pd (?P<p>[\d.]+), (?P<b>[\d.]+) (?:without the occluders|"
+    r"without the sun|in clear air)\)"
+)
 
 
 def pd_without(reason: str) -> dict[str, float]:
@@ -92,6 +96,7 @@ def pd_without(reason: str) -> dict[str, float]:
 
 
 # --- words -------------------------------------------------------------------------------
+
 
 def _num(v: Any) -> float | None:
     """A finite float of a JSON value, else None."""
@@ -194,22 +199,33 @@ def _sensor_names(ids: list[str], types: dict[str, str]) -> str:
 LOW_EFFECTS = ("occlusion", "glare", "weather", "partly in view", "range")
 
 
-def _low_words(effect: str, ids: list[str], pd: float, without: list[float | None],
-               occluder: str, env: EnvironmentConfig, types: dict[str, str]) -> str:
+def _low_words(
+    effect: str,
+    ids: list[str],
+    pd: float,
+    without: list[float | None],
+    occluder: str,
+    env: EnvironmentConfig,
+    types: dict[str, str],
+) -> str:
     who, one = _sensor_names(ids, types), len(ids) == 1
     known = [w for w in without if w is not None]
-    cause = {"occlusion": "without it", "glare": "without the sun",
-             "weather": "in clear air", "partly in view": "in clear air",
-             "range": "even in clear air"}[effect]
+    cause = {
+        "occlusion": "without it",
+        "glare": "without the sun",
+        "weather": "in clear air",
+        "partly in view": "in clear air",
+        "range": "even in clear air",
+    }[effect]
     nums = f"Pd {pd:.2f}"
     if known and len(known) == len(without) and len(set(known)) == 1:
         nums += f"; {known[0]:.2f} {cause}"
     elif len(known) == len(without):
         nums += f"; {cause} " + " and ".join(f"{w:.2f}" for w in known)
     elif known:  # the search itemised some of them only
-        nums += f"; {cause}: " + ", ".join(f"{i} {w:.2f}" for i, w in zip(ids, without,
-                                                                          strict=True)
-                                           if w is not None)
+        nums += f"; {cause}: " + ", ".join(
+            f"{i} {w:.2f}" for i, w in zip(ids, without, strict=True) if w is not None
+        )
     if effect == "occlusion":
         verb = f"{'is' if one else 'are'} blocked by the {occluder}"
     elif effect == "glare":
@@ -248,11 +264,14 @@ def sensors_words(r: RankedScenario, types: dict[str, str]) -> str:
             n_far += 1  # out of its range, or in view but too weak even in clear air
         elif effect in LOW_EFFECTS:
             groups.setdefault((effect, round(pd.get(sid, 0.0), 2)), []).append(sid)
-    parts = [_low_words(e, ids, p, [without.get(i) for i in ids], occluder, env, types)
-             for (e, p), ids in groups.items()]
+    parts = [
+        _low_words(e, ids, p, [without.get(i) for i in ids], occluder, env, types)
+        for (e, p), ids in groups.items()
+    ]
     if seeing:
-        parts.append(f"only {_sensor_names(seeing, types)} "
-                     f"{'detects' if len(seeing) == 1 else 'detect'} it")
+        parts.append(
+            f"only {_sensor_names(seeing, types)} {'detects' if len(seeing) == 1 else 'detect'} it"
+        )
     cover = []
     if n_far:
         cover.append(f"{n_far} {'is' if n_far == 1 else 'are'} out of range")
@@ -263,8 +282,10 @@ def sensors_words(r: RankedScenario, types: dict[str, str]) -> str:
     elif cover:
         parts.append("no confirming sensor has it in view (" + ", ".join(cover) + ")")
     if support:
-        parts.append(f"{_sensor_names(support, types)} {'sees' if len(support) == 1 else 'see'}"
-                     " it but cannot confirm it for braking")
+        parts.append(
+            f"{_sensor_names(support, types)} {'sees' if len(support) == 1 else 'see'}"
+            " it but cannot confirm it for braking"
+        )
     return "; ".join(parts)
 
 
@@ -302,11 +323,16 @@ def weakness_parts(r: RankedScenario, types: dict[str, str]) -> tuple[str, str]:
     elif t_safe is not None:
         when += f" (it must be confirmed by {t_safe:.2f} s)"
     pdc = float((tr.pd if tr.pd_confirm is None else tr.pd_confirm)[k])
-    seen = ("no confirming sensor detects it" if pdc < 0.005 else
-            f"the confirming sensors detect it with Pd {pdc:.2f} per cycle")
+    seen = (
+        "no confirming sensor detects it"
+        if pdc < 0.005
+        else f"the confirming sensors detect it with Pd {pdc:.2f} per cycle"
+    )
     clause = sensors_words(r, types)
-    out.append(f"{when} the {target} is {where_words(float(tr.x[k]), float(tr.y[k]))} and "
-               f"{seen}" + (f": {clause}." if clause else "."))
+    out.append(
+        f"{when} the {target} is {where_words(float(tr.x[k]), float(tr.y[k]))} and "
+        f"{seen}" + (f": {clause}." if clause else ".")
+    )
     t_conf, margin = _num(row.get("t_confirm_median_s")), _num(row.get("detection_margin_s"))
     p_never = _num(row.get("p_never_confirmed"))
     if t_conf is not None:
@@ -318,16 +344,20 @@ def weakness_parts(r: RankedScenario, types: dict[str, str]) -> tuple[str, str]:
         end = "Outcome:"
     p = _num(row.get("collision_probability"))
     v_imp = _num(row.get("impact_speed_kmh"))
-    end += (f" P(collision) {fmt_p(p if p is not None else 0.0)}"
-            + (f", impact at {v_imp:.0f} km/h" if v_imp is not None else "")
-            + f" (rank {row.get('rank')}).")
+    end += (
+        f" P(collision) {fmt_p(p if p is not None else 0.0)}"
+        + (f", impact at {v_imp:.0f} km/h" if v_imp is not None else "")
+        + f" (rank {row.get('rank')})."
+    )
     out.append(end)
     others = [e.strip() for e in str(row.get("environments") or "").split(",")][1:]
     if others:
         n = Counter(e.split("@")[0] for e in others if e)
         names = [k if c == 1 else f"{k} with {c} sun positions" for k, c in n.items()]
-        out.append(f"The same trajectory is critical for the same reason in {len(others)} "
-                   f"more condition{'s' if len(others) > 1 else ''} ({', '.join(names)}).")
+        out.append(
+            f"The same trajectory is critical for the same reason in {len(others)} "
+            f"more condition{'s' if len(others) > 1 else ''} ({', '.join(names)})."
+        )
     return out[0], " ".join(out[1:])
 
 
@@ -339,8 +369,7 @@ def condition_label(r: RankedScenario) -> str:
     return f"{text} ({r.spec.environment_name})"
 
 
-def pick_weaknesses(ranked: list[RankedScenario], n: int = MAX_WEAKNESSES
-                    ) -> list[RankedScenario]:
+def pick_weaknesses(ranked: list[RankedScenario], n: int = MAX_WEAKNESSES) -> list[RankedScenario]:
     """The highest-ranked scenario of each (family, dominant effect), in rank order."""
     seen: set[tuple[str, str]] = set()
     out = []
@@ -361,12 +390,21 @@ def pick_weaknesses(ranked: list[RankedScenario], n: int = MAX_WEAKNESSES
 BLIND_RADIUS_M = 50.0
 #: Directions from the centre of the body, 45 deg each, counter-clockwise from straight
 #: ahead (a spot beside the doors is "left", not "ahead-left" as seen from the rear axle).
-SECTORS = ("ahead", "ahead-left", "left", "behind-left", "behind", "behind-right", "right",
-           "ahead-right")
+SECTORS = (
+    "ahead",
+    "ahead-left",
+    "left",
+    "behind-left",
+    "behind",
+    "behind-right",
+    "right",
+    "ahead-right",
+)
 
 
-def blind_extents(path: Path, system: System, radius_m: float = BLIND_RADIUS_M
-                  ) -> tuple[float, dict[str, tuple[float, float, float]]]:
+def blind_extents(
+    path: Path, system: System, radius_m: float = BLIND_RADIUS_M
+) -> tuple[float, dict[str, tuple[float, float, float]]]:
     """Per direction (``SECTORS``): (area m2, nearest and farthest distance from the body
     in m) of the cells where a coverage map (``coverage.npz``: exact fused Pd at cell
     centres) has Pd < 0.5 within ``radius_m`` of the centre of the body, outside the body;
@@ -378,18 +416,28 @@ def blind_extents(path: Path, system: System, radius_m: float = BLIND_RADIUS_M
             pd, x, y = z["pd"], z["x"], z["y"]
             res = float(np.asarray(z["resolution"]).ravel()[0])
     except (OSError, KeyError, ValueError, EOFError, zipfile.BadZipFile) as exc:
-        raise InputError(path, "", "unreadable coverage map (expected the .npz of "
-                         f"`sensorgap coverage`: pd, x, y, resolution): {exc}") from None
+        raise InputError(
+            path,
+            "",
+            "unreadable coverage map (expected the .npz of "
+            f"`sensorgap coverage`: pd, x, y, resolution): {exc}",
+        ) from None
     if pd.shape != (len(y), len(x)):
-        raise InputError(path, "pd", f"expected shape (len(y), len(x)) = ({len(y)}, "
-                         f"{len(x)}), got {pd.shape}")
+        raise InputError(
+            path, "pd", f"expected shape (len(y), len(x)) = ({len(y)}, {len(x)}), got {pd.shape}"
+        )
     body = system.config.vehicle
     cx = 0.5 * (body.x_rear_m + body.x_front_m)
-    r = min(radius_m, cx - (float(x.min()) - res / 2), float(x.max()) + res / 2 - cx,
-            -(float(y.min()) - res / 2), float(y.max()) + res / 2)
+    r = min(
+        radius_m,
+        cx - (float(x.min()) - res / 2),
+        float(x.max()) + res / 2 - cx,
+        -(float(y.min()) - res / 2),
+        float(y.max()) + res / 2,
+    )
     xx, yy = np.meshgrid(x, y)
     hw = 0.5 * body.width_m
-    inside = ((xx >= body.x_rear_m) & (xx <= body.x_front_m) & (np.abs(yy) <= hw))
+    inside = (xx >= body.x_rear_m) & (xx <= body.x_front_m) & (np.abs(yy) <= hw)
     blind = (np.hypot(xx - cx, yy) <= r) & (pd < 0.5) & ~inside
     k = (np.floor((np.degrees(np.arctan2(yy, xx - cx)) + 22.5) / 45.0).astype(int)) % 8
     dx = np.maximum(np.maximum(body.x_rear_m - xx, xx - body.x_front_m), 0.0)
@@ -398,13 +446,17 @@ def blind_extents(path: Path, system: System, radius_m: float = BLIND_RADIUS_M
     for i, name in enumerate(SECTORS):
         sel = blind & (k == i)
         n = int(np.count_nonzero(sel))
-        out[name] = ((float(n) * res * res, float(dist[sel].min()), float(dist[sel].max()))
-                     if n else (0.0, 0.0, 0.0))
+        out[name] = (
+            (float(n) * res * res, float(dist[sel].min()), float(dist[sel].max()))
+            if n
+            else (0.0, 0.0, 0.0)
+        )
     return r, out
 
 
-def blind_areas(path: Path, system: System, radius_m: float = BLIND_RADIUS_M
-                ) -> tuple[float, dict[str, float]]:
+def blind_areas(
+    path: Path, system: System, radius_m: float = BLIND_RADIUS_M
+) -> tuple[float, dict[str, float]]:
     """Area (m2) per direction (``SECTORS``) where a coverage map (``coverage.npz``: exact
     fused Pd at cell centres) has Pd < 0.5 within ``radius_m`` of the centre of the body,
     outside the body; the radius is reduced to the largest circle inside the map. Returns
@@ -475,9 +527,17 @@ def mirrored_pairs(items: list[tuple[str, str]]) -> list[tuple[str, str]]:
     for i, (amount, words) in enumerate(items):
         if i in used:
             continue
-        j = next((k for k in range(i + 1, len(items)) if k not in used
-                  and items[k][0] == amount and items[k][1] == _swap_sides(words)
-                  and items[k][1] != words), None)
+        j = next(
+            (
+                k
+                for k in range(i + 1, len(items))
+                if k not in used
+                and items[k][0] == amount
+                and items[k][1] == _swap_sides(words)
+                and items[k][1] != words
+            ),
+            None,
+        )
         if j is None:
             out.append((amount, words))
             continue
@@ -486,8 +546,7 @@ def mirrored_pairs(items: list[tuple[str, str]]) -> list[tuple[str, str]]:
         rest = re.sub(r" (left|right) of the body", " to the side of the body", rest)
         rest = re.sub(r"\((left|right) half\)", "(each half)", rest)
         first, second = sorted((head, _swap_sides(head)), key=lambda t: "right" in t)
-        out.append((f"{amount} each", f"{first} and {second}"
-                    + (f": {rest}" if rest else "")))
+        out.append((f"{amount} each", f"{first} and {second}" + (f": {rest}" if rest else "")))
     return out
 
 
@@ -497,23 +556,28 @@ def _nearfield_words(nf: Path, system: System) -> str:
         d = json.loads(nf.read_text(encoding="utf-8"))
         exact = float(d["blind_spot_m2"]["exact"])
         radius = float(d.get("window", {}).get("radius_m", 5.0))
-        holes = [(float(h["area_m2"]), list(h["bounds_m"]), list(h["centroid_m"]))
-                 for h in d["blind_spot_m2"].get("holes", [])]
+        holes = [
+            (float(h["area_m2"]), list(h["bounds_m"]), list(h["centroid_m"]))
+            for h in d["blind_spot_m2"].get("holes", [])
+        ]
         for _, b, c in holes:
             if len(b) != 4 or len(c) != 2:
                 raise ValueError("bounds_m: 4 numbers, centroid_m: 2 numbers expected")
     except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
         raise InputError(nf, "blind_spot_m2", f"unreadable: {exc}") from None
-    text = (f"near field: {exact:.2f} m² within {radius:g} m of the body seen by no sensor "
-            "at any height")
-    big = [(f"{a:.2f} m²", spot_words(b, c, system)) for a, b, c in holes
-           if a >= MIN_SPOT_WORDS_M2]
+    text = (
+        f"near field: {exact:.2f} m² within {radius:g} m of the body seen by no sensor "
+        "at any height"
+    )
+    big = [(f"{a:.2f} m²", spot_words(b, c, system)) for a, b, c in holes if a >= MIN_SPOT_WORDS_M2]
     small = [h for h in holes if h[0] < MIN_SPOT_WORDS_M2]
     if big:
         text += " (" + "; ".join(f"{a} {w}" for a, w in mirrored_pairs(big))
         if small:
-            text += (f"; {_count(len(small), 'sliver')} below {MIN_SPOT_WORDS_M2:g} m² "
-                     f"at the body's edge")
+            text += (
+                f"; {_count(len(small), 'sliver')} below {MIN_SPOT_WORDS_M2:g} m² "
+                f"at the body's edge"
+            )
         text += ")"
     return text
 
@@ -532,20 +596,32 @@ def _coverage_para(folder: Path, system: System) -> Para | None:
         env = m.name
         if (m / "summary.json").is_file():
             try:
-                env = str(json.loads((m / "summary.json").read_text(encoding="utf-8"))
-                          .get("environment", env))
+                env = str(
+                    json.loads((m / "summary.json").read_text(encoding="utf-8")).get(
+                        "environment", env
+                    )
+                )
             except (OSError, ValueError, AttributeError):
                 raise InputError(m / "summary.json", "", "unreadable JSON") from None
-        where = sorted(((round(e[0]), n, e[1], e[2]) for n, e in ext.items()
-                        if round(e[0]) >= 1), key=lambda t: -t[0])
-        text = (f"within {r:g} m of the vehicle a car (heading the same way; {env}, "
-                f"coverage/{m.name}) is detected with Pd < 0.5 over "
-                f"{sum(areas.values()):,.0f} m² outside the body")
+        where = sorted(
+            ((round(e[0]), n, e[1], e[2]) for n, e in ext.items() if round(e[0]) >= 1),
+            key=lambda t: -t[0],
+        )
+        text = (
+            f"within {r:g} m of the vehicle a car (heading the same way; {env}, "
+            f"coverage/{m.name}) is detected with Pd < 0.5 over "
+            f"{sum(areas.values()):,.0f} m² outside the body"
+        )
         if where:
-            pairs = mirrored_pairs([(f"{a:,} m²", f"{n}: {_m(d0)} to {_m(d1)} m from the "
-                                     "body") for a, n, d0, d1 in where])
+            pairs = mirrored_pairs(
+                [
+                    (f"{a:,} m²", f"{n}: {_m(d0)} to {_m(d1)} m from the body")
+                    for a, n, d0, d1 in where
+                ]
+            )
             text += ": " + ", ".join(
-                f"{a} {w.partition(': ')[0]} ({w.partition(': ')[2]})" for a, w in pairs)
+                f"{a} {w.partition(': ')[0]} ({w.partition(': ')[2]})" for a, w in pairs
+            )
         elif sum(areas.values()) >= 0.5:
             text += " (less than 1 m² in each direction)"
         parts.append(text)
@@ -557,6 +633,7 @@ def _coverage_para(folder: Path, system: System) -> Para | None:
 
 # --- the section ---------------------------------------------------------------------------
 
+
 def _count(n: int, word: str, plural: str | None = None) -> str:
     return f"{n:,} {word if n == 1 else plural or word + 's'}"
 
@@ -565,25 +642,29 @@ def _vehicle_para(system: System, settings: dict[str, Any]) -> Para:
     kinds = Counter(s.type_name for s in system.sensors)
     sensors = ", ".join(_count(n, k, _PLURAL.get(k)) for k, n in kinds.items())
     body = system.config.vehicle
-    text = (f"Vehicle: {system.name} ({system.source.name}), {len(system.sensors)} sensors "
-            f"({sensors}); body {body.length_m:g} m x {body.width_m:g} m.")
+    text = (
+        f"Vehicle: {system.name} ({system.source.name}), {len(system.sensors)} sensors "
+        f"({sensors}); body {body.length_m:g} m x {body.width_m:g} m."
+    )
     if settings.get("reaction"):
         text += f" Braking: {settings['reaction']}."
     return Para(text)
 
 
-def _searched_para(settings: dict[str, Any], search: dict[str, Any] | None,
-                   n_ranked: int, n_unavoidable: int) -> Para:
+def _searched_para(
+    settings: dict[str, Any], search: dict[str, Any] | None, n_ranked: int, n_unavoidable: int
+) -> Para:
     fams = [str(f) for f in settings.get("families", [])]
     envs = [str(e) for e in settings.get("environments", [])]
     budget = (search or {}).get("settings", {}).get("budget", settings.get("budget"))
     cand = (search or {}).get("candidates")
-    parts = [f"Searched: {_count(len(fams), 'scenario family', 'scenario families')} "
-             f"({', '.join(fams)}) in {_count(len(envs), 'environment')} "
-             f"({', '.join(envs)})"]
+    parts = [
+        f"Searched: {_count(len(fams), 'scenario family', 'scenario families')} "
+        f"({', '.join(fams)}) in {_count(len(envs), 'environment')} "
+        f"({', '.join(envs)})"
+    ]
     if settings.get("sun_search"):
-        parts.append("with the sun searched where it is visible (2-30° high, any "
-                     "direction)")
+        parts.append("with the sun searched where it is visible (2-30° high, any direction)")
     run = []
     if budget is not None:
         run.append(f"budget {int(budget):,} candidates")
@@ -594,12 +675,16 @@ def _searched_para(settings: dict[str, Any], search: dict[str, Any] | None,
     if settings.get("seed") is not None:
         run.append(f"seed {settings['seed']}")
     text = " ".join(parts) + ("; " + ", ".join(run) if run else "") + ". "
-    text += (f"Found: {_count(n_ranked, 'sensor-critical scenario')} ranked (the vehicle "
-             "collides where one with perfect perception and the same braking does not)")
+    text += (
+        f"Found: {_count(n_ranked, 'sensor-critical scenario')} ranked (the vehicle "
+        "collides where one with perfect perception and the same braking does not)"
+    )
     if n_unavoidable:
-        text += (f"; {n_unavoidable} more collide even with perfect perception or are "
-                 "marginal, avoidable only by it (listed "
-                 "apart, unavoidable.csv)")
+        text += (
+            f"; {n_unavoidable} more collide even with perfect perception or are "
+            "marginal, avoidable only by it (listed "
+            "apart, unavoidable.csv)"
+        )
     return Para(text + ".")
 
 
@@ -609,24 +694,48 @@ def _test_first(picked: list[RankedScenario], seeds: int = 1) -> Table:
         p = _num(r.row.get("collision_probability"))
         v = _num(r.row.get("impact_speed_kmh"))
         files: list[str | Link] = (
-            [Link(Path(r.files["file"]).name, r.files["file"]),
-             Link(Path(r.files["road"]).name, r.files["road"])] if r.files
-            else ["not exported", ""])
-        rows.append([str(r.row.get("rank")), str(r.row.get("scenario_id")), r.spec.family.name,
-                     r.spec.environment_name, "" if p is None else fmt_p(p),
-                     "" if v is None else f"{v:.0f}", *files])
+            [
+                Link(Path(r.files["file"]).name, r.files["file"]),
+                Link(Path(r.files["road"]).name, r.files["road"]),
+            ]
+            if r.files
+            else ["not exported", ""]
+        )
+        rows.append(
+            [
+                str(r.row.get("rank")),
+                str(r.row.get("scenario_id")),
+                r.spec.family.name,
+                r.spec.environment_name,
+                "" if p is None else fmt_p(p),
+                "" if v is None else f"{v:.0f}",
+                *files,
+            ]
+        )
         if seeds > 1:
             f = r.row.get("found_by_seeds")
             rows[-1].insert(6, "" if f is None else f"{int(f)} of {seeds}")
-    head = ["rank", "scenario", "family", "environment", "P(collision)", "impact [km/h]",
-            "OpenSCENARIO", "OpenDRIVE"]
+    head = [
+        "rank",
+        "scenario",
+        "family",
+        "environment",
+        "P(collision)",
+        "impact [km/h]",
+        "OpenSCENARIO",
+        "OpenDRIVE",
+    ]
     if seeds > 1:
         head.insert(6, "found by searches")
     return Table(head, rows)
 
 
-def _confidence(settings: dict[str, Any], search: dict[str, Any] | None,
-                lve: dict[str, Any] | None, ranked: list[RankedScenario]) -> list[str]:
+def _confidence(
+    settings: dict[str, Any],
+    search: dict[str, Any] | None,
+    lve: dict[str, Any] | None,
+    ranked: list[RankedScenario],
+) -> list[str]:
     items = []
     per = (search or {}).get("per_family", {})
     if per:
@@ -634,39 +743,46 @@ def _confidence(settings: dict[str, Any], search: dict[str, Any] | None,
         if never:
             cands = sorted({int(per[f].get("budget", 0)) for f in never})
             threats = sorted(int(per[f].get("threats", 0)) for f in never)
-            spread = (f"{threats[0]:,}" if threats[0] == threats[-1]
-                      else f"{threats[0]:,}-{threats[-1]:,}")
+            spread = (
+                f"{threats[0]:,}"
+                if threats[0] == threats[-1]
+                else f"{threats[0]:,}-{threats[-1]:,}"
+            )
             items.append(
                 f"No sensor-critical scenario at all in {', '.join(never)} ("
                 + (f"{cands[0]:,}" if len(cands) == 1 else f"{cands[0]:,}-{cands[-1]:,}")
                 + f" candidates{' each' if len(never) > 1 else ''}, {spread} of them "
                 "threats): the search found no case where the sensors fail there, which "
-                "does not prove that there is none.")
+                "does not prove that there is none."
+            )
         else:
             items.append("Every searched family produced sensor-critical scenarios.")
         fams = Counter(str(r.row.get("family")) for r in ranked)
-        lower = [f for f, d in per.items() if d.get("sensor_critical_by_lookup")
-                 and f not in fams]
+        lower = [f for f, d in per.items() if d.get("sensor_critical_by_lookup") and f not in fams]
         if fams:
-            text = ("The ranked scenarios come from " + ", ".join(
-                f"{f} ({n})" for f, n in fams.most_common()))
+            text = "The ranked scenarios come from " + ", ".join(
+                f"{f} ({n})" for f, n in fams.most_common()
+            )
             if lower:
-                text += (f"; {_count(len(lower), 'other family', 'other families')} had "
-                         "sensor-critical scenarios less likely to collide (see the "
-                         "per-family table)")
+                text += (
+                    f"; {_count(len(lower), 'other family', 'other families')} had "
+                    "sensor-critical scenarios less likely to collide (see the "
+                    "per-family table)"
+                )
             items.append(text + ".")
     else:
-        items.append("Per-family counts: not available (summary.json of the search is "
-                     "missing).")
+        items.append("Per-family counts: not available (summary.json of the search is missing).")
     if lve and lve.get("reevaluated"):
         key = next((k for k in lve if k.startswith("top") and k.endswith("_overlap")), None)
-        text = (f"Lookup vs exact: the search proposes with fast lookup maps; of "
-                f"{lve['reevaluated']:,} proposals re-evaluated exactly, "
-                f"{lve.get('sensor_critical_lookup', 0)} are sensor-critical by lookup, "
-                f"{lve.get('sensor_critical_exact', 0)} exactly, "
-                f"{lve.get('sensor_critical_both', 0)} by both; P(collision) differs by at "
-                f"most {fmt_p(float(lve.get('max_abs_diff_collision_probability', 0.0)))} "
-                f"(mean {fmt_p(float(lve.get('mean_abs_diff_collision_probability', 0.0)))})")
+        text = (
+            f"Lookup vs exact: the search proposes with fast lookup maps; of "
+            f"{lve['reevaluated']:,} proposals re-evaluated exactly, "
+            f"{lve.get('sensor_critical_lookup', 0)} are sensor-critical by lookup, "
+            f"{lve.get('sensor_critical_exact', 0)} exactly, "
+            f"{lve.get('sensor_critical_both', 0)} by both; P(collision) differs by at "
+            f"most {fmt_p(float(lve.get('max_abs_diff_collision_probability', 0.0)))} "
+            f"(mean {fmt_p(float(lve.get('mean_abs_diff_collision_probability', 0.0)))})"
+        )
         if key:
             k = key[3:-8]
             text += f"; top-{k} overlap {lve[key]} of {k}"
@@ -682,64 +798,97 @@ def _stability(settings: dict[str, Any], stab: dict[str, Any] | None) -> str:
     searches (``run_search`` ``seeds``), else how to measure it."""
     seed = settings.get("seed")
     if not stab or int(stab.get("seeds", 1)) < 2 or not stab.get("found_by"):
-        return ("Stability over seeds: not measured in this run (one search"
-                + (f", seed {seed}" if seed is not None else "") + "); the ranking can "
-                "change with the budget and the seed: rerun with --seeds 3 (the budget as "
-                "three independent searches) to see how many of them find each weakness.")
+        return (
+            "Stability over seeds: not measured in this run (one search"
+            + (f", seed {seed}" if seed is not None else "")
+            + "); the ranking can "
+            "change with the budget and the seed: rerun with --seeds 3 (the budget as "
+            "three independent searches) to see how many of them find each weakness."
+        )
     k = int(stab["seeds"])
     found = [int(f) for f in stab["found_by"]]
     per = [int(b) for b in stab.get("budget_per_seed", [])]
-    each = (f" of {per[0]:,}" if per and min(per) == max(per)
-            else f" of {min(per):,}-{max(per):,}" if per else "")
-    text = (f"Stability over seeds: the budget ran as {k} independent searches"
-            f"{each} candidates each. How many of them found each of the top {len(found)} "
-            "weaknesses on their own, as the same kind of weakness (the same family, cause "
-            "and environment preset, at any sun position, in that search's own ranking): "
-            + _found_counts(found, k))
+    each = (
+        f" of {per[0]:,}"
+        if per and min(per) == max(per)
+        else f" of {min(per):,}-{max(per):,}"
+        if per
+        else ""
+    )
+    text = (
+        f"Stability over seeds: the budget ran as {k} independent searches"
+        f"{each} candidates each. How many of them found each of the top {len(found)} "
+        "weaknesses on their own, as the same kind of weakness (the same family, cause "
+        "and environment preset, at any sun position, in that search's own ranking): "
+        + _found_counts(found, k)
+    )
     near = [int(f) for f in stab.get("found_near_by", [])]
     if len(near) == len(found):
-        text += (f"; at nearly the same parameters and sun (within the ranking's "
-                 f"near-duplicate distance {float(stab.get('near_distance', 0.15)):g}): "
-                 + _found_counts(near, k))
+        text += (
+            f"; at nearly the same parameters and sun (within the ranking's "
+            f"near-duplicate distance {float(stab.get('near_distance', 0.15)):g}): "
+            + _found_counts(near, k)
+        )
     if 1 in found:
-        text += ("; a weakness found by one search only may be missed by a rerun with "
-                 "another seed")
+        text += "; a weakness found by one search only may be missed by a rerun with another seed"
     return text + "."
 
 
 def _found_counts(found: list[int], k: int) -> str:
     """'7 by all 3, 2 by 2, 1 by one only' of per-row search counts."""
     counts = Counter(found)
-    parts = [f"{counts[j]} by {'all ' + str(k) if j == k else j if j > 1 else 'one only'}"
-             for j in range(k, 0, -1) if counts[j]]
+    parts = [
+        f"{counts[j]} by {'all ' + str(k) if j == k else j if j > 1 else 'one only'}"
+        for j in range(k, 0, -1)
+        if counts[j]
+    ]
     if counts[0]:
         parts.append(f"{counts[0]} by none alone (only their union ranked it)")
     return ", ".join(parts)
 
 
-def summary_section(folder: Path, system: System, settings: dict[str, Any],
-                    ranked: list[RankedScenario] | None, search: dict[str, Any] | None,
-                    lookup_vs_exact: dict[str, Any] | None, n_unavoidable: int) -> Section:
+def summary_section(
+    folder: Path,
+    system: System,
+    settings: dict[str, Any],
+    ranked: list[RankedScenario] | None,
+    search: dict[str, Any] | None,
+    lookup_vs_exact: dict[str, Any] | None,
+    n_unavoidable: int,
+) -> Section:
     """The summary page (``ranked`` None: no search in this run)."""
     blocks: list[Block] = [_vehicle_para(system, settings)]
     cover = _coverage_para(folder, system)
     if cover is not None:
         blocks.append(cover)
     if ranked is None:
-        blocks.append(Para("No search in this run: no weaknesses ranked (run `sensorgap run` "
-                           f"or `sensorgap search --out {folder.name}`)."))
+        blocks.append(
+            Para(
+                "No search in this run: no weaknesses ranked (run `sensorgap run` "
+                f"or `sensorgap search --out {folder.name}`)."
+            )
+        )
         return Section("summary", "Summary", blocks)
     blocks.append(_searched_para(settings, search, len(ranked), n_unavoidable))
     types = {s.id: s.type_name for s in system.sensors}
     picked = pick_weaknesses(ranked)
     subs = [
-        Section("weaknesses", "Top weaknesses", [Bullets(
-            [weakness_parts(r, types) for r in picked], ordered=True)] if picked
-            else [Para("None found: no scenario in which the sensors make the difference.")]),
+        Section(
+            "weaknesses",
+            "Top weaknesses",
+            [Bullets([weakness_parts(r, types) for r in picked], ordered=True)]
+            if picked
+            else [Para("None found: no scenario in which the sensors make the difference.")],
+        ),
     ]
     if picked:
         seeds = int(((search or {}).get("stability") or {}).get("seeds", 1))
         subs.append(Section("test-first", "Test these first", [_test_first(picked, seeds)]))
-    subs.append(Section("confidence", "Confidence", [Bullets(
-        _confidence(settings, search, lookup_vs_exact, ranked))]))
+    subs.append(
+        Section(
+            "confidence",
+            "Confidence",
+            [Bullets(_confidence(settings, search, lookup_vs_exact, ranked))],
+        )
+    )
     return Section("summary", "Summary", blocks, subs)

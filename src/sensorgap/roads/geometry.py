@@ -106,8 +106,12 @@ class Arc(Geometry):
     def _local(self, u: F64) -> Pose:
         phi = self.curvature * u
         chord = u * np.sinc(phi / (2.0 * np.pi))  # 2 sin(k u / 2) / k, exact at k = 0
-        return (chord * np.cos(0.5 * phi), chord * np.sin(0.5 * phi), phi,
-                np.full_like(u, self.curvature))
+        return (
+            chord * np.cos(0.5 * phi),
+            chord * np.sin(0.5 * phi),
+            phi,
+            np.full_like(u, self.curvature),
+        )
 
 
 @dataclass(frozen=True)
@@ -156,8 +160,12 @@ class Spiral(Geometry):
 def _cubic(c: tuple[float, float, float, float], p: F64) -> tuple[F64, F64, F64, F64]:
     """Value and first three derivatives of ``c0 + c1 p + c2 p^2 + c3 p^3``."""
     a, b, cc, d = c
-    return (a + p * (b + p * (cc + p * d)), b + p * (2.0 * cc + 3.0 * d * p),
-            2.0 * cc + 6.0 * d * p, np.full_like(p, 6.0 * d))
+    return (
+        a + p * (b + p * (cc + p * d)),
+        b + p * (2.0 * cc + 3.0 * d * p),
+        2.0 * cc + 6.0 * d * p,
+        np.full_like(p, 6.0 * d),
+    )
 
 
 @dataclass(frozen=True)
@@ -239,8 +247,10 @@ class ParamPoly3(Geometry):
 
     def _derivs(self, ds: F64) -> tuple[tuple[F64, F64, F64, F64], tuple[F64, F64, F64, F64]]:
         p = self._p(ds)
-        return (_cubic((self.a_u, self.b_u, self.c_u, self.d_u), p),
-                _cubic((self.a_v, self.b_v, self.c_v, self.d_v), p))
+        return (
+            _cubic((self.a_u, self.b_u, self.c_u, self.d_u), p),
+            _cubic((self.a_v, self.b_v, self.c_v, self.d_v), p),
+        )
 
     def _local(self, ds: F64) -> Pose:
         (u, du, ddu, _), (v, dv, ddv, _) = self._derivs(ds)

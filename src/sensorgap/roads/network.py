@@ -72,8 +72,9 @@ class RoadNetwork:
         source: name used in ``InputError`` messages (the file path).
     """
 
-    def __init__(self, roads: Mapping[str, Road], junctions: Mapping[str, Junction],
-                 source: str = "<memory>") -> None:
+    def __init__(
+        self, roads: Mapping[str, Road], junctions: Mapping[str, Junction], source: str = "<memory>"
+    ) -> None:
         self.roads: dict[str, Road] = dict(roads)
         self.junctions: dict[str, Junction] = dict(junctions)
         self.source = str(source)
@@ -86,8 +87,9 @@ class RoadNetwork:
         road = self.roads.get(rid)
         if road is None:
             known = ", ".join(list(self.roads)[:12]) + (", ..." if len(self.roads) > 12 else "")
-            raise InputError(self.source, f"road[id={rid}]",
-                             f"road does not exist (roads: {known})")
+            raise InputError(
+                self.source, f"road[id={rid}]", f"road does not exist (roads: {known})"
+            )
         return road
 
     def lane_exists(self, road_id: str | int, lane_id: int, s: float | None = None) -> bool:
@@ -107,8 +109,11 @@ class RoadNetwork:
         bad = ~np.isfinite(arr) | (arr < -S_TOLERANCE) | (arr > road.length + S_TOLERANCE)
         if np.any(bad):
             v = arr[np.flatnonzero(bad)[0]]
-            raise InputError(self.source, f"road[id={road.id}]",
-                             f"s must be within [0, {road.length:g}] m, got {v}")
+            raise InputError(
+                self.source,
+                f"road[id={road.id}]",
+                f"s must be within [0, {road.length:g}] m, got {v}",
+            )
         return np.clip(arr, 0.0, road.length)
 
     # -- reference line ----------------------------------------------------------------
@@ -148,9 +153,11 @@ class RoadNetwork:
         sec = road.sections[idx]
         if sec.lane(lane_id) is None:
             ids = ", ".join(map(str, sec.lane_ids))
-            raise InputError(self.source, f"road[id={road.id}]/lane[id={lane_id}]",
-                             f"lane does not exist at s={s:g} m (laneSection[{idx}] has "
-                             f"lanes {ids})")
+            raise InputError(
+                self.source,
+                f"road[id={road.id}]/lane[id={lane_id}]",
+                f"lane does not exist at s={s:g} m (laneSection[{idx}] has lanes {ids})",
+            )
         return sec
 
     def _lane_t(self, road: Road, lane_id: int, s: F64) -> tuple[F64, F64, F64, F64, F64]:
@@ -212,8 +219,9 @@ class RoadNetwork:
         a1, a2 = 1.0 - t * k, dt
         b1, b2 = -2.0 * dt * k - t * dk, (1.0 - t * k) * k + ddt
         speed2 = a1 * a1 + a2 * a2
-        curv = np.divide(a1 * b2 - a2 * b1, speed2**1.5, out=np.zeros_like(speed2),
-                         where=speed2 > 0.0)
+        curv = np.divide(
+            a1 * b2 - a2 * b1, speed2**1.5, out=np.zeros_like(speed2), where=speed2 > 0.0
+        )
         heading = h + np.arctan2(a2, a1)
         shape = np.shape(s)
         return px.reshape(shape), py.reshape(shape), heading.reshape(shape), curv.reshape(shape)
@@ -222,14 +230,16 @@ class RoadNetwork:
     @overload
     def road_to_world(self, road_id: str | int, s: float, t: float) -> tuple[float, float]: ...
     @overload
-    def road_to_world(self, road_id: str | int, s: Values, t: Values | float
-                      ) -> tuple[F64, F64]: ...
+    def road_to_world(
+        self, road_id: str | int, s: Values, t: Values | float
+    ) -> tuple[F64, F64]: ...
 
     def road_to_world(self, road_id: str | int, s: ArrayLike, t: ArrayLike) -> tuple[Any, Any]:
         """World x, y (m) of road coordinates ``s`` (m) and ``t`` (m, left positive)."""
         road = self.road(road_id)
-        sb, tb = np.broadcast_arrays(np.asarray(s, dtype=np.float64),
-                                     np.asarray(t, dtype=np.float64))
+        sb, tb = np.broadcast_arrays(
+            np.asarray(s, dtype=np.float64), np.asarray(t, dtype=np.float64)
+        )
         if not np.all(np.isfinite(tb)):
             raise InputError(self.source, f"road[id={road.id}]", "t must be finite")
         x, y, h, _, _ = self._reference(road, self._s(road, sb))
@@ -277,8 +287,9 @@ class RoadNetwork:
         lane 1 (or -1 if the section has no left lanes).
         """
         road = self.road(road_id)
-        sb, tb = np.broadcast_arrays(np.asarray(s, dtype=np.float64),
-                                     np.asarray(t, dtype=np.float64))
+        sb, tb = np.broadcast_arrays(
+            np.asarray(s, dtype=np.float64), np.asarray(t, dtype=np.float64)
+        )
         return self._lane_at(road, self._s(road, sb), tb.ravel()).reshape(sb.shape)
 
     def _lane_at(self, road: Road, s: F64, t: F64) -> NDArray[np.int64]:
@@ -316,8 +327,7 @@ class RoadNetwork:
             owner.append(np.full(n, i, dtype=np.intp))
             reach.append(float(max(np.max(np.abs(left)), np.max(np.abs(right)))) + SAMPLE_STEP)
         tree = cKDTree(np.column_stack([np.concatenate(xs), np.concatenate(ys)]))
-        return _SampleIndex(roads, np.concatenate(owner), np.concatenate(ss),
-                            np.array(reach), tree)
+        return _SampleIndex(roads, np.concatenate(owner), np.concatenate(ss), np.array(reach), tree)
 
     def _candidates(self, px: F64, py: F64) -> tuple[NDArray[np.intp], NDArray[np.intp], F64]:
         """(point, road) pairs worth projecting, with the nearest sample's s as the start.
@@ -331,13 +341,17 @@ class RoadNetwork:
         balls = idx.tree.query_ball_point(pts, r=float(np.max(idx.reach)))
         counts = np.fromiter((len(b) for b in balls), dtype=np.intp, count=len(balls))
         pt = np.concatenate([np.repeat(np.arange(px.size), counts), np.arange(px.size)])
-        samp = np.concatenate([np.fromiter((j for b in balls for j in b), dtype=np.intp,
-                                           count=int(counts.sum())), nearest])
+        samp = np.concatenate(
+            [
+                np.fromiter((j for b in balls for j in b), dtype=np.intp, count=int(counts.sum())),
+                nearest,
+            ]
+        )
         road = idx.road_of[samp]
         xy = idx.tree.data[samp]
         dist = np.hypot(xy[:, 0] - px[pt], xy[:, 1] - py[pt])
         keep = dist <= idx.reach[road]
-        keep[-px.size:] = True  # the nearest road of every point
+        keep[-px.size :] = True  # the nearest road of every point
         pt, road, samp, dist = pt[keep], road[keep], samp[keep], dist[keep]
         order = np.lexsort((dist, road, pt))  # nearest sample first per (point, road)
         pt, road, samp = pt[order], road[order], samp[order]
@@ -371,8 +385,9 @@ class RoadNetwork:
     @overload
     def world_to_road(self, x: float, y: float) -> tuple[str, int, float, float]: ...
     @overload
-    def world_to_road(self, x: Values, y: Values) -> tuple[
-        NDArray[np.object_], NDArray[np.int64], F64, F64]: ...
+    def world_to_road(
+        self, x: Values, y: Values
+    ) -> tuple[NDArray[np.object_], NDArray[np.int64], F64, F64]: ...
 
     def world_to_road(self, x: ArrayLike, y: ArrayLike) -> tuple[Any, Any, Any, Any]:
         """Road coordinates of world points x, y (m): (road id, lane id, s (m), t (m)).
@@ -382,19 +397,27 @@ class RoadNetwork:
         several overlap, e.g. inside a junction); otherwise the nearest projection is
         returned with lane id 0. Scalars in, scalars out; arrays in, arrays out.
         """
-        xb, yb = np.broadcast_arrays(np.asarray(x, dtype=np.float64),
-                                     np.asarray(y, dtype=np.float64))
+        xb, yb = np.broadcast_arrays(
+            np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64)
+        )
         if not (np.all(np.isfinite(xb)) and np.all(np.isfinite(yb))):
             raise InputError("world_to_road", "x/y", "points must be finite numbers (m)")
         shape = xb.shape
         px, py = xb.ravel(), yb.ravel()
         if px.size == 0:
-            return (np.empty(shape, dtype=object), np.zeros(shape, dtype=np.int64),
-                    np.zeros(shape), np.zeros(shape))
+            return (
+                np.empty(shape, dtype=object),
+                np.zeros(shape, dtype=np.int64),
+                np.zeros(shape),
+                np.zeros(shape),
+            )
         cand_pt, cand_road, cand_s = self._candidates(px, py)
         idx = self._index
-        s_all, t_all, k2_all = np.empty(cand_pt.size), np.empty(cand_pt.size), np.empty(
-            cand_pt.size)
+        s_all, t_all, k2_all = (
+            np.empty(cand_pt.size),
+            np.empty(cand_pt.size),
+            np.empty(cand_pt.size),
+        )
         lane_all = np.zeros(cand_pt.size, dtype=np.int64)
         for ri in np.unique(cand_road):
             m = np.flatnonzero(cand_road == ri)
@@ -433,9 +456,17 @@ class RoadNetwork:
         for road in self.roads.values():
             for i, sec in enumerate(road.sections):
                 for lane in sec.left + sec.right:
-                    g.add_node((road.id, i, lane.id), road=road.id, section=i, lane=lane.id,
-                               type=lane.type, s_start=sec.s, s_end=sec.s_end,
-                               travel=_travel(road, lane), junction=road.junction)
+                    g.add_node(
+                        (road.id, i, lane.id),
+                        road=road.id,
+                        section=i,
+                        lane=lane.id,
+                        type=lane.type,
+                        s_start=sec.s,
+                        s_end=sec.s_end,
+                        travel=_travel(road, lane),
+                        junction=road.junction,
+                    )
                 order = sec.lane_ids  # by increasing t
                 for lo, hi in zip(order[:-1], order[1:], strict=True):
                     a, b = (road.id, i, lo), (road.id, i, hi)
@@ -458,12 +489,14 @@ class RoadNetwork:
                 isec = 0 if c.incoming_end == "start" else len(inc.sections) - 1
                 csec = 0 if c.contact_point == "start" else len(con.sections) - 1
                 for la, lb in c.lane_links:
-                    self._connect(g, (inc.id, isec, la), c.incoming_end,
-                                  (con.id, csec, lb), c.contact_point)
+                    self._connect(
+                        g, (inc.id, isec, la), c.incoming_end, (con.id, csec, lb), c.contact_point
+                    )
         return g
 
-    def _link(self, g: nx.DiGraph, road: Road, i: int, lane_id: int, kind: str, other: int,
-              last: int) -> None:
+    def _link(
+        self, g: nx.DiGraph, road: Road, i: int, lane_id: int, kind: str, other: int, last: int
+    ) -> None:
         end: ContactPoint = "end" if kind == "successor" else "start"
         step = 1 if kind == "successor" else -1
         if 0 <= i + step <= last:
@@ -479,8 +512,9 @@ class RoadNetwork:
         self._connect(g, (road.id, i, lane_id), end, (o.id, osec, other), cp)
 
     @staticmethod
-    def _connect(g: nx.DiGraph, a: LaneKey, a_end: ContactPoint, b: LaneKey,
-                 b_end: ContactPoint) -> None:
+    def _connect(
+        g: nx.DiGraph, a: LaneKey, a_end: ContactPoint, b: LaneKey, b_end: ContactPoint
+    ) -> None:
         """Add successor/predecessor edges between lane ``a`` (touching at its ``a_end``) and
         lane ``b`` (at its ``b_end``), oriented by ``a``'s travel direction."""
         if a not in g or b not in g:

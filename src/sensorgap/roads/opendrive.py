@@ -94,8 +94,7 @@ class _Reader:
             self.fail(f"{where}@{attr}", "required attribute is missing", el)
         return raw.strip()
 
-    def num(self, el: etree._Element, attr: str, where: str,
-            default: float | None = None) -> float:
+    def num(self, el: etree._Element, attr: str, where: str, default: float | None = None) -> float:
         raw = el.get(attr)
         if raw is None:
             if default is not None:
@@ -111,8 +110,7 @@ class _Reader:
             self.fail(f"{where}@{attr}", f"must be within +-{MAX_ABS_VALUE:g}, got {raw!r}", el)
         return value
 
-    def count(self, n: int, limit: int, where: str, what: str,
-              el: etree._Element) -> None:
+    def count(self, n: int, limit: int, where: str, what: str, el: etree._Element) -> None:
         """At most ``limit`` elements of a kind (docs/limits.md)."""
         if n > limit:
             self.fail(where, f"{n} {what}; at most {limit} allowed", el)
@@ -124,16 +122,23 @@ class _Reader:
         except ValueError:
             self.fail(f"{where}@{attr}", f"must be an integer, got {raw!r}", el)
 
-    def choice(self, el: etree._Element, attr: str, where: str, allowed: tuple[str, ...],
-               default: str | None = None) -> str:
+    def choice(
+        self,
+        el: etree._Element,
+        attr: str,
+        where: str,
+        allowed: tuple[str, ...],
+        default: str | None = None,
+    ) -> str:
         value = self.text(el, attr, where, default)
         if value not in allowed:
             self.fail(f"{where}@{attr}", f"must be one of {', '.join(allowed)}, got {value!r}", el)
         return value
 
     def cubic(self, el: etree._Element, where: str, s_attr: str) -> CubicPiece:
-        return CubicPiece(self.num(el, s_attr, where), *(self.num(el, k, where)
-                                                         for k in ("a", "b", "c", "d")))
+        return CubicPiece(
+            self.num(el, s_attr, where), *(self.num(el, k, where) for k in ("a", "b", "c", "d"))
+        )
 
     # -- document ----------------------------------------------------------------------
     def network(self, root: etree._Element) -> RoadNetwork:
@@ -149,19 +154,30 @@ class _Reader:
         if not road_els:
             self.fail("OpenDRIVE", "must contain at least one <road>", root)
         self.count(len(road_els), MAX_ROADS, "OpenDRIVE", "roads", root)
-        self.count(sum(len(_kids(pv, "geometry")) for r in road_els
-                       for pv in _kids(r, "planView")), MAX_GEOMETRIES, "OpenDRIVE",
-                   "planView geometries", root)
-        self.count(sum(len(_kids(ls, "laneSection")) for r in road_els
-                       for ls in _kids(r, "lanes")), MAX_LANE_SECTIONS, "OpenDRIVE",
-                   "lane sections", root)
+        self.count(
+            sum(len(_kids(pv, "geometry")) for r in road_els for pv in _kids(r, "planView")),
+            MAX_GEOMETRIES,
+            "OpenDRIVE",
+            "planView geometries",
+            root,
+        )
+        self.count(
+            sum(len(_kids(ls, "laneSection")) for r in road_els for ls in _kids(r, "lanes")),
+            MAX_LANE_SECTIONS,
+            "OpenDRIVE",
+            "lane sections",
+            root,
+        )
         roads: dict[str, Road] = {}
         lines: dict[str, int] = {}
         for i, rel in enumerate(road_els):
             road = self.road(rel, i)
             if road.id in roads:
-                self.fail(f"road[id={road.id}]@id", f"duplicate road id (first on line "
-                          f"{lines[road.id]})", rel)
+                self.fail(
+                    f"road[id={road.id}]@id",
+                    f"duplicate road id (first on line {lines[road.id]})",
+                    rel,
+                )
             roads[road.id] = road
             lines[road.id] = rel.sourceline or 0
         junctions: dict[str, Junction] = {}
@@ -186,11 +202,13 @@ class _Reader:
         if length <= 0.0:
             self.fail(f"{where}@length", f"must be > 0, got {length:g}", el)
         if length > MAX_ROAD_LENGTH_M:
-            self.fail(f"{where}@length", f"must be at most {MAX_ROAD_LENGTH_M:g} m, got "
-                      f"{length:g}", el)
+            self.fail(
+                f"{where}@length", f"must be at most {MAX_ROAD_LENGTH_M:g} m, got {length:g}", el
+            )
         junction = el.get("junction", "-1").strip() or "-1"
-        rule = cast(Literal["RHT", "LHT"],
-                    self.choice(el, "rule", where, ("RHT", "LHT"), default="RHT"))
+        rule = cast(
+            Literal["RHT", "LHT"], self.choice(el, "rule", where, ("RHT", "LHT"), default="RHT")
+        )
         pred = succ = None
         link = _kid(el, "link")
         if link is not None:
@@ -198,8 +216,9 @@ class _Reader:
             succ = self.road_link(link, "successor", where)
         geoms = self.plan_view(el, where, length)
         offsets, sections = self.lanes(el, where, length)
-        return Road(rid, length, junction, geoms, offsets, sections, pred, succ, rule,
-                    el.get("name", ""))
+        return Road(
+            rid, length, junction, geoms, offsets, sections, pred, succ, rule, el.get("name", "")
+        )
 
     def road_link(self, link: etree._Element, kind: str, where: str) -> RoadLink | None:
         els = _kids(link, kind)
@@ -231,71 +250,117 @@ class _Reader:
             if glen <= 0.0:
                 self.fail(f"{w}@length", f"must be > 0, got {glen:g}", g)
             if glen > MAX_ROAD_LENGTH_M:
-                self.fail(f"{w}@length", f"must be at most {MAX_ROAD_LENGTH_M:g} m, got "
-                          f"{glen:g}", g)
+                self.fail(
+                    f"{w}@length", f"must be at most {MAX_ROAD_LENGTH_M:g} m, got {glen:g}", g
+                )
             expected = geoms[-1].s + geoms[-1].length if geoms else 0.0
             if abs(s - expected) > S_TOLERANCE:
                 what = "a gap" if s > expected else "an overlap"
                 after = f"after geometry[{i - 1}]" if geoms else "at the road start"
-                self.fail(f"{w}@s", f"must be {expected:.6g} (geometries are contiguous in s); "
-                          f"got {s:.6g}, {what} of {abs(s - expected):.6g} m {after}", g)
+                self.fail(
+                    f"{w}@s",
+                    f"must be {expected:.6g} (geometries are contiguous in s); "
+                    f"got {s:.6g}, {what} of {abs(s - expected):.6g} m {after}",
+                    g,
+                )
             kids = [c for c in g if _local(c)]
             if len(kids) != 1 or _local(kids[0]) not in _GEOMETRY_KINDS:
                 found = ", ".join(_local(c) for c in kids) or "nothing"
-                self.fail(w, f"must contain exactly one of {', '.join(_GEOMETRY_KINDS)}; "
-                          f"found {found}", g)
+                self.fail(
+                    w, f"must contain exactly one of {', '.join(_GEOMETRY_KINDS)}; found {found}", g
+                )
             geoms.append(self.geometry(kids[0], f"{w}/{_local(kids[0])}", s, x, y, hdg, glen))
         total = geoms[-1].s + geoms[-1].length
         if abs(total - length) > S_TOLERANCE:
-            self.fail(f"{where}@length", f"must equal the end of the last planView geometry "
-                      f"({total:.6g} m), got {length:.6g}", el)
+            self.fail(
+                f"{where}@length",
+                f"must equal the end of the last planView geometry "
+                f"({total:.6g} m), got {length:.6g}",
+                el,
+            )
         return tuple(geoms)
 
-    def geometry(self, k: etree._Element, w: str, s: float, x: float, y: float, hdg: float,
-                 length: float) -> Geometry:
+    def geometry(
+        self, k: etree._Element, w: str, s: float, x: float, y: float, hdg: float, length: float
+    ) -> Geometry:
         kind = _local(k)
         if kind == "line":
             return Line(s, x, y, hdg, length)
         if kind == "arc":
             return Arc(s, x, y, hdg, length, self.curvature(k, "curvature", w))
         if kind == "spiral":
-            return Spiral(s, x, y, hdg, length, self.curvature(k, "curvStart", w),
-                          self.curvature(k, "curvEnd", w))
+            return Spiral(
+                s,
+                x,
+                y,
+                hdg,
+                length,
+                self.curvature(k, "curvStart", w),
+                self.curvature(k, "curvEnd", w),
+            )
         if kind == "poly3":
             a, b, c, d = (self.num(k, n, w) for n in ("a", "b", "c", "d"))
             return Poly3(s, x, y, hdg, length, a, b, c, d)
-        au, bu, cu, du, av, bv, cv, dv = (self.num(k, n, w) for n in (
-            "aU", "bU", "cU", "dU", "aV", "bV", "cV", "dV"))
-        p_range = cast(Literal["arcLength", "normalized"],
-                       self.choice(k, "pRange", w, ("arcLength", "normalized"), "normalized"))
-        return ParamPoly3(s, x, y, hdg, length, a_u=au, b_u=bu, c_u=cu, d_u=du,
-                          a_v=av, b_v=bv, c_v=cv, d_v=dv, p_range=p_range)
+        au, bu, cu, du, av, bv, cv, dv = (
+            self.num(k, n, w) for n in ("aU", "bU", "cU", "dU", "aV", "bV", "cV", "dV")
+        )
+        p_range = cast(
+            Literal["arcLength", "normalized"],
+            self.choice(k, "pRange", w, ("arcLength", "normalized"), "normalized"),
+        )
+        return ParamPoly3(
+            s,
+            x,
+            y,
+            hdg,
+            length,
+            a_u=au,
+            b_u=bu,
+            c_u=cu,
+            d_u=du,
+            a_v=av,
+            b_v=bv,
+            c_v=cv,
+            d_v=dv,
+            p_range=p_range,
+        )
 
     def curvature(self, k: etree._Element, attr: str, w: str) -> float:
         value = self.num(k, attr, w)
         if abs(value) > MAX_CURVATURE:
-            self.fail(f"{w}@{attr}", f"must be within +-{MAX_CURVATURE:g} 1/m (radius >= "
-                      f"{1.0 / MAX_CURVATURE:g} m), got {value:g}", k)
+            self.fail(
+                f"{w}@{attr}",
+                f"must be within +-{MAX_CURVATURE:g} 1/m (radius >= "
+                f"{1.0 / MAX_CURVATURE:g} m), got {value:g}",
+                k,
+            )
         return value
 
-    def bounded_cubic(self, piece: CubicPiece, end: float, limit: float, where: str,
-                      what: str, el: etree._Element) -> None:
+    def bounded_cubic(
+        self, piece: CubicPiece, end: float, limit: float, where: str, what: str, el: etree._Element
+    ) -> None:
         """``InputError`` if the cubic record exceeds ``limit`` in magnitude on its span."""
         lo_at, lo = _cubic_min(piece, end)
-        hi_at, hi = _cubic_min(CubicPiece(piece.s, -piece.a, -piece.b, -piece.c, -piece.d),
-                               end)
+        hi_at, hi = _cubic_min(CubicPiece(piece.s, -piece.a, -piece.b, -piece.c, -piece.d), end)
         at, worst = (lo_at, lo) if abs(lo) >= abs(hi) else (hi_at, -hi)
         if not (math.isfinite(worst) and abs(worst) <= limit):
-            self.fail(where, f"{what} must stay within +-{limit:g} m, reaches {worst:.6g} m "
-                      f"at s {at:.6g}", el)
+            self.fail(
+                where,
+                f"{what} must stay within +-{limit:g} m, reaches {worst:.6g} m at s {at:.6g}",
+                el,
+            )
 
     # -- lanes -------------------------------------------------------------------------
-    def lanes(self, el: etree._Element, where: str,
-              length: float) -> tuple[tuple[CubicPiece, ...], tuple[LaneSection, ...]]:
+    def lanes(
+        self, el: etree._Element, where: str, length: float
+    ) -> tuple[tuple[CubicPiece, ...], tuple[LaneSection, ...]]:
         lel = _kid(el, "lanes")
         if lel is None:
-            self.fail(f"{where}/lanes", "missing: every road needs <lanes> with at least one "
-                      "<laneSection>", el)
+            self.fail(
+                f"{where}/lanes",
+                "missing: every road needs <lanes> with at least one <laneSection>",
+                el,
+            )
         offsets: list[CubicPiece] = []
         for i, o in enumerate(_kids(lel, "laneOffset")):
             w = f"{where}/lanes/laneOffset[{i}]"
@@ -307,8 +372,14 @@ class _Reader:
             offsets.append(piece)
         for i, piece in enumerate(offsets):
             end = offsets[i + 1].s if i + 1 < len(offsets) else max(length, piece.s)
-            self.bounded_cubic(piece, end, MAX_LANE_OFFSET_M, f"{where}/lanes/laneOffset[{i}]",
-                               "the lane offset", el)
+            self.bounded_cubic(
+                piece,
+                end,
+                MAX_LANE_OFFSET_M,
+                f"{where}/lanes/laneOffset[{i}]",
+                "the lane offset",
+                el,
+            )
         sels = _kids(lel, "laneSection")
         if not sels:
             self.fail(f"{where}/lanes", "must contain at least one <laneSection>", lel)
@@ -319,14 +390,20 @@ class _Reader:
             if i == 0 and abs(s) > S_TOLERANCE:
                 self.fail(f"{w}@s", f"the first laneSection must start at s=0, got {s:g}", sec)
             if i > 0 and s <= starts[-1]:
-                self.fail(f"{w}@s", f"must be greater than the previous laneSection's s "
-                          f"({starts[-1]:g}), got {s:g}", sec)
+                self.fail(
+                    f"{w}@s",
+                    f"must be greater than the previous laneSection's s "
+                    f"({starts[-1]:g}), got {s:g}",
+                    sec,
+                )
             if s >= length:
                 self.fail(f"{w}@s", f"must be < the road length {length:g}, got {s:g}", sec)
             starts.append(max(s, 0.0) if i == 0 else s)
         ends = starts[1:] + [length]
-        sections = tuple(self.section(sec, f"{where}/lanes/laneSection[{i}]", starts[i], ends[i])
-                         for i, sec in enumerate(sels))
+        sections = tuple(
+            self.section(sec, f"{where}/lanes/laneSection[{i}]", starts[i], ends[i])
+            for i, sec in enumerate(sels)
+        )
         return tuple(offsets), sections
 
     def section(self, el: etree._Element, w: str, s: float, s_end: float) -> LaneSection:
@@ -340,15 +417,21 @@ class _Reader:
         for side, sign in (("left", 1), ("right", -1)):
             sel = _kid(el, side)
             if sel is not None:
-                self.count(len(_kids(sel, "lane")), MAX_LANES_PER_SIDE, f"{w}/{side}",
-                           "lanes", sel)
-            lanes = ([] if sel is None else
-                     [self.lane(ln, f"{w}/{side}", s_end - s) for ln in _kids(sel, "lane")])
+                self.count(len(_kids(sel, "lane")), MAX_LANES_PER_SIDE, f"{w}/{side}", "lanes", sel)
+            lanes = (
+                []
+                if sel is None
+                else [self.lane(ln, f"{w}/{side}", s_end - s) for ln in _kids(sel, "lane")]
+            )
             ids = sorted((ln.id for ln in lanes), key=abs)
             want = [sign * k for k in range(1, len(lanes) + 1)]
             if ids != want:
-                self.fail(f"{w}/{side}", f"lane ids must be {', '.join(map(str, want))} "
-                          f"(each once), got {', '.join(str(ln.id) for ln in lanes)}", sel)
+                self.fail(
+                    f"{w}/{side}",
+                    f"lane ids must be {', '.join(map(str, want))} "
+                    f"(each once), got {', '.join(str(ln.id) for ln in lanes)}",
+                    sel,
+                )
             sides[side] = tuple(sorted(lanes, key=lambda ln: abs(ln.id)))
         if not sides["left"] and not sides["right"]:
             self.fail(w, "has no lanes: a laneSection needs at least one left or right lane", el)
@@ -359,21 +442,25 @@ class _Reader:
         lid = self.integer(el, "id", f"{w_side}/lane")
         w = f"{w_side}/lane[id={raw.strip() if raw else ''}]"
         ltype = self.text(el, "type", w)
-        direction = self.choice(el, "direction", w, ("standard", "reversed", "both"),
-                                default="standard")
+        direction = self.choice(
+            el, "direction", w, ("standard", "reversed", "both"), default="standard"
+        )
         preds: list[int] = []
         succs: list[int] = []
         link = _kid(el, "link")
         if link is not None:
-            preds = [self.integer(p, "id", f"{w}/link/predecessor")
-                     for p in _kids(link, "predecessor")]
-            succs = [self.integer(p, "id", f"{w}/link/successor")
-                     for p in _kids(link, "successor")]
+            preds = [
+                self.integer(p, "id", f"{w}/link/predecessor") for p in _kids(link, "predecessor")
+            ]
+            succs = [self.integer(p, "id", f"{w}/link/successor") for p in _kids(link, "successor")]
         if lid == 0:
             return Lane(0, ltype, (), tuple(preds), tuple(succs), direction)
         if _kid(el, "border") is not None:
-            self.fail(f"{w}/border", "lane <border> records are not supported; describe the "
-                      "lane with <width> records", _kid(el, "border"))
+            self.fail(
+                f"{w}/border",
+                "lane <border> records are not supported; describe the lane with <width> records",
+                _kid(el, "border"),
+            )
         widths: list[CubicPiece] = []
         for i, wel in enumerate(_kids(el, "width")):
             ww = f"{w}/width[{i}]"
@@ -389,10 +476,12 @@ class _Reader:
             end = widths[i + 1].s if i + 1 < len(widths) else max(sec_len, piece.s)
             at, wmin = _cubic_min(piece, end)
             if wmin < -WIDTH_TOLERANCE:
-                self.fail(f"{w}/width[{i}]", f"width must be >= 0, got {wmin:.6g} m at "
-                          f"sOffset {at:.6g}", el)
-            self.bounded_cubic(piece, end, MAX_LANE_WIDTH_M, f"{w}/width[{i}]", "the width",
-                               el)
+                self.fail(
+                    f"{w}/width[{i}]",
+                    f"width must be >= 0, got {wmin:.6g} m at sOffset {at:.6g}",
+                    el,
+                )
+            self.bounded_cubic(piece, end, MAX_LANE_WIDTH_M, f"{w}/width[{i}]", "the width", el)
         return Lane(lid, ltype, tuple(widths), tuple(preds), tuple(succs), direction)
 
     # -- junctions ---------------------------------------------------------------------
@@ -411,15 +500,20 @@ class _Reader:
             attr = "linkedRoad" if jtype == "direct" else "connectingRoad"
             conn_road = self.text(c, attr, w)
             cp = cast(ContactPoint, self.choice(c, "contactPoint", w, ("start", "end")))
-            links = tuple((self.integer(ll, "from", f"{w}/laneLink[{k}]"),
-                           self.integer(ll, "to", f"{w}/laneLink[{k}]"))
-                          for k, ll in enumerate(_kids(c, "laneLink")))
+            links = tuple(
+                (
+                    self.integer(ll, "from", f"{w}/laneLink[{k}]"),
+                    self.integer(ll, "to", f"{w}/laneLink[{k}]"),
+                )
+                for k, ll in enumerate(_kids(c, "laneLink"))
+            )
             conns.append(Connection(cid, inc, conn_road, cp, links))
         return Junction(jid, el.get("name", ""), jtype, tuple(conns))
 
     # -- cross references --------------------------------------------------------------
-    def check_road_refs(self, roads: dict[str, Road], junctions: dict[str, Junction],
-                        els: list[etree._Element]) -> None:
+    def check_road_refs(
+        self, roads: dict[str, Road], junctions: dict[str, Junction], els: list[etree._Element]
+    ) -> None:
         by_id = {r.id: el for r, el in zip(roads.values(), els, strict=False)}
         for road in roads.values():
             el = by_id[road.id]
@@ -430,32 +524,45 @@ class _Reader:
                 if link is None:
                     continue
                 pool: dict[str, Road] | dict[str, Junction] = (
-                    roads if link.element_type == "road" else junctions)
+                    roads if link.element_type == "road" else junctions
+                )
                 if link.element_id not in pool:
-                    self.fail(f"{where}/link/{kind}@elementId",
-                              f"{link.element_type} {link.element_id} does not exist", el)
+                    self.fail(
+                        f"{where}/link/{kind}@elementId",
+                        f"{link.element_type} {link.element_id} does not exist",
+                        el,
+                    )
             self.check_lane_links(road, roads, el)
 
     def check_lane_links(self, road: Road, roads: dict[str, Road], el: etree._Element) -> None:
         for i, sec in enumerate(road.sections):
             for lane in sec.left + sec.right:
-                w = (f"road[id={road.id}]/lanes/laneSection[{i}]/"
-                     f"{'left' if lane.id > 0 else 'right'}/lane[id={lane.id}]/link")
-                for kind, ids in (("predecessor", lane.predecessors),
-                                  ("successor", lane.successors)):
+                w = (
+                    f"road[id={road.id}]/lanes/laneSection[{i}]/"
+                    f"{'left' if lane.id > 0 else 'right'}/lane[id={lane.id}]/link"
+                )
+                for kind, ids in (
+                    ("predecessor", lane.predecessors),
+                    ("successor", lane.successors),
+                ):
                     target = self.lane_link_target(road, i, kind, roads)
                     if target is None:
                         continue
                     troad, tsec = target
                     for lid in ids:
                         if troad.sections[tsec].lane(lid) is None or lid == 0:
-                            self.fail(f"{w}/{kind}@id", f"lane {lid} does not exist in road "
-                                      f"{troad.id} laneSection[{tsec}] (lanes: "
-                                      f"{_ids(troad.sections[tsec])})", el)
+                            self.fail(
+                                f"{w}/{kind}@id",
+                                f"lane {lid} does not exist in road "
+                                f"{troad.id} laneSection[{tsec}] (lanes: "
+                                f"{_ids(troad.sections[tsec])})",
+                                el,
+                            )
 
     @staticmethod
-    def lane_link_target(road: Road, i: int, kind: str,
-                         roads: dict[str, Road]) -> tuple[Road, int] | None:
+    def lane_link_target(
+        road: Road, i: int, kind: str, roads: dict[str, Road]
+    ) -> tuple[Road, int] | None:
         """The (road, section index) a lane link of section ``i`` points into, if any."""
         step = 1 if kind == "successor" else -1
         if 0 <= i + step < len(road.sections):
@@ -466,8 +573,7 @@ class _Reader:
         other = roads[link.element_id]
         return other, (0 if link.contact_point == "start" else len(other.sections) - 1)
 
-    def check_junction(self, j: Junction, roads: dict[str, Road],
-                       el: etree._Element) -> Junction:
+    def check_junction(self, j: Junction, roads: dict[str, Road], el: etree._Element) -> Junction:
         out: list[Connection] = []
         for c in j.connections:
             w = f"junction[id={j.id}]/connection[id={c.id}]"
@@ -477,28 +583,52 @@ class _Reader:
                     self.fail(f"{w}@{name}", f"road {rid} does not exist", el)
             inc, con = roads[c.incoming_road], roads[c.connecting_road]
             if j.type != "direct" and con.junction != j.id:
-                self.fail(f"{w}@{attr}", f"road {con.id} must belong to junction {j.id} "
-                          f"(its @junction is {con.junction})", el)
+                self.fail(
+                    f"{w}@{attr}",
+                    f"road {con.id} must belong to junction {j.id} "
+                    f"(its @junction is {con.junction})",
+                    el,
+                )
             sides: tuple[tuple[ContactPoint, RoadLink | None], ...] = (
-                ("end", inc.successor), ("start", inc.predecessor))
-            ends = [e for e, link in sides if link is not None
-                    and link.element_type == "junction" and link.element_id == j.id]
+                ("end", inc.successor),
+                ("start", inc.predecessor),
+            )
+            ends = [
+                e
+                for e, link in sides
+                if link is not None and link.element_type == "junction" and link.element_id == j.id
+            ]
             if not ends:
-                self.fail(f"{w}@incomingRoad", f"road {inc.id} is not linked to junction "
-                          f"{j.id} (neither its predecessor nor its successor)", el)
+                self.fail(
+                    f"{w}@incomingRoad",
+                    f"road {inc.id} is not linked to junction "
+                    f"{j.id} (neither its predecessor nor its successor)",
+                    el,
+                )
             end = ends[0] if len(ends) == 1 else _nearer_end(inc, con, c.contact_point)
             isec = 0 if end == "start" else len(inc.sections) - 1
             csec = 0 if c.contact_point == "start" else len(con.sections) - 1
             for k, (a, b) in enumerate(c.lane_links):
                 lw = f"{w}/laneLink[{k}]"
                 if a == 0 or inc.sections[isec].lane(a) is None:
-                    self.fail(f"{lw}@from", f"lane {a} does not exist at the {end} of road "
-                              f"{inc.id} (lanes: {_ids(inc.sections[isec])})", el)
+                    self.fail(
+                        f"{lw}@from",
+                        f"lane {a} does not exist at the {end} of road "
+                        f"{inc.id} (lanes: {_ids(inc.sections[isec])})",
+                        el,
+                    )
                 if b == 0 or con.sections[csec].lane(b) is None:
-                    self.fail(f"{lw}@to", f"lane {b} does not exist at the {c.contact_point} of "
-                              f"road {con.id} (lanes: {_ids(con.sections[csec])})", el)
-            out.append(Connection(c.id, c.incoming_road, c.connecting_road, c.contact_point,
-                                  c.lane_links, end))
+                    self.fail(
+                        f"{lw}@to",
+                        f"lane {b} does not exist at the {c.contact_point} of "
+                        f"road {con.id} (lanes: {_ids(con.sections[csec])})",
+                        el,
+                    )
+            out.append(
+                Connection(
+                    c.id, c.incoming_road, c.connecting_road, c.contact_point, c.lane_links, end
+                )
+            )
         return Junction(j.id, j.name, j.type, tuple(out))
 
 
@@ -534,8 +664,7 @@ def _nearer_end(inc: Road, con: Road, contact: ContactPoint) -> ContactPoint:
     """Which end of ``inc`` lies nearer the connecting road's contact point (for an incoming
     road linked to the same junction at both ends)."""
     cx, cy = _road_end_xy(con, contact)
-    d = {e: math.hypot(x - cx, y - cy)
-         for e in ("start", "end") for x, y in [_road_end_xy(inc, e)]}
+    d = {e: math.hypot(x - cx, y - cy) for e in ("start", "end") for x, y in [_road_end_xy(inc, e)]}
     return "start" if d["start"] <= d["end"] else "end"
 
 

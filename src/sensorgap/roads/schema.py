@@ -22,13 +22,17 @@ def opendrive_xsd_path() -> Path:
     try:
         import scenariogeneration
     except ImportError as exc:  # pragma: no cover - a declared dependency
-        raise FileNotFoundError("the OpenDRIVE 1.7 XSD ships with scenariogeneration, which is "
-                                "not installed (pip install scenariogeneration)") from exc
+        raise FileNotFoundError(
+            "the OpenDRIVE 1.7 XSD ships with scenariogeneration, which is "
+            "not installed (pip install scenariogeneration)"
+        ) from exc
     folder = Path(scenariogeneration.__file__).resolve().parent.parent / "schemas"
     path = folder / CORE_XSD
     if not path.is_file():
-        raise FileNotFoundError(f"OpenDRIVE 1.7 XSD not found: expected {path} (installed with "
-                                "scenariogeneration >= 0.14); reinstall scenariogeneration")
+        raise FileNotFoundError(
+            f"OpenDRIVE 1.7 XSD not found: expected {path} (installed with "
+            "scenariogeneration >= 0.14); reinstall scenariogeneration"
+        )
     return path
 
 

@@ -107,8 +107,9 @@ def parse_xml_bytes(data: bytes, source: str | Path) -> etree._Element:
             raise InputError(source, "DOCTYPE", _DOCTYPE_MSG)
     ent = next(root.iter(etree.Entity), None)
     if ent is not None:
-        raise InputError(source, f"line {ent.sourceline}",
-                         f"entity reference {ent.text} is not allowed")
+        raise InputError(
+            source, f"line {ent.sourceline}", f"entity reference {ent.text} is not allowed"
+        )
     return root
 
 

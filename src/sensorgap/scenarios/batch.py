@@ -45,6 +45,7 @@ class Scenario:
     target_class: str
     occluders: tuple[OccluderPath, ...] = ()
 
+
 F64 = NDArray[np.float64]
 Mask = NDArray[np.bool_]
 
@@ -64,8 +65,13 @@ class Tracks:
 
     def row(self, t: F64, i: int) -> Trajectory:
         """Row ``i`` as a ``Trajectory``."""
-        return Trajectory(t=t, x=self.x[i].copy(), y=self.y[i].copy(),
-                          heading=self.heading[i].copy(), speed=self.speed[i].copy())
+        return Trajectory(
+            t=t,
+            x=self.x[i].copy(),
+            y=self.y[i].copy(),
+            heading=self.heading[i].copy(),
+            speed=self.speed[i].copy(),
+        )
 
     def take(self, rows: NDArray[np.intp]) -> Tracks:
         """The selected rows."""
@@ -84,13 +90,15 @@ class OccluderTracks:
 
     def take(self, rows: NDArray[np.intp]) -> OccluderTracks:
         """The selected rows."""
-        return OccluderTracks(self.label, self.tracks.take(rows), self.length_m,
-                              self.width_m, self.height_m)
+        return OccluderTracks(
+            self.label, self.tracks.take(rows), self.length_m, self.width_m, self.height_m
+        )
 
     def row(self, t: F64, i: int) -> OccluderPath:
         """Row ``i`` as an ``OccluderPath``."""
-        return OccluderPath(self.label, self.tracks.row(t, i), self.length_m, self.width_m,
-                            self.height_m)
+        return OccluderPath(
+            self.label, self.tracks.row(t, i), self.length_m, self.width_m, self.height_m
+        )
 
 
 @dataclass
@@ -124,14 +132,22 @@ class ScenarioBatch:
     @classmethod
     def of(cls, sc: Scenario) -> ScenarioBatch:
         """A batch of one scenario."""
-        def tracks(tr: Trajectory) -> Tracks:
-            return Tracks(tr.x[None, :], tr.y[None, :], tr.heading[None, :],
-                          tr.speed[None, :])
 
-        return cls(sc.ego.t, tracks(sc.ego), tracks(sc.target), np.ones(1, dtype=bool), [""],
-                   sc.target_class, occluders=tuple(
-                       OccluderTracks(o.label, tracks(o.path), o.length_m, o.width_m,
-                                      o.height_m) for o in sc.occluders))
+        def tracks(tr: Trajectory) -> Tracks:
+            return Tracks(tr.x[None, :], tr.y[None, :], tr.heading[None, :], tr.speed[None, :])
+
+        return cls(
+            sc.ego.t,
+            tracks(sc.ego),
+            tracks(sc.target),
+            np.ones(1, dtype=bool),
+            [""],
+            sc.target_class,
+            occluders=tuple(
+                OccluderTracks(o.label, tracks(o.path), o.length_m, o.width_m, o.height_m)
+                for o in sc.occluders
+            ),
+        )
 
     def reject(self, mask: Mask, note: str | list[str], offroad: bool = False) -> None:
         """Mark rows infeasible (first reason kept); ``offroad``: they leave the road."""
@@ -145,15 +161,20 @@ class ScenarioBatch:
 
     def scenario(self, i: int) -> Scenario:
         """Row ``i`` as a ``Scenario``."""
-        return Scenario(self.ego.row(self.t, i), self.target.row(self.t, i), self.target_class,
-                        tuple(o.row(self.t, i) for o in self.occluders))
+        return Scenario(
+            self.ego.row(self.t, i),
+            self.target.row(self.t, i),
+            self.target_class,
+            tuple(o.row(self.t, i) for o in self.occluders),
+        )
 
 
 class LaneTable:
     """Lane-centre poses of one lane sampled along its road (see module docstring)."""
 
-    def __init__(self, net: RoadNetwork, road_id: str, lane: int,
-                 step_m: float = LANE_TABLE_STEP_M) -> None:
+    def __init__(
+        self, net: RoadNetwork, road_id: str, lane: int, step_m: float = LANE_TABLE_STEP_M
+    ) -> None:
         self.length = float(net.road(road_id).length)
         n = max(2, math.ceil(self.length / step_m) + 1)
         self.s = np.linspace(0.0, self.length, n)
@@ -203,9 +224,10 @@ def check_tracks(tr: Tracks, t: F64, limits: Limits, who: str) -> tuple[Mask, li
     bad = np.zeros(len(vmax), dtype=bool)
     notes = [""] * len(vmax)
     for what, value, bound, unit in (
-            ("speed", vmax, limits.max_speed, "m/s"),
-            ("longitudinal acceleration", long_acc, limits.max_long_accel, "m/s2"),
-            ("lateral acceleration", lat_acc, limits.max_lat_accel, "m/s2")):
+        ("speed", vmax, limits.max_speed, "m/s"),
+        ("longitudinal acceleration", long_acc, limits.max_long_accel, "m/s2"),
+        ("lateral acceleration", lat_acc, limits.max_lat_accel, "m/s2"),
+    ):
         over = (value > bound * 1.01 + 1e-9) & ~bad
         for i in np.flatnonzero(over):
             notes[i] = f"{who}: {what} {value[i]:.2f} {unit} exceeds {bound:g}"
@@ -219,6 +241,8 @@ def off_road(s: F64, length: float, road_id: str, who: str) -> tuple[Mask, list[
     bad = (lo < 0.0) | (hi > length)
     notes = [""] * len(lo)
     for i in np.flatnonzero(bad):
-        notes[i] = (f"{who} leaves road {road_id} (s from {lo[i]:.1f} to {hi[i]:.1f} m, "
-                    f"road is 0..{length:g} m)")
+        notes[i] = (
+            f"{who} leaves road {road_id} (s from {lo[i]:.1f} to {hi[i]:.1f} m, "
+            f"road is 0..{length:g} m)"
+        )
     return bad, notes

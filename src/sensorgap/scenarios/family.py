@@ -69,8 +69,7 @@ class Param:
         expected."""
         if self.choices:
             if not isinstance(v, str) or v not in self.choices:
-                raise ValueError(f"expected one of {', '.join(self.choices)}, "
-                                 f"got {str(v)[:40]!r}")
+                raise ValueError(f"expected one of {', '.join(self.choices)}, got {str(v)[:40]!r}")
             return v
         if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
             raise ValueError(f"expected a finite number, got {str(v)[:40]!r}")
@@ -98,13 +97,14 @@ class FamilyKind(ABC):
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
-        if (getattr(cls, "name", None) and cls.generate is FamilyKind.generate
-                and cls.generate_batch is FamilyKind.generate_batch):
-            raise TypeError(f"family kind {cls.__name__} must implement generate_batch or "
-                            "generate")
+        if (
+            getattr(cls, "name", None)
+            and cls.generate is FamilyKind.generate
+            and cls.generate_batch is FamilyKind.generate_batch
+        ):
+            raise TypeError(f"family kind {cls.__name__} must implement generate_batch or generate")
 
-    def generate(self, family: Family, p: Mapping[str, ParamValue],
-                 net: RoadNetwork) -> Scenario:
+    def generate(self, family: Family, p: Mapping[str, ParamValue], net: RoadNetwork) -> Scenario:
         """Trajectories for parameters ``p``; ``InfeasibleScenario`` (``OffRoad`` when they
         leave the road) if they are not feasible. Default: a batch of one."""
         cols = {k: np.array([v]) for k, v in p.items()}
@@ -114,8 +114,7 @@ class FamilyKind(ABC):
             raise (OffRoad if b.offroad[0] else InfeasibleScenario)(b.notes[0])
         return b.scenario(0)
 
-    def generate_batch(self, family: Family, cols: Columns, net: RoadNetwork
-                       ) -> ScenarioBatch:
+    def generate_batch(self, family: Family, cols: Columns, net: RoadNetwork) -> ScenarioBatch:
         """Trajectories for B parameter vectors (columns); infeasible rows are marked in
         the batch. Default: one ``generate`` call per row."""
         n = len(next(iter(cols.values()))) if cols else 1
@@ -124,8 +123,7 @@ class FamilyKind(ABC):
         off = np.zeros(n, dtype=bool)
         for i in range(n):
             try:
-                rows.append(self.generate(family, {k: _scalar(v[i]) for k, v in cols.items()},
-                                          net))
+                rows.append(self.generate(family, {k: _scalar(v[i]) for k, v in cols.items()}, net))
             except InfeasibleScenario as exc:
                 rows.append(None)
                 notes[i] = str(exc)
@@ -138,13 +136,15 @@ class FamilyKind(ABC):
             arrs = []
             for r in rows:
                 tr = getattr(r, who) if r is not None else None
-                arrs.append([np.zeros(len(t)) if tr is None else getattr(tr, a)
-                             for a in ("x", "y", "heading", "speed")])
-            return Tracks(*(np.array([a[j] for a in arrs]).reshape(n, len(t))
-                            for j in range(4)))
+                arrs.append(
+                    [
+                        np.zeros(len(t)) if tr is None else getattr(tr, a)
+                        for a in ("x", "y", "heading", "speed")
+                    ]
+                )
+            return Tracks(*(np.array([a[j] for a in arrs]).reshape(n, len(t)) for j in range(4)))
 
-        return ScenarioBatch(t, stack("ego"), stack("target"), ok, notes,
-                             family.target_class, off)
+        return ScenarioBatch(t, stack("ego"), stack("target"), ok, notes, family.target_class, off)
 
 
 @dataclass
@@ -192,8 +192,10 @@ class Family:
     def generate_batch(self, cols: Columns) -> ScenarioBatch:
         """Generate B scenarios (parameter columns) and check feasibility per row."""
         b = self.kind.generate_batch(self, cols, self.network)
-        for who, tracks, limits in (("ego", b.ego, LIMITS["car"]),
-                                    ("target", b.target, self.limits)):
+        for who, tracks, limits in (
+            ("ego", b.ego, LIMITS["car"]),
+            ("target", b.target, self.limits),
+        ):
             bad, notes = check_tracks(tracks, b.t, limits, who)
             b.reject(bad, notes)
         return b
@@ -226,8 +228,9 @@ def _scalar(v: Any) -> ParamValue:
 K = TypeVar("K", bound=type[FamilyKind])
 
 
-_KINDS: Registry[type[FamilyKind]] = Registry("family kind", key=lambda c: c.name,
-                                        on_lookup=load_plugins)
+_KINDS: Registry[type[FamilyKind]] = Registry(
+    "family kind", key=lambda c: c.name, on_lookup=load_plugins
+)
 
 
 def register_kind(cls: K) -> K:
@@ -243,4 +246,3 @@ def kind_names() -> list[str]:
 def get_kind(name: str) -> type[FamilyKind] | None:
     """The registered family kind, or ``None``."""
     return _KINDS.get(name)
-

@@ -22,8 +22,9 @@ STILL_M_S = 1e-6
 
 
 @numba.njit(cache=True, nogil=True)
-def table_poses(s: F64, step: float, n: int, tx: F64, ty: F64, th: F64,
-                ox: F64, oy: F64, oh: F64) -> None:  # pragma: no cover - compiled
+def table_poses(
+    s: F64, step: float, n: int, tx: F64, ty: F64, th: F64, ox: F64, oy: F64, oh: F64
+) -> None:  # pragma: no cover - compiled
     """Linear interpolation of a table sampled every ``step`` from 0 (``n`` samples) at
     flat ``s`` (clipped to the table)."""
     last = n - 1
@@ -41,8 +42,9 @@ def table_poses(s: F64, step: float, n: int, tx: F64, ty: F64, th: F64,
 
 
 @numba.njit(cache=True, nogil=True)
-def path_states(x: F64, y: F64, fb: F64, dt: float, heading: F64,
-                speed: F64) -> None:  # pragma: no cover - compiled
+def path_states(
+    x: F64, y: F64, fb: F64, dt: float, heading: F64, speed: F64
+) -> None:  # pragma: no cover - compiled
     """(B, T) positions (m) and fallback headings (rad) -> heading and speed."""
     b, t = x.shape
     two_pi = 2.0 * math.pi
@@ -75,8 +77,9 @@ def path_states(x: F64, y: F64, fb: F64, dt: float, heading: F64,
 
 
 @numba.njit(cache=True, nogil=True)
-def track_extremes(heading: F64, speed: F64, dt: float,
-                   out: F64) -> None:  # pragma: no cover - compiled
+def track_extremes(
+    heading: F64, speed: F64, dt: float, out: F64
+) -> None:  # pragma: no cover - compiled
     """Per row: max speed (m/s), max |longitudinal acceleration| and max |lateral
     acceleration| (speed x yaw rate), m/s2; differences as in ``path_states``."""
     b, t = speed.shape

@@ -70,8 +70,7 @@ class _LaneKind(FamilyKind):
         st = family.settings
         rid = str(st["road_id"])
         lane = int(st[lane_key])
-        return rid, lane, travel_direction(family.network, rid, lane), time_axis(
-            family.duration_s)
+        return rid, lane, travel_direction(family.network, rid, lane), time_axis(family.duration_s)
 
     @staticmethod
     def _follow(family: Family, rid: str, lane: int, s: F64, travel: int, t: F64) -> Tracks:
@@ -80,8 +79,9 @@ class _LaneKind(FamilyKind):
         return tracks_from_path(t, x, y, h)
 
     @staticmethod
-    def _changing(family: Family, rid: str, lane_from: int, lane_to: int, s: F64,
-                  travel: int, t: F64, w: F64) -> Tracks:
+    def _changing(
+        family: Family, rid: str, lane_from: int, lane_to: int, s: F64, travel: int, t: F64, w: F64
+    ) -> Tracks:
         xa, ya, ha = family.lane_table(rid, lane_from).poses(s, travel)
         xb, yb, _ = family.lane_table(rid, lane_to).poses(s, travel)
         x = (1.0 - w) * xa + w * xb
@@ -89,10 +89,16 @@ class _LaneKind(FamilyKind):
         return tracks_from_path(t, x, y, ha)
 
     @staticmethod
-    def _batch(t: F64, ego: Tracks, target: Tracks, family: Family,
-               checks: list[tuple[NDArray[np.bool_], list[str]]]) -> ScenarioBatch:
-        b = ScenarioBatch(t, ego, target, np.ones(len(ego.x), dtype=bool),
-                          [""] * len(ego.x), family.target_class)
+    def _batch(
+        t: F64,
+        ego: Tracks,
+        target: Tracks,
+        family: Family,
+        checks: list[tuple[NDArray[np.bool_], list[str]]],
+    ) -> ScenarioBatch:
+        b = ScenarioBatch(
+            t, ego, target, np.ones(len(ego.x), dtype=bool), [""] * len(ego.x), family.target_class
+        )
         for bad, notes in checks:
             b.reject(bad, notes, offroad=True)
         return b
@@ -116,8 +122,7 @@ class CutIn(_LaneKind):
         Param("shape", choices=("cosine", "quintic")),
     )
 
-    def generate_batch(self, family: Family, cols: Columns,
-                       net: RoadNetwork) -> ScenarioBatch:
+    def generate_batch(self, family: Family, cols: Columns, net: RoadNetwork) -> ScenarioBatch:
         rid, lane, tr, t = self._start(family, "ego_lane")
         s0 = _col(cols, "ego_s0_m")
         s_e = s0 + tr * _col(cols, "ego_speed_m_s") * t
@@ -127,8 +132,7 @@ class CutIn(_LaneKind):
         u = (t - _col(cols, "lc_start_s")) / _col(cols, "lc_duration_s")
         w = blend_batch(np.asarray(cols["shape"]).astype(str), u)
         ego = self._follow(family, rid, lane, s_e, tr, t)
-        tgt = self._changing(family, rid, int(family.settings["target_lane"]), lane, s_t, tr,
-                             t, w)
+        tgt = self._changing(family, rid, int(family.settings["target_lane"]), lane, s_t, tr, t, w)
         return self._batch(t, ego, tgt, family, checks)
 
 
@@ -156,11 +160,13 @@ class Overtake(_LaneKind):
         Param("final_delta_m_s", 5.0, 25.0, unit="m/s"),
     )
 
-    def generate_batch(self, family: Family, cols: Columns,
-                       net: RoadNetwork) -> ScenarioBatch:
+    def generate_batch(self, family: Family, cols: Columns, net: RoadNetwork) -> ScenarioBatch:
         rid, lane, tr, t = self._start(family, "ego_lane")
-        ve, dv, dx0 = (_col(cols, "ego_speed_m_s"), _col(cols, "speed_delta_m_s"),
-                       _col(cols, "dx0_m"))
+        ve, dv, dx0 = (
+            _col(cols, "ego_speed_m_s"),
+            _col(cols, "speed_delta_m_s"),
+            _col(cols, "dx0_m"),
+        )
         s0 = _col(cols, "ego_s0_m")
         s_e = s0 + tr * ve * t
         t_m = (_col(cols, "merge_gap_m") - dx0) / dv
@@ -171,15 +177,15 @@ class Overtake(_LaneKind):
         a = _col(cols, "decel_m_s2")
         td = (v0 - vf) / a
         u = np.clip(t - t_b, 0.0, td)
-        travelled = (v0 * np.minimum(t, t_b) + v0 * u - 0.5 * a * u * u
-                     + vf * np.maximum(t - t_b - td, 0.0))
+        travelled = (
+            v0 * np.minimum(t, t_b) + v0 * u - 0.5 * a * u * u + vf * np.maximum(t - t_b - td, 0.0)
+        )
         s_t = s0 + tr * (dx0 + travelled)
         length = net.road(rid).length
         checks = [off_road(s_e, length, rid, "ego"), off_road(s_t, length, rid, "target")]
         w = blend_batch(np.full(len(s0), "cosine"), (t - t_m) / md)
         ego = self._follow(family, rid, lane, s_e, tr, t)
-        tgt = self._changing(family, rid, int(family.settings["target_lane"]), lane, s_t, tr,
-                             t, w)
+        tgt = self._changing(family, rid, int(family.settings["target_lane"]), lane, s_t, tr, t, w)
         return self._batch(t, ego, tgt, family, checks)
 
 
@@ -198,8 +204,7 @@ class SlowAhead(_LaneKind):
         Param("gap0_m", 40.0, 220.0, unit="m"),
     )
 
-    def generate_batch(self, family: Family, cols: Columns,
-                       net: RoadNetwork) -> ScenarioBatch:
+    def generate_batch(self, family: Family, cols: Columns, net: RoadNetwork) -> ScenarioBatch:
         rid, lane, tr, t = self._start(family, "lane")
         s0 = _col(cols, "ego_s0_m")
         s_e = s0 + tr * _col(cols, "ego_speed_m_s") * t
@@ -238,16 +243,14 @@ class Crossing(_LaneKind):
         outermost lanes (footways included)."""
         return net.road_extents(rid, s)
 
-    def generate_batch(self, family: Family, cols: Columns,
-                       net: RoadNetwork) -> ScenarioBatch:
+    def generate_batch(self, family: Family, cols: Columns, net: RoadNetwork) -> ScenarioBatch:
         rid, lane, tr, t = self._start(family, "ego_lane")
         ve = _col(cols, "ego_speed_m_s")
         s0 = _col(cols, "ego_s0_m")
         s_e = s0 + tr * ve * t
         s_c = s0 + tr * _col(cols, "cross_ahead_m")  # (B, 1)
         length = net.road(rid).length
-        checks = [off_road(s_e, length, rid, "ego"),
-                  off_road(s_c, length, rid, "crossing line")]
+        checks = [off_road(s_e, length, rid, "ego"), off_road(s_c, length, rid, "crossing line")]
         s_cc = np.clip(s_c[:, 0], 0.0, length)
         inner, outer = net.lane_edges(rid, lane, s_cc)
         t_c = (0.5 * (inner + outer))[:, None]
@@ -265,15 +268,24 @@ class Crossing(_LaneKind):
         t_cruise = (d_total - 2.0 * da) / v
         t_end = 2.0 * ta + t_cruise
         # time after departure at which the lane centre is reached
-        tau_c = np.where(d_near <= da, np.sqrt(2.0 * d_near / a),
-                         np.where(d_near <= d_total - da, ta + (d_near - da) / v,
-                                  t_end - np.sqrt(np.maximum(2.0 * (d_total - d_near) / a,
-                                                             0.0))))
+        tau_c = np.where(
+            d_near <= da,
+            np.sqrt(2.0 * d_near / a),
+            np.where(
+                d_near <= d_total - da,
+                ta + (d_near - da) / v,
+                t_end - np.sqrt(np.maximum(2.0 * (d_total - d_near) / a, 0.0)),
+            ),
+        )
         t_p = _col(cols, "cross_ahead_m") / ve + _col(cols, "conflict_offset_s")
         tau = np.clip(t - (t_p - tau_c), 0.0, t_end)
-        dist = np.where(tau <= ta, 0.5 * a * tau * tau,
-                        np.where(tau <= ta + t_cruise, da + v * (tau - ta),
-                                 d_total - 0.5 * a * (t_end - tau) ** 2))
+        dist = np.where(
+            tau <= ta,
+            0.5 * a * tau * tau,
+            np.where(
+                tau <= ta + t_cruise, da + v * (tau - ta), d_total - 0.5 * a * (t_end - tau) ** 2
+            ),
+        )
         lat = start - side * dist
         xr, yr, hr = net.reference_line(rid, s_cc)
         xr, yr, hr = xr[:, None], yr[:, None], hr[:, None]

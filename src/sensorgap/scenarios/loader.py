@@ -56,21 +56,29 @@ def _setting(path: Path, key: str, value: Any, default: Any) -> Any:
     """One ``[family]`` setting checked for its type and range (strict: no coercion)."""
     field = f"family.{key}"
     if key in LANE_SETTINGS:
-        if not (isinstance(value, int) and not isinstance(value, bool)
-                and 0 < abs(value) <= MAX_LANE_ID):
-            raise InputError(path, field, f"expected a lane id: a non-zero integer within "
-                             f"+-{MAX_LANE_ID}, got {value!r}")
+        if not (
+            isinstance(value, int) and not isinstance(value, bool) and 0 < abs(value) <= MAX_LANE_ID
+        ):
+            raise InputError(
+                path,
+                field,
+                f"expected a lane id: a non-zero integer within +-{MAX_LANE_ID}, got {value!r}",
+            )
         return value
     if key == "duration_s":
         if not (_is_number(value) and math.isfinite(value) and 1.0 <= value <= 60.0):
-            raise InputError(path, field, f"expected a number of seconds within 1..60, got "
-                             f"{value!r}")
+            raise InputError(
+                path, field, f"expected a number of seconds within 1..60, got {value!r}"
+            )
         return float(value)
     if key == "road_id":
-        if not ((isinstance(value, str) and 0 < len(value) <= 256)
-                or (isinstance(value, int) and not isinstance(value, bool))):
-            raise InputError(path, field, f"expected a road id (a string or an integer), "
-                             f"got {value!r}")
+        if not (
+            (isinstance(value, str) and 0 < len(value) <= 256)
+            or (isinstance(value, int) and not isinstance(value, bool))
+        ):
+            raise InputError(
+                path, field, f"expected a road id (a string or an integer), got {value!r}"
+            )
         return str(value)
     if key in ("road", "target", "occluder"):
         what = "road name or .xodr path" if key == "road" else "target class name"
@@ -78,11 +86,13 @@ def _setting(path: Path, key: str, value: Any, default: Any) -> Any:
             raise InputError(path, field, f"expected one {what} (a string), got {value!r}")
         return value
     if default is not None:  # a plugin's setting: the type of its default
-        ok = (_is_number(value) if _is_number(default)
-              else isinstance(value, type(default)))
+        ok = _is_number(value) if _is_number(default) else isinstance(value, type(default))
         if not ok or (isinstance(value, float) and not math.isfinite(value)):
-            raise InputError(path, field, f"expected a {type(default).__name__} like the "
-                             f"default {default!r}, got {value!r}")
+            raise InputError(
+                path,
+                field,
+                f"expected a {type(default).__name__} like the default {default!r}, got {value!r}",
+            )
     return value
 
 
@@ -107,34 +117,46 @@ def resolve_family_path(name_or_path: str) -> Path:
         return Path(name_or_path)
     path = scenarios_dir() / f"{name_or_path}.toml"
     if not path.is_file():
-        raise InputError("families", "", f"unknown family {name_or_path!r}; families: "
-                         f"{', '.join(family_presets())} (or a path to a .toml file)")
+        raise InputError(
+            "families",
+            "",
+            f"unknown family {name_or_path!r}; families: "
+            f"{', '.join(family_presets())} (or a path to a .toml file)",
+        )
     return path
 
 
 def _param(path: Path, default: Param, value: Any) -> Param:
     field = f"parameters.{default.name}"
     if default.categorical:
-        if (not isinstance(value, list) or not value
-                or not all(isinstance(v, str) for v in value)):
-            raise InputError(path, field, "expected a non-empty list of choices from "
-                             f"{', '.join(default.choices)}")
+        if not isinstance(value, list) or not value or not all(isinstance(v, str) for v in value):
+            raise InputError(
+                path,
+                field,
+                f"expected a non-empty list of choices from {', '.join(default.choices)}",
+            )
         bad = [v for v in value if v not in default.choices]
         if bad:
-            raise InputError(path, field, f"unknown choice {bad[0]!r}; allowed: "
-                             f"{', '.join(default.choices)}")
+            raise InputError(
+                path, field, f"unknown choice {bad[0]!r}; allowed: {', '.join(default.choices)}"
+            )
         return Param(default.name, choices=tuple(dict.fromkeys(value)), unit=default.unit)
-    ok = (isinstance(value, list) and len(value) == 2
-          and all(isinstance(v, int | float) and not isinstance(v, bool) for v in value))
+    ok = (
+        isinstance(value, list)
+        and len(value) == 2
+        and all(isinstance(v, int | float) and not isinstance(v, bool) for v in value)
+    )
     if not ok or not all(math.isfinite(float(v)) for v in value):
         raise InputError(path, field, f"expected [low, high] (two finite numbers), got {value!r}")
     low, high = float(value[0]), float(value[1])
     if max(abs(low), abs(high)) > MAX_PARAM_ABS:
-        raise InputError(path, field, f"range bounds must be within +-{MAX_PARAM_ABS:g}, got "
-                         f"[{low:g}, {high:g}]")
+        raise InputError(
+            path, field, f"range bounds must be within +-{MAX_PARAM_ABS:g}, got [{low:g}, {high:g}]"
+        )
     if not low < high:
-        raise InputError(path, field, f"empty or reversed range [{low:g}, {high:g}]: "
-                         "low must be < high")
+        raise InputError(
+            path, field, f"empty or reversed range [{low:g}, {high:g}]: low must be < high"
+        )
     why = bound_error(default.name, low) or bound_error(default.name, high)
     if why:
         raise InputError(path, field, f"range [{low:g}, {high:g}]: {why}")
@@ -158,14 +180,16 @@ def load_family(name_or_path: str, road: Path | None = None) -> Family:
     kind_name = fam.get("kind")
     kind_cls = get_kind(str(kind_name)) if isinstance(kind_name, str) else None
     if kind_cls is None:
-        raise InputError(path, "family.kind", f"unknown kind {kind_name!r}; allowed: "
-                         f"{', '.join(kind_names())}")
+        raise InputError(
+            path, "family.kind", f"unknown kind {kind_name!r}; allowed: {', '.join(kind_names())}"
+        )
     settings: dict[str, Any] = {}
     allowed = set(kind_cls.settings) | {"kind", "description"}
     for key in sorted(fam):
         if key not in allowed:
-            raise InputError(path, f"family.{key}", "unknown setting; allowed: "
-                             f"{', '.join(sorted(allowed))}")
+            raise InputError(
+                path, f"family.{key}", f"unknown setting; allowed: {', '.join(sorted(allowed))}"
+            )
     for key, default in kind_cls.settings.items():
         if key not in fam and default is None:
             raise InputError(path, f"family.{key}", "missing required setting")
@@ -174,11 +198,17 @@ def load_family(name_or_path: str, road: Path | None = None) -> Family:
         raise InputError(path, "family.description", "must be a string")
     targets = load_targets()
     if settings["target"] not in targets:
-        raise InputError(path, "family.target", f"unknown target {settings['target']!r}; "
-                         f"allowed: {', '.join(targets)}")
+        raise InputError(
+            path,
+            "family.target",
+            f"unknown target {settings['target']!r}; allowed: {', '.join(targets)}",
+        )
     if "occluder" in settings and settings["occluder"] not in targets:
-        raise InputError(path, "family.occluder", f"unknown occluder class "
-                         f"{settings['occluder']!r}; known: {', '.join(sorted(targets))}")
+        raise InputError(
+            path,
+            "family.occluder",
+            f"unknown occluder class {settings['occluder']!r}; known: {', '.join(sorted(targets))}",
+        )
     road_text = str(settings["road"])
     road_path = resolve_road(road_text)
     if road is not None:
@@ -189,36 +219,59 @@ def load_family(name_or_path: str, road: Path | None = None) -> Family:
         try:
             road_path = (path.parent / road_path).resolve()
         except (RuntimeError, OSError):  # a symlink loop
-            raise InputError(path, "family.road", f"road file {road_path}: cannot resolve "
-                             "the path (a symbolic link loop?)") from None
+            raise InputError(
+                path,
+                "family.road",
+                f"road file {road_path}: cannot resolve the path (a symbolic link loop?)",
+            ) from None
         settings["road"] = str(road_path)
     if not road_path.is_file():
         raise InputError(path, "family.road", f"road file {road_path} not found")
     net = _network(str(road_path.resolve()))
     if settings["road_id"] not in net.roads:
-        raise InputError(path, "family.road_id", f"road {settings['road_id']!r} not in "
-                         f"{road_path.name}")
+        raise InputError(
+            path, "family.road_id", f"road {settings['road_id']!r} not in {road_path.name}"
+        )
     for key in LANE_SETTINGS:
         if key in settings and not net.lane_exists(settings["road_id"], settings[key]):
-            raise InputError(path, f"family.{key}", f"lane {settings[key]!r} does not exist "
-                             f"on road {settings['road_id']}")
-    if "ego_lane" in settings and "target_lane" in settings \
-            and settings["ego_lane"] == settings["target_lane"]:
-        raise InputError(path, "family.target_lane", "must differ from ego_lane "
-                         f"({settings['ego_lane']}): the target changes from its lane into "
-                         "the ego's (or passes in the next lane)")
+            raise InputError(
+                path,
+                f"family.{key}",
+                f"lane {settings[key]!r} does not exist on road {settings['road_id']}",
+            )
+    if (
+        "ego_lane" in settings
+        and "target_lane" in settings
+        and settings["ego_lane"] == settings["target_lane"]
+    ):
+        raise InputError(
+            path,
+            "family.target_lane",
+            "must differ from ego_lane "
+            f"({settings['ego_lane']}): the target changes from its lane into "
+            "the ego's (or passes in the next lane)",
+        )
     params = data.get("parameters", {})
     if not isinstance(params, dict):
         raise InputError(path, "parameters", "expected a table")
     defaults = {p.name: p for p in kind_cls.parameters}
     for key in sorted(params):
         if key not in defaults:
-            raise InputError(path, f"parameters.{key}", "unknown parameter; allowed: "
-                             f"{', '.join(defaults)}")
-    space = tuple(_param(path, p, params[p.name]) if p.name in params else p
-                  for p in kind_cls.parameters)
-    family = Family(name=path.stem, kind=kind_cls(), settings=settings, space=space,
-                    network=net, source=str(path), description=str(fam.get("description", "")))
+            raise InputError(
+                path, f"parameters.{key}", f"unknown parameter; allowed: {', '.join(defaults)}"
+            )
+    space = tuple(
+        _param(path, p, params[p.name]) if p.name in params else p for p in kind_cls.parameters
+    )
+    family = Family(
+        name=path.stem,
+        kind=kind_cls(),
+        settings=settings,
+        space=space,
+        network=net,
+        source=str(path),
+        description=str(fam.get("description", "")),
+    )
     check_fits(family, path)
     return family
 
@@ -229,29 +282,41 @@ def check_fits(family: Family, path: Path | str) -> None:
     (Feasibility bounds are not checked here: single candidates may be infeasible and are
     recorded as such; only a family that cannot fit on its road is bad input.)
     """
-    corners = list(itertools.islice(
-        itertools.product(*(p.corners() for p in family.space)), MAX_FIT_CORNERS))
+    corners = list(
+        itertools.islice(itertools.product(*(p.corners() for p in family.space)), MAX_FIT_CORNERS)
+    )
     names = [p.name for p in family.space]
     cols = {n: np.array([c[i] for c in corners]) for i, n in enumerate(names)}
     batch = family.kind.generate_batch(family, cols, family.network)
     assert batch.offroad is not None
     for i in np.flatnonzero(batch.offroad):
-        shown = ", ".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}"
-                          for k, v in zip(names, corners[i], strict=True))
-        raise InputError(path, "parameters", f"family cannot fit on the road: "
-                         f"{batch.notes[i]} at {shown}; narrow the ranges or use a longer road")
+        shown = ", ".join(
+            f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}"
+            for k, v in zip(names, corners[i], strict=True)
+        )
+        raise InputError(
+            path,
+            "parameters",
+            f"family cannot fit on the road: "
+            f"{batch.notes[i]} at {shown}; narrow the ranges or use a longer road",
+        )
 
 
 def load_families(names: list[str]) -> list[Family]:
     """Load several families (unique names, order kept)."""
     if not names:
-        raise InputError("families", "", "give at least one family; families: "
-                         f"{', '.join(family_presets())}")
+        raise InputError(
+            "families", "", f"give at least one family; families: {', '.join(family_presets())}"
+        )
     families = [load_family(n) for n in dict.fromkeys(names)]
     seen: dict[str, str] = {}
     for f in families:
         if f.name in seen:
-            raise InputError("families", "", f"two families named {f.name!r} ({seen[f.name]} "
-                             f"and {f.source}); family names (file stems) must be unique")
+            raise InputError(
+                "families",
+                "",
+                f"two families named {f.name!r} ({seen[f.name]} "
+                f"and {f.source}); family names (file stems) must be unique",
+            )
         seen[f.name] = f.source
     return families

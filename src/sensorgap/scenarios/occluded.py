@@ -54,14 +54,18 @@ def _target(name: str) -> TargetConfig:
     return load_target(name)
 
 
-def _occluder(family: Family, label: str, x: F64, y: F64, h: F64,
-              t: F64) -> OccluderTracks:
+def _occluder(family: Family, label: str, x: F64, y: F64, h: F64, t: F64) -> OccluderTracks:
     """An occluder of class ``family.settings['occluder']`` along (B, T) centre states."""
     from sensorgap.scenarios.batch import tracks_from_path
 
     cfg = _target(str(family.settings["occluder"]))
-    return OccluderTracks(label, tracks_from_path(t, x, y, h), float(cfg.length_m),
-                          float(cfg.width_m), float(cfg.height_m))
+    return OccluderTracks(
+        label,
+        tracks_from_path(t, x, y, h),
+        float(cfg.length_m),
+        float(cfg.width_m),
+        float(cfg.height_m),
+    )
 
 
 @register_kind
@@ -80,8 +84,13 @@ class CutInBehindTruck(_LaneKind):
 
     name = "cut_in_behind_occluder"
     description = "car cuts in from in front of / beyond a truck into the ego lane"
-    settings = {**_ROAD_SETTINGS, "ego_lane": None, "occluder_lane": None,
-                "target_lane": None, "occluder": "truck"}
+    settings = {
+        **_ROAD_SETTINGS,
+        "ego_lane": None,
+        "occluder_lane": None,
+        "target_lane": None,
+        "occluder": "truck",
+    }
     parameters = (
         Param("ego_s0_m", 50.0, 500.0, unit="m"),
         Param("ego_speed_m_s", 22.0, 36.0, unit="m/s"),
@@ -94,8 +103,7 @@ class CutInBehindTruck(_LaneKind):
         Param("shape", choices=("cosine", "quintic")),
     )
 
-    def generate_batch(self, family: Family, cols: Columns,
-                       net: RoadNetwork) -> ScenarioBatch:
+    def generate_batch(self, family: Family, cols: Columns, net: RoadNetwork) -> ScenarioBatch:
         rid, lane, tr, t = self._start(family, "ego_lane")
         side_lane = int(family.settings["target_lane"])
         truck_lane = int(family.settings["occluder_lane"])
@@ -106,11 +114,15 @@ class CutInBehindTruck(_LaneKind):
         v_truck = _col(cols, "truck_speed_m_s")
         s_k = s0 + tr * (_col(cols, "truck_dx_m") + v_truck * t)
         ahead = 0.5 * truck.length_m + _col(cols, "target_gap_m") + 0.5 * car.length_m
-        s_t = s0 + tr * (_col(cols, "truck_dx_m") + ahead
-                         + (v_truck + _col(cols, "speed_delta_m_s")) * t)
+        s_t = s0 + tr * (
+            _col(cols, "truck_dx_m") + ahead + (v_truck + _col(cols, "speed_delta_m_s")) * t
+        )
         length = net.road(rid).length
-        checks = [off_road(s_e, length, rid, "ego"), off_road(s_t, length, rid, "target"),
-                  off_road(s_k, length, rid, "truck")]
+        checks = [
+            off_road(s_e, length, rid, "ego"),
+            off_road(s_t, length, rid, "target"),
+            off_road(s_k, length, rid, "truck"),
+        ]
         u = (t - _col(cols, "lc_start_s")) / _col(cols, "lc_duration_s")
         w = blend_batch(np.asarray(cols["shape"]).astype(str), u)
         ego = self._follow(family, rid, lane, s_e, tr, t)
@@ -145,8 +157,7 @@ class CutOutReveal(_LaneKind):
         Param("reveal_s", 0.0, 3.0, unit="s"),
     )
 
-    def generate_batch(self, family: Family, cols: Columns,
-                       net: RoadNetwork) -> ScenarioBatch:
+    def generate_batch(self, family: Family, cols: Columns, net: RoadNetwork) -> ScenarioBatch:
         rid, lane, tr, t = self._start(family, "lane")
         other = int(family.settings["target_lane"])
         lead_cfg = _target(str(family.settings["occluder"]))
@@ -156,14 +167,18 @@ class CutOutReveal(_LaneKind):
         vt = _col(cols, "target_speed_m_s")
         t0, md = _col(cols, "cut_out_s"), _col(cols, "lc_duration_s")
         closing = ve - vt  # > 0: the ego is faster than any target of the range
-        gap = (t0 + md + _col(cols, "reveal_s")) * closing + 0.5 * (lead_cfg.length_m
-                                                                     + car.length_m)
+        gap = (t0 + md + _col(cols, "reveal_s")) * closing + 0.5 * (
+            lead_cfg.length_m + car.length_m
+        )
         s_e = s0 + tr * ve * t
         s_l = s0 + tr * (_col(cols, "lead_gap_m") + ve * t)
         s_t = s0 + tr * (_col(cols, "lead_gap_m") + gap + vt * t)
         length = net.road(rid).length
-        checks = [off_road(s_e, length, rid, "ego"), off_road(s_t, length, rid, "target"),
-                  off_road(s_l, length, rid, "lead vehicle")]
+        checks = [
+            off_road(s_e, length, rid, "ego"),
+            off_road(s_t, length, rid, "target"),
+            off_road(s_l, length, rid, "lead vehicle"),
+        ]
         w = blend_batch(np.full(len(s0), "cosine"), (t - t0) / md)
         ego = self._follow(family, rid, lane, s_e, tr, t)
         tgt = self._follow(family, rid, lane, s_t, tr, t)
@@ -171,8 +186,9 @@ class CutOutReveal(_LaneKind):
         xb, yb, _ = family.lane_table(rid, other).poses(s_l, tr)
         lx, ly = (1.0 - w) * xa + w * xb, (1.0 - w) * ya + w * yb
         b = self._batch(t, ego, tgt, family, checks)
-        b.occluders = (_occluder(family, "lead " + str(family.settings["occluder"]), lx, ly,
-                                 ha, t),)
+        b.occluders = (
+            _occluder(family, "lead " + str(family.settings["occluder"]), lx, ly, ha, t),
+        )
         return b
 
 
@@ -193,6 +209,7 @@ class CrossingBehindParked(Crossing):
         the kerb, level with the outer sides of the cars parked there (0.2 m clearance +
         1.8 m width)."""
         return kerbs(net, rid, s)
+
     parameters = (
         Param("ego_s0_m", 85.0, 98.0, unit="m"),
         Param("ego_speed_m_s", 2.8, 16.7, unit="m/s"),
@@ -203,8 +220,7 @@ class CrossingBehindParked(Crossing):
         Param("side", choices=("right",)),
     )
 
-    def generate_batch(self, family: Family, cols: Columns,
-                       net: RoadNetwork) -> ScenarioBatch:
+    def generate_batch(self, family: Family, cols: Columns, net: RoadNetwork) -> ScenarioBatch:
         b = super().generate_batch(family, cols, net)
         rid = str(family.settings["road_id"])
         tr = self._start(family, "ego_lane")[2]
@@ -226,10 +242,16 @@ class CrossingBehindParked(Crossing):
             y = yr + lat * np.cos(hr)
             h = hr + (0.0 if tr > 0 else math.pi)
             shape = (len(s_c), len(t))
-            occs.append(_occluder(family, f"parked {parked.name} {k + 1}",
-                                  np.broadcast_to(x[:, None], shape),
-                                  np.broadcast_to(y[:, None], shape),
-                                  np.broadcast_to(h[:, None], shape), t))
+            occs.append(
+                _occluder(
+                    family,
+                    f"parked {parked.name} {k + 1}",
+                    np.broadcast_to(x[:, None], shape),
+                    np.broadcast_to(y[:, None], shape),
+                    np.broadcast_to(h[:, None], shape),
+                    t,
+                )
+            )
         # the pedestrian waits on the footway (``CURB_OFFSET_M`` beyond the lane) level with
         # the parked cars' outer sides (clearance + width: 2.0 m for a 1.8 m car)
         b.occluders = tuple(occs)

@@ -98,10 +98,18 @@ class Trajectory:
         """Raise ``InfeasibleScenario`` when a bound is exceeded (1 % slack)."""
         checks = (
             ("speed", float(np.max(self.speed)), limits.max_speed, "m/s"),
-            ("longitudinal acceleration", float(np.max(np.abs(self.long_accel()))),
-             limits.max_long_accel, "m/s2"),
-            ("lateral acceleration", float(np.max(np.abs(self.lat_accel()))),
-             limits.max_lat_accel, "m/s2"),
+            (
+                "longitudinal acceleration",
+                float(np.max(np.abs(self.long_accel()))),
+                limits.max_long_accel,
+                "m/s2",
+            ),
+            (
+                "lateral acceleration",
+                float(np.max(np.abs(self.lat_accel()))),
+                limits.max_lat_accel,
+                "m/s2",
+            ),
         )
         for what, value, bound, unit in checks:
             if value > bound * 1.01 + 1e-9:

@@ -51,9 +51,19 @@ LEAD_S = 4.5
 #: Gap between the two parked cars, m (estimate, module docstring).
 PARKED_GAP_M = 1.0
 #: Columns of anchors.csv.
-COLUMNS = ("case", "vut_kmh", "pedestrian_kmh", "class", "collision_probability",
-           "impact_speed_kmh", "collision_perfect", "t_safe_s", "t_confirm_median_s",
-           "detection_margin_s", "dominant_effect")
+COLUMNS = (
+    "case",
+    "vut_kmh",
+    "pedestrian_kmh",
+    "class",
+    "collision_probability",
+    "impact_speed_kmh",
+    "collision_perfect",
+    "t_safe_s",
+    "t_confirm_median_s",
+    "detection_margin_s",
+    "dominant_effect",
+)
 
 
 @dataclass(frozen=True)
@@ -73,12 +83,22 @@ def ncap_obstructed_cases(x_front_m: float) -> list[AnchorCase]:
     for kmh in NCAP_SPEEDS_KMH:
         v = kmh / 3.6
         ahead = max(x_front_m + v * LEAD_S, 15.0)
-        out.append(AnchorCase(
-            f"Euro NCAP obstructed crossing {kmh:g} km/h", NCAP_FAMILY, "clear",
-            {"ego_s0_m": 90.0, "ego_speed_m_s": v, "cross_ahead_m": ahead,
-             "target_speed_m_s": NCAP_PEDESTRIAN_KMH / 3.6,
-             "conflict_offset_s": -x_front_m / v, "parked_gap_m": PARKED_GAP_M,
-             "side": "right"}))
+        out.append(
+            AnchorCase(
+                f"Euro NCAP obstructed crossing {kmh:g} km/h",
+                NCAP_FAMILY,
+                "clear",
+                {
+                    "ego_s0_m": 90.0,
+                    "ego_speed_m_s": v,
+                    "cross_ahead_m": ahead,
+                    "target_speed_m_s": NCAP_PEDESTRIAN_KMH / 3.6,
+                    "conflict_offset_s": -x_front_m / v,
+                    "parked_gap_m": PARKED_GAP_M,
+                    "side": "right",
+                },
+            )
+        )
     return out
 
 
@@ -86,9 +106,12 @@ def _finite(v: float) -> float | None:
     return v if math.isfinite(v) else None
 
 
-def evaluate_anchors(system: System, cases: list[AnchorCase],
-                     environments: dict[str, EnvironmentConfig] | None = None,
-                     vehicle_ref: str | None = None) -> list[dict[str, Any]]:
+def evaluate_anchors(
+    system: System,
+    cases: list[AnchorCase],
+    environments: dict[str, EnvironmentConfig] | None = None,
+    vehicle_ref: str | None = None,
+) -> list[dict[str, Any]]:
     """Evaluate every case exactly for ``system`` (its reaction model) in its environment
     preset (``environments``: the shipped ones by default); one row per case with the
     ranking's outcome metrics (m, s, km/h), the class, the dominant effect and the
@@ -101,27 +124,43 @@ def evaluate_anchors(system: System, cases: list[AnchorCase],
     for case in cases:
         key = (case.family, case.environment)
         if key not in problems:
-            problems[key] = SearchProblem(load_families([case.family])[0],
-                                          {case.environment: envs[case.environment]}, ev)
+            problems[key] = SearchProblem(
+                load_families([case.family])[0], {case.environment: envs[case.environment]}, ev
+            )
         prob = problems[key]
         cand = Candidate(case.family, case.environment, None, dict(case.params))
         res = prob.evaluate(cand)
         m = res.metrics
         row: dict[str, Any] = {
-            "case": case.label, "vut_kmh": 3.6 * float(case.params["ego_speed_m_s"]),
+            "case": case.label,
+            "vut_kmh": 3.6 * float(case.params["ego_speed_m_s"]),
             "pedestrian_kmh": 3.6 * float(case.params["target_speed_m_s"]),
-            "class": classify(res), "feasible": res.feasible, "note": res.note,
-            "family": case.family, "environment": case.environment,
-            "params": dict(case.params)}
-        for name in ("collision_probability", "impact_speed_kmh", "collision_perfect",
-                     "t_safe_s", "t_confirm_median_s", "detection_margin_s"):
+            "class": classify(res),
+            "feasible": res.feasible,
+            "note": res.note,
+            "family": case.family,
+            "environment": case.environment,
+            "params": dict(case.params),
+        }
+        for name in (
+            "collision_probability",
+            "impact_speed_kmh",
+            "collision_perfect",
+            "t_safe_s",
+            "t_confirm_median_s",
+            "detection_margin_s",
+        ):
             row[name] = _finite(float(m.get(name, math.nan))) if res.feasible else None
         row["dominant_effect"] = explain(prob, cand).dominant if res.feasible else ""
-        params = " ".join(f"--param {k}={v!r}" if isinstance(v, float) else
-                          f"--param {k}={v}" for k, v in case.params.items())
-        row["command"] = (f"sensorgap evaluate --vehicle {vehicle_ref or system.name} "
-                          f"--family {case.family} --environment {case.environment} "
-                          f"{params} --out OUT")
+        params = " ".join(
+            f"--param {k}={v!r}" if isinstance(v, float) else f"--param {k}={v}"
+            for k, v in case.params.items()
+        )
+        row["command"] = (
+            f"sensorgap evaluate --vehicle {vehicle_ref or system.name} "
+            f"--family {case.family} --environment {case.environment} "
+            f"{params} --out OUT"
+        )
         rows.append(row)
     return rows
 

@@ -27,8 +27,15 @@ from sensorgap.search.ranking import classify, explain
 from sensorgap.search.run import ranking_csv
 from sensorgap.search.runfolder import ROW_TEXT, RunFolder, read_run
 
-__all__ = ["ROW_TEXT", "RunRanking", "candidate_of", "check_rankings", "compare_runs",
-           "read_run", "write_comparison"]
+__all__ = [
+    "ROW_TEXT",
+    "RunRanking",
+    "candidate_of",
+    "check_rankings",
+    "compare_runs",
+    "read_run",
+    "write_comparison",
+]
 
 #: Collision-probability difference that makes a scenario critical for one vehicle only.
 MARGIN_P = 0.1
@@ -40,26 +47,36 @@ SEES_PD = 0.5
 RunRanking = RunFolder
 
 
-def candidate_of(row: dict[str, Any], problem: SearchProblem,
-                 source: Path | str = "ranking.json") -> Candidate:
+def candidate_of(
+    row: dict[str, Any], problem: SearchProblem, source: Path | str = "ranking.json"
+) -> Candidate:
     """The candidate of a ranking row (preset, world-frame sun, parameters); a missing or
     malformed value -> ``InputError`` naming ``source`` and the field."""
     env = str(row["environment"]).split("@")[0]
     if env not in problem.environments:
-        raise InputError(source, f"ranking[{row.get('scenario_id')}].environment",
-                         f"unknown environment {env[:64]!r}; the run's environments: "
-                         f"{', '.join(problem.environments)}")
+        raise InputError(
+            source,
+            f"ranking[{row.get('scenario_id')}].environment",
+            f"unknown environment {env[:64]!r}; the run's environments: "
+            f"{', '.join(problem.environments)}",
+        )
     field = "sun_azimuth_deg"
     try:
-        sun = (None if row.get("sun_azimuth_deg") is None
-               else (float(row["sun_azimuth_deg"]), float(row["sun_elevation_deg"])))
+        sun = (
+            None
+            if row.get("sun_azimuth_deg") is None
+            else (float(row["sun_azimuth_deg"]), float(row["sun_elevation_deg"]))
+        )
         params: dict[str, Any] = {}
         for p in problem.family.space:
             field = f"p_{p.name}"
             params[p.name] = p.from_json(row[field])
     except (KeyError, TypeError, ValueError) as exc:
-        raise InputError(source, f"ranking[{row.get('scenario_id')}].{field}",
-                         f"missing or malformed value ({exc})") from None
+        raise InputError(
+            source,
+            f"ranking[{row.get('scenario_id')}].{field}",
+            f"missing or malformed value ({exc})",
+        ) from None
     return Candidate(problem.family.name, env, sun, params)
 
 
@@ -89,8 +106,9 @@ class _Side:
         recorded it, with its environments, evaluated for this side's vehicle."""
         key = (source.folder, family)
         if key not in self.problems:
-            self.problems[key] = SearchProblem(source.family(family),
-                                               _environments(source), self.evaluator)
+            self.problems[key] = SearchProblem(
+                source.family(family), _environments(source), self.evaluator
+            )
         return self.problems[key]
 
 
@@ -109,12 +127,10 @@ def check_rankings(*runs: Path) -> None:
         run = read_run(path)
         side = _Side(run)
         for row in run.rows:
-            candidate_of(row, side.problem(run, str(row["family"])),
-                         run.folder / "ranking.json")
+            candidate_of(row, side.problem(run, str(row["family"])), run.folder / "ranking.json")
 
 
-def compare_runs(run_a: Path, run_b: Path,
-                 margin_p: float = MARGIN_P) -> list[dict[str, Any]]:
+def compare_runs(run_a: Path, run_b: Path, margin_p: float = MARGIN_P) -> list[dict[str, Any]]:
     """Cross-evaluate the ranked scenarios of two runs (see the module docstring)."""
     ra, rb = read_run(run_a), read_run(run_b)
     sides = [_Side(ra), _Side(rb)]
@@ -122,13 +138,20 @@ def compare_runs(run_a: Path, run_b: Path,
     for k, side in enumerate(sides):
         for row in side.run.rows:
             sid = str(row["scenario_id"])
-            entry = seen.setdefault(sid, {"row": row, "ranks": [None, None],
-                                          "run": side.run,
-                                          "source": side.run.folder / "ranking.json"})
+            entry = seen.setdefault(
+                sid,
+                {
+                    "row": row,
+                    "ranks": [None, None],
+                    "run": side.run,
+                    "source": side.run.folder / "ranking.json",
+                },
+            )
             entry["ranks"][k] = int(row["rank"])
     out = []
-    for sid, entry in sorted(seen.items(), key=lambda kv: (
-            min(r for r in kv[1]["ranks"] if r is not None), kv[0])):
+    for sid, entry in sorted(
+        seen.items(), key=lambda kv: (min(r for r in kv[1]["ranks"] if r is not None), kv[0])
+    ):
         row = entry["row"]
         probs, speeds, classes, results = [], [], [], []
         for side in sides:
@@ -136,54 +159,80 @@ def compare_runs(run_a: Path, run_b: Path,
             cand = candidate_of(row, prob, entry["source"])
             res = prob.evaluate(cand)
             results.append((prob, cand, res))
-            probs.append(float(res.metrics.get("collision_probability", 0.0))
-                         if res.feasible else 0.0)
-            speeds.append(float(res.metrics.get("impact_speed_kmh", 0.0))
-                          if res.feasible else 0.0)
+            probs.append(
+                float(res.metrics.get("collision_probability", 0.0)) if res.feasible else 0.0
+            )
+            speeds.append(float(res.metrics.get("impact_speed_kmh", 0.0)) if res.feasible else 0.0)
             classes.append(classify(res))
         diff = probs[0] - probs[1]
-        critical = ("both" if abs(diff) < margin_p and min(probs) > 0.0
-                    else "neither" if abs(diff) < margin_p
-                    else sides[0].name if diff > 0 else sides[1].name)
+        critical = (
+            "both"
+            if abs(diff) < margin_p and min(probs) > 0.0
+            else "neither"
+            if abs(diff) < margin_p
+            else sides[0].name
+            if diff > 0
+            else sides[1].name
+        )
         worse = 0 if diff >= 0 else 1
         better = 1 - worse
         prob_w, cand_w, res_w = results[worse]
         ex = explain(prob_w, cand_w) if res_w.feasible else None
-        why = (f"{sides[worse].name}: {ex.reason}" if ex is not None
-               else f"{sides[worse].name}: infeasible ({res_w.note})")
+        why = (
+            f"{sides[worse].name}: {ex.reason}"
+            if ex is not None
+            else f"{sides[worse].name}: infeasible ({res_w.note})"
+        )
         sees: list[str] = []
         if critical not in ("both", "neither") and ex is not None:
             prob_b, _, _ = results[better]
             ev_b = prob_b.evaluator
-            tr = ev_b.trace(prob_b.scenario(cand_w), prob_b.environment(cand_w),
-                            prob_b.family.duration_s)
+            tr = ev_b.trace(
+                prob_b.scenario(cand_w), prob_b.environment(cand_w), prob_b.family.duration_s
+            )
             k = int(np.argmin(np.abs(tr.t - ex.step_t_s)))
             env = prob_b.environment(cand_w)
             target = ev_b.target(prob_b.family.target_class)
-            pd = ev_b.per_sensor_pd(env, target, tr.heading[k:k + 1], tr.x[k:k + 1],
-                                    tr.y[k:k + 1],
-                                    psi=None if tr.psi is None else tr.psi[k:k + 1],
-                                    occluders=None if tr.occluders is None
-                                    else tr.occluders[k:k + 1])[:, 0]
+            pd = ev_b.per_sensor_pd(
+                env,
+                target,
+                tr.heading[k : k + 1],
+                tr.x[k : k + 1],
+                tr.y[k : k + 1],
+                psi=None if tr.psi is None else tr.psi[k : k + 1],
+                occluders=None if tr.occluders is None else tr.occluders[k : k + 1],
+            )[:, 0]
             confirm = set(ev_b.confirm_rows)
-            sees = [f"{sn.id} ({_sensor_type(sides[better].system, sn.id)}, Pd {p:.2f}"
-                    f"{'' if i in confirm else ', cannot confirm'})"
-                    for i, (sn, p) in enumerate(zip(sides[better].system.sensors, pd,
-                                                    strict=True)) if p >= SEES_PD]
-            why += (f" | {sides[better].name} at the same moment sees it with "
-                    + ("; ".join(sees) if sees else "no sensor above Pd 0.5")
-                    + f" (P(collision) {probs[better]:.2g} vs {probs[worse]:.2g})")
-        out.append({
-            "scenario_id": sid, "family": row["family"], "environment": row["environment"],
-            f"rank_{sides[0].name}": entry["ranks"][0], f"rank_{sides[1].name}": entry["ranks"][1],
-            f"collision_probability_{sides[0].name}": probs[0],
-            f"collision_probability_{sides[1].name}": probs[1],
-            f"impact_speed_kmh_{sides[0].name}": speeds[0],
-            f"impact_speed_kmh_{sides[1].name}": speeds[1],
-            f"class_{sides[0].name}": classes[0], f"class_{sides[1].name}": classes[1],
-            "critical_for": critical, "dominant_effect": "" if ex is None else ex.dominant,
-            "other_sees": "; ".join(sees), "why": why,
-        })
+            sees = [
+                f"{sn.id} ({_sensor_type(sides[better].system, sn.id)}, Pd {p:.2f}"
+                f"{'' if i in confirm else ', cannot confirm'})"
+                for i, (sn, p) in enumerate(zip(sides[better].system.sensors, pd, strict=True))
+                if p >= SEES_PD
+            ]
+            why += (
+                f" | {sides[better].name} at the same moment sees it with "
+                + ("; ".join(sees) if sees else "no sensor above Pd 0.5")
+                + f" (P(collision) {probs[better]:.2g} vs {probs[worse]:.2g})"
+            )
+        out.append(
+            {
+                "scenario_id": sid,
+                "family": row["family"],
+                "environment": row["environment"],
+                f"rank_{sides[0].name}": entry["ranks"][0],
+                f"rank_{sides[1].name}": entry["ranks"][1],
+                f"collision_probability_{sides[0].name}": probs[0],
+                f"collision_probability_{sides[1].name}": probs[1],
+                f"impact_speed_kmh_{sides[0].name}": speeds[0],
+                f"impact_speed_kmh_{sides[1].name}": speeds[1],
+                f"class_{sides[0].name}": classes[0],
+                f"class_{sides[1].name}": classes[1],
+                "critical_for": critical,
+                "dominant_effect": "" if ex is None else ex.dominant,
+                "other_sees": "; ".join(sees),
+                "why": why,
+            }
+        )
     return out
 
 
@@ -193,22 +242,34 @@ def write_comparison(run_a: Path, run_b: Path, out: Path) -> list[dict[str, Any]
     out.mkdir(parents=True, exist_ok=True)
     cols = list(rows[0]) if rows else ["scenario_id"]
     atomic_write_bytes(out / "comparison.csv", ranking_csv(rows, cols))
-    write_json(out / "comparison.json", {"columns": cols, "rows": rows,
-                                         "margin_collision_probability": MARGIN_P})
+    write_json(
+        out / "comparison.json",
+        {"columns": cols, "rows": rows, "margin_collision_probability": MARGIN_P},
+    )
     counts = Counter((r["critical_for"], r["dominant_effect"]) for r in rows)
-    lines = ["# Critical scenarios: cross-evaluation of two vehicles", "",
-             f"Critical for one vehicle only: collision probability higher by >= "
-             f"{MARGIN_P:g}. Each scenario ranked for either vehicle is evaluated exactly "
-             "for both, each vehicle with its own reaction model.", "",
-             "| critical for | dominant effect | scenarios |", "|---|---|---|"]
+    lines = [
+        "# Critical scenarios: cross-evaluation of two vehicles",
+        "",
+        f"Critical for one vehicle only: collision probability higher by >= "
+        f"{MARGIN_P:g}. Each scenario ranked for either vehicle is evaluated exactly "
+        "for both, each vehicle with its own reaction model.",
+        "",
+        "| critical for | dominant effect | scenarios |",
+        "|---|---|---|",
+    ]
     lines += [f"| {who} | {eff} | {n} |" for (who, eff), n in sorted(counts.items())]
     lines += ["", "| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
     for r in rows:
         cells = []
         for c in cols:
             v = r[c]
-            cells.append("" if v is None else f"{v:.2f}" if isinstance(v, float)
-                         else str(v).replace("|", "/"))
+            cells.append(
+                ""
+                if v is None
+                else f"{v:.2f}"
+                if isinstance(v, float)
+                else str(v).replace("|", "/")
+            )
         lines.append("| " + " | ".join(cells) + " |")
     atomic_write_text(out / "comparison.md", "\n".join(lines) + "\n")
     return rows

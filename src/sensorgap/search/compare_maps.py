@@ -124,8 +124,13 @@ def _map_model(summary: dict[str, Any]) -> MapModel | None:
         return None
     g = summary.get("grid", {})
     try:
-        grid = (float(g["xmin"]), float(g["xmax"]), float(g["ymin"]), float(g["ymax"]),
-                float(g["resolution_m"]))
+        grid = (
+            float(g["xmin"]),
+            float(g["xmax"]),
+            float(g["ymin"]),
+            float(g["ymax"]),
+            float(g["resolution_m"]),
+        )
     except (KeyError, TypeError, ValueError):
         return None
     model = str(summary.get("target_model", ""))
@@ -150,8 +155,11 @@ def _existing_maps(run: RunFolder) -> dict[str, tuple[Path, dict[str, Any]]]:
 
 def _key_parts(key: str, summary: dict[str, Any] | None) -> tuple[str, str]:
     """(target, environment) of a coverage map key (its summary.json when given)."""
-    if summary and isinstance(summary.get("target"), str) \
-            and isinstance(summary.get("environment"), str):
+    if (
+        summary
+        and isinstance(summary.get("target"), str)
+        and isinstance(summary.get("environment"), str)
+    ):
         return summary["target"], summary["environment"]
     target, _, env = key.partition("_")
     return target, env
@@ -164,9 +172,9 @@ def _system(side: SideMaps) -> System | None:
         return None
 
 
-def _lookup(side: SideMaps, other: SideMaps, kind: str, name: str,
-            notes: list[str]) -> Any:
+def _lookup(side: SideMaps, other: SideMaps, kind: str, name: str, notes: list[str]) -> Any:
     """An environment or target class of ``side``'s run, else of ``other``'s (noted)."""
+
     def table(s: SideMaps) -> dict[str, Any]:
         try:
             return dict(s.run.environments() if kind == "environment" else s.run.targets())
@@ -179,19 +187,24 @@ def _lookup(side: SideMaps, other: SideMaps, kind: str, name: str,
     if name in own:
         found = own[name]
         if name in theirs and theirs[name] != own[name]:
-            note = (f"{kind} '{name}' is defined differently by the two runs: each vehicle "
-                    "is evaluated in its own run's definition")
+            note = (
+                f"{kind} '{name}' is defined differently by the two runs: each vehicle "
+                "is evaluated in its own run's definition"
+            )
     elif name in theirs:
         found = theirs[name]
-        note = (f"{kind} '{name}': not in the recorded inputs of {side.run.folder.name}; "
-                f"those of {other.run.folder.name} are used for both")
+        note = (
+            f"{kind} '{name}': not in the recorded inputs of {side.run.folder.name}; "
+            f"those of {other.run.folder.name} are used for both"
+        )
     if note and note not in notes:
         notes.append(note)
     return found
 
 
-def _farfield_one(system: System, env: EnvironmentConfig, target: TargetConfig,
-                  out_dir: Path) -> None:
+def _farfield_one(
+    system: System, env: EnvironmentConfig, target: TargetConfig, out_dir: Path
+) -> None:
     """The default job's far field of a car body (``jobs._farfield``) for one
     environment, from given (recorded) definitions."""
     setup = FarFieldSetup()
@@ -199,10 +212,17 @@ def _farfield_one(system: System, env: EnvironmentConfig, target: TargetConfig,
     pose = ego_pose(net, setup)
     scene = Scene(system, target, Conditions.from_config(env, pose.heading))
     ff = farfield(scene, target_path(net, setup), pose, setup.length_m, bodies=True)
-    write_farfield(scene, ff, out_dir, f"{system.name}, {env.name}: car body along the "
-                   "right lane", extra={"setup": setup.__dict__,
-                                        "target_model": "body (coverage.body), heading "
-                                                        "along the lane"}, bodies=True)
+    write_farfield(
+        scene,
+        ff,
+        out_dir,
+        f"{system.name}, {env.name}: car body along the right lane",
+        extra={
+            "setup": setup.__dict__,
+            "target_model": "body (coverage.body), heading along the lane",
+        },
+        bodies=True,
+    )
 
 
 def _label(side: SideMaps, folder: Path, out: Path) -> str:
@@ -211,39 +231,66 @@ def _label(side: SideMaps, folder: Path, out: Path) -> str:
     try:
         return folder.resolve().relative_to(Path(out).resolve()).as_posix()
     except ValueError:
-        return (f"run {side.run.folder.name}: "
-                f"{folder.resolve().relative_to(side.run.folder.resolve()).as_posix()}")
+        return (
+            f"run {side.run.folder.name}: "
+            f"{folder.resolve().relative_to(side.run.folder.resolve()).as_posix()}"
+        )
 
 
-def _difference(key: str, a: SideMaps, b: SideMaps, sys_a: System, sys_b: System,
-                env: EnvironmentConfig | None, out_dir: Path) -> None:
+def _difference(
+    key: str,
+    a: SideMaps,
+    b: SideMaps,
+    sys_a: System,
+    sys_b: System,
+    env: EnvironmentConfig | None,
+    out_dir: Path,
+) -> None:
     """difference.npz / .png / summary.json of the pair ``key`` (one grid)."""
     pa, x, y, res = load_map(a.coverage[key])
     pb = load_map(b.coverage[key])[0]
     diff = pa - pb
     cell = res * res
     da, db = pa >= DETECTS_PD, pb >= DETECTS_PD
-    areas = {"only_a_m2": float(np.count_nonzero(da & ~db) * cell),
-             "only_b_m2": float(np.count_nonzero(db & ~da) * cell),
-             "both_m2": float(np.count_nonzero(da & db) * cell),
-             "neither_m2": float(np.count_nonzero(~da & ~db) * cell)}
+    areas = {
+        "only_a_m2": float(np.count_nonzero(da & ~db) * cell),
+        "only_b_m2": float(np.count_nonzero(db & ~da) * cell),
+        "both_m2": float(np.count_nonzero(da & db) * cell),
+        "neither_m2": float(np.count_nonzero(~da & ~db) * cell),
+    }
     out_dir.mkdir(parents=True, exist_ok=True)
-    write_npz(out_dir / "difference.npz", {"x": x, "y": y, "pd_a": pa, "pd_b": pb,
-                                           "difference": diff,
-                                           "resolution": np.array(res)})
-    spec = GridSpec(float(x[0]) - res / 2, float(x[-1]) + res / 2, float(y[0]) - res / 2,
-                    float(y[-1]) + res / 2, res, 0.0)
+    write_npz(
+        out_dir / "difference.npz",
+        {"x": x, "y": y, "pd_a": pa, "pd_b": pb, "difference": diff, "resolution": np.array(res)},
+    )
+    spec = GridSpec(
+        float(x[0]) - res / 2,
+        float(x[-1]) + res / 2,
+        float(y[0]) - res / 2,
+        float(y[-1]) + res / 2,
+        res,
+        0.0,
+    )
     cond = None if env is None else Conditions.from_config(env)
     fig = comparison_figure(pa, pb, spec, sys_a, sys_b, key, conditions=cond)
     save_figure(fig, out_dir / "difference.png", dpi=90)
-    write_json(out_dir / "summary.json", {
-        "map": key, "vehicle_a": a.name, "vehicle_b": b.name,
-        "coverage_a": _label(a, a.coverage[key], out_dir.parent.parent),
-        "coverage_b": _label(b, b.coverage[key], out_dir.parent.parent),
-        "detects_pd": DETECTS_PD, "cell_m": res,
-        "difference": "Pd_A - Pd_B per cell (exact Pd at the cell centres)",
-        "max_difference": float(diff.max()), "min_difference": float(diff.min()),
-        "area_m2": areas, "files": ["difference.npz", "difference.png", "summary.json"]})
+    write_json(
+        out_dir / "summary.json",
+        {
+            "map": key,
+            "vehicle_a": a.name,
+            "vehicle_b": b.name,
+            "coverage_a": _label(a, a.coverage[key], out_dir.parent.parent),
+            "coverage_b": _label(b, b.coverage[key], out_dir.parent.parent),
+            "detects_pd": DETECTS_PD,
+            "cell_m": res,
+            "difference": "Pd_A - Pd_B per cell (exact Pd at the cell centres)",
+            "max_difference": float(diff.max()),
+            "min_difference": float(diff.min()),
+            "area_m2": areas,
+            "files": ["difference.npz", "difference.png", "summary.json"],
+        },
+    )
 
 
 def complete_runs(run_a: Path, run_b: Path, out: Path, workers: int = 2) -> Completed:
@@ -262,8 +309,10 @@ def complete_runs(run_a: Path, run_b: Path, out: Path, workers: int = 2) -> Comp
     systems = {s.tag: _system(s) for s in sides}
     for s in sides:
         if systems[s.tag] is None:
-            notes.append(f"{s.run.folder.name}: the vehicle is not recorded (no run.json "
-                         "or ranking.json): nothing can be computed for it")
+            notes.append(
+                f"{s.run.folder.name}: the vehicle is not recorded (no run.json "
+                "or ranking.json): nothing can be computed for it"
+            )
 
     existing = {s.tag: _existing_maps(s.run) for s in sides}
 
@@ -289,8 +338,7 @@ def complete_runs(run_a: Path, run_b: Path, out: Path, workers: int = 2) -> Comp
     todo: list[tuple[SideMaps, str, Scene, MapModel]] = []
     for key in sorted(keys, key=lambda k: (k not in existing["a"], k not in existing["b"], k)):
         target_name, env_name = keys[key]
-        models = [_map_model(existing[s.tag][key][1]) for s in sides
-                  if key in existing[s.tag]]
+        models = [_map_model(existing[s.tag][key][1]) for s in sides if key in existing[s.tag]]
         model = next((m for m in models if m is not None), DEFAULT_MODEL)
         for s, other in ((a, b), (b, a)):
             have = existing[s.tag].get(key)
@@ -301,8 +349,10 @@ def complete_runs(run_a: Path, run_b: Path, out: Path, workers: int = 2) -> Comp
             env = _lookup(s, other, "environment", env_name, notes)
             target = _lookup(s, other, "target", target_name, notes)
             if sysm is None or env is None or target is None:
-                note = (f"coverage {key}: environment or target class defined by neither "
-                        "run: not compared")
+                note = (
+                    f"coverage {key}: environment or target class defined by neither "
+                    "run: not compared"
+                )
                 if sysm is not None and note not in notes:
                     notes.append(note)
                 continue
@@ -310,15 +360,21 @@ def complete_runs(run_a: Path, run_b: Path, out: Path, workers: int = 2) -> Comp
 
     def one(job: tuple[SideMaps, str, Scene, MapModel]) -> Any:
         _, _, scene, model = job
-        return compute_coverage(scene, model.spec(scene.target.reference_height_m),
-                                heading_deg=model.heading_deg)
+        return compute_coverage(
+            scene, model.spec(scene.target.reference_height_m), heading_deg=model.heading_deg
+        )
 
     with ThreadPoolExecutor(max_workers=max(1, workers)) as pool:
         covs = list(pool.map(one, todo))
     for (s, key, scene, model), cov in zip(todo, covs, strict=True):  # figures: this thread
         folder = s.made / "coverage" / slug(key)
-        write_coverage(scene, model.spec(scene.target.reference_height_m), folder,
-                       heading_deg=model.heading_deg, cov=cov)
+        write_coverage(
+            scene,
+            model.spec(scene.target.reference_height_m),
+            folder,
+            heading_deg=model.heading_deg,
+            cov=cov,
+        )
         s.coverage[key] = folder
         s.computed.append(f"coverage {key}")
     both = [k for k in sorted(keys) if k in a.coverage and k in b.coverage]
@@ -347,8 +403,9 @@ def complete_runs(run_a: Path, run_b: Path, out: Path, workers: int = 2) -> Comp
         for key in both:
             env = _lookup(a, b, "environment", keys[key][1], notes)
             if not _same_grid(a.coverage[key], b.coverage[key]):
-                notes.append(f"coverage {key}: the two maps are on different grids: no "
-                             "difference map")
+                notes.append(
+                    f"coverage {key}: the two maps are on different grids: no difference map"
+                )
                 continue
             _difference(key, a, b, sys_a, sys_b, env, Path(out) / "difference" / slug(key))
             diffs[key] = Path(out) / "difference" / slug(key)
@@ -365,19 +422,23 @@ def load_map(folder: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
             x, y = np.asarray(z["x"], np.float64), np.asarray(z["y"], np.float64)
             res = float(np.asarray(z["resolution"]).ravel()[0])
     except (OSError, KeyError, ValueError, IndexError, EOFError, zipfile.BadZipFile) as exc:
-        raise InputError(path, "", "unreadable coverage map (expected the .npz of "
-                         f"`sensorgap coverage`: pd, x, y, resolution): {exc}") from None
+        raise InputError(
+            path,
+            "",
+            "unreadable coverage map (expected the .npz of "
+            f"`sensorgap coverage`: pd, x, y, resolution): {exc}",
+        ) from None
     if pd.shape != (len(y), len(x)):
-        raise InputError(path, "pd", f"expected shape (len(y), len(x)) = ({len(y)}, "
-                         f"{len(x)}), got {pd.shape}")
+        raise InputError(
+            path, "pd", f"expected shape (len(y), len(x)) = ({len(y)}, {len(x)}), got {pd.shape}"
+        )
     return pd, x, y, res
 
 
 def _same_grid(fa: Path, fb: Path) -> bool:
     pa, xa, ya, _ = load_map(fa)
     pb, xb, yb, _ = load_map(fb)
-    return (pa.shape == pb.shape and bool(np.allclose(xa, xb))
-            and bool(np.allclose(ya, yb)))
+    return pa.shape == pb.shape and bool(np.allclose(xa, xb)) and bool(np.allclose(ya, yb))
 
 
 __all__ = ["COMPARE_GRID", "Completed", "SideMaps", "complete_runs", "slug"]

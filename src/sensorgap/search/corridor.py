@@ -64,9 +64,15 @@ class Corridor:
 
 
 def corridor_search(
-    scene: Scene, x_start: float, x_goal: float, lanes: list[tuple[float, float]],
-    speed_rel: float, dt: float = 0.05, lateral_res: float = 0.25,
-    max_lateral_cells: int = 1, height: float | None = None,
+    scene: Scene,
+    x_start: float,
+    x_goal: float,
+    lanes: list[tuple[float, float]],
+    speed_rel: float,
+    dt: float = 0.05,
+    lateral_res: float = 0.25,
+    max_lateral_cells: int = 1,
+    height: float | None = None,
 ) -> Corridor:
     """Least-detectable path from ``x_start`` to ``x_goal`` (vehicle frame, m) on ``lanes``.
 
@@ -78,16 +84,24 @@ def corridor_search(
     if not (math.isfinite(speed_rel) and speed_rel > 0.0):
         raise InputError("speed", "", f"relative speed must be > 0 m/s, got {speed_rel!r}")
     if not x_goal > x_start:
-        raise InputError("goal", "", f"goal x ({x_goal:g}) must lie ahead of start x "
-                         f"({x_start:g}) in the direction of motion")
+        raise InputError(
+            "goal",
+            "",
+            f"goal x ({x_goal:g}) must lie ahead of start x "
+            f"({x_start:g}) in the direction of motion",
+        )
     if not lanes or any(not (lo < hi) for lo, hi in lanes):
         raise InputError("lanes", "", "need at least one lateral interval lo < hi (m)")
     if max(abs(x_start), abs(x_goal)) > MAX_CORRIDOR_X_M:
-        raise InputError("corridor", "x_start/x_goal", f"must be within +-"
-                         f"{MAX_CORRIDOR_X_M:g} m, got {x_start:g} and {x_goal:g}")
+        raise InputError(
+            "corridor",
+            "x_start/x_goal",
+            f"must be within +-{MAX_CORRIDOR_X_M:g} m, got {x_start:g} and {x_goal:g}",
+        )
     if any(max(abs(lo), abs(hi)) > MAX_CORRIDOR_Y_M for lo, hi in lanes):
-        raise InputError("corridor", "lanes", f"lane bands must lie within +-"
-                         f"{MAX_CORRIDOR_Y_M:g} m of the ego")
+        raise InputError(
+            "corridor", "lanes", f"lane bands must lie within +-{MAX_CORRIDOR_Y_M:g} m of the ego"
+        )
     if not (math.isfinite(lateral_res) and lateral_res > 0.0):
         raise InputError("corridor", "lateral_res", f"must be > 0 m, got {lateral_res!r}")
     step = speed_rel * dt
@@ -96,10 +110,14 @@ def corridor_search(
     cols_est = (x_goal - x_start) / step + 1.0
     rows_est = (y_hi - y_lo) / lateral_res + 1.0
     if cols_est * rows_est > MAX_CORRIDOR_NODES:
-        raise InputError("corridor", "lateral_res", f"a lattice of {cols_est:.3g} columns x "
-                         f"{rows_est:.3g} rows is too large (at most {MAX_CORRIDOR_NODES:.0e} "
-                         "nodes); coarsen the lateral resolution, shorten the approach or "
-                         "raise the speed")
+        raise InputError(
+            "corridor",
+            "lateral_res",
+            f"a lattice of {cols_est:.3g} columns x "
+            f"{rows_est:.3g} rows is too large (at most {MAX_CORRIDOR_NODES:.0e} "
+            "nodes); coarsen the lateral resolution, shorten the approach or "
+            "raise the speed",
+        )
     n_cols = max(2, round((x_goal - x_start) / step) + 1)
     h = scene.target.reference_height_m if height is None else height
     # columns at the cycle spacing, rows at lateral_res: the exact fused Pd per node
@@ -132,9 +150,16 @@ def corridor_search(
     heading = np.arctan2(np.gradient(y), np.gradient(x))
     pd_path = pd[cols, rr]
     total = float(np.sum(cost[cols, rr]))
-    return Corridor(t=cols * dt, x=x, y=y, heading=heading, pd=pd_path,
-                    p_undetected=math.exp(-total), log10_p_undetected=-total / math.log(10.0),
-                    speed_rel=speed_rel)
+    return Corridor(
+        t=cols * dt,
+        x=x,
+        y=y,
+        heading=heading,
+        pd=pd_path,
+        p_undetected=math.exp(-total),
+        log10_p_undetected=-total / math.log(10.0),
+        speed_rel=speed_rel,
+    )
 
 
 def _pd_nodes(scene: Scene, xs: F64, ys: F64, height: float) -> F64:

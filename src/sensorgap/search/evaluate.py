@@ -111,8 +111,11 @@ class DetectionRule:
             m, n = int(parts[0]), int(parts[1])
             if 1 <= m <= n <= 50:
                 return cls(kind="m_of_n", m=m, n=n)
-        raise InputError("detection", "", f"expected 'cumulative' or M/N with "
-                         f"1 <= M <= N <= 50 (e.g. 3/5), got {text!r}")
+        raise InputError(
+            "detection",
+            "",
+            f"expected 'cumulative' or M/N with 1 <= M <= N <= 50 (e.g. 3/5), got {text!r}",
+        )
 
     def label(self) -> str:
         """Short text for settings and reports."""
@@ -178,14 +181,22 @@ class Trace:
 
         lm = log_miss_of(self.pd) if self.log_miss is None else self.log_miss
         bt = BatchTrace(
-            t=np.ascontiguousarray(self.t, dtype=np.float64), x=row(self.x), y=row(self.y),
-            log_miss=row(lm), ttc=row(self.ttc), headway=row(self.headway),
-            distance=row(self.distance), ego_speed=row(self.ego_speed),
-            heading=row(self.heading), n=np.array([len(self.t)], dtype=np.int64),
-            collided=np.array([self.collided]), duration_s=self.duration_s, rule=self.rule,
+            t=np.ascontiguousarray(self.t, dtype=np.float64),
+            x=row(self.x),
+            y=row(self.y),
+            log_miss=row(lm),
+            ttc=row(self.ttc),
+            headway=row(self.headway),
+            distance=row(self.distance),
+            ego_speed=row(self.ego_speed),
+            heading=row(self.heading),
+            n=np.array([len(self.t)], dtype=np.int64),
+            collided=np.array([self.collided]),
+            duration_s=self.duration_s,
+            rule=self.rule,
             psi=None if self.psi is None else row(self.psi),
-            log_miss_confirm=None if self.pd_confirm is None
-            else row(log_miss_of(self.pd_confirm)))
+            log_miss_confirm=None if self.pd_confirm is None else row(log_miss_of(self.pd_confirm)),
+        )
         self.__dict__["_batch"] = bt
         return bt
 
@@ -215,15 +226,16 @@ def at_least_m_of_window_batch(pd: F64, m: int, n: int) -> F64:
         dist = np.zeros((b, size + 1))
         dist[:, 0] = 1.0
         for j in range(lo, k + 1):
-            p = pd[:, j:j + 1]
+            p = pd[:, j : j + 1]
             dist[:, 1:] = dist[:, 1:] * (1.0 - p) + dist[:, :-1] * p
             dist[:, 0] *= 1.0 - p[:, 0]
         out[:, k] = dist[:, m:].sum(axis=1)
     return out
 
 
-def kinematics_arrays(ego: Tracks | Scenario, target_tracks: Tracks | None,
-                      system: System, target: TargetConfig) -> Kinematics:
+def kinematics_arrays(
+    ego: Tracks | Scenario, target_tracks: Tracks | None, system: System, target: TargetConfig
+) -> Kinematics:
     """Target position in the ego frame, TTC (longitudinal, in-path only) and headway,
     element-wise over arrays of any shape (states of ``Tracks`` or one ``Scenario``)."""
     e: Tracks | Trajectory
@@ -237,15 +249,27 @@ def kinematics_arrays(ego: Tracks | Scenario, target_tracks: Tracks | None,
     shape = np.shape(e.x)
 
     def rows(a: F64) -> NDArray[np.float64]:
-        return np.ascontiguousarray(a, dtype=np.float64).reshape(-1, shape[-1] if shape
-                                                                 else 1)
+        return np.ascontiguousarray(a, dtype=np.float64).reshape(-1, shape[-1] if shape else 1)
 
     m = rows(np.asarray(e.x)).shape
     out = [np.empty(m) for _ in range(6)]
-    kinematics_kernel(rows(e.x), rows(e.y), rows(e.heading), rows(e.speed), rows(g.x),
-                      rows(g.y), rows(g.heading), rows(g.speed), target.length_m,
-                      target.width_m, 0.5 * body.width_m, body.x_front_m, body.x_rear_m,
-                      LATERAL_MARGIN_M, *out)
+    kinematics_kernel(
+        rows(e.x),
+        rows(e.y),
+        rows(e.heading),
+        rows(e.speed),
+        rows(g.x),
+        rows(g.y),
+        rows(g.heading),
+        rows(g.speed),
+        target.length_m,
+        target.width_m,
+        0.5 * body.width_m,
+        body.x_front_m,
+        body.x_rear_m,
+        LATERAL_MARGIN_M,
+        *out,
+    )
     xr, yr, ttc, headway, dist, psi = (a.reshape(shape) for a in out)
     return Kinematics(xr, yr, ttc, headway, dist, psi)
 
@@ -309,9 +333,17 @@ class BatchTrace:
         if self.encounter is None or self.reaction is None or self.decel_m_s2 is None:
             raise ValueError("this batch was evaluated without a reaction model")
         r = self.reaction
-        return reaction_outcome(self.encounter, self.pd_confirm, self.n, r.confirm_m,
-                                r.confirm_n, r.latency_s, r.jerk_m_s3, self.decel_m_s2,
-                                self.perfect_step)
+        return reaction_outcome(
+            self.encounter,
+            self.pd_confirm,
+            self.n,
+            r.confirm_m,
+            r.confirm_n,
+            r.latency_s,
+            r.jerk_m_s3,
+            self.decel_m_s2,
+            self.perfect_step,
+        )
 
     @cached_property
     def pd_confirm(self) -> F64:
@@ -342,25 +374,34 @@ class BatchTrace:
         if rule.kind == "cumulative":
             hit = (np.exp(self.log_undetected) <= 1.0 - rule.threshold) & self.valid
         else:
-            hit = (at_least_m_of_window_batch(self.pd, rule.m, rule.n) >= rule.threshold
-                   ) & self.valid
-        return np.asarray(np.where(hit.any(axis=1), np.argmax(hit, axis=1), -1),
-                          dtype=np.int64)
+            hit = (
+                at_least_m_of_window_batch(self.pd, rule.m, rule.n) >= rule.threshold
+            ) & self.valid
+        return np.asarray(np.where(hit.any(axis=1), np.argmax(hit, axis=1), -1), dtype=np.int64)
 
     def row(self, i: int) -> Trace:
         """Scenario ``i`` as a ``Trace`` (its valid steps)."""
         k = int(self.n[i])
-        return Trace(t=self.t[:k], x=self.x[i, :k], y=self.y[i, :k], pd=self.pd[i, :k],
-                     ttc=self.ttc[i, :k], headway=self.headway[i, :k],
-                     distance=self.distance[i, :k], ego_speed=self.ego_speed[i, :k],
-                     heading=self.heading[i, :k], collided=bool(self.collided[i]),
-                     duration_s=self.duration_s, rule=self.rule,
-                     log_miss=self.log_miss[i, :k],
-                     psi=None if self.psi is None else self.psi[i, :k],
-                     pd_confirm=self.pd_confirm[i, :k],
-                     extra=self.outcome_row(i),
-                     occluders=None if self.occluders is None else self.occluders[i, :k],
-                     occluder_labels=self.occluder_labels)
+        return Trace(
+            t=self.t[:k],
+            x=self.x[i, :k],
+            y=self.y[i, :k],
+            pd=self.pd[i, :k],
+            ttc=self.ttc[i, :k],
+            headway=self.headway[i, :k],
+            distance=self.distance[i, :k],
+            ego_speed=self.ego_speed[i, :k],
+            heading=self.heading[i, :k],
+            collided=bool(self.collided[i]),
+            duration_s=self.duration_s,
+            rule=self.rule,
+            log_miss=self.log_miss[i, :k],
+            psi=None if self.psi is None else self.psi[i, :k],
+            pd_confirm=self.pd_confirm[i, :k],
+            extra=self.outcome_row(i),
+            occluders=None if self.occluders is None else self.occluders[i, :k],
+            occluder_labels=self.occluder_labels,
+        )
 
     def outcome_row(self, i: int) -> dict[str, float]:
         """Row ``i`` of the collision outcome by field name (empty without a reaction
@@ -378,11 +419,17 @@ def _env_weather_key(env: EnvironmentConfig) -> str:
 class Evaluator:
     """Pd per step for scenarios of one vehicle (caches scenes and lookup maps)."""
 
-    def __init__(self, system: System, mode: str = "lookup", max_maps: int = 32,
-                 resolution_m: float = MAP_RESOLUTION_M,
-                 rule: DetectionRule | None = None, bodies: bool = True,
-                 reaction: ReactionConfig | None = None,
-                 friction: Mapping[str, float] | None = None) -> None:
+    def __init__(
+        self,
+        system: System,
+        mode: str = "lookup",
+        max_maps: int = 32,
+        resolution_m: float = MAP_RESOLUTION_M,
+        rule: DetectionRule | None = None,
+        bodies: bool = True,
+        reaction: ReactionConfig | None = None,
+        friction: Mapping[str, float] | None = None,
+    ) -> None:
         if mode not in ("lookup", "exact"):
             raise ValueError(f"mode must be 'lookup' or 'exact', got {mode!r}")
         self.system = system
@@ -391,12 +438,16 @@ class Evaluator:
         self.bodies = bodies
         #: the vehicle's reaction model (its file's ``reaction``) and road friction
         self.reaction = reaction or load_reaction(system.config.reaction)
-        self.friction = (dict(friction) if friction is not None
-                         else load_friction(friction_source(system.config.reaction)))
+        self.friction = (
+            dict(friction)
+            if friction is not None
+            else load_friction(friction_source(system.config.reaction))
+        )
         types = set(self.reaction.confirm_with)
         #: sensor rows whose detections confirm a target for braking
         self.confirm_rows: tuple[int, ...] = tuple(
-            i for i, sn in enumerate(system.sensors) if sn.type_name in types)
+            i for i, sn in enumerate(system.sensors) if sn.type_name in types
+        )
         self.rule = rule or DetectionRule()
         self.resolution_m = resolution_m
         self.max_maps = max_maps
@@ -460,8 +511,9 @@ class Evaluator:
             return maps
 
     # -- points ----------------------------------------------------------------------
-    def _scoped(self, scene: Scene, x: F64, y: F64, reach: float,
-                pool: Sequence[Sensor] | None = None) -> tuple[Sensor, ...]:
+    def _scoped(
+        self, scene: Scene, x: F64, y: F64, reach: float, pool: Sequence[Sensor] | None = None
+    ) -> tuple[Sensor, ...]:
         """The sensors of ``pool`` (default: all) that can reach the region of the points
         (all of them when not scoped)."""
         if pool is not None and list(pool) != list(scene.sensors):
@@ -469,8 +521,11 @@ class Evaluator:
         if not (self.scoped and len(x)):
             return scene.sensors
         z0 = scene.target.reference_height_m
-        scope = scene_scope(scene, np.array([x.min() - reach, y.min() - reach, z0]),
-                            np.array([x.max() + reach, y.max() + reach, z0]))
+        scope = scene_scope(
+            scene,
+            np.array([x.min() - reach, y.min() - reach, z0]),
+            np.array([x.max() + reach, y.max() + reach, z0]),
+        )
         with self._lock:
             for sid, why in scope.skipped.items():
                 self.scope_log[sid] = why
@@ -482,9 +537,17 @@ class Evaluator:
             return 0.0
         return 0.5 * math.hypot(target.length_m, target.width_m) + 0.5 * target.height_m
 
-    def per_sensor_pd(self, env: EnvironmentConfig, target: TargetConfig, heading: F64,
-                      x: F64, y: F64, exact: bool | None = None,
-                      psi: F64 | None = None, occluders: F64 | None = None) -> F64:
+    def per_sensor_pd(
+        self,
+        env: EnvironmentConfig,
+        target: TargetConfig,
+        heading: F64,
+        x: F64,
+        y: F64,
+        exact: bool | None = None,
+        psi: F64 | None = None,
+        occluders: F64 | None = None,
+    ) -> F64:
         """(S, N) per-sensor Pd at vehicle-frame target centres x, y (m) for ego headings
         (rad) and target headings ``psi`` relative to the ego (rad, default 0), always
         exact; bodies or points as the evaluator is set (``bodies``); ``occluders``: (N, M,
@@ -495,13 +558,15 @@ class Evaluator:
         y = np.asarray(y, dtype=np.float64)
         if self.bodies:
             p = np.zeros(len(x)) if psi is None else np.asarray(psi, dtype=np.float64)
-            return body_per_sensor_pd(scene, x, y, p, dirs,
-                                      occluders=occluders if self.occlusion else None)[0]
+            return body_per_sensor_pd(
+                scene, x, y, p, dirs, occluders=occluders if self.occlusion else None
+            )[0]
         z = np.full(len(x), target.reference_height_m)
         return per_sensor_pd(scene, x, y, z, dirs)
 
-    def visible_fraction(self, env: EnvironmentConfig, target: TargetConfig, x: F64,
-                         y: F64, psi: F64 | None = None) -> F64:
+    def visible_fraction(
+        self, env: EnvironmentConfig, target: TargetConfig, x: F64, y: F64, psi: F64 | None = None
+    ) -> F64:
         """(S, N) visible fraction of the target body's facing outline per sensor (points:
         1 where the centre is in view, else 0)."""
         scene = self.scene(env, target)
@@ -517,17 +582,24 @@ class Evaluator:
             out[i, idx] = 1.0
         return out
 
-    def exact_per_sensor(self, scene: Scene, x: F64, y: F64, psi: F64,
-                         sun_dirs: F64 | None, occluders: F64 | None = None,
-                         sensors: Sequence[Sensor] | None = None
-                         ) -> tuple[tuple[int, ...], F64]:
+    def exact_per_sensor(
+        self,
+        scene: Scene,
+        x: F64,
+        y: F64,
+        psi: F64,
+        sun_dirs: F64 | None,
+        occluders: F64 | None = None,
+        sensors: Sequence[Sensor] | None = None,
+    ) -> tuple[tuple[int, ...], F64]:
         """Exact per-sensor Pd of the sensors (default: all) that can reach the points:
         (rows, (S', N)); ``occluders`` (N, M, 7) per point (bodies, when ``occlusion``)."""
         # bodies: each sensor culls the poses its range and field of view cannot reach
         # (``coverage.body``), which subsumes the scene scope
         pool = scene.sensors if sensors is None else list(sensors)
-        sensors = (pool if self.bodies
-                   else self._scoped(scene, x, y, self._reach(scene.target), pool))
+        sensors = (
+            pool if self.bodies else self._scoped(scene, x, y, self._reach(scene.target), pool)
+        )
         rows = tuple(scene.sensors.index(sn) for sn in sensors)
         if self.bodies:
             occ = occluders if self.occlusion else None
@@ -539,8 +611,15 @@ class Evaluator:
             out[i, idx] = pd
         return rows, out
 
-    def log_miss(self, env: EnvironmentConfig, target: TargetConfig, x: F64, y: F64,
-                 sun_dirs: F64 | None, psi: F64 | None = None) -> F64:
+    def log_miss(
+        self,
+        env: EnvironmentConfig,
+        target: TargetConfig,
+        x: F64,
+        y: F64,
+        sun_dirs: F64 | None,
+        psi: F64 | None = None,
+    ) -> F64:
         """Fused ln P_miss of every sensor at vehicle-frame target centres (m) with
         per-point sun directions and relative headings (rad, default 0), exact."""
         scene = self.scene(env, target)
@@ -548,14 +627,22 @@ class Evaluator:
         _, pd = self.exact_per_sensor(scene, x, y, p, sun_dirs)
         return np.asarray(log_miss_of(pd).sum(axis=0), dtype=np.float64)
 
-    def fused_pd(self, env: EnvironmentConfig, target: TargetConfig, heading: F64,
-                 x: F64, y: F64, psi: F64 | None = None) -> F64:
+    def fused_pd(
+        self,
+        env: EnvironmentConfig,
+        target: TargetConfig,
+        heading: F64,
+        x: F64,
+        y: F64,
+        psi: F64 | None = None,
+    ) -> F64:
         """Fused Pd (eq. 11) at the target centres, exact."""
         lm = self.log_miss(env, target, x, y, Conditions.sun_directions(env, heading), psi)
         return np.asarray(-np.expm1(lm) + 0.0, dtype=np.float64)
 
-    def _track_lookup(self, maps: LogMissMaps, scene: Scene, kin: Kinematics,
-                      heading: F64, sun: F64) -> TrackLookup:
+    def _track_lookup(
+        self, maps: LogMissMaps, scene: Scene, kin: Kinematics, heading: F64, sun: F64
+    ) -> TrackLookup:
         """The body maps and exact evaluators of one lookup pass over the confirming
         sensors. Off the map and for glared cameras at the edge of their view the lookup
         evaluates the target's centre exactly (a proposal: far targets and field-of-view
@@ -567,14 +654,20 @@ class Evaluator:
         order: dict[int, int] | None = None
         if self.bodies:
             body = body_samples(scene.target)
-            outline = np.asarray(np.unique(np.round(np.column_stack([body.x, body.y]), 6),
-                                           axis=0), dtype=np.float64)
+            outline = np.asarray(
+                np.unique(np.round(np.column_stack([body.x, body.y]), 6), axis=0), dtype=np.float64
+            )
             # a minimum visible fraction f of the facing outline (about half of it): the
             # ceil(f K / 2)-th best of the K outline points
-            order = {i: max(0, math.ceil(min_visible_fraction(scene.sensors[i])
-                                         * len(outline) / 2.0) - 1) for i in subset}
-            totals = maps.body_totals(outline, subset, HEADING_BINS,
-                                      tuple(order[i] for i in subset))
+            order = {
+                i: max(
+                    0, math.ceil(min_visible_fraction(scene.sensors[i]) * len(outline) / 2.0) - 1
+                )
+                for i in subset
+            }
+            totals = maps.body_totals(
+                outline, subset, HEADING_BINS, tuple(order[i] for i in subset)
+            )
         else:
             totals = maps.body_totals(np.zeros((1, 2)), subset, 1)
         sensors = tuple(scene.sensors[i] for i in subset)
@@ -584,15 +677,21 @@ class Evaluator:
             return sun_directions_of(sun[flat // t], heading.reshape(-1)[flat])
 
         exact_points, exact_camera = point_evaluators(scene, xf, yf, z0, dirs_at, sensors)
-        return TrackLookup(totals, kin.psi, frozenset(subset), exact_points, exact_camera,
-                           outline, order)
+        return TrackLookup(
+            totals, kin.psi, frozenset(subset), exact_points, exact_camera, outline, order
+        )
 
     # -- scenarios ---------------------------------------------------------------------
-    def evaluate_batch(self, batch: ScenarioBatch, env_names: Sequence[str] | NDArray[np.str_],
-                       presets: Mapping[str, EnvironmentConfig],
-                       sun_deg: F64 | None = None, rows: NDArray[np.intp] | None = None,
-                       duration_s: float | None = None,
-                       collisions_only: bool = False) -> BatchTrace:
+    def evaluate_batch(
+        self,
+        batch: ScenarioBatch,
+        env_names: Sequence[str] | NDArray[np.str_],
+        presets: Mapping[str, EnvironmentConfig],
+        sun_deg: F64 | None = None,
+        rows: NDArray[np.intp] | None = None,
+        duration_s: float | None = None,
+        collisions_only: bool = False,
+    ) -> BatchTrace:
         """Evaluate the ``rows`` (default: all) of a batch.
 
         ``env_names[i]``: the preset of row i; ``sun_deg[i]`` (azimuth, elevation), deg:
@@ -617,27 +716,43 @@ class Evaluator:
         occ: F64 | None = None
         if occ_tracks and self.bodies:
             occ = ego_frame_boxes(
-                ego.x, ego.y, ego.heading, np.stack([o.tracks.x for o in occ_tracks]),
+                ego.x,
+                ego.y,
+                ego.heading,
+                np.stack([o.tracks.x for o in occ_tracks]),
                 np.stack([o.tracks.y for o in occ_tracks]),
                 np.stack([o.tracks.heading for o in occ_tracks]),
-                np.array([[o.length_m, o.width_m, o.height_m] for o in occ_tracks]))
+                np.array([[o.length_m, o.width_m, o.height_m] for o in occ_tracks]),
+            )
         b, t = kin.x.shape
         body = self.system.config.vehicle
-        enc = encounter_geometry(ego.x, ego.y, ego.heading, ego.speed, tgt.x, tgt.y,
-                                 tgt.heading, tgt.speed, float(batch.t[1] - batch.t[0]),
-                                 (target.length_m, target.width_m),
-                                 (body.x_front_m, body.x_rear_m, body.width_m),
-                                 self.reaction.threat_margin_m,
-                                 self.reaction.threat_horizon_s,
-                                 self.reaction.threat_prediction_s)
+        enc = encounter_geometry(
+            ego.x,
+            ego.y,
+            ego.heading,
+            ego.speed,
+            tgt.x,
+            tgt.y,
+            tgt.heading,
+            tgt.speed,
+            float(batch.t[1] - batch.t[0]),
+            (target.length_m, target.width_m),
+            (body.x_front_m, body.x_rear_m, body.width_m),
+            self.reaction.threat_margin_m,
+            self.reaction.threat_horizon_s,
+            self.reaction.threat_prediction_s,
+        )
         collided = enc.collide_step >= 0
         n = np.where(collided, enc.collide_step + 1, t).astype(np.int64)
         valid = np.arange(t)[None, :] < n[:, None]
         log_miss = np.zeros((b, t))
         log_conf: F64 | None = None
         names = np.asarray(env_names)[rows]
-        sun = (np.full((b, 2), np.nan) if sun_deg is None
-               else np.asarray(sun_deg, dtype=np.float64)[rows])
+        sun = (
+            np.full((b, 2), np.nan)
+            if sun_deg is None
+            else np.asarray(sun_deg, dtype=np.float64)[rows]
+        )
         if self.mode == "exact" and len(self.confirm_rows) < len(self.system.sensors):
             log_conf = np.zeros((b, t))
         for name in np.unique(names):
@@ -652,20 +767,35 @@ class Evaluator:
                 sun_rows = _sun_rows(env, sun)
                 maps = self.maps(env, target)
                 n_exact = lookup_log_miss_tracks(
-                    maps, scene, kin.x, kin.y, ego.heading, n, g, sun_rows, log_miss,
-                    self._track_lookup(maps, scene, kin, ego.heading, sun_rows))
+                    maps,
+                    scene,
+                    kin.x,
+                    kin.y,
+                    ego.heading,
+                    n,
+                    g,
+                    sun_rows,
+                    log_miss,
+                    self._track_lookup(maps, scene, kin, ego.heading, sun_rows),
+                )
                 if occ is not None and self.occlusion:
-                    n_exact += self._occluded_exact(scene, env, kin, ego.heading, sun, valid,
-                                                    g, occ, log_miss)
+                    n_exact += self._occluded_exact(
+                        scene, env, kin, ego.heading, sun, valid, g, occ, log_miss
+                    )
                 with self._lock:
                     self.exact_pairs += n_exact
                 continue
             vr, vc = np.nonzero(valid[g])
             gr = g[vr]
             dirs = _sun_directions(env, sun[gr], ego.heading[gr, vc])
-            srows, pd = self.exact_per_sensor(scene, kin.x[gr, vc], kin.y[gr, vc],
-                                              kin.psi[gr, vc], dirs,
-                                              None if occ is None else occ[gr, vc])
+            srows, pd = self.exact_per_sensor(
+                scene,
+                kin.x[gr, vc],
+                kin.y[gr, vc],
+                kin.psi[gr, vc],
+                dirs,
+                None if occ is None else occ[gr, vc],
+            )
             lm = log_miss_of(pd)
             log_miss[gr, vc] = lm.sum(axis=0)
             if log_conf is not None:
@@ -677,26 +807,62 @@ class Evaluator:
         if occ is not None and self.occlusion:  # perfect perception sees what is in sight
             need = np.flatnonzero((enc.collide_step >= 0) & (enc.threat_step >= 0))
             perfect = perfect_confirmation_step(
-                kin.x, kin.y, kin.psi, n, occ, target, self.perfect_views,
-                self.reaction.confirm_m, self.reaction.confirm_n, need.astype(np.int64))
+                kin.x,
+                kin.y,
+                kin.psi,
+                n,
+                occ,
+                target,
+                self.perfect_views,
+                self.reaction.confirm_m,
+                self.reaction.confirm_n,
+                need.astype(np.int64),
+            )
         decel = np.zeros(b)
         for name in np.unique(names):  # per environment: its road's friction
-            decel[names == name] = min(self.reaction.decel_max_m_s2, self.friction[
-                road_condition(presets[str(name)])] * G_M_S2)
-        return BatchTrace(t=batch.t, x=kin.x, y=kin.y, log_miss=log_miss, ttc=ttc,
-                          headway=headway, distance=kin.distance, ego_speed=ego.speed,
-                          heading=ego.heading, n=n, collided=collided,
-                          duration_s=float(batch.t[-1]) if duration_s is None else duration_s,
-                          rule=self.rule, psi=kin.psi, log_miss_confirm=log_conf, ego=ego,
-                          target=tgt, env_names=names, encounter=enc,
-                          reaction=self.reaction, decel_m_s2=decel,
-                          occluders=occ if self.occlusion else None,
-                          occluder_labels=tuple(o.label for o in occ_tracks)
-                          if self.occlusion else (), perfect_step=perfect)
+            decel[names == name] = min(
+                self.reaction.decel_max_m_s2,
+                self.friction[road_condition(presets[str(name)])] * G_M_S2,
+            )
+        return BatchTrace(
+            t=batch.t,
+            x=kin.x,
+            y=kin.y,
+            log_miss=log_miss,
+            ttc=ttc,
+            headway=headway,
+            distance=kin.distance,
+            ego_speed=ego.speed,
+            heading=ego.heading,
+            n=n,
+            collided=collided,
+            duration_s=float(batch.t[-1]) if duration_s is None else duration_s,
+            rule=self.rule,
+            psi=kin.psi,
+            log_miss_confirm=log_conf,
+            ego=ego,
+            target=tgt,
+            env_names=names,
+            encounter=enc,
+            reaction=self.reaction,
+            decel_m_s2=decel,
+            occluders=occ if self.occlusion else None,
+            occluder_labels=tuple(o.label for o in occ_tracks) if self.occlusion else (),
+            perfect_step=perfect,
+        )
 
-    def _occluded_exact(self, scene: Scene, env: EnvironmentConfig, kin: Kinematics,
-                        heading: F64, sun: F64, valid: NDArray[np.bool_],
-                        g: NDArray[np.intp], occ: F64, log_miss: F64) -> int:
+    def _occluded_exact(
+        self,
+        scene: Scene,
+        env: EnvironmentConfig,
+        kin: Kinematics,
+        heading: F64,
+        sun: F64,
+        valid: NDArray[np.bool_],
+        g: NDArray[np.intp],
+        occ: F64,
+        log_miss: F64,
+    ) -> int:
         """Lookup mode with occluders: at the valid steps of rows ``g`` where an occluder
         may hide part of the target (``coverage.occluders.may_hide``), the confirming
         sensors are evaluated exactly with the occluders, replacing the map's value (the
@@ -724,16 +890,16 @@ class Evaluator:
             return 0
         dirs = _sun_directions(env, sun[gr], heading[gr, vc])
         # occluders exist only with target bodies (``evaluate_batch``): exact body Pd
-        pd = body_per_sensor_pd(scene, x[hit], y[hit], psi[hit], dirs, sensors, boxes[hit],
-                                take_points(pts, hit))[0]
+        pd = body_per_sensor_pd(
+            scene, x[hit], y[hit], psi[hit], dirs, sensors, boxes[hit], take_points(pts, hit)
+        )[0]
         log_miss[gr, vc] = log_miss_of(pd).sum(axis=0)
         return int(gr.size * len(sensors))
 
     def trace(self, sc: Scenario, env: EnvironmentConfig, duration_s: float) -> Trace:
         """Evaluate one generated scenario in ``env`` (a batch of one)."""
         batch = ScenarioBatch.of(sc)
-        return self.evaluate_batch(batch, ["env"], {"env": env},
-                                   duration_s=duration_s).row(0)
+        return self.evaluate_batch(batch, ["env"], {"env": env}, duration_s=duration_s).row(0)
 
 
 def _sun_rows(env: EnvironmentConfig, sun_deg: F64) -> F64:
@@ -764,5 +930,12 @@ def _sun_directions(env: EnvironmentConfig, sun_deg: F64, heading: F64) -> F64 |
     return sun_directions_of(rows, heading)
 
 
-__all__ = ["DT_S", "BatchTrace", "Evaluator", "Kinematics", "Trace", "kinematics",
-           "kinematics_arrays"]
+__all__ = [
+    "DT_S",
+    "BatchTrace",
+    "Evaluator",
+    "Kinematics",
+    "Trace",
+    "kinematics",
+    "kinematics_arrays",
+]

@@ -42,13 +42,17 @@ class ProblemSpec:
 
     def build(self) -> dict[str, SearchProblem]:
         """The problems, one per family."""
-        all_envs = load_environments(Path(self.environments_file)
-                                     if self.environments_file else None)
+        all_envs = load_environments(
+            Path(self.environments_file) if self.environments_file else None
+        )
         envs = {e: all_envs[e] for e in self.environments}
-        evaluator = Evaluator(load_system(self.vehicle), mode=self.mode,
-                              rule=DetectionRule.parse(self.detection))
-        return {f.name: SearchProblem(f, envs, evaluator, self.sun_search)
-                for f in load_families(list(self.families))}
+        evaluator = Evaluator(
+            load_system(self.vehicle), mode=self.mode, rule=DetectionRule.parse(self.detection)
+        )
+        return {
+            f.name: SearchProblem(f, envs, evaluator, self.sun_search)
+            for f in load_families(list(self.families))
+        }
 
 
 _CACHE: dict[ProblemSpec, dict[str, SearchProblem]] = {}
@@ -64,8 +68,9 @@ def problems_for(spec: ProblemSpec) -> dict[str, SearchProblem]:
         return _CACHE[spec]
 
 
-def evaluate_chunk(spec: ProblemSpec, family: str, decoded: Decoded,
-                   threads: int = 1) -> BatchOutcome:
+def evaluate_chunk(
+    spec: ProblemSpec, family: str, decoded: Decoded, threads: int = 1
+) -> BatchOutcome:
     """Evaluate decoded candidates of one family (runs on a worker)."""
     tune_allocator()  # a Dask worker process: as the command line does
     return problems_for(spec)[family].evaluate_decoded(decoded, threads=threads)
@@ -74,11 +79,12 @@ def evaluate_chunk(spec: ProblemSpec, family: str, decoded: Decoded,
 def _concat(outs: Sequence[BatchOutcome]) -> BatchOutcome:
     if len(outs) == 1:
         return outs[0]
-    return BatchOutcome({m: np.concatenate([o.metrics[m] for o in outs])
-                         for m in outs[0].metrics},
-                        np.concatenate([o.feasible for o in outs]),
-                        [n for o in outs for n in o.notes],
-                        np.concatenate([o.objective for o in outs if o.objective is not None]))
+    return BatchOutcome(
+        {m: np.concatenate([o.metrics[m] for o in outs]) for m in outs[0].metrics},
+        np.concatenate([o.feasible for o in outs]),
+        [n for o in outs for n in o.notes],
+        np.concatenate([o.objective for o in outs if o.objective is not None]),
+    )
 
 
 class Executor:
@@ -89,8 +95,7 @@ class Executor:
     def __init__(self, threads: int = 2) -> None:
         self.threads = threads
 
-    def evaluate(self, spec: ProblemSpec, problem: SearchProblem,
-                 decoded: Decoded) -> BatchOutcome:
+    def evaluate(self, spec: ProblemSpec, problem: SearchProblem, decoded: Decoded) -> BatchOutcome:
         """The outcome of a batch (same order)."""
         return problem.evaluate_decoded(decoded, threads=self.threads)
 
@@ -110,36 +115,47 @@ class DaskExecutor(Executor):
 
     name = "dask"
 
-    def __init__(self, address: str | None = None, workers: int = 2,
-                 timeout_s: float = 10.0) -> None:
+    def __init__(
+        self, address: str | None = None, workers: int = 2, timeout_s: float = 10.0
+    ) -> None:
         super().__init__(threads=1)
         try:
             from distributed import Client, LocalCluster
         except ImportError:
-            raise InputError("executor", "", "dask is not installed: pip install "
-                             "'sensorgap[distributed]'") from None
+            raise InputError(
+                "executor", "", "dask is not installed: pip install 'sensorgap[distributed]'"
+            ) from None
         self._cluster: Any = None
         try:
             if address:
                 self.client = Client(address, timeout=timeout_s)
             else:
-                self._cluster = LocalCluster(n_workers=workers, threads_per_worker=1,
-                                             processes=True, dashboard_address=None)
+                self._cluster = LocalCluster(
+                    n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None
+                )
                 self.client = Client(self._cluster)
         except (OSError, TimeoutError, ValueError) as exc:
-            raise InputError("scheduler", "", f"cannot reach the Dask scheduler "
-                             f"{address!r}: {exc}") from None
+            raise InputError(
+                "scheduler", "", f"cannot reach the Dask scheduler {address!r}: {exc}"
+            ) from None
         self.workers = max(1, len(self.client.scheduler_info().get("workers", {})) or workers)
 
-    def evaluate(self, spec: ProblemSpec, problem: SearchProblem,
-                 decoded: Decoded) -> BatchOutcome:
+    def evaluate(self, spec: ProblemSpec, problem: SearchProblem, decoded: Decoded) -> BatchOutcome:
         n = len(decoded)
         chunks = max(1, min(self.workers * 2, -(-n // 256)))
         bounds = np.linspace(0, n, chunks + 1).astype(int)
-        parts = [decoded.take(np.arange(a, b)) for a, b in zip(bounds[:-1], bounds[1:],
-                                                                strict=True) if b > a]
-        futures = self.client.map(evaluate_chunk, [spec] * len(parts),
-                                  [problem.family.name] * len(parts), parts, pure=False)
+        parts = [
+            decoded.take(np.arange(a, b))
+            for a, b in zip(bounds[:-1], bounds[1:], strict=True)
+            if b > a
+        ]
+        futures = self.client.map(
+            evaluate_chunk,
+            [spec] * len(parts),
+            [problem.family.name] * len(parts),
+            parts,
+            pure=False,
+        )
         return _concat(self.client.gather(futures))
 
     def close(self) -> None:
@@ -148,8 +164,10 @@ class DaskExecutor(Executor):
             self._cluster.close()
 
 
-_ADDRESS = re.compile(r"^(?:(?:tcp|tls|ucx|ws|wss)://)?(?:\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+)"
-                      r":(\d{1,5})$")
+_ADDRESS = re.compile(
+    r"^(?:(?:tcp|tls|ucx|ws|wss)://)?(?:\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+)"
+    r":(\d{1,5})$"
+)
 
 
 def check_scheduler_address(address: str) -> str:
@@ -157,8 +175,9 @@ def check_scheduler_address(address: str) -> str:
     wss; port 1..65535); anything else -> ``InputError`` before anything is started."""
     m = _ADDRESS.match(address)
     if m is None or not 1 <= int(m.group(1)) <= 65535:
-        raise InputError("scheduler", "", f"expected a scheduler address like "
-                         f"tcp://host:8786, got {address!r}")
+        raise InputError(
+            "scheduler", "", f"expected a scheduler address like tcp://host:8786, got {address!r}"
+        )
     return address
 
 

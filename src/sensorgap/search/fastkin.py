@@ -13,8 +13,9 @@ F64 = NDArray[np.float64]
 
 
 @numba.njit(cache=True, nogil=True)
-def cos_sin_near(h: float, h0: float, c0: float,
-                 s0: float) -> tuple[float, float]:  # pragma: no cover - compiled
+def cos_sin_near(
+    h: float, h0: float, c0: float, s0: float
+) -> tuple[float, float]:  # pragma: no cover - compiled
     """cos/sin of angle h, rad, from those of a nearby angle h0 (angle addition with a
     Taylor series of the small difference: error < 1e-18 for |h - h0| < 0.02 rad; sin/cos
     otherwise). Headings change little from one 50 ms step to the next, so this replaces
@@ -29,11 +30,28 @@ def cos_sin_near(h: float, h0: float, c0: float,
 
 
 @numba.njit(cache=True, nogil=True)
-def kinematics_kernel(ex: F64, ey: F64, eh: F64, ev: F64, tx: F64, ty: F64, th: F64,
-                      tv: F64, length: float, width: float, body_half_width: float,
-                      x_front: float, x_rear: float, margin: float,
-                      xr: F64, yr: F64, ttc: F64, headway: F64,
-                      dist: F64, psi: F64) -> None:  # pragma: no cover - compiled
+def kinematics_kernel(
+    ex: F64,
+    ey: F64,
+    eh: F64,
+    ev: F64,
+    tx: F64,
+    ty: F64,
+    th: F64,
+    tv: F64,
+    length: float,
+    width: float,
+    body_half_width: float,
+    x_front: float,
+    x_rear: float,
+    margin: float,
+    xr: F64,
+    yr: F64,
+    ttc: F64,
+    headway: F64,
+    dist: F64,
+    psi: F64,
+) -> None:  # pragma: no cover - compiled
     """(B, T) arrays of ego (rear axle) and target (centre) states -> ego-frame target
     position (m), TTC (s, inf: not in path or not closing, 0: overlapping), time headway
     (s, inf unless in path ahead), distance (m) and relative heading ``th - eh`` (rad)."""

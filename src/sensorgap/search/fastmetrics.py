@@ -14,15 +14,38 @@ F64 = NDArray[np.float64]
 I64 = NDArray[np.int64]
 
 #: Columns of the float output of ``summarize``.
-COLUMNS = ("risk", "log10_risk", "p_undetected_end", "mean_pd", "min_ttc", "ttc_at",
-           "headway_at", "distance_at", "min_distance", "log10_risk_raw")
+COLUMNS = (
+    "risk",
+    "log10_risk",
+    "p_undetected_end",
+    "mean_pd",
+    "min_ttc",
+    "ttc_at",
+    "headway_at",
+    "distance_at",
+    "min_distance",
+    "log10_risk_raw",
+)
 
 
 @numba.njit(cache=True, nogil=True)
-def summarize(log_miss: F64, ttc: F64, headway: F64, distance: F64, t: F64, n: I64,
-              det_given: I64, cumulative: bool, threshold: float, lead_in: float,
-              tau: float, low_pd: float, floor: float, out: F64,
-              idx: I64) -> None:  # pragma: no cover - compiled
+def summarize(
+    log_miss: F64,
+    ttc: F64,
+    headway: F64,
+    distance: F64,
+    t: F64,
+    n: I64,
+    det_given: I64,
+    cumulative: bool,
+    threshold: float,
+    lead_in: float,
+    tau: float,
+    low_pd: float,
+    floor: float,
+    out: F64,
+    idx: I64,
+) -> None:  # pragma: no cover - compiled
     """Per row i of (B, T) arrays, over its first ``n[i]`` steps:
 
     ``idx[i]`` = (detection step or -1, corridor start, corridor end) where detection is

@@ -33,9 +33,13 @@ class LoopResult:
     reused: int = 0
 
 
-def search_loop(p: Prepared, runner: Executor, cached: Cached | None = None,
-                keep: Keep | None = None,
-                progress: Callable[[int], None] | None = None) -> LoopResult:
+def search_loop(
+    p: Prepared,
+    runner: Executor,
+    cached: Cached | None = None,
+    keep: Keep | None = None,
+    progress: Callable[[int], None] | None = None,
+) -> LoopResult:
     """Run the budget: family i's share as ``seeds`` searches with random streams
     ``[seed, i]`` (the one-seed search's) and ``[seed, i, s]`` for s = 1.., each with its
     part of the share. A candidate ``cached`` returns is not evaluated again (resume);
@@ -49,21 +53,26 @@ def search_loop(p: Prepared, runner: Executor, cached: Cached | None = None,
         idx = 0
         for s_i in range(s.seeds):
             part = share // s.seeds + (1 if s_i < share % s.seeds else 0)
-            strat = strat_cls(prob.dim, prob.levels, part,
-                              np.random.default_rng([s.seed, i] if s_i == 0
-                                                    else [s.seed, i, s_i]),
-                              batch=strat_cls.batch_for(part))
+            strat = strat_cls(
+                prob.dim,
+                prob.levels,
+                part,
+                np.random.default_rng([s.seed, i] if s_i == 0 else [s.seed, i, s_i]),
+                batch=strat_cls.batch_for(part),
+            )
             while len(X := strat.ask()):
                 decoded = prob.decode_batch(X)
                 cands = prob.candidates(decoded)
                 batch: list[Result | None] = [
                     None if cached is None else cached(fam.name, idx + j, c.scenario_id)
-                    for j, c in enumerate(cands)]
+                    for j, c in enumerate(cands)
+                ]
                 todo = np.array([j for j, r in enumerate(batch) if r is None], dtype=int)
                 out.reused += len(batch) - todo.size
                 if todo.size:
-                    fresh = prob.results([cands[j] for j in todo],
-                                         runner.evaluate(p.spec, prob, decoded.take(todo)))
+                    fresh = prob.results(
+                        [cands[j] for j in todo], runner.evaluate(p.spec, prob, decoded.take(todo))
+                    )
                     for j, r in zip(todo.tolist(), fresh, strict=True):
                         batch[j] = r
                     if keep is not None:

@@ -105,23 +105,20 @@ class Metric:
     def compute(self, tr: Trace) -> float:
         """The metric's value (finite) for one trace: its batch of one."""
         if type(self).compute_batch is Metric.compute_batch:
-            raise TypeError(f"metric {self.name!r} implements neither compute nor "
-                            "compute_batch")
+            raise TypeError(f"metric {self.name!r} implements neither compute nor compute_batch")
         return float(np.asarray(self.compute_batch(tr.as_batch()), dtype=np.float64)[0])
 
     def compute_batch(self, bt: BatchTrace) -> np.ndarray:
         """(B,) values for a batch; default: ``compute`` per row."""
         if type(self).compute is Metric.compute:
-            raise TypeError(f"metric {self.name!r} implements neither compute nor "
-                            "compute_batch")
+            raise TypeError(f"metric {self.name!r} implements neither compute nor compute_batch")
         return np.array([self.compute(bt.row(i)) for i in range(len(bt))], dtype=np.float64)
 
 
 M = TypeVar("M", bound=type[Metric])
 
 
-_METRICS: Registry[type[Metric]] = Registry("metric", key=lambda c: c.name,
-                                        on_lookup=load_plugins)
+_METRICS: Registry[type[Metric]] = Registry("metric", key=lambda c: c.name, on_lookup=load_plugins)
 
 
 def register_metric(cls: M) -> M:
@@ -154,8 +151,7 @@ def compute_all(tr: Trace, names: list[str] | None = None) -> dict[str, float]:
     return out
 
 
-def compute_all_batch(bt: BatchTrace, names: list[str] | None = None
-                      ) -> dict[str, np.ndarray]:
+def compute_all_batch(bt: BatchTrace, names: list[str] | None = None) -> dict[str, np.ndarray]:
     """Every (or the named) metric of every row of a batch."""
     out = {}
     for n in names or metric_names():
@@ -191,15 +187,31 @@ def summary(bt: BatchTrace) -> BatchSummary:
     idx = np.empty((b, 3), dtype=np.int64)
     rule = bt.rule
     cumulative = rule.kind == "cumulative"
-    det = (np.zeros(b, dtype=np.int64) if cumulative
-           else np.ascontiguousarray(bt.detection_index, dtype=np.int64))
-    summarize(np.ascontiguousarray(bt.log_miss), np.ascontiguousarray(bt.ttc),
-              np.ascontiguousarray(bt.headway), np.ascontiguousarray(bt.distance),
-              np.ascontiguousarray(bt.t, dtype=np.float64),
-              np.ascontiguousarray(bt.n, dtype=np.int64), det, cumulative,
-              float(rule.threshold), LEAD_IN_S, TAU_S, LOW_PD, LOG10_RISK_FLOOR, out, idx)
-    res = BatchSummary({c: out[:, j] for j, c in enumerate(COLUMNS)}, idx[:, 0],
-                       idx[:, 1], idx[:, 2])
+    det = (
+        np.zeros(b, dtype=np.int64)
+        if cumulative
+        else np.ascontiguousarray(bt.detection_index, dtype=np.int64)
+    )
+    summarize(
+        np.ascontiguousarray(bt.log_miss),
+        np.ascontiguousarray(bt.ttc),
+        np.ascontiguousarray(bt.headway),
+        np.ascontiguousarray(bt.distance),
+        np.ascontiguousarray(bt.t, dtype=np.float64),
+        np.ascontiguousarray(bt.n, dtype=np.int64),
+        det,
+        cumulative,
+        float(rule.threshold),
+        LEAD_IN_S,
+        TAU_S,
+        LOW_PD,
+        LOG10_RISK_FLOOR,
+        out,
+        idx,
+    )
+    res = BatchSummary(
+        {c: out[:, j] for j, c in enumerate(COLUMNS)}, idx[:, 0], idx[:, 1], idx[:, 2]
+    )
     bt.__dict__["_summary"] = res
     return res
 
@@ -222,24 +234,38 @@ class _SummaryMetric(Metric):
 def _declare(base: type[Metric], name: str, description: str, **attrs: object) -> None:
     """Register a metric of ``base`` (a column of the compiled pass or a field of the
     collision outcome) under ``name``: the class is only its declaration."""
-    cls = type("".join(w.title() for w in name.split("_")), (base,),
-               {"name": name, "description": description, **attrs})
+    cls = type(
+        "".join(w.title() for w in name.split("_")),
+        (base,),
+        {"name": name, "description": description, **attrs},
+    )
     register_metric(cls)
 
 
-def _summary_metric(name: str, key: str, description: str, unit: str = "",
-                    better: Literal["higher", "lower", "none"] = "higher",
-                    cap: bool = False) -> None:
+def _summary_metric(
+    name: str,
+    key: str,
+    description: str,
+    unit: str = "",
+    better: Literal["higher", "lower", "none"] = "higher",
+    cap: bool = False,
+) -> None:
     """Register a metric that is one column of the compiled batch pass."""
     _declare(_SummaryMetric, name, description, key=key, unit=unit, better=better, cap=cap)
 
 
 _summary_metric("risk", "risk", "max_k P_undet(t_k) exp(-TTC_k / 2 s) (see module docstring)")
-_summary_metric("log10_risk", "log10_risk",
-                "log10 of the risk, computed in the log domain: the ranking and search "
-                "objective, graded even where the risk underflows (floor -300)")
-_summary_metric("p_undetected_end", "p_undetected_end",
-                "probability the target is still undetected at the end (or at impact)")
+_summary_metric(
+    "log10_risk",
+    "log10_risk",
+    "log10 of the risk, computed in the log domain: the ranking and search "
+    "objective, graded even where the risk underflows (floor -300)",
+)
+_summary_metric(
+    "p_undetected_end",
+    "p_undetected_end",
+    "probability the target is still undetected at the end (or at impact)",
+)
 
 
 @register_metric
@@ -263,18 +289,37 @@ class TimeToDetection(Metric):
         return np.where(k >= 0, bt.t[np.maximum(k, 0)], bt.duration_s)
 
 
-_summary_metric("ttc_at_detect_s", "ttc_at",
-                "TTC at first reliable detection (min TTC if never detected; cap 99 s)",
-                "s", "lower", cap=True)
-_summary_metric("headway_at_detect_s", "headway_at",
-                "time headway at first reliable detection (min if never; cap 99 s)", "s",
-                "lower", cap=True)
-_summary_metric("distance_at_detect_m", "distance_at",
-                "ego rear axle to target centre at detection (min distance if never)", "m",
-                "lower")
-_summary_metric("min_ttc_s", "min_ttc",
-                "minimum TTC over the scenario (cap 99 s; 0 = collision)", "s", "lower",
-                cap=True)
+_summary_metric(
+    "ttc_at_detect_s",
+    "ttc_at",
+    "TTC at first reliable detection (min TTC if never detected; cap 99 s)",
+    "s",
+    "lower",
+    cap=True,
+)
+_summary_metric(
+    "headway_at_detect_s",
+    "headway_at",
+    "time headway at first reliable detection (min if never; cap 99 s)",
+    "s",
+    "lower",
+    cap=True,
+)
+_summary_metric(
+    "distance_at_detect_m",
+    "distance_at",
+    "ego rear axle to target centre at detection (min distance if never)",
+    "m",
+    "lower",
+)
+_summary_metric(
+    "min_ttc_s",
+    "min_ttc",
+    "minimum TTC over the scenario (cap 99 s; 0 = collision)",
+    "s",
+    "lower",
+    cap=True,
+)
 _summary_metric("mean_pd", "mean_pd", "mean per-step fused Pd", better="lower")
 
 
@@ -353,62 +398,79 @@ class _OutcomeMetric(Metric):
         return np.asarray(getattr(bt.outcome, self.field), dtype=np.float64)
 
 
-def _outcome_metric(name: str, description: str, unit: str = "",
-                    better: Literal["higher", "lower", "none"] = "higher",
-                    optional: bool = False) -> None:
+def _outcome_metric(
+    name: str,
+    description: str,
+    unit: str = "",
+    better: Literal["higher", "lower", "none"] = "higher",
+    optional: bool = False,
+) -> None:
     """Register a metric that is a field of the collision outcome."""
-    _declare(_OutcomeMetric, name, description, field=name, unit=unit, better=better,
-             optional=optional)
+    _declare(
+        _OutcomeMetric, name, description, field=name, unit=unit, better=better, optional=optional
+    )
 
 
-_outcome_metric("collision_probability",
-                "probability that the vehicle confirms the target too late to avoid the "
-                "collision (M-of-N confirmation, latency, jerk-limited braking)")
+_outcome_metric(
+    "collision_probability",
+    "probability that the vehicle confirms the target too late to avoid the "
+    "collision (M-of-N confirmation, latency, jerk-limited braking)",
+)
 
-_outcome_metric("impact_speed_kmh",
-                "expected relative impact speed given a collision",
-                unit="km/h")
+_outcome_metric("impact_speed_kmh", "expected relative impact speed given a collision", unit="km/h")
 
-_outcome_metric("collision_perfect",
-                "1 if a vehicle with perfect perception (same reaction) still collides",
-                better="none")
+_outcome_metric(
+    "collision_perfect",
+    "1 if a vehicle with perfect perception (same reaction) still collides",
+    better="none",
+)
 
-_outcome_metric("t_safe_s",
-                "latest time at which a confirmed detection still avoids the collision "
-                "(empty: none does)",
-                unit="s",
-                better="none",
-                optional=True)
+_outcome_metric(
+    "t_safe_s",
+    "latest time at which a confirmed detection still avoids the collision (empty: none does)",
+    unit="s",
+    better="none",
+    optional=True,
+)
 
-_outcome_metric("detection_margin_s",
-                "t_safe minus the median confirmation time (negative: too late; empty: "
-                "no t_safe or confirmation less likely than 1/2)",
-                unit="s",
-                better="lower",
-                optional=True)
+_outcome_metric(
+    "detection_margin_s",
+    "t_safe minus the median confirmation time (negative: too late; empty: "
+    "no t_safe or confirmation less likely than 1/2)",
+    unit="s",
+    better="lower",
+    optional=True,
+)
 
-_outcome_metric("t_confirm_median_s",
-                "median time of the first confirmation (empty: P(confirmed) < 1/2, or no "
-                "collision to avoid)",
-                unit="s",
-                optional=True)
+_outcome_metric(
+    "t_confirm_median_s",
+    "median time of the first confirmation (empty: P(confirmed) < 1/2, or no collision to avoid)",
+    unit="s",
+    optional=True,
+)
 
-_outcome_metric("t_threat_s",
-                "when the target becomes a threat (enters the ego's planned path corridor)",
-                unit="s",
-                better="none",
-                optional=True)
+_outcome_metric(
+    "t_threat_s",
+    "when the target becomes a threat (enters the ego's planned path corridor)",
+    unit="s",
+    better="none",
+    optional=True,
+)
 
-_outcome_metric("perfect_margin_s",
-                "how much later than perfect perception (in line of sight) a confirmation "
-                "may come and still avoid the collision; below one confirmation window the "
-                "scenario is marginal, not a sensor weakness (empty: perfect perception "
-                "collides too)",
-                unit="s",
-                better="none",
-                optional=True)
+_outcome_metric(
+    "perfect_margin_s",
+    "how much later than perfect perception (in line of sight) a confirmation "
+    "may come and still avoid the collision; below one confirmation window the "
+    "scenario is marginal, not a sensor weakness (empty: perfect perception "
+    "collides too)",
+    unit="s",
+    better="none",
+    optional=True,
+)
 
-_outcome_metric("p_never_confirmed",
-                "probability that the target is never confirmed before the end or impact "
-                "(empty: no collision to avoid)",
-                optional=True)
+_outcome_metric(
+    "p_never_confirmed",
+    "probability that the target is never confirmed before the end or impact "
+    "(empty: no collision to avoid)",
+    optional=True,
+)

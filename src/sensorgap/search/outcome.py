@@ -137,16 +137,18 @@ class Encounter:
     @property
     def progress(self) -> F64:
         """(B, T) planned ego progress along its path ``p_k = v0 t_k``, m."""
-        return np.asarray(self.v0[:, None] * (self.dt * np.arange(self.lo.shape[1]))[None, :],
-                          dtype=np.float64)
+        return np.asarray(
+            self.v0[:, None] * (self.dt * np.arange(self.lo.shape[1]))[None, :], dtype=np.float64
+        )
 
 
 # --------------------------------------------------------------------------- geometry
 
 
 @numba.njit(cache=True, nogil=True)
-def _edge_band(ua: float, va: float, ub: float, vb: float, band: float, umin: float,
-               umax: float) -> tuple[float, float]:  # pragma: no cover - compiled
+def _edge_band(
+    ua: float, va: float, ub: float, vb: float, band: float, umin: float, umax: float
+) -> tuple[float, float]:  # pragma: no cover - compiled
     """Widen (umin, umax) by the points where edge a-b crosses the lines v = +-band."""
     if (va - band) * (vb - band) < 0.0:
         u = ua + (band - va) / (vb - va) * (ub - ua)
@@ -160,8 +162,9 @@ def _edge_band(ua: float, va: float, ub: float, vb: float, band: float, umin: fl
 
 
 @numba.njit(cache=True, nogil=True)
-def _band_u_range(uc: float, vc: float, cd: float, sd: float, hl: float, hw: float,
-                  band: float) -> tuple[float, float]:  # pragma: no cover - compiled
+def _band_u_range(
+    uc: float, vc: float, cd: float, sd: float, hl: float, hw: float, band: float
+) -> tuple[float, float]:  # pragma: no cover - compiled
     """u extent, m, of a box (centre ``uc, vc``; axis ``cd, sd`` = cos/sin of its heading
     in this frame; half length ``hl``, half width ``hw``) clipped to ``|v| <= band``;
     ``umin > umax`` when the box misses the band. Exact for a convex polygon: the extremes
@@ -197,23 +200,51 @@ def _band_u_range(uc: float, vc: float, cd: float, sd: float, hl: float, hw: flo
 
 
 @numba.njit(cache=True, nogil=True)
-def _frame_range(exi: float, eyi: float, c: float, s: float, px: float, py: float,
-                 ct: float, st: float, hl: float, hw: float,
-                 band: float) -> tuple[float, float]:  # pragma: no cover - compiled
+def _frame_range(
+    exi: float,
+    eyi: float,
+    c: float,
+    s: float,
+    px: float,
+    py: float,
+    ct: float,
+    st: float,
+    hl: float,
+    hw: float,
+    band: float,
+) -> tuple[float, float]:  # pragma: no cover - compiled
     """The u extent of the target box (centre ``px, py``; heading cos/sin ``ct, st``) clipped
     to the band, in the frame of the ego path sample at ``exi, eyi`` with heading cos/sin
     ``c, s``."""
     dx = px - exi
     dy = py - eyi
-    return _band_u_range(c * dx + s * dy, -s * dx + c * dy, ct * c + st * s, st * c - ct * s,
-                         hl, hw, band)
+    return _band_u_range(
+        c * dx + s * dy, -s * dx + c * dy, ct * c + st * s, st * c - ct * s, hl, hw, band
+    )
 
 
 @numba.njit(cache=True, nogil=True)
-def _scan_interval(ex: F64, ey: F64, eh: F64, r: int, ia: int, ib: int, step: float,
-                   px: float, py: float, ct: float, st: float, hl: float, hw: float,
-                   x_front: float, x_rear: float, half_w: float, ec: F64, es: F64,
-                   done: NDArray[np.bool_]) -> tuple[float, float]:  # pragma: no cover
+def _scan_interval(
+    ex: F64,
+    ey: F64,
+    eh: F64,
+    r: int,
+    ia: int,
+    ib: int,
+    step: float,
+    px: float,
+    py: float,
+    ct: float,
+    st: float,
+    hl: float,
+    hw: float,
+    x_front: float,
+    x_rear: float,
+    half_w: float,
+    ec: F64,
+    es: F64,
+    done: NDArray[np.bool_],
+) -> tuple[float, float]:  # pragma: no cover
     """The overlap interval of rear-axle progress on a curved path: every progress q is
     judged in the frame of its own path sample (the cell ``s_i +- step/2``), samples ia..ib;
     ``lo > hi`` when none overlaps."""
@@ -225,8 +256,7 @@ def _scan_interval(ex: F64, ey: F64, eh: F64, r: int, ia: int, ib: int, step: fl
             ec[i] = math.cos(eh[r, i])
             es[i] = math.sin(eh[r, i])
             done[i] = True
-        u1, u2 = _frame_range(ex[r, i], ey[r, i], ec[i], es[i], px, py, ct, st, hl, hw,
-                              half_w)
+        u1, u2 = _frame_range(ex[r, i], ey[r, i], ec[i], es[i], px, py, ct, st, hl, hw, half_w)
         if u1 > u2:
             continue
         s_i = step * i
@@ -243,11 +273,29 @@ def _scan_interval(ex: F64, ey: F64, eh: F64, r: int, ia: int, ib: int, step: fl
 
 
 @numba.njit(cache=True, nogil=True)
-def _geometry_kernel(ex: F64, ey: F64, eh: F64, v0: F64, tx: F64, ty: F64, th: F64,
-                     hl: float, hw: float, x_front: float, x_rear: float, half_w: float,
-                     margin: float, horizon: float, predict: float, dt: float, lo: F64,
-                     hi: F64, collide: I64, threat: I64,
-                     ttc: F64) -> None:  # pragma: no cover
+def _geometry_kernel(
+    ex: F64,
+    ey: F64,
+    eh: F64,
+    v0: F64,
+    tx: F64,
+    ty: F64,
+    th: F64,
+    hl: float,
+    hw: float,
+    x_front: float,
+    x_rear: float,
+    half_w: float,
+    margin: float,
+    horizon: float,
+    predict: float,
+    dt: float,
+    lo: F64,
+    hi: F64,
+    collide: I64,
+    threat: I64,
+    ttc: F64,
+) -> None:  # pragma: no cover
     b, t = ex.shape
     ec = np.empty(t)
     es = np.empty(t)
@@ -354,8 +402,7 @@ def _geometry_kernel(ex: F64, ey: F64, eh: F64, v0: F64, tx: F64, ty: F64, th: F
                     ext_v = abs(sd) * hl + abs(cd) * hw
                     if threat[r] < 0 and abs(vp) - ext_v <= half_w + margin + delta:
                         s_i = step * i
-                        w1, w2 = _band_u_range(c * dx + s * dy, vp, cd, sd, hl, hw,
-                                               half_w + margin)
+                        w1, w2 = _band_u_range(c * dx + s * dy, vp, cd, sd, hl, hw, half_w + margin)
                     if abs(vc) - ext_v <= half_w + margin + delta:
                         uc = c * dx + s * dy
                         s_i = step * i
@@ -364,9 +411,15 @@ def _geometry_kernel(ex: F64, ey: F64, eh: F64, v0: F64, tx: F64, ty: F64, th: F
                             if u1 <= u2:
                                 a = s_i + u1 - x_front
                                 z = s_i + u2 - x_rear
-                        elif (s_i + uc - ext_u - x_front
-                              - kappa * (span + step) * (abs(uc) + abs(vc) + hl + hw)
-                              - delta > step * j):
+                        elif (
+                            s_i
+                            + uc
+                            - ext_u
+                            - x_front
+                            - kappa * (span + step) * (abs(uc) + abs(vc) + hl + hw)
+                            - delta
+                            > step * j
+                        ):
                             # the ego's reach at step j is still short of the target in
                             # any frame: the straight frame's interval will do for now
                             exact = False
@@ -382,10 +435,14 @@ def _geometry_kernel(ex: F64, ey: F64, eh: F64, v0: F64, tx: F64, ty: F64, th: F
                                 u1, u2 = _band_u_range(uc, vc, cd, sd, hl, hw, half_w - delta)
                                 if u1 <= u2:
                                     u1, u2 = _band_u_range(uc, vc, cd, sd, hl, hw, half_w)
-                                    il = min(max(int(math.floor((s_i + u1 - x_front) / step
-                                                                + 0.5)), 0), t - 1)
-                                    ih = min(max(int(math.floor((s_i + u2 - x_rear) / step
-                                                                + 0.5)), 0), t - 1)
+                                    il = min(
+                                        max(int(math.floor((s_i + u1 - x_front) / step + 0.5)), 0),
+                                        t - 1,
+                                    )
+                                    ih = min(
+                                        max(int(math.floor((s_i + u2 - x_rear) / step + 0.5)), 0),
+                                        t - 1,
+                                    )
                                     for ii in (il, ih):
                                         if not done[ii]:
                                             if eh[r, ii] != lh:
@@ -394,10 +451,32 @@ def _geometry_kernel(ex: F64, ey: F64, eh: F64, v0: F64, tx: F64, ty: F64, th: F
                                             ec[ii] = lc
                                             es[ii] = ls
                                             done[ii] = True
-                                    a1, a2 = _frame_range(ex[r, il], ey[r, il], ec[il], es[il],
-                                                          px, py, ct, st, hl, hw, half_w)
-                                    z1, z2 = _frame_range(ex[r, ih], ey[r, ih], ec[ih], es[ih],
-                                                          px, py, ct, st, hl, hw, half_w)
+                                    a1, a2 = _frame_range(
+                                        ex[r, il],
+                                        ey[r, il],
+                                        ec[il],
+                                        es[il],
+                                        px,
+                                        py,
+                                        ct,
+                                        st,
+                                        hl,
+                                        hw,
+                                        half_w,
+                                    )
+                                    z1, z2 = _frame_range(
+                                        ex[r, ih],
+                                        ey[r, ih],
+                                        ec[ih],
+                                        es[ih],
+                                        px,
+                                        py,
+                                        ct,
+                                        st,
+                                        hl,
+                                        hw,
+                                        half_w,
+                                    )
                                     if a1 <= a2 and z1 <= z2:
                                         a = step * il + a1 - x_front
                                         z = step * ih + z2 - x_rear
@@ -406,13 +485,42 @@ def _geometry_kernel(ex: F64, ey: F64, eh: F64, v0: F64, tx: F64, ty: F64, th: F
                                 # near the band's edge: every progress in its own frame
                                 u1, u2 = _band_u_range(uc, vc, cd, sd, hl, hw, half_w + delta)
                                 if u1 <= u2:
-                                    ia = min(max(int(math.floor(
-                                        (s_i + u1 - x_front - delta) / step)) - 1, 0), t - 1)
-                                    ib = min(max(int(math.ceil(
-                                        (s_i + u2 - x_rear + delta) / step)) + 1, 0), t - 1)
-                                    u1, u2 = _scan_interval(ex, ey, eh, r, ia, ib, step, px,
-                                                            py, ct, st, hl, hw, x_front,
-                                                            x_rear, half_w, ec, es, done)
+                                    ia = min(
+                                        max(
+                                            int(math.floor((s_i + u1 - x_front - delta) / step))
+                                            - 1,
+                                            0,
+                                        ),
+                                        t - 1,
+                                    )
+                                    ib = min(
+                                        max(
+                                            int(math.ceil((s_i + u2 - x_rear + delta) / step)) + 1,
+                                            0,
+                                        ),
+                                        t - 1,
+                                    )
+                                    u1, u2 = _scan_interval(
+                                        ex,
+                                        ey,
+                                        eh,
+                                        r,
+                                        ia,
+                                        ib,
+                                        step,
+                                        px,
+                                        py,
+                                        ct,
+                                        st,
+                                        hl,
+                                        hw,
+                                        x_front,
+                                        x_rear,
+                                        half_w,
+                                        ec,
+                                        es,
+                                        done,
+                                    )
                                     if u1 <= u2:
                                         a = u1
                                         z = u2
@@ -425,8 +533,12 @@ def _geometry_kernel(ex: F64, ey: F64, eh: F64, v0: F64, tx: F64, ty: F64, th: F
             pj = step * j
             if collide[r] < 0 and a <= pj <= z:
                 collide[r] = j
-            if (threat[r] < 0 and w1 <= w2 and s_i + w2 >= pj + x_rear
-                    and s_i + w1 <= pj + x_front + v0[r] * horizon):
+            if (
+                threat[r] < 0
+                and w1 <= w2
+                and s_i + w2 >= pj + x_rear
+                and s_i + w1 <= pj + x_front + v0[r] * horizon
+            ):
                 threat[r] = j
         kc = collide[r]
         if kc >= 0 and (threat[r] < 0 or threat[r] > kc):
@@ -435,12 +547,22 @@ def _geometry_kernel(ex: F64, ey: F64, eh: F64, v0: F64, tx: F64, ty: F64, th: F
             ttc[r, k] = np.inf if kc < 0 else max(kc - k, 0) * dt
 
 
-def encounter_geometry(ego_x: ArrayLike, ego_y: ArrayLike, ego_heading: ArrayLike,
-                       ego_speed: ArrayLike, tgt_x: ArrayLike, tgt_y: ArrayLike,
-                       tgt_heading: ArrayLike, tgt_speed: ArrayLike, dt: float,
-                       target_size: tuple[float, float],
-                       ego_body: tuple[float, float, float], threat_margin_m: float,
-                       threat_horizon_s: float, threat_prediction_s: float = 0.0) -> Encounter:
+def encounter_geometry(
+    ego_x: ArrayLike,
+    ego_y: ArrayLike,
+    ego_heading: ArrayLike,
+    ego_speed: ArrayLike,
+    tgt_x: ArrayLike,
+    tgt_y: ArrayLike,
+    tgt_heading: ArrayLike,
+    tgt_speed: ArrayLike,
+    dt: float,
+    target_size: tuple[float, float],
+    ego_body: tuple[float, float, float],
+    threat_margin_m: float,
+    threat_horizon_s: float,
+    threat_prediction_s: float = 0.0,
+) -> Encounter:
     """Encounter geometry of (B, T) world-frame planned states: ego rear axle (x, y in m,
     heading in rad, speed in m/s; the speed is taken as constant, ``ego_speed[:, 0]``) and
     target box centre (same units), on a time axis of step ``dt`` s.
@@ -457,11 +579,17 @@ def encounter_geometry(ego_x: ArrayLike, ego_y: ArrayLike, ego_heading: ArrayLik
     length, t_width = (float(v) for v in target_size)
     if not (x_rear < 0.0 < x_front and width > 0.0 and length > 0.0 and t_width > 0.0):
         raise ValueError("need x_rear < 0 < x_front and positive widths and target length")
-    if not (dt > 0.0 and threat_margin_m >= 0.0 and threat_horizon_s >= 0.0
-            and threat_prediction_s >= 0.0):
+    if not (
+        dt > 0.0
+        and threat_margin_m >= 0.0
+        and threat_horizon_s >= 0.0
+        and threat_prediction_s >= 0.0
+    ):
         raise ValueError("need dt > 0 and non-negative threat margin, horizon and prediction")
-    arrays = [np.ascontiguousarray(a, dtype=np.float64)
-              for a in (ego_y, ego_heading, tgt_x, tgt_y, tgt_heading, tgt_speed)]
+    arrays = [
+        np.ascontiguousarray(a, dtype=np.float64)
+        for a in (ego_y, ego_heading, tgt_x, tgt_y, tgt_heading, tgt_speed)
+    ]
     ey, eh, tx, ty, th, tv = arrays
     if any(a.shape != (b, t) for a in arrays):
         raise ValueError("all state arrays must have the same (B, T) shape")
@@ -469,9 +597,29 @@ def encounter_geometry(ego_x: ArrayLike, ego_y: ArrayLike, ego_heading: ArrayLik
     lo, hi, ttc = (np.empty((b, t)) for _ in range(3))
     collide = np.empty(b, dtype=np.int64)
     threat = np.empty(b, dtype=np.int64)
-    _geometry_kernel(ex, ey, eh, v0, tx, ty, th, 0.5 * length, 0.5 * t_width, x_front,
-                     x_rear, 0.5 * width, float(threat_margin_m), float(threat_horizon_s),
-                     float(threat_prediction_s), float(dt), lo, hi, collide, threat, ttc)
+    _geometry_kernel(
+        ex,
+        ey,
+        eh,
+        v0,
+        tx,
+        ty,
+        th,
+        0.5 * length,
+        0.5 * t_width,
+        x_front,
+        x_rear,
+        0.5 * width,
+        float(threat_margin_m),
+        float(threat_horizon_s),
+        float(threat_prediction_s),
+        float(dt),
+        lo,
+        hi,
+        collide,
+        threat,
+        ttc,
+    )
     return Encounter(lo, hi, v0, collide, threat, ttc, eh, th, tv, float(dt))
 
 
@@ -488,14 +636,20 @@ def _chain_tables(m: int, n: int) -> tuple[I64, I64, I64]:
     states = [s for s in range(mask_s + 1) if bin(s).count("1") < m]
     index = {s: i for i, s in enumerate(states)}
     miss = np.array([index[(s << 1) & mask_s] for s in states], dtype=np.int64)
-    hit = np.array([-1 if bin(((s << 1) | 1) & mask_n).count("1") >= m
-                    else index[((s << 1) | 1) & mask_s] for s in states], dtype=np.int64)
+    hit = np.array(
+        [
+            -1 if bin(((s << 1) | 1) & mask_n).count("1") >= m else index[((s << 1) | 1) & mask_s]
+            for s in states
+        ],
+        dtype=np.int64,
+    )
     return np.array(states, dtype=np.int64), miss, hit
 
 
 @numba.njit(cache=True, nogil=True)
-def _first_confirmation_kernel(pd: F64, n_valid: I64, rows: I64, miss: I64, hit: I64,
-                               out: F64) -> None:  # pragma: no cover - compiled
+def _first_confirmation_kernel(
+    pd: F64, n_valid: I64, rows: I64, miss: I64, hit: I64, out: F64
+) -> None:  # pragma: no cover - compiled
     """``out[r, k]`` = P(first confirmation at step k), ``out[r, T]`` = P(none within the
     first ``n_valid[r]`` steps), for the given rows (others untouched)."""
     t = pd.shape[1]
@@ -543,8 +697,14 @@ def first_confirmation(pd: ArrayLike, n_valid: ArrayLike, m: int, n: int) -> F64
     pd = np.ascontiguousarray(pd, dtype=np.float64)
     out = np.zeros((pd.shape[0], pd.shape[1] + 1))
     _, miss, hit = _chain_tables(int(m), int(n))
-    _first_confirmation_kernel(pd, np.ascontiguousarray(n_valid, dtype=np.int64),
-                               np.arange(pd.shape[0], dtype=np.int64), miss, hit, out)
+    _first_confirmation_kernel(
+        pd,
+        np.ascontiguousarray(n_valid, dtype=np.int64),
+        np.arange(pd.shape[0], dtype=np.int64),
+        miss,
+        hit,
+        out,
+    )
     return out
 
 
@@ -563,13 +723,13 @@ def lost_distance(tau: float, v0: float, jerk: float, amax: float) -> float:  # 
     if 0.5 * jerk * t1 * t1 >= v0:  # stops during the ramp
         ts = math.sqrt(2.0 * v0 / jerk)
         if tau <= ts:
-            return jerk * tau ** 3 / 6.0
-        d_stop = v0 * ts - jerk * ts ** 3 / 6.0
+            return jerk * tau**3 / 6.0
+        d_stop = v0 * ts - jerk * ts**3 / 6.0
         return v0 * tau - d_stop
     if tau <= t1:
-        return jerk * tau ** 3 / 6.0
+        return jerk * tau**3 / 6.0
     v1 = v0 - 0.5 * jerk * t1 * t1
-    d1 = v0 * t1 - jerk * t1 ** 3 / 6.0
+    d1 = v0 * t1 - jerk * t1**3 / 6.0
     ts = t1 + v1 / amax
     if tau <= ts:
         u = tau - t1
@@ -605,11 +765,29 @@ def _rel_speed(vb: float, h: float, th: float, tv: float) -> float:  # pragma: n
 
 
 @numba.njit(cache=True, nogil=True)
-def _reaction_kernel(lo: F64, hi: F64, v0: F64, threat: I64, collide: I64, f: F64,
-                     eh: F64, th: F64, tv: F64, dt: float, latency: float, jerk: float,
-                     amax: F64, pstep: I64, out_p: F64, out_v: F64, out_perfect: F64,
-                     out_safe: F64, out_vperf: F64, out_med: F64,
-                     out_never: F64) -> None:  # pragma: no cover - compiled
+def _reaction_kernel(
+    lo: F64,
+    hi: F64,
+    v0: F64,
+    threat: I64,
+    collide: I64,
+    f: F64,
+    eh: F64,
+    th: F64,
+    tv: F64,
+    dt: float,
+    latency: float,
+    jerk: float,
+    amax: F64,
+    pstep: I64,
+    out_p: F64,
+    out_v: F64,
+    out_perfect: F64,
+    out_safe: F64,
+    out_vperf: F64,
+    out_med: F64,
+    out_never: F64,
+) -> None:  # pragma: no cover - compiled
     b, t = lo.shape
     lg = np.empty(t + 1)
     first = np.empty(t + 1, dtype=np.int64)
@@ -832,10 +1010,17 @@ class Outcome:
     perfect_margin_s: F64
 
 
-def reaction_outcome(enc: Encounter, pd_confirm: ArrayLike, n_valid: ArrayLike,
-                     confirm_m: int, confirm_n: int, latency_s: float, jerk_m_s3: float,
-                     decel_m_s2: ArrayLike, perfect_step: ArrayLike | None = None
-                     ) -> Outcome:
+def reaction_outcome(
+    enc: Encounter,
+    pd_confirm: ArrayLike,
+    n_valid: ArrayLike,
+    confirm_m: int,
+    confirm_n: int,
+    latency_s: float,
+    jerk_m_s3: float,
+    decel_m_s2: ArrayLike,
+    perfect_step: ArrayLike | None = None,
+) -> Outcome:
     """The collision outcome of an encounter for (B, T) per-step Pd of the confirming
     sensors (only the first ``n_valid`` (B,) steps count), M-of-N confirmation, latency
     ``latency_s`` s, brake jerk ``jerk_m_s3`` m/s3 and ``decel_m_s2`` (B,) (or a scalar),
@@ -845,55 +1030,101 @@ def reaction_outcome(enc: Encounter, pd_confirm: ArrayLike, n_valid: ArrayLike,
     sight past occluders)."""
     b, t = enc.lo.shape
     if not 1 <= confirm_m <= confirm_n <= MAX_CONFIRM_N:
-        raise ValueError(f"need 1 <= M <= N <= {MAX_CONFIRM_N}, got M = {confirm_m}, "
-                         f"N = {confirm_n}")
+        raise ValueError(
+            f"need 1 <= M <= N <= {MAX_CONFIRM_N}, got M = {confirm_m}, N = {confirm_n}"
+        )
     if not (latency_s >= 0.0 and jerk_m_s3 > 0.0):
         raise ValueError("need latency_s >= 0 and jerk_m_s3 > 0")
-    decel = np.ascontiguousarray(np.broadcast_to(np.asarray(decel_m_s2, dtype=np.float64),
-                                                 (b,)))
+    decel = np.ascontiguousarray(np.broadcast_to(np.asarray(decel_m_s2, dtype=np.float64), (b,)))
     if not np.all(decel > 0.0):
         raise ValueError("the reachable deceleration must be > 0 (mu > 0)")
     pd = np.ascontiguousarray(pd_confirm, dtype=np.float64)
     if pd.shape != (b, t):
         raise ValueError(f"pd_confirm has shape {pd.shape}, the encounter ({b}, {t})")
     # the confirmation distribution matters only where there is a collision to avoid
-    rows = np.flatnonzero((enc.collide_step >= 0) & (enc.threat_step >= 0)
-                          & (enc.v0 >= MIN_EGO_SPEED_M_S)).astype(np.int64)
+    rows = np.flatnonzero(
+        (enc.collide_step >= 0) & (enc.threat_step >= 0) & (enc.v0 >= MIN_EGO_SPEED_M_S)
+    ).astype(np.int64)
     f = np.zeros((b, t + 1))
     if rows.size:
         _, miss, hit = _chain_tables(int(confirm_m), int(confirm_n))
-        _first_confirmation_kernel(pd, np.ascontiguousarray(n_valid, dtype=np.int64), rows,
-                                   miss, hit, f)
-    pstep = (np.full(b, confirm_m - 1, dtype=np.int64) if perfect_step is None
-             else np.ascontiguousarray(np.broadcast_to(
-                 np.asarray(perfect_step, dtype=np.int64), (b,))))
+        _first_confirmation_kernel(
+            pd, np.ascontiguousarray(n_valid, dtype=np.int64), rows, miss, hit, f
+        )
+    pstep = (
+        np.full(b, confirm_m - 1, dtype=np.int64)
+        if perfect_step is None
+        else np.ascontiguousarray(np.broadcast_to(np.asarray(perfect_step, dtype=np.int64), (b,)))
+    )
     out = [np.empty(b) for _ in range(7)]
-    _reaction_kernel(enc.lo, enc.hi, enc.v0, enc.threat_step, enc.collide_step, f,
-                     enc.ego_heading, enc.target_heading, enc.target_speed, enc.dt,
-                     float(latency_s), float(jerk_m_s3), decel, pstep, *out)
+    _reaction_kernel(
+        enc.lo,
+        enc.hi,
+        enc.v0,
+        enc.threat_step,
+        enc.collide_step,
+        f,
+        enc.ego_heading,
+        enc.target_heading,
+        enc.target_speed,
+        enc.dt,
+        float(latency_s),
+        float(jerk_m_s3),
+        decel,
+        pstep,
+        *out,
+    )
     p, v, perfect, safe, vperf, med, never = out
     t_threat = np.where(enc.threat_step >= 0, enc.threat_step * enc.dt, np.nan)
     margin = np.where((perfect < 0.5) & (pstep >= 0), safe - pstep * enc.dt, np.nan)
-    return Outcome(p, 3.6 * v, perfect, 3.6 * vperf, safe, med, safe - med, t_threat, never,
-                   margin)
+    return Outcome(p, 3.6 * v, perfect, 3.6 * vperf, safe, med, safe - med, t_threat, never, margin)
 
 
-def collision_outcome(ego_x: ArrayLike, ego_y: ArrayLike, ego_heading: ArrayLike,
-                      ego_speed: ArrayLike, tgt_x: ArrayLike, tgt_y: ArrayLike,
-                      tgt_heading: ArrayLike, tgt_speed: ArrayLike, dt: float,
-                      target_size: tuple[float, float],
-                      ego_body: tuple[float, float, float], pd_confirm: ArrayLike,
-                      n_valid: ArrayLike, reaction: ReactionConfig,
-                      mu: float | ArrayLike) -> tuple[Encounter, Outcome]:
+def collision_outcome(
+    ego_x: ArrayLike,
+    ego_y: ArrayLike,
+    ego_heading: ArrayLike,
+    ego_speed: ArrayLike,
+    tgt_x: ArrayLike,
+    tgt_y: ArrayLike,
+    tgt_heading: ArrayLike,
+    tgt_speed: ArrayLike,
+    dt: float,
+    target_size: tuple[float, float],
+    ego_body: tuple[float, float, float],
+    pd_confirm: ArrayLike,
+    n_valid: ArrayLike,
+    reaction: ReactionConfig,
+    mu: float | ArrayLike,
+) -> tuple[Encounter, Outcome]:
     """Both stages in one call: the encounter geometry of (B, T) planned states (see
     ``encounter_geometry`` for units) and the collision outcome for the confirming Pd,
     ``reaction`` (M-of-N, latency, jerk, decel_max, threat margin and horizon) and the
     road's peak friction ``mu`` (scalar or (B,)): deceleration ``min(decel_max, mu g)``."""
-    enc = encounter_geometry(ego_x, ego_y, ego_heading, ego_speed, tgt_x, tgt_y,
-                             tgt_heading, tgt_speed, dt, target_size, ego_body,
-                             reaction.threat_margin_m, reaction.threat_horizon_s,
-                             reaction.threat_prediction_s)
+    enc = encounter_geometry(
+        ego_x,
+        ego_y,
+        ego_heading,
+        ego_speed,
+        tgt_x,
+        tgt_y,
+        tgt_heading,
+        tgt_speed,
+        dt,
+        target_size,
+        ego_body,
+        reaction.threat_margin_m,
+        reaction.threat_horizon_s,
+        reaction.threat_prediction_s,
+    )
     decel = np.minimum(reaction.decel_max_m_s2, np.asarray(mu, dtype=np.float64) * G_M_S2)
-    return enc, reaction_outcome(enc, pd_confirm, n_valid, reaction.confirm_m,
-                                 reaction.confirm_n, reaction.latency_s, reaction.jerk_m_s3,
-                                 decel)
+    return enc, reaction_outcome(
+        enc,
+        pd_confirm,
+        n_valid,
+        reaction.confirm_m,
+        reaction.confirm_n,
+        reaction.latency_s,
+        reaction.jerk_m_s3,
+        decel,
+    )

@@ -59,8 +59,9 @@ def _pool(threads: int) -> ThreadPoolExecutor:
     with _POOLS_LOCK:
         pool = _POOLS.get(key)
         if pool is None:
-            pool = _POOLS[key] = ThreadPoolExecutor(max_workers=threads,
-                                                    thread_name_prefix="sensorgap-eval")
+            pool = _POOLS[key] = ThreadPoolExecutor(
+                max_workers=threads, thread_name_prefix="sensorgap-eval"
+            )
         return pool
 
 
@@ -93,8 +94,9 @@ class Decoded:
 
     def take(self, rows: NDArray[np.intp]) -> Decoded:
         """The selected rows."""
-        return Decoded(self.env_names[rows], self.sun_deg[rows],
-                       {k: v[rows] for k, v in self.params.items()})
+        return Decoded(
+            self.env_names[rows], self.sun_deg[rows], {k: v[rows] for k, v in self.params.items()}
+        )
 
 
 @dataclass
@@ -140,10 +142,13 @@ OBJECTIVE_UNAVOIDABLE = -2.0e6
 LOG10_P_FLOOR = -300.0
 
 
-def search_objective(log10_risk_raw: F64, min_distance_m: F64,
-                     collision_probability: F64 | None = None,
-                     collision_perfect: F64 | None = None,
-                     perfect_margin_s: F64 | None = None) -> F64:
+def search_objective(
+    log10_risk_raw: F64,
+    min_distance_m: F64,
+    collision_probability: F64 | None = None,
+    collision_perfect: F64 | None = None,
+    perfect_margin_s: F64 | None = None,
+) -> F64:
     """What the strategies maximise. With the collision outcome: ``log10`` of the
     collision probability where it is above 1e-300; below that (or 0) the unfloored log10
     risk minus 1000 (see below), so the strategies still climb towards encounters that
@@ -154,8 +159,11 @@ def search_objective(log10_risk_raw: F64, min_distance_m: F64,
     where the target becomes a threat (a finite path TTC after the lead-in), else
     ``OBJECTIVE_THREAT_FLOOR - min distance (m, at most 600)``."""
     raw = np.asarray(log10_risk_raw, dtype=np.float64)
-    graded = np.where(np.isfinite(raw), np.maximum(raw, OBJECTIVE_THREAT_FLOOR),
-                      OBJECTIVE_THREAT_FLOOR - np.minimum(min_distance_m, 600.0))
+    graded = np.where(
+        np.isfinite(raw),
+        np.maximum(raw, OBJECTIVE_THREAT_FLOOR),
+        OBJECTIVE_THREAT_FLOOR - np.minimum(min_distance_m, 600.0),
+    )
     if collision_probability is None or collision_perfect is None:
         return graded
     p = np.asarray(collision_probability, dtype=np.float64)
@@ -176,8 +184,9 @@ def search_objective(log10_risk_raw: F64, min_distance_m: F64,
 CONTACT_TOLERANCE_M = 0.5
 
 
-def impossible_encounters(bt: BatchTrace, x_front: float, length: float,
-                          width: float) -> list[tuple[int, str]]:
+def impossible_encounters(
+    bt: BatchTrace, x_front: float, length: float, width: float
+) -> list[tuple[int, str]]:
     """Rows whose bodies overlap at t = 0 or whose first open-loop contact is not with the
     ego's front (the target moves into its side or rear): (row, note)."""
     out: list[tuple[int, str]] = []
@@ -192,15 +201,21 @@ def impossible_encounters(bt: BatchTrace, x_front: float, length: float,
     xc = bt.x[rows, kb]
     x_min = xc - 0.5 * (np.abs(np.cos(psi)) * length + np.abs(np.sin(psi)) * width)
     side = ~at_start & (x_min < x_front - CONTACT_TOLERANCE_M)
-    for j, kk, x0, st, sd in zip(rows.tolist(), k.tolist(), xc.tolist(), at_start.tolist(),
-                                 side.tolist(), strict=True):
+    for j, kk, x0, st, sd in zip(
+        rows.tolist(), k.tolist(), xc.tolist(), at_start.tolist(), side.tolist(), strict=True
+    ):
         if st:
             out.append((j, "impossible encounter: the bodies overlap at t = 0"))
         elif sd:
             where = "side" if x0 > 0.0 else "rear"
-            out.append((j, f"impossible encounter: the target moves into the ego's "
-                           f"{where} at t = {bt.t[kk]:.2f} s (first contact not with "
-                           "the ego's front)"))
+            out.append(
+                (
+                    j,
+                    f"impossible encounter: the target moves into the ego's "
+                    f"{where} at t = {bt.t[kk]:.2f} s (first contact not with "
+                    "the ego's front)",
+                )
+            )
     return out
 
 
@@ -216,8 +231,9 @@ class Candidate:
     @cached_property
     def scenario_id(self) -> str:
         """Stable 12-hex id of (family, environment, sun, parameters)."""
-        text = json.dumps([self.family, self.environment, self.sun,
-                           sorted(self.params.items())], sort_keys=True)
+        text = json.dumps(
+            [self.family, self.environment, self.sun, sorted(self.params.items())], sort_keys=True
+        )
         return hashlib.sha256(text.encode()).hexdigest()[:12]
 
     @property
@@ -247,8 +263,9 @@ class Result:
     def objective(self) -> float:
         """What the strategies maximise (``search_objective``; stored with the metrics
         under ``OBJECTIVE_KEY`` so a resumed search replays the same decisions)."""
-        return float(self.metrics.get(OBJECTIVE_KEY, self.score if self.feasible
-                                      else OBJECTIVE_INFEASIBLE))
+        return float(
+            self.metrics.get(OBJECTIVE_KEY, self.score if self.feasible else OBJECTIVE_INFEASIBLE)
+        )
 
     @property
     def score(self) -> float:
@@ -261,8 +278,13 @@ class Result:
 class SearchProblem:
     """Maps unit-cube vectors of one family to evaluated candidates."""
 
-    def __init__(self, family: Family, environments: dict[str, EnvironmentConfig],
-                 evaluator: Evaluator, sun_search: bool = True) -> None:
+    def __init__(
+        self,
+        family: Family,
+        environments: dict[str, EnvironmentConfig],
+        evaluator: Evaluator,
+        sun_search: bool = True,
+    ) -> None:
         if not environments:
             raise InputError("environments", "", "give at least one environment")
         self.family = family
@@ -270,7 +292,8 @@ class SearchProblem:
         self.evaluator = evaluator
         self.env_names = tuple(environments)
         self.sun_search = sun_search and any(
-            e.sun is not None and e.sun.visible for e in environments.values())
+            e.sun is not None and e.sun.visible for e in environments.values()
+        )
         dims = [Param("environment", choices=self.env_names)]
         if self.sun_search:
             dims += [SUN_AZIMUTH, SUN_ELEVATION]
@@ -281,7 +304,8 @@ class SearchProblem:
         #: above the bound (``evaluate`` with given values) is infeasible
         self.speed_limits: dict[str, SpeedLimit] = {
             n: speed_limit(e, evaluator.reaction, evaluator.friction)
-            for n, e in environments.items()}
+            for n, e in environments.items()
+        }
         self._ego_speed = next((p for p in family.space if p.name == EGO_SPEED), None)
 
     def ego_speed_range(self, env: str) -> tuple[float, float]:
@@ -294,15 +318,14 @@ class SearchProblem:
         bound = self.speed_limits[env].speed_m_s
         if bound >= p.high:
             return p.low, p.high
-        scale = 10.0 ** PARAM_DECIMALS  # cut down to the rounding grid: decoded <= bound
+        scale = 10.0**PARAM_DECIMALS  # cut down to the rounding grid: decoded <= bound
         return p.low, math.floor(bound * scale) / scale
 
     def _speed_highs(self, names: NDArray[np.str_]) -> F64:
         """(B,) upper ends of the ego speed dimension per row's environment, m/s (at least
         the family's low end, so the decoded value stays in the family's range)."""
         assert self._ego_speed is not None
-        highs = {n: max(self._ego_speed.low, self.ego_speed_range(n)[1])
-                 for n in self.env_names}
+        highs = {n: max(self._ego_speed.low, self.ego_speed_range(n)[1]) for n in self.env_names}
         return np.array([highs[str(n)] for n in names], dtype=np.float64)
 
     @property
@@ -321,10 +344,14 @@ class SearchProblem:
         sun = None
         cfg = self.environments[env]
         if self.sun_search and cfg.sun is not None and cfg.sun.visible:
-            sun = (float(round(float(self.space[1].decode(float(u[1]))))),
-                   float(round(float(self.space[2].decode(float(u[2]))))))
-        params = {p.name: _canon(p.decode(float(v)))
-                  for p, v in zip(self.family.space, u[self._n_env:], strict=True)}
+            sun = (
+                float(round(float(self.space[1].decode(float(u[1]))))),
+                float(round(float(self.space[2].decode(float(u[2]))))),
+            )
+        params = {
+            p.name: _canon(p.decode(float(v)))
+            for p, v in zip(self.family.space, u[self._n_env :], strict=True)
+        }
         if self._ego_speed is not None:
             j = self._n_env + self.family.space.index(self._ego_speed)
             params[EGO_SPEED] = self._decode_speed(np.array([u[j]]), np.array([env]))[0]
@@ -346,13 +373,18 @@ class SearchProblem:
         if self.sun_search:
             visible = [n for n in self.env_names if self._visible_sun(n)]
             rows = np.isin(names, np.asarray(visible, dtype=str))
-            az = np.round(self.space[1].low + np.clip(U[:, 1], 0, 1)
-                          * (self.space[1].high - self.space[1].low))
-            el = np.round(self.space[2].low + np.clip(U[:, 2], 0, 1)
-                          * (self.space[2].high - self.space[2].low))
+            az = np.round(
+                self.space[1].low
+                + np.clip(U[:, 1], 0, 1) * (self.space[1].high - self.space[1].low)
+            )
+            el = np.round(
+                self.space[2].low
+                + np.clip(U[:, 2], 0, 1) * (self.space[2].high - self.space[2].low)
+            )
             sun[rows, 0], sun[rows, 1] = az[rows], el[rows]
-        params = {p.name: decode_column(p, U[:, self._n_env + j])
-                  for j, p in enumerate(self.family.space)}
+        params = {
+            p.name: decode_column(p, U[:, self._n_env + j]) for j, p in enumerate(self.family.space)
+        }
         if self._ego_speed is not None:
             j = self._n_env + self.family.space.index(self._ego_speed)
             params[EGO_SPEED] = self._decode_speed(U[:, j], names)
@@ -371,8 +403,14 @@ class SearchProblem:
         out = []
         for i in range(len(d)):
             s = None if sun[i][0] != sun[i][0] else (float(sun[i][0]), float(sun[i][1]))
-            out.append(Candidate(self.family.name, envs[i], s,
-                                 {n: c[i] for n, c in zip(names, cols, strict=True)}))
+            out.append(
+                Candidate(
+                    self.family.name,
+                    envs[i],
+                    s,
+                    {n: c[i] for n, c in zip(names, cols, strict=True)},
+                )
+            )
         return out
 
     def evaluate_decoded(self, d: Decoded, threads: int = 1) -> BatchOutcome:
@@ -390,17 +428,18 @@ class SearchProblem:
         parts = [d.take(np.arange(a, b)) for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
         if k > 1:
             for name in np.unique(d.env_names):  # build shared caches before the threads
-                self.evaluator.prepare(self.environments[str(name)],
-                                       self.evaluator.target(self.family.target_class))
+                self.evaluator.prepare(
+                    self.environments[str(name)], self.evaluator.target(self.family.target_class)
+                )
             outs = list(_pool(k).map(self._evaluate_rows, parts))
         else:
             outs = [self._evaluate_rows(p) for p in parts]
-        return BatchOutcome({m: np.concatenate([o.metrics[m] for o in outs])
-                             for m in outs[0].metrics},
-                            np.concatenate([o.feasible for o in outs]),
-                            [note for o in outs for note in o.notes],
-                            np.concatenate([o.objective for o in outs
-                                            if o.objective is not None]))
+        return BatchOutcome(
+            {m: np.concatenate([o.metrics[m] for o in outs]) for m in outs[0].metrics},
+            np.concatenate([o.feasible for o in outs]),
+            [note for o in outs for note in o.notes],
+            np.concatenate([o.objective for o in outs if o.objective is not None]),
+        )
 
     def _evaluate_rows(self, d: Decoded) -> BatchOutcome:
         batch = self.family.generate_batch(d.params)
@@ -414,31 +453,51 @@ class SearchProblem:
             for i in np.flatnonzero(feasible & (speed > bound + 1e-9)):
                 feasible[i] = False
                 lim = self.speed_limits[str(d.env_names[i])]
-                notes[i] = (f"ego speed {speed[i] * 3.6:.0f} km/h above the lawful speed in "
-                            f"{d.env_names[i]}: {lim.rule}")
+                notes[i] = (
+                    f"ego speed {speed[i] * 3.6:.0f} km/h above the lawful speed in "
+                    f"{d.env_names[i]}: {lim.rule}"
+                )
             ok = np.flatnonzero(feasible)
         objective = np.full(len(d), OBJECTIVE_INFEASIBLE)
         if ok.size:
-            bt = self.evaluator.evaluate_batch(batch, d.env_names, self.environments,
-                                               d.sun_deg, rows=ok,
-                                               duration_s=self.family.duration_s,
-                                               collisions_only=True)
+            bt = self.evaluator.evaluate_batch(
+                batch,
+                d.env_names,
+                self.environments,
+                d.sun_deg,
+                rows=ok,
+                duration_s=self.family.duration_s,
+                collisions_only=True,
+            )
             for m, v in compute_all_batch(bt, names).items():
                 metrics[m][ok] = v
             sm = summary(bt).values
             min_dist, raw = sm["min_distance"], sm["log10_risk_raw"]
-            objective[ok] = search_objective(raw, min_dist, metrics["collision_probability"][ok],
-                                             metrics["collision_perfect"][ok],
-                                             metrics["perfect_margin_s"][ok])
+            objective[ok] = search_objective(
+                raw,
+                min_dist,
+                metrics["collision_probability"][ok],
+                metrics["collision_perfect"][ok],
+                metrics["perfect_margin_s"][ok],
+            )
             target = self.evaluator.target(self.family.target_class)
             body = self.evaluator.system.config.vehicle
-            bad = [(j, note) for j, note in impossible_encounters(
-                bt, body.x_front_m, target.length_m, target.width_m)]
+            bad = [
+                (j, note)
+                for j, note in impossible_encounters(
+                    bt, body.x_front_m, target.length_m, target.width_m
+                )
+            ]
             marked = {b for b, _ in bad}
-            bad += [(int(j), f"starts critical: TTC {bt.ttc[j, 0]:.2f} s at t = 0 "
-                             f"(at least {START_TTC_S:g} s)")
-                    for j in np.flatnonzero(bt.ttc[:, 0] < START_TTC_S)
-                    if int(j) not in marked]
+            bad += [
+                (
+                    int(j),
+                    f"starts critical: TTC {bt.ttc[j, 0]:.2f} s at t = 0 "
+                    f"(at least {START_TTC_S:g} s)",
+                )
+                for j in np.flatnonzero(bt.ttc[:, 0] < START_TTC_S)
+                if int(j) not in marked
+            ]
             for j, note in bad:
                 i = ok[j]
                 feasible[i] = False
@@ -453,12 +512,16 @@ class SearchProblem:
         names = list(out.metrics)
         cols = [out.metrics[n].tolist() for n in names]
         feas = out.feasible.tolist()
-        obj = (np.full(len(cands), OBJECTIVE_INFEASIBLE) if out.objective is None
-               else out.objective).tolist()
+        obj = (
+            np.full(len(cands), OBJECTIVE_INFEASIBLE) if out.objective is None else out.objective
+        ).tolist()
         res = []
         for i, c in enumerate(cands):
-            vals = (dict(zip(names, (col[i] for col in cols), strict=True)) if feas[i]
-                    else {n: 0.0 for n in names})
+            vals = (
+                dict(zip(names, (col[i] for col in cols), strict=True))
+                if feas[i]
+                else {n: 0.0 for n in names}
+            )
             vals[OBJECTIVE_KEY] = obj[i]
             res.append(Result(c, vals, bool(feas[i]), "" if feas[i] else out.notes[i]))
         return res
@@ -468,8 +531,9 @@ class SearchProblem:
         env = self.environments[cand.environment]
         if cand.sun is None or env.sun is None:
             return env
-        sun = env.sun.model_copy(update={"azimuth_deg": cand.sun[0],
-                                         "elevation_deg": cand.sun[1], "frame": "world"})
+        sun = env.sun.model_copy(
+            update={"azimuth_deg": cand.sun[0], "elevation_deg": cand.sun[1], "frame": "world"}
+        )
         return env.model_copy(update={"sun": sun})
 
     def scenario(self, cand: Candidate) -> Scenario:
@@ -481,18 +545,22 @@ class SearchProblem:
         if not cands:
             return []
         sun = np.array([[np.nan, np.nan] if c.sun is None else list(c.sun) for c in cands])
-        d = Decoded(np.array([c.environment for c in cands]), sun,
-                    {p.name: np.array([c.params[p.name] for c in cands])
-                     for p in self.family.space})
+        d = Decoded(
+            np.array([c.environment for c in cands]),
+            sun,
+            {p.name: np.array([c.params[p.name] for c in cands]) for p in self.family.space},
+        )
         return self.results(cands, self.evaluate_decoded(d, threads))
 
     def evaluate(self, cand: Candidate, keep_trace: bool = False) -> Result:
         """Generate, evaluate and compute every metric (a batch of one)."""
         sun = np.array([[np.nan, np.nan] if cand.sun is None else list(cand.sun)])
-        d = Decoded(np.array([cand.environment]), sun,
-                    {k: np.array([v]) for k, v in cand.params.items()})
+        d = Decoded(
+            np.array([cand.environment]), sun, {k: np.array([v]) for k, v in cand.params.items()}
+        )
         r = self.results([cand], self.evaluate_decoded(d))[0]
         if keep_trace and r.feasible:
-            r.trace = self.evaluator.trace(self.scenario(cand), self.environment(cand),
-                                           self.family.duration_s)
+            r.trace = self.evaluator.trace(
+                self.scenario(cand), self.environment(cand), self.family.duration_s
+            )
         return r

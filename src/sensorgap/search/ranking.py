@@ -45,9 +45,13 @@ MIN_DISTANCE = 0.15
 #: families and conditions instead of N variants of the single worst one.
 MAX_PER_GROUP = 3
 _EFFECT_ORDER = ("occlusion", "glare", "weather", "partly in view", "range")
-_WITHOUT = {"occlusion": "without the occluders", "glare": "without the sun",
-            "weather": "in clear air", "partly in view": "in clear air",
-            "range": "in clear air"}
+_WITHOUT = {
+    "occlusion": "without the occluders",
+    "glare": "without the sun",
+    "weather": "in clear air",
+    "partly in view": "in clear air",
+    "range": "in clear air",
+}
 
 
 def candidate_distance(problem: SearchProblem, a: Candidate, b: Candidate) -> float:
@@ -63,15 +67,21 @@ def candidate_distance(problem: SearchProblem, a: Candidate, b: Candidate) -> fl
     return math.sqrt(acc / max(n, 1))
 
 
-def diverse_top(results: list[Result], problems: dict[str, SearchProblem], top: int,
-                min_distance: float = MIN_DISTANCE,
-                max_per_group: int = MAX_PER_GROUP) -> list[Result]:
+def diverse_top(
+    results: list[Result],
+    problems: dict[str, SearchProblem],
+    top: int,
+    min_distance: float = MIN_DISTANCE,
+    max_per_group: int = MAX_PER_GROUP,
+) -> list[Result]:
     """The ``top`` highest-risk feasible results, near-duplicates collapsed and at most
     ``max_per_group`` per (family, environment preset) (ties broken by scenario id, so the
     order is deterministic). When fewer than ``top`` remain, the cap is lifted for the rest
     (the list is never shorter than it could be)."""
-    ok = sorted((r for r in results if r.feasible),
-                key=lambda r: (-r.score, -r.risk, r.candidate.scenario_id))
+    ok = sorted(
+        (r for r in results if r.feasible),
+        key=lambda r: (-r.score, -r.risk, r.candidate.scenario_id),
+    )
     chosen: list[Result] = []
     for cap in (max_per_group, None):
         groups = Counter((c.candidate.family, c.candidate.environment) for c in chosen)
@@ -82,8 +92,9 @@ def diverse_top(results: list[Result], problems: dict[str, SearchProblem], top: 
             if r in chosen or (cap is not None and groups[key] >= cap):
                 continue
             prob = problems[r.candidate.family]
-            if all(candidate_distance(prob, r.candidate, c.candidate) >= min_distance
-                   for c in chosen):
+            if all(
+                candidate_distance(prob, r.candidate, c.candidate) >= min_distance for c in chosen
+            ):
                 chosen.append(r)
                 groups[key] += 1
     return chosen
@@ -128,7 +139,7 @@ def named_step(tr: Trace) -> int:
     t_safe = tr.extra.get("t_safe_s", math.nan)
     k1 = len(tr.t) - 1 if not math.isfinite(t_safe) else int(round(t_safe / DT_S))
     k0, k1 = min(k0, len(tr.t) - 1), min(max(k1, k0), len(tr.t) - 1)
-    pd = (tr.pd if tr.pd_confirm is None else tr.pd_confirm)[k0:k1 + 1]
+    pd = (tr.pd if tr.pd_confirm is None else tr.pd_confirm)[k0 : k1 + 1]
     return k0 + int(len(pd) - 1 - np.argmin(pd[::-1]))  # the last of equals: nearest
 
 
@@ -142,14 +153,14 @@ def explain(problem: SearchProblem, cand: Candidate) -> Explanation:
     tr = ev.trace(sc, env, problem.family.duration_s)
     k = named_step(tr)
     target = ev.target(sc.target_class)
-    h, x, y = tr.heading[k:k + 1], tr.x[k:k + 1], tr.y[k:k + 1]
-    psi = None if tr.psi is None else tr.psi[k:k + 1]
-    occ = None if tr.occluders is None else tr.occluders[k:k + 1]
+    h, x, y = tr.heading[k : k + 1], tr.x[k : k + 1], tr.y[k : k + 1]
+    psi = None if tr.psi is None else tr.psi[k : k + 1]
+    occ = None if tr.occluders is None else tr.occluders[k : k + 1]
     pd_act = ev.per_sensor_pd(env, target, h, x, y, psi=psi, occluders=occ)[:, 0]
-    pd_open = (pd_act if occ is None
-               else ev.per_sensor_pd(env, target, h, x, y, psi=psi)[:, 0])
-    pd_nosun = ev.per_sensor_pd(env.model_copy(update={"sun": None}), target, h, x, y,
-                                psi=psi)[:, 0]
+    pd_open = pd_act if occ is None else ev.per_sensor_pd(env, target, h, x, y, psi=psi)[:, 0]
+    pd_nosun = ev.per_sensor_pd(env.model_copy(update={"sun": None}), target, h, x, y, psi=psi)[
+        :, 0
+    ]
     pd_ref = ev.per_sensor_pd(reference_environment(), target, h, x, y, psi=psi)[:, 0]
     frac = ev.visible_fraction(env, target, x, y, psi)[:, 0]
     confirm = set(ev.confirm_rows)
@@ -158,8 +169,9 @@ def explain(problem: SearchProblem, cand: Candidate) -> Explanation:
     for i, s in enumerate(ev.system.sensors):
         m = s.mount
         if frac[i] <= 0.0 and pd_ref[i] <= 0.0:
-            xs, ys, zs = rotate_offsets(m, x - m.x, y - m.y,
-                                        np.array([target.reference_height_m - m.z]))
+            xs, ys, zs = rotate_offsets(
+                m, x - m.x, y - m.y, np.array([target.reference_height_m - m.z])
+            )
             r = float(sensor_range(xs, ys, zs)[0])
             reach = 0.5 * math.hypot(target.length_m, target.width_m)
             effects[s.id] = "range" if r - reach > m.max_range else "FOV"
@@ -186,32 +198,45 @@ def explain(problem: SearchProblem, cand: Candidate) -> Explanation:
     elif any(e == "sees" for e in effects.values()):
         dominant = "none"
     else:
-        dominant = ("FOV" if any(e == "FOV" for i, (sid, e) in enumerate(effects.items())
-                                 if i in confirm) else "range")
+        dominant = (
+            "FOV"
+            if any(e == "FOV" for i, (sid, e) in enumerate(effects.items()) if i in confirm)
+            else "range"
+        )
     n_fov = sum(1 for i, e in enumerate(effects.values()) if e == "FOV" and i in confirm)
     n_rng = sum(1 for i, e in enumerate(effects.values()) if e == "range" and i in confirm)
     seen = [sid for sid, e in effects.items() if e == "sees"]
     support = [sid for sid, e in effects.items() if e == "sees (cannot confirm)"]
     pc = tr.extra.get("collision_probability")
     pdc = tr.pd if tr.pd_confirm is None else tr.pd_confirm
-    head = (f"{dominant}: at t={tr.t[k]:.2f} s the target is at x={x[0]:.1f} y={y[0]:.1f} m "
-            f"(ego frame), Pd of the confirming sensors {pdc[k]:.2f}")
+    head = (
+        f"{dominant}: at t={tr.t[k]:.2f} s the target is at x={x[0]:.1f} y={y[0]:.1f} m "
+        f"(ego frame), Pd of the confirming sensors {pdc[k]:.2f}"
+    )
     parts = [head]
     if pc is not None:
         parts.append(f"P(collision) {pc:.2g}")
     if low:
-        parts.append("missing: " + ", ".join(
-            f"{sid} ({e}: Pd {p:.2f}, {b:.2f} {_WITHOUT[e]})" for sid, e, p, b in low[:4]))
+        parts.append(
+            "missing: "
+            + ", ".join(
+                f"{sid} ({e}: Pd {p:.2f}, {b:.2f} {_WITHOUT[e]})" for sid, e, p, b in low[:4]
+            )
+        )
     if counts.get("occlusion") and tr.occluder_labels:
-        parts.append(f"hidden behind the {occluder_phrase(tr.occluder_labels)} "
-                     "for " + ", ".join(sid for sid, e, _, _ in low if e == "occlusion"))
+        parts.append(
+            f"hidden behind the {occluder_phrase(tr.occluder_labels)} "
+            "for " + ", ".join(sid for sid, e, _, _ in low if e == "occlusion")
+        )
     if seen:
         parts.append("confirming: " + ", ".join(seen[:3]))
     if support:
         parts.append("seen but cannot confirm: " + ", ".join(support[:3]))
     if n_fov or n_rng:
-        parts.append(f"confirming sensors not covering the target: {n_fov} by field of view, "
-                     f"{n_rng} by range")
+        parts.append(
+            f"confirming sensors not covering the target: {n_fov} by field of view, "
+            f"{n_rng} by range"
+        )
     pds = {s.id: float(pd_act[i]) for i, s in enumerate(ev.system.sensors)}
     return Explanation("; ".join(parts), dominant, float(tr.t[k]), effects, pds)
 
@@ -248,9 +273,12 @@ def classify(r: Result) -> str:
     return "not critical"
 
 
-def reevaluate(results: list[Result], exact: dict[str, SearchProblem], pool: int,
-               cache: dict[str, Result] | None = None
-               ) -> tuple[list[tuple[Result, Result]], dict[str, float]]:
+def reevaluate(
+    results: list[Result],
+    exact: dict[str, SearchProblem],
+    pool: int,
+    cache: dict[str, Result] | None = None,
+) -> tuple[list[tuple[Result, Result]], dict[str, float]]:
     """Re-evaluate about ``pool`` of the best feasible results (search objective, spread
     over the (family, environment) groups; see ``POOL_MIN``) exactly with the ``exact``
     problems; returns (lookup result, exact result) pairs and the disagreement of the two
@@ -280,9 +308,13 @@ def reevaluate(results: list[Result], exact: dict[str, SearchProblem], pool: int
         take(sorted(rs, key=lambda r: (-r.objective, r.candidate.scenario_id)), per_group)
         # the most violent encounters that collide even with perfect perception (listed
         # apart, never ranked)
-        take(sorted((r for r in rs if classify(r) == "unavoidable"),
-                    key=lambda r: (-r.metrics.get("impact_speed_kmh", 0.0),
-                                   r.candidate.scenario_id)), UNAVOIDABLE_PER_GROUP)
+        take(
+            sorted(
+                (r for r in rs if classify(r) == "unavoidable"),
+                key=lambda r: (-r.metrics.get("impact_speed_kmh", 0.0), r.candidate.scenario_id),
+            ),
+            UNAVOIDABLE_PER_GROUP,
+        )
     cache = {} if cache is None else cache
     by_family: dict[str, list[Result]] = {}
     for r in chosen:
@@ -291,8 +323,10 @@ def reevaluate(results: list[Result], exact: dict[str, SearchProblem], pool: int
     for fam, rs in by_family.items():
         for r, e in zip(rs, exact[fam].evaluate_many([r.candidate for r in rs]), strict=True):
             cache[r.candidate.scenario_id] = e
-    pairs = sorted(((r, cache[r.candidate.scenario_id]) for r in chosen),
-                   key=lambda p: (-p[0].objective, p[0].candidate.scenario_id))
+    pairs = sorted(
+        ((r, cache[r.candidate.scenario_id]) for r in chosen),
+        key=lambda p: (-p[0].objective, p[0].candidate.scenario_id),
+    )
     return pairs, disagreement(pairs)
 
 
@@ -306,15 +340,20 @@ def disagreement(pairs: list[tuple[Result, Result]]) -> dict[str, float]:
     cl = {p[0].candidate.scenario_id for p in pairs if classify(p[0]) == "sensor-critical"}
     ce = {p[1].candidate.scenario_id for p in pairs if classify(p[1]) == "sensor-critical"}
     k = min(10, len(pairs))
-    top_l = {p[0].candidate.scenario_id for p in sorted(
-        pairs, key=lambda p: -p[0].metrics.get("collision_probability", 0.0))[:k]}
-    top_e = {p[1].candidate.scenario_id for p in sorted(
-        pairs, key=lambda p: -p[1].metrics.get("collision_probability", 0.0))[:k]}
+    top_l = {
+        p[0].candidate.scenario_id
+        for p in sorted(pairs, key=lambda p: -p[0].metrics.get("collision_probability", 0.0))[:k]
+    }
+    top_e = {
+        p[1].candidate.scenario_id
+        for p in sorted(pairs, key=lambda p: -p[1].metrics.get("collision_probability", 0.0))[:k]
+    }
     return {
         "reevaluated": len(pairs),
         "mean_abs_diff_collision_probability": float(np.mean(np.abs(pl - pe))),
         "max_abs_diff_collision_probability": float(np.max(np.abs(pl - pe))),
-        "sensor_critical_lookup": len(cl), "sensor_critical_exact": len(ce),
+        "sensor_critical_lookup": len(cl),
+        "sensor_critical_exact": len(ce),
         "sensor_critical_both": len(cl & ce),
         f"top{k}_overlap": len(top_l & top_e),
     }
@@ -330,12 +369,16 @@ def merge_pairs(*pair_lists: list[tuple[Result, Result]]) -> list[tuple[Result, 
     return sorted(seen.values(), key=lambda p: (-p[0].objective, p[0].candidate.scenario_id))
 
 
-def rank_exact(pairs: list[tuple[Result, Result]], problems: dict[str, SearchProblem],
-               top: int, min_distance: float = MIN_DISTANCE,
-               max_per_group: int = MAX_PER_GROUP,
-               explained: dict[str, Explanation] | None = None
-               ) -> tuple[list[tuple[Result, list[str], Explanation]],
-                          list[tuple[Result, list[str], Explanation]]]:
+def rank_exact(
+    pairs: list[tuple[Result, Result]],
+    problems: dict[str, SearchProblem],
+    top: int,
+    min_distance: float = MIN_DISTANCE,
+    max_per_group: int = MAX_PER_GROUP,
+    explained: dict[str, Explanation] | None = None,
+) -> tuple[
+    list[tuple[Result, list[str], Explanation]], list[tuple[Result, list[str], Explanation]]
+]:
     """The ranking from exact results: sensor-critical scenarios (collision probability
     at least ``RANK_MIN_P``) by collision probability, then impact speed; near-duplicates of
     a family and environment collapsed, at most ``max_per_group`` per (family,
@@ -344,52 +387,79 @@ def rank_exact(pairs: list[tuple[Result, Result]], problems: dict[str, SearchPro
     (exact result, environment labels, explanation). ``explained``: explanations by
     scenario id, reused and filled (rankings of one run's searches share them)."""
     explained = {} if explained is None else explained
+
     def key(r: Result) -> tuple[int, float, float, float, str]:
         crit = classify(r) == "sensor-critical"
-        return (0 if crit else 1, -r.metrics.get("collision_probability", 0.0),
-                -r.metrics.get("impact_speed_kmh", 0.0), -r.score, r.candidate.scenario_id)
+        return (
+            0 if crit else 1,
+            -r.metrics.get("collision_probability", 0.0),
+            -r.metrics.get("impact_speed_kmh", 0.0),
+            -r.score,
+            r.candidate.scenario_id,
+        )
 
     exact = [e for _, e in pairs if e.feasible]
     # listed apart, never ranked: unavoidable, and marginal (avoidable only by perfect
     # perception, by less than MIN_PERFECT_MARGIN_S)
-    unavoidable = sorted((e for e in exact if classify(e) in ("unavoidable", "marginal")),
-                         key=key)
-    rest = sorted((e for e in exact if classify(e) == "sensor-critical"
-                   and e.metrics.get("collision_probability", 0.0) >= RANK_MIN_P), key=key)
+    unavoidable = sorted((e for e in exact if classify(e) in ("unavoidable", "marginal")), key=key)
+    rest = sorted(
+        (
+            e
+            for e in exact
+            if classify(e) == "sensor-critical"
+            and e.metrics.get("collision_probability", 0.0) >= RANK_MIN_P
+        ),
+        key=key,
+    )
     rows: list[tuple[Result, list[str], Explanation]] = []
     groups: Counter[tuple[str, str]] = Counter()
 
-    def merged(r: Result, ex: Explanation, out: list[tuple[Result, list[str], Explanation]]
-               ) -> bool:
+    def merged(
+        r: Result, ex: Explanation, out: list[tuple[Result, list[str], Explanation]]
+    ) -> bool:
         for row in out:
             c, prob = row[0].candidate, problems[r.candidate.family]
-            if (c.family == r.candidate.family and row[2].dominant == ex.dominant
-                    and prob.family.distance(c.params, r.candidate.params) < min_distance):
+            if (
+                c.family == r.candidate.family
+                and row[2].dominant == ex.dominant
+                and prob.family.distance(c.params, r.candidate.params) < min_distance
+            ):
                 if r.candidate.environment_label not in row[1]:
                     row[1].append(r.candidate.environment_label)
                 return True
         return False
 
-    def same_outcome(r: Result, ex: Explanation,
-                     out: list[tuple[Result, list[str], Explanation]]) -> bool:
+    def same_outcome(
+        r: Result, ex: Explanation, out: list[tuple[Result, list[str], Explanation]]
+    ) -> bool:
         """The same encounter placed elsewhere on the road: same family, effect and
         outcome (``SAME_OUTCOME``: P(collision), impact speed and t_safe within their
         tolerances): joins the first row. Two places on a constant-radius curve give the
         same encounter up to rounding (measured: P 1e-7, impact 1e-5 km/h apart)."""
+
         def same(a: Result, b: Result) -> bool:
-            return all(abs(float(a.metrics.get(m, 0.0)) - float(b.metrics.get(m, 0.0))) <= tol
-                       for m, tol in SAME_OUTCOME.items())
+            return all(
+                abs(float(a.metrics.get(m, 0.0)) - float(b.metrics.get(m, 0.0))) <= tol
+                for m, tol in SAME_OUTCOME.items()
+            )
 
         for row in out:
-            if (row[0].candidate.family == r.candidate.family
-                    and row[2].dominant == ex.dominant and same(row[0], r)):
+            if (
+                row[0].candidate.family == r.candidate.family
+                and row[2].dominant == ex.dominant
+                and same(row[0], r)
+            ):
                 if r.candidate.environment_label not in row[1]:
                     row[1].append(r.candidate.environment_label)
                 return True
         return False
 
-    def fill(src: list[Result], out: list[tuple[Result, list[str], Explanation]],
-             limit: int, cap: int | None) -> None:
+    def fill(
+        src: list[Result],
+        out: list[tuple[Result, list[str], Explanation]],
+        limit: int,
+        cap: int | None,
+    ) -> None:
         for r in src:
             if len(out) >= limit:
                 return
@@ -397,8 +467,10 @@ def rank_exact(pairs: list[tuple[Result, Result]], problems: dict[str, SearchPro
             if any(row[0] is r for row in out) or (cap is not None and groups[gk] >= cap):
                 continue
             prob = problems[r.candidate.family]
-            if any(candidate_distance(prob, r.candidate, row[0].candidate) < min_distance
-                   for row in out):
+            if any(
+                candidate_distance(prob, r.candidate, row[0].candidate) < min_distance
+                for row in out
+            ):
                 continue
             ex = explained.get(r.candidate.scenario_id)
             if ex is None:
@@ -421,32 +493,51 @@ def rank_exact(pairs: list[tuple[Result, Result]], problems: dict[str, SearchPro
 STABILITY_TOP = 10
 
 
-def found_by(rows: list[tuple[Result, list[str], Explanation]],
-             tops: list[list[tuple[Result, list[str], Explanation]]]) -> list[int]:
+def found_by(
+    rows: list[tuple[Result, list[str], Explanation]],
+    tops: list[list[tuple[Result, list[str], Explanation]]],
+) -> list[int]:
     """Per ranked row: in how many of ``tops`` (each independent search's own ranking) the
     same finding is ranked: a row of the same family and dominant effect with an
     environment preset in common (the same kind of weakness, not the same parameter values
     or sun position: independent searches land at different points of one critical
     region)."""
+
     def presets(labels: list[str]) -> set[str]:
         return {lab.split("@")[0] for lab in labels}  # 'clear@sun62/5': the preset clear
 
-    def same(a: tuple[Result, list[str], Explanation],
-             b: tuple[Result, list[str], Explanation]) -> bool:
-        return (a[0].candidate.family == b[0].candidate.family
-                and a[2].dominant == b[2].dominant
-                and bool(presets(a[1]) & presets(b[1])))
+    def same(
+        a: tuple[Result, list[str], Explanation], b: tuple[Result, list[str], Explanation]
+    ) -> bool:
+        return (
+            a[0].candidate.family == b[0].candidate.family
+            and a[2].dominant == b[2].dominant
+            and bool(presets(a[1]) & presets(b[1]))
+        )
 
     return [sum(1 for t in tops if any(same(row, o) for o in t)) for row in rows]
 
 
-def found_near(rows: list[tuple[Result, list[str], Explanation]],
-               tops: list[list[tuple[Result, list[str], Explanation]]],
-               problems: dict[str, SearchProblem], distance: float) -> list[int]:
+def found_near(
+    rows: list[tuple[Result, list[str], Explanation]],
+    tops: list[list[tuple[Result, list[str], Explanation]]],
+    problems: dict[str, SearchProblem],
+    distance: float,
+) -> list[int]:
     """Per ranked row: in how many of ``tops`` a row of the same family and environment
     preset lies within ``distance`` of it (``candidate_distance``: parameters and sun;
     the ranking's near-duplicate test), the stricter sense of found again."""
-    return [sum(1 for t in tops if any(
-        candidate_distance(problems[row[0].candidate.family], row[0].candidate,
-                           o[0].candidate) < distance for o in t)) for row in rows]
-
+    return [
+        sum(
+            1
+            for t in tops
+            if any(
+                candidate_distance(
+                    problems[row[0].candidate.family], row[0].candidate, o[0].candidate
+                )
+                < distance
+                for o in t
+            )
+        )
+        for row in rows
+    ]

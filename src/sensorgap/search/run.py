@@ -53,9 +53,16 @@ from sensorgap.search.settings import (
 from sensorgap.search.store import Store
 
 #: The ranking's leading metric columns (collision terms), in this order.
-HEAD_METRICS = ("collision_probability", "impact_speed_kmh", "collision_perfect", "t_safe_s",
-                "detection_margin_s", "t_confirm_median_s", "t_threat_s",
-                "p_never_confirmed")
+HEAD_METRICS = (
+    "collision_probability",
+    "impact_speed_kmh",
+    "collision_perfect",
+    "t_safe_s",
+    "detection_margin_s",
+    "t_confirm_median_s",
+    "t_threat_s",
+    "p_never_confirmed",
+)
 
 
 def _finite_or_none(v: float) -> float | None:
@@ -93,11 +100,14 @@ def ranking_csv(rows: list[dict[str, Any]], columns: list[str]) -> bytes:
 def _speed_limits(prob: SearchProblem) -> dict[str, dict[str, Any]]:
     """Per environment: the lawful ego speed bound the search used (``search.speedlimit``),
     km/h (None: not bounded), the visibility it came from, m, and the rule in words."""
-    return {n: {"speed_kmh": (None if math.isinf(lim.speed_m_s)
-                              else round(lim.speed_m_s * 3.6, 1)),
-                "visibility_m": (None if math.isinf(lim.visibility_m) else lim.visibility_m),
-                "rule": lim.rule}
-            for n, lim in prob.speed_limits.items()}
+    return {
+        n: {
+            "speed_kmh": (None if math.isinf(lim.speed_m_s) else round(lim.speed_m_s * 3.6, 1)),
+            "visibility_m": (None if math.isinf(lim.visibility_m) else lim.visibility_m),
+            "rule": lim.rule,
+        }
+        for n, lim in prob.speed_limits.items()
+    }
 
 
 @dataclass
@@ -127,66 +137,101 @@ def rank_results(p: Prepared, loop: LoopResult) -> Ranked:
     if s.seeds == 1:
         pairs, lve = reevaluate(loop.results, exact_problems, pool, cache)
     else:  # each search's own best re-evaluated; the ranking over their union
-        per_seed = [reevaluate([r for r, s_i in zip(loop.results, loop.stream, strict=True)
-                                if s_i == k], exact_problems, pool, cache)[0]
-                    for k in range(s.seeds)]
+        per_seed = [
+            reevaluate(
+                [r for r, s_i in zip(loop.results, loop.stream, strict=True) if s_i == k],
+                exact_problems,
+                pool,
+                cache,
+            )[0]
+            for k in range(s.seeds)
+        ]
         pairs = merge_pairs(*per_seed)
         lve = disagreement(pairs)
     lookup_of = {lk.candidate.scenario_id: lk for lk, _ in pairs}
-    chosen, unavoidable = rank_exact(pairs, exact_problems, s.top, s.min_distance,
-                                     explained=explained)
+    chosen, unavoidable = rank_exact(
+        pairs, exact_problems, s.top, s.min_distance, explained=explained
+    )
     stability: dict[str, Any] = {"seeds": s.seeds}
     found: list[int | None] = [None] * len(chosen)
     if s.seeds > 1:
-        tops = [rank_exact(ps, exact_problems, s.top, s.min_distance, explained=explained)[0]
-                for ps in per_seed]
+        tops = [
+            rank_exact(ps, exact_problems, s.top, s.min_distance, explained=explained)[0]
+            for ps in per_seed
+        ]
         found = list(found_by(chosen, tops))
         near = found_near(chosen, tops, exact_problems, s.min_distance)
-        stability.update({
-            "budget_per_seed": [sum(1 for s_i in loop.stream if s_i == k)
-                                for k in range(s.seeds)],
-            "top": STABILITY_TOP,
-            "found_by": found[:STABILITY_TOP],
-            "found_near_by": near[:STABILITY_TOP],
-            "near_distance": s.min_distance,
-            "rule": "a ranked row counts as found by a search when that search's own "
-                    f"ranking (top {s.top}) holds a row of the same family and dominant "
-                    "effect with an environment preset in common (any sun position)"})
+        stability.update(
+            {
+                "budget_per_seed": [
+                    sum(1 for s_i in loop.stream if s_i == k) for k in range(s.seeds)
+                ],
+                "top": STABILITY_TOP,
+                "found_by": found[:STABILITY_TOP],
+                "found_near_by": near[:STABILITY_TOP],
+                "near_distance": s.min_distance,
+                "rule": "a ranked row counts as found by a search when that search's own "
+                f"ranking (top {s.top}) holds a row of the same family and dominant "
+                "effect with an environment preset in common (any sun position)",
+            }
+        )
     params = sorted({q.name for f in p.families for q in f.space})
     metrics = metric_names()
     head = [m for m in HEAD_METRICS if m in metrics]
-    columns = ["rank", "scenario_id", "class", "found_by_seeds", "family", "environment",
-               "environments",
-               "target", "sun_azimuth_deg", "sun_elevation_deg", *head, "dominant_effect",
-               "named_step_t_s", "lookup_collision_probability", "risk",
-               *[m for m in metrics if m not in head and m != "risk"],
-               *[f"p_{q}" for q in params], "reason"]
+    columns = [
+        "rank",
+        "scenario_id",
+        "class",
+        "found_by_seeds",
+        "family",
+        "environment",
+        "environments",
+        "target",
+        "sun_azimuth_deg",
+        "sun_elevation_deg",
+        *head,
+        "dominant_effect",
+        "named_step_t_s",
+        "lookup_collision_probability",
+        "risk",
+        *[m for m in metrics if m not in head and m != "risk"],
+        *[f"p_{q}" for q in params],
+        "reason",
+    ]
 
-    def row_of(rank: int, r: Result, env_labels: list[str], ex: Explanation,
-               seeds_found: int | None = None) -> dict[str, Any]:
+    def row_of(
+        rank: int, r: Result, env_labels: list[str], ex: Explanation, seeds_found: int | None = None
+    ) -> dict[str, Any]:
         c = r.candidate
         lk = lookup_of.get(c.scenario_id)
         row: dict[str, Any] = {
-            "rank": rank, "scenario_id": c.scenario_id, "class": classify(r),
+            "rank": rank,
+            "scenario_id": c.scenario_id,
+            "class": classify(r),
             "found_by_seeds": seeds_found,
-            "family": c.family, "environment": c.environment_label,
+            "family": c.family,
+            "environment": c.environment_label,
             "environments": ", ".join(env_labels),
             "target": exact_problems[c.family].family.target_class,
             "sun_azimuth_deg": None if c.sun is None else c.sun[0],
             "sun_elevation_deg": None if c.sun is None else c.sun[1],
-            "risk": r.risk, "dominant_effect": ex.dominant, "reason": ex.reason,
+            "risk": r.risk,
+            "dominant_effect": ex.dominant,
+            "reason": ex.reason,
             "named_step_t_s": ex.step_t_s,
-            "lookup_collision_probability": (None if lk is None or s.mode == "exact" else
-                                             lk.metrics.get("collision_probability")),
+            "lookup_collision_probability": (
+                None if lk is None or s.mode == "exact" else lk.metrics.get("collision_probability")
+            ),
         }
         row.update({m: _finite_or_none(r.metrics[m]) for m in metrics})
         row.update({f"p_{k}": v for k, v in c.params.items()})
         return row
 
-    rows = [row_of(i, r, envs_, ex, f)
-            for i, ((r, envs_, ex), f) in enumerate(zip(chosen, found, strict=True), start=1)]
-    unav_rows = [row_of(i, r, envs_, ex)
-                 for i, (r, envs_, ex) in enumerate(unavoidable, start=1)]
+    rows = [
+        row_of(i, r, envs_, ex, f)
+        for i, ((r, envs_, ex), f) in enumerate(zip(chosen, found, strict=True), start=1)
+    ]
+    unav_rows = [row_of(i, r, envs_, ex) for i, (r, envs_, ex) in enumerate(unavoidable, start=1)]
     return Ranked(columns, rows, unav_rows, lve, stability, pairs)
 
 
@@ -200,47 +245,75 @@ def search_summary(p: Prepared, loop: LoopResult, ranked: Ranked) -> dict[str, A
     for f, share in zip(p.families, p.shares(), strict=True):
         rs = [r for r in results if r.candidate.family == f.name]
         per_family[f.name] = {
-            "budget": share, "feasible": sum(r.feasible for r in rs),
-            "threats": sum(1 for r in rs if r.feasible and math.isfinite(
-                r.metrics.get("t_threat_s", math.nan))),
+            "budget": share,
+            "feasible": sum(r.feasible for r in rs),
+            "threats": sum(
+                1 for r in rs if r.feasible and math.isfinite(r.metrics.get("t_threat_s", math.nan))
+            ),
             "sensor_critical_by_lookup": sum(1 for r in rs if classify(r) == "sensor-critical"),
             "unavoidable_by_lookup": sum(1 for r in rs if classify(r) == "unavoidable"),
         }
-    return {"settings": {**p.record, "budget": s.budget, "top": s.top,
-                         "min_distance": s.min_distance},
-            "candidates": len(results), "feasible": n_ok, "infeasible": len(results) - n_ok,
-            "best_collision_probability": max(
-                (float(r.metrics.get("collision_probability", 0.0)) for _, r in ranked.pairs
-                 if classify(r) == "sensor-critical"), default=0.0),
-            "best_log10_risk": max((r.score for r in results), default=-300.0),
-            "lookup_vs_exact": ranked.lookup_vs_exact,
-            "stability": ranked.stability,
-            "per_family": per_family,
-            "speed_limits": _speed_limits(next(iter(p.problems.values())))}
+    return {
+        "settings": {**p.record, "budget": s.budget, "top": s.top, "min_distance": s.min_distance},
+        "candidates": len(results),
+        "feasible": n_ok,
+        "infeasible": len(results) - n_ok,
+        "best_collision_probability": max(
+            (
+                float(r.metrics.get("collision_probability", 0.0))
+                for _, r in ranked.pairs
+                if classify(r) == "sensor-critical"
+            ),
+            default=0.0,
+        ),
+        "best_log10_risk": max((r.score for r in results), default=-300.0),
+        "lookup_vs_exact": ranked.lookup_vs_exact,
+        "stability": ranked.stability,
+        "per_family": per_family,
+        "speed_limits": _speed_limits(next(iter(p.problems.values()))),
+    }
 
 
 def write_ranking(out: Path, p: Prepared, ranked: Ranked, summary: dict[str, Any]) -> None:
     """``ranking.csv``, ``unavoidable.csv``, ``ranking.json`` and ``summary.json`` (each
     written to a temporary file and renamed)."""
     atomic_write_bytes(out / "ranking.csv", ranking_csv(ranked.rows, ranked.columns))
-    atomic_write_bytes(out / "unavoidable.csv", ranking_csv(ranked.unavoidable,
-                                                            ranked.columns))
-    write_json(out / "ranking.json", {"columns": ranked.columns, "ranking": ranked.rows,
-                                      "unavoidable": ranked.unavoidable,
-                                      "settings": p.record,
-                                      "lookup_vs_exact": ranked.lookup_vs_exact,
-                                      "stability": ranked.stability})
+    atomic_write_bytes(out / "unavoidable.csv", ranking_csv(ranked.unavoidable, ranked.columns))
+    write_json(
+        out / "ranking.json",
+        {
+            "columns": ranked.columns,
+            "ranking": ranked.rows,
+            "unavoidable": ranked.unavoidable,
+            "settings": p.record,
+            "lookup_vs_exact": ranked.lookup_vs_exact,
+            "stability": ranked.stability,
+        },
+    )
     write_json(out / "summary.json", summary)
 
 
-def run_search(vehicle: str | Path, families: list[str], environments: list[str],
-               budget: int, seed: int, top: int, out: Path, strategy: str = "de",
-               mode: str = "lookup", sun_search: bool = True,
-               environments_file: Path | None = None, progress: bool | None = None,
-               min_distance: float = MIN_DISTANCE,
-               detection: str = "cumulative", workers: int = 2,
-               resume: bool = False, executor: str = "local",
-               scheduler: str | None = None, seeds: int = 1) -> SearchOutcome:
+def run_search(
+    vehicle: str | Path,
+    families: list[str],
+    environments: list[str],
+    budget: int,
+    seed: int,
+    top: int,
+    out: Path,
+    strategy: str = "de",
+    mode: str = "lookup",
+    sun_search: bool = True,
+    environments_file: Path | None = None,
+    progress: bool | None = None,
+    min_distance: float = MIN_DISTANCE,
+    detection: str = "cumulative",
+    workers: int = 2,
+    resume: bool = False,
+    executor: str = "local",
+    scheduler: str | None = None,
+    seeds: int = 1,
+) -> SearchOutcome:
     """Search, store every candidate, write the ranking; see the module docstring and
     ``SearchSettings`` for the arguments. ``workers``: threads per batch
     (``executor="local"``) or Dask worker processes of a local cluster (``"dask"`` without
@@ -250,9 +323,26 @@ def run_search(vehicle: str | Path, families: list[str], environments: list[str]
     (``found_by_seeds``; ``summary.json`` ``stability``): the confidence a rerun with
     another seed would find it too, at no extra cost.
     """
-    p = prepare(SearchSettings(vehicle, tuple(families), tuple(environments), budget, seed,
-                               top, strategy, mode, sun_search, environments_file,
-                               min_distance, detection, workers, executor, scheduler, seeds))
+    p = prepare(
+        SearchSettings(
+            vehicle,
+            tuple(families),
+            tuple(environments),
+            budget,
+            seed,
+            top,
+            strategy,
+            mode,
+            sun_search,
+            environments_file,
+            min_distance,
+            detection,
+            workers,
+            executor,
+            scheduler,
+            seeds,
+        )
+    )
     db = out / "search.sqlite"
     new_db = not db.exists()
     new_out = not out.exists()
@@ -261,8 +351,12 @@ def run_search(vehicle: str | Path, families: list[str], environments: list[str]
     if store.count() and not resume:
         n = store.count()
         store.close()
-        raise InputError("out", "", f"{out} already holds a search ({n} candidates "
-                         "stored); add --resume to continue it, or use another --out")
+        raise InputError(
+            "out",
+            "",
+            f"{out} already holds a search ({n} candidates "
+            "stored); add --resume to continue it, or use another --out",
+        )
     resuming = store.count() > 0
     try:
         runner = make_executor(executor, scheduler, workers)
@@ -275,13 +369,20 @@ def run_search(vehicle: str | Path, families: list[str], environments: list[str]
                 out.rmdir()
         raise
     # the run folder keeps its inputs: copies under inputs/, paths and SHA-256 in run.json
-    write_search_record(out, vehicle_ref(vehicle), p.record, record_inputs(
-        out, p.system.source, environments_file, p.system.config.reaction, p.families))
+    write_search_record(
+        out,
+        vehicle_ref(vehicle),
+        p.record,
+        record_inputs(
+            out, p.system.source, environments_file, p.system.config.reaction, p.families
+        ),
+    )
     disable = (not sys.stderr.isatty()) if progress is None else not progress
     try:
         with tqdm(total=budget, disable=disable, desc="search", unit="cand") as bar:
-            loop = search_loop(p, runner, store.get if resuming else None, store.put_async,
-                               bar.update)
+            loop = search_loop(
+                p, runner, store.get if resuming else None, store.put_async, bar.update
+            )
     finally:
         store.close()
         runner.close()
@@ -289,4 +390,3 @@ def run_search(vehicle: str | Path, families: list[str], environments: list[str]
     summary = search_summary(p, loop, ranked)
     write_ranking(out, p, ranked, summary)
     return SearchOutcome(ranked.rows, loop.results, loop.evaluated, loop.reused, summary)
-

@@ -68,9 +68,14 @@ ROW_CLASSES = ("sensor-critical", "marginal", "unavoidable", "not critical")
 #: What a scenario id may be (it names the exported files).
 SCENARIO_ID = re.compile(r"[A-Za-z0-9_-]{1,64}")
 #: Fields of ``run.json`` a reader checks, and the JSON type each must have.
-RUN_INFO_FIELDS: dict[str, type] = {"settings": dict, "vehicle": str, "versions": dict,
-                                    "command": list, "config_sha256": dict,
-                                    "inputs": dict}
+RUN_INFO_FIELDS: dict[str, type] = {
+    "settings": dict,
+    "vehicle": str,
+    "versions": dict,
+    "command": list,
+    "config_sha256": dict,
+    "inputs": dict,
+}
 
 #: Lines already printed in this process (each warning or note once per folder).
 _SAID: set[str] = set()
@@ -84,6 +89,7 @@ def say(text: str) -> None:
 
 
 # -- recording -------------------------------------------------------------------------
+
 
 def reaction_source(reaction: str) -> tuple[Path, str | None]:
     """(file, model name) of a vehicle file's ``reaction`` as ``load_reaction`` resolves
@@ -106,8 +112,7 @@ class _Recorder:
         if src in self.by_path:
             return dict(self.by_path[src])
         if not src.is_file():
-            raise InputError(src, "", "input file not found (cannot record it in the run "
-                             "folder)")
+            raise InputError(src, "", "input file not found (cannot record it in the run folder)")
         data = src.read_bytes()
         base = name or src.name
         rel = f"{INPUTS_DIR}/{sub}/{base}"
@@ -122,8 +127,13 @@ class _Recorder:
         return dict(entry)
 
 
-def record_inputs(folder: Path, vehicle_file: Path, environments_file: Path | None,
-                  reaction: str, families: list[Family]) -> dict[str, Any]:
+def record_inputs(
+    folder: Path,
+    vehicle_file: Path,
+    environments_file: Path | None,
+    reaction: str,
+    families: list[Family],
+) -> dict[str, Any]:
     """Copy every input of a search into ``folder/inputs`` and return the ``inputs``
     record of ``run.json`` (see the module docstring). ``reaction``: the vehicle file's
     ``reaction`` setting; each family's road is its resolved ``road`` setting."""
@@ -142,15 +152,15 @@ def record_inputs(folder: Path, vehicle_file: Path, environments_file: Path | No
         road = rec.add("roads", resolve_road(str(f.settings["road"])))
         key = Path(road["copy"]).stem
         roads[key] = road
-        fams[f.name] = {**rec.add("families", Path(f.source), f"{f.name}.toml"),
-                        "road": key}
+        fams[f.name] = {**rec.add("families", Path(f.source), f"{f.name}.toml"), "road": key}
     out["families"] = fams
     out["roads"] = roads
     return out
 
 
-def write_search_record(folder: Path, vehicle_ref: str, settings: dict[str, Any],
-                        inputs: dict[str, Any]) -> dict[str, Any]:
+def write_search_record(
+    folder: Path, vehicle_ref: str, settings: dict[str, Any], inputs: dict[str, Any]
+) -> dict[str, Any]:
     """``folder/run.json`` after a search: the vehicle, settings, versions and the recorded
     inputs; other fields of an existing ``run.json`` (``sensorgap run``'s command and
     config hashes) are kept."""
@@ -162,9 +172,14 @@ def write_search_record(folder: Path, vehicle_ref: str, settings: dict[str, Any]
             info = old if isinstance(old, dict) else {}
         except (OSError, ValueError):
             info = {}
-    info.update({"vehicle": vehicle_ref, "settings": {**info.get("settings", {}),
-                                                      **settings},
-                 "versions": versions(), "inputs": inputs})
+    info.update(
+        {
+            "vehicle": vehicle_ref,
+            "settings": {**info.get("settings", {}), **settings},
+            "versions": versions(),
+            "inputs": inputs,
+        }
+    )
     write_json(path, info)
     return info
 
@@ -184,6 +199,7 @@ def copy_record(src: Path, dst: Path) -> None:
 
 
 # -- reading ---------------------------------------------------------------------------
+
 
 def read_json_file(path: Path) -> Any:
     """A JSON file of a run folder (``InputError`` naming it when unreadable)."""
@@ -207,8 +223,7 @@ def read_run_info(folder: Path) -> dict[str, Any]:
     for key, kind in RUN_INFO_FIELDS.items():
         if key in info and not isinstance(info[key], kind):
             want = "object" if kind is dict else "array" if kind is list else "string"
-            raise InputError(path, key, f"expected a JSON {want}, got "
-                             f"{type(info[key]).__name__}")
+            raise InputError(path, key, f"expected a JSON {want}, got {type(info[key]).__name__}")
     if not all(isinstance(c, str) for c in info.get("command", [])):
         raise InputError(path, "command", "expected an array of strings")
     for key in ("versions", "config_sha256"):
@@ -217,13 +232,16 @@ def read_run_info(folder: Path) -> dict[str, Any]:
     return info
 
 
-def _read_ranking(folder: Path) -> tuple[list[dict[str, Any]], dict[str, Any],
-                                         dict[str, Any], str]:
+def _read_ranking(folder: Path) -> tuple[list[dict[str, Any]], dict[str, Any], dict[str, Any], str]:
     """(rows, settings, the whole file, vehicle as given) of ``ranking.json``, checked."""
     path = folder / RANKING_JSON
     if not path.is_file():
-        raise InputError(path, "", "not a search run folder (ranking.json is missing); run "
-                         "`sensorgap search --out DIR` first")
+        raise InputError(
+            path,
+            "",
+            "not a search run folder (ranking.json is missing); run "
+            "`sensorgap search --out DIR` first",
+        )
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
     except (ValueError, RecursionError) as exc:
@@ -237,34 +255,51 @@ def _read_ranking(folder: Path) -> tuple[list[dict[str, Any]], dict[str, Any],
         raise InputError(path, "settings", "malformed ranking file: expected an object")
     vehicle = settings.get("vehicle_ref") or settings.get("vehicle_file")
     if not isinstance(vehicle, str) or not vehicle:
-        raise InputError(path, "settings.vehicle_ref", "malformed ranking file: expected "
-                         "the vehicle (a preset name or a path)")
+        raise InputError(
+            path,
+            "settings.vehicle_ref",
+            "malformed ranking file: expected the vehicle (a preset name or a path)",
+        )
     if not settings.get("vehicle_ref"):
         vehicle = Path(vehicle).stem
     envs = settings.get("environments", [])
     if not (isinstance(envs, list) and all(isinstance(e, str) for e in envs)):
-        raise InputError(path, "settings.environments", "malformed ranking file: expected "
-                         "a list of environment names")
+        raise InputError(
+            path,
+            "settings.environments",
+            "malformed ranking file: expected a list of environment names",
+        )
     for i, row in enumerate(rows):
         if not isinstance(row, dict):
-            raise InputError(path, f"ranking[{i}]", "malformed ranking file: expected an "
-                             "object")
+            raise InputError(path, f"ranking[{i}]", "malformed ranking file: expected an object")
         for key in ROW_TEXT:
             if not isinstance(row.get(key), str) or not row[key]:
-                raise InputError(path, f"ranking[{i}].{key}", "malformed ranking file: "
-                                 "missing or not a string")
+                raise InputError(
+                    path, f"ranking[{i}].{key}", "malformed ranking file: missing or not a string"
+                )
         if "class" in row and row["class"] not in ROW_CLASSES:
-            raise InputError(path, f"ranking[{i}].class", "malformed ranking file: expected "
-                             f"one of {', '.join(ROW_CLASSES)}, got {str(row['class'])[:40]!r}")
+            raise InputError(
+                path,
+                f"ranking[{i}].class",
+                "malformed ranking file: expected "
+                f"one of {', '.join(ROW_CLASSES)}, got {str(row['class'])[:40]!r}",
+            )
         if not SCENARIO_ID.fullmatch(row["scenario_id"]):
             # it names files (scenarios/<id>.xosc): no path separators, no markup
-            raise InputError(path, f"ranking[{i}].scenario_id", "malformed ranking file: "
-                             "expected 1-64 letters, digits, '_' or '-', got "
-                             f"{row['scenario_id'][:80]!r}")
+            raise InputError(
+                path,
+                f"ranking[{i}].scenario_id",
+                "malformed ranking file: "
+                "expected 1-64 letters, digits, '_' or '-', got "
+                f"{row['scenario_id'][:80]!r}",
+            )
         rank = row.get("rank")
         if not isinstance(rank, int) or isinstance(rank, bool) or rank < 1:
-            raise InputError(path, f"ranking[{i}].rank", "malformed ranking file: expected "
-                             f"a positive integer, got {rank!r}")
+            raise InputError(
+                path,
+                f"ranking[{i}].rank",
+                f"malformed ranking file: expected a positive integer, got {rank!r}",
+            )
         _finite_row(path, i, row)
     return rows, settings, data, vehicle
 
@@ -281,10 +316,16 @@ def _finite_row(path: Path, i: int, row: dict[str, Any]) -> None:
             except ValueError:
                 bad = key.startswith("sun_")  # a choice name is text; a sun angle is not
         if bad:
-            raise InputError(path, f"ranking[{i}].{key[:64]}", "malformed ranking file: "
-                             f"expected a finite number, got {str(v)[:40]!r}")
-        why = (bound_error(key[2:], float(v)) if key.startswith("p_")
-               and isinstance(v, int | float) and not isinstance(v, bool) else None)
+            raise InputError(
+                path,
+                f"ranking[{i}].{key[:64]}",
+                f"malformed ranking file: expected a finite number, got {str(v)[:40]!r}",
+            )
+        why = (
+            bound_error(key[2:], float(v))
+            if key.startswith("p_") and isinstance(v, int | float) and not isinstance(v, bool)
+            else None
+        )
         if why:  # a physical bound (config.parameters)
             raise InputError(path, f"ranking[{i}].{key[:64]}", why)
 
@@ -335,8 +376,7 @@ class RunFolder:
     def system(self) -> System:
         """The vehicle: the recorded copy, else the vehicle as given."""
         p = self.input_path("vehicle")
-        return self._cached("system", lambda: load_system(p if p is not None
-                                                          else self.vehicle_ref))
+        return self._cached("system", lambda: load_system(p if p is not None else self.vehicle_ref))
 
     def environments(self) -> dict[str, EnvironmentConfig]:
         """Every environment of the run's environments file (recorded copy, else the
@@ -354,12 +394,13 @@ class RunFolder:
         names it)."""
         e = self._entry("reaction")
         if e is None:
-            return self._cached("reaction", lambda: load_reaction(
-                self.system().config.reaction))
+            return self._cached("reaction", lambda: load_reaction(self.system().config.reaction))
         copy = self.folder / str(e["copy"])
         name = e.get("name")
-        return self._cached("reaction", lambda: load_reaction(copy) if name is None
-                            else load_reaction(str(name), presets=copy))
+        return self._cached(
+            "reaction",
+            lambda: load_reaction(copy) if name is None else load_reaction(str(name), presets=copy),
+        )
 
     def friction(self) -> dict[str, float]:
         """Peak road friction per condition (recorded copy, else the shipped presets)."""
@@ -374,14 +415,14 @@ class RunFolder:
             return self._cached(f"family {name_or_path}", lambda: load_family(name_or_path))
         road = self.input_path("roads", str(e.get("road")))
         copy = self.folder / str(e["copy"])
-        return self._cached(f"family {name_or_path}", lambda: load_family(str(copy),
-                                                                         road=road))
+        return self._cached(f"family {name_or_path}", lambda: load_family(str(copy), road=road))
 
     def evaluator(self, mode: str = "exact", rule: DetectionRule | None = None) -> Evaluator:
         """An evaluator of the run's vehicle with its recorded reaction model, friction
         and target classes."""
-        ev = Evaluator(self.system(), mode=mode, rule=rule, reaction=self.reaction(),
-                       friction=self.friction())
+        ev = Evaluator(
+            self.system(), mode=mode, rule=rule, reaction=self.reaction(), friction=self.friction()
+        )
         ev._targets.update(self.targets())  # the cache Evaluator.target fills from presets
         return ev
 
@@ -394,25 +435,41 @@ class RunFolder:
         changed = []
         for label, e in _entries(inputs):
             if not all(isinstance(e.get(k), str) for k in ("path", "sha256", "copy")):
-                raise InputError(self.folder / RUN_JSON, f"inputs.{label}", "expected "
-                                 "path, sha256 and copy (strings)")
-            copy = (self.folder / e["copy"])
+                raise InputError(
+                    self.folder / RUN_JSON,
+                    f"inputs.{label}",
+                    "expected path, sha256 and copy (strings)",
+                )
+            copy = self.folder / e["copy"]
             if ".." in Path(e["copy"]).parts or Path(e["copy"]).is_absolute():
-                raise InputError(self.folder / RUN_JSON, f"inputs.{label}.copy",
-                                 "must be a path inside the run folder")
+                raise InputError(
+                    self.folder / RUN_JSON,
+                    f"inputs.{label}.copy",
+                    "must be a path inside the run folder",
+                )
             if not copy.is_file():
-                raise InputError(copy, "", f"recorded input ({label}) is missing from the "
-                                 "run folder")
+                raise InputError(
+                    copy, "", f"recorded input ({label}) is missing from the run folder"
+                )
             if sha256_of(copy) != e["sha256"]:
-                raise InputError(copy, "", f"recorded input ({label}) was modified: its "
-                                 "SHA-256 differs from run.json")
+                raise InputError(
+                    copy,
+                    "",
+                    f"recorded input ({label}) was modified: its SHA-256 differs from run.json",
+                )
             orig = Path(e["path"])
-            if orig.is_file() and orig.resolve() != copy.resolve() \
-                    and sha256_of(orig) != e["sha256"]:
+            if (
+                orig.is_file()
+                and orig.resolve() != copy.resolve()
+                and sha256_of(orig) != e["sha256"]
+            ):
                 changed.append(f"{label} {orig}")
         if changed:
-            say(f"warning: {self.folder}: input changed since the run: "
-                + "; ".join(changed) + " (SHA-256 differs; using the recorded copy)")
+            say(
+                f"warning: {self.folder}: input changed since the run: "
+                + "; ".join(changed)
+                + " (SHA-256 differs; using the recorded copy)"
+            )
 
 
 def _entries(inputs: dict[str, Any]) -> list[tuple[str, dict[str, Any]]]:
@@ -433,8 +490,11 @@ def open_run(folder: Path, ranking: bool = True) -> RunFolder:
     -> ``InputError`` naming the file and field."""
     folder = Path(folder)
     if not folder.is_dir():
-        raise InputError(folder, "", "run folder does not exist"
-                         + (" (ranking.json is missing)" if ranking else ""))
+        raise InputError(
+            folder,
+            "",
+            "run folder does not exist" + (" (ranking.json is missing)" if ranking else ""),
+        )
     info = read_run_info(folder)
     rows: list[dict[str, Any]] = []
     settings: dict[str, Any] = {}
@@ -446,10 +506,14 @@ def open_run(folder: Path, ranking: bool = True) -> RunFolder:
     if run.recorded:
         run.check_inputs()
     elif rows:  # rebuilding from presets of the same names could silently differ
-        raise InputError(folder / RUN_JSON, "inputs", "missing: the run does not record "
-                         "its inputs (run.json absent, or from an older sensorgap that did not "
-                         "keep them), so its scenarios cannot be rebuilt as searched; run "
-                         "the search again")
+        raise InputError(
+            folder / RUN_JSON,
+            "inputs",
+            "missing: the run does not record "
+            "its inputs (run.json absent, or from an older sensorgap that did not "
+            "keep them), so its scenarios cannot be rebuilt as searched; run "
+            "the search again",
+        )
     return run
 
 

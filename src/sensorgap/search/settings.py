@@ -70,16 +70,21 @@ class SearchSettings:
         if self.top < 1:
             raise InputError("top", "", f"must be >= 1, got {self.top}")
         if get_strategy(self.strategy) is None:
-            raise InputError("strategy", "", f"unknown strategy {self.strategy!r}; allowed: "
-                             f"{', '.join(strategy_names())}")
+            raise InputError(
+                "strategy",
+                "",
+                f"unknown strategy {self.strategy!r}; allowed: {', '.join(strategy_names())}",
+            )
         if self.mode not in ("lookup", "exact"):
             raise InputError("pd", "", f"must be lookup or exact, got {self.mode!r}")
         if isinstance(self.seed, bool) or not 0 <= self.seed <= MAX_SEED:
-            raise InputError("seed", "", f"must be an integer within 0..{MAX_SEED}, got "
-                             f"{self.seed}")
+            raise InputError(
+                "seed", "", f"must be an integer within 0..{MAX_SEED}, got {self.seed}"
+            )
         if isinstance(self.seeds, bool) or not 1 <= self.seeds <= MAX_SEEDS:
-            raise InputError("seeds", "", f"must be an integer within 1..{MAX_SEEDS}, got "
-                             f"{self.seeds}")
+            raise InputError(
+                "seeds", "", f"must be an integer within 1..{MAX_SEEDS}, got {self.seeds}"
+            )
         if self.scheduler is not None:
             check_scheduler_address(self.scheduler)
 
@@ -115,8 +120,9 @@ class Prepared:
         if s.mode == "exact":
             return self.problems
         ev = Evaluator(self.system, mode="exact", rule=self.rule)
-        return {f.name: SearchProblem(f, self.environments, ev, s.sun_search)
-                for f in self.families}
+        return {
+            f.name: SearchProblem(f, self.environments, ev, s.sun_search) for f in self.families
+        }
 
 
 def vehicle_ref(vehicle: str | Path) -> str:
@@ -128,19 +134,28 @@ def vehicle_ref(vehicle: str | Path) -> str:
     return text
 
 
-def input_digests(vehicle_file: Path, evaluator: Evaluator,
-                  envs: dict[str, EnvironmentConfig], fams: list[Family]) -> dict[str, str]:
+def input_digests(
+    vehicle_file: Path, evaluator: Evaluator, envs: dict[str, EnvironmentConfig], fams: list[Family]
+) -> dict[str, str]:
     """Content digests of every input the stored results depend on (``--resume`` refuses
     when one changed): the vehicle file, its reaction model and friction, the
     environments, the target classes and each family's file and road."""
-    out = {"vehicle": file_digest(vehicle_file),
-           "reaction": digest(json.dumps([evaluator.reaction.model_dump(mode="json"),
-                                          evaluator.friction], sort_keys=True)),
-           "environments": digest(json.dumps({k: v.model_dump(mode="json")
-                                              for k, v in envs.items()}, sort_keys=True)),
-           "targets": digest(json.dumps({k: v.model_dump(mode="json")
-                                         for k, v in load_targets().items()},
-                                        sort_keys=True))}
+    out = {
+        "vehicle": file_digest(vehicle_file),
+        "reaction": digest(
+            json.dumps(
+                [evaluator.reaction.model_dump(mode="json"), evaluator.friction], sort_keys=True
+            )
+        ),
+        "environments": digest(
+            json.dumps({k: v.model_dump(mode="json") for k, v in envs.items()}, sort_keys=True)
+        ),
+        "targets": digest(
+            json.dumps(
+                {k: v.model_dump(mode="json") for k, v in load_targets().items()}, sort_keys=True
+            )
+        ),
+    }
     for f in fams:
         out[f"family {f.name}"] = file_digest(Path(f.source))
         out[f"road of {f.name}"] = file_digest(resolve_road(str(f.settings["road"])))
@@ -153,31 +168,61 @@ def prepare(s: SearchSettings) -> Prepared:
     s.check()
     all_envs = load_environments(s.environments_file)
     if not s.environments:
-        raise InputError("environments", "", "give at least one environment; presets: "
-                         f"{', '.join(all_envs)}")
+        raise InputError(
+            "environments", "", f"give at least one environment; presets: {', '.join(all_envs)}"
+        )
     for e in s.environments:
         if e not in all_envs:
-            raise InputError("environments", "", f"unknown environment {e!r}; presets: "
-                             f"{', '.join(all_envs)}")
+            raise InputError(
+                "environments", "", f"unknown environment {e!r}; presets: {', '.join(all_envs)}"
+            )
     fams = load_families(list(s.families))
     if s.budget < len(fams) * s.seeds:
-        raise InputError("budget", "", f"budget {s.budget} is smaller than the number of "
-                         f"families ({len(fams)}) times seeds ({s.seeds}); give at least one "
-                         "evaluation per family and seed")
+        raise InputError(
+            "budget",
+            "",
+            f"budget {s.budget} is smaller than the number of "
+            f"families ({len(fams)}) times seeds ({s.seeds}); give at least one "
+            "evaluation per family and seed",
+        )
     system = load_system(s.vehicle)
     envs = {e: all_envs[e] for e in dict.fromkeys(s.environments)}
     rule = DetectionRule.parse(s.detection)
     evaluator = Evaluator(system, mode=s.mode, rule=rule)
     problems = {f.name: SearchProblem(f, envs, evaluator, s.sun_search) for f in fams}
-    spec = ProblemSpec(str(s.vehicle), tuple(s.families), tuple(envs),
-                       None if s.environments_file is None else str(s.environments_file),
-                       s.mode, rule.label(), s.sun_search)
-    record = {"vehicle": system.name, "vehicle_file": system.source.name,
-              "vehicle_ref": vehicle_ref(s.vehicle),
-              "families": [f.name for f in fams], "environments": list(envs),
-              "seed": s.seed, "seeds": s.seeds, "strategy": s.strategy, "pd": s.mode,
-              "sun_search": s.sun_search,
-              "detection": rule.label(), "reaction": evaluator.reaction.label(),
-              "target_model": "bodies"}
-    return Prepared(s, system, fams, envs, rule, evaluator, problems, spec, record,
-                    input_digests(system.source, evaluator, envs, fams))
+    spec = ProblemSpec(
+        str(s.vehicle),
+        tuple(s.families),
+        tuple(envs),
+        None if s.environments_file is None else str(s.environments_file),
+        s.mode,
+        rule.label(),
+        s.sun_search,
+    )
+    record = {
+        "vehicle": system.name,
+        "vehicle_file": system.source.name,
+        "vehicle_ref": vehicle_ref(s.vehicle),
+        "families": [f.name for f in fams],
+        "environments": list(envs),
+        "seed": s.seed,
+        "seeds": s.seeds,
+        "strategy": s.strategy,
+        "pd": s.mode,
+        "sun_search": s.sun_search,
+        "detection": rule.label(),
+        "reaction": evaluator.reaction.label(),
+        "target_model": "bodies",
+    }
+    return Prepared(
+        s,
+        system,
+        fams,
+        envs,
+        rule,
+        evaluator,
+        problems,
+        spec,
+        record,
+        input_digests(system.source, evaluator, envs, fams),
+    )

@@ -51,8 +51,9 @@ class SpeedLimit:
     rule: str
 
 
-def sight_speed_m_s(visibility_m: float, latency_s: float, jerk_m_s3: float,
-                    decel_m_s2: float) -> float:
+def sight_speed_m_s(
+    visibility_m: float, latency_s: float, jerk_m_s3: float, decel_m_s2: float
+) -> float:
     """The highest speed, m/s, from which a vehicle stops within ``visibility_m`` m: latency
     ``latency_s`` s, brake ramp ``jerk_m_s3`` m/s3 up to ``decel_m_s2`` m/s2 (bisection to
     1e-6 m/s on the monotone stopping distance; ``inf`` above 360 km/h)."""
@@ -70,8 +71,9 @@ def sight_speed_m_s(visibility_m: float, latency_s: float, jerk_m_s3: float,
     return lo
 
 
-def speed_limit(env: EnvironmentConfig, reaction: ReactionConfig,
-                friction: dict[str, float]) -> SpeedLimit:
+def speed_limit(
+    env: EnvironmentConfig, reaction: ReactionConfig, friction: dict[str, float]
+) -> SpeedLimit:
     """The lawful ego speed bound of ``env`` for a vehicle with ``reaction`` on roads of
     peak ``friction`` per condition (module docstring)."""
     vis = Conditions.from_config(env).meteorological_visibility_m()
@@ -79,11 +81,15 @@ def speed_limit(env: EnvironmentConfig, reaction: ReactionConfig,
     decel = min(reaction.decel_max_m_s2, friction[cond] * G_M_S2)
     sight = sight_speed_m_s(vis, reaction.latency_s, reaction.jerk_m_s3, decel)
     if vis < FOG_RULE_VISIBILITY_M and sight > FOG_RULE_SPEED_M_S:
-        return SpeedLimit(FOG_RULE_SPEED_M_S, vis,
-                          f"StVO 3(1): visibility {vis:g} m, below 50 m at most 50 km/h")
+        return SpeedLimit(
+            FOG_RULE_SPEED_M_S, vis, f"StVO 3(1): visibility {vis:g} m, below 50 m at most 50 km/h"
+        )
     if math.isinf(sight):
         return SpeedLimit(math.inf, vis, "no bound below 360 km/h")
-    return SpeedLimit(sight, vis,
-                      f"StVO 3(1) driving within sight: stop within the visibility "
-                      f"{vis:g} m ({cond} road, {decel:.1f} m/s2, latency "
-                      f"{reaction.latency_s:g} s) at most {sight * 3.6:.0f} km/h")
+    return SpeedLimit(
+        sight,
+        vis,
+        f"StVO 3(1) driving within sight: stop within the visibility "
+        f"{vis:g} m ({cond} road, {decel:.1f} m/s2, latency "
+        f"{reaction.latency_s:g} s) at most {sight * 3.6:.0f} km/h",
+    )

@@ -44,10 +44,22 @@ CREATE TABLE IF NOT EXISTS candidates (
 
 
 #: The columns of each table, in order (a file with other columns is not a search store).
-COLUMNS = {"meta": ["key", "value"],
-           "candidates": ["family", "idx", "scenario_id", "environment", "sun_azimuth_deg",
-                          "sun_elevation_deg", "params", "metrics", "risk", "feasible",
-                          "note"]}
+COLUMNS = {
+    "meta": ["key", "value"],
+    "candidates": [
+        "family",
+        "idx",
+        "scenario_id",
+        "environment",
+        "sun_azimuth_deg",
+        "sun_elevation_deg",
+        "params",
+        "metrics",
+        "risk",
+        "feasible",
+        "note",
+    ],
+}
 
 
 def digest(data: bytes | str) -> str:
@@ -64,8 +76,11 @@ def file_digest(path: Path) -> str:
 
 
 def _damaged(path: Path, what: object) -> InputError:
-    return InputError(path, "", f"not a readable sensorgap search database ({what}); delete "
-                      "it or use another --out folder")
+    return InputError(
+        path,
+        "",
+        f"not a readable sensorgap search database ({what}); delete it or use another --out folder",
+    )
 
 
 class Store:
@@ -77,8 +92,9 @@ class Store:
     ``InputError`` naming the file.
     """
 
-    def __init__(self, path: Path, settings: dict[str, Any],
-                 inputs: dict[str, str] | None = None) -> None:
+    def __init__(
+        self, path: Path, settings: dict[str, Any], inputs: dict[str, str] | None = None
+    ) -> None:
         self.path = path
         self._lock = threading.Lock()
         self._writer: ThreadPoolExecutor | None = None
@@ -117,8 +133,12 @@ class Store:
         if row is None:
             self.db.execute("INSERT INTO meta VALUES ('settings', ?)", (text,))
         elif row[0] != text:
-            raise InputError("out", "", f"{path} holds a search with different settings; "
-                             "use another --out folder (or delete it) to start a new search")
+            raise InputError(
+                "out",
+                "",
+                f"{path} holds a search with different settings; "
+                "use another --out folder (or delete it) to start a new search",
+            )
         stored = self.db.execute("SELECT value FROM meta WHERE key = 'inputs'").fetchone()
         old: Any = None
         if stored is not None:
@@ -127,13 +147,22 @@ class Store:
             except (TypeError, ValueError, RecursionError):
                 raise _damaged(path, "meta row 'inputs' is not JSON") from None
         if old != inputs and self.count():
-            changed = sorted(k for k in {*inputs, *(old if isinstance(old, dict) else {})}
-                             if not isinstance(old, dict) or old.get(k) != inputs.get(k))
-            raise InputError("out", "", f"{path} holds results for other input files "
-                             f"(changed since they were stored: {', '.join(changed)}); "
-                             "use another --out folder (or delete it) to start a new search")
-        self.db.execute("INSERT OR REPLACE INTO meta VALUES ('inputs', ?)",
-                        (json.dumps(inputs, sort_keys=True),))
+            changed = sorted(
+                k
+                for k in {*inputs, *(old if isinstance(old, dict) else {})}
+                if not isinstance(old, dict) or old.get(k) != inputs.get(k)
+            )
+            raise InputError(
+                "out",
+                "",
+                f"{path} holds results for other input files "
+                f"(changed since they were stored: {', '.join(changed)}); "
+                "use another --out folder (or delete it) to start a new search",
+            )
+        self.db.execute(
+            "INSERT OR REPLACE INTO meta VALUES ('inputs', ?)",
+            (json.dumps(inputs, sort_keys=True),),
+        )
         self.db.commit()
 
     def close(self) -> None:
@@ -169,7 +198,9 @@ class Store:
                 row = self.db.execute(
                     "SELECT scenario_id, environment, sun_azimuth_deg, sun_elevation_deg, "
                     "params, metrics, feasible, note FROM candidates WHERE family = ? AND "
-                    "idx = ?", (family, idx)).fetchone()
+                    "idx = ?",
+                    (family, idx),
+                ).fetchone()
         except sqlite3.DatabaseError as exc:
             raise _damaged(self.path, exc) from None
         if row is None or row[0] != scenario_id:
@@ -177,26 +208,35 @@ class Store:
         try:
             sun = None if row[2] is None else (float(row[2]), float(row[3]))
             params, metrics = json.loads(row[4]), json.loads(row[5])
-            if not (isinstance(params, dict) and isinstance(metrics, dict)
-                    and isinstance(row[1], str) and isinstance(row[7], str)):
+            if not (
+                isinstance(params, dict)
+                and isinstance(metrics, dict)
+                and isinstance(row[1], str)
+                and isinstance(row[7], str)
+            ):
                 raise ValueError("not the stored layout")
             # every metric a search stores, each a number: a row of '{}' or with a metric
             # missing is damaged, never reused
             missing = [m for m in (*metric_names(), OBJECTIVE_KEY) if m not in metrics]
             if missing:
                 raise ValueError(f"metric {missing[0]} missing")
-            if not all(isinstance(v, int | float) and not isinstance(v, bool)
-                       for v in metrics.values()):
+            if not all(
+                isinstance(v, int | float) and not isinstance(v, bool) for v in metrics.values()
+            ):
                 raise ValueError("a metric is not a number")
             cand = Candidate(family, row[1], sun, params)
         except RecursionError:
-            raise InputError(self.path, f"candidates[{family}, {idx}]", "damaged row (JSON "
-                             "nested too deeply); delete the file or use another --out "
-                             "folder") from None
+            raise InputError(
+                self.path,
+                f"candidates[{family}, {idx}]",
+                "damaged row (JSON nested too deeply); delete the file or use another --out folder",
+            ) from None
         except (TypeError, ValueError) as exc:
-            raise InputError(self.path, f"candidates[{family}, {idx}]",
-                             f"damaged row ({exc}); delete the file or use another --out "
-                             "folder") from None
+            raise InputError(
+                self.path,
+                f"candidates[{family}, {idx}]",
+                f"damaged row ({exc}); delete the file or use another --out folder",
+            ) from None
         return Result(cand, metrics, bool(row[6]), row[7])
 
     def put_async(self, rows: list[tuple[int, Result]]) -> None:
@@ -216,16 +256,27 @@ class Store:
         data = []
         for idx, r in rows:
             c = r.candidate
-            data.append((c.family, idx, c.scenario_id, c.environment,
-                         None if c.sun is None else c.sun[0],
-                         None if c.sun is None else c.sun[1],
-                         json.dumps(c.params, sort_keys=True),
-                         json.dumps(r.metrics, sort_keys=True), r.risk, int(r.feasible),
-                         r.note))
+            data.append(
+                (
+                    c.family,
+                    idx,
+                    c.scenario_id,
+                    c.environment,
+                    None if c.sun is None else c.sun[0],
+                    None if c.sun is None else c.sun[1],
+                    json.dumps(c.params, sort_keys=True),
+                    json.dumps(r.metrics, sort_keys=True),
+                    r.risk,
+                    int(r.feasible),
+                    r.note,
+                )
+            )
         try:
             with self._lock:
-                self.db.executemany("INSERT OR REPLACE INTO candidates VALUES "
-                                    "(?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)", data)
+                self.db.executemany(
+                    "INSERT OR REPLACE INTO candidates VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                    data,
+                )
                 self.db.commit()
         except sqlite3.DatabaseError as exc:
             raise InputError(self.path, "", f"cannot store results: {exc}") from None
@@ -236,8 +287,9 @@ class Store:
         self.flush()
         try:
             with self._lock:
-                keys = self.db.execute("SELECT family, idx, scenario_id FROM candidates "
-                                       "ORDER BY family, idx").fetchall()
+                keys = self.db.execute(
+                    "SELECT family, idx, scenario_id FROM candidates ORDER BY family, idx"
+                ).fetchall()
         except sqlite3.DatabaseError as exc:
             raise _damaged(self.path, exc) from None
         for fam, idx, sid in keys:

@@ -28,8 +28,15 @@ class Strategy(ABC):
     name: ClassVar[str]
     description: ClassVar[str] = ""
 
-    def __init__(self, dim: int, levels: list[int | None], budget: int,
-                 rng: np.random.Generator, batch: int = 32, **options: Any) -> None:
+    def __init__(
+        self,
+        dim: int,
+        levels: list[int | None],
+        budget: int,
+        rng: np.random.Generator,
+        batch: int = 32,
+        **options: Any,
+    ) -> None:
         if options:
             raise ValueError(f"{self.name}: unknown options {', '.join(sorted(options))}")
         self.dim, self.levels, self.budget, self.rng = dim, levels, budget, rng
@@ -62,8 +69,9 @@ class Strategy(ABC):
 S = TypeVar("S", bound=type[Strategy])
 
 
-_STRATEGIES: Registry[type[Strategy]] = Registry("strategy", key=lambda c: c.name,
-                                        on_lookup=load_plugins)
+_STRATEGIES: Registry[type[Strategy]] = Registry(
+    "strategy", key=lambda c: c.name, on_lookup=load_plugins
+)
 
 
 def register_strategy(cls: S) -> S:
@@ -103,11 +111,20 @@ class LatinHypercube(Strategy):
 @register_strategy
 class GridSearch(Strategy):
     name = "grid"
-    description = ("full factorial: every choice x k levels per continuous dimension, "
-                   "the largest k whose product fits the budget (cell centres)")
+    description = (
+        "full factorial: every choice x k levels per continuous dimension, "
+        "the largest k whose product fits the budget (cell centres)"
+    )
 
-    def __init__(self, dim: int, levels: list[int | None], budget: int,
-                 rng: np.random.Generator, batch: int = 32, **options: Any) -> None:
+    def __init__(
+        self,
+        dim: int,
+        levels: list[int | None],
+        budget: int,
+        rng: np.random.Generator,
+        batch: int = 32,
+        **options: Any,
+    ) -> None:
         super().__init__(dim, levels, budget, rng, batch, **options)
         fixed = math.prod(v for v in levels if v)
         n_cont = sum(1 for v in levels if not v)
@@ -116,12 +133,14 @@ class GridSearch(Strategy):
             while fixed * (k + 1) ** n_cont <= budget:
                 k += 1
         axes = [np.arange(v or k) for v in levels]
-        self._points = [np.array([(i + 0.5) / (levels[d] or k) for d, i in enumerate(c)])
-                        for c in itertools.product(*axes)]
+        self._points = [
+            np.array([(i + 0.5) / (levels[d] or k) for d, i in enumerate(c)])
+            for c in itertools.product(*axes)
+        ]
         self.budget = min(budget, len(self._points))
 
     def _propose(self, n: int) -> F64:
-        rows = self._points[self.asked:self.asked + n]
+        rows = self._points[self.asked : self.asked + n]
         return np.array(rows, dtype=np.float64).reshape(len(rows), self.dim)
 
 
@@ -139,9 +158,18 @@ class CrossEntropy(Strategy):
         """About 40 generations per budget, 20..500 samples each."""
         return max(20, min(500, budget // 40))
 
-    def __init__(self, dim: int, levels: list[int | None], budget: int,
-                 rng: np.random.Generator, batch: int = 20, elite: float = 0.2,
-                 alpha: float = 0.7, min_std: float = 0.03, **options: Any) -> None:
+    def __init__(
+        self,
+        dim: int,
+        levels: list[int | None],
+        budget: int,
+        rng: np.random.Generator,
+        batch: int = 20,
+        elite: float = 0.2,
+        alpha: float = 0.7,
+        min_std: float = 0.03,
+        **options: Any,
+    ) -> None:
         super().__init__(dim, levels, budget, rng, batch, **options)
         self.mean = np.full(dim, 0.5)
         self.std = np.full(dim, 0.35)
@@ -164,8 +192,9 @@ class CrossEntropy(Strategy):
         order = np.lexsort((np.arange(len(self._archive_f)), -np.asarray(self._archive_f)))
         elite = np.asarray(self._archive_x)[order[:n_elite]]
         self.mean = self.alpha * elite.mean(axis=0) + (1 - self.alpha) * self.mean
-        self.std = np.maximum(self.alpha * elite.std(axis=0) + (1 - self.alpha) * self.std,
-                              self.min_std)
+        self.std = np.maximum(
+            self.alpha * elite.std(axis=0) + (1 - self.alpha) * self.std, self.min_std
+        )
 
 
 @register_strategy
@@ -191,9 +220,17 @@ class DifferentialEvolution(Strategy):
         """Population: about 25 generations per budget, 20..200 members."""
         return max(20, min(200, budget // 25))
 
-    def __init__(self, dim: int, levels: list[int | None], budget: int,
-                 rng: np.random.Generator, batch: int = 40, f: float = 0.7, cr: float = 0.2,
-                 **options: Any) -> None:
+    def __init__(
+        self,
+        dim: int,
+        levels: list[int | None],
+        budget: int,
+        rng: np.random.Generator,
+        batch: int = 40,
+        f: float = 0.7,
+        cr: float = 0.2,
+        **options: Any,
+    ) -> None:
         super().__init__(dim, levels, budget, rng, batch, **options)
         self.f, self.cr = f, cr
         self.pop: F64 | None = None

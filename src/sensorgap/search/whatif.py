@@ -39,13 +39,17 @@ def parse_params(items: list[str], problem: SearchProblem) -> dict[str, ParamVal
     for item in items:
         name, sep, text = item.partition("=")
         if not sep or name not in space:
-            raise InputError("param", "", f"expected NAME=VALUE with NAME one of "
-                             f"{', '.join(space)}, got {item!r}")
+            raise InputError(
+                "param",
+                "",
+                f"expected NAME=VALUE with NAME one of {', '.join(space)}, got {item!r}",
+            )
         p = space[name]
         if p.categorical:
             if text not in p.choices:
-                raise InputError("param", name, f"must be one of {', '.join(p.choices)}, "
-                                 f"got {text!r}")
+                raise InputError(
+                    "param", name, f"must be one of {', '.join(p.choices)}, got {text!r}"
+                )
             out[name] = text
             continue
         try:
@@ -57,8 +61,12 @@ def parse_params(items: list[str], problem: SearchProblem) -> dict[str, ParamVal
         out[name] = v
     missing = [n for n in space if n not in out]
     if missing:
-        raise InputError("param", "", f"missing {', '.join(missing)} (the family "
-                         f"{problem.family.name!r} needs {', '.join(space)})")
+        raise InputError(
+            "param",
+            "",
+            f"missing {', '.join(missing)} (the family "
+            f"{problem.family.name!r} needs {', '.join(space)})",
+        )
     return out
 
 
@@ -71,37 +79,57 @@ def parse_sun(text: str | None) -> tuple[float, float] | None:
         az, el = parse_decimal(parts[0]), parse_decimal(parts[1])
     except (ValueError, IndexError):
         az = el = math.nan
-    if len(parts) != 2 or not (math.isfinite(az) and math.isfinite(el)) or not (
-            0.0 <= az < 360.0 and -90.0 <= el <= 90.0):
-        raise InputError("sun", "", f"expected AZ/EL in degrees with 0 <= AZ < 360 and "
-                         f"-90 <= EL <= 90, got {text!r}")
+    if (
+        len(parts) != 2
+        or not (math.isfinite(az) and math.isfinite(el))
+        or not (0.0 <= az < 360.0 and -90.0 <= el <= 90.0)
+    ):
+        raise InputError(
+            "sun",
+            "",
+            f"expected AZ/EL in degrees with 0 <= AZ < 360 and -90 <= EL <= 90, got {text!r}",
+        )
     return az, el
 
 
-def evaluate_candidate(vehicle: str | Path | None, family: str, environment: str,
-                       sun: tuple[float, float] | None, params: list[str], out: Path,
-                       environments_file: Path | None = None,
-                       run: Path | None = None) -> dict[str, Any]:
+def evaluate_candidate(
+    vehicle: str | Path | None,
+    family: str,
+    environment: str,
+    sun: tuple[float, float] | None,
+    params: list[str],
+    out: Path,
+    environments_file: Path | None = None,
+    run: Path | None = None,
+) -> dict[str, Any]:
     """Evaluate one candidate exactly and write ``evaluation.json`` and ``trace.csv``
     into ``out``; returns the evaluation. ``run``: a search run folder whose recorded
     inputs (vehicle, environments, family and road, targets, reaction model) are used
     instead of ``vehicle``, ``environments_file`` and the presets."""
     if run is not None:
         if vehicle is not None or environments_file is not None:
-            raise InputError("run", "", "give --run alone: the run folder records the "
-                             "vehicle and the environments (no --vehicle, "
-                             "--environments-file)")
+            raise InputError(
+                "run",
+                "",
+                "give --run alone: the run folder records the "
+                "vehicle and the environments (no --vehicle, "
+                "--environments-file)",
+            )
         rf = open_run(run, ranking=False)
         envs = rf.environments()
     else:
         if vehicle is None:
-            raise InputError("vehicle", "", "give --vehicle (a preset name or .toml path) "
-                             "or --run (a search run folder)")
+            raise InputError(
+                "vehicle",
+                "",
+                "give --vehicle (a preset name or .toml path) or --run (a search run folder)",
+            )
         given: str | Path = vehicle
         envs = load_environments(environments_file)
     if environment not in envs:
-        raise InputError("environment", "", f"unknown environment {environment!r}; "
-                         f"presets: {', '.join(envs)}")
+        raise InputError(
+            "environment", "", f"unknown environment {environment!r}; presets: {', '.join(envs)}"
+        )
     if run is not None:
         fam = rf.family(family)
         system = rf.system()
@@ -116,22 +144,34 @@ def evaluate_candidate(vehicle: str | Path | None, family: str, environment: str
         raise InputError("sun", "", f"environment {environment!r} has no visible sun")
     cand = Candidate(fam.name, environment, sun, parse_params(params, prob))
     res = prob.evaluate(cand, keep_trace=True)
-    metrics = {m: (None if not math.isfinite(res.metrics[m]) else res.metrics[m])
-               for m in metric_names()} if res.feasible else {}
+    metrics = (
+        {m: (None if not math.isfinite(res.metrics[m]) else res.metrics[m]) for m in metric_names()}
+        if res.feasible
+        else {}
+    )
     evaluation: dict[str, Any] = {
-        "scenario_id": cand.scenario_id, "vehicle": system.name, "family": fam.name,
-        "environment": cand.environment_label, "target": fam.target_class,
+        "scenario_id": cand.scenario_id,
+        "vehicle": system.name,
+        "family": fam.name,
+        "environment": cand.environment_label,
+        "target": fam.target_class,
         "sun_azimuth_deg": None if sun is None else sun[0],
         "sun_elevation_deg": None if sun is None else sun[1],
-        "params": cand.params, "feasible": res.feasible, "note": res.note,
-        "class": classify(res), "metrics": metrics,
-        "reaction": ev.reaction.label(), "pd": "exact", "bodies": ev.bodies,
+        "params": cand.params,
+        "feasible": res.feasible,
+        "note": res.note,
+        "class": classify(res),
+        "metrics": metrics,
+        "reaction": ev.reaction.label(),
+        "pd": "exact",
+        "bodies": ev.bodies,
     }
     out.mkdir(parents=True, exist_ok=True)
     if res.feasible:
         ex = explain(prob, cand)
-        evaluation.update({"dominant_effect": ex.dominant, "reason": ex.reason,
-                           "named_step_t_s": ex.step_t_s})
+        evaluation.update(
+            {"dominant_effect": ex.dominant, "reason": ex.reason, "named_step_t_s": ex.step_t_s}
+        )
         atomic_write_bytes(out / "trace.csv", _trace_csv(prob, cand, ev))
     write_json(out / "evaluation.json", evaluation)
     return evaluation
@@ -145,9 +185,11 @@ def _trace_csv(prob: SearchProblem, cand: Candidate, ev: Evaluator) -> bytes:
     target = ev.target(sc.target_class)
     scene = ev.scene(env, target)
     psi = np.zeros(k) if tr.psi is None else tr.psi
-    dirs = (Conditions.sun_directions(env, tr.heading) if cand.sun is None else
-            _sun_directions(env, np.tile(np.array(cand.sun, dtype=np.float64), (k, 1)),
-                            tr.heading))
+    dirs = (
+        Conditions.sun_directions(env, tr.heading)
+        if cand.sun is None
+        else _sun_directions(env, np.tile(np.array(cand.sun, dtype=np.float64), (k, 1)), tr.heading)
+    )
     rows, pd_s = ev.exact_per_sensor(scene, tr.x, tr.y, psi, dirs, tr.occluders)
     per = np.zeros((len(ev.system.sensors), k))
     per[list(rows)] = pd_s
@@ -155,11 +197,38 @@ def _trace_csv(prob: SearchProblem, cand: Candidate, ev: Evaluator) -> bytes:
     r = ev.reaction
     f = first_confirmation(pdc[None, :], np.array([k]), r.confirm_m, r.confirm_n)[0]
     ttc = np.minimum(tr.ttc, 1e6)  # inf (no collision ahead) written as 1e6 s
-    cols = ["t_s", "ego_x_m", "ego_y_m", "ego_heading_rad", "target_x_m", "target_y_m",
-            "target_heading_rad", "target_rel_x_m", "target_rel_y_m", "target_rel_heading_rad",
-            *[f"{s.id}.pd" for s in ev.system.sensors], "pd", "pd_confirm", "p_confirmed",
-            "ttc_path_s"]
-    data = [tr.t, sc.ego.x[:k], sc.ego.y[:k], sc.ego.heading[:k], sc.target.x[:k],
-            sc.target.y[:k], sc.target.heading[:k], tr.x, tr.y, psi, *per, tr.pd, pdc,
-            np.cumsum(f[:k]), ttc]
+    cols = [
+        "t_s",
+        "ego_x_m",
+        "ego_y_m",
+        "ego_heading_rad",
+        "target_x_m",
+        "target_y_m",
+        "target_heading_rad",
+        "target_rel_x_m",
+        "target_rel_y_m",
+        "target_rel_heading_rad",
+        *[f"{s.id}.pd" for s in ev.system.sensors],
+        "pd",
+        "pd_confirm",
+        "p_confirmed",
+        "ttc_path_s",
+    ]
+    data = [
+        tr.t,
+        sc.ego.x[:k],
+        sc.ego.y[:k],
+        sc.ego.heading[:k],
+        sc.target.x[:k],
+        sc.target.y[:k],
+        sc.target.heading[:k],
+        tr.x,
+        tr.y,
+        psi,
+        *per,
+        tr.pd,
+        pdc,
+        np.cumsum(f[:k]),
+        ttc,
+    ]
     return csv_bytes(cols, [np.asarray(d, dtype=np.float64) for d in data])

@@ -48,8 +48,11 @@ def _bilinear(grid: GridSpec, img: np.ndarray, x: np.ndarray, y: np.ndarray) -> 
     i, j = fx.astype(int), fy.astype(int)
     ax, ay = fx - i, fy - j
     i1, j1 = np.minimum(i + 1, grid.nx - 1), np.minimum(j + 1, grid.ny - 1)
-    return np.asarray((1 - ay) * ((1 - ax) * img[j, i] + ax * img[j, i1])
-                      + ay * ((1 - ax) * img[j1, i] + ax * img[j1, i1]), dtype=np.float64)
+    return np.asarray(
+        (1 - ay) * ((1 - ax) * img[j, i] + ax * img[j, i1])
+        + ay * ((1 - ax) * img[j1, i] + ax * img[j1, i1]),
+        dtype=np.float64,
+    )
 
 
 def resolution_rows(system_name: str, resolutions: tuple[float, ...]) -> list[dict[str, Any]]:
@@ -60,8 +63,10 @@ def resolution_rows(system_name: str, resolutions: tuple[float, ...]) -> list[di
     scene = Scene(system, car, Conditions.from_config(load_environment("rain_25")))
     # paths: the lanes beside and ahead (straight, vehicle frame), 0.25 m spacing
     xs = np.arange(-30.0, 150.0, 0.25)
-    paths = [np.column_stack([xs, np.full_like(xs, y), np.full_like(xs, car.reference_height_m)])
-             for y in (-3.5, 0.0, 3.5)]
+    paths = [
+        np.column_stack([xs, np.full_like(xs, y), np.full_like(xs, car.reference_height_m)])
+        for y in (-3.5, 0.0, 3.5)
+    ]
     pts = np.vstack(paths)
     t_exact, cov = _timed(lambda: evaluate_points(scene, pts))
     rows = []
@@ -75,13 +80,21 @@ def resolution_rows(system_name: str, resolutions: tuple[float, ...]) -> list[di
         t_grid = time.perf_counter() - t0
         look = _bilinear(grid, gc.fused, pts[:, 0], pts[:, 1])
         err = np.abs(look - cov.fused)
-        rows.append({"study": "grid resolution", "setting": f"{res:g} m",
-                     "time_s": t_bs, "blind_spot_m2": g.area,
-                     "blind_spot_exact_m2": exact_area,
-                     "error": abs(g.area - exact_area), "error_unit": "m2 (blind spot)",
-                     "path_grid_time_s": t_grid, "path_exact_time_s": t_exact,
-                     "path_max_abs_dpd": float(err.max()),
-                     "path_mean_abs_dpd": float(err.mean())})
+        rows.append(
+            {
+                "study": "grid resolution",
+                "setting": f"{res:g} m",
+                "time_s": t_bs,
+                "blind_spot_m2": g.area,
+                "blind_spot_exact_m2": exact_area,
+                "error": abs(g.area - exact_area),
+                "error_unit": "m2 (blind spot)",
+                "path_grid_time_s": t_grid,
+                "path_exact_time_s": t_exact,
+                "path_max_abs_dpd": float(err.max()),
+                "path_mean_abs_dpd": float(err.mean()),
+            }
+        )
     return rows
 
 
@@ -92,10 +105,12 @@ def search_rows(n: int) -> list[dict[str, Any]]:
     envs = load_environments()
     env = {e: envs[e] for e in ("clear", "glare_front_right", "rain_25", "fog_50")}
     rows = []
-    settings = (("lookup (bodies)", "lookup", True, True),
-                ("exact, scene-limited (bodies)", "exact", True, True),
-                ("exact, full (bodies)", "exact", False, True),
-                ("exact, points (the paper's setting)", "exact", True, False))
+    settings = (
+        ("lookup (bodies)", "lookup", True, True),
+        ("exact, scene-limited (bodies)", "exact", True, True),
+        ("exact, full (bodies)", "exact", False, True),
+        ("exact, points (the paper's setting)", "exact", True, False),
+    )
     for family in ("slow_ahead_curve", "cut_in_right"):
         results: dict[str, dict[str, np.ndarray]] = {}
         times: dict[str, float] = {}
@@ -116,14 +131,22 @@ def search_rows(n: int) -> list[dict[str, Any]]:
             m = results[label]
             d = np.abs(m["collision_probability"] - base["collision_probability"])
             c = (m["collision_probability"] > 0) & (m["collision_perfect"] == 0)
-            rows.append({"study": f"search Pd ({family})", "setting": label,
-                         "time_s": times[label], "ms_per_candidate": 1e3 * times[label] / n,
-                         "error": float(d.max()),
-                         "error_unit": "max abs d P(collision) vs exact bodies",
-                         "mean_error": float(d.mean()),
-                         "class_changes": int(np.sum(c != crit)),
-                         "top10_overlap": len(top & set(np.argsort(
-                             -m["collision_probability"], kind="stable")[:10].tolist()))})
+            rows.append(
+                {
+                    "study": f"search Pd ({family})",
+                    "setting": label,
+                    "time_s": times[label],
+                    "ms_per_candidate": 1e3 * times[label] / n,
+                    "error": float(d.max()),
+                    "error_unit": "max abs d P(collision) vs exact bodies",
+                    "mean_error": float(d.mean()),
+                    "class_changes": int(np.sum(c != crit)),
+                    "top10_overlap": len(
+                        top
+                        & set(np.argsort(-m["collision_probability"], kind="stable")[:10].tolist())
+                    ),
+                }
+            )
     return rows
 
 
@@ -135,8 +158,9 @@ def _figure(rows: list[dict[str, Any]], out: Path) -> None:
     fig, (a, b) = plt.subplots(1, 2, figsize=(10, 3.6))
     fig.subplots_adjust(wspace=0.35, bottom=0.16)
     a.loglog(x, [max(r["error"], 1e-6) for r in res], "o-", label="blind-spot area [m2]")
-    a.loglog(x, [max(r["path_max_abs_dpd"], 1e-9) for r in res], "s-",
-             label="max |dPd| along paths")
+    a.loglog(
+        x, [max(r["path_max_abs_dpd"], 1e-9) for r in res], "s-", label="max |dPd| along paths"
+    )
     a.set_xlabel("grid resolution [m]")
     a.set_ylabel("error")
     a.legend(fontsize=8)
@@ -153,21 +177,42 @@ def run_tradeoff(out: Path, quick: bool = False) -> list[dict[str, Any]]:
     out.mkdir(parents=True, exist_ok=True)
     rows = resolution_rows("system_a", RESOLUTIONS[:3] if quick else RESOLUTIONS)
     rows += search_rows(200 if quick else 2000)
-    cols = ["study", "setting", "time_s", "error", "error_unit", "mean_error",
-            "ms_per_candidate", "top10_overlap", "class_changes", "blind_spot_m2",
-            "blind_spot_exact_m2",
-            "path_grid_time_s", "path_exact_time_s", "path_max_abs_dpd", "path_mean_abs_dpd"]
+    cols = [
+        "study",
+        "setting",
+        "time_s",
+        "error",
+        "error_unit",
+        "mean_error",
+        "ms_per_candidate",
+        "top10_overlap",
+        "class_changes",
+        "blind_spot_m2",
+        "blind_spot_exact_m2",
+        "path_grid_time_s",
+        "path_exact_time_s",
+        "path_max_abs_dpd",
+        "path_mean_abs_dpd",
+    ]
     atomic_write_bytes(out / "tradeoff.csv", ranking_csv(rows, cols))
-    lines = ["# Speed vs accuracy (this machine, one run)", "",
-             "| study | setting | time [s] | error | unit | extra |", "|---|---|---|---|---|---|"]
+    lines = [
+        "# Speed vs accuracy (this machine, one run)",
+        "",
+        "| study | setting | time [s] | error | unit | extra |",
+        "|---|---|---|---|---|---|",
+    ]
     for r in rows:
-        extra = (f"path max/mean dPd {r['path_max_abs_dpd']:.2e}/{r['path_mean_abs_dpd']:.2e}"
-                 if "path_max_abs_dpd" in r else
-                 f"{r['ms_per_candidate']:.3f} ms/candidate, top-10 overlap "
-                 f"{r['top10_overlap']}/10, mean error {r['mean_error']:.2e}, "
-                 f"{r['class_changes']} candidates change class (sensor-critical or not)")
-        lines.append(f"| {r['study']} | {r['setting']} | {r['time_s']:.3f} | "
-                     f"{r['error']:.3g} | {r['error_unit']} | {extra} |")
+        extra = (
+            f"path max/mean dPd {r['path_max_abs_dpd']:.2e}/{r['path_mean_abs_dpd']:.2e}"
+            if "path_max_abs_dpd" in r
+            else f"{r['ms_per_candidate']:.3f} ms/candidate, top-10 overlap "
+            f"{r['top10_overlap']}/10, mean error {r['mean_error']:.2e}, "
+            f"{r['class_changes']} candidates change class (sensor-critical or not)"
+        )
+        lines.append(
+            f"| {r['study']} | {r['setting']} | {r['time_s']:.3f} | "
+            f"{r['error']:.3g} | {r['error_unit']} | {extra} |"
+        )
     atomic_write_text(out / "tradeoff.md", "\n".join(lines) + "\n")
     _figure(rows, out)
     write_manifest(out)
