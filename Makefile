@@ -1,13 +1,11 @@
 # Quick start: `make run` (default job into output/) and `make test` (lint, types, whole suite
-# on every core; PYTEST_WORKERS=0 runs it in one process). `make coverage`: the same suite with
-# its line coverage of src/ printed.
+# on every core with its line coverage of src/ printed; PYTEST_WORKERS=0 runs it in one
+# process; COV= runs it without coverage).
 PYTHON ?= python3
 PYTEST_WORKERS ?= auto
-# line coverage of src/ (pytest-cov): ~1.35x the CPU time on Python 3.11 (measured 338 -> 452 s
-# of CPU for the suite; tests/numba_warmup.py keeps numba compiling untraced). Off in `make
-# test` (and so in CI): with it a fresh-clone CI took 10.5 min of its 15 min budget (2026-11-25,
-# pytest 7.7 min); `make coverage` (or `make test COV="--cov --cov-report=term"`) prints it.
-COV ?=
+# line coverage of src/ (pytest-cov), printed, no threshold: pytest 2 min 11 s -> 2 min 49 s
+# on the 2-core machine (2026-11-26; tests/numba_warmup.py keeps numba compiling untraced).
+COV ?= --cov --cov-report=term
 VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
@@ -48,7 +46,7 @@ test: lint-warm
 	$(BIN)/pytest -q -n $(PYTEST_WORKERS) --dist loadgroup $(COV)
 
 coverage: lint-warm
-	$(BIN)/pytest -q -n $(PYTEST_WORKERS) --dist loadgroup --cov --cov-report=term
+	$(BIN)/pytest -q -n $(PYTEST_WORKERS) --dist loadgroup --cov --cov-report=term-missing
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/run.py
