@@ -27,6 +27,7 @@ from sensorgap.search.outcome import (
     G_M_S2,
     Encounter,
     Outcome,
+    after_horizon,
     braked_speed,
     collision_outcome,
     encounter_geometry,
@@ -53,21 +54,23 @@ def _straight(
     vt: float = 0.0,
     margin: float = 0.5,
     horizon: float = 6.0,
+    steps: int = T,
 ) -> Encounter:
     """Ego at v0 along the x axis; a car ahead (same heading, speed vt) whose rear is ``gap``
-    m ahead of the ego's front bumper at t = 0, ``lateral`` m to the left."""
-    t = np.arange(T) * DT
-    z = np.zeros((1, T))
+    m ahead of the ego's front bumper at t = 0, ``lateral`` m to the left; ``steps`` steps
+    of DT."""
+    t = np.arange(steps) * DT
+    z = np.zeros((1, steps))
     tx = (X_FRONT + gap + CAR_L / 2 + vt * t)[None]
     return encounter_geometry(
         (v0 * t)[None],
         z,
         z,
-        np.full((1, T), v0),
+        np.full((1, steps), v0),
         tx,
         z + lateral,
         z,
-        np.full((1, T), vt),
+        np.full((1, steps), vt),
         DT,
         (CAR_L, CAR_W),
         BODY,
@@ -96,7 +99,7 @@ def _outcome(
     n_valid: ArrayLike | None = None,
 ) -> Outcome:
     pd = np.broadcast_to(np.asarray(pd, dtype=float), enc.lo.shape)
-    nv = np.full(enc.lo.shape[0], T) if n_valid is None else np.asarray(n_valid)
+    nv = np.full(enc.lo.shape[0], enc.lo.shape[1]) if n_valid is None else np.asarray(n_valid)
     return reaction_outcome(enc, pd, nv, m, n, lat, jerk, np.full(enc.lo.shape[0], decel))
 
 
@@ -168,6 +171,70 @@ def test_t_safe_equals_the_closed_form_stopping_answer(
     assert never.impact_speed_kmh[0] == pytest.approx(3.6 * v0, rel=1e-12)
     assert never.collision_perfect[0] == 0.0
     assert math.isnan(never.t_confirm_median_s[0])
+
+
+def test_after_horizon_by_hand() -> None:
+    """The encounter the time axis ends before it is decided, by hand: 30 m/s, braking
+    from t = 1 s (J = 12 m/s3, A = 2 m/s2: ramp 1/6 s leaves 29.833 m/s), so at t = 10 s
+    the ego runs at 29.833 - 2 (9 - 1/6) = 12.167 m/s. A stopped target: it closes
+    v^2 / 2A = 37.0 m more; 30 m short it hits at sqrt(12.167^2 - 2 2 30) = 5.294 m/s, 40 m
+    short it stops in time. A target at 5 m/s: it closes (12.167 - 5)^2 / 4 = 12.84 m; 10 m
+    short it hits at sqrt(7.167^2 - 40) = 3.370 m/s, 15 m short it does not. Slower than
+    the target at the end, or a target moving towards it: no collision extrapolated."""
+    ve = 29.833333333333332 - 2.0 * (9.0 - 1.0 / 6.0)
+    assert after_horizon(30.0, 0.0, 10.0, 1.0, 30.0, 12.0, 2.0) == pytest.approx(
+        math.sqrt(ve * ve - 120.0), abs=1e-6
+    )
+    assert after_horizon(40.0, 0.0, 10.0, 1.0, 30.0, 12.0, 2.0) == -1.0
+    assert after_horizon(10.0, 5.0, 10.0, 1.0, 30.0, 12.0, 2.0) == pytest.approx(
+        math.sqrt((ve - 5.0) ** 2 - 40.0), abs=1e-6
+    )
+    assert after_horizon(15.0, 5.0, 10.0, 1.0, 30.0, 12.0, 2.0) == -1.0
+    assert after_horizon(5.0, 13.0, 10.0, 1.0, 30.0, 12.0, 2.0) == -1.0
+    assert after_horizon(5.0, -1.0, 10.0, 1.0, 30.0, 12.0, 2.0) == -1.0
+    # braking starts after the end (a late confirmation): the ramp is part of the closing
+    # (15 m at 30 m/s until the onset at 10.5 s, then the jerk-limited stop)
+    assert (
+        after_horizon(
+            15.0 + _stop_distance(30.0, 12.0, 8.0) + 0.01, 0.0, 10.0, 10.5, 30.0, 12.0, 8.0
+        )
+        == -1.0
+    )
+    assert (
+        after_horizon(
+            15.0 + _stop_distance(30.0, 12.0, 8.0) - 1.0, 0.0, 10.0, 10.5, 30.0, 12.0, 8.0
+        )
+        > 0.0
+    )
+
+
+@pytest.mark.parametrize(
+    ("v0", "gap", "vt", "mu", "pd"),
+    [
+        (32.7, 270.0, 0.0, 0.2, 1.0),  # snow, 118 km/h: the default job's case
+        (32.7, 270.0, 0.0, 0.2, 0.05),
+        (30.0, 150.0, 8.0, 0.2, 0.1),  # a slow car ahead
+        (25.0, 160.0, 0.0, 0.3, 0.15),
+        (20.0, 60.0, 0.0, 0.9, 0.3),  # decided well within the axis: unchanged
+    ],
+)
+def test_the_end_of_the_time_axis_does_not_decide(
+    v0: float, gap: float, vt: float, mu: float, pd: float
+) -> None:
+    """An encounter whose braked outcome falls after the 10 s axis is judged as on a 40 s
+    axis (the oracle: the same straight encounter with 801 steps): the same collision of
+    perfect perception, t_safe within one step, P(collision) within 0.05 and the impact
+    speed within 2 km/h. (Before: a braking that only delayed the collision past 10 s
+    counted as avoided: a stopped car 270 m ahead at 118 km/h on snow was 'avoidable'.)"""
+    amax = min(9.0, mu * G_M_S2)
+    short = _outcome(_straight(v0, gap, vt=vt), pd, decel=amax)
+    long_ = _outcome(_straight(v0, gap, vt=vt, steps=801), pd, decel=amax)
+    assert short.collision_perfect[0] == long_.collision_perfect[0]
+    a, b = short.t_safe_s[0], long_.t_safe_s[0]
+    assert (math.isnan(a) and math.isnan(b)) or abs(a - b) <= DT + 1e-9
+    assert abs(short.collision_probability[0] - long_.collision_probability[0]) <= 0.05
+    if long_.collision_probability[0] > 0.0:
+        assert abs(short.impact_speed_kmh[0] - long_.impact_speed_kmh[0]) <= 2.0
 
 
 def test_late_confirmation_hits_at_the_closed_form_speed() -> None:

@@ -54,6 +54,9 @@ steps of ``dt`` s); units: m, s, rad, m/s, m/s2, m/s3.
    Per step j the colliding onsets form one interval (L is monotone), found by a monotone
    search (a walk from the last step's answer, else bisection); each onset keeps its first
    colliding step (path-compressed fill), so all onsets of a candidate cost O(T log T).
+   An onset that has not met the target by the last step is not avoided yet: with the
+   target still in the ego's path there, the encounter continues past the time axis
+   (``after_horizon``: target at its last speed along the path, ego braking on).
    Without confirmation the vehicle does not brake: ``c_never`` is the open-loop outcome.
 
 Outputs (``Outcome``, (B,) arrays): ``collision_probability = sum_k f_k c_k + f_T c_never``
@@ -765,6 +768,48 @@ def _rel_speed(vb: float, h: float, th: float, tv: float) -> float:  # pragma: n
 
 
 @numba.njit(cache=True, nogil=True)
+def after_horizon(
+    gap: float,
+    w: float,
+    t_end: float,
+    t_brake: float,
+    v0: float,
+    jerk: float,
+    amax: float,
+) -> float:  # pragma: no cover - compiled
+    """Relative impact speed, m/s, of an encounter that the time axis ends before it is
+    decided (-1: no collision): at ``t_end`` s the braking ego (planned speed ``v0`` m/s,
+    braking from ``t_brake`` s, jerk-limited as ``lost_distance``) is ``gap`` m short of
+    the target, which keeps its last speed ``w`` m/s along the ego's path (>= 0). The ego
+    closes in while it is faster than ``w``; contact when the distance it closes reaches
+    ``gap`` (the time found by bisection to 1e-9 s); the impact speed is its speed then
+    minus ``w``."""
+    if not (gap > 0.0) or w < 0.0:
+        return -1.0
+    if braked_speed(t_end - t_brake, v0, jerk, amax) <= w:
+        return -1.0  # slower than the target already: it only falls back
+    t1 = amax / jerk
+    v1 = v0 - 0.5 * jerk * t1 * t1
+    # when the ego's speed is down to w: during the jerk ramp, or after it at amax
+    tau_w = math.sqrt(2.0 * max(v0 - w, 0.0) / jerk) if w >= v1 else t1 + (v1 - w) / amax
+    t_w = t_brake + tau_w  # when its speed is down to w (after t_end: faster at t_end)
+    # distance closed on the target from t_end to tt: the ego's progress minus w (tt - t_end)
+    p0 = v0 * t_end - lost_distance(t_end - t_brake, v0, jerk, amax)
+    if (v0 * t_w - lost_distance(t_w - t_brake, v0, jerk, amax) - p0) - w * (t_w - t_end) < gap:
+        return -1.0
+    a, b = t_end, t_w
+    for _ in range(80):
+        m = 0.5 * (a + b)
+        if (v0 * m - lost_distance(m - t_brake, v0, jerk, amax) - p0) - w * (m - t_end) >= gap:
+            b = m
+        else:
+            a = m
+        if b - a <= 1e-9:
+            break
+    return max(braked_speed(b - t_brake, v0, jerk, amax) - w, 0.0)
+
+
+@numba.njit(cache=True, nogil=True)
 def _reaction_kernel(
     lo: F64,
     hi: F64,
@@ -792,6 +837,7 @@ def _reaction_kernel(
     lg = np.empty(t + 1)
     first = np.empty(t + 1, dtype=np.int64)
     nxt = np.empty(t + 2, dtype=np.int64)
+    post_v = np.zeros(t + 1)
     for r in range(b):
         kc = collide[r]
         kt = threat[r]
@@ -902,6 +948,24 @@ def _reaction_kernel(
                 unset -= 1
                 nxt[kk] = kk + 1
                 kk += 1
+        # onsets that avoid the target within the time axis only because it ends first:
+        # the encounter continues (the target at its last speed along the path, the ego
+        # braking on; ``after_horizon``): a collision after the end is marked step t
+        if unset > 0:
+            e = t - 1
+            w = np.nan
+            if e >= 1 and not np.isnan(lo[r, e]) and not np.isnan(lo[r, e - 1]):
+                w = (lo[r, e] - lo[r, e - 1]) / dt
+            if w == w:
+                for ko in range(kt, kc + 1):
+                    if first[ko] >= 0:
+                        continue
+                    t_b = ko * dt + latency
+                    gap = lo[r, e] - (step * e - lost_distance(e * dt - t_b, v0[r], jerk, amax[r]))
+                    vh = after_horizon(gap, w, e * dt, t_b, v0[r], jerk, amax[r])
+                    if vh >= 0.0:
+                        first[ko] = t
+                        post_v[ko] = vh
         # outcome per confirmation step k (onset step ko = max(k, kt)); onsets after the
         # open-loop collision come too late and collide there
         p_col = 0.0
@@ -935,6 +999,8 @@ def _reaction_kernel(
                 continue
             if ko > kc:
                 v = v_never
+            elif j == t:  # after the end of the time axis (above)
+                v = post_v[ko]
             elif ko == ko_last:
                 v = v_ko
             else:
