@@ -53,6 +53,11 @@ def test_every_difference_names_the_sensors_of_both_setups(compared: Path) -> No
         # step, e.g. once the lead car that hid it for both has moved away)
         if not r["other_sees"]:
             assert f"| {better} at the same moment sees it with no sensor above Pd" in r["why"]
+            # ... and then when it confirms it and with which sensors
+            assert re.search(
+                r"; it confirms it at \d+\.\d\d s \(median\) with \w|; it does not confirm it",
+                r["why"],
+            ), r["why"]
             continue
         assert f"| {better} at the same moment sees it with {r['other_sees']}" in r["why"]
         parts = r["other_sees"].split("; ")

@@ -12,6 +12,7 @@ every difference is traced back to the two sensor setups.
 
 from __future__ import annotations
 
+import math
 from collections import Counter
 from pathlib import Path
 from typing import Any
@@ -120,6 +121,35 @@ def _environments(run: RunFolder) -> dict[str, Any]:
     return {e: envs[e] for e in names} if names else dict(envs)
 
 
+def _seeing(
+    system: System,
+    ev: Any,
+    env: Any,
+    target: Any,
+    tr: Any,
+    t_s: float,
+    confirm: set[int],
+) -> list[str]:
+    """A vehicle's sensors with Pd >= ``SEES_PD`` (exact, with the trace's occluders) at the
+    step of trace ``tr`` nearest ``t_s`` s: ``id (type, Pd x[, cannot confirm])``."""
+    k = int(np.argmin(np.abs(tr.t - t_s)))
+    pd = ev.per_sensor_pd(
+        env,
+        target,
+        tr.heading[k : k + 1],
+        tr.x[k : k + 1],
+        tr.y[k : k + 1],
+        psi=None if tr.psi is None else tr.psi[k : k + 1],
+        occluders=None if tr.occluders is None else tr.occluders[k : k + 1],
+    )[:, 0]
+    return [
+        f"{sn.id} ({_sensor_type(system, sn.id)}, Pd {p:.2f}"
+        f"{'' if i in confirm else ', cannot confirm'})"
+        for i, (sn, p) in enumerate(zip(system.sensors, pd, strict=True))
+        if p >= SEES_PD
+    ]
+
+
 def check_rankings(*runs: Path) -> None:
     """Read every ranked row of each run as the comparison will (``candidate_of``), so that
     a malformed ranking is refused before any map is computed or file written."""
@@ -190,30 +220,26 @@ def compare_runs(run_a: Path, run_b: Path, margin_p: float = MARGIN_P) -> list[d
             tr = ev_b.trace(
                 prob_b.scenario(cand_w), prob_b.environment(cand_w), prob_b.family.duration_s
             )
-            k = int(np.argmin(np.abs(tr.t - ex.step_t_s)))
             env = prob_b.environment(cand_w)
             target = ev_b.target(prob_b.family.target_class)
-            pd = ev_b.per_sensor_pd(
-                env,
-                target,
-                tr.heading[k : k + 1],
-                tr.x[k : k + 1],
-                tr.y[k : k + 1],
-                psi=None if tr.psi is None else tr.psi[k : k + 1],
-                occluders=None if tr.occluders is None else tr.occluders[k : k + 1],
-            )[:, 0]
             confirm = set(ev_b.confirm_rows)
-            sees = [
-                f"{sn.id} ({_sensor_type(sides[better].system, sn.id)}, Pd {p:.2f}"
-                f"{'' if i in confirm else ', cannot confirm'})"
-                for i, (sn, p) in enumerate(zip(sides[better].system.sensors, pd, strict=True))
-                if p >= SEES_PD
-            ]
+
+            sees = _seeing(sides[better].system, ev_b, env, target, tr, ex.step_t_s, confirm)
             why += (
                 f" | {sides[better].name} at the same moment sees it with "
                 + ("; ".join(sees) if sees else "no sensor above Pd 0.5")
                 + f" (P(collision) {probs[better]:.2g} vs {probs[worse]:.2g})"
             )
+            if not sees:  # it confirms the target at another step: which, and with what
+                res_b = results[better][2]
+                t_med = float(res_b.metrics.get("t_confirm_median_s", math.nan))
+                if math.isfinite(t_med):
+                    later = _seeing(sides[better].system, ev_b, env, target, tr, t_med, confirm)
+                    why += f"; it confirms it at {t_med:.2f} s (median) with " + (
+                        "; ".join(later) if later else "no single sensor above Pd 0.5"
+                    )
+                else:
+                    why += "; it does not confirm it with probability 1/2 either"
         out.append(
             {
                 "scenario_id": sid,
