@@ -180,7 +180,7 @@ def test_after_horizon_by_hand() -> None:
     v^2 / 2A = 37.0 m more; 30 m short it hits at sqrt(12.167^2 - 2 2 30) = 5.294 m/s, 40 m
     short it stops in time. A target at 5 m/s: it closes (12.167 - 5)^2 / 4 = 12.84 m; 10 m
     short it hits at sqrt(7.167^2 - 40) = 3.370 m/s, 15 m short it does not. Slower than
-    the target at the end, or a target moving towards it: no collision extrapolated."""
+    the target at the end: no collision; a target moving towards it counts as standing."""
     ve = 29.833333333333332 - 2.0 * (9.0 - 1.0 / 6.0)
     assert after_horizon(30.0, 0.0, 10.0, 1.0, 30.0, 12.0, 2.0) == pytest.approx(
         math.sqrt(ve * ve - 120.0), abs=1e-6
@@ -191,7 +191,10 @@ def test_after_horizon_by_hand() -> None:
     )
     assert after_horizon(15.0, 5.0, 10.0, 1.0, 30.0, 12.0, 2.0) == -1.0
     assert after_horizon(5.0, 13.0, 10.0, 1.0, 30.0, 12.0, 2.0) == -1.0
-    assert after_horizon(5.0, -1.0, 10.0, 1.0, 30.0, 12.0, 2.0) == -1.0
+    # a target coming towards the ego (w < 0) is taken as standing (a lower bound)
+    assert after_horizon(30.0, -1.0, 10.0, 1.0, 30.0, 12.0, 2.0) == after_horizon(
+        30.0, 0.0, 10.0, 1.0, 30.0, 12.0, 2.0
+    )
     # braking starts after the end (a late confirmation): the ramp is part of the closing
     # (15 m at 30 m/s until the onset at 10.5 s, then the jerk-limited stop)
     assert (

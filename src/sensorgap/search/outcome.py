@@ -780,12 +780,16 @@ def after_horizon(
     """Relative impact speed, m/s, of an encounter that the time axis ends before it is
     decided (-1: no collision): at ``t_end`` s the braking ego (planned speed ``v0`` m/s,
     braking from ``t_brake`` s, jerk-limited as ``lost_distance``) is ``gap`` m short of
-    the target, which keeps its last speed ``w`` m/s along the ego's path (>= 0). The ego
+    the target, which keeps its last speed ``w`` m/s along the ego's path (one coming
+    towards the ego, w < 0, is taken as standing: a lower bound of the impact). The ego
     closes in while it is faster than ``w``; contact when the distance it closes reaches
     ``gap`` (the time found by bisection to 1e-9 s); the impact speed is its speed then
     minus ``w``."""
-    if not (gap > 0.0) or w < 0.0:
+    if not (gap > 0.0) or math.isnan(w):
         return -1.0
+    # a target coming towards the ego (or jitter of its interval on a curve) is taken as
+    # standing: the collision is not missed, its impact speed is a lower bound
+    w = max(w, 0.0)
     if braked_speed(t_end - t_brake, v0, jerk, amax) <= w:
         return -1.0  # slower than the target already: it only falls back
     t1 = amax / jerk
