@@ -46,6 +46,7 @@ from sensorgap.search.anchors import (
     write_anchors,
 )
 from sensorgap.search.run import run_search
+from sensorgap.search.settings import SearchSettings, prepare
 
 DEFAULT_SYSTEM = "system_a"
 #: Coverage grid of the default job: x from, x to, y from, y to, cell size (m); target
@@ -204,6 +205,13 @@ def run_default(
             "",
             f"unknown environment preset(s) {', '.join(unknown)}; presets: {', '.join(all_envs)}",
         )
+    # every search setting (budget, seeds, families) checked before anything is written:
+    # the coverage, near and far field run beside the search and would write first
+    prepare(
+        SearchSettings(
+            ref, tuple(fams), tuple(envs), budget, seed, top, "de", workers=workers, seeds=seeds
+        )
+    )
     folder = out / name
     folder.mkdir(parents=True, exist_ok=True)
     clock = _Clock()
