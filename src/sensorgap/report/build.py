@@ -74,6 +74,34 @@ def _object(path: Path, data: Any, field: str = "", key: str | None = None) -> d
     return data
 
 
+def _check_stability(path: Path, stab: dict[str, Any]) -> None:
+    """The ``stability`` block of a search's summary.json (``search.run``): ``seeds`` an
+    integer 1..10, ``found_by`` / ``found_near_by`` / ``budget_per_seed`` lists of
+    non-negative integers, ``top`` a positive integer, ``near_distance`` a finite number
+    >= 0; anything else -> ``InputError`` naming the field."""
+
+    def whole(v: Any) -> bool:
+        return isinstance(v, int) and not isinstance(v, bool)
+
+    seeds = stab.get("seeds", 1)
+    if not whole(seeds) or not 1 <= seeds <= 10:
+        raise InputError(path, "stability.seeds", f"expected an integer 1..10, got {seeds!r:.40}")
+    for key in ("found_by", "found_near_by", "budget_per_seed"):
+        v = stab.get(key, [])
+        if not isinstance(v, list) or not all(whole(x) and x >= 0 for x in v):
+            raise InputError(
+                path, f"stability.{key}", f"expected a list of non-negative integers, got {v!r:.60}"
+            )
+    top = stab.get("top", 10)
+    if not whole(top) or top < 1:
+        raise InputError(path, "stability.top", f"expected a positive integer, got {top!r:.40}")
+    d = stab.get("near_distance", 0.15)
+    if not isinstance(d, int | float) or isinstance(d, bool) or not 0.0 <= d < float("inf"):
+        raise InputError(
+            path, "stability.near_distance", f"expected a finite number >= 0, got {d!r:.40}"
+        )
+
+
 def _numbers(
     path: Path,
     data: dict[str, Any],
@@ -766,8 +794,6 @@ def build(folder: Path) -> tuple[str, list[str], Section, list[Section]]:
         rows = _object(a, read_json(a)).get("anchors")
         if not isinstance(rows, list) or not all(isinstance(r, dict) for r in rows):
             raise InputError(a, "anchors", "expected a list of objects")
-    img = folder / REPORT_DIR
-    img.mkdir(parents=True, exist_ok=True)
     search = (
         read_json(folder / "summary.json")
         if (folder / "summary.json").is_file() and (folder / "ranking.json").is_file()
@@ -779,6 +805,12 @@ def build(folder: Path) -> tuple[str, list[str], Section, list[Section]]:
         _object(folder / "summary.json", search, key="per_family") if search is not None else {}
     ).items():
         _object(folder / "summary.json", d, f"per_family.{fam[:40]}")
+    if search is not None:
+        _check_stability(
+            folder / "summary.json", _object(folder / "summary.json", search, key="stability")
+        )
+    img = folder / REPORT_DIR  # created once every input above is checked
+    img.mkdir(parents=True, exist_ok=True)
     scen, errors, ranked = _scenarios_section(run, img, search)
     lve, n_unavoidable = None, 0
     if ranked is not None:

@@ -300,6 +300,16 @@ def _read_ranking(folder: Path) -> tuple[list[dict[str, Any]], dict[str, Any], d
                 f"ranking[{i}].rank",
                 f"malformed ranking file: expected a positive integer, got {rank!r}",
             )
+        found = row.get("found_by_seeds")
+        if found is not None and (
+            not isinstance(found, int) or isinstance(found, bool) or not 0 <= found <= 10
+        ):
+            raise InputError(
+                path,
+                f"ranking[{i}].found_by_seeds",
+                "malformed ranking file: expected empty or an integer 0..10, got "
+                f"{str(found)[:40]!r}",
+            )
         _finite_row(path, i, row)
     return rows, settings, data, vehicle
 
