@@ -786,7 +786,11 @@ def _confidence(
         if key:
             k = key[3:-8]
             text += f"; top-{k} overlap {lve[key]} of {k}"
-        items.append(text + ".")
+        items.append(
+            text + ". The search seeks out what the lookup overrates, so the proposals it "
+            "re-evaluates show the lookup's largest errors; every number in this report is "
+            "the exact evaluation's."
+        )
     else:
         items.append("Lookup vs exact evaluation: not measured in this run.")
     items.append(_stability(settings, (search or {}).get("stability")))
