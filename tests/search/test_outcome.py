@@ -240,6 +240,45 @@ def test_the_end_of_the_time_axis_does_not_decide(
         assert abs(short.impact_speed_kmh[0] - long_.impact_speed_kmh[0]) <= 2.0
 
 
+@pytest.mark.parametrize(
+    ("v0", "xp", "y0", "vy", "pd", "decel"),
+    [(20.6, 209.8, -11.0, 1.17, 0.3, 4.91), (27.0, 271.5, -16.6, 1.78, 1.0, 5.19)],
+)
+def test_a_pedestrian_crossing_at_the_end_is_not_kept_in_the_path(
+    v0: float, xp: float, y0: float, vy: float, pd: float, decel: float
+) -> None:
+    """A pedestrian (0.5 x 0.6 m) crossing the ego's path at 1.2-1.8 m/s, in it at the
+    last step, would leave it before the braking ego arrives: it is not continued past the
+    time axis (``AFTER_HORIZON_LAT_M_S``), so the 10 s axis agrees with a 40 s one (no
+    collision; continuing it as standing made both a certain collision, even for perfect
+    perception)."""
+
+    def crossing(steps: int) -> Encounter:
+        t = np.arange(steps) * DT
+        z = np.zeros((1, steps))
+        return encounter_geometry(
+            (v0 * t)[None],
+            z,
+            z,
+            np.full((1, steps), v0),
+            np.full((1, steps), xp),
+            (y0 + vy * t)[None],
+            np.full((1, steps), math.pi / 2),
+            np.full((1, steps), vy),
+            DT,
+            (0.5, 0.6),
+            BODY,
+            0.5,
+            6.0,
+        )
+
+    short, long_ = crossing(T), crossing(801)
+    assert short.collide_step[0] >= 0  # an open-loop collision within the 10 s
+    a, b = _outcome(short, pd, decel=decel), _outcome(long_, pd, decel=decel)
+    assert a.collision_perfect[0] == b.collision_perfect[0] == 0.0
+    assert abs(a.collision_probability[0] - b.collision_probability[0]) <= 1e-3
+
+
 def test_late_confirmation_hits_at_the_closed_form_speed() -> None:
     # 20 m/s, stopped car 30 m ahead, latency 0.3 s, J = 12 m/s3, A = 8 m/s2. Pd = 1 from
     # step 10: 3 of 5 confirms at step 12 (0.60 s), brake onset at 0.90 s after 18 m; 12 m

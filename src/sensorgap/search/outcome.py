@@ -55,7 +55,8 @@ steps of ``dt`` s); units: m, s, rad, m/s, m/s2, m/s3.
    search (a walk from the last step's answer, else bisection); each onset keeps its first
    colliding step (path-compressed fill), so all onsets of a candidate cost O(T log T).
    An onset that has not met the target by the last step is not avoided yet: with the
-   target still in the ego's path there, the encounter continues past the time axis
+   target still in the ego's path there and moving along it (not across it faster than
+   ``AFTER_HORIZON_LAT_M_S``), the encounter continues past the time axis
    (``after_horizon``: target at its last speed along the path, ego braking on).
    Without confirmation the vehicle does not brake: ``c_never`` is the open-loop outcome.
 
@@ -767,6 +768,13 @@ def _rel_speed(vb: float, h: float, th: float, tv: float) -> float:  # pragma: n
     return math.sqrt(dvx * dvx + dvy * dvy)
 
 
+#: A target crossing the ego's path faster than this at the last step (m/s, its speed
+#: across the path) is not continued past the time axis: it may leave the path before the
+#: ego arrives (a walking pedestrian, a lane change). Along-path drift of a car keeping
+#: its lane stays well below it (estimate).
+AFTER_HORIZON_LAT_M_S = 0.3
+
+
 @numba.njit(cache=True, nogil=True)
 def after_horizon(
     gap: float,
@@ -960,6 +968,11 @@ def _reaction_kernel(
             w = np.nan
             if e >= 1 and not np.isnan(lo[r, e]) and not np.isnan(lo[r, e - 1]):
                 w = (lo[r, e] - lo[r, e - 1]) / dt
+                # only a target moving along the path stays in it: one crossing it (a
+                # pedestrian, a car changing lanes) is not continued
+                i_p = min(max(int(round(lo[r, e] / step)), 0), t - 1) if step > 0.0 else e
+                if tv[r, e] * abs(math.sin(th[r, e] - eh[r, i_p])) > AFTER_HORIZON_LAT_M_S:
+                    w = np.nan
             if w == w:
                 for ko in range(kt, kc + 1):
                     if first[ko] >= 0:
