@@ -55,9 +55,9 @@ steps of ``dt`` s); units: m, s, rad, m/s, m/s2, m/s3.
    search (a walk from the last step's answer, else bisection); each onset keeps its first
    colliding step (path-compressed fill), so all onsets of a candidate cost O(T log T).
    An onset that has not met the target by the last step is not avoided yet: with the
-   target still in the ego's path there and moving along it (not across it faster than
-   ``AFTER_HORIZON_LAT_M_S``), the encounter continues past the time axis
-   (``after_horizon``: target at its last speed along the path, ego braking on).
+   target still in the ego's path there, the encounter continues past the time axis
+   (``after_horizon``: target at its last speed along the path, ego braking on) for as
+   long as the target stays in the path at its speed across it (``Encounter.exit_s``).
    Without confirmation the vehicle does not brake: ``c_never`` is the open-loop outcome.
 
 Outputs (``Outcome``, (B,) arrays): ``collision_probability = sum_k f_k c_k + f_T c_never``
@@ -125,6 +125,10 @@ class Encounter:
             0 from the collision on).
         ego_heading, target_heading: (B, T) planned headings, rad; target_speed: (B, T),
             m/s (the impact speed needs them). dt: step, s.
+        exit_s: (B,) at the last step, how long the target would stay in the ego's lane
+            band at its lateral speed across the path, s (0: not in it; inf: not moving
+            across it; None: not computed); the collision outcome continues an encounter
+            past the time axis only for that long (``after_horizon``).
     """
 
     lo: F64
@@ -137,6 +141,7 @@ class Encounter:
     target_heading: F64
     target_speed: F64
     dt: float
+    exit_s: F64 | None = None
 
     @property
     def progress(self) -> F64:
@@ -285,6 +290,7 @@ def _geometry_kernel(
     tx: F64,
     ty: F64,
     th: F64,
+    tv: F64,
     hl: float,
     hw: float,
     x_front: float,
@@ -299,6 +305,7 @@ def _geometry_kernel(
     collide: I64,
     threat: I64,
     ttc: F64,
+    exit_out: F64,
 ) -> None:  # pragma: no cover
     b, t = ex.shape
     ec = np.empty(t)
@@ -549,6 +556,37 @@ def _geometry_kernel(
             threat[r] = kc  # an overlap is always a threat
         for k in range(t):
             ttc[r, k] = np.inf if kc < 0 else max(kc - k, 0) * dt
+        # at the last step: how long the target stays in the lane band at its speed across
+        # the path (in the frame of the path sample nearest it)
+        e = t - 1
+        ie = i
+        best = (ex[r, ie] - tx[r, e]) ** 2 + (ey[r, ie] - ty[r, e]) ** 2
+        while ie + 1 < t:
+            d = (ex[r, ie + 1] - tx[r, e]) ** 2 + (ey[r, ie + 1] - ty[r, e]) ** 2
+            if d >= best:
+                break
+            best = d
+            ie += 1
+        while ie > 0:
+            d = (ex[r, ie - 1] - tx[r, e]) ** 2 + (ey[r, ie - 1] - ty[r, e]) ** 2
+            if d >= best:
+                break
+            best = d
+            ie -= 1
+        ce = math.cos(eh[r, ie])
+        se = math.sin(eh[r, ie])
+        vcl = -se * (tx[r, e] - ex[r, ie]) + ce * (ty[r, e] - ey[r, ie])
+        dh = th[r, e] - eh[r, ie]
+        lim = half_w + abs(math.sin(dh)) * hl + abs(math.cos(dh)) * hw
+        vd = tv[r, e] * math.sin(dh)  # its speed across the path, m/s (to the left > 0)
+        if abs(vcl) > lim:
+            exit_out[r] = 0.0
+        elif abs(vd) < 1e-9:
+            exit_out[r] = np.inf
+        elif vd > 0.0:
+            exit_out[r] = (lim - vcl) / vd
+        else:
+            exit_out[r] = (vcl + lim) / -vd
 
 
 def encounter_geometry(
@@ -601,6 +639,7 @@ def encounter_geometry(
     lo, hi, ttc = (np.empty((b, t)) for _ in range(3))
     collide = np.empty(b, dtype=np.int64)
     threat = np.empty(b, dtype=np.int64)
+    exit_s = np.empty(b)
     _geometry_kernel(
         ex,
         ey,
@@ -609,6 +648,7 @@ def encounter_geometry(
         tx,
         ty,
         th,
+        tv,
         0.5 * length,
         0.5 * t_width,
         x_front,
@@ -623,8 +663,9 @@ def encounter_geometry(
         collide,
         threat,
         ttc,
+        exit_s,
     )
-    return Encounter(lo, hi, v0, collide, threat, ttc, eh, th, tv, float(dt))
+    return Encounter(lo, hi, v0, collide, threat, ttc, eh, th, tv, float(dt), exit_s)
 
 
 # ----------------------------------------------------------------------- confirmation
@@ -768,13 +809,6 @@ def _rel_speed(vb: float, h: float, th: float, tv: float) -> float:  # pragma: n
     return math.sqrt(dvx * dvx + dvy * dvy)
 
 
-#: A target crossing the ego's path faster than this at the last step (m/s, its speed
-#: across the path) is not continued past the time axis: it may leave the path before the
-#: ego arrives (a walking pedestrian, a lane change). Along-path drift of a car keeping
-#: its lane stays well below it (estimate).
-AFTER_HORIZON_LAT_M_S = 0.3
-
-
 @numba.njit(cache=True, nogil=True)
 def after_horizon(
     gap: float,
@@ -784,22 +818,23 @@ def after_horizon(
     v0: float,
     jerk: float,
     amax: float,
-) -> float:  # pragma: no cover - compiled
-    """Relative impact speed, m/s, of an encounter that the time axis ends before it is
-    decided (-1: no collision): at ``t_end`` s the braking ego (planned speed ``v0`` m/s,
-    braking from ``t_brake`` s, jerk-limited as ``lost_distance``) is ``gap`` m short of
-    the target, which keeps its last speed ``w`` m/s along the ego's path (one coming
-    towards the ego, w < 0, is taken as standing: a lower bound of the impact). The ego
-    closes in while it is faster than ``w``; contact when the distance it closes reaches
-    ``gap`` (the time found by bisection to 1e-9 s); the impact speed is its speed then
-    minus ``w``."""
+) -> tuple[float, float]:  # pragma: no cover - compiled
+    """Relative impact speed, m/s, and contact time, s, of an encounter that the time axis
+    ends before it is decided ((-1, inf): no collision): at ``t_end`` s the braking ego
+    (planned speed ``v0`` m/s, braking from ``t_brake`` s, jerk-limited as
+    ``lost_distance``) is ``gap`` m short of the target, which keeps its last speed ``w``
+    m/s along the ego's path (one coming towards the ego, w < 0, is taken as standing: a
+    lower bound of the impact). The ego closes in while it is faster than ``w``; contact
+    when the distance it closes reaches ``gap`` (the time found by bisection to 1e-9 s);
+    the impact speed is its speed then minus ``w``. The caller checks that the target is
+    still in the ego's path at the contact time (``Encounter.exit_s``)."""
     if not (gap > 0.0) or math.isnan(w):
-        return -1.0
+        return -1.0, np.inf
     # a target coming towards the ego (or jitter of its interval on a curve) is taken as
     # standing: the collision is not missed, its impact speed is a lower bound
     w = max(w, 0.0)
     if braked_speed(t_end - t_brake, v0, jerk, amax) <= w:
-        return -1.0  # slower than the target already: it only falls back
+        return -1.0, np.inf  # slower than the target already: it only falls back
     t1 = amax / jerk
     v1 = v0 - 0.5 * jerk * t1 * t1
     # when the ego's speed is down to w: during the jerk ramp, or after it at amax
@@ -808,7 +843,7 @@ def after_horizon(
     # distance closed on the target from t_end to tt: the ego's progress minus w (tt - t_end)
     p0 = v0 * t_end - lost_distance(t_end - t_brake, v0, jerk, amax)
     if (v0 * t_w - lost_distance(t_w - t_brake, v0, jerk, amax) - p0) - w * (t_w - t_end) < gap:
-        return -1.0
+        return -1.0, np.inf
     a, b = t_end, t_w
     for _ in range(80):
         m = 0.5 * (a + b)
@@ -818,7 +853,7 @@ def after_horizon(
             a = m
         if b - a <= 1e-9:
             break
-    return max(braked_speed(b - t_brake, v0, jerk, amax) - w, 0.0)
+    return max(braked_speed(b - t_brake, v0, jerk, amax) - w, 0.0), b
 
 
 @numba.njit(cache=True, nogil=True)
@@ -837,6 +872,7 @@ def _reaction_kernel(
     jerk: float,
     amax: F64,
     pstep: I64,
+    exit_s: F64,
     out_p: F64,
     out_v: F64,
     out_perfect: F64,
@@ -968,19 +1004,15 @@ def _reaction_kernel(
             w = np.nan
             if e >= 1 and not np.isnan(lo[r, e]) and not np.isnan(lo[r, e - 1]):
                 w = (lo[r, e] - lo[r, e - 1]) / dt
-                # only a target moving along the path stays in it: one crossing it (a
-                # pedestrian, a car changing lanes) is not continued
-                i_p = min(max(int(round(lo[r, e] / step)), 0), t - 1) if step > 0.0 else e
-                if tv[r, e] * abs(math.sin(th[r, e] - eh[r, i_p])) > AFTER_HORIZON_LAT_M_S:
-                    w = np.nan
             if w == w:
                 for ko in range(kt, kc + 1):
                     if first[ko] >= 0:
                         continue
                     t_b = ko * dt + latency
                     gap = lo[r, e] - (step * e - lost_distance(e * dt - t_b, v0[r], jerk, amax[r]))
-                    vh = after_horizon(gap, w, e * dt, t_b, v0[r], jerk, amax[r])
-                    if vh >= 0.0:
+                    vh, tc = after_horizon(gap, w, e * dt, t_b, v0[r], jerk, amax[r])
+                    # a target crossing the path collides only if still in it by then
+                    if vh >= 0.0 and tc - e * dt <= exit_s[r]:
                         first[ko] = t
                         post_v[ko] = vh
         # outcome per confirmation step k (onset step ko = max(k, kt)); onsets after the
@@ -1155,6 +1187,7 @@ def reaction_outcome(
         float(jerk_m_s3),
         decel,
         pstep,
+        np.full(b, np.inf) if enc.exit_s is None else np.ascontiguousarray(enc.exit_s),
         *out,
     )
     p, v, perfect, safe, vperf, med, never = out
