@@ -259,26 +259,8 @@ def test_a_pedestrian_crossing_at_the_end_stays_in_the_path_only_while_it_is(
     ego arrives collides on both (not continuing crossing targets at all had missed it).
     Impact within 2 km/h."""
 
-    def crossing(steps: int) -> Encounter:
-        t = np.arange(steps) * DT
-        z = np.zeros((1, steps))
-        return encounter_geometry(
-            (v0 * t)[None],
-            z,
-            z,
-            np.full((1, steps), v0),
-            np.full((1, steps), xp),
-            (y0 + vy * t)[None],
-            np.full((1, steps), math.pi / 2),
-            np.full((1, steps), vy),
-            DT,
-            (0.5, 0.6),
-            BODY,
-            0.5,
-            6.0,
-        )
-
-    short, long_ = crossing(T), crossing(801)
+    short = _walker(v0, xp, y0, vy, 0.0, T, (0.5, 0.6))[0]
+    long_ = _walker(v0, xp, y0, vy, 0.0, 801, (0.5, 0.6))[0]
     assert short.collide_step[0] >= 0  # an open-loop collision within the 10 s
     a, b = _outcome(short, pd, decel=decel), _outcome(long_, pd, decel=decel)
     assert a.collision_perfect[0] == b.collision_perfect[0] == perfect
@@ -791,24 +773,33 @@ def test_friction_needs_sources(tmp_path: Path) -> None:
 # ------------------------------------------------------------ predicted threat onset
 
 
-def _walker(v0: float, ahead: float, y0: float, vy: float, predict: float) -> tuple[Encounter, F64]:
-    """Ego at v0 along the x axis; a 0.5 x 0.5 m pedestrian ``ahead`` m in front of the
-    ego's rear axle (standing in x), starting ``y0`` m to the right (y0 < 0) and walking
-    towards the ego's path at ``vy`` m/s. Returns the encounter and its y per step."""
-    t = np.arange(T) * DT
-    z = np.zeros((1, T))
+def _walker(
+    v0: float,
+    ahead: float,
+    y0: float,
+    vy: float,
+    predict: float,
+    steps: int = T,
+    size: tuple[float, float] = (0.5, 0.5),
+) -> tuple[Encounter, F64]:
+    """Ego at v0 along the x axis; a pedestrian (``size``, m; default 0.5 x 0.5) ``ahead`` m
+    in front of the ego's rear axle (standing in x), starting ``y0`` m to the right (y0 <
+    0) and walking towards the ego's path at ``vy`` m/s; ``steps`` steps of DT. Returns
+    the encounter and its y per step."""
+    t = np.arange(steps) * DT
+    z = np.zeros((1, steps))
     ty = (y0 + vy * t)[None]
     enc = encounter_geometry(
         (v0 * t)[None],
         z,
         z,
-        np.full((1, T), v0),
-        np.full((1, T), ahead),
+        np.full((1, steps), v0),
+        np.full((1, steps), ahead),
         ty,
-        np.full((1, T), math.pi / 2),
-        np.full((1, T), vy),
+        np.full((1, steps), math.pi / 2),
+        np.full((1, steps), vy),
         DT,
-        (0.5, 0.5),
+        size,
         BODY,
         0.5,
         6.0,
