@@ -281,6 +281,29 @@ def _scan_interval(
     return lo, hi
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def _nearest_sample(
+    ex: F64, ey: F64, r: int, i: int, px: float, py: float
+) -> int:  # pragma: no cover - compiled
+    """The ego path sample of row ``r`` nearest the point (``px``, ``py``), m: a hill-climb
+    from sample ``i`` (the last answer; the target moves little between steps)."""
+    t = ex.shape[1]
+    best = (ex[r, i] - px) ** 2 + (ey[r, i] - py) ** 2
+    while i + 1 < t:
+        d = (ex[r, i + 1] - px) ** 2 + (ey[r, i + 1] - py) ** 2
+        if d >= best:
+            break
+        best = d
+        i += 1
+    while i > 0:
+        d = (ex[r, i - 1] - px) ** 2 + (ey[r, i - 1] - py) ** 2
+        if d >= best:
+            break
+        best = d
+        i -= 1
+    return i
+
+
 @numba.njit(cache=True, nogil=True)
 def _geometry_kernel(
     ex: F64,
@@ -367,19 +390,7 @@ def _geometry_kernel(
             else:
                 exact = True
                 # nearest ego path sample to the target centre (hill-climb from the last)
-                best = (ex[r, i] - px) ** 2 + (ey[r, i] - py) ** 2
-                while i + 1 < t:
-                    d = (ex[r, i + 1] - px) ** 2 + (ey[r, i + 1] - py) ** 2
-                    if d >= best:
-                        break
-                    best = d
-                    i += 1
-                while i > 0:
-                    d = (ex[r, i - 1] - px) ** 2 + (ey[r, i - 1] - py) ** 2
-                    if d >= best:
-                        break
-                    best = d
-                    i -= 1
+                i = _nearest_sample(ex, ey, r, i, px, py)
                 if not done[i]:  # cos/sin of the ego heading, once per sample
                     if eh[r, i] != lh:
                         lc, ls = cos_sin_near(eh[r, i], lh, lc, ls)
@@ -559,20 +570,7 @@ def _geometry_kernel(
         # at the last step: how long the target stays in the lane band at its speed across
         # the path (in the frame of the path sample nearest it)
         e = t - 1
-        ie = i
-        best = (ex[r, ie] - tx[r, e]) ** 2 + (ey[r, ie] - ty[r, e]) ** 2
-        while ie + 1 < t:
-            d = (ex[r, ie + 1] - tx[r, e]) ** 2 + (ey[r, ie + 1] - ty[r, e]) ** 2
-            if d >= best:
-                break
-            best = d
-            ie += 1
-        while ie > 0:
-            d = (ex[r, ie - 1] - tx[r, e]) ** 2 + (ey[r, ie - 1] - ty[r, e]) ** 2
-            if d >= best:
-                break
-            best = d
-            ie -= 1
+        ie = _nearest_sample(ex, ey, r, i, tx[r, e], ty[r, e])
         ce = math.cos(eh[r, ie])
         se = math.sin(eh[r, ie])
         vcl = -se * (tx[r, e] - ex[r, ie]) + ce * (ty[r, e] - ey[r, ie])
