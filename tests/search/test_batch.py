@@ -12,7 +12,7 @@ from sensorgap.coverage import GridSpec, Scene, evaluate_points
 from sensorgap.coverage.logmiss import LogMissMaps, exact_log_miss, log_miss_of, lookup_log_miss
 from sensorgap.models import Conditions, load_system
 from sensorgap.scenarios import InfeasibleScenario, family_presets, load_family
-from sensorgap.scenarios.batch import LaneTable
+from sensorgap.scenarios.batch import LaneTable, tracks_along_lane, tracks_from_path
 from sensorgap.search.evaluate import DetectionRule, Evaluator, kinematics
 from sensorgap.search.metrics import compute_all_batch, get_metric, metric_names
 from sensorgap.search.problem import SearchProblem
@@ -62,6 +62,28 @@ def test_lane_table_matches_the_reader_within_sagitta() -> None:
     # chord sagitta of 0.1 m steps on the 500 m arc: 0.1^2 / (8 * 500) = 2.5e-6 m
     assert np.max(np.hypot(x - xi, y - yi)) <= 3e-6
     assert np.max(np.abs(np.angle(np.exp(1j * (h - hi))))) <= 1e-6
+
+
+@pytest.mark.parametrize("travel", [1, -1])
+def test_lane_follower_heading_is_the_lanes(travel: int) -> None:
+    """A lane follower's heading is the lane's in its travel direction (not the chord of
+    its samples), its speed the central differences: on the 500 m arc at 30 m/s and
+    20 Hz the chord heading agrees inside to the chord's half-step turn, and at the two
+    one-sided ends to half a step's turn (1.5 m / 500 m / 2 = 1.5e-3 rad)."""
+    fam = load_family("slow_ahead_curve")
+    tab = LaneTable(fam.network, "1", -1)
+    t = np.arange(201) * 0.05
+    s = 600.0 + travel * 30.0 * t[None, :]
+    x, y, h = tab.poses(s, travel)
+    lane = tracks_along_lane(t, x, y, h)
+    chord = tracks_from_path(t, x, y, h)
+    np.testing.assert_array_equal(lane.heading, h)
+    np.testing.assert_array_equal(lane.speed, chord.speed)
+    dh = np.abs(lane.heading - chord.heading)[0]
+    assert np.max(dh[1:-1]) <= 1e-5
+    assert np.max(dh[[0, -1]]) == pytest.approx(1.5 / 500.0 / 2.0, rel=0.05)
+    expected = math.atan2(y[0, 1] - y[0, 0], x[0, 1] - x[0, 0])
+    assert abs(math.remainder(chord.heading[0, 0] - expected, 2.0 * math.pi)) <= 1e-12
 
 
 def test_kinematics_by_hand() -> None:

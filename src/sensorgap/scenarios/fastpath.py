@@ -41,6 +41,28 @@ def table_poses(
         oh[k] = th[i] + a * (th[i + 1] - th[i])
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def _velocity(x: F64, y: F64, i: int, k: int, dt: float) -> tuple[float, float]:  # pragma: no cover
+    """Velocity (m/s) of row ``i`` at step ``k``: central differences inside, one-sided at
+    both ends."""
+    t = x.shape[1]
+    if k == 0:
+        return (x[i, 1] - x[i, 0]) / dt, (y[i, 1] - y[i, 0]) / dt
+    if k == t - 1:
+        return (x[i, k] - x[i, k - 1]) / dt, (y[i, k] - y[i, k - 1]) / dt
+    return (x[i, k + 1] - x[i, k - 1]) / (2.0 * dt), (y[i, k + 1] - y[i, k - 1]) / (2.0 * dt)
+
+
+@numba.njit(cache=True, nogil=True)
+def path_speeds(x: F64, y: F64, dt: float, speed: F64) -> None:  # pragma: no cover - compiled
+    """(B, T) positions (m) -> speed (m/s), as ``path_states``."""
+    b, t = x.shape
+    for i in range(b):
+        for k in range(t):
+            vx, vy = _velocity(x, y, i, k, dt)
+            speed[i, k] = math.sqrt(vx * vx + vy * vy)
+
+
 @numba.njit(cache=True, nogil=True)
 def path_states(
     x: F64, y: F64, fb: F64, dt: float, heading: F64, speed: F64
@@ -51,15 +73,7 @@ def path_states(
     for i in range(b):
         prev = 0.0
         for k in range(t):
-            if k == 0:
-                vx = (x[i, 1] - x[i, 0]) / dt
-                vy = (y[i, 1] - y[i, 0]) / dt
-            elif k == t - 1:
-                vx = (x[i, k] - x[i, k - 1]) / dt
-                vy = (y[i, k] - y[i, k - 1]) / dt
-            else:
-                vx = (x[i, k + 1] - x[i, k - 1]) / (2.0 * dt)
-                vy = (y[i, k + 1] - y[i, k - 1]) / (2.0 * dt)
+            vx, vy = _velocity(x, y, i, k, dt)
             v = math.sqrt(vx * vx + vy * vy)
             speed[i, k] = v
             f = fb[i, k]
