@@ -38,6 +38,30 @@ def bilerp(
     return (1.0 - ay) * ((1.0 - ax) * a + ax * b) + ay * ((1.0 - ax) * c + ax * d)
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def bilinear_finite_at(
+    img: F32, x0: float, y0: float, inv_res: float, x: float, y: float
+) -> tuple[float, int]:  # pragma: no cover - compiled
+    """Bilinear value of a map that is NaN out of view at the point (``x``, ``y``), m
+    (``x0``, ``y0``: first cell centre, m; ``inv_res``: cells per m), and its state: 1 all
+    four corner cells in view (interpolated), 0 none (out of view), 2 some (the edge of
+    the field of view) or off the map; the value is 0 unless the state is 1."""
+    ny, nx = img.shape
+    fx = (x - x0) * inv_res
+    fy = (y - y0) * inv_res
+    if not (fx >= 0.0 and fy >= 0.0 and fx <= nx - 1 and fy <= ny - 1):
+        return 0.0, 2
+    i = min(int(fx), nx - 2)
+    j = min(int(fy), ny - 2)
+    a, b, c, d = img[j, i], img[j, i + 1], img[j + 1, i], img[j + 1, i + 1]
+    n_in = int(np.isfinite(a)) + int(np.isfinite(b)) + int(np.isfinite(c)) + int(np.isfinite(d))
+    if n_in == 0:
+        return 0.0, 0
+    if n_in < 4:
+        return 0.0, 2
+    return bilerp(fx - i, fy - j, a, b, c, d), 1
+
+
 @numba.njit(cache=True, nogil=True)
 def fade(o: float, margin: float) -> float:  # pragma: no cover - compiled
     """Glare weight at an angle ``o`` (rad) outside the field of view."""

@@ -32,8 +32,11 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from sensorgap.coverage.fastglare import glared_pass
+from sensorgap.coverage.fastkernel import roc_constants
 from sensorgap.coverage.fastlookup import (
     bilerp,
+    bilinear_finite_at,
     cone_cos_bound,
     lookup_pass,
     near_view_mask,
@@ -84,6 +87,96 @@ def _glare_at(
     return fac, np.sqrt(dx * dx + dy * dy + dz * dz)
 
 
+#: The outline of a body reduced to its centre (target frame, m).
+_CENTRE = np.zeros((1, 2))
+
+
+def _glared_values(
+    maps: LogMissMaps,
+    scene: Scene,
+    row: int,
+    x: F64,
+    y: F64,
+    psi: F64,
+    outline: F64,
+    z: F64 | float,
+    sun_dirs: F64,
+    weights: F64,
+) -> tuple[F64, NDArray[np.int8]]:
+    """A glared camera's ln(1 - Pd) from its signal map at the K ``outline`` points ((K, 2),
+    target frame, m) of M bodies (centres ``x``, ``y``, m, vehicle frame; headings ``psi``,
+    rad; heights ``z``, m), each with its sun direction ((M, 3)) and glare weight: the ROC
+    of ``snr_from_signal`` of the interpolated signal with the point's glare factor, where
+    the four cells around the point are in view (state 1); 0 with state 0 (out of view) or
+    2 (the edge of the view, or no signal map): the caller evaluates those exactly. (M, K)
+    values and states. Compiled (``fastglare.glared_pass``) for the built-in camera with a
+    closed-form ROC; ``_glared_values_numpy`` otherwise (and as the reference)."""
+    s = scene.sensors[row]
+    prepared = scene.prepared(s)
+    n, k = len(x), len(outline)
+    if row not in maps.signal or prepared.snr_from_signal is None:
+        return np.zeros((n, k)), np.full((n, k), 2, dtype=np.int8)
+    zz = np.ascontiguousarray(np.broadcast_to(np.asarray(z, dtype=np.float64), (n,)))
+    roc = roc_constants(s.roc, scene.roc_shift_db)
+    if prepared.veil_constants is None or roc is None:
+        return _glared_values_numpy(maps, scene, row, x, y, psi, outline, zz, sun_dirs, weights)
+    g = maps.grid
+    out = np.empty((n, k))
+    state = np.empty((n, k), dtype=np.int8)
+    glared_pass(
+        maps.signal[row],
+        g.xmin + 0.5 * g.resolution,
+        g.ymin + 0.5 * g.resolution,
+        1.0 / g.resolution,
+        np.ascontiguousarray(x, dtype=np.float64),
+        np.ascontiguousarray(y, dtype=np.float64),
+        np.ascontiguousarray(psi, dtype=np.float64),
+        np.ascontiguousarray(outline, dtype=np.float64),
+        zz,
+        np.array([s.mount.x, s.mount.y, s.mount.z]),
+        np.ascontiguousarray(sun_dirs, dtype=np.float64),
+        np.ascontiguousarray(weights, dtype=np.float64),
+        np.array(prepared.veil_constants, dtype=np.float64),
+        roc[0],
+        roc[1],
+        out,
+        state,
+    )
+    return out, state
+
+
+def _glared_values_numpy(
+    maps: LogMissMaps,
+    scene: Scene,
+    row: int,
+    x: F64,
+    y: F64,
+    psi: F64,
+    outline: F64,
+    z: F64,
+    sun_dirs: F64,
+    weights: F64,
+) -> tuple[F64, NDArray[np.int8]]:
+    """``_glared_values`` through the sensor's own ``snr_from_signal`` and ROC (numpy)."""
+    s = scene.sensors[row]
+    prepared = scene.prepared(s)
+    assert prepared.snr_from_signal is not None
+    n, k = len(x), len(outline)
+    c, sn = np.cos(psi)[:, None], np.sin(psi)[:, None]
+    ox, oy = outline[:, 0][None, :], outline[:, 1][None, :]
+    px = (x[:, None] + c * ox - sn * oy).ravel()
+    py = (y[:, None] + sn * ox + c * oy).ravel()
+    sig, state = maps.interpolate_signal(row, px, py)
+    new = np.zeros(px.size)
+    ok = np.flatnonzero(state == 1)
+    if ok.size:
+        b = ok // k
+        fac, rng = _glare_at(s, px[ok], py[ok], z[b], sun_dirs[b], weights[b])
+        snr = clip_snr_db(prepared.snr_from_signal(sig[ok], fac, rng))
+        new[ok] = log_miss_of(detection_probability(snr, s.roc, scene.roc_shift_db))
+    return new.reshape(n, k), state.reshape(n, k)
+
+
 def _glared_from_maps(
     maps: LogMissMaps,
     scene: Scene,
@@ -95,24 +188,11 @@ def _glared_from_maps(
     weights: F64,
 ) -> tuple[F64, NDArray[np.int8]]:
     """A glared camera's ln(1 - Pd) at vehicle-frame points (m) from its signal map (the
-    one glare correction of every lookup): the ROC of ``snr_from_signal`` of the
-    interpolated signal with each point's glare factor (sun directions, glare weights)
-    where the four cells around the point are in view (state 1); 0 with state 0 (out of
-    view) or 2 (the edge of the view, or no signal map): the caller evaluates those
-    exactly."""
-    s = scene.sensors[row]
-    prepared = scene.prepared(s)
-    new = np.zeros(len(x))
-    if row not in maps.signal or prepared.snr_from_signal is None:
-        return new, np.full(len(x), 2, dtype=np.int8)
-    sig, state = maps.interpolate_signal(row, x, y)
-    ok = np.flatnonzero(state == 1)
-    if ok.size:
-        zz: F64 | float = z if isinstance(z, float) else np.asarray(z, dtype=np.float64)[ok]
-        fac, rng = _glare_at(s, x[ok], y[ok], zz, sun_dirs[ok], weights[ok])
-        snr = clip_snr_db(prepared.snr_from_signal(sig[ok], fac, rng))
-        new[ok] = log_miss_of(detection_probability(snr, s.roc, scene.roc_shift_db))
-    return new, state
+    one glare correction of every lookup): ``_glared_values`` at the points."""
+    vals, state = _glared_values(
+        maps, scene, row, x, y, np.zeros(len(x)), _CENTRE, z, sun_dirs, weights
+    )
+    return vals[:, 0], state[:, 0]
 
 
 def sensor_snr(
@@ -222,31 +302,11 @@ def _bilinear_finite(
     out: F64,
     state: NDArray[np.int8],
 ) -> None:  # pragma: no cover
-    """Bilinear interpolation of a map that is NaN out of view. ``state``: 1 = all four
-    corner cells in view (interpolated), 0 = none (out of view), 2 = some (the edge of the
-    field of view) or outside the map."""
-    ny, nx = img.shape
+    """``fastlookup.bilinear_finite_at`` at each point: bilinear interpolation of a map
+    that is NaN out of view. ``state``: 1 = all four corner cells in view (interpolated),
+    0 = none (out of view), 2 = some (the edge of the field of view) or outside the map."""
     for k in range(xs.size):
-        fx = (xs[k] - x0) * inv_res
-        fy = (ys[k] - y0) * inv_res
-        out[k] = 0.0
-        if not (fx >= 0.0 and fy >= 0.0 and fx <= nx - 1 and fy <= ny - 1):
-            state[k] = 2
-            continue
-        i = min(int(fx), nx - 2)
-        j = min(int(fy), ny - 2)
-        a, b, c, d = img[j, i], img[j, i + 1], img[j + 1, i], img[j + 1, i + 1]
-        n_in = int(np.isfinite(a)) + int(np.isfinite(b)) + int(np.isfinite(c)) + int(np.isfinite(d))
-        if n_in == 0:
-            state[k] = 0
-            continue
-        if n_in < 4:
-            state[k] = 2
-            continue
-        ax = fx - i
-        ay = fy - j
-        out[k] = bilerp(ax, ay, a, b, c, d)
-        state[k] = 1
+        out[k], state[k] = bilinear_finite_at(img, x0, y0, inv_res, xs[k], ys[k])
 
 
 def signal_layer(scene: Scene, sensor: Sensor, grid: GridSpec) -> F32 | None:
@@ -784,27 +844,22 @@ def _glared_outline(
     body maps (``_outline_layer``) is replaced by the glared layer's best point of the
     body's outline (the same order statistic); outline points at the edge of its view
     exactly."""
+    assert how.outline is not None
     s = scene.sensors[row]
-    prepared = scene.prepared(s)
-    px, py, k = _outline_points(how, gi, xf, yf)
-    new = np.zeros(px.size)
-    if row in maps.signal and prepared.snr_from_signal is not None:
-        sig, state = maps.interpolate_signal(row, px, py)
-        ok = np.flatnonzero(state == 1)
-        if ok.size:
-            fo, ro = _glare_at(s, px[ok], py[ok], z0, dirs_at(gi[ok // k]), np.repeat(wg, k)[ok])
-            snr = clip_snr_db(prepared.snr_from_signal(sig[ok], fo, ro))
-            new[ok] = log_miss_of(detection_probability(snr, s.roc, scene.roc_shift_db))
-    else:
-        state = np.full(px.size, 2, dtype=np.int8)
-    edge = np.flatnonzero(state == 2)
+    psi = how.psi.reshape(-1)[gi]
+    vals, state = _glared_values(
+        maps, scene, row, xf[gi], yf[gi], psi, how.outline, z0, dirs_at(gi), wg
+    )
+    new, k = vals.reshape(-1), len(how.outline)
+    edge = np.flatnonzero(state.reshape(-1) == 2)
     if edge.size:
+        px, py, _ = _outline_points(how, gi, xf, yf)
         idx, pd = sensor_pd(
             scene, s, px[edge], py[edge], np.full(edge.size, z0), dirs_at(gi[edge // k])
         )
-        vals = np.zeros(edge.size)
-        vals[idx] = log_miss_of(pd)
-        new[edge] = vals
+        vals_e = np.zeros(edge.size)
+        vals_e[idx] = log_miss_of(pd)
+        new[edge] = vals_e
     return _order_stat(new, k, how, row) - _outline_layer(maps, row, gi, xf, yf, how)
 
 

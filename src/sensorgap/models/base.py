@@ -48,6 +48,11 @@ class PreparedSensor:
             sensors: the received signal (dB, a smooth function of the geometry that can be
             tabulated) and SNR (dB) from that signal, a glare factor and the range (m);
             ``snr_db_glare(r, az, el, g) == snr_from_signal(signal_db(r, az, el), g, r)``.
+        veil_constants: the constants of the built-in camera's ``snr_from_signal`` (ln of
+            the veil-to-object radiance ratio at ``theta_min``, ln of the thermal noise in
+            electrons, the one-way weather loss in dB/m, ``theta_min`` in deg) for the
+            compiled glare lookup (``coverage.fastglare``); ``None``: the lookup calls
+            ``snr_from_signal``.
     """
 
     snr_db: SnrFunction
@@ -55,6 +60,7 @@ class PreparedSensor:
     snr_db_glare: GlareSnrFunction | None = None
     signal_db: SnrFunction | None = None
     snr_from_signal: Callable[[F64, F64, F64], F64] | None = None
+    veil_constants: tuple[float, float, float, float] | None = None
     terms_db: dict[str, float] = field(default_factory=dict)
     effects: dict[str, str] = field(default_factory=dict)
 

@@ -253,4 +253,5 @@ class Camera(SensorModel):
             snr_db_glare=snr_db_glare if glare else None,
             signal_db=signal_db if glare else None,
             snr_from_signal=snr_from_signal if glare else None,
+            veil_constants=(ln_veil0, ln_thermal, one_way_db_m, t_min) if glare else None,
         )
