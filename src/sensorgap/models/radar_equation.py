@@ -10,6 +10,7 @@ antenna gains reduced over the field of view by ``pattern_loss_db`` (each antenn
 from __future__ import annotations
 
 import math
+from typing import Protocol
 
 import numpy as np
 
@@ -18,6 +19,25 @@ from sensorgap.models.constants import BOLTZMANN_J_K
 from sensorgap.models.geometry import Mount, pattern_loss_db
 
 FOUR_PI_CUBED_DB = 30.0 * math.log10(4.0 * math.pi)
+
+
+class RadarEquationParams(Protocol):
+    """The device parameters eq. 2-3 reads (radar and ultrasonic ``Params``)."""
+
+    @property
+    def tx_power_dbm(self) -> float: ...
+    @property
+    def tx_gain_dbi(self) -> float: ...
+    @property
+    def rx_gain_dbi(self) -> float: ...
+    @property
+    def system_loss_db(self) -> float: ...
+    @property
+    def noise_bandwidth_hz(self) -> float: ...
+    @property
+    def system_noise_temperature_k(self) -> float: ...
+    @property
+    def fov_edge_loss_db(self) -> float: ...
 
 
 def radar_constant_db(
@@ -63,3 +83,27 @@ def prepare_radar_equation(
     terms = dict(terms_db)
     terms["weather one-way [dB/km]"] = one_way_db_km
     return PreparedSensor(snr_db=snr_db, terms_db=terms, uses_angles=edge_loss_db > 0.0)
+
+
+def prepare_radar_device(
+    p: RadarEquationParams,
+    wavelength_m: float,
+    cross_section_m2: float,
+    one_way_db_km: float,
+    mount: Mount,
+) -> PreparedSensor:
+    """A radar-equation device (radar or ultrasonic) in one scene: its constant terms
+    (``radar_constant_db``) with the carrier ``wavelength_m`` (m) and the target's
+    ``cross_section_m2`` (m2), the one-way weather attenuation ``one_way_db_km`` (dB/km)
+    and the gain loss over the field of view of ``mount``."""
+    terms = radar_constant_db(
+        tx_power_dbm=p.tx_power_dbm,
+        tx_gain_dbi=p.tx_gain_dbi,
+        rx_gain_dbi=p.rx_gain_dbi,
+        cross_section_m2=cross_section_m2,
+        wavelength_m=wavelength_m,
+        system_loss_db=p.system_loss_db,
+        noise_bandwidth_hz=p.noise_bandwidth_hz,
+        system_noise_temperature_k=p.system_noise_temperature_k,
+    )
+    return prepare_radar_equation(terms, one_way_db_km, mount, p.fov_edge_loss_db)
