@@ -110,6 +110,18 @@ class _Reader:
             self.fail(f"{where}@{attr}", f"must be within +-{MAX_ABS_VALUE:g}, got {raw!r}", el)
         return value
 
+    def length(self, el: etree._Element, where: str) -> float:
+        """The ``length`` attribute of a road or a plan-view geometry: > 0 and at most
+        ``MAX_ROAD_LENGTH_M``, m."""
+        value = self.num(el, "length", where)
+        if value <= 0.0:
+            self.fail(f"{where}@length", f"must be > 0, got {value:g}", el)
+        if value > MAX_ROAD_LENGTH_M:
+            self.fail(
+                f"{where}@length", f"must be at most {MAX_ROAD_LENGTH_M:g} m, got {value:g}", el
+            )
+        return value
+
     def count(self, n: int, limit: int, where: str, what: str, el: etree._Element) -> None:
         """At most ``limit`` elements of a kind (docs/limits.md)."""
         if n > limit:
@@ -198,13 +210,7 @@ class _Reader:
         where = f"road[id={rid}]" if rid else f"road[{index}]"
         if not rid:
             self.fail(f"{where}@id", "required attribute is missing", el)
-        length = self.num(el, "length", where)
-        if length <= 0.0:
-            self.fail(f"{where}@length", f"must be > 0, got {length:g}", el)
-        if length > MAX_ROAD_LENGTH_M:
-            self.fail(
-                f"{where}@length", f"must be at most {MAX_ROAD_LENGTH_M:g} m, got {length:g}", el
-            )
+        length = self.length(el, where)
         junction = el.get("junction", "-1").strip() or "-1"
         rule = cast(
             Literal["RHT", "LHT"], self.choice(el, "rule", where, ("RHT", "LHT"), default="RHT")
@@ -246,13 +252,7 @@ class _Reader:
         for i, g in enumerate(gels):
             w = f"{where}/planView/geometry[{i}]"
             s, x, y, hdg = (self.num(g, k, w) for k in ("s", "x", "y", "hdg"))
-            glen = self.num(g, "length", w)
-            if glen <= 0.0:
-                self.fail(f"{w}@length", f"must be > 0, got {glen:g}", g)
-            if glen > MAX_ROAD_LENGTH_M:
-                self.fail(
-                    f"{w}@length", f"must be at most {MAX_ROAD_LENGTH_M:g} m, got {glen:g}", g
-                )
+            glen = self.length(g, w)
             expected = geoms[-1].s + geoms[-1].length if geoms else 0.0
             if abs(s - expected) > S_TOLERANCE:
                 what = "a gap" if s > expected else "an overlap"
