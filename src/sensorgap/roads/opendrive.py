@@ -110,6 +110,13 @@ class _Reader:
             self.fail(f"{where}@{attr}", f"must be within +-{MAX_ABS_VALUE:g}, got {raw!r}", el)
         return value
 
+    def some(self, el: etree._Element, name: str, where: str) -> list[etree._Element]:
+        """The ``<name>`` children of ``el`` (at ``where``): at least one."""
+        kids = _kids(el, name)
+        if not kids:
+            self.fail(where, f"must contain at least one <{name}>", el)
+        return kids
+
     def length(self, el: etree._Element, where: str) -> float:
         """The ``length`` attribute of a road or a plan-view geometry: > 0 and at most
         ``MAX_ROAD_LENGTH_M``, m."""
@@ -162,9 +169,7 @@ class _Reader:
         major = header.get("revMajor")
         if major is not None and major.strip() != "1":
             self.fail("header@revMajor", f"must be 1 (OpenDRIVE 1.x), got {major!r}", header)
-        road_els = _kids(root, "road")
-        if not road_els:
-            self.fail("OpenDRIVE", "must contain at least one <road>", root)
+        road_els = self.some(root, "road", "OpenDRIVE")
         self.count(len(road_els), MAX_ROADS, "OpenDRIVE", "roads", root)
         self.count(
             sum(len(_kids(pv, "geometry")) for r in road_els for pv in _kids(r, "planView")),
@@ -245,9 +250,7 @@ class _Reader:
         pv = _kid(el, "planView")
         if pv is None:
             self.fail(f"{where}/planView", "missing: every road needs a planView", el)
-        gels = _kids(pv, "geometry")
-        if not gels:
-            self.fail(f"{where}/planView", "must contain at least one <geometry>", pv)
+        gels = self.some(pv, "geometry", f"{where}/planView")
         geoms: list[Geometry] = []
         for i, g in enumerate(gels):
             w = f"{where}/planView/geometry[{i}]"
@@ -380,9 +383,7 @@ class _Reader:
                 "the lane offset",
                 el,
             )
-        sels = _kids(lel, "laneSection")
-        if not sels:
-            self.fail(f"{where}/lanes", "must contain at least one <laneSection>", lel)
+        sels = self.some(lel, "laneSection", f"{where}/lanes")
         starts: list[float] = []
         for i, sec in enumerate(sels):
             w = f"{where}/lanes/laneSection[{i}]"
