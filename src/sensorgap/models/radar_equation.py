@@ -10,7 +10,7 @@ antenna gains reduced over the field of view by ``pattern_loss_db`` (each antenn
 from __future__ import annotations
 
 import math
-from typing import Protocol
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -18,26 +18,11 @@ from sensorgap.models.base import F64, PreparedSensor
 from sensorgap.models.constants import BOLTZMANN_J_K
 from sensorgap.models.geometry import Mount, pattern_loss_db
 
+if TYPE_CHECKING:
+    from sensorgap.models.radar import RadarParams
+    from sensorgap.models.ultrasonic import UltrasonicParams
+
 FOUR_PI_CUBED_DB = 30.0 * math.log10(4.0 * math.pi)
-
-
-class RadarEquationParams(Protocol):
-    """The device parameters eq. 2-3 reads (radar and ultrasonic ``Params``)."""
-
-    @property
-    def tx_power_dbm(self) -> float: ...
-    @property
-    def tx_gain_dbi(self) -> float: ...
-    @property
-    def rx_gain_dbi(self) -> float: ...
-    @property
-    def system_loss_db(self) -> float: ...
-    @property
-    def noise_bandwidth_hz(self) -> float: ...
-    @property
-    def system_noise_temperature_k(self) -> float: ...
-    @property
-    def fov_edge_loss_db(self) -> float: ...
 
 
 def radar_constant_db(
@@ -86,7 +71,7 @@ def prepare_radar_equation(
 
 
 def prepare_radar_device(
-    p: RadarEquationParams,
+    p: RadarParams | UltrasonicParams,
     wavelength_m: float,
     cross_section_m2: float,
     one_way_db_km: float,
