@@ -23,3 +23,14 @@ def test_api_examples_run(tmp_path: Path, capsys) -> None:
     out = capsys.readouterr().out
     assert "ranked;" in out and "scenarios;" in out
     assert (tmp_path / "run_b" / "report.html").is_file()
+
+
+def test_root_names_are_the_facade_names() -> None:
+    """The root package lists the facade's names (``_API``) without importing
+    ``sensorgap.api`` (so ``import sensorgap`` stays light): the same names, in the same
+    order, as ``sensorgap.api.__all__``, each one resolving to the facade's object."""
+    import sensorgap
+    from sensorgap import api
+
+    assert tuple(api.__all__) == sensorgap._API
+    assert all(getattr(sensorgap, n) is getattr(api, n) for n in sensorgap._API)

@@ -20,6 +20,8 @@ from sensorgap.version import __version__
 _configure_numba_cache()  # a writable numba cache folder even when installed read-only
 _configure_matplotlib_dir()  # and matplotlib's, without its warning when HOME is read-only
 
+# the names of ``sensorgap.api.__all__``, listed here so that ``import sensorgap`` need not
+# import the facade (tests/test_api_docs.py checks the two lists are the same)
 _API = (
     "Occluder",
     "coverage_grid",

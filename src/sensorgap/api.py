@@ -127,6 +127,7 @@ def write_report(run: str | Path) -> tuple[Path, Path]:
     return _write(Path(run))
 
 
+# also listed in the root package (``sensorgap._API``, checked by tests/test_api_docs.py)
 __all__ = [
     "Occluder",
     "coverage_grid",

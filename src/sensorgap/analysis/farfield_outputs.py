@@ -13,7 +13,7 @@ import numpy as np
 from sensorgap.analysis.farfield import LEVELS, FarField
 from sensorgap.coverage.grid import GridSpec, evaluate_grid
 from sensorgap.coverage.outputs import scene_provenance
-from sensorgap.coverage.plot import PD_CMAP, PD_NORM, draw_vehicle, plain_text, save_figure
+from sensorgap.coverage.plot import draw_map, draw_vehicle, plain_text, save_figure
 from sensorgap.coverage.scene import Scene
 from sensorgap.filesio import write_csv, write_json
 
@@ -68,15 +68,7 @@ def write_farfield(
         2, 1, figsize=(11.0, 7.5), layout="constrained", height_ratios=(3.0, 1.6)
     )
     g = cov.grid
-    im = ax.imshow(
-        cov.fused,
-        origin="lower",
-        extent=(g.xmin, g.xmax, g.ymin, g.ymax),
-        cmap=PD_CMAP,
-        norm=PD_NORM,
-        interpolation="nearest",
-        aspect="equal",
-    )
+    im = draw_map(ax, cov.fused, (g.xmin, g.xmax, g.ymin, g.ymax))
     draw_vehicle(ax, scene.system, fov=False)
     ax.plot(
         ff.vehicle[:, 0],

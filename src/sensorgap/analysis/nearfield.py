@@ -686,13 +686,6 @@ def grid_uncovered_at_height(
 
 # --------------------------------------------------------------------------- outputs
 
-_TYPE_COLOURS = {
-    "camera": "tab:orange",
-    "radar": "tab:red",
-    "lidar": "tab:cyan",
-    "ultrasonic": "tab:pink",
-}
-
 
 def _r(v: float) -> float:
     return round(float(v), 6) + 0.0
@@ -733,7 +726,7 @@ def nearfield_figure(
     from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
 
-    from sensorgap.coverage.plot import draw_vehicle, plain_text
+    from sensorgap.coverage.plot import draw_vehicle, plain_text, sensor_colour
 
     xmin, ymin, xmax, ymax = window.bounds
     aspect = (ymax - ymin) / (xmax - xmin)
@@ -749,7 +742,7 @@ def nearfield_figure(
             ax.add_patch(p)
     types_used = []
     for s in system.sensors:
-        colour = _TYPE_COLOURS.get(s.type_name, "tab:gray")
+        colour = sensor_colour(s.type_name)
         clipped = shapely.intersection(footprints[s.id], window.buffer(1.0, join_style=2))
         if (
             p := _path_patch(clipped, facecolor=colour, edgecolor="none", alpha=0.07, zorder=0)
@@ -784,7 +777,7 @@ def nearfield_figure(
         Line2D(
             [],
             [],
-            color=_TYPE_COLOURS.get(t, "tab:gray"),
+            color=sensor_colour(t),
             linewidth=1.0,
             label=f"{t} footprint (any height)",
         )

@@ -112,6 +112,18 @@ def validation_to_input_error(
     return InputError(found[0].source, found[0].field, found[0].message, found[1:])
 
 
+def require_source(source: Path | str, field: str, text: object) -> None:
+    """Every parameter names where its value comes from: ``InputError`` at ``field`` of
+    the file ``source`` unless ``text`` (the parameter's ``sources`` entry) is non-blank
+    text."""
+    if not isinstance(text, str) or not text.strip():
+        raise InputError(
+            source,
+            field,
+            "missing source: name the data sheet, paper or standard, or write 'estimate: <why>'",
+        )
+
+
 def parse_model(model: type[M], data: Any, source: Path | str, prefix: str = "") -> M:
     """Validate ``data`` as ``model``; errors become ``InputError``."""
     try:

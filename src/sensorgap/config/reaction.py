@@ -33,7 +33,7 @@ from pydantic import Field, ValidationError
 
 from sensorgap.config.common import Strict
 from sensorgap.config.environment import EnvironmentConfig
-from sensorgap.config.load import read_toml, validation_to_input_error
+from sensorgap.config.load import read_toml, require_source, validation_to_input_error
 from sensorgap.config.presets import templates_dir
 from sensorgap.errors import InputError
 
@@ -182,13 +182,7 @@ def load_reaction(
             and not ReactionConfig.model_fields[key].is_required()
         ):
             continue  # an optional parameter left at its default needs no source
-        if not cfg.sources.get(key, "").strip():
-            raise InputError(
-                path,
-                f"reactions.{name}.sources.{key}",
-                "missing source: name the standard, paper or data sheet, or "
-                "write 'estimate: <why>'",
-            )
+        require_source(path, f"reactions.{name}.sources.{key}", cfg.sources.get(key))
     unknown = sorted(set(cfg.sources) - set(ReactionConfig.model_fields))
     if unknown:
         raise InputError(
@@ -236,13 +230,7 @@ def load_friction(path: Path | None = None) -> dict[str, float]:
                 f"friction.{cond}",
                 f"must be a number in (0, 2] (peak friction coefficient), got {v!r}",
             )
-        src = sources.get(cond)
-        if not isinstance(src, str) or not src.strip():
-            raise InputError(
-                path,
-                f"friction.sources.{cond}",
-                "missing source: name the reference, or write 'estimate: <why>'",
-            )
+        require_source(path, f"friction.sources.{cond}", sources.get(cond))
         out[cond] = float(v)
     return out
 

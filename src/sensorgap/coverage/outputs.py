@@ -5,17 +5,20 @@ from __future__ import annotations
 
 import hashlib
 import math
+import zipfile
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from sensorgap.coverage.grid import GridCoverage, GridSpec, evaluate_grid
 from sensorgap.coverage.occluders import Occluder, occluder_array
 from sensorgap.coverage.plot import coverage_figure, pd_levels_area, save_figure
 from sensorgap.coverage.points import PointCoverage
 from sensorgap.coverage.scene import Scene
+from sensorgap.errors import InputError
 from sensorgap.filesio import csv_bytes, write_json, write_npz
 from sensorgap.version import __version__
 
@@ -70,6 +73,31 @@ def compute_coverage(
         per_sensor=per_sensor,
         occluders=occluder_array(occluders) if occluders else None,
     )
+
+
+def read_coverage_npz(
+    path: Path,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], float]:
+    """The map of a ``coverage.npz`` (``write_coverage``): fused Pd at the cell centres
+    (shape (len(y), len(x))), the centres' x and y (m, vehicle frame) and the cell size
+    (m); unreadable or inconsistent -> ``InputError`` naming the file."""
+    try:
+        with np.load(path) as z:
+            pd = np.asarray(z["pd"], np.float64)
+            x, y = np.asarray(z["x"], np.float64), np.asarray(z["y"], np.float64)
+            res = float(np.asarray(z["resolution"]).ravel()[0])
+    except (OSError, KeyError, ValueError, IndexError, EOFError, zipfile.BadZipFile) as exc:
+        raise InputError(
+            path,
+            "",
+            "unreadable coverage map (expected the .npz of "
+            f"`sensorgap coverage`: pd, x, y, resolution): {exc}",
+        ) from None
+    if pd.shape != (len(y), len(x)):
+        raise InputError(
+            path, "pd", f"expected shape (len(y), len(x)) = ({len(y)}, {len(x)}), got {pd.shape}"
+        )
+    return pd, x, y, res
 
 
 def write_coverage(

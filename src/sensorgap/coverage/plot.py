@@ -16,6 +16,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.colors import Normalize  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
+from matplotlib.image import AxesImage  # noqa: E402
 from matplotlib.lines import Line2D  # noqa: E402
 from matplotlib.patches import Polygon, Rectangle, Wedge  # noqa: E402
 from numpy.typing import NDArray  # noqa: E402
@@ -39,6 +40,32 @@ _TYPE_COLOURS = {
     "lidar": "tab:cyan",
     "ultrasonic": "tab:pink",
 }
+
+
+def sensor_colour(type_name: str) -> str:
+    """The colour every figure draws a sensor type in (grey for a plug-in type)."""
+    return _TYPE_COLOURS.get(type_name, "tab:gray")
+
+
+def draw_map(
+    ax: plt.Axes,
+    data: NDArray[np.float64],
+    extent: tuple[float, float, float, float],
+    cmap: Any = PD_CMAP,
+    norm: Any = PD_NORM,
+) -> AxesImage:
+    """A map of cells (rows along y, columns along x) drawn cell by cell over ``extent``
+    (xmin, xmax, ymin, ymax of the cells' edges, m, vehicle frame) at equal aspect;
+    default colours: Pd. Returns the image (for a colour bar)."""
+    return ax.imshow(
+        data,
+        origin="lower",
+        extent=extent,
+        cmap=cmap,
+        norm=norm,
+        interpolation="nearest",
+        aspect="equal",
+    )
 
 
 def plain_text(text: str) -> str:
@@ -70,7 +97,7 @@ def draw_vehicle(
     types: list[str] = []
     for s in system.sensors:
         m = s.mount
-        colour = _TYPE_COLOURS.get(s.type_name, "tab:gray")
+        colour = sensor_colour(s.type_name)
         if m.hfov >= 2.0 * math.pi:
             theta1, theta2 = 0.0, 360.0
         else:
@@ -95,7 +122,7 @@ def draw_vehicle(
         Line2D(
             [],
             [],
-            color=_TYPE_COLOURS.get(t, "tab:gray"),
+            color=sensor_colour(t),
             linewidth=1.0,
             label=f"{t} field of view (to its range)",
         )
@@ -237,15 +264,7 @@ def coverage_figure(
         )
         zx = None
     extent = (g.xmin, g.xmax, g.ymin, g.ymax)
-    im = ax.imshow(
-        cov.fused,
-        origin="lower",
-        extent=extent,
-        cmap=PD_CMAP,
-        norm=PD_NORM,
-        interpolation="nearest",
-        aspect="equal",
-    )
+    im = draw_map(ax, cov.fused, extent)
     handles: list[Any] = draw_vehicle(ax, system)
     for i, occ in enumerate(occluders):
         patch = Polygon(
@@ -313,15 +332,7 @@ def _closeup(
 ) -> None:
     """The near field of ``pd`` on ``zx`` (limits ``lim``), its frame marked on ``ax``."""
     x0, x1, y0, y1 = lim
-    zx.imshow(
-        pd,
-        origin="lower",
-        extent=(g.xmin, g.xmax, g.ymin, g.ymax),
-        cmap=cmap,
-        norm=norm,
-        interpolation="nearest",
-        aspect="equal",
-    )
+    draw_map(zx, pd, (g.xmin, g.xmax, g.ymin, g.ymax), cmap, norm)
     draw_vehicle(zx, system, fov=False)
     for s in system.sensors:
         zx.plot(
@@ -415,15 +426,7 @@ def comparison_figure(
     sun = None
     for r, (data, system, cmap, norm, head, label) in enumerate(rows):
         ax = axes[r][0]
-        im = ax.imshow(
-            data,
-            origin="lower",
-            extent=extent,
-            cmap=cmap,
-            norm=norm,
-            interpolation="nearest",
-            aspect="equal",
-        )
+        im = draw_map(ax, data, extent, cmap, norm)
         if system is not None:
             for h in draw_vehicle(ax, system):
                 if h.get_label() not in [x.get_label() for x in handles]:

@@ -35,17 +35,16 @@ from sensorgap.scenarios.kinds import CROSSING_ACCEL_M_S2, travel_direction
 from sensorgap.scenarios.trajectory import Trajectory
 
 
-def _cut_in(b: Build) -> None:
-    sp, p = b.spec, b.spec.params
-    tr = travel_direction(sp.family.network, str(b.st["road_id"]), int(b.st["ego_lane"]))
-    off = number(origin_offset(sp.target))
+def _cut_in_from(b: Build, lane: int, tr: int, ahead: str, speed: str, closing: float) -> None:
+    """The target starts in ``lane`` ``ahead`` (expression, m) of the ego's start at
+    ``speed`` (expression, m/s) and cuts into the ego's lane when the planned gap at
+    ``lc_start_s`` is reached (the gap changes at ``closing``, m/s), over
+    ``lc_duration_s``, keeping ``speed`` in the ego's lane after."""
+    p = b.spec.params
     t_s, t_e = float(p["lc_start_s"]), float(p["lc_start_s"]) + float(p["lc_duration_s"])
-    s0 = lane_start(
-        b, TARGET, int(b.st["target_lane"]), tr, f"$dx0_m - {off}", "$target_speed_m_s", t_s
-    )
-    gap = f"$dx0_m - {off} + ($target_speed_m_s - $ego_speed_m_s) * $lc_start_s"
-    dv = float(p["target_speed_m_s"]) - float(p["ego_speed_m_s"])
-    trig = gap_trigger(b, "cut_in_gap", TARGET, EGO, gap, dv)
+    s0 = lane_start(b, TARGET, lane, tr, ahead, speed, t_s)
+    gap = f"{ahead} + ({speed} - $ego_speed_m_s) * $lc_start_s"
+    trig = gap_trigger(b, "cut_in_gap", TARGET, EGO, gap, closing)
     lane_change(
         b,
         TARGET,
@@ -56,12 +55,16 @@ def _cut_in(b: Build) -> None:
         trig,
         t_s,
         EGO,
-        (
-            "$target_speed_m_s",
-            int(b.st["ego_lane"]),
-            *after_change(b, tr, s0, "$target_speed_m_s", t_s, t_e),
-        ),
+        (speed, int(b.st["ego_lane"]), *after_change(b, tr, s0, speed, t_s, t_e)),
     )
+
+
+def _cut_in(b: Build) -> None:
+    sp, p = b.spec, b.spec.params
+    tr = travel_direction(sp.family.network, str(b.st["road_id"]), int(b.st["ego_lane"]))
+    off = number(origin_offset(sp.target))
+    dv = float(p["target_speed_m_s"]) - float(p["ego_speed_m_s"])
+    _cut_in_from(b, int(b.st["target_lane"]), tr, f"$dx0_m - {off}", "$target_speed_m_s", dv)
 
 
 def _cut_in_behind_truck(b: Build) -> None:
@@ -82,23 +85,8 @@ def _cut_in_behind_truck(b: Build) -> None:
     half = number(0.5 * truck.length_m + 0.5 * sp.target.length_m - origin_offset(sp.target))
     ahead = f"$truck_dx_m + $target_gap_m + {half}"
     speed = "$truck_speed_m_s + $speed_delta_m_s"
-    t_s, t_e = float(p["lc_start_s"]), float(p["lc_start_s"]) + float(p["lc_duration_s"])
-    s0 = lane_start(b, TARGET, side, tr, ahead, speed, t_s)
-    gap = f"{ahead} + ($truck_speed_m_s + $speed_delta_m_s - $ego_speed_m_s) * $lc_start_s"
     dv = float(p["truck_speed_m_s"]) + float(p["speed_delta_m_s"]) - float(p["ego_speed_m_s"])
-    trig = gap_trigger(b, "cut_in_gap", TARGET, EGO, gap, dv)
-    lane_change(
-        b,
-        TARGET,
-        "cut_in",
-        None,
-        declare_shape(b),
-        b.p.ref("lc_duration_s"),
-        trig,
-        t_s,
-        EGO,
-        (speed, int(b.st["ego_lane"]), *after_change(b, tr, s0, speed, t_s, t_e)),
-    )
+    _cut_in_from(b, side, tr, ahead, speed, dv)
 
 
 def _overtake(b: Build) -> None:

@@ -14,7 +14,7 @@ from sensorgap.models.base import PreparedSensor, SensorModel
 from sensorgap.models.conditions import Band, Conditions
 from sensorgap.models.constants import SPEED_OF_LIGHT_M_S, T0_K
 from sensorgap.models.geometry import Mount
-from sensorgap.models.radar_equation import prepare_radar_equation, radar_constant_db
+from sensorgap.models.radar_equation import prepare_radar_device
 from sensorgap.models.registry import register
 
 
@@ -56,15 +56,10 @@ class Radar(SensorModel):
     def prepare(self, mount: Mount, target: TargetConfig, conditions: Conditions) -> PreparedSensor:
         """Radar equation with the target's radar cross-section (``rcs_m2``)."""
         p = self.params
-        terms = radar_constant_db(
-            tx_power_dbm=p.tx_power_dbm,
-            tx_gain_dbi=p.tx_gain_dbi,
-            rx_gain_dbi=p.rx_gain_dbi,
-            cross_section_m2=target.rcs_m2,
-            wavelength_m=SPEED_OF_LIGHT_M_S / p.frequency_hz,
-            system_loss_db=p.system_loss_db,
-            noise_bandwidth_hz=p.noise_bandwidth_hz,
-            system_noise_temperature_k=p.system_noise_temperature_k,
+        return prepare_radar_device(
+            p,
+            SPEED_OF_LIGHT_M_S / p.frequency_hz,
+            target.rcs_m2,
+            conditions.attenuation_db_km(self.band()),
+            mount,
         )
-        gamma = conditions.attenuation_db_km(self.band())
-        return prepare_radar_equation(terms, gamma, mount, p.fov_edge_loss_db)

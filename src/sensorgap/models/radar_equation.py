@@ -10,12 +10,17 @@ antenna gains reduced over the field of view by ``pattern_loss_db`` (each antenn
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from sensorgap.models.base import F64, PreparedSensor
 from sensorgap.models.constants import BOLTZMANN_J_K
 from sensorgap.models.geometry import Mount, pattern_loss_db
+
+if TYPE_CHECKING:
+    from sensorgap.models.radar import RadarParams
+    from sensorgap.models.ultrasonic import UltrasonicParams
 
 FOUR_PI_CUBED_DB = 30.0 * math.log10(4.0 * math.pi)
 
@@ -63,3 +68,27 @@ def prepare_radar_equation(
     terms = dict(terms_db)
     terms["weather one-way [dB/km]"] = one_way_db_km
     return PreparedSensor(snr_db=snr_db, terms_db=terms, uses_angles=edge_loss_db > 0.0)
+
+
+def prepare_radar_device(
+    p: RadarParams | UltrasonicParams,
+    wavelength_m: float,
+    cross_section_m2: float,
+    one_way_db_km: float,
+    mount: Mount,
+) -> PreparedSensor:
+    """A radar-equation device (radar or ultrasonic) in one scene: its constant terms
+    (``radar_constant_db``) with the carrier ``wavelength_m`` (m) and the target's
+    ``cross_section_m2`` (m2), the one-way weather attenuation ``one_way_db_km`` (dB/km)
+    and the gain loss over the field of view of ``mount``."""
+    terms = radar_constant_db(
+        tx_power_dbm=p.tx_power_dbm,
+        tx_gain_dbi=p.tx_gain_dbi,
+        rx_gain_dbi=p.rx_gain_dbi,
+        cross_section_m2=cross_section_m2,
+        wavelength_m=wavelength_m,
+        system_loss_db=p.system_loss_db,
+        noise_bandwidth_hz=p.noise_bandwidth_hz,
+        system_noise_temperature_k=p.system_noise_temperature_k,
+    )
+    return prepare_radar_equation(terms, one_way_db_km, mount, p.fov_edge_loss_db)

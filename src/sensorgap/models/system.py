@@ -7,7 +7,7 @@ from pathlib import Path
 
 from pydantic import ValidationError
 
-from sensorgap.config.load import load_vehicle, validation_to_input_error
+from sensorgap.config.load import load_vehicle, require_source, validation_to_input_error
 from sensorgap.config.vehicle import MountConfig, RocConfig, VehicleConfig
 from sensorgap.errors import InputError
 from sensorgap.models import registry
@@ -82,13 +82,7 @@ def build_models(cfg: VehicleConfig, source: Path | str) -> dict[str, SensorMode
         except ValidationError as exc:
             raise validation_to_input_error(source, exc, prefix=f"devices.{name}") from None
         for key in params:
-            if not dev.sources.get(key, "").strip():
-                raise InputError(
-                    source,
-                    f"devices.{name}.sources.{key}",
-                    "missing source: name the data sheet, paper or standard, "
-                    "or write 'estimate: <why>'",
-                )
+            require_source(source, f"devices.{name}.sources.{key}", dev.sources.get(key))
         models[name] = cls(validated)
     return models
 

@@ -61,6 +61,17 @@ def _unmade(side: SideMaps, what: str) -> Para:
     )
 
 
+def _none_in_common(
+    cm: Completed, anchor: str, title: str, lacking: list[SideMaps], what: str, thing: str
+) -> Section:
+    """A section with nothing to compare: why each side ``lacking`` the piece could not
+    compute it (``_unmade``), or, when both have some, the comparison's notes."""
+    blocks: list[Block] = [_unmade(s, what) for s in lacking]
+    return Section(
+        anchor, title, blocks or [Para(f"No {thing} in common: " + "; ".join(cm.notes) + ".")]
+    )
+
+
 def _where(side: SideMaps, folder: Path | None) -> str:
     """'from the run ...' or 'computed for this comparison' for a piece's folder."""
     if folder is None:
@@ -177,12 +188,8 @@ def _coverage(cm: Completed, out: Path) -> Section:
     a, b = cm.a, cm.b
     title = "Coverage maps side by side and their difference"
     if not cm.keys:
-        blocks: list[Block] = [_unmade(s, "The coverage maps") for s in (a, b) if not s.coverage]
-        return Section(
-            "coverage",
-            title,
-            blocks or [Para("No coverage map in common: " + "; ".join(cm.notes) + ".")],
-        )
+        lacking = [s for s in (a, b) if not s.coverage]
+        return _none_in_common(cm, "coverage", title, lacking, "The coverage maps", "coverage map")
     na, nb = a.name, b.name
     rows = []
     for k in cm.keys:
@@ -277,12 +284,8 @@ def _table_iv(cm: Completed, out: Path) -> Section:
     title = "Table IV (metres of the lane ahead) and Pd against distance"
     envs = [e for e in cm.environments if e in a.farfield and e in b.farfield]
     if not envs:
-        blocks: list[Block] = [_unmade(s, "The far field") for s in (a, b) if not s.farfield]
-        return Section(
-            "table-iv",
-            title,
-            blocks or [Para("No far field in common: " + "; ".join(cm.notes) + ".")],
-        )
+        lacking = [s for s in (a, b) if not s.farfield]
+        return _none_in_common(cm, "table-iv", title, lacking, "The far field", "far field")
     na, nb = a.name, b.name
     rows, curves = [], []
     for e in envs:

@@ -16,6 +16,7 @@ from matplotlib.patches import Polygon  # noqa: E402
 from sensorgap.coverage.plot import (  # noqa: E402
     PD_CMAP,
     PD_NORM,
+    draw_map,
     draw_vehicle,
     plain_text,
     save_figure,
@@ -89,19 +90,15 @@ def scenario_figure(spec: ScenarioSpec, evaluator: Evaluator, tr: Trace, path: P
     i1 = min(int(np.ceil((x1 - g.xmin) / g.resolution)), pd_map.shape[1])
     j0 = max(int(np.floor((y0 - g.ymin) / g.resolution)), 0)
     j1 = min(int(np.ceil((y1 - g.ymin) / g.resolution)), pd_map.shape[0])
-    im = ax.imshow(
+    im = draw_map(
+        ax,
         pd_map[j0:j1, i0:i1],
-        origin="lower",
-        extent=(
+        (
             g.xmin + i0 * g.resolution,
             g.xmin + i1 * g.resolution,
             g.ymin + j0 * g.resolution,
             g.ymin + j1 * g.resolution,
         ),
-        cmap=PD_CMAP,
-        norm=PD_NORM,
-        interpolation="nearest",
-        aspect="equal",
     )
     draw_vehicle(ax, spec.system)
     k = named_step(tr)

@@ -18,7 +18,6 @@ from __future__ import annotations
 import json
 import math
 import re
-import zipfile
 from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
@@ -27,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from sensorgap.config import EnvironmentConfig
+from sensorgap.coverage.outputs import read_coverage_npz
 from sensorgap.errors import InputError
 from sensorgap.export.spec import ScenarioSpec
 from sensorgap.models import System
@@ -411,21 +411,7 @@ def blind_extents(
     the radius is reduced to the largest circle inside the map. Distances are those of the
     cell centres from the body's footprint rectangle (0, 0 for a direction without such
     cells). Returns (radius, extents)."""
-    try:
-        with np.load(path) as z:
-            pd, x, y = z["pd"], z["x"], z["y"]
-            res = float(np.asarray(z["resolution"]).ravel()[0])
-    except (OSError, KeyError, ValueError, EOFError, zipfile.BadZipFile) as exc:
-        raise InputError(
-            path,
-            "",
-            "unreadable coverage map (expected the .npz of "
-            f"`sensorgap coverage`: pd, x, y, resolution): {exc}",
-        ) from None
-    if pd.shape != (len(y), len(x)):
-        raise InputError(
-            path, "pd", f"expected shape (len(y), len(x)) = ({len(y)}, {len(x)}), got {pd.shape}"
-        )
+    pd, x, y, res = read_coverage_npz(path)
     body = system.config.vehicle
     cx = 0.5 * (body.x_rear_m + body.x_front_m)
     r = min(

@@ -110,6 +110,25 @@ class _Reader:
             self.fail(f"{where}@{attr}", f"must be within +-{MAX_ABS_VALUE:g}, got {raw!r}", el)
         return value
 
+    def some(self, el: etree._Element, name: str, where: str) -> list[etree._Element]:
+        """The ``<name>`` children of ``el`` (at ``where``): at least one."""
+        kids = _kids(el, name)
+        if not kids:
+            self.fail(where, f"must contain at least one <{name}>", el)
+        return kids
+
+    def length(self, el: etree._Element, where: str) -> float:
+        """The ``length`` attribute of a road or a plan-view geometry: > 0 and at most
+        ``MAX_ROAD_LENGTH_M``, m."""
+        value = self.num(el, "length", where)
+        if value <= 0.0:
+            self.fail(f"{where}@length", f"must be > 0, got {value:g}", el)
+        if value > MAX_ROAD_LENGTH_M:
+            self.fail(
+                f"{where}@length", f"must be at most {MAX_ROAD_LENGTH_M:g} m, got {value:g}", el
+            )
+        return value
+
     def count(self, n: int, limit: int, where: str, what: str, el: etree._Element) -> None:
         """At most ``limit`` elements of a kind (docs/limits.md)."""
         if n > limit:
@@ -150,9 +169,7 @@ class _Reader:
         major = header.get("revMajor")
         if major is not None and major.strip() != "1":
             self.fail("header@revMajor", f"must be 1 (OpenDRIVE 1.x), got {major!r}", header)
-        road_els = _kids(root, "road")
-        if not road_els:
-            self.fail("OpenDRIVE", "must contain at least one <road>", root)
+        road_els = self.some(root, "road", "OpenDRIVE")
         self.count(len(road_els), MAX_ROADS, "OpenDRIVE", "roads", root)
         self.count(
             sum(len(_kids(pv, "geometry")) for r in road_els for pv in _kids(r, "planView")),
@@ -198,13 +215,7 @@ class _Reader:
         where = f"road[id={rid}]" if rid else f"road[{index}]"
         if not rid:
             self.fail(f"{where}@id", "required attribute is missing", el)
-        length = self.num(el, "length", where)
-        if length <= 0.0:
-            self.fail(f"{where}@length", f"must be > 0, got {length:g}", el)
-        if length > MAX_ROAD_LENGTH_M:
-            self.fail(
-                f"{where}@length", f"must be at most {MAX_ROAD_LENGTH_M:g} m, got {length:g}", el
-            )
+        length = self.length(el, where)
         junction = el.get("junction", "-1").strip() or "-1"
         rule = cast(
             Literal["RHT", "LHT"], self.choice(el, "rule", where, ("RHT", "LHT"), default="RHT")
@@ -239,20 +250,12 @@ class _Reader:
         pv = _kid(el, "planView")
         if pv is None:
             self.fail(f"{where}/planView", "missing: every road needs a planView", el)
-        gels = _kids(pv, "geometry")
-        if not gels:
-            self.fail(f"{where}/planView", "must contain at least one <geometry>", pv)
+        gels = self.some(pv, "geometry", f"{where}/planView")
         geoms: list[Geometry] = []
         for i, g in enumerate(gels):
             w = f"{where}/planView/geometry[{i}]"
             s, x, y, hdg = (self.num(g, k, w) for k in ("s", "x", "y", "hdg"))
-            glen = self.num(g, "length", w)
-            if glen <= 0.0:
-                self.fail(f"{w}@length", f"must be > 0, got {glen:g}", g)
-            if glen > MAX_ROAD_LENGTH_M:
-                self.fail(
-                    f"{w}@length", f"must be at most {MAX_ROAD_LENGTH_M:g} m, got {glen:g}", g
-                )
+            glen = self.length(g, w)
             expected = geoms[-1].s + geoms[-1].length if geoms else 0.0
             if abs(s - expected) > S_TOLERANCE:
                 what = "a gap" if s > expected else "an overlap"
@@ -380,9 +383,7 @@ class _Reader:
                 "the lane offset",
                 el,
             )
-        sels = _kids(lel, "laneSection")
-        if not sels:
-            self.fail(f"{where}/lanes", "must contain at least one <laneSection>", lel)
+        sels = self.some(lel, "laneSection", f"{where}/lanes")
         starts: list[float] = []
         for i, sec in enumerate(sels):
             w = f"{where}/lanes/laneSection[{i}]"

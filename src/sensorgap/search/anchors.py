@@ -50,20 +50,17 @@ NCAP_PEDESTRIAN_KMH = 5.0
 LEAD_S = 4.5
 #: Gap between the two parked cars, m (estimate, module docstring).
 PARKED_GAP_M = 1.0
-#: Columns of anchors.csv.
-COLUMNS = (
-    "case",
-    "vut_kmh",
-    "pedestrian_kmh",
-    "class",
+#: The metrics of each anchor (columns of anchors.csv; None where infeasible).
+METRIC_COLUMNS = (
     "collision_probability",
     "impact_speed_kmh",
     "collision_perfect",
     "t_safe_s",
     "t_confirm_median_s",
     "detection_margin_s",
-    "dominant_effect",
 )
+#: Columns of anchors.csv.
+COLUMNS = ("case", "vut_kmh", "pedestrian_kmh", "class", *METRIC_COLUMNS, "dominant_effect")
 
 
 @dataclass(frozen=True)
@@ -142,14 +139,7 @@ def evaluate_anchors(
             "environment": case.environment,
             "params": dict(case.params),
         }
-        for name in (
-            "collision_probability",
-            "impact_speed_kmh",
-            "collision_perfect",
-            "t_safe_s",
-            "t_confirm_median_s",
-            "detection_margin_s",
-        ):
+        for name in METRIC_COLUMNS:
             row[name] = _finite(float(m.get(name, math.nan))) if res.feasible else None
         row["dominant_effect"] = explain(prob, cand).dominant if res.feasible else ""
         params = " ".join(

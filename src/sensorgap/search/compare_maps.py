@@ -30,7 +30,6 @@ each vehicle is evaluated in its own run's definition and ``notes`` says so.
 from __future__ import annotations
 
 import re
-import zipfile
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -45,7 +44,7 @@ from sensorgap.analysis.paper import FarFieldSetup, ego_pose, target_path
 from sensorgap.config import EnvironmentConfig, TargetConfig
 from sensorgap.config.presets import resolve_road
 from sensorgap.coverage import GridSpec, Scene
-from sensorgap.coverage.outputs import compute_coverage, write_coverage
+from sensorgap.coverage.outputs import compute_coverage, read_coverage_npz, write_coverage
 from sensorgap.coverage.plot import comparison_figure, save_figure
 from sensorgap.errors import InputError
 from sensorgap.filesio import write_json, write_npz
@@ -415,24 +414,7 @@ def complete_runs(run_a: Path, run_b: Path, out: Path, workers: int = 2) -> Comp
 def load_map(folder: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     """(pd, x, y, cell size m) of ``folder/coverage.npz``; unreadable or inconsistent ->
     ``InputError`` naming the file."""
-    path = folder / "coverage.npz"
-    try:
-        with np.load(path) as z:
-            pd = np.asarray(z["pd"], np.float64)
-            x, y = np.asarray(z["x"], np.float64), np.asarray(z["y"], np.float64)
-            res = float(np.asarray(z["resolution"]).ravel()[0])
-    except (OSError, KeyError, ValueError, IndexError, EOFError, zipfile.BadZipFile) as exc:
-        raise InputError(
-            path,
-            "",
-            "unreadable coverage map (expected the .npz of "
-            f"`sensorgap coverage`: pd, x, y, resolution): {exc}",
-        ) from None
-    if pd.shape != (len(y), len(x)):
-        raise InputError(
-            path, "pd", f"expected shape (len(y), len(x)) = ({len(y)}, {len(x)}), got {pd.shape}"
-        )
-    return pd, x, y, res
+    return read_coverage_npz(folder / "coverage.npz")
 
 
 def _same_grid(fa: Path, fb: Path) -> bool:

@@ -66,6 +66,14 @@ class Strategy(ABC):
         """Results of the last batch (default: ignored)."""
 
 
+def latin_hypercube(rng: np.random.Generator, n: int, dim: int) -> F64:
+    """``n`` points of the unit cube ``[0, 1]^dim`` (dimensionless), one in each of the
+    ``n`` strata of every dimension (a random permutation of the strata per dimension, a
+    uniform position inside each); ``(n, 0)`` when ``dim`` is 0."""
+    cols = [(rng.permutation(n) + rng.random(n)) / n for _ in range(dim)]
+    return np.column_stack(cols) if cols else np.empty((n, 0))
+
+
 S = TypeVar("S", bound=type[Strategy])
 
 
@@ -104,8 +112,7 @@ class LatinHypercube(Strategy):
     description = "Latin hypercube per batch (one sample per stratum and dimension)"
 
     def _propose(self, n: int) -> F64:
-        cols = [(self.rng.permutation(n) + self.rng.random(n)) / n for _ in range(self.dim)]
-        return np.column_stack(cols) if cols else np.empty((n, 0))
+        return latin_hypercube(self.rng, n, self.dim)
 
 
 @register_strategy
@@ -179,8 +186,7 @@ class CrossEntropy(Strategy):
 
     def _propose(self, n: int) -> F64:
         if self.asked == 0:
-            cols = [(self.rng.permutation(n) + self.rng.random(n)) / n for _ in range(self.dim)]
-            return np.column_stack(cols) if cols else np.empty((n, 0))
+            return latin_hypercube(self.rng, n, self.dim)
         X = self.mean + self.std * self.rng.standard_normal((n, self.dim))
         return np.clip(X, 0.0, 1.0)
 
@@ -238,8 +244,7 @@ class DifferentialEvolution(Strategy):
 
     def _propose(self, n: int) -> F64:
         if self.pop is None:
-            cols = [(self.rng.permutation(n) + self.rng.random(n)) / n for _ in range(self.dim)]
-            return np.column_stack(cols) if cols else np.empty((n, 0))
+            return latin_hypercube(self.rng, n, self.dim)
         npop = len(self.pop)
         if npop < 4:  # too small for rand/1: random restarts
             return self.rng.random((n, self.dim))
