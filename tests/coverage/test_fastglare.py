@@ -14,6 +14,7 @@ from sensorgap.coverage import GridSpec, Scene
 from sensorgap.coverage.fastglare import roc_log_miss
 from sensorgap.coverage.fastkernel import roc_constants
 from sensorgap.coverage.logmiss import (
+    GlaredBodies,
     LogMissMaps,
     _glared_values,
     _glared_values_numpy,
@@ -88,9 +89,10 @@ def test_compiled_glare_equals_the_numpy_reference(env_name: str) -> None:
         sun = np.column_stack([np.cos(el) * np.cos(yaw), np.cos(el) * np.sin(yaw), np.sin(el)])
         w = np.where(rng.random(n) < 0.1, 0.0, rng.uniform(0.0, 1.0, n))
         z = np.full(n, car.reference_height_m)
+        bodies = GlaredBodies(x, y, psi, z, sun, w)
         for shape in (np.zeros((1, 2)), outline):
-            got, st = _glared_values(maps, scene, row, x, y, psi, shape, z, sun, w)
-            want, st_want = _glared_values_numpy(maps, scene, row, x, y, psi, shape, z, sun, w)
+            got, st = _glared_values(maps, scene, row, bodies, shape)
+            want, st_want = _glared_values_numpy(maps, scene, row, bodies, shape)
             np.testing.assert_array_equal(st, st_want)
             _same_log_miss(got, want)
             assert set(np.unique(st)) == {0, 1, 2}  # in, out and at the edge of view

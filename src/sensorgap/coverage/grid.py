@@ -74,6 +74,15 @@ class GridSpec:
         """Number of cells."""
         return self.nx * self.ny
 
+    def lookup_origin(self) -> tuple[float, float, float]:
+        """What the compiled lookups take to place a point in the grid: the first cell
+        centre's x and y (m) and cells per metre."""
+        return (
+            self.xmin + 0.5 * self.resolution,
+            self.ymin + 0.5 * self.resolution,
+            1.0 / self.resolution,
+        )
+
     def xs(self) -> F64:
         """Cell-centre x coordinates, m."""
         return np.asarray(

@@ -27,6 +27,7 @@ import functools
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numba
 import numpy as np
@@ -91,51 +92,50 @@ def _glare_at(
 _CENTRE = np.zeros((1, 2))
 
 
+class GlaredBodies(NamedTuple):
+    """M target bodies under a glared camera: centres ``x``, ``y`` (m, vehicle frame),
+    headings ``psi`` (rad), heights ``z`` (m), sun directions ((M, 3) vehicle-frame unit
+    vectors) and the camera's glare weights."""
+
+    x: F64
+    y: F64
+    psi: F64
+    z: F64
+    sun_dirs: F64
+    weights: F64
+
+
 def _glared_values(
-    maps: LogMissMaps,
-    scene: Scene,
-    row: int,
-    x: F64,
-    y: F64,
-    psi: F64,
-    outline: F64,
-    z: F64 | float,
-    sun_dirs: F64,
-    weights: F64,
+    maps: LogMissMaps, scene: Scene, row: int, bodies: GlaredBodies, outline: F64
 ) -> tuple[F64, NDArray[np.int8]]:
     """A glared camera's ln(1 - Pd) from its signal map at the K ``outline`` points ((K, 2),
-    target frame, m) of M bodies (centres ``x``, ``y``, m, vehicle frame; headings ``psi``,
-    rad; heights ``z``, m), each with its sun direction ((M, 3)) and glare weight: the ROC
-    of ``snr_from_signal`` of the interpolated signal with the point's glare factor, where
-    the four cells around the point are in view (state 1); 0 with state 0 (out of view) or
-    2 (the edge of the view, or no signal map): the caller evaluates those exactly. (M, K)
-    values and states. Compiled (``fastglare.glared_pass``) for the built-in camera with a
-    closed-form ROC; ``_glared_values_numpy`` otherwise (and as the reference)."""
+    target frame, m) of M ``bodies``: the ROC of ``snr_from_signal`` of the interpolated
+    signal with the point's glare factor, where the four cells around the point are in
+    view (state 1); 0 with state 0 (out of view) or 2 (the edge of the view, or no signal
+    map): the caller evaluates those exactly. (M, K) values and states. Compiled
+    (``fastglare.glared_pass``) for the built-in camera with a closed-form ROC;
+    ``_glared_values_numpy`` otherwise (and as the reference)."""
     s = scene.sensors[row]
     prepared = scene.prepared(s)
-    n, k = len(x), len(outline)
+    n, k = len(bodies.x), len(outline)
     if row not in maps.signal or prepared.snr_from_signal is None:
         return np.zeros((n, k)), np.full((n, k), 2, dtype=np.int8)
-    zz = np.ascontiguousarray(np.broadcast_to(np.asarray(z, dtype=np.float64), (n,)))
     roc = roc_constants(s.roc, scene.roc_shift_db)
     if prepared.veil_constants is None or roc is None:
-        return _glared_values_numpy(maps, scene, row, x, y, psi, outline, zz, sun_dirs, weights)
-    g = maps.grid
+        return _glared_values_numpy(maps, scene, row, bodies, outline)
     out = np.empty((n, k))
     state = np.empty((n, k), dtype=np.int8)
     glared_pass(
         maps.signal[row],
-        g.xmin + 0.5 * g.resolution,
-        g.ymin + 0.5 * g.resolution,
-        1.0 / g.resolution,
-        np.ascontiguousarray(x, dtype=np.float64),
-        np.ascontiguousarray(y, dtype=np.float64),
-        np.ascontiguousarray(psi, dtype=np.float64),
+        *maps.grid.lookup_origin(),
+        np.ascontiguousarray(bodies.x, dtype=np.float64),
+        np.ascontiguousarray(bodies.y, dtype=np.float64),
+        np.ascontiguousarray(bodies.psi, dtype=np.float64),
         np.ascontiguousarray(outline, dtype=np.float64),
-        zz,
+        np.ascontiguousarray(bodies.z, dtype=np.float64),
         np.array([s.mount.x, s.mount.y, s.mount.z]),
-        np.ascontiguousarray(sun_dirs, dtype=np.float64),
-        np.ascontiguousarray(weights, dtype=np.float64),
+        np.ascontiguousarray(bodies.sun_dirs, dtype=np.float64),
+        np.ascontiguousarray(bodies.weights, dtype=np.float64),
         np.array(prepared.veil_constants, dtype=np.float64),
         roc[0],
         roc[1],
@@ -146,35 +146,33 @@ def _glared_values(
 
 
 def _glared_values_numpy(
-    maps: LogMissMaps,
-    scene: Scene,
-    row: int,
-    x: F64,
-    y: F64,
-    psi: F64,
-    outline: F64,
-    z: F64,
-    sun_dirs: F64,
-    weights: F64,
+    maps: LogMissMaps, scene: Scene, row: int, bodies: GlaredBodies, outline: F64
 ) -> tuple[F64, NDArray[np.int8]]:
     """``_glared_values`` through the sensor's own ``snr_from_signal`` and ROC (numpy)."""
     s = scene.sensors[row]
     prepared = scene.prepared(s)
     assert prepared.snr_from_signal is not None
-    n, k = len(x), len(outline)
-    c, sn = np.cos(psi)[:, None], np.sin(psi)[:, None]
+    n, k = len(bodies.x), len(outline)
+    c, sn = np.cos(bodies.psi)[:, None], np.sin(bodies.psi)[:, None]
     ox, oy = outline[:, 0][None, :], outline[:, 1][None, :]
-    px = (x[:, None] + c * ox - sn * oy).ravel()
-    py = (y[:, None] + sn * ox + c * oy).ravel()
+    px = (bodies.x[:, None] + c * ox - sn * oy).ravel()
+    py = (bodies.y[:, None] + sn * ox + c * oy).ravel()
     sig, state = maps.interpolate_signal(row, px, py)
     new = np.zeros(px.size)
     ok = np.flatnonzero(state == 1)
     if ok.size:
         b = ok // k
-        fac, rng = _glare_at(s, px[ok], py[ok], z[b], sun_dirs[b], weights[b])
+        fac, rng = _glare_at(s, px[ok], py[ok], bodies.z[b], bodies.sun_dirs[b], bodies.weights[b])
         snr = clip_snr_db(prepared.snr_from_signal(sig[ok], fac, rng))
         new[ok] = log_miss_of(detection_probability(snr, s.roc, scene.roc_shift_db))
     return new.reshape(n, k), state.reshape(n, k)
+
+
+def _bodies(x: F64, y: F64, psi: F64, z: F64 | float, sun_dirs: F64, weights: F64) -> GlaredBodies:
+    """``GlaredBodies`` with the height broadcast to every body."""
+    return GlaredBodies(
+        x, y, psi, np.broadcast_to(np.asarray(z, dtype=np.float64), (len(x),)), sun_dirs, weights
+    )
 
 
 def _glared_from_maps(
@@ -189,9 +187,8 @@ def _glared_from_maps(
 ) -> tuple[F64, NDArray[np.int8]]:
     """A glared camera's ln(1 - Pd) at vehicle-frame points (m) from its signal map (the
     one glare correction of every lookup): ``_glared_values`` at the points."""
-    vals, state = _glared_values(
-        maps, scene, row, x, y, np.zeros(len(x)), _CENTRE, z, sun_dirs, weights
-    )
+    bodies = _bodies(x, y, np.zeros(len(x)), z, sun_dirs, weights)
+    vals, state = _glared_values(maps, scene, row, bodies, _CENTRE)
     return vals[:, 0], state[:, 0]
 
 
@@ -272,41 +269,50 @@ def _bilinear(
     inv_res: float,
     xs: F64,
     ys: F64,
+    finite: bool,
     out: F64,
-    inside: NDArray[np.bool_],
+    flags: NDArray[np.int8],
 ) -> None:  # pragma: no cover - compiled
+    """Bilinear interpolation of ``img`` at each point (m; ``x0``, ``y0``: first cell
+    centre, m; ``inv_res``: cells per m). ``finite`` (a map NaN out of view):
+    ``fastlookup.bilinear_finite_at``, ``flags`` 1 = all four corner cells in view
+    (interpolated), 0 = none (out of view), 2 = some (the edge of the field of view) or
+    outside the map; else ``flags`` 1 inside the map, 0 outside (value 0)."""
     ny, nx = img.shape
     for k in range(xs.size):
+        if finite:
+            out[k], flags[k] = bilinear_finite_at(img, x0, y0, inv_res, xs[k], ys[k])
+            continue
         fx = (xs[k] - x0) * inv_res
         fy = (ys[k] - y0) * inv_res
         if not (fx >= 0.0 and fy >= 0.0 and fx <= nx - 1 and fy <= ny - 1):
-            inside[k] = False
+            flags[k] = 0
             out[k] = 0.0
             continue
-        inside[k] = True
+        flags[k] = 1
         i = min(int(fx), nx - 2)
         j = min(int(fy), ny - 2)
-        ax = fx - i
-        ay = fy - j
-        out[k] = bilerp(ax, ay, img[j, i], img[j, i + 1], img[j + 1, i], img[j + 1, i + 1])
+        out[k] = bilerp(fx - i, fy - j, img[j, i], img[j, i + 1], img[j + 1, i], img[j + 1, i + 1])
 
 
-@numba.njit(cache=True, nogil=True)
-def _bilinear_finite(
-    img: F32,
-    x0: float,
-    y0: float,
-    inv_res: float,
-    xs: F64,
-    ys: F64,
-    out: F64,
-    state: NDArray[np.int8],
-) -> None:  # pragma: no cover
-    """``fastlookup.bilinear_finite_at`` at each point: bilinear interpolation of a map
-    that is NaN out of view. ``state``: 1 = all four corner cells in view (interpolated),
-    0 = none (out of view), 2 = some (the edge of the field of view) or outside the map."""
-    for k in range(xs.size):
-        out[k], state[k] = bilinear_finite_at(img, x0, y0, inv_res, xs[k], ys[k])
+def interpolate_map(
+    grid: GridSpec, img: NDArray[np.floating], x: F64, y: F64, finite: bool = False
+) -> tuple[F64, NDArray[np.int8]]:
+    """Bilinear value of a (ny, nx) map on ``grid`` at vehicle-frame points (m) and a flag
+    per point (``_bilinear``: inside the map 1, outside 0 with value 0; ``finite``, a map
+    NaN out of view: 1 interpolated, 0 out of view, 2 edge or outside)."""
+    out = np.empty(len(x))
+    flags = np.empty(len(x), dtype=np.int8)
+    _bilinear(
+        img,
+        *grid.lookup_origin(),
+        np.ascontiguousarray(x, dtype=np.float64),
+        np.ascontiguousarray(y, dtype=np.float64),
+        finite,
+        out,
+        flags,
+    )
+    return out, flags
 
 
 def signal_layer(scene: Scene, sensor: Sensor, grid: GridSpec) -> F32 | None:
@@ -497,40 +503,17 @@ class LogMissMaps:
 
     def interpolate_signal(self, sensor: int, x: F64, y: F64) -> tuple[F64, NDArray[np.int8]]:
         """Bilinear received signal (dB) of a glare-prone sensor and the state of each
-        point (see ``_bilinear_finite``: 1 interpolated, 0 out of view, 2 edge)."""
-        g = self.grid
-        out = np.empty(len(x))
-        state = np.empty(len(x), dtype=np.int8)
-        _bilinear_finite(
-            self.signal[sensor],
-            g.xmin + 0.5 * g.resolution,
-            g.ymin + 0.5 * g.resolution,
-            1.0 / g.resolution,
-            np.ascontiguousarray(x, dtype=np.float64),
-            np.ascontiguousarray(y, dtype=np.float64),
-            out,
-            state,
-        )
-        return out, state
+        point (see ``_bilinear``: 1 interpolated, 0 out of view, 2 edge)."""
+        return self._at(self.signal[sensor], x, y, True)
 
     def interpolate(self, layer: int | None, x: F64, y: F64) -> tuple[F64, NDArray[np.bool_]]:
         """Bilinear value of one layer (``None``: the total) at vehicle-frame points (m),
         and whether each point lies inside the map (outside: value 0)."""
-        g = self.grid
-        img = self.total if layer is None else self.layers[layer]
-        out = np.empty(len(x))
-        inside = np.empty(len(x), dtype=bool)
-        _bilinear(
-            img,
-            g.xmin + 0.5 * g.resolution,
-            g.ymin + 0.5 * g.resolution,
-            1.0 / g.resolution,
-            np.ascontiguousarray(x, dtype=np.float64),
-            np.ascontiguousarray(y, dtype=np.float64),
-            out,
-            inside,
-        )
-        return out, inside
+        out, inside = self._at(self.total if layer is None else self.layers[layer], x, y, False)
+        return out, inside == 1
+
+    def _at(self, img: F32, x: F64, y: F64, finite: bool) -> tuple[F64, NDArray[np.int8]]:
+        return interpolate_map(self.grid, img, x, y, finite)
 
 
 def lookup_log_miss(
@@ -709,9 +692,7 @@ def lookup_log_miss_tracks(
     signal, has_signal = maps.signal_stack(cones.sensors)
     lookup_pass(
         how.totals,
-        g.xmin + 0.5 * g.resolution,
-        g.ymin + 0.5 * g.resolution,
-        1.0 / g.resolution,
+        *g.lookup_origin(),
         x,
         y,
         heading,
@@ -847,9 +828,8 @@ def _glared_outline(
     assert how.outline is not None
     s = scene.sensors[row]
     psi = how.psi.reshape(-1)[gi]
-    vals, state = _glared_values(
-        maps, scene, row, xf[gi], yf[gi], psi, how.outline, z0, dirs_at(gi), wg
-    )
+    bodies = _bodies(xf[gi], yf[gi], psi, z0, dirs_at(gi), wg)
+    vals, state = _glared_values(maps, scene, row, bodies, how.outline)
     new, k = vals.reshape(-1), len(how.outline)
     edge = np.flatnonzero(state.reshape(-1) == 2)
     if edge.size:
@@ -879,9 +859,7 @@ def _outline_layer(
     out = np.empty(gi.size)
     outline_order_pass(
         maps.layers[row],
-        g.xmin + 0.5 * g.resolution,
-        g.ymin + 0.5 * g.resolution,
-        1.0 / g.resolution,
+        *g.lookup_origin(),
         ox,
         oy,
         0 if how.order is None else how.order.get(row, 0),

@@ -25,6 +25,7 @@ from sensorgap.analysis.nearfield import blind_spots, grid_blind_spots
 from sensorgap.atomic import atomic_write_bytes, atomic_write_text
 from sensorgap.config import load_environment, load_environments, load_target
 from sensorgap.coverage import GridSpec, Scene, evaluate_grid, evaluate_points
+from sensorgap.coverage.logmiss import interpolate_map
 from sensorgap.coverage.plot import save_figure
 from sensorgap.filesio import write_manifest
 from sensorgap.models import Conditions, load_system
@@ -40,19 +41,6 @@ def _timed(fn: Callable[[], Any]) -> tuple[float, Any]:
     t0 = time.perf_counter()
     out = fn()
     return time.perf_counter() - t0, out
-
-
-def _bilinear(grid: GridSpec, img: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    fx = np.clip((x - grid.xmin) / grid.resolution - 0.5, 0, grid.nx - 1.000001)
-    fy = np.clip((y - grid.ymin) / grid.resolution - 0.5, 0, grid.ny - 1.000001)
-    i, j = fx.astype(int), fy.astype(int)
-    ax, ay = fx - i, fy - j
-    i1, j1 = np.minimum(i + 1, grid.nx - 1), np.minimum(j + 1, grid.ny - 1)
-    return np.asarray(
-        (1 - ay) * ((1 - ax) * img[j, i] + ax * img[j, i1])
-        + ay * ((1 - ax) * img[j1, i] + ax * img[j1, i1]),
-        dtype=np.float64,
-    )
 
 
 def resolution_rows(system_name: str, resolutions: tuple[float, ...]) -> list[dict[str, Any]]:
@@ -78,7 +66,8 @@ def resolution_rows(system_name: str, resolutions: tuple[float, ...]) -> list[di
         t0 = time.perf_counter()
         gc = evaluate_grid(scene, grid, workers=2)
         t_grid = time.perf_counter() - t0
-        look = _bilinear(grid, gc.fused, pts[:, 0], pts[:, 1])
+        look, inside = interpolate_map(grid, gc.fused, pts[:, 0], pts[:, 1])
+        assert bool(np.all(inside == 1))
         err = np.abs(look - cov.fused)
         rows.append(
             {
