@@ -386,7 +386,12 @@ class RunFolder:
     def system(self) -> System:
         """The vehicle: the recorded copy, else the vehicle as given."""
         p = self.input_path("vehicle")
-        return self._cached("system", lambda: load_system(p if p is not None else self.vehicle_ref))
+        # a recorded copy's reaction model is recorded apart (its path may be relative)
+        check = self._entry("reaction") is None
+        return self._cached(
+            "system",
+            lambda: load_system(p if p is not None else self.vehicle_ref, check_reaction=check),
+        )
 
     def environments(self) -> dict[str, EnvironmentConfig]:
         """Every environment of the run's environments file (recorded copy, else the
