@@ -85,7 +85,13 @@ class SearchSettings:
             raise InputError(
                 "seeds", "", f"must be an integer within 1..{MAX_SEEDS}, got {self.seeds}"
             )
+        if self.executor not in ("local", "dask"):
+            raise InputError("executor", "", f"must be local or dask, got {self.executor!r}")
         if self.scheduler is not None:
+            if self.executor != "dask":  # it would be ignored: the batches run here
+                raise InputError(
+                    "scheduler", "", "a scheduler address needs the Dask executor (--executor dask)"
+                )
             check_scheduler_address(self.scheduler)
 
 
