@@ -48,7 +48,7 @@ from sensorgap.config.reaction import (
     reactions_path,
 )
 from sensorgap.errors import InputError
-from sensorgap.filesio import write_json
+from sensorgap.filesio import loads_json, write_json
 from sensorgap.models import System, load_system
 from sensorgap.provenance import sha256_of, versions
 from sensorgap.scenarios import load_family
@@ -204,7 +204,7 @@ def copy_record(src: Path, dst: Path) -> None:
 def read_json_file(path: Path) -> Any:
     """A JSON file of a run folder (``InputError`` naming it when unreadable)."""
     try:
-        return json.loads(Path(path).read_text(encoding="utf-8"))
+        return loads_json(Path(path).read_text(encoding="utf-8"))
     except (OSError, ValueError) as exc:
         raise InputError(path, "", f"unreadable JSON: {exc}") from None
     except RecursionError:
@@ -243,7 +243,7 @@ def _read_ranking(folder: Path) -> tuple[list[dict[str, Any]], dict[str, Any], d
             "`sensorgap search --out DIR` first",
         )
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
+        data = loads_json(path.read_text(encoding="utf-8"))
     except (ValueError, RecursionError) as exc:
         raise InputError(path, "", f"malformed ranking file: not JSON ({exc})") from None
     if not isinstance(data, dict):
