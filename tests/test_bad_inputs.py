@@ -234,6 +234,11 @@ def _setup(case: dict[str, Any], argv: list[str], folder: Path, out: Path, run: 
             first.write_text(first.read_text() + "<!-- edited -->\n")
         elif step == "unlisted_file":
             (run / "extra.txt").write_text("not listed")
+        elif step == "many_ranking_rows":  # row 0 of {run}/ranking.json, 301 times
+            data = json.loads((run / "ranking.json").read_text())
+            row = data["ranking"][0]
+            data["ranking"] = [{**row, "rank": i + 1} for i in range(301)]
+            (run / "ranking.json").write_text(json.dumps(data))
         elif step == "manifest_symlink":
             (folder / "manifest.json").symlink_to("/etc/hostname")
         else:
