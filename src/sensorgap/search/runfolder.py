@@ -446,11 +446,14 @@ class RunFolder:
         return self._cached("friction", lambda: load_friction(p))
 
     def family(self, name_or_path: str) -> Family:
-        """A family of the run: the recorded copy on its recorded road; a run without a
-        record of it loads it by name (shipped preset) or path."""
+        """A family of the run: the recorded copy on its recorded road; a name the run
+        did not record is ``InputError`` (never the shipped preset of that name); a path,
+        or any name in a run without a record, is loaded as given."""
         e = self._entry("families", name_or_path)
         recorded = self._entry("families") if self.recorded else None
-        if e is None and recorded is not None:  # never a shipped preset of the same name
+        is_path = name_or_path.endswith(".toml") or "/" in name_or_path
+        if e is None and recorded is not None and not is_path:
+            # a name the run did not search: never the shipped preset of that name
             raise InputError(
                 self.folder / RUN_JSON,
                 "inputs.families",
