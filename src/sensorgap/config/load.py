@@ -158,9 +158,10 @@ def load_vehicle(
         # file's road); an absolute one stays as it is
         cfg = cfg.model_copy(update={"reaction": os.path.abspath(path.parent / reaction)})
         if check_reaction:  # checked for every command, as a preset name is
-            from sensorgap.config.reaction import load_reaction
+            from sensorgap.config.reaction import friction_source, load_friction, load_reaction
 
             load_reaction(cfg.reaction)  # a missing file: "<its path>: file not found"
+            load_friction(friction_source(cfg.reaction))  # its [friction] table, if any
     else:  # a preset name: checked for every command, not only those that use it
         from sensorgap.config.reaction import reaction_presets
 
