@@ -129,6 +129,10 @@ def parse_model(model: type[M], data: Any, source: Path | str, prefix: str = "")
 def resolve_vehicle_path(name_or_path: str | Path) -> Path:
     """A preset name (``system_a``) or a path to a vehicle TOML file."""
     text = str(name_or_path)
+    if not text.strip():  # Path("") would be the working directory
+        raise InputError(
+            "vehicle", "", f"must name a preset ({', '.join(vehicle_presets())}) or a .toml file"
+        )
     candidate = Path(text)
     if text.endswith(".toml") or "/" in text or candidate.exists():
         return candidate

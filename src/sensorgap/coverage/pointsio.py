@@ -27,8 +27,10 @@ MAX_FIELD_CHARS = 1_000
 def read_points_csv(path: Path, default_z: float) -> NDArray[np.float64]:
     """(N, 3) points from a CSV with a header naming ``x`` and ``y`` (and optionally ``z``,
     else ``default_z`` m). Other columns are ignored. Any bad cell -> ``InputError``."""
-    if not path.is_file():
+    if not path.exists():
         raise InputError(path, "", "file not found")
+    if not path.is_file():  # a folder, a device (/dev/zero) or a pipe: never read
+        raise InputError(path, "", "not a regular file (a folder, device or pipe)")
     if path.stat().st_size > MAX_BYTES:
         raise InputError(path, "", f"larger than {MAX_BYTES} bytes")
     try:
