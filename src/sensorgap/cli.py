@@ -512,8 +512,8 @@ def cmd_compare(args: argparse.Namespace) -> int:
     from sensorgap.search.compare import check_rankings
 
     # both must be search runs with readable rankings: refused before anything is written
-    _out_outside(Path(args.out), Path(args.run_a), Path(args.run_b))
     check_rankings(Path(args.run_a), Path(args.run_b))
+    _out_outside(Path(args.out), Path(args.run_a), Path(args.run_b))
     with removed_on_error(args.out):
         html_path, _ = write_compare_report(Path(args.run_a), Path(args.run_b), Path(args.out))
         write_manifest(args.out)
@@ -622,9 +622,11 @@ def cmd_report(args: argparse.Namespace) -> int:
     """The audit report of a run folder, or two runs side by side."""
     if args.compare:
         from sensorgap.report.compare import write_compare_report
+        from sensorgap.search.compare import check_rankings
 
         a, b = (Path(p) for p in args.compare)
         out = Path(args.out) if args.out else a.parent / f"compare_{a.name}_vs_{b.name}"
+        check_rankings(a, b)  # both search runs: refused before anything is written
         _out_outside(out, a, b)
         html_path, md_path = write_compare_report(a, b, out)
         write_manifest(out)
