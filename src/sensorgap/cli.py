@@ -396,9 +396,11 @@ def cmd_paper(args: argparse.Namespace) -> int:
 
 def cmd_search(args: argparse.Namespace) -> int:
     """Search for critical scenarios into --out (SQLite store, ranking.csv/json)."""
-    from sensorgap.search.run import run_search
+    from sensorgap.search.run import SEARCH_WRITES, run_search
 
     env_file = Path(args.environments_file) if args.environments_file else None
+    if args.resume:  # the new manifest must not certify a file changed by hand
+        refuse_if_changed(args.out, SEARCH_WRITES)
     outcome = run_search(
         args.vehicle,
         _families(args.families),
@@ -418,7 +420,7 @@ def cmd_search(args: argparse.Namespace) -> int:
         scheduler=args.scheduler,
         seeds=args.seeds,
     )
-    write_manifest(args.out)
+    write_manifest(args.out, SEARCH_WRITES if args.resume else None)
     crit = sum(1 for r in outcome.ranking if r["class"] == "sensor-critical")
     d = outcome.summary["lookup_vs_exact"]
     if args.pd == "lookup" and d.get("reevaluated"):
