@@ -182,6 +182,16 @@ def _setup(case: dict[str, Any], argv: list[str], folder: Path, out: Path, run: 
             _sql(db, "DROP TABLE candidates; CREATE TABLE candidates (x TEXT);")
         elif step == "store_bad_json":
             _sql(db, "UPDATE candidates SET params = '{not json' WHERE idx = 0;")
+        elif step == "store_param_changed":  # a parameter of row 0 edited, its id kept
+            _sql(db, "UPDATE candidates SET params = json_set(params, '$.zz_m', 1) WHERE idx = 0;")
+        elif step == "store_not_a_probability":
+            _sql(
+                db,
+                "UPDATE candidates SET metrics = replace(metrics, "
+                "'\"mean_pd\": ', '\"mean_pd\": 7') WHERE idx = 0;",
+            )
+        elif step == "store_feasible_text":
+            _sql(db, "UPDATE candidates SET feasible = 'yes' WHERE idx = 0;")
         elif step == "store_empty_metrics":
             _sql(db, "UPDATE candidates SET metrics = '{}' WHERE idx = 0;")
         elif step == "store_deep_json":
