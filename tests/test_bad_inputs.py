@@ -182,6 +182,16 @@ def _setup(case: dict[str, Any], argv: list[str], folder: Path, out: Path, run: 
             _sql(db, "DROP TABLE candidates; CREATE TABLE candidates (x TEXT);")
         elif step == "store_bad_json":
             _sql(db, "UPDATE candidates SET params = '{not json' WHERE idx = 0;")
+        elif step == "store_param_changed":  # a parameter of row 0 edited, its id kept
+            _sql(db, "UPDATE candidates SET params = json_set(params, '$.zz_m', 1) WHERE idx = 0;")
+        elif step == "store_not_a_probability":
+            _sql(
+                db,
+                "UPDATE candidates SET metrics = replace(metrics, "
+                "'\"mean_pd\": ', '\"mean_pd\": 7') WHERE idx = 0;",
+            )
+        elif step == "store_feasible_text":
+            _sql(db, "UPDATE candidates SET feasible = 'yes' WHERE idx = 0;")
         elif step == "store_empty_metrics":
             _sql(db, "UPDATE candidates SET metrics = '{}' WHERE idx = 0;")
         elif step == "store_deep_json":
@@ -234,6 +244,11 @@ def _setup(case: dict[str, Any], argv: list[str], folder: Path, out: Path, run: 
             first.write_text(first.read_text() + "<!-- edited -->\n")
         elif step == "unlisted_file":
             (run / "extra.txt").write_text("not listed")
+        elif step == "many_ranking_rows":  # row 0 of {run}/ranking.json, 301 times
+            data = json.loads((run / "ranking.json").read_text())
+            row = data["ranking"][0]
+            data["ranking"] = [{**row, "rank": i + 1} for i in range(301)]
+            (run / "ranking.json").write_text(json.dumps(data))
         elif step == "manifest_symlink":
             (folder / "manifest.json").symlink_to("/etc/hostname")
         else:

@@ -331,6 +331,42 @@ def test_target_reference_height_must_be_on_the_body() -> None:
         TargetConfig.model_validate({**base, "reference_height_m": 1.6})
 
 
+def test_absolute_reaction_path_is_taken_as_it_is(tmp_path: Path) -> None:
+    from sensorgap.config import load_vehicle, templates_dir
+    from sensorgap.config.reaction import reactions_path
+
+    text = (templates_dir() / "vehicles" / "system_a.toml").read_text()
+    absolute = str(reactions_path().resolve())
+    (tmp_path / "v.toml").write_text(
+        text.replace('reaction = "fusion_any"', f'reaction = "{absolute}"')
+    )
+    cfg, _ = load_vehicle(tmp_path / "v.toml")
+    assert cfg.reaction == absolute
+
+
+def test_unit_bounds_by_suffix() -> None:
+    from sensorgap.config.parameters import bound_error, bound_of
+
+    # the first suffix that matches wins: a speed is not a speed difference
+    assert bound_error("target_speed_m_s", -1.0)
+    assert bound_error("speed_delta_m_s", -50.0) is None
+    assert bound_error("speed_delta_m_s", 101.0)
+    assert bound_error("conflict_offset_s", -1.5) is None
+    assert bound_error("lc_start_s", 61.0)
+    assert bound_error("decel_m_s2", -1.0)  # its own bound: braking is >= 0
+    assert bound_error("accel_m_s2", -1.0) is None  # by unit: +-10 m/s2
+    assert bound_error("merge_duration_s", 0.0) and bound_error("parked_gap_m", 0.0)
+    assert bound_of("shape") is None
+
+
+def test_loads_json_refuses_a_key_named_twice() -> None:
+    from sensorgap.filesio import loads_json
+
+    assert loads_json('{"a": {"b": 1}, "c": [{"b": 2}]}') == {"a": {"b": 1}, "c": [{"b": 2}]}
+    with pytest.raises(ValueError, match="key 'b' appears twice"):
+        loads_json('{"a": {"b": 1, "b": 2}}')
+
+
 def test_lane_change_duration_bounds() -> None:
     from sensorgap.config.parameters import PARAMETER_BOUNDS, bound_error
 

@@ -43,6 +43,10 @@ EXIT_INTERNAL = 1
 _GLUED_OPTIONS = {
     "--extent",
     "--height",
+    "--heading",
+    "--ego-s",
+    "--speed",
+    "--sun",
     "--ego-lane",
     "--target-lane",
     "--lanes",
@@ -132,6 +136,14 @@ def cmd_probe(args: argparse.Namespace) -> int:
     return 0
 
 
+def _check_heading(heading_deg: float) -> None:
+    """``--heading``: a finite angle within +-360 deg (as an ``--occluder`` heading)."""
+    if not (math.isfinite(heading_deg) and abs(heading_deg) <= 360.0):
+        raise InputError(
+            "--heading", "", f"must be an angle within +-360 degrees, got {heading_deg!r}"
+        )
+
+
 def _probe_bodies(scene: Scene, pts: Any, heading_deg: float) -> bytes:
     """``probe --heading``: target bodies centred at the points' x, y (z is ignored: a body
     stands on the ground) at a heading relative to the ego (deg): per sensor the visible
@@ -141,8 +153,7 @@ def _probe_bodies(scene: Scene, pts: Any, heading_deg: float) -> bytes:
     from sensorgap.coverage.body import body_per_sensor_pd
     from sensorgap.filesio import csv_bytes
 
-    if not math.isfinite(heading_deg):
-        raise InputError("--heading", "", f"must be a finite angle in degrees, got {heading_deg!r}")
+    _check_heading(heading_deg)
     x, y = pts[:, 0], pts[:, 1]
     # the scene carries its sun (its SNRs include the glare of that sun)
     pd, frac = body_per_sensor_pd(scene, x, y, np.full(len(x), math.radians(heading_deg)))
@@ -178,10 +189,8 @@ def cmd_coverage(args: argparse.Namespace) -> int:
         raise InputError(
             "--resolution", "", f"must be at least {MIN_RESOLUTION_M:g} m, got {res!r}"
         )
-    if args.heading is not None and not math.isfinite(args.heading):
-        raise InputError(
-            "--heading", "", f"must be a finite angle in degrees, got {args.heading!r}"
-        )
+    if args.heading is not None:
+        _check_heading(args.heading)
     # whole cells only: the grid never reaches beyond the extent (clipped, and said so)
     nx, ny = math.floor((xmax - xmin) / res + 1e-9), math.floor((ymax - ymin) / res + 1e-9)
     if nx < 1 or ny < 1:
@@ -387,9 +396,11 @@ def cmd_paper(args: argparse.Namespace) -> int:
 
 def cmd_search(args: argparse.Namespace) -> int:
     """Search for critical scenarios into --out (SQLite store, ranking.csv/json)."""
-    from sensorgap.search.run import run_search
+    from sensorgap.search.run import SEARCH_WRITES, run_search
 
     env_file = Path(args.environments_file) if args.environments_file else None
+    if args.resume:  # the new manifest must not certify a file changed by hand
+        refuse_if_changed(args.out, SEARCH_WRITES)
     outcome = run_search(
         args.vehicle,
         _families(args.families),
@@ -409,7 +420,7 @@ def cmd_search(args: argparse.Namespace) -> int:
         scheduler=args.scheduler,
         seeds=args.seeds,
     )
-    write_manifest(args.out)
+    write_manifest(args.out, SEARCH_WRITES if args.resume else None)
     crit = sum(1 for r in outcome.ranking if r["class"] == "sensor-critical")
     d = outcome.summary["lookup_vs_exact"]
     if args.pd == "lookup" and d.get("reevaluated"):
@@ -481,6 +492,20 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _out_outside(out: Path, *runs: Path) -> None:
+    """``--out`` of a comparison must not be a run folder or lie inside one (it would add
+    files to a certified folder, which ``verify`` then reports)."""
+    where = out.resolve()
+    for run in runs:
+        r = run.resolve()
+        if where == r or r in where.parents:
+            raise InputError(
+                "--out",
+                "",
+                f"must be outside the run folders compared; {out} is inside {run}",
+            )
+
+
 def cmd_compare(args: argparse.Namespace) -> int:
     """Two vehicles side by side (A vs B), complete: what either run lacks (near field,
     coverage maps, far field) is computed from its recorded inputs; the coverage difference
@@ -490,6 +515,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
     # both must be search runs with readable rankings: refused before anything is written
     check_rankings(Path(args.run_a), Path(args.run_b))
+    _out_outside(Path(args.out), Path(args.run_a), Path(args.run_b))
     with removed_on_error(args.out):
         html_path, _ = write_compare_report(Path(args.run_a), Path(args.run_b), Path(args.out))
         write_manifest(args.out)
@@ -598,14 +624,21 @@ def cmd_report(args: argparse.Namespace) -> int:
     """The audit report of a run folder, or two runs side by side."""
     if args.compare:
         from sensorgap.report.compare import write_compare_report
+        from sensorgap.search.compare import check_rankings
 
         a, b = (Path(p) for p in args.compare)
         out = Path(args.out) if args.out else a.parent / f"compare_{a.name}_vs_{b.name}"
+        check_rankings(a, b)  # both search runs: refused before anything is written
+        _out_outside(out, a, b)
         html_path, md_path = write_compare_report(a, b, out)
         write_manifest(out)
     else:
         if not args.run:
             raise InputError("--run", "", "give --run DIR or --compare RUN_A RUN_B")
+        if args.out:  # it would be ignored: the report of a run goes into the run
+            raise InputError(
+                "--out", "", "only with --compare (the report of --run is written into the run)"
+            )
         from sensorgap.report import write_report
         from sensorgap.report.build import REPORT_DIR
 

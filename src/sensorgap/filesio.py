@@ -96,6 +96,21 @@ _JOURNAL_SUFFIXES = ("-journal", "-wal", "-shm")
 _SHA256_HEX = frozenset("0123456789abcdef")
 
 
+def _unique_keys(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for key, value in pairs:
+        if key in out:  # which of the two would be read is not the writer's choice
+            raise ValueError(f"key {key[:64]!r} appears twice in one object")
+        out[key] = value
+    return out
+
+
+def loads_json(text: str | bytes) -> Any:
+    """Parse JSON as sensorgap's readers of run folders do: an object naming a key twice
+    is ``ValueError`` (Python's ``json`` would keep the last one silently)."""
+    return json.loads(text, object_pairs_hook=_unique_keys)
+
+
 #: The names ``sensorgap.atomic`` gives its temporary files: ``.NAME.<8 random>.tmp.EXT``
 #: (``tempfile.mkstemp``'s random part: 8 of ``a-z0-9_``).
 _OWN_TEMPORARY = re.compile(r"\..+\.[a-z0-9_]{8}\.tmp(\.[^/]*)?")
@@ -210,7 +225,7 @@ def read_manifest(folder: str | Path) -> dict[str, dict[str, Any]]:
     try:
         if path.stat().st_size > 100_000_000:
             raise InputError(path, "", "larger than 100 MB; not a sensorgap manifest")
-        data = json.loads(path.read_bytes().decode("utf-8"))
+        data = loads_json(path.read_bytes().decode("utf-8"))
     except (UnicodeDecodeError, ValueError) as exc:
         raise InputError(path, "", f"malformed manifest: not JSON ({exc})") from None
     except RecursionError:

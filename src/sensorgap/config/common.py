@@ -41,6 +41,27 @@ def _name_chars(v: str) -> str:
 #: A user-given name: 1-64 characters from ``NAME_CHARS``.
 Name = Annotated[str, Field(min_length=1, max_length=MAX_NAME_CHARS), AfterValidator(_name_chars)]
 
+#: Characters a preset name (environment, target class) may not hold: ``@`` starts the
+#: sun suffix of an environment label (``clear@sun66/4``), ``,`` separates the names of
+#: ``--environments`` / ``--families``, ``/`` and ``\`` would make a folder in the names of
+#: coverage maps (``car_<environment>.npz``).
+RESERVED_PRESET_CHARS = "@,/\\"
+
+
+def _preset_chars(v: str) -> str:
+    bad = sorted({c for c in v if c in RESERVED_PRESET_CHARS})
+    if bad:
+        raise ValueError(
+            f"a preset name may not hold {' '.join(repr(c) for c in bad)} "
+            "(@ starts a sun suffix, ',' separates names, '/' and '\\' make folders)"
+        )
+    return v
+
+
+#: The name of a preset (an environment, a target class): a ``Name`` without the
+#: ``RESERVED_PRESET_CHARS``.
+PresetName = Annotated[Name, AfterValidator(_preset_chars)]
+
 
 class Strict(BaseModel):
     """Base for config models: unknown keys are errors, numbers must be finite, and no type

@@ -7,7 +7,7 @@ from typing import Literal
 
 from pydantic import Field
 
-from sensorgap.config.common import Name, Strict
+from sensorgap.config.common import PresetName, Strict
 
 
 class SunConfig(Strict):
@@ -47,7 +47,7 @@ class SunConfig(Strict):
 class EnvironmentConfig(Strict):
     """One environment preset: weather, light, sun."""
 
-    name: Name
+    name: PresetName
     description: str = ""
     rain_mm_h: float = Field(default=0.0, ge=0.0, le=500.0, allow_inf_nan=False)
     snow_mm_h: float = Field(default=0.0, ge=0.0, le=100.0, allow_inf_nan=False)

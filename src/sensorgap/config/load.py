@@ -44,8 +44,10 @@ def toml_depth(data: Any) -> int:
 
 def read_toml(path: Path) -> dict[str, Any]:
     """Parse a TOML file; missing, unreadable, oversized or malformed -> ``InputError``."""
-    if not path.is_file():
+    if not path.exists():
         raise InputError(path, "", "file not found")
+    if not path.is_file():  # a folder, a device (/dev/zero) or a pipe: never read
+        raise InputError(path, "", "not a regular file (a folder, device or pipe)")
     try:
         size = path.stat().st_size
         if size > MAX_CONFIG_BYTES:
@@ -55,6 +57,10 @@ def read_toml(path: Path) -> dict[str, Any]:
         raise InputError(path, "", f"not UTF-8 text ({exc.reason})") from None
     except OSError as exc:
         raise InputError(path, "", f"cannot read: {exc.strerror}") from None
+    if text.startswith("\ufeff"):
+        raise InputError(
+            path, "", "starts with a byte-order mark (U+FEFF); save it as UTF-8 without BOM"
+        )
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -135,6 +141,10 @@ def parse_model(model: type[M], data: Any, source: Path | str, prefix: str = "")
 def resolve_vehicle_path(name_or_path: str | Path) -> Path:
     """A preset name (``system_a``) or a path to a vehicle TOML file."""
     text = str(name_or_path)
+    if not text.strip():  # Path("") would be the working directory
+        raise InputError(
+            "vehicle", "", f"must name a preset ({', '.join(vehicle_presets())}) or a .toml file"
+        )
     candidate = Path(text)
     if text.endswith(".toml") or "/" in text or candidate.exists():
         return candidate
@@ -149,14 +159,25 @@ def resolve_vehicle_path(name_or_path: str | Path) -> Path:
     return preset
 
 
-def load_vehicle(name_or_path: str | Path) -> tuple[VehicleConfig, Path]:
-    """Load and validate a vehicle file; returns the config and the file it came from."""
+def load_vehicle(
+    name_or_path: str | Path, check_reaction: bool = True
+) -> tuple[VehicleConfig, Path]:
+    """Load and validate a vehicle file; returns the config and the file it came from.
+
+    ``check_reaction``: also load the reaction model a path in ``reaction`` names (False
+    for a run folder's recorded vehicle copy, whose reaction model is recorded apart)."""
     path = resolve_vehicle_path(name_or_path)
     cfg = parse_model(VehicleConfig, read_toml(path), path)
     reaction = cfg.reaction
-    if (reaction.endswith(".toml") or "/" in reaction) and not Path(reaction).is_absolute():
-        # a path: relative to the vehicle file's folder (as a family file's road)
+    if reaction.endswith(".toml") or "/" in reaction:
+        # a path: a relative one is relative to the vehicle file's folder (as a family
+        # file's road); an absolute one stays as it is
         cfg = cfg.model_copy(update={"reaction": os.path.abspath(path.parent / reaction)})
+        if check_reaction:  # checked for every command, as a preset name is
+            from sensorgap.config.reaction import friction_source, load_friction, load_reaction
+
+            load_reaction(cfg.reaction)  # a missing file: "<its path>: file not found"
+            load_friction(friction_source(cfg.reaction))  # its [friction] table, if any
     else:  # a preset name: checked for every command, not only those that use it
         from sensorgap.config.reaction import reaction_presets
 

@@ -36,11 +36,39 @@ PARAMETER_BOUNDS: dict[str, Bound] = {
         "s",
         "lane changes take 1-10 s: Olsen et al. 2002, 6.28 +- 2.0 s; Toledo & Zohar 2007",
     ),
+    # The overtaking car's merge into the ego lane is a lane change: the same bound (a
+    # zero merge duration would also divide by zero in the trajectory).
+    "merge_duration_s": Bound(
+        1.0,
+        10.0,
+        "s",
+        "a merge is a lane change, 1-10 s: Olsen et al. 2002, 6.28 +- 2.0 s; Toledo & Zohar 2007",
+    ),
+    # Braking of a road user: at most the peak tyre-road friction, mu <= 0.9 on dry asphalt
+    # (Wong, Theory of Ground Vehicles; templates/reactions.toml [friction]), 0.9 g = 8.8
+    # m/s2; 10 m/s2 leaves room for sports tyres.
+    "decel_m_s2": Bound(
+        0.0,
+        10.0,
+        "m/s2",
+        "braking at up to about 1 g: peak tyre-road friction mu <= 0.9 on dry asphalt (Wong)",
+    ),
+    # Gap between the two parked cars the pedestrian steps out between (bumper to bumper):
+    # wide enough for a walker (0.5 m, targets.toml), and short of a gap that no longer
+    # hides anyone (estimate: 10 m, two car lengths).
+    "parked_gap_m": Bound(
+        0.5,
+        10.0,
+        "m",
+        "estimate: a walker (0.5 m) passes; beyond two car lengths the cars hide no one",
+    ),
 }
 
 
 #: Bounds by unit suffix, for parameters without their own entry (any family's, plugins'
-#: included): a speed of a road user, m/s, and a distance or position along the road, m.
+#: included): a speed of a road user, m/s, a distance or position along the road, m, an
+#: acceleration, m/s2, a speed difference, m/s, and a time, s (the first suffix that
+#: matches wins).
 SUFFIX_BOUNDS: dict[str, Bound] = {
     "_speed_m_s": Bound(
         0.0,
@@ -53,6 +81,25 @@ SUFFIX_BOUNDS: dict[str, Bound] = {
         10_000.0,
         "m",
         "a scene within 10 km of the ego: the largest sensor range, docs/limits.md",
+    ),
+    "_m_s2": Bound(
+        -10.0,
+        10.0,
+        "m/s2",
+        "road users accelerate and brake at up to about 1 g: mu <= 0.9 on dry asphalt (Wong)",
+    ),
+    # after "_speed_m_s": a speed difference between two road users (speed_delta_m_s)
+    "_m_s": Bound(
+        -100.0,
+        100.0,
+        "m/s",
+        "a speed difference of two road users, each at most 100 m/s",
+    ),
+    "_s": Bound(
+        -60.0,
+        60.0,
+        "s",
+        "a moment or span within the longest scenario (family duration_s <= 60 s)",
     ),
 }
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pydantic import Field, model_validator
 
-from sensorgap.config.common import Name, Strict
+from sensorgap.config.common import PresetName, Strict
 
 
 class TargetConfig(Strict):
@@ -15,7 +15,7 @@ class TargetConfig(Strict):
     ``camera_cross_section_m2`` for cameras (0.9, 1.35, 2.7, 6.75 m2).
     """
 
-    name: Name
+    name: PresetName
     description: str = ""
     rcs_m2: float = Field(
         ge=1.0e-6,

@@ -27,8 +27,10 @@ MAX_FIELD_CHARS = 1_000
 def read_points_csv(path: Path, default_z: float) -> NDArray[np.float64]:
     """(N, 3) points from a CSV with a header naming ``x`` and ``y`` (and optionally ``z``,
     else ``default_z`` m). Other columns are ignored. Any bad cell -> ``InputError``."""
-    if not path.is_file():
+    if not path.exists():
         raise InputError(path, "", "file not found")
+    if not path.is_file():  # a folder, a device (/dev/zero) or a pipe: never read
+        raise InputError(path, "", "not a regular file (a folder, device or pipe)")
     if path.stat().st_size > MAX_BYTES:
         raise InputError(path, "", f"larger than {MAX_BYTES} bytes")
     try:
@@ -61,7 +63,7 @@ def read_points_csv(path: Path, default_z: float) -> NDArray[np.float64]:
     iz = names.index("z") if "z" in names else None
     rows: list[tuple[float, float, float]] = []
     try:
-        return _rows(path, reader, ix, iy, iz, default_z, rows)
+        return _rows(path, reader, (ix, iy, iz, len(header)), default_z, rows)
     except csv.Error as exc:
         raise InputError(
             path,
@@ -73,15 +75,20 @@ def read_points_csv(path: Path, default_z: float) -> NDArray[np.float64]:
 def _rows(
     path: Path,
     reader: Any,
-    ix: int,
-    iy: int,
-    iz: int | None,
+    columns: tuple[int, int, int | None, int],
     default_z: float,
     rows: list[tuple[float, float, float]],
 ) -> NDArray[np.float64]:
+    ix, iy, iz, width = columns
     for lineno, row in enumerate(reader, start=2):
         if not row or all(not c.strip() for c in row):
             continue
+        if len(row) != width:  # a shifted row: its x, y, z would be other columns
+            raise InputError(
+                path,
+                f"line {lineno}",
+                f"{len(row)} fields, but the header names {width} columns",
+            )
         if len(rows) >= MAX_POINTS:
             raise InputError(path, "", f"more than {MAX_POINTS} points")
         vals = []

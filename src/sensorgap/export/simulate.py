@@ -16,7 +16,6 @@ run.
 
 from __future__ import annotations
 
-import json
 import math
 import os
 import re
@@ -38,6 +37,7 @@ from sensorgap.export.bodies import MAX_BODY_DEV_M, box_deviation, planned_boxes
 from sensorgap.export.maneuver import maneuver_triggers, occluder_name, planned_origins
 from sensorgap.export.spec import ScenarioSpec, read_run
 from sensorgap.export.xosc import EGO, TARGET, origin_path, target_origin_offset
+from sensorgap.filesio import loads_json
 from sensorgap.scenarios import Scenario, Trajectory
 from sensorgap.search.evaluate import Evaluator
 from sensorgap.search.metrics import compute_all
@@ -455,7 +455,7 @@ def read_catalog_index(path: Path) -> tuple[dict[str, Any], list[dict[str, Any]]
     relative path inside the catalog) and, if given, a ``road`` of the same kind;
     anything else -> ``InputError`` naming the file and the field."""
     try:
-        index = json.loads(path.read_text(encoding="utf-8"))
+        index = loads_json(path.read_text(encoding="utf-8"))
     except (OSError, ValueError) as exc:
         raise InputError(path, "", f"malformed catalog index: {exc}") from None
     except RecursionError:

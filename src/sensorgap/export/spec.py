@@ -65,15 +65,36 @@ class ScenarioSpec:
         at = _row_label(row, run)
         field = "family"
         try:
-            family = (
-                run.family(str(row["family"]))
-                if run is not None
-                else load_family(str(row["family"]))
-            )
+            try:
+                family = (
+                    run.family(str(row["family"]))
+                    if run is not None
+                    else load_family(str(row["family"]))
+                )
+            except InputError as exc:  # named by the row that asked for it
+                raise ValueError(exc.message) from None
             params: dict[str, ParamValue] = {}
             for p in family.space:
                 field = f"p_{p.name}"
                 params[p.name] = p.from_json(row[field])
+            metric_cols = set(metric_names())  # p_never_confirmed, ... are metrics
+            extra = sorted(
+                k
+                for k in row
+                if k.startswith("p_") and k[2:] not in params and k not in metric_cols
+            )
+            if extra:
+                field = extra[0][:64]
+                raise ValueError(
+                    f"not a parameter of family {family.name!r} "
+                    f"({', '.join(p.name for p in family.space)})"
+                )
+            field = "target"
+            if "target" in row and row["target"] != family.settings.get("target"):
+                raise ValueError(
+                    f"{str(row['target'])[:40]!r} is not the family's target "
+                    f"{family.settings.get('target')!r}"
+                )
             field = "environment"
             env_name = str(row["environment"]).split("@")[0]
             presets = run.environments() if run is not None else load_environments()

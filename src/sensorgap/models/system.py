@@ -106,7 +106,8 @@ def build_system(cfg: VehicleConfig, source: Path | str) -> System:
     return System(config=cfg, source=Path(source), sensors=tuple(sensors))
 
 
-def load_system(name_or_path: str | Path) -> System:
-    """Load a vehicle preset name or file and build its sensor system."""
-    cfg, path = load_vehicle(name_or_path)
+def load_system(name_or_path: str | Path, check_reaction: bool = True) -> System:
+    """Load a vehicle preset name or file and build its sensor system
+    (``check_reaction``: see ``config.load.load_vehicle``)."""
+    cfg, path = load_vehicle(name_or_path, check_reaction=check_reaction)
     return build_system(cfg, path)

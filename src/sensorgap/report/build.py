@@ -23,6 +23,7 @@ from sensorgap.config.presets import templates_dir
 from sensorgap.errors import InputError
 from sensorgap.export.simulate import read_catalog_index
 from sensorgap.export.spec import ScenarioSpec
+from sensorgap.filesio import loads_json
 from sensorgap.models import System
 from sensorgap.provenance import utc_now, versions
 from sensorgap.report.anchors import anchors_section
@@ -56,7 +57,7 @@ REPORT_DIR = "report"
 def read_json(path: Path) -> Any:
     """A JSON file of the run folder (``InputError`` naming it when unreadable)."""
     try:
-        return json.loads(path.read_text(encoding="utf-8"))
+        return loads_json(path.read_text(encoding="utf-8"))
     except (OSError, ValueError) as exc:
         raise InputError(path, "", f"unreadable JSON: {exc}") from None
     except RecursionError:

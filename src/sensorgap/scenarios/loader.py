@@ -46,6 +46,8 @@ LANE_SETTINGS = ("lane", "ego_lane", "target_lane", "occluder_lane")
 #: Largest magnitude of a lane id and of a parameter range bound (docs/limits.md).
 MAX_LANE_ID = 100
 MAX_PARAM_ABS = 1.0e5
+#: Longest ``description`` of a family, characters (printed in reports and catalogs).
+MAX_DESCRIPTION_CHARS = 1000
 
 
 def _is_number(v: Any) -> bool:
@@ -194,8 +196,14 @@ def load_family(name_or_path: str, road: Path | None = None) -> Family:
         if key not in fam and default is None:
             raise InputError(path, f"family.{key}", "missing required setting")
         settings[key] = _setting(path, key, fam.get(key, default), default)
-    if not isinstance(fam.get("description", ""), str):
-        raise InputError(path, "family.description", "must be a string")
+    description = fam.get("description", "")
+    if not isinstance(description, str) or len(description) > MAX_DESCRIPTION_CHARS:
+        raise InputError(
+            path,
+            "family.description",
+            f"must be a string of at most {MAX_DESCRIPTION_CHARS} characters, "
+            f"got {short(description)}",
+        )
     targets = load_targets()
     if settings["target"] not in targets:
         raise InputError(
@@ -250,6 +258,15 @@ def load_family(name_or_path: str, road: Path | None = None) -> Family:
             "must differ from ego_lane "
             f"({settings['ego_lane']}): the target changes from its lane into "
             "the ego's (or passes in the next lane)",
+        )
+    if settings.get("occluder_lane") is not None and settings["occluder_lane"] == settings.get(
+        "ego_lane"
+    ):
+        raise InputError(
+            path,
+            "family.occluder_lane",
+            f"must differ from ego_lane ({settings['ego_lane']}): the occluder drives in "
+            "the lane next to the ego's",
         )
     params = data.get("parameters", {})
     if not isinstance(params, dict):

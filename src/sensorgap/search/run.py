@@ -65,6 +65,20 @@ HEAD_METRICS = (
 )
 
 
+#: What a search writes into its run folder (relative POSIX paths; ``inputs/``: the
+#: folder): a resumed search into a folder with a manifest checks every other listed file
+#: first (``filesio.refuse_if_changed``), so a file edited by hand is never certified.
+SEARCH_WRITES = (
+    "ranking.json",
+    "ranking.csv",
+    "summary.json",
+    "unavoidable.csv",
+    "run.json",
+    "search.sqlite",
+    "inputs/",
+)
+
+
 def _finite_or_none(v: float) -> float | None:
     """A metric value for the output files: None (an empty cell) where it is undefined."""
     return None if not math.isfinite(v) else v

@@ -48,7 +48,7 @@ from sensorgap.config.reaction import (
     reactions_path,
 )
 from sensorgap.errors import InputError
-from sensorgap.filesio import write_json
+from sensorgap.filesio import loads_json, write_json
 from sensorgap.models import System, load_system
 from sensorgap.provenance import sha256_of, versions
 from sensorgap.scenarios import load_family
@@ -67,6 +67,13 @@ ROW_TEXT = ("scenario_id", "family", "environment")
 ROW_CLASSES = ("sensor-critical", "marginal", "unavoidable", "not critical")
 #: What a scenario id may be (it names the exported files).
 SCENARIO_ID = re.compile(r"[A-Za-z0-9_-]{1,64}")
+#: Most rows a ranking holds (``search --top``; ``ranking.json`` rows read by export,
+#: report and compare): a report draws each row's figures (~0.5 s a row on a 2-core
+#: machine), so the largest ranking stays within a few minutes (docs/limits.md).
+MAX_RANKED_ROWS = 300
+#: Largest JSON file of a run folder read (ranking.json, run.json, summary.json), bytes: a
+#: ranking of MAX_RANKED_ROWS rows is ~1 MB.
+MAX_JSON_BYTES = 20_000_000
 #: Fields of ``run.json`` a reader checks, and the JSON type each must have.
 RUN_INFO_FIELDS: dict[str, type] = {
     "settings": dict,
@@ -201,10 +208,21 @@ def copy_record(src: Path, dst: Path) -> None:
 # -- reading ---------------------------------------------------------------------------
 
 
-def read_json_file(path: Path) -> Any:
-    """A JSON file of a run folder (``InputError`` naming it when unreadable)."""
+def _check_size(path: Path) -> None:
     try:
-        return json.loads(Path(path).read_text(encoding="utf-8"))
+        size = path.stat().st_size
+    except OSError:
+        return  # reported by the read itself
+    if size > MAX_JSON_BYTES:
+        raise InputError(path, "", f"file is {size} bytes; at most {MAX_JSON_BYTES} allowed")
+
+
+def read_json_file(path: Path) -> Any:
+    """A JSON file of a run folder (``InputError`` naming it when unreadable or larger
+    than ``MAX_JSON_BYTES``)."""
+    _check_size(Path(path))
+    try:
+        return loads_json(Path(path).read_text(encoding="utf-8"))
     except (OSError, ValueError) as exc:
         raise InputError(path, "", f"unreadable JSON: {exc}") from None
     except RecursionError:
@@ -242,8 +260,9 @@ def _read_ranking(folder: Path) -> tuple[list[dict[str, Any]], dict[str, Any], d
             "not a search run folder (ranking.json is missing); run "
             "`sensorgap search --out DIR` first",
         )
+    _check_size(path)
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
+        data = loads_json(path.read_text(encoding="utf-8"))
     except (ValueError, RecursionError) as exc:
         raise InputError(path, "", f"malformed ranking file: not JSON ({exc})") from None
     if not isinstance(data, dict):
@@ -251,6 +270,10 @@ def _read_ranking(folder: Path) -> tuple[list[dict[str, Any]], dict[str, Any], d
     rows, settings = data.get("ranking"), data.get("settings")
     if not isinstance(rows, list):
         raise InputError(path, "ranking", "malformed ranking file: expected a list of rows")
+    if len(rows) > MAX_RANKED_ROWS:
+        raise InputError(
+            path, "ranking", f"{len(rows)} rows; at most {MAX_RANKED_ROWS} (search --top) allowed"
+        )
     if not isinstance(settings, dict):
         raise InputError(path, "settings", "malformed ranking file: expected an object")
     vehicle = settings.get("vehicle_ref") or settings.get("vehicle_file")
@@ -386,7 +409,12 @@ class RunFolder:
     def system(self) -> System:
         """The vehicle: the recorded copy, else the vehicle as given."""
         p = self.input_path("vehicle")
-        return self._cached("system", lambda: load_system(p if p is not None else self.vehicle_ref))
+        # a recorded copy's reaction model is recorded apart (its path may be relative)
+        check = self._entry("reaction") is None
+        return self._cached(
+            "system",
+            lambda: load_system(p if p is not None else self.vehicle_ref, check_reaction=check),
+        )
 
     def environments(self) -> dict[str, EnvironmentConfig]:
         """Every environment of the run's environments file (recorded copy, else the
@@ -418,9 +446,20 @@ class RunFolder:
         return self._cached("friction", lambda: load_friction(p))
 
     def family(self, name_or_path: str) -> Family:
-        """A family of the run: the recorded copy on its recorded road; a run without a
-        record of it loads it by name (shipped preset) or path."""
+        """A family of the run: the recorded copy on its recorded road; a name the run
+        did not record is ``InputError`` (never the shipped preset of that name); a path,
+        or any name in a run without a record, is loaded as given."""
         e = self._entry("families", name_or_path)
+        recorded = self._entry("families") if self.recorded else None
+        is_path = name_or_path.endswith(".toml") or "/" in name_or_path
+        if e is None and recorded is not None and not is_path:
+            # a name the run did not search: never the shipped preset of that name
+            raise InputError(
+                self.folder / RUN_JSON,
+                "inputs.families",
+                f"no family {name_or_path[:64]!r} in this run; it searched "
+                f"{', '.join(sorted(recorded)) or 'none'}",
+            )
         if e is None:
             return self._cached(f"family {name_or_path}", lambda: load_family(name_or_path))
         road = self.input_path("roads", str(e.get("road")))
@@ -443,7 +482,11 @@ class RunFolder:
         if not isinstance(inputs, dict):
             return
         changed = []
-        for label, e in _entries(inputs):
+        try:
+            entries = _entries(inputs)
+        except ValueError as exc:
+            raise InputError(self.folder / RUN_JSON, "inputs", str(exc)) from None
+        for label, e in entries:
             if not all(isinstance(e.get(k), str) for k in ("path", "sha256", "copy")):
                 raise InputError(
                     self.folder / RUN_JSON,
@@ -483,14 +526,23 @@ class RunFolder:
 
 
 def _entries(inputs: dict[str, Any]) -> list[tuple[str, dict[str, Any]]]:
+    """Every recorded input of ``run.json``'s ``inputs`` as (label, entry); an entry that
+    is not an object (or a group that is not an object of them) is ``ValueError``, so a
+    damaged record is refused instead of falling back to the shipped presets."""
     out = []
     for k in SINGLE:
-        if isinstance(inputs.get(k), dict):
+        if k in inputs:
+            if not isinstance(inputs[k], dict):
+                raise ValueError(f"{k}: expected an object (path, sha256, copy)")
             out.append((k, inputs[k]))
     for group in ("families", "roads"):
-        sub = inputs.get(group)
-        if isinstance(sub, dict):
-            out += [(f"{group}.{n}", e) for n, e in sub.items() if isinstance(e, dict)]
+        sub = inputs.get(group, {})
+        if not isinstance(sub, dict):
+            raise ValueError(f"{group}: expected an object of names to entries")
+        for n, e in sub.items():
+            if not isinstance(e, dict):
+                raise ValueError(f"{group}.{str(n)[:64]}: expected an object (path, sha256, copy)")
+            out.append((f"{group}.{n}", e))
     return out
 
 

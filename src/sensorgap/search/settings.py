@@ -22,6 +22,7 @@ from sensorgap.search.evaluate import DetectionRule, Evaluator
 from sensorgap.search.executors import ProblemSpec, check_scheduler_address
 from sensorgap.search.problem import SearchProblem
 from sensorgap.search.ranking import MIN_DISTANCE
+from sensorgap.search.runfolder import MAX_RANKED_ROWS
 from sensorgap.search.store import digest, file_digest
 from sensorgap.search.strategies import get_strategy, strategy_names
 
@@ -67,8 +68,8 @@ class SearchSettings:
             raise InputError("budget", "", f"must be within 1..{MAX_BUDGET}, got {self.budget}")
         if not 1 <= self.workers <= 64:
             raise InputError("workers", "", f"must be 1..64, got {self.workers}")
-        if self.top < 1:
-            raise InputError("top", "", f"must be >= 1, got {self.top}")
+        if not 1 <= self.top <= MAX_RANKED_ROWS:
+            raise InputError("top", "", f"must be within 1..{MAX_RANKED_ROWS}, got {self.top}")
         if get_strategy(self.strategy) is None:
             raise InputError(
                 "strategy",
@@ -85,7 +86,13 @@ class SearchSettings:
             raise InputError(
                 "seeds", "", f"must be an integer within 1..{MAX_SEEDS}, got {self.seeds}"
             )
+        if self.executor not in ("local", "dask"):
+            raise InputError("executor", "", f"must be local or dask, got {self.executor!r}")
         if self.scheduler is not None:
+            if self.executor != "dask":  # it would be ignored: the batches run here
+                raise InputError(
+                    "scheduler", "", "a scheduler address needs the Dask executor (--executor dask)"
+                )
             check_scheduler_address(self.scheduler)
 
 

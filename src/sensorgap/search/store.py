@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import sqlite3
 import threading
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -213,6 +214,7 @@ class Store:
                 and isinstance(metrics, dict)
                 and isinstance(row[1], str)
                 and isinstance(row[7], str)
+                and row[6] in (0, 1)
             ):
                 raise ValueError("not the stored layout")
             # every metric a search stores, each a number: a row of '{}' or with a metric
@@ -224,7 +226,21 @@ class Store:
                 isinstance(v, int | float) and not isinstance(v, bool) for v in metrics.values()
             ):
                 raise ValueError("a metric is not a number")
+            # probabilities (collision, never confirmed, undetected, mean Pd) within 0..1
+            bad_p = [
+                k
+                for k, v in metrics.items()
+                if (k.startswith("p_") or "probability" in k or k == "mean_pd")
+                and math.isfinite(v)
+                and not 0.0 <= v <= 1.0
+            ]
+            if bad_p:
+                raise ValueError(f"metric {bad_p[0][:64]} is not a probability")
             cand = Candidate(family, row[1], sun, params)
+            # the id is a digest of (family, environment, sun, parameters): a row whose
+            # parameters were changed (missing, added, text, huge) is not that candidate
+            if cand.scenario_id != scenario_id:
+                raise ValueError("its environment, sun and parameters do not give its id")
         except RecursionError:
             raise InputError(
                 self.path,
