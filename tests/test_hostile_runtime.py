@@ -683,3 +683,53 @@ def test_a_reaction_files_friction_is_used(tmp_path: Path) -> None:
     # a reaction file without a [friction] table: the shipped one
     (vdir / "bare.toml").write_text(presets.split("\n[friction]\n")[0])
     assert friction_source(str(vdir / "bare.toml")) == reactions_path()
+
+
+def test_a_resumed_search_that_changes_the_ranking_removes_the_stale_export(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Hostile round five: a resumed search whose ranking changed left the previous
+    export and report in the folder, and the new manifest certified them although they no
+    longer matched ranking.json. Now they are removed (one line says so) and the folder
+    verifies; a resume that leaves the ranking as it was keeps them."""
+    run = tmp_path / "run"
+
+    def search(budget: str, *extra: str) -> int:
+        return main(
+            [
+                "search",
+                "--vehicle",
+                "system_b",
+                "--families",
+                "slow_ahead_curve",
+                "--environments",
+                "snow",
+                "--budget",
+                budget,
+                "--seed",
+                "1",
+                "--top",
+                "2",
+                "--out",
+                str(run),
+                *extra,
+            ]
+        )
+
+    assert search("40") == 0
+    assert main(["export", "--run", str(run)]) == 0
+    assert main(["report", "--run", str(run)]) == 0
+    kept = sorted(p.relative_to(run).as_posix() for p in run.rglob("*") if p.is_file())
+    assert "catalog.json" in kept and "report.html" in kept
+    capsys.readouterr()
+    assert search("40", "--resume") == 0  # same budget: the same ranking
+    assert "removed" not in capsys.readouterr().out
+    assert (run / "catalog.json").is_file() and (run / "report.html").is_file()
+    ranking = (run / "ranking.json").read_bytes()
+    assert search("400", "--resume") == 0
+    out = capsys.readouterr().out
+    assert (run / "ranking.json").read_bytes() != ranking
+    assert "changed the ranking: removed" in out
+    for gone in ("catalog.json", "report.html", "report.md", "scenarios", "roads", "report"):
+        assert not (run / gone).exists(), gone
+    assert main(["verify", str(run)]) == 0

@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any, NoReturn
 from sensorgap.atomic import removed_on_error
 from sensorgap.config.common import parse_decimal, parse_integer
 from sensorgap.errors import InputError
-from sensorgap.filesio import refuse_if_changed, write_manifest
+from sensorgap.filesio import refuse_if_changed, remove_outputs, write_manifest
 from sensorgap.runtime import tune_allocator
 
 if TYPE_CHECKING:
@@ -399,6 +399,8 @@ def cmd_search(args: argparse.Namespace) -> int:
     from sensorgap.search.run import SEARCH_WRITES, run_search
 
     env_file = Path(args.environments_file) if args.environments_file else None
+    ranking = Path(args.out) / "ranking.json"
+    before = ranking.read_bytes() if args.resume and ranking.is_file() else None
     if args.resume:  # the new manifest must not certify a file changed by hand
         refuse_if_changed(args.out, SEARCH_WRITES)
     outcome = run_search(
@@ -420,7 +422,20 @@ def cmd_search(args: argparse.Namespace) -> int:
         scheduler=args.scheduler,
         seeds=args.seeds,
     )
-    write_manifest(args.out, SEARCH_WRITES if args.resume else None)
+    stale: tuple[str, ...] = ()
+    if before is not None and ranking.read_bytes() != before:
+        # what export, simulate and report made of the previous ranking no longer matches
+        from sensorgap.export.catalog import EXPORT_WRITES
+        from sensorgap.report.build import REPORT_WRITES
+
+        stale = (*EXPORT_WRITES, *REPORT_WRITES)
+        gone = remove_outputs(args.out, stale)
+        if gone:
+            print(
+                f"the resumed search changed the ranking: removed {len(gone)} files of the "
+                "previous export and report (run export and report again)"
+            )
+    write_manifest(args.out, (*SEARCH_WRITES, *stale) if args.resume else None)
     crit = sum(1 for r in outcome.ranking if r["class"] == "sensor-critical")
     d = outcome.summary["lookup_vs_exact"]
     if args.pd == "lookup" and d.get("reevaluated"):
@@ -640,10 +655,10 @@ def cmd_report(args: argparse.Namespace) -> int:
                 "--out", "", "only with --compare (the report of --run is written into the run)"
             )
         from sensorgap.report import write_report
-        from sensorgap.report.build import REPORT_DIR
+        from sensorgap.report.build import REPORT_WRITES
 
         # the report rewrites the manifest: it must not certify a file changed by hand
-        writes = ("report.html", "report.md", f"{REPORT_DIR}/")
+        writes = REPORT_WRITES
         refuse_if_changed(args.run, writes)
         with removed_on_error(args.run):  # no figure of a failed report is left behind
             html_path, md_path = write_report(Path(args.run))

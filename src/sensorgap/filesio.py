@@ -275,6 +275,22 @@ def _written_by(rel: str, rewrites: tuple[str, ...]) -> bool:
     return False
 
 
+def remove_outputs(folder: str | Path, patterns: tuple[str, ...]) -> list[str]:
+    """Remove the regular files below ``folder`` that lie under ``patterns`` (as for
+    ``refuse_if_changed``) and the folders they leave empty; symbolic links are never
+    followed or removed. Returns the removed files' relative POSIX paths, sorted."""
+    root = Path(folder)
+    removed = []
+    for rel, kind in _walk(root):
+        if kind == "file" and _written_by(rel, patterns):
+            (root / rel).unlink()
+            removed.append(rel)
+    for rel, kind in reversed(_walk(root)):  # deepest first
+        if kind == "dir" and _written_by(rel, patterns) and not any((root / rel).iterdir()):
+            (root / rel).rmdir()
+    return removed
+
+
 def refuse_if_changed(folder: str | Path, rewrites: tuple[str, ...]) -> None:
     """Before a command adds to a folder that already has a ``manifest.json`` and then
     rewrites it: every file the manifest lists must be as recorded (and no symbolic link

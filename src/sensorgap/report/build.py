@@ -52,6 +52,8 @@ from sensorgap.search.problem import START_TTC_S
 from sensorgap.search.runfolder import RunFolder, open_run
 
 REPORT_DIR = "report"
+#: What a report writes into a run folder (``filesio.refuse_if_changed``).
+REPORT_WRITES = ("report.html", "report.md", f"{REPORT_DIR}/")
 
 
 def read_json(path: Path) -> Any:
