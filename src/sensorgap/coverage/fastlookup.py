@@ -392,11 +392,46 @@ def near_view_mask(signal: F32, reach_cells: int) -> NDArray[np.bool_]:
     return np.asarray(box > 0)
 
 
+@numba.njit(cache=True, nogil=True)
+def _sun_directions(
+    sun: F64, heading: F64, flat: I64, t: int, out: F64
+) -> None:  # pragma: no cover - compiled
+    """``out[m]``: the vehicle-frame sun unit vector at flat track index ``flat[m]`` (row
+    ``flat // t``; ``sun`` (B, 3) rows (kind, azimuth rad, elevation rad), ``heading``
+    flat ego headings, rad); NaN without a direct sun."""
+    for m in range(flat.size):
+        r = flat[m] // t
+        kind = sun[r, 0]
+        if kind == SUN_NONE:
+            out[m, 0] = np.nan
+            out[m, 1] = np.nan
+            out[m, 2] = np.nan
+            continue
+        a = sun[r, 1]
+        if kind == SUN_WORLD:
+            a = 0.5 * math.pi - a - heading[flat[m]]
+        ce = math.cos(sun[r, 2])
+        out[m, 0] = ce * math.cos(a)
+        out[m, 1] = ce * math.sin(a)
+        out[m, 2] = math.sin(sun[r, 2])
+
+
+def sun_directions_at(sun: F64, heading: F64, flat: I64, t: int) -> F64:
+    """(M, 3) vehicle-frame sun unit vectors (NaN rows: no direct sun) at flat indices of
+    (B, T) tracks: row ``flat // t`` of the per-row ``sun`` (kind, azimuth rad, elevation
+    rad), the flat ego ``heading`` (rad) at ``flat``."""
+    out = np.empty((len(flat), 3))
+    _sun_directions(
+        np.ascontiguousarray(sun, dtype=np.float64),
+        np.ascontiguousarray(heading, dtype=np.float64).reshape(-1),
+        np.ascontiguousarray(flat, dtype=np.int64),
+        int(t),
+        out,
+    )
+    return out
+
+
 def sun_directions_of(sun: F64, heading: F64) -> F64:
     """(N, 3) vehicle-frame sun unit vectors (NaN rows: no direct sun) of N points with
     per-point ``sun`` (kind, azimuth rad, elevation rad) rows and ego headings (rad)."""
-    kind, az, el = sun[:, 0], sun[:, 1], sun[:, 2]
-    a = np.where(kind == SUN_WORLD, 0.5 * math.pi - az - heading, az)
-    d = np.column_stack([np.cos(el) * np.cos(a), np.cos(el) * np.sin(a), np.sin(el)])
-    d[kind == SUN_NONE] = np.nan
-    return d
+    return sun_directions_at(sun, heading, np.arange(len(sun)), 1)

@@ -42,7 +42,7 @@ from sensorgap.coverage.fastlookup import (
     lookup_pass,
     near_view_mask,
     outline_order_pass,
-    sun_directions_of,
+    sun_directions_at,
 )
 from sensorgap.coverage.grid import GridSpec, evaluate_grid
 from sensorgap.coverage.kernel import candidates, evaluate_offsets
@@ -663,7 +663,7 @@ def lookup_log_miss_tracks(
     xf, yf, hf, of = x.reshape(-1), y.reshape(-1), heading.reshape(-1), out.reshape(-1)
 
     def dirs_at(flat: NDArray[np.int64]) -> F64:
-        return sun_directions_of(sun[flat // t], hf[flat])
+        return sun_directions_at(sun, hf, flat, t)
 
     if how is None:
         exact_points, exact_camera = point_evaluators(scene, xf, yf, z0, dirs_at)

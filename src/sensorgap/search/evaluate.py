@@ -47,7 +47,13 @@ from sensorgap.coverage.body import (
     occlusion_changes,
     take_points,
 )
-from sensorgap.coverage.fastlookup import SUN_NONE, SUN_VEHICLE, SUN_WORLD, sun_directions_of
+from sensorgap.coverage.fastlookup import (
+    SUN_NONE,
+    SUN_VEHICLE,
+    SUN_WORLD,
+    sun_directions_at,
+    sun_directions_of,
+)
 from sensorgap.coverage.logmiss import (
     LogMissMaps,
     TrackLookup,
@@ -674,7 +680,7 @@ class Evaluator:
         z0 = scene.target.reference_height_m
 
         def dirs_at(flat: NDArray[np.int64]) -> F64:
-            return sun_directions_of(sun[flat // t], heading.reshape(-1)[flat])
+            return sun_directions_at(sun, heading, flat, t)
 
         exact_points, exact_camera = point_evaluators(scene, xf, yf, z0, dirs_at, sensors)
         return TrackLookup(
