@@ -140,12 +140,12 @@ def _usable_dir(path: Path, can_write: Callable[[Path], bool]) -> bool:
 def matplotlib_config_dir(
     env: MutableMapping[str, str] | None = None, writable: Callable[[Path], bool] | None = None
 ) -> str | None:
-    """Point ``MPLCONFIGDIR`` (unless set to a usable folder) at a private writable folder when matplotlib's
-    default (``$XDG_CONFIG_HOME/matplotlib`` or ``~/.config/matplotlib``) cannot be
-    written: otherwise matplotlib prints a multi-line warning on every command (held-out
-    review round four: HOME unwritable; round six: HOME a file, ``MPLCONFIGDIR`` a file or
-    a read-only folder). An explicit ``MPLCONFIGDIR`` that is usable is left alone.
-    Returns the folder chosen, or None."""
+    """Point ``MPLCONFIGDIR`` (unless set to a usable folder) at a private writable
+    folder when matplotlib's default (``$XDG_CONFIG_HOME/matplotlib`` or
+    ``~/.config/matplotlib``) cannot be written: otherwise matplotlib prints a
+    multi-line warning on every command (held-out review round four: HOME unwritable;
+    round six: HOME a file, ``MPLCONFIGDIR`` a file or a read-only folder). An explicit
+    ``MPLCONFIGDIR`` that is usable is left alone. Returns the folder chosen, or None."""
     env = os.environ if env is None else env
     can_write = writable or (lambda q: os.access(q, os.W_OK | os.X_OK))
     if env.get("MPLCONFIGDIR"):
