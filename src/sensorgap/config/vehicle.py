@@ -100,6 +100,8 @@ class MountConfig(Strict):
     def _finite_position(cls, v: list[float]) -> list[float]:
         if not all(math.isfinite(c) and abs(c) <= 100.0 for c in v):
             raise ValueError("position must be three finite numbers within +-100 m")
+        if len(v) == 3 and v[2] < 0.0:  # the frame's origin is on the ground
+            raise ValueError(f"z must be >= 0 m (on or above the road), got {v[2]:g}")
         return v
 
     @model_validator(mode="after")
