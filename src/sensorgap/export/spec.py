@@ -59,13 +59,10 @@ class ScenarioSpec:
         system: System,
         source: Path | str = "ranking.json",
         run: RunFolder | None = None,
-        check_id: bool = True,
     ) -> ScenarioSpec:
         """Rebuild a ranking row (``InputError`` naming ``source`` if it is inconsistent)
         from the inputs ``run`` recorded (family, its road, environments, targets); without
-        ``run``, from the shipped presets. ``check_id``: the row's ``scenario_id`` must be
-        the digest of its family, environment, sun and parameters (off for a parameter
-        sweep, which keeps the row's id to name its files)."""
+        ``run``, from the shipped presets."""
         at = _row_label(row, run)
         field = "family"
         try:
@@ -144,17 +141,6 @@ class ScenarioSpec:
             scenario = family.generate(params)
         except (KeyError, TypeError, ValueError, InfeasibleScenario) as exc:
             raise InputError(source, at, f"cannot rebuild the scenario: {exc}") from None
-        # the id is a digest of (family, environment, sun, parameters), as in the store
-        # (checked once the row rebuilds): a row whose id was edited named the files and
-        # report rows of another scenario
-        cid = Candidate(family.name, env_name, sun, params).scenario_id
-        if check_id and str(row["scenario_id"]) != cid:
-            raise InputError(
-                source,
-                f"{at}.scenario_id",
-                f"{str(row['scenario_id'])[:64]!r} is not the id of the row's family, "
-                f"environment, sun and parameters ({cid!r})",
-            )
         metrics = {k: float(row[k]) for k in metric_names() if isinstance(row.get(k), int | float)}
         targets = run.targets() if run is not None else None
         target = (
