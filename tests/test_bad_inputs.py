@@ -292,6 +292,10 @@ def _setup(case: dict[str, Any], argv: list[str], folder: Path, out: Path, run: 
             row = data["ranking"][0]
             data["ranking"] = [{**row, "rank": i + 1} for i in range(301)]
             (run / "ranking.json").write_text(json.dumps(data))
+        elif step == "duplicate_first_row":  # row 0 of {run}/ranking.json twice
+            data = json.loads((run / "ranking.json").read_text())
+            data["ranking"].append({**data["ranking"][0], "rank": len(data["ranking"]) + 1})
+            (run / "ranking.json").write_text(json.dumps(data))
         elif step.startswith("coverage_map:"):  # {run}/coverage/car_clear, damaged
             _coverage_map(run / "coverage" / "car_clear", step.removeprefix("coverage_map:"))
         elif step == "manifest_symlink":
