@@ -159,6 +159,49 @@ def _many_geometries(path: Path, n: int) -> None:
     )
 
 
+def _coverage_map(folder: Path, damage: str) -> None:
+    """A small coverage map (coverage.npz, summary.json) in ``folder`` with one damage:
+    ``pd_nan``, ``x_reversed``, ``huge_header`` (pd's .npy header claims 1e10 cells),
+    ``summary_nan`` (an area of summary.json is NaN)."""
+    import io
+    import zipfile
+
+    import numpy as np
+
+    folder.mkdir(parents=True)
+    x, y = np.arange(-59.0, 160.0, 2.0), np.arange(-39.0, 40.0, 2.0)
+    arrays = {
+        "x": x,
+        "y": y,
+        "pd": np.zeros((y.size, x.size)),
+        "resolution": np.array(2.0),
+        "height": np.array(0.75),
+    }
+    if damage == "pd_nan":
+        arrays["pd"][0, 0] = np.nan
+    if damage == "x_reversed":
+        arrays["x"] = x[::-1].copy()
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w") as zf:
+        for k, v in arrays.items():
+            b = io.BytesIO()
+            np.save(b, v)
+            data = b.getvalue()
+            if damage == "huge_header" and k == "pd":
+                hdr = "{'descr': '<f8', 'fortran_order': False, 'shape': (100000, 100000), }"
+                hdr = hdr.ljust(117) + "\n"
+                data = b"\x93NUMPY\x01\x00" + len(hdr).to_bytes(2, "little") + hdr.encode()
+            zf.writestr(f"{k}.npy", data)
+    (folder / "coverage.npz").write_bytes(buf.getvalue())
+    area = "NaN" if damage == "summary_nan" else "0.0"
+    summary = (
+        '{"area_m2_by_level": {"pd=1.0": AREA, "pd>=0.8": 0.0, "pd>=0.5": 0.0, "pd>0": 0.0, '
+        '"pd=0": 17600.0}, "environment": "clear", "grid": {"resolution_m": 2.0}, '
+        '"target": "car"}'
+    )
+    (folder / "summary.json").write_text(summary.replace("AREA", area))
+
+
 def _setup(case: dict[str, Any], argv: list[str], folder: Path, out: Path, run: Path) -> None:
     db = out / "search.sqlite"
     for step in case.get("setup", []):
@@ -249,6 +292,12 @@ def _setup(case: dict[str, Any], argv: list[str], folder: Path, out: Path, run: 
             row = data["ranking"][0]
             data["ranking"] = [{**row, "rank": i + 1} for i in range(301)]
             (run / "ranking.json").write_text(json.dumps(data))
+        elif step == "duplicate_first_row":  # row 0 of {run}/ranking.json twice
+            data = json.loads((run / "ranking.json").read_text())
+            data["ranking"].append({**data["ranking"][0], "rank": len(data["ranking"]) + 1})
+            (run / "ranking.json").write_text(json.dumps(data))
+        elif step.startswith("coverage_map:"):  # {run}/coverage/car_clear, damaged
+            _coverage_map(run / "coverage" / "car_clear", step.removeprefix("coverage_map:"))
         elif step == "manifest_symlink":
             (folder / "manifest.json").symlink_to("/etc/hostname")
         else:

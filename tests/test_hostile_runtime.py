@@ -76,6 +76,27 @@ def test_matplotlib_config_moves_to_a_private_folder_when_home_is_read_only(
     assert matplotlib_config_dir(env, writable=lambda p: False) is None  # already set
 
 
+def test_matplotlib_dir_when_home_or_the_setting_is_a_file(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Hostile round six: HOME naming a file (os.access said the file was writable) or an
+    MPLCONFIGDIR naming a file made matplotlib warn; both now get a private folder."""
+    from sensorgap.runtime import matplotlib_config_dir
+
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    monkeypatch.setattr("tempfile.tempdir", str(tmp))
+    a_file = tmp_path / "file"
+    a_file.write_text("x")
+    env = {"HOME": str(a_file)}
+    chosen = matplotlib_config_dir(env)
+    assert chosen is not None and Path(chosen).is_dir() and env["MPLCONFIGDIR"] == chosen
+    env = {"MPLCONFIGDIR": str(a_file)}
+    assert matplotlib_config_dir(env) is not None and Path(env["MPLCONFIGDIR"]).is_dir()
+    env = {"MPLCONFIGDIR": str(tmp_path)}  # usable: left alone
+    assert matplotlib_config_dir(env) is None and env["MPLCONFIGDIR"] == str(tmp_path)
+
+
 def test_numba_cache_respects_an_explicit_setting(tmp_path: Path) -> None:
     env = {"NUMBA_CACHE_DIR": "/somewhere"}
     assert numba_cache_dir(_pkg(tmp_path), env, writable=lambda p: False) is None

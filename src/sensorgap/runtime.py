@@ -128,26 +128,39 @@ def configure_numba_cache() -> str | None:
         return None
 
 
+def _usable_dir(path: Path, can_write: Callable[[Path], bool]) -> bool:
+    """True if ``path`` is a writable folder, or could be made one: its nearest existing
+    ancestor is a writable folder (not a file such as a HOME pointing at one)."""
+    probe = path
+    while not probe.exists() and probe != probe.parent:
+        probe = probe.parent
+    return probe.is_dir() and can_write(probe)
+
+
 def matplotlib_config_dir(
     env: MutableMapping[str, str] | None = None, writable: Callable[[Path], bool] | None = None
 ) -> str | None:
-    """Point ``MPLCONFIGDIR`` (unless set) at a private writable folder when matplotlib's
-    default (``$XDG_CONFIG_HOME/matplotlib`` or ``~/.config/matplotlib``) cannot be
-    written: otherwise matplotlib prints a multi-line warning on every command (held-out
-    review round four: HOME unwritable). Returns the folder chosen, or None."""
+    """Point ``MPLCONFIGDIR`` (unless set to a usable folder) at a private writable
+    folder when matplotlib's default (``$XDG_CONFIG_HOME/matplotlib`` or
+    ``~/.config/matplotlib``) cannot be written: otherwise matplotlib prints a
+    multi-line warning on every command (held-out review round four: HOME unwritable;
+    round six: HOME a file, ``MPLCONFIGDIR`` a file or a read-only folder). An explicit
+    ``MPLCONFIGDIR`` that is usable is left alone. Returns the folder chosen, or None."""
     env = os.environ if env is None else env
-    if env.get("MPLCONFIGDIR"):
-        return None
-    base = (
-        Path(env["XDG_CONFIG_HOME"])
-        if env.get("XDG_CONFIG_HOME")
-        else Path(env.get("HOME") or "~").expanduser() / ".config"
-    )
-    default = base / "matplotlib"
-    probe = default if default.exists() else base if base.exists() else base.parent
     can_write = writable or (lambda q: os.access(q, os.W_OK | os.X_OK))
-    if can_write(probe):
-        return None
+    if env.get("MPLCONFIGDIR"):
+        # kept when it is usable (checked on the file system itself); a file or a
+        # read-only folder made matplotlib warn on every command (round six)
+        if _usable_dir(Path(env["MPLCONFIGDIR"]), lambda q: os.access(q, os.W_OK | os.X_OK)):
+            return None
+    else:
+        base = (
+            Path(env["XDG_CONFIG_HOME"])
+            if env.get("XDG_CONFIG_HOME")
+            else Path(env.get("HOME") or "~").expanduser() / ".config"
+        )
+        if _usable_dir(base / "matplotlib", can_write):
+            return None
     uid = os.getuid() if hasattr(os, "getuid") else 0
     chosen = Path(tempfile.gettempdir()) / f"sensorgap-matplotlib-{uid}"
     folder = (

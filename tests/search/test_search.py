@@ -281,8 +281,11 @@ def test_run_deterministic_and_resumes(tmp_path: Path) -> None:
         "t_detect_s",
     ):
         assert col in header
+    store = (tmp_path / "a" / "search.sqlite").read_bytes()
     with pytest.raises(InputError, match="add --resume"):
         run_search(out=tmp_path / "a", **kw)  # type: ignore[arg-type]
+    # refused without writing: the store opened for writing changed (hostile round six)
+    assert (tmp_path / "a" / "search.sqlite").read_bytes() == store
     again = run_search(out=tmp_path / "a", resume=True, **kw)  # type: ignore[arg-type]
     assert again.evaluated == 0 and again.reused == 60
     assert (tmp_path / "a" / "ranking.csv").read_bytes() == csv_a
@@ -385,3 +388,22 @@ def test_systems_differ_with_reasons(tmp_path: Path) -> None:
             "none",
         }
         assert r["reason"].startswith(r["dominant_effect"])
+
+
+def test_a_second_search_into_a_folder_being_searched_is_refused(tmp_path: Path) -> None:
+    """While one search writes a folder (an exclusive flock on the folder), a second one
+    into it is refused at once and writes nothing there (hostile round six: two searches
+    into one --out left a database the manifest did not certify)."""
+    import fcntl
+    import os
+
+    out = tmp_path / "a"
+    out.mkdir()
+    fd = os.open(out, os.O_RDONLY)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        with pytest.raises(InputError, match="another search is writing to"):
+            run_search("system_a", ["slow_ahead_curve"], ["clear"], 10, 0, 1, out)
+    finally:
+        os.close(fd)
+    assert list(out.iterdir()) == []

@@ -20,6 +20,11 @@ MAX_RANGE_M = 10_000.0
 MAX_SENSORS = 128
 
 
+#: Largest false-alarm probability of a ROC (a detector declaring a target in one cell of
+#: ten without one is no detector; near 1 scipy's Marcum Q overflowed).
+MAX_PFA = 0.1
+
+
 class RocConfig(Strict):
     """How SNR becomes a detection probability (see ``sensorgap.models.roc``).
 
@@ -31,13 +36,15 @@ class RocConfig(Strict):
     single-pulse detection of a steady / Rayleigh-fluctuating target at false-alarm
     probability ``pfa``.
     ``albersheim``: Albersheim's approximation, only inside its validity range.
+    ``pfa`` is 1e-15..0.1 (``MAX_PFA``; radar practice is 1e-4..1e-8).
     """
 
     kind: Literal["paper", "smoothstep", "swerling0", "swerling1", "albersheim"] = "paper"
     snr50_db: float = Field(default=10.0, ge=-50.0, le=100.0, allow_inf_nan=False)
     floor_db: float = Field(default=0.0, ge=-300.0, le=100.0, allow_inf_nan=False)
     half_width_db: float = Field(default=6.0, gt=0.0, le=50.0, allow_inf_nan=False)
-    pfa: float = Field(default=1.0e-6, ge=1.0e-15, lt=1.0, allow_inf_nan=False)
+    #: at most ``MAX_PFA``: a pfa near 1 (1 - 1e-15) overflowed scipy's Marcum Q (tgamma)
+    pfa: float = Field(default=1.0e-6, ge=1.0e-15, le=MAX_PFA, allow_inf_nan=False)
     n_pulses: int = Field(default=1, ge=1, le=8096)
 
     @model_validator(mode="after")
@@ -93,6 +100,8 @@ class MountConfig(Strict):
     def _finite_position(cls, v: list[float]) -> list[float]:
         if not all(math.isfinite(c) and abs(c) <= 100.0 for c in v):
             raise ValueError("position must be three finite numbers within +-100 m")
+        if len(v) == 3 and v[2] < 0.0:  # the frame's origin is on the ground
+            raise ValueError(f"z must be >= 0 m (on or above the road), got {v[2]:g}")
         return v
 
     @model_validator(mode="after")
@@ -137,6 +146,23 @@ class BodyConfig(Strict):
     rear_overhang_m: float = Field(ge=0.0, le=10.0, allow_inf_nan=False)
     max_speed_m_s: float = Field(default=70.0, ge=0.1, le=150.0, allow_inf_nan=False)
     sources: dict[str, str] = Field(default_factory=dict)
+
+    @model_validator(mode="after")
+    def _axles_inside(self) -> BodyConfig:
+        # the frame's origin is the rear axle: both axles lie inside the body, so the rear
+        # bumper is behind it (x_rear < 0) and the front bumper ahead of the front axle
+        # (a 0.6 m car with a 1.13 m overhang put the front bumper behind the origin)
+        if not 0.0 < self.rear_overhang_m < self.length_m:
+            raise ValueError(
+                f"rear_overhang_m must be > 0 and below length_m ({self.length_m:g}), "
+                f"got {self.rear_overhang_m:g}"
+            )
+        if not self.wheelbase_m < self.length_m - self.rear_overhang_m:
+            raise ValueError(
+                f"wheelbase_m must be below length_m - rear_overhang_m "
+                f"({self.length_m - self.rear_overhang_m:g}), got {self.wheelbase_m:g}"
+            )
+        return self
 
     @property
     def x_rear_m(self) -> float:

@@ -81,6 +81,7 @@ def read_coverage_npz(
     """The map of a ``coverage.npz`` (``write_coverage``): fused Pd at the cell centres
     (shape (len(y), len(x))), the centres' x and y (m, vehicle frame) and the cell size
     (m); unreadable or inconsistent -> ``InputError`` naming the file."""
+    _check_npz_members(path)
     try:
         with np.load(path) as z:
             pd = np.asarray(z["pd"], np.float64)
@@ -93,11 +94,61 @@ def read_coverage_npz(
             "unreadable coverage map (expected the .npz of "
             f"`sensorgap coverage`: pd, x, y, resolution): {exc}",
         ) from None
-    if pd.shape != (len(y), len(x)):
+    if x.ndim != 1 or y.ndim != 1 or pd.shape != (len(y), len(x)):
         raise InputError(
             path, "pd", f"expected shape (len(y), len(x)) = ({len(y)}, {len(x)}), got {pd.shape}"
         )
+    for name, c in (("x", x), ("y", y)):
+        if not (np.all(np.isfinite(c)) and np.all(np.diff(c) > 0.0)):
+            raise InputError(path, name, "cell centres must be finite and increasing")
+    if not (math.isfinite(res) and res > 0.0):
+        raise InputError(path, "resolution", f"must be a finite number > 0, got {res!r}")
+    if not np.all((pd >= 0.0) & (pd <= 1.0)):  # also false for nan
+        raise InputError(path, "pd", "every cell must be a probability within 0..1")
     return pd, x, y, res
+
+
+#: Most cells of a coverage map read back (``read_coverage_npz``), as ``coverage`` writes
+#: at most (``cli.MAX_GRID_CELLS``): checked from the .npy headers before any array is
+#: read, so a map whose header claims 1e10 cells, or a zip bomb, is refused unread.
+MAX_MAP_CELLS = 30_000_000
+
+
+def _check_npz_members(path: Path) -> None:
+    """``InputError`` unless ``pd``, ``x``, ``y`` of the .npz at ``path`` are numeric arrays
+    of at most ``MAX_MAP_CELLS`` values (read from their headers, nothing allocated)."""
+    try:
+        with zipfile.ZipFile(path) as zf:
+            for name in ("pd", "x", "y"):
+                try:
+                    info = zf.getinfo(f"{name}.npy")
+                except KeyError:
+                    continue  # reported as a missing array by np.load below
+                with zf.open(info) as fp:
+                    version = np.lib.format.read_magic(fp)
+                    if version == (1, 0):
+                        shape, _, dtype = np.lib.format.read_array_header_1_0(fp)
+                    else:
+                        shape, _, dtype = np.lib.format.read_array_header_2_0(fp)
+                cells = math.prod(shape)
+                if dtype.kind not in "fiub" or cells > MAX_MAP_CELLS:
+                    raise InputError(
+                        path,
+                        name,
+                        f"expected a numeric array of at most {MAX_MAP_CELLS:.0e} values, "
+                        f"got {dtype} of shape {shape}",
+                    )
+                if info.file_size > 16 * MAX_MAP_CELLS + 4096:
+                    raise InputError(path, name, f"{info.file_size} bytes uncompressed")
+    except InputError:
+        raise
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+        raise InputError(
+            path,
+            "",
+            "unreadable coverage map (expected the .npz of "
+            f"`sensorgap coverage`: pd, x, y, resolution): {exc}",
+        ) from None
 
 
 def write_coverage(

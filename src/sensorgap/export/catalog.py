@@ -161,6 +161,14 @@ def export_catalog(
                 )
     _inside_only(out)
     in_place = out.resolve() == run.folder.resolve()
+    if not in_place and run.folder.resolve() in out.resolve().parents:
+        # a catalog inside the run folder adds files its manifest does not list (verify
+        # reports them) and a second catalog.json/run.json below the certified one
+        raise InputError(
+            "out",
+            "",
+            f"must be the run folder itself or outside it; {out} is inside {run.folder}",
+        )
     writes = (
         EXPORT_WRITES
         if in_place

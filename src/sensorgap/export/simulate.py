@@ -497,6 +497,13 @@ def read_catalog_index(path: Path) -> tuple[dict[str, Any], list[dict[str, Any]]
     return index, entries
 
 
+#: Shortest fixed simulation step, s: 1 kHz (a 1e-9 s step made esmini take 1e10 steps
+#: for a 10 s scenario, each ending in the timeout); and the shortest timeout, s (a
+#: subnormal 1e-320 s is no meaningful limit; 1 ms still kills every run at once, as a test does).
+MIN_STEP_S = 1e-3
+MIN_TIMEOUT_S = 1e-3
+
+
 def simulate_catalog(
     catalog: Path,
     esmini: str | None = None,
@@ -515,10 +522,12 @@ def simulate_catalog(
         raise InputError(
             index_path, "", "not a catalog (catalog.json is missing); run `sensorgap export` first"
         )
-    if not (0.0 < timeout_s <= 86_400.0):
-        raise InputError("timeout", "", f"must be within 0..86400 s, got {timeout_s!r}")
-    if not (0.0 < step_s <= 1.0):
-        raise InputError("step", "", f"must be within 0..1 s, got {step_s!r}")
+    if not (MIN_TIMEOUT_S <= timeout_s <= 86_400.0):
+        raise InputError(
+            "timeout", "", f"must be within {MIN_TIMEOUT_S:g}..86400 s, got {timeout_s!r}"
+        )
+    if not (MIN_STEP_S <= step_s <= 1.0):
+        raise InputError("step", "", f"must be within {MIN_STEP_S:g}..1 s, got {step_s!r}")
     index, entries = read_catalog_index(index_path)
     exe = find_esmini(esmini)
     run = read_run(catalog)

@@ -112,7 +112,8 @@ def _numbers(
     keys: tuple[str, ...],
     required: tuple[str, ...] = (),
 ) -> None:
-    """Each of ``keys`` in ``data`` a number (or null); ``required`` ones present."""
+    """Each of ``keys`` in ``data`` a finite number (or null); ``required`` ones present
+    (a NaN area was printed as "nan m2")."""
     for k in keys:
         v = data.get(k)
         if (v is None and k in required) or (
@@ -121,6 +122,60 @@ def _numbers(
             raise InputError(
                 path, f"{field}.{k}" if field else k, f"expected a number, got {v!r:.40}"
             )
+        if v is not None and not math.isfinite(v):
+            raise InputError(
+                path, f"{field}.{k}" if field else k, f"expected a number, got {v!r} (not finite)"
+            )
+
+
+def _check_search_summary(path: Path, search: dict[str, Any]) -> None:
+    """The fields of a search's summary.json the report prints: counts (``candidates``,
+    ``feasible``, ``infeasible``, per family and of ``lookup_vs_exact``) non-negative
+    integers, ``best_collision_probability`` within 0..1, ``best_log10_risk`` finite,
+    ``settings`` and ``lookup_vs_exact`` objects; anything else -> ``InputError`` naming the
+    field (a NaN count was an internal error, a text probability was printed as it was)."""
+
+    def count(data: dict[str, Any], field: str, keys: tuple[str, ...]) -> None:
+        for k in keys:
+            v = data.get(k)
+            if v is not None and (isinstance(v, bool) or not isinstance(v, int) or v < 0):
+                raise InputError(
+                    path,
+                    f"{field}.{k}" if field else k,
+                    f"expected a non-negative integer, got {v!r:.40}",
+                )
+
+    count(search, "", ("candidates", "feasible", "infeasible"))
+    _numbers(path, search, "", ("best_collision_probability", "best_log10_risk"))
+    p = search.get("best_collision_probability")
+    if p is not None and not 0.0 <= p <= 1.0:
+        raise InputError(path, "best_collision_probability", f"expected 0..1, got {p!r:.40}")
+    settings = _object(path, search, key="settings")
+    count(settings, "settings", ("budget", "seed", "seeds", "top"))
+    lve = _object(path, search, key="lookup_vs_exact")
+    count(
+        lve,
+        "lookup_vs_exact",
+        (
+            "reevaluated",
+            "sensor_critical_both",
+            "sensor_critical_exact",
+            "sensor_critical_lookup",
+            "top10_overlap",
+        ),
+    )
+    _numbers(
+        path,
+        lve,
+        "lookup_vs_exact",
+        ("max_abs_diff_collision_probability", "mean_abs_diff_collision_probability"),
+    )
+    for fam, d in _object(path, search, key="per_family").items():
+        count(
+            _object(path, d, f"per_family.{fam[:40]}"),
+            f"per_family.{fam[:40]}",
+            ("budget", "feasible", "sensor_critical_by_lookup", "threats", "unavoidable_by_lookup"),
+        )
 
 
 def read_nearfield(path: Path) -> dict[str, Any]:
@@ -791,7 +846,15 @@ def build(folder: Path) -> tuple[str, list[str], Section, list[Section]]:
     if (folder / "catalog.json").is_file():
         read_catalog(folder / "catalog.json")
     for s in sorted((folder / "coverage").glob("*/summary.json")):
-        _object(s, read_json(s))
+        cs = _object(s, read_json(s))
+        # the areas and the cell size the report's table prints (text or NaN was printed)
+        _numbers(
+            s,
+            _object(s, cs, key="area_m2_by_level"),
+            "area_m2_by_level",
+            ("pd=1.0", "pd>=0.8", "pd>=0.5", "pd>0", "pd=0"),
+        )
+        _numbers(s, _object(s, cs, key="grid"), "grid", ("resolution_m",))
     if (folder / "anchors" / "anchors.json").is_file():
         a = folder / "anchors" / "anchors.json"
         rows = _object(a, read_json(a)).get("anchors")
@@ -809,6 +872,7 @@ def build(folder: Path) -> tuple[str, list[str], Section, list[Section]]:
     ).items():
         _object(folder / "summary.json", d, f"per_family.{fam[:40]}")
     if search is not None:
+        _check_search_summary(folder / "summary.json", search)
         _check_stability(
             folder / "summary.json", _object(folder / "summary.json", search, key="stability")
         )

@@ -14,11 +14,12 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Literal, NoReturn, cast
+from typing import Literal, NoReturn, TypeVar, cast
 
 import numpy as np
 from lxml import etree
 
+from sensorgap.config.common import parse_decimal, parse_integer
 from sensorgap.errors import InputError
 from sensorgap.roads.geometry import Arc, Geometry, Line, ParamPoly3, Poly3, Spiral
 from sensorgap.roads.model import (
@@ -38,6 +39,12 @@ from sensorgap.roads.xmlsafe import DEFAULT_MAX_BYTES, parse_xml_file
 #: Largest accepted gap/overlap between consecutive geometries, and between the sum of the
 #: geometry lengths and the road length, m.
 S_TOLERANCE = 1e-3
+#: Largest distance between the end of a planView geometry and the start of the next, m.
+XY_TOLERANCE = 0.1
+#: Largest relative difference between a paramPoly3's arc length and its ``length``.
+ARC_LENGTH_TOLERANCE = 0.01
+#: Samples along a poly3/paramPoly3 for its curvature and arc length.
+_CUBIC_SAMPLES = 257
 #: Most negative lane width tolerated (rounding in writers), m.
 WIDTH_TOLERANCE = 1e-6
 
@@ -64,6 +71,40 @@ def _local(el: etree._Element) -> str:
     """Tag name without namespace; '' for comments and processing instructions."""
     tag = el.tag
     return tag.rpartition("}")[2] if isinstance(tag, str) else ""
+
+
+_Cubic = TypeVar("_Cubic", Poly3, ParamPoly3)
+
+
+def _cubic_extent(g: Poly3 | ParamPoly3) -> tuple[float, float | None]:
+    """Largest |curvature| (1/m; inf at a cusp) of a poly3 or paramPoly3 over its length,
+    sampled at ``_CUBIC_SAMPLES`` points, and (paramPoly3 only) its arc length, m, by
+    Simpson's rule (a poly3 is parametrised by its arc length already)."""
+    with np.errstate(all="ignore"):
+        if isinstance(g, Poly3):
+            u_end = float(g.u_at(np.array([g.length]))[0])
+            u = np.linspace(0.0, u_end, _CUBIC_SAMPLES)
+            dv = g.b + u * (2.0 * g.c + 3.0 * g.d * u)
+            ddv = 2.0 * g.c + 6.0 * g.d * u
+            k = np.abs(ddv) / (1.0 + dv * dv) ** 1.5
+            return float(np.max(k)), None
+        p_end = g.length if g.p_range == "arcLength" else 1.0
+        p = np.linspace(0.0, p_end, _CUBIC_SAMPLES)
+        du = g.b_u + p * (2.0 * g.c_u + 3.0 * g.d_u * p)
+        dv = g.b_v + p * (2.0 * g.c_v + 3.0 * g.d_v * p)
+        ddu = 2.0 * g.c_u + 6.0 * g.d_u * p
+        ddv = 2.0 * g.c_v + 6.0 * g.d_v * p
+        q = du * du + dv * dv
+        speed = np.sqrt(q)
+        h = p_end / (_CUBIC_SAMPLES - 1)
+        arc = (
+            h / 3.0 * (speed[0] + speed[-1] + 4.0 * speed[1:-1:2].sum() + 2.0 * speed[2:-1:2].sum())
+        )
+        k = np.where(
+            q > 0.0, np.abs(du * ddv - dv * ddu) / np.where(q > 0.0, q, 1.0) ** 1.5, np.inf
+        )
+        kmax = float(np.max(k))
+        return kmax, float(arc)
 
 
 def _kids(el: etree._Element, name: str) -> list[etree._Element]:
@@ -101,9 +142,11 @@ class _Reader:
                 return default
             self.fail(f"{where}@{attr}", "required attribute is missing", el)
         try:
-            value = float(raw)
+            # the xsd:double syntax (no '_' separators, no other scripts' digits: float()
+            # read width="3_5" as 35 and "３.5" as 3.5, which the export's XSD check refused)
+            value = parse_decimal(raw)
         except ValueError:
-            self.fail(f"{where}@{attr}", f"must be a number, got {raw!r}", el)
+            self.fail(f"{where}@{attr}", f"must be a number, got {raw[:80]!r}", el)
         if not math.isfinite(value):
             self.fail(f"{where}@{attr}", f"must be a finite number, got {raw!r}", el)
         if abs(value) > MAX_ABS_VALUE:
@@ -137,9 +180,9 @@ class _Reader:
     def integer(self, el: etree._Element, attr: str, where: str) -> int:
         raw = self.text(el, attr, where)
         try:
-            return int(raw)
+            return parse_integer(raw)  # ASCII digits (int() also took "１")
         except ValueError:
-            self.fail(f"{where}@{attr}", f"must be an integer, got {raw!r}", el)
+            self.fail(f"{where}@{attr}", f"must be an integer, got {raw[:80]!r}", el)
 
     def choice(
         self,
@@ -250,6 +293,10 @@ class _Reader:
         pv = _kid(el, "planView")
         if pv is None:
             self.fail(f"{where}/planView", "missing: every road needs a planView", el)
+        if len(_kids(el, "planView")) > 1:  # the second one was ignored silently
+            self.fail(
+                f"{where}/planView", "at most one planView per road", _kids(el, "planView")[1]
+            )
         gels = self.some(pv, "geometry", f"{where}/planView")
         geoms: list[Geometry] = []
         for i, g in enumerate(gels):
@@ -272,6 +319,18 @@ class _Reader:
                 self.fail(
                     w, f"must contain exactly one of {', '.join(_GEOMETRY_KINDS)}; found {found}", g
                 )
+            if geoms:
+                # contiguous in x, y too: a geometry starting kilometres from where the
+                # previous one ends made every path jump there (at any speed)
+                ex, ey, _ = geoms[-1].end()
+                gap = math.hypot(x - ex, y - ey)
+                if not gap <= XY_TOLERANCE:
+                    self.fail(
+                        f"{w}@x/y",
+                        f"must start where geometry[{i - 1}] ends ({ex:.6g}, {ey:.6g}), within "
+                        f"{XY_TOLERANCE:g} m; got ({x:.6g}, {y:.6g}), {gap:.6g} m away",
+                        g,
+                    )
             geoms.append(self.geometry(kids[0], f"{w}/{_local(kids[0])}", s, x, y, hdg, glen))
         total = geoms[-1].s + geoms[-1].length
         if abs(total - length) > S_TOLERANCE:
@@ -303,7 +362,7 @@ class _Reader:
             )
         if kind == "poly3":
             a, b, c, d = (self.num(k, n, w) for n in ("a", "b", "c", "d"))
-            return Poly3(s, x, y, hdg, length, a, b, c, d)
+            return self.cubic_curve(Poly3(s, x, y, hdg, length, a, b, c, d), w, k)
         au, bu, cu, du, av, bv, cv, dv = (
             self.num(k, n, w) for n in ("aU", "bU", "cU", "dU", "aV", "bV", "cV", "dV")
         )
@@ -311,22 +370,49 @@ class _Reader:
             Literal["arcLength", "normalized"],
             self.choice(k, "pRange", w, ("arcLength", "normalized"), "normalized"),
         )
-        return ParamPoly3(
-            s,
-            x,
-            y,
-            hdg,
-            length,
-            a_u=au,
-            b_u=bu,
-            c_u=cu,
-            d_u=du,
-            a_v=av,
-            b_v=bv,
-            c_v=cv,
-            d_v=dv,
-            p_range=p_range,
+        return self.cubic_curve(
+            ParamPoly3(
+                s,
+                x,
+                y,
+                hdg,
+                length,
+                a_u=au,
+                b_u=bu,
+                c_u=cu,
+                d_u=du,
+                a_v=av,
+                b_v=bv,
+                c_v=cv,
+                d_v=dv,
+                p_range=p_range,
+            ),
+            w,
+            k,
         )
+
+    def cubic_curve(self, g: _Cubic, w: str, k: etree._Element) -> _Cubic:
+        """A poly3 or paramPoly3 whose curvature stays within ``MAX_CURVATURE`` (as an arc's
+        and a spiral's) and, for a paramPoly3, whose arc length is its ``length`` (within
+        ``ARC_LENGTH_TOLERANCE``): s runs along the curve, so a curve 1e8 m long declared
+        200 m moved every road user 5e5 times faster than its speed, and a curve that is a
+        point moved none."""
+        kmax, arc = _cubic_extent(g)
+        if arc is not None and not abs(arc - g.length) <= ARC_LENGTH_TOLERANCE * g.length:
+            self.fail(
+                f"{w}",
+                f"the curve is {arc:.6g} m long; its geometry's length is {g.length:.6g} m "
+                f"(they must agree within {ARC_LENGTH_TOLERANCE:.0%}: s runs along the curve)",
+                k,
+            )
+        if not kmax <= MAX_CURVATURE:
+            self.fail(
+                w,
+                f"curvature reaches {kmax:.3g} 1/m; at most {MAX_CURVATURE:g} 1/m (radius >= "
+                f"{1.0 / MAX_CURVATURE:g} m), as for an arc or a spiral",
+                k,
+            )
+        return g
 
     def curvature(self, k: etree._Element, attr: str, w: str) -> float:
         value = self.num(k, attr, w)

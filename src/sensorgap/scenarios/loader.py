@@ -259,6 +259,27 @@ def load_family(name_or_path: str, road: Path | None = None) -> Family:
             f"({settings['ego_lane']}): the target changes from its lane into "
             "the ego's (or passes in the next lane)",
         )
+    if "lane" in settings and settings.get("target_lane") == settings["lane"]:
+        # cut_out_reveal: the lead car leaves the shared lane for target_lane; the same
+        # lane was accepted and searched as a cut-out that never leaves (round six)
+        raise InputError(
+            path,
+            "family.target_lane",
+            f"must differ from lane ({settings['lane']}): the lead car cuts out of the "
+            "lane into target_lane",
+        )
+    lanes = [(k, settings[k]) for k in LANE_SETTINGS if settings.get(k) is not None]
+    if len({v > 0 for _, v in lanes}) > 1:
+        # lanes of opposite sign carry opposite directions: a target_lane 3 beside an
+        # ego_lane -1 was searched as a cut-in from the oncoming carriageway, every
+        # candidate infeasible (hostile round six)
+        first, other = lanes[0], next(kv for kv in lanes if (kv[1] > 0) != (lanes[0][1] > 0))
+        raise InputError(
+            path,
+            f"family.{other[0]}",
+            f"lane {other[1]} is on the other side of the road from {first[0]} "
+            f"({first[1]}): the lanes of a family share one direction (same sign)",
+        )
     if settings.get("occluder_lane") is not None and settings["occluder_lane"] == settings.get(
         "ego_lane"
     ):

@@ -39,6 +39,10 @@ CERTAIN_COST = -math.log(1e-300)
 MAX_CORRIDOR_NODES = 500_000
 MAX_CORRIDOR_X_M = 2_000.0
 MAX_CORRIDOR_Y_M = 200.0
+#: Largest relative speed along x, m/s: the bound of every speed difference
+#: (``config.parameters.SUFFIX_BOUNDS``, ``*_m_s``); beyond it a lattice column lies
+#: kilometres past the goal (1e308 m/s overflowed in the sensor kernel).
+MAX_CORRIDOR_SPEED_M_S = 100.0
 
 
 @dataclass(frozen=True)
@@ -81,8 +85,12 @@ def corridor_search(
         dt: sensor cycle, s (one column per cycle: column spacing ``speed_rel * dt``).
         lateral_res: row spacing, m. max_lateral_cells: rows per cycle at most.
     """
-    if not (math.isfinite(speed_rel) and speed_rel > 0.0):
-        raise InputError("speed", "", f"relative speed must be > 0 m/s, got {speed_rel!r}")
+    if not (math.isfinite(speed_rel) and 0.0 < speed_rel <= MAX_CORRIDOR_SPEED_M_S):
+        raise InputError(
+            "speed",
+            "",
+            f"relative speed must be > 0 and <= {MAX_CORRIDOR_SPEED_M_S:g} m/s, got {speed_rel!r}",
+        )
     if not x_goal > x_start:
         raise InputError(
             "goal",

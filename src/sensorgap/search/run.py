@@ -13,9 +13,13 @@ from __future__ import annotations
 
 import contextlib
 import csv
+import fcntl
 import io
 import math
+import os
+import sqlite3
 import sys
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -307,6 +311,44 @@ def write_ranking(out: Path, p: Prepared, ranked: Ranked, summary: dict[str, Any
     write_json(out / "summary.json", summary)
 
 
+@contextlib.contextmanager
+def _exclusive(out: Path) -> Iterator[None]:
+    """Hold an exclusive lock on the folder ``out`` (``flock`` on the folder itself: no
+    lock file is left in the run folder) while a search writes it; a second search into
+    the same folder at the same time -> ``InputError`` (two searches storing into one
+    database and writing one ranking left a folder whose manifest did not match it)."""
+    fd = os.open(out, os.O_RDONLY)
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise InputError(
+                "out",
+                "",
+                f"another search is writing to {out} now; wait for it to finish, or use "
+                "another --out",
+            ) from None
+        yield
+    finally:
+        os.close(fd)
+
+
+def _stored_count(db: Path) -> int:
+    """Candidates stored in ``db``, read without writing (0 when there is no readable
+    store; a damaged one is reported when it is opened)."""
+    if not db.is_file() or db.stat().st_size == 0:
+        return 0
+    try:
+        con = sqlite3.connect(f"{db.resolve().as_uri()}?mode=ro", uri=True)
+        try:
+            row = con.execute("SELECT COUNT(*) FROM candidates").fetchone()
+        finally:
+            con.close()
+    except sqlite3.Error:
+        return 0
+    return int(row[0]) if row else 0
+
+
 def run_search(
     vehicle: str | Path,
     families: list[str],
@@ -361,46 +403,66 @@ def run_search(
     new_db = not db.exists()
     new_out = not out.exists()
     out.mkdir(parents=True, exist_ok=True)
-    store = Store(db, p.record, p.inputs)
-    if store.count() and not resume:
-        n = store.count()
-        store.close()
-        raise InputError(
-            "out",
-            "",
-            f"{out} already holds a search ({n} candidates "
-            "stored); add --resume to continue it, or use another --out",
-        )
-    resuming = store.count() > 0
-    try:
-        runner = make_executor(executor, scheduler, workers)
-    except InputError:
-        store.close()
-        if new_db:  # nothing was stored: leave no empty database behind
-            db.unlink(missing_ok=True)
-        if new_out:  # nor an empty folder this search created
-            with contextlib.suppress(OSError):
-                out.rmdir()
-        raise
-    # the run folder keeps its inputs: copies under inputs/, paths and SHA-256 in run.json
-    write_search_record(
-        out,
-        vehicle_ref(vehicle),
-        p.record,
-        record_inputs(
-            out, p.system.source, environments_file, p.system.config.reaction, p.families
-        ),
-    )
-    disable = (not sys.stderr.isatty()) if progress is None else not progress
-    try:
-        with tqdm(total=budget, disable=disable, desc="search", unit="cand") as bar:
-            loop = search_loop(
-                p, runner, store.get if resuming else None, store.put_async, bar.update
+    with _exclusive(out):
+        n_stored = 0 if resume else _stored_count(db)
+        if n_stored:  # refused before the store is opened for writing (it would change)
+            raise InputError(
+                "out",
+                "",
+                f"{out} already holds a search ({n_stored} candidates "
+                "stored); add --resume to continue it, or use another --out",
             )
-    finally:
-        store.close()
-        runner.close()
-    ranked = rank_results(p, loop)
-    summary = search_summary(p, loop, ranked)
-    write_ranking(out, p, ranked, summary)
-    return SearchOutcome(ranked.rows, loop.results, loop.evaluated, loop.reused, summary)
+        try:
+            store = Store(db, p.record, p.inputs)
+        except InputError:
+            # not opened (a full disk: "disk I/O error"): nothing was stored, so leave no
+            # database and no folder this search created
+            if new_db:
+                for leftover in (db, db.with_name(db.name + "-journal")):
+                    leftover.unlink(missing_ok=True)
+            if new_out:
+                with contextlib.suppress(OSError):
+                    out.rmdir()
+            raise
+        if store.count() and not resume:
+            n = store.count()
+            store.close()
+            raise InputError(
+                "out",
+                "",
+                f"{out} already holds a search ({n} candidates "
+                "stored); add --resume to continue it, or use another --out",
+            )
+        resuming = store.count() > 0
+        try:
+            runner = make_executor(executor, scheduler, workers)
+        except InputError:
+            store.close()
+            if new_db:  # nothing was stored: leave no empty database behind
+                db.unlink(missing_ok=True)
+            if new_out:  # nor an empty folder this search created
+                with contextlib.suppress(OSError):
+                    out.rmdir()
+            raise
+        # the run folder keeps its inputs: copies under inputs/, paths and SHA-256 in run.json
+        write_search_record(
+            out,
+            vehicle_ref(vehicle),
+            p.record,
+            record_inputs(
+                out, p.system.source, environments_file, p.system.config.reaction, p.families
+            ),
+        )
+        disable = (not sys.stderr.isatty()) if progress is None else not progress
+        try:
+            with tqdm(total=budget, disable=disable, desc="search", unit="cand") as bar:
+                loop = search_loop(
+                    p, runner, store.get if resuming else None, store.put_async, bar.update
+                )
+        finally:
+            store.close()
+            runner.close()
+        ranked = rank_results(p, loop)
+        summary = search_summary(p, loop, ranked)
+        write_ranking(out, p, ranked, summary)
+        return SearchOutcome(ranked.rows, loop.results, loop.evaluated, loop.reused, summary)

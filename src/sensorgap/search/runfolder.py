@@ -292,6 +292,7 @@ def _read_ranking(folder: Path) -> tuple[list[dict[str, Any]], dict[str, Any], d
             "settings.environments",
             "malformed ranking file: expected a list of environment names",
         )
+    seen: dict[str, int] = {}
     for i, row in enumerate(rows):
         if not isinstance(row, dict):
             raise InputError(path, f"ranking[{i}]", "malformed ranking file: expected an object")
@@ -317,12 +318,21 @@ def _read_ranking(folder: Path) -> tuple[list[dict[str, Any]], dict[str, Any], d
                 f"{row['scenario_id'][:80]!r}",
             )
         rank = row.get("rank")
-        if not isinstance(rank, int) or isinstance(rank, bool) or rank < 1:
+        if not isinstance(rank, int) or isinstance(rank, bool) or not 1 <= rank <= MAX_RANKED_ROWS:
             raise InputError(
                 path,
                 f"ranking[{i}].rank",
-                f"malformed ranking file: expected a positive integer, got {rank!r}",
+                f"malformed ranking file: expected a positive integer (1..{MAX_RANKED_ROWS}), "
+                f"got {str(rank)[:40]!r}",
             )
+        if row["scenario_id"] in seen:  # one catalog file per id: the second overwrote it
+            raise InputError(
+                path,
+                f"ranking[{i}].scenario_id",
+                f"malformed ranking file: {row['scenario_id']!r} is also ranking"
+                f"[{seen[row['scenario_id']]}]",
+            )
+        seen[row["scenario_id"]] = i
         found = row.get("found_by_seeds")
         if found is not None and (
             not isinstance(found, int) or isinstance(found, bool) or not 0 <= found <= 10

@@ -9,6 +9,7 @@ writers (``search.run``) take a ``Prepared``.
 from __future__ import annotations
 
 import json
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -31,6 +32,8 @@ MAX_BUDGET = 1_000_000
 #: Largest seed (numpy's seed sequences take any non-negative integer; this keeps it an
 #: int64 in the store).
 MAX_SEED = 2**63 - 1
+#: ``--detection`` as M/N: ASCII digits only (range checked by ``DetectionRule.parse``).
+_DETECTION_TEXT = re.compile(r"\s*[0-9]{1,9}\s*/\s*[0-9]{1,9}\s*")
 #: Most independent searches one run's budget may be split into (``seeds``).
 MAX_SEEDS = 10
 
@@ -85,6 +88,15 @@ class SearchSettings:
         if isinstance(self.seeds, bool) or not 1 <= self.seeds <= MAX_SEEDS:
             raise InputError(
                 "seeds", "", f"must be an integer within 1..{MAX_SEEDS}, got {self.seeds}"
+            )
+        if self.detection != "cumulative" and not _DETECTION_TEXT.fullmatch(self.detection):
+            # DetectionRule.parse takes str.isdigit, which also admits other scripts' digits
+            # ("３/5"); here, as for every other number, only ASCII digits
+            raise InputError(
+                "detection",
+                "",
+                "expected 'cumulative' or M/N in ASCII digits with 1 <= M <= N <= 50 "
+                f"(e.g. 3/5), got {self.detection[:80]!r}",
             )
         if self.executor not in ("local", "dask"):
             raise InputError("executor", "", f"must be local or dask, got {self.executor!r}")
