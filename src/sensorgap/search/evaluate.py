@@ -113,7 +113,7 @@ class DetectionRule:
         if text == "cumulative":
             return cls()
         parts = text.split("/")
-        if len(parts) == 2 and all(p.strip().isdigit() for p in parts):
+        if len(parts) == 2 and all(p.strip().isascii() and p.strip().isdigit() for p in parts):
             m, n = int(parts[0]), int(parts[1])
             if 1 <= m <= n <= 50:
                 return cls(kind="m_of_n", m=m, n=n)
