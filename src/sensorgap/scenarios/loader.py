@@ -318,8 +318,18 @@ def check_fits(family: Family, path: Path | str) -> None:
     """Generate at the corners of the parameter box; ``InputError`` if one leaves the road.
 
     (Feasibility bounds are not checked here: single candidates may be infeasible and are
-    recorded as such; only a family that cannot fit on its road is bad input.)
+    recorded as such; only a family that cannot fit on its road, or whose target speed
+    range lies wholly above its target class's largest speed, is bad input.)
     """
+    speed = next((p for p in family.space if p.name == "target_speed_m_s"), None)
+    top = family.limits.max_speed
+    if speed is not None and not speed.categorical and speed.low > top * 1.01 + 1e-9:
+        raise InputError(
+            path,
+            "parameters.target_speed_m_s",
+            f"the range starts at {speed.low:g} m/s, above the largest speed of a "
+            f"{family.target_class} ({top:g} m/s): every candidate would be infeasible",
+        )
     corners = list(
         itertools.islice(itertools.product(*(p.corners() for p in family.space)), MAX_FIT_CORNERS)
     )
