@@ -22,10 +22,39 @@ TESTS = Path(__file__).resolve().parent
 SHARED_FIXTURE_DIRS = ("export", "report")
 
 
+#: Tests (node-id prefixes) that share no module- or session-scoped fixture with the rest of
+#: their file or folder and take several seconds each: each is a group of its own, so the
+#: two workers can split them (a whole file of them on one worker made the longer chain).
+OWN_GROUP = (
+    "tests/test_determinism.py::",
+    "tests/test_hostile_runtime.py::",
+    "tests/search/test_credible.py::test_ranked_rows_reproduce_with_evaluate",
+    "tests/search/test_credible.py::test_system_a_ranked_bodies_are_unseen",
+    "tests/report/test_summary.py::test_summary_names_the_rear_blind_wedges",
+)
+#: The longest groups (seconds of one worker, 2-core machine, with coverage), started
+#: first: the scheduler otherwise starts the groups with the most tests first, and a long
+#: group started late left one worker waiting for the other at the end.
+LONG_GROUPS = (
+    "tests/report",
+    "tests/export",
+    "tests/search/test_credible.py",
+    "tests/search/test_runfolder.py",
+    "tests/test_bad_inputs.py",
+    "tests/search/test_compare_maps.py",
+    "tests/analysis/test_nearfield.py",
+    "tests/cli/test_paper.py",
+    "tests/search/test_batch.py",
+    "tests/search/test_search.py",
+)
+
+
 def xdist_group_of(nodeid: str) -> str:
     """The parallel-worker group of a test (its pytest node id, relative to the rootdir):
-    its folder under tests/ when that folder shares session fixtures
-    (``SHARED_FIXTURE_DIRS``), else its file."""
+    the test itself when listed in ``OWN_GROUP``; its folder under tests/ when that folder
+    shares session fixtures (``SHARED_FIXTURE_DIRS``); else its file."""
+    if nodeid.startswith(OWN_GROUP):
+        return nodeid
     path = nodeid.split("::", 1)[0]
     parts = path.split("/")
     if len(parts) > 2 and parts[0] == "tests" and parts[1] in SHARED_FIXTURE_DIRS:
@@ -47,6 +76,14 @@ def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> Any:
     class FileOrFolderScheduling(LoadScopeScheduling):  # type: ignore[misc]
         def _split_scope(self, nodeid: str) -> str:
             return xdist_group_of(nodeid)
+
+        def _assign_work_unit(self, node: Any) -> None:
+            # the longest groups first (``LONG_GROUPS``), then xdist's order (most tests)
+            for scope in LONG_GROUPS:
+                if scope in self.workqueue:
+                    self.workqueue.move_to_end(scope, last=False)
+                    break
+            super()._assign_work_unit(node)
 
     return FileOrFolderScheduling(config, log)
 

@@ -5,6 +5,8 @@ package holds one implementation per metric (issue #16)."""
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from sensorgap.scenarios.trajectory import DT_S
@@ -20,6 +22,15 @@ from sensorgap.search.metrics import (
 def at_least_m_of_window(pd: np.ndarray, m: int, n: int) -> np.ndarray:
     """P(at least m detections among the last n cycles) at every step (Poisson-binomial
     over the window of independent cycles; shorter windows at the start)."""
+    pd = np.ascontiguousarray(pd)
+    # every metric's oracle asks for the detection step of the same trace: computed once
+    # per (Pd series, m, n), a copy returned
+    return _m_of_window(pd.tobytes(), pd.dtype.str, pd.shape, m, n).copy()
+
+
+@functools.lru_cache(maxsize=256)
+def _m_of_window(pd_bytes: bytes, dtype: str, shape: tuple[int, ...], m: int, n: int) -> np.ndarray:
+    pd = np.frombuffer(pd_bytes, dtype=dtype).reshape(shape)
     out = np.zeros(pd.size)
     for k in range(pd.size):
         window = pd[max(0, k - n + 1) : k + 1]

@@ -731,15 +731,18 @@ def nearfield_figure(
     xmin, ymin, xmax, ymax = window.bounds
     aspect = (ymax - ymin) / (xmax - xmin)
     fig, ax = plt.subplots(figsize=(9.0, max(3.5, 9.0 * aspect + 1.3)), layout="constrained")
+    # the polygons go in with add_artist, not add_patch: add_patch also grows the data
+    # limits vertex by vertex (most of the figure's time for footprints of thousands of
+    # vertices), which nothing here reads: the limits are set to the window below
     if (
         p := _path_patch(uncovered, facecolor="tab:green", edgecolor="none", alpha=0.55, zorder=1)
     ) is not None:
-        ax.add_patch(p)
+        ax.add_artist(p)
     for spot in spots:
         if (
             p := _path_patch(spot, facecolor="tab:blue", edgecolor="navy", linewidth=0.6, zorder=3)
         ) is not None:
-            ax.add_patch(p)
+            ax.add_artist(p)
     types_used = []
     for s in system.sensors:
         colour = sensor_colour(s.type_name)
@@ -747,13 +750,13 @@ def nearfield_figure(
         if (
             p := _path_patch(clipped, facecolor=colour, edgecolor="none", alpha=0.07, zorder=0)
         ) is not None:
-            ax.add_patch(p)
+            ax.add_artist(p)
         if (
             p := _path_patch(
                 clipped, facecolor="none", edgecolor=colour, linewidth=0.5, alpha=0.7, zorder=2
             )
         ) is not None:
-            ax.add_patch(p)
+            ax.add_artist(p)
         ax.plot([s.mount.x], [s.mount.y], marker="o", markersize=2.5, color=colour, zorder=6)
         if s.type_name not in types_used:
             types_used.append(s.type_name)
