@@ -593,6 +593,30 @@ def test_refuse_if_changed_unit(tmp_path: Path) -> None:
         refuse_if_changed(run, ())
 
 
+def _small_search(run: Path, budget: str, *extra: str) -> int:
+    """A small search of System B (slow_ahead_curve in snow, seed 1, top 2) into ``run``."""
+    return main(
+        [
+            "search",
+            "--vehicle",
+            "system_b",
+            "--families",
+            "slow_ahead_curve",
+            "--environments",
+            "snow",
+            "--budget",
+            budget,
+            "--seed",
+            "1",
+            "--top",
+            "2",
+            "--out",
+            str(run),
+            *extra,
+        ]
+    )
+
+
 def test_report_and_export_do_not_certify_a_tampered_run(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -603,30 +627,7 @@ def test_report_and_export_do_not_certify_a_tampered_run(
     sub-folder lets the report degrade and stays listed (verify names it); the run's own
     record lost from the top of the folder is refused."""
     run = tmp_path / "run"
-    assert (
-        main(
-            [
-                "search",
-                "--vehicle",
-                "system_b",
-                "--families",
-                "slow_ahead_curve",
-                "--environments",
-                "snow",
-                "--budget",
-                "30",
-                "--seed",
-                "1",
-                "--top",
-                "2",
-                "--strategy",
-                "lhs",
-                "--out",
-                str(run),
-            ]
-        )
-        == 0
-    )
+    assert _small_search(run, "30", "--strategy", "lhs") == 0
     assert main(["report", "--run", str(run)]) == 0
     assert main(["export", "--run", str(run)]) == 0
     assert main(["report", "--run", str(run)]) == 0
@@ -716,26 +717,7 @@ def test_a_resumed_search_that_changes_the_ranking_removes_the_stale_export(
     run = tmp_path / "run"
 
     def search(budget: str, *extra: str) -> int:
-        return main(
-            [
-                "search",
-                "--vehicle",
-                "system_b",
-                "--families",
-                "slow_ahead_curve",
-                "--environments",
-                "snow",
-                "--budget",
-                budget,
-                "--seed",
-                "1",
-                "--top",
-                "2",
-                "--out",
-                str(run),
-                *extra,
-            ]
-        )
+        return _small_search(run, budget, *extra)
 
     assert search("40") == 0
     assert main(["export", "--run", str(run)]) == 0

@@ -75,6 +75,16 @@ def compute_coverage(
     )
 
 
+def _unreadable(path: Path | str, exc: BaseException) -> InputError:
+    """The one line for a coverage map that cannot be read."""
+    return InputError(
+        path,
+        "",
+        f"unreadable coverage map (expected the .npz of `sensorgap coverage`: pd, x, y, "
+        f"resolution): {exc}",
+    )
+
+
 def read_coverage_npz(
     path: Path,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], float]:
@@ -88,12 +98,7 @@ def read_coverage_npz(
             x, y = np.asarray(z["x"], np.float64), np.asarray(z["y"], np.float64)
             res = float(np.asarray(z["resolution"]).ravel()[0])
     except (OSError, KeyError, ValueError, IndexError, EOFError, zipfile.BadZipFile) as exc:
-        raise InputError(
-            path,
-            "",
-            "unreadable coverage map (expected the .npz of "
-            f"`sensorgap coverage`: pd, x, y, resolution): {exc}",
-        ) from None
+        raise _unreadable(path, exc) from None
     if x.ndim != 1 or y.ndim != 1 or pd.shape != (len(y), len(x)):
         raise InputError(
             path, "pd", f"expected shape (len(y), len(x)) = ({len(y)}, {len(x)}), got {pd.shape}"
@@ -143,12 +148,7 @@ def _check_npz_members(path: Path) -> None:
     except InputError:
         raise
     except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
-        raise InputError(
-            path,
-            "",
-            "unreadable coverage map (expected the .npz of "
-            f"`sensorgap coverage`: pd, x, y, resolution): {exc}",
-        ) from None
+        raise _unreadable(path, exc) from None
 
 
 def write_coverage(
