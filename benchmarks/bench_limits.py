@@ -55,18 +55,17 @@ class Case:
     argv: Callable[[Path, float], list[str]]
 
 
+def _car_in_clear(command: str) -> list[str]:
+    """The start of a command line that evaluates a car for System A in clear air."""
+    return [command, "--vehicle", "system_a", "--environment", "clear", "--target", "car"]
+
+
 def _coverage(tmp: Path, scale: float) -> list[str]:
     cells = cli.MAX_GRID_CELLS * scale
     ny = 1000
     nx = int(cells // ny)  # 0.1 m cells: nx * ny <= the limit
     return [
-        "coverage",
-        "--vehicle",
-        "system_a",
-        "--environment",
-        "clear",
-        "--target",
-        "car",
+        *_car_in_clear("coverage"),
         "--resolution",
         "0.1",
         f"--extent=-10,{-10 + nx * 0.1:g},-50,50",
@@ -78,13 +77,7 @@ def _coverage(tmp: Path, scale: float) -> list[str]:
 def _coverage_bodies(tmp: Path, scale: float) -> list[str]:
     side = int(math.sqrt(cli.MAX_BODY_CELLS * scale))
     return [
-        "coverage",
-        "--vehicle",
-        "system_a",
-        "--environment",
-        "clear",
-        "--target",
-        "car",
+        *_car_in_clear("coverage"),
         "--resolution",
         "0.1",
         f"--extent=-{side * 0.05:g},{side * 0.05:g},-{side * 0.05:g},{side * 0.05:g}",
@@ -99,13 +92,7 @@ def _coverage_per_sensor(tmp: Path, scale: float) -> list[str]:
     cells = cli.MAX_PER_SENSOR_CELLS * scale / SYSTEM_A_SENSORS
     nx = int(cells // 1000)
     return [
-        "coverage",
-        "--vehicle",
-        "system_a",
-        "--environment",
-        "clear",
-        "--target",
-        "car",
+        *_car_in_clear("coverage"),
         "--resolution",
         "0.1",
         f"--extent=-10,{-10 + nx * 0.1:g},-50,50",
@@ -136,13 +123,7 @@ def _probe(tmp: Path, scale: float) -> list[str]:
         for i in range(n):
             f.write(f"{(i % 2000) * 0.1 - 50:.1f},{(i // 2000) % 100 * 0.5 - 25:.1f}\n")
     return [
-        "probe",
-        "--vehicle",
-        "system_a",
-        "--environment",
-        "clear",
-        "--target",
-        "car",
+        *_car_in_clear("probe"),
         "--points",
         str(pts),
         "--out",
@@ -155,13 +136,7 @@ def _corridor(tmp: Path, scale: float) -> list[str]:
     rows = 400
     cols = int(MAX_CORRIDOR_NODES * scale / rows) - 2
     return [
-        "corridor",
-        "--vehicle",
-        "system_a",
-        "--environment",
-        "clear",
-        "--target",
-        "car",
+        *_car_in_clear("corridor"),
         f"--start=-{cols * 0.4 - 6:g}",
         "--goal",
         "6",
