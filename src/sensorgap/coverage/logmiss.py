@@ -741,7 +741,7 @@ def lookup_log_miss_tracks(
             if e.size:
                 of[gi[e]] = np.minimum(
                     of[gi[e]]
-                    + _glared_outline(maps, scene, row, gi[e], wg[e], xf, yf, how, dirs_at, z0),
+                    + _glared_outline(maps, scene, row, gi[e], wg[e], xf, yf, how, sd[e], z0),
                     0.0,
                 )
             keep = np.flatnonzero(st == 1)  # all four cells in view (lookup_pass)
@@ -818,24 +818,24 @@ def _glared_outline(
     xf: F64,
     yf: F64,
     how: TrackLookup,
-    dirs_at: Callable[[NDArray[np.int64]], F64],
+    sun_dirs: F64,
     z0: float,
 ) -> F64:
     """Body lookup of a glared camera: the change of its ln(1 - Pd) when its part of the
     body maps (``_outline_layer``) is replaced by the glared layer's best point of the
     body's outline (the same order statistic); outline points at the edge of its view
-    exactly."""
+    exactly. ``sun_dirs``: (M, 3) vehicle-frame sun directions of the bodies at ``gi``."""
     assert how.outline is not None
     s = scene.sensors[row]
     psi = how.psi.reshape(-1)[gi]
-    bodies = _bodies(xf[gi], yf[gi], psi, z0, dirs_at(gi), wg)
+    bodies = _bodies(xf[gi], yf[gi], psi, z0, sun_dirs, wg)
     vals, state = _glared_values(maps, scene, row, bodies, how.outline)
     new, k = vals.reshape(-1), len(how.outline)
     edge = np.flatnonzero(state.reshape(-1) == 2)
     if edge.size:
         px, py, _ = _outline_points(how, gi, xf, yf)
         idx, pd = sensor_pd(
-            scene, s, px[edge], py[edge], np.full(edge.size, z0), dirs_at(gi[edge // k])
+            scene, s, px[edge], py[edge], np.full(edge.size, z0), sun_dirs[edge // k]
         )
         vals_e = np.zeros(edge.size)
         vals_e[idx] = log_miss_of(pd)
