@@ -170,6 +170,43 @@ def test_a_cameras_part_of_the_body_maps_is_removed_exactly() -> None:
         assert np.min(want) < -10.0  # near-certain detections are among the points
 
 
+def test_a_body_layer_is_the_order_statistic_over_the_rotated_outline() -> None:
+    """``LogMissMaps.body_layer`` (which the body totals sum and the glared lookup takes
+    out again): at random cells and heading bins, the q-th smallest of the sensor's layer
+    over the outline rotated by the bin's angle and rounded to whole cells, 0 off the map,
+    by hand; the crop holds every non-zero value."""
+    system = load_system("system_b")
+    car = load_target("car")
+    scene = Scene(system, car, Conditions(env=ENVS["clear"], sun_direction=None))
+    grid = GridSpec(-20.0, 90.0, -20.0, 20.0, 0.5, car.reference_height_m)
+    maps = LogMissMaps.build(scene, grid)
+    row = system.sensor_ids().index("cam_main")
+    layer = maps.layers[row]
+    ny, nx = layer.shape
+    outline = np.array([[x, y] for x in (-0.9, 1.2, 3.9) for y in (-0.9, 0.9)] + [[3.9, 0.0]])
+    rng = np.random.default_rng(5)
+    for q in (0, 2):
+        part = maps.body_layer(outline, row, 12, q)
+        assert part is not None
+        full = np.zeros((12, ny, nx), dtype=np.float32)
+        cy, cx = part.values.shape[1:]
+        full[:, part.j0 : part.j0 + cy, part.i0 : part.i0 + cx] = part.values
+        checked = 0
+        for _ in range(400):
+            h, j, i = int(rng.integers(12)), int(rng.integers(ny)), int(rng.integers(nx))
+            a = h * math.pi / 12
+            vals = []
+            for ox, oy in outline:
+                di = round((math.cos(a) * ox - math.sin(a) * oy) / grid.resolution)
+                dj = round((math.sin(a) * ox + math.cos(a) * oy) / grid.resolution)
+                inside = 0 <= j + dj < ny and 0 <= i + di < nx
+                vals.append(float(layer[j + dj, i + di]) if inside else 0.0)
+            want = sorted(vals)[q]
+            assert full[h, j, i] == pytest.approx(want, abs=0.0), (h, j, i)
+            checked += want < -1.0
+        assert checked > 20  # cells in the camera's view are among them
+
+
 def _bilinear_at(img: np.ndarray, grid: GridSpec, x: float, y: float) -> float:
     """Bilinear value of a map at one vehicle-frame point, by hand."""
     fx = (x - (grid.xmin + 0.5 * grid.resolution)) / grid.resolution

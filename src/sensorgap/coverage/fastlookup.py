@@ -315,63 +315,41 @@ def lookup_pass(
 
 
 @numba.njit(cache=True, nogil=True)
-def outline_order_pass(
-    layer: F32,
+def body_layer_pass(
+    values: F32,
+    j0: int,
+    i0: int,
+    ny: int,
+    nx: int,
     x0: float,
     y0: float,
     inv_res: float,
-    ox: I64,
-    oy: I64,
-    q: int,
     xs: F64,
     ys: F64,
     psi: F64,
     out: F64,
 ) -> None:  # pragma: no cover - compiled
-    """One sensor's part of the body maps (``LogMissMaps.body_totals``) at M target
-    centres, interpolated as ``lookup_pass`` interpolates the totals: at each of the four
-    cells around a centre (``x0``, ``y0``: first cell centre, m; ``inv_res``: cells per
-    m), the ``q``-th smallest of ``layer`` ((ny, nx) ln(1 - Pd)) over the outline offsets
-    of the centre's heading bin (``ox``, ``oy``: (H, K) whole cells; bin of ``psi`` (rad)
-    as in ``lookup_pass``; 0 off the map), then bilinear. Corner cells are clamped to the
-    map as in ``_bilinear``; the result equals the body maps of that one sensor
-    interpolated at the centres (tests/coverage/test_fastlookup.py)."""
-    ny, nx = layer.shape
-    n_bins, k_out = ox.shape
+    """One sensor's part of the body maps (``LogMissMaps.body_layer``: ``values`` (H, cy,
+    cx) on the crop of an (``ny``, ``nx``) map from row ``j0``, column ``i0``, 0 outside
+    it) at M target centres, interpolated as ``lookup_pass`` interpolates the totals: the
+    heading bin of ``psi`` (rad), the four cells around the centre (``x0``, ``y0``: first
+    cell centre, m; ``inv_res``: cells per m) clamped to the map, bilinear."""
+    n_bins, cy, cx = values.shape
     bin_w = math.pi / n_bins
-    buf = np.empty(k_out)
     c = np.empty(4)
     for m in range(xs.size):
         fx = (xs[m] - x0) * inv_res
         fy = (ys[m] - y0) * inv_res
         i = min(max(int(math.floor(fx)), 0), nx - 2)
         j = min(max(int(math.floor(fy)), 0), ny - 2)
-        ax = fx - i
-        ay = fy - j
         h = 0
         if n_bins > 1:
             h = int(round((psi[m] % math.pi) / bin_w)) % n_bins
         for corner in range(4):
-            dj = corner // 2
-            di = corner % 2
-            for kk in range(k_out):
-                jj = j + dj + oy[h, kk]
-                ii = i + di + ox[h, kk]
-                if jj >= 0 and jj < ny and ii >= 0 and ii < nx:
-                    buf[kk] = layer[jj, ii]
-                else:
-                    buf[kk] = 0.0
-            # the q-th smallest: q + 1 passes of a selection sort
-            for a in range(q + 1):
-                best = a
-                for b in range(a + 1, k_out):
-                    if buf[b] < buf[best]:
-                        best = b
-                tmp = buf[a]
-                buf[a] = buf[best]
-                buf[best] = tmp
-            c[corner] = buf[q]
-        out[m] = bilerp(ax, ay, c[0], c[1], c[2], c[3])
+            jj = j + corner // 2 - j0
+            ii = i + corner % 2 - i0
+            c[corner] = values[h, jj, ii] if 0 <= jj < cy and 0 <= ii < cx else 0.0
+        out[m] = bilerp(fx - i, fy - j, c[0], c[1], c[2], c[3])
 
 
 def near_view_mask(signal: F32, reach_cells: int) -> NDArray[np.bool_]:

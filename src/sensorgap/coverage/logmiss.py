@@ -38,10 +38,10 @@ from sensorgap.coverage.fastkernel import roc_constants
 from sensorgap.coverage.fastlookup import (
     bilerp,
     bilinear_finite_at,
+    body_layer_pass,
     cone_cos_bound,
     lookup_pass,
     near_view_mask,
-    outline_order_pass,
     sun_directions_at,
 )
 from sensorgap.coverage.grid import GridSpec, evaluate_grid
@@ -335,6 +335,17 @@ def signal_layer(scene: Scene, sensor: Sensor, grid: GridSpec) -> F32 | None:
     return out.reshape(grid.ny, grid.nx)
 
 
+@dataclass(frozen=True)
+class BodyLayer:
+    """One sensor's part of the body maps (``LogMissMaps.body_layer``): ``values`` (H,
+    cy, cx) float32 ln(1 - Pd) per heading bin on the crop of the map starting at row
+    ``j0``, column ``i0`` (0 outside the crop)."""
+
+    j0: int
+    i0: int
+    values: F32
+
+
 @dataclass
 class LogMissMaps:
     """Per-sensor ln(1 - Pd) maps (no sun) of one scene and their sum.
@@ -398,18 +409,18 @@ class LogMissMaps:
         subset: tuple[int, ...],
         n_bins: int,
         order: tuple[int, ...] | None = None,
+        keep: tuple[int, ...] = (),
     ) -> F32:
         """(H, ny, nx) fused ln(1 - Pd) of target *bodies* for ``n_bins`` relative headings
         (bin h: h * pi / H rad; a box is symmetric under a half turn), over the sensor rows
-        ``subset``: per sensor, the ``order[i]``-th best (0: the smallest) ln(1 - Pd) of
-        its layer over the body's footprint outline ``outline_xy`` ((K, 2) m, target frame)
-        rotated to the bin and rounded to whole cells (0 for every sensor: a morphological
-        erosion, any outline point seen; a higher order asks for that many outline points,
-        the lookup's stand-in for a minimum visible fraction), summed over the sensors. A
-        proposal for the search only: it ignores the facing side, the height of the
-        samples and the visible part's cross-section, which the exact evaluation
-        (``coverage.body``) applies (error measured in ``sensorgap tradeoff``). Cached
-        per (outline, subset, bins, order)."""
+        ``subset``: per sensor, its ``body_layer`` (the ``order[i]``-th best ln(1 - Pd) of
+        its layer over the body's footprint outline ``outline_xy``, (K, 2) m, target
+        frame), summed over the sensors (in float64, in ``subset`` order). A proposal for
+        the search only: it ignores the facing side, the height of the samples and the
+        visible part's cross-section, which the exact evaluation (``coverage.body``)
+        applies (error measured in ``sensorgap tradeoff``). Cached per (outline, subset,
+        bins, order); the layers of the rows in ``keep`` stay cached too (a glared
+        camera's part is taken out again along the tracks, ``_outline_layer``)."""
         order = order or (0,) * len(subset)
         key = (outline_xy.tobytes(), subset, n_bins, order)
         cache: dict[tuple[bytes, tuple[int, ...], int, tuple[int, ...]], F32] = (
@@ -418,58 +429,65 @@ class LogMissMaps:
         hit = cache.get(key)
         if hit is not None:
             return hit
-        ny, nx = self.total.shape
-        res = self.grid.resolution
-        out = np.zeros((n_bins, ny, nx), dtype=np.float64)
-        boxes: dict[int, tuple[int, int, int, int] | None] = {}
-        for row in subset:
-            rows_any = np.flatnonzero(np.any(self.layers[row] < 0.0, axis=1))
-            cols_any = np.flatnonzero(np.any(self.layers[row] < 0.0, axis=0))
-            boxes[row] = (
-                None
-                if rows_any.size == 0
-                else (
-                    int(rows_any[0]),
-                    int(rows_any[-1]) + 1,
-                    int(cols_any[0]),
-                    int(cols_any[-1]) + 1,
-                )
+        out = np.zeros((n_bins, *self.total.shape), dtype=np.float64)
+        for row, k in zip(subset, order, strict=True):
+            part = (
+                self.body_layer(outline_xy, row, n_bins, k)
+                if row in keep
+                else self._body_layer(outline_xy, row, n_bins, k)
             )
-        for h in range(n_bins):
-            a = h * math.pi / n_bins
-            ox = np.rint(
-                (math.cos(a) * outline_xy[:, 0] - math.sin(a) * outline_xy[:, 1]) / res
-            ).astype(int)
-            oy = np.rint(
-                (math.sin(a) * outline_xy[:, 0] + math.cos(a) * outline_xy[:, 1]) / res
-            ).astype(int)
-            offs = list(zip(ox.tolist(), oy.tolist(), strict=True))
-            px = max(abs(v) for v in ox.tolist())
-            py = max(abs(v) for v in oy.tolist())
-            for row, k in zip(subset, order, strict=True):
-                box = boxes[row]
-                if box is None:  # the sensor sees nothing on this map
-                    continue
-                # the eroded layer can only be non-zero within the sensor's box of
-                # non-zero cells grown by the outline's reach: work on that crop
-                j0, j1 = max(box[0] - py, 0), min(box[1] + py, ny)
-                i0, i1 = max(box[2] - px, 0), min(box[3] + px, nx)
-                cy, cx = j1 - j0, i1 - i0
-                padded = np.pad(self.layers[row, j0:j1, i0:i1], ((py, py), (px, px)))
-                if k == 0:
-                    best = np.zeros((cy, cx), dtype=np.float32)
-                    for dx, dy in set(offs):
-                        np.minimum(
-                            best, padded[py + dy : py + dy + cy, px + dx : px + dx + cx], out=best
-                        )
-                    out[h, j0:j1, i0:i1] += best
-                    continue
-                stack = np.stack(
-                    [padded[py + dy : py + dy + cy, px + dx : px + dx + cx] for dx, dy in offs]
-                )
-                out[h, j0:j1, i0:i1] += np.partition(stack, k, axis=0)[k]
+            if part is not None:
+                cy, cx = part.values.shape[1:]
+                out[:, part.j0 : part.j0 + cy, part.i0 : part.i0 + cx] += part.values
         hit = cache[key] = out.astype(np.float32)
         return hit
+
+    def body_layer(self, outline_xy: F64, row: int, n_bins: int, k: int) -> BodyLayer | None:
+        """One sensor's part of the body maps (cached; see ``_body_layer``)."""
+        key = (outline_xy.tobytes(), row, n_bins, k)
+        cache: dict[tuple[bytes, int, int, int], BodyLayer | None] = self.__dict__.setdefault(
+            "_body_layers", {}
+        )
+        if key not in cache:
+            cache[key] = self._body_layer(outline_xy, row, n_bins, k)
+        return cache[key]
+
+    def _body_layer(self, outline_xy: F64, row: int, n_bins: int, k: int) -> BodyLayer | None:
+        """Sensor ``row``'s part of the body maps: per heading bin, the ``k``-th best (0:
+        the smallest) ln(1 - Pd) of its layer over the outline rotated to the bin and
+        rounded to whole cells (``_outline_offsets``; k = 0 is a morphological erosion,
+        any outline point seen; a higher k asks for that many outline points, the
+        lookup's stand-in for a minimum visible fraction). Computed on the crop where it
+        can be non-zero (the sensor's non-zero cells grown by the outline's reach);
+        ``None`` if the sensor sees nothing on this map."""
+        layer = self.layers[row]
+        rows_any = np.flatnonzero(np.any(layer < 0.0, axis=1))
+        if rows_any.size == 0:
+            return None
+        cols_any = np.flatnonzero(np.any(layer < 0.0, axis=0))
+        ny, nx = layer.shape
+        ox, oy = _outline_offsets(outline_xy, n_bins, self.grid.resolution)
+        px, py = int(np.max(np.abs(ox))), int(np.max(np.abs(oy)))
+        j0, j1 = max(int(rows_any[0]) - py, 0), min(int(rows_any[-1]) + 1 + py, ny)
+        i0, i1 = max(int(cols_any[0]) - px, 0), min(int(cols_any[-1]) + 1 + px, nx)
+        cy, cx = j1 - j0, i1 - i0
+        padded = np.pad(layer[j0:j1, i0:i1], ((py, py), (px, px)))
+        values = np.empty((n_bins, cy, cx), dtype=np.float32)
+        for h in range(n_bins):
+            offs = list(zip(ox[h].tolist(), oy[h].tolist(), strict=True))
+            if k == 0:
+                best = np.zeros((cy, cx), dtype=np.float32)
+                for dx, dy in set(offs):
+                    np.minimum(
+                        best, padded[py + dy : py + dy + cy, px + dx : px + dx + cx], out=best
+                    )
+                values[h] = best
+            else:
+                shifted = [
+                    padded[py + dy : py + dy + cy, px + dx : px + dx + cx] for dx, dy in offs
+                ]
+                values[h] = np.partition(np.stack(shifted), k, axis=0)[k]
+        return BodyLayer(j0, i0, values)
 
     def near_view(self, sensors: tuple[int, ...], pad: float) -> NDArray[np.bool_]:
         """``fastlookup.near_view_mask`` of the signal maps of ``sensors`` for a body of
@@ -846,28 +864,33 @@ def _glared_outline(
 def _outline_layer(
     maps: LogMissMaps, row: int, gi: NDArray[np.int64], xf: F64, yf: F64, how: TrackLookup
 ) -> F64:
-    """A camera's part of the body maps ``how.totals`` at flat track indices, exactly as
-    ``LogMissMaps.body_totals`` built it (the ``how.order``-th best of its layer over the
-    outline rotated to the step's heading bin and rounded to whole cells), interpolated
+    """A camera's part of the body maps ``how.totals`` at flat track indices: its
+    ``LogMissMaps.body_layer`` (the ``how.order``-th best of its layer over the outline
+    rotated to the step's heading bin and rounded to whole cells), interpolated
     bilinearly at the target's centre as the totals are: subtracting it removes this
     camera from the interpolated total up to float32 rounding. (Re-interpolating the
     layer at the outline points instead differed by up to 33 nepers where a detection is
     near certain, leaving a glared camera at Pd 0.97 where exact evaluation gave 0.006.)"""
     assert how.outline is not None
     g = maps.grid
-    ox, oy = _outline_offsets(how.outline, how.totals.shape[0], g.resolution)
-    out = np.empty(gi.size)
-    outline_order_pass(
-        maps.layers[row],
-        *g.lookup_origin(),
-        ox,
-        oy,
-        0 if how.order is None else how.order.get(row, 0),
-        np.ascontiguousarray(xf[gi]),
-        np.ascontiguousarray(yf[gi]),
-        np.ascontiguousarray(how.psi.reshape(-1)[gi], dtype=np.float64),
-        out,
+    part = maps.body_layer(
+        how.outline, row, how.totals.shape[0], 0 if how.order is None else how.order.get(row, 0)
     )
+    out = np.zeros(gi.size)
+    if part is not None:
+        ny, nx = maps.total.shape
+        body_layer_pass(
+            part.values,
+            part.j0,
+            part.i0,
+            ny,
+            nx,
+            *g.lookup_origin(),
+            np.ascontiguousarray(xf[gi]),
+            np.ascontiguousarray(yf[gi]),
+            np.ascontiguousarray(how.psi.reshape(-1)[gi], dtype=np.float64),
+            out,
+        )
     return out
 
 

@@ -672,7 +672,11 @@ class Evaluator:
                 for i in subset
             }
             totals = maps.body_totals(
-                outline, subset, HEADING_BINS, tuple(order[i] for i in subset)
+                outline,
+                subset,
+                HEADING_BINS,
+                tuple(order[i] for i in subset),
+                keep=tuple(i for i in subset if i in maps.signal),  # glare-prone cameras
             )
         else:
             totals = maps.body_totals(np.zeros((1, 2)), subset, 1)
