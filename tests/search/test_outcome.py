@@ -899,3 +899,51 @@ def test_reaction_presets_predict_and_files_without_the_field_do_not(tmp_path: P
     f.write_text("\n".join(lines) + "\n")
     r = load_reaction(f)
     assert r.threat_prediction_s == 0.0  # the former rule; no source needed for a default
+
+
+@pytest.mark.parametrize("radius", [math.inf, 500.0, 60.0, 15.0])
+def test_nearest_path_sample_is_the_nearest(radius: float) -> None:
+    """The nearest ego path sample of each step (``_nearest_guess``, then a climb where it
+    flags one) is the brute-force nearest sample for targets beside a straight or circular
+    path (R = 500, 60, 15 m; within 20 m and R / 2 of it or of its ends, on an arc of at
+    most 0.9 pi), ahead of, beside and behind the ego, and beyond the path's ends; so is
+    the former hill-climb from the last answer. On the 15 m turn the distance along the path can
+    have two minima: both local searches then miss a few, the guess no more often."""
+    from sensorgap.search.outcome import _nearest_guess, _nearest_sample
+
+    rng = np.random.default_rng(int(min(radius, 1e6)))
+    t = 201
+    v0 = min(12.0, 0.9 * math.pi * radius / (DT * (t - 1)))
+    s = v0 * DT * np.arange(t)
+    if math.isinf(radius):
+        ex, ey, eh = s, np.zeros(t), np.zeros(t)
+    else:
+        eh = s / radius
+        ex, ey = radius * np.sin(eh), radius * (1.0 - np.cos(eh))
+    b = 40
+    # each row: a target at a random arc position (-30 m .. path end + 30 m) and offset
+    ext = min(30.0, 0.5 * radius)
+    q = rng.uniform(-ext, s[-1] + ext, (b, t))
+    off = rng.uniform(-1.0, 1.0, (b, t)) * min(20.0, 0.5 * radius)
+    qc = np.clip(q, 0.0, s[-1])
+    hq = np.interp(qc, s, eh)
+    tx = np.interp(qc, s, ex) + (q - qc) * np.cos(hq) - off * np.sin(hq)
+    ty = np.interp(qc, s, ey) + (q - qc) * np.sin(hq) + off * np.cos(hq)
+    EX, EY, EH = (np.repeat(a[None], b, axis=0) for a in (ex, ey, eh))
+    xr = (tx - EX) * np.cos(EH) + (ty - EY) * np.sin(EH)
+    near = np.empty(t, dtype=np.int64)
+    more = np.empty(t, dtype=bool)
+    wrong = climb_wrong = 0
+    for r in range(b):
+        _nearest_guess(EX, EY, tx, ty, xr, r, 1.0 / (v0 * DT), near, more)
+        last = 0
+        for j in range(t):
+            i = _nearest_sample(EX, EY, r, near[j], tx[r, j], ty[r, j]) if more[j] else near[j]
+            last = _nearest_sample(EX, EY, r, last, tx[r, j], ty[r, j])  # from the last one
+            d = (ex - tx[r, j]) ** 2 + (ey - ty[r, j]) ** 2
+            wrong += d[i] > d.min()
+            climb_wrong += d[last] > d.min()
+    if radius >= 60.0:
+        assert wrong == 0 and climb_wrong == 0
+    else:  # a tight turn: both searches are local; the guess misses no more often
+        assert wrong <= climb_wrong < 0.02 * b * t

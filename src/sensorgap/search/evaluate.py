@@ -751,6 +751,7 @@ class Evaluator:
             self.reaction.threat_margin_m,
             self.reaction.threat_horizon_s,
             self.reaction.threat_prediction_s,
+            ego_frame_x=kin.x,
         )
         collided = enc.collide_step >= 0
         n = np.where(collided, enc.collide_step + 1, t).astype(np.int64)

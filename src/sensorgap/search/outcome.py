@@ -304,6 +304,54 @@ def _nearest_sample(
     return i
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def _d2(ex: F64, ey: F64, r: int, i: int, px: float, py: float) -> float:  # pragma: no cover
+    """Squared distance, m2, of ego path sample ``i`` of row ``r`` to (``px``, ``py``)."""
+    dx = ex[r, i] - px
+    dy = ey[r, i] - py
+    return dx * dx + dy * dy
+
+
+@numba.njit(cache=True, nogil=True)
+def _nearest_guess(
+    ex: F64,
+    ey: F64,
+    tx: F64,
+    ty: F64,
+    xr: F64,
+    r: int,
+    inv_step: float,
+    near: I64,
+    more: NDArray[np.bool_],
+) -> None:  # pragma: no cover - compiled
+    """Per step j of row ``r``: the ego path sample nearest the target centre, from the
+    target's distance ahead of the ego at step j (``xr``, m, ego frame; ``inv_step``: path
+    samples per m) moved by one sample to a smaller distance if there is one (``near``),
+    and whether the next sample along that way is nearer still (``more``: then
+    ``_nearest_sample`` climbs on, in about 1 step in 15 on the benchmark). Steps do not
+    depend on each other (no branch on the data, no value carried over), so this loop
+    overlaps steps where a hill-climb from the last answer waited for it (11 % of the
+    geometry kernel on the benchmark, same results)."""
+    t = ex.shape[1]
+    for j in range(t):
+        px = tx[r, j]
+        py = ty[r, j]
+        g = min(max(j + int(math.floor(xr[r, j] * inv_step + 0.5)), 0), t - 1)
+        ga = max(g - 1, 0)
+        gb = min(g + 1, t - 1)
+        da = _d2(ex, ey, r, ga, px, py)
+        dc = _d2(ex, ey, r, g, px, py)
+        db = _d2(ex, ey, r, gb, px, py)
+        fwd = db < dc
+        back = (da < dc) & (db >= dc)
+        way = int(fwd) - int(back)
+        k = g + way
+        best = min(dc, db) if fwd else min(dc, da)
+        kn = min(max(k + way, 0), t - 1)
+        near[j] = k
+        more[j] = (way != 0) & (_d2(ex, ey, r, kn, px, py) < best)
+
+
 @numba.njit(cache=True, nogil=True)
 def _geometry_kernel(
     ex: F64,
@@ -314,6 +362,7 @@ def _geometry_kernel(
     ty: F64,
     th: F64,
     tv: F64,
+    xr: F64,
     hl: float,
     hw: float,
     x_front: float,
@@ -334,6 +383,8 @@ def _geometry_kernel(
     ec = np.empty(t)
     es = np.empty(t)
     done = np.empty(t, dtype=np.bool_)
+    near = np.zeros(t, dtype=np.int64)
+    more = np.zeros(t, dtype=np.bool_)
     # beyond this lateral offset of its centre the target box cannot reach the widened band
     reach = half_w + margin + math.sqrt(hl * hl + hw * hw)
     # how far along the path from the sample nearest the target the ego's box can touch it
@@ -342,6 +393,11 @@ def _geometry_kernel(
         collide[r] = -1
         threat[r] = -1
         step = v0[r] * dt
+        if step > 0.0:
+            _nearest_guess(ex, ey, tx, ty, xr, r, 1.0 / step, near, more)
+        else:  # a standing ego: every sample is the same point
+            near[:] = 0
+            more[:] = False
         kappa = 0.0  # largest path curvature of the row, 1/m
         for k in range(t):
             done[k] = False
@@ -389,8 +445,10 @@ def _geometry_kernel(
                 pvc = cvc
             else:
                 exact = True
-                # nearest ego path sample to the target centre (hill-climb from the last)
-                i = _nearest_sample(ex, ey, r, i, px, py)
+                # nearest ego path sample to the target centre (``_nearest_guess``)
+                i = near[j]
+                if more[j]:
+                    i = _nearest_sample(ex, ey, r, i, px, py)
                 if not done[i]:  # cos/sin of the ego heading, once per sample
                     if eh[r, i] != lh:
                         lc, ls = cos_sin_near(eh[r, i], lh, lc, ls)
@@ -602,6 +660,7 @@ def encounter_geometry(
     threat_margin_m: float,
     threat_horizon_s: float,
     threat_prediction_s: float = 0.0,
+    ego_frame_x: ArrayLike | None = None,
 ) -> Encounter:
     """Encounter geometry of (B, T) world-frame planned states: ego rear axle (x, y in m,
     heading in rad, speed in m/s; the speed is taken as constant, ``ego_speed[:, 0]``) and
@@ -610,7 +669,10 @@ def encounter_geometry(
     ``target_size`` = (length, width), m; ``ego_body`` = (x_front, x_rear, width), m, the
     bumpers relative to the rear axle (``x_rear < 0 < x_front``); ``threat_margin_m``, m,
     and ``threat_horizon_s``, s, define the threat onset, ``threat_prediction_s``, s, its
-    lateral prediction (0: none; module docstring)."""
+    lateral prediction (0: none; module docstring). ``ego_frame_x``: (B, T) the target
+    centre's distance ahead of the ego rear axle along the ego heading, m, if known
+    (``search.fastkin``; computed here otherwise): where the search for the nearest path
+    sample starts."""
     ex = np.ascontiguousarray(ego_x, dtype=np.float64)
     if ex.ndim != 2 or ex.shape[1] < 2:
         raise ValueError(f"expected (B, T >= 2) states, got shape {ex.shape}")
@@ -634,6 +696,12 @@ def encounter_geometry(
     if any(a.shape != (b, t) for a in arrays):
         raise ValueError("all state arrays must have the same (B, T) shape")
     v0 = np.ascontiguousarray(np.asarray(ego_speed, dtype=np.float64).reshape(b, t)[:, 0])
+    if ego_frame_x is None:
+        xr = np.ascontiguousarray((tx - ex) * np.cos(eh) + (ty - ey) * np.sin(eh))
+    else:
+        xr = np.ascontiguousarray(ego_frame_x, dtype=np.float64)
+        if xr.shape != (b, t):
+            raise ValueError("ego_frame_x must have the (B, T) shape of the states")
     lo, hi, ttc = (np.empty((b, t)) for _ in range(3))
     collide = np.empty(b, dtype=np.int64)
     threat = np.empty(b, dtype=np.int64)
@@ -647,6 +715,7 @@ def encounter_geometry(
         ty,
         th,
         tv,
+        xr,
         0.5 * length,
         0.5 * t_width,
         x_front,
