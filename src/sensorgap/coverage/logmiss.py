@@ -809,16 +809,17 @@ def point_evaluators(
 
 
 def _outline_points(
-    how: TrackLookup, gi: NDArray[np.int64], xf: F64, yf: F64
-) -> tuple[F64, F64, int]:
-    """Flat (M * K) vehicle-frame outline points of the bodies at flat track indices."""
+    how: TrackLookup, gi: NDArray[np.int64], which: NDArray[np.int64], xf: F64, yf: F64
+) -> tuple[F64, F64]:
+    """Vehicle-frame outline points ``which`` of the flat (M * K) outline points of the
+    bodies at flat track indices ``gi`` (point q: body q // K, outline point q % K)."""
     assert how.outline is not None
-    psi = how.psi.reshape(-1)[gi]
-    c, sn = np.cos(psi)[:, None], np.sin(psi)[:, None]
-    ox, oy = how.outline[:, 0][None, :], how.outline[:, 1][None, :]
-    px = (xf[gi][:, None] + c * ox - sn * oy).ravel()
-    py = (yf[gi][:, None] + sn * ox + c * oy).ravel()
-    return px, py, len(how.outline)
+    k = len(how.outline)
+    body, corner = gi[which // k], which % k
+    psi = how.psi.reshape(-1)[body]
+    c, sn = np.cos(psi), np.sin(psi)
+    ox, oy = how.outline[corner, 0], how.outline[corner, 1]
+    return xf[body] + c * ox - sn * oy, yf[body] + sn * ox + c * oy
 
 
 def _order_stat(values: F64, k: int, how: TrackLookup, row: int) -> F64:
@@ -851,10 +852,8 @@ def _glared_outline(
     new, k = vals.reshape(-1), len(how.outline)
     edge = np.flatnonzero(state.reshape(-1) == 2)
     if edge.size:
-        px, py, _ = _outline_points(how, gi, xf, yf)
-        idx, pd = sensor_pd(
-            scene, s, px[edge], py[edge], np.full(edge.size, z0), sun_dirs[edge // k]
-        )
+        px, py = _outline_points(how, gi, edge, xf, yf)
+        idx, pd = sensor_pd(scene, s, px, py, np.full(edge.size, z0), sun_dirs[edge // k])
         vals_e = np.zeros(edge.size)
         vals_e[idx] = log_miss_of(pd)
         new[edge] = vals_e
