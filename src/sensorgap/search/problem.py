@@ -13,6 +13,7 @@ import json
 import math
 import os
 import threading
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -275,6 +276,12 @@ class Result:
         return float(self.metrics.get("log10_risk", -300.0))
 
 
+def _per_environment(names: NDArray[np.str_], value: Callable[[str], float]) -> F64:
+    """(B,) ``value`` of each row's environment name, evaluated once per distinct name."""
+    uniq, inverse = np.unique(np.asarray(names), return_inverse=True)
+    return np.array([value(str(n)) for n in uniq], dtype=np.float64)[inverse.reshape(-1)]
+
+
 class SearchProblem:
     """Maps unit-cube vectors of one family to evaluated candidates."""
 
@@ -325,8 +332,8 @@ class SearchProblem:
         """(B,) upper ends of the ego speed dimension per row's environment, m/s (at least
         the family's low end, so the decoded value stays in the family's range)."""
         assert self._ego_speed is not None
-        highs = {n: max(self._ego_speed.low, self.ego_speed_range(n)[1]) for n in self.env_names}
-        return np.array([highs[str(n)] for n in names], dtype=np.float64)
+        low = self._ego_speed.low
+        return _per_environment(names, lambda n: max(low, self.ego_speed_range(n)[1]))
 
     @property
     def dim(self) -> int:
@@ -449,7 +456,7 @@ class SearchProblem:
         feasible, notes = batch.ok.copy(), list(batch.notes)
         if self._ego_speed is not None:  # above the environment's lawful speed
             speed = np.asarray(d.params[EGO_SPEED], dtype=np.float64)
-            bound = np.array([self.speed_limits[str(n)].speed_m_s for n in d.env_names])
+            bound = _per_environment(d.env_names, lambda n: self.speed_limits[n].speed_m_s)
             for i in np.flatnonzero(feasible & (speed > bound + 1e-9)):
                 feasible[i] = False
                 lim = self.speed_limits[str(d.env_names[i])]
@@ -499,12 +506,12 @@ class SearchProblem:
                 if int(j) not in marked
             ]
             for j, note in bad:
-                i = ok[j]
-                feasible[i] = False
-                notes[i] = note
-                for m in names:
-                    metrics[m][i] = 0.0
-                objective[i] = OBJECTIVE_INFEASIBLE
+                notes[ok[j]] = note
+            drop = ok[np.array([j for j, _ in bad], dtype=np.intp)]
+            feasible[drop] = False
+            for m in names:
+                metrics[m][drop] = 0.0
+            objective[drop] = OBJECTIVE_INFEASIBLE
         return BatchOutcome(metrics, feasible, notes, objective)
 
     def results(self, cands: list[Candidate], out: BatchOutcome) -> list[Result]:
