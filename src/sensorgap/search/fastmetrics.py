@@ -73,18 +73,20 @@ def summarize(
         best = 0
         best_end = 0
         for k in range(m):
-            lu += log_miss[i, k]
-            if det < 0 and cumulative and math.exp(lu) <= limit:
+            lm = log_miss[i, k]
+            lu += lm
+            # (rows the lookup skipped hold ln P_miss = 0 and TTC = inf at every step: the
+            # guards below skip their exponentials, with the same results)
+            if det < 0 and cumulative and (lu != 0.0 or limit >= 1.0) and math.exp(lu) <= limit:
                 det = k
-            pd = -math.expm1(log_miss[i, k]) + 0.0
+            pd = -math.expm1(lm) + 0.0 if lm != 0.0 else 0.0
             sum_pd += pd
             tk = ttc[i, k]
-            if t[k] >= lead_in:
+            if t[k] >= lead_in and tk < np.inf:  # exp(-inf) = 0: no risk at this step
                 r = math.exp(lu) * math.exp(-tk / tau)
                 if r > risk:
                     risk = r
-                if math.isfinite(tk):
-                    lraw = max(lraw, (lu - tk / tau) / ln10)
+                lraw = max(lraw, (lu - tk / tau) / ln10)
             min_ttc = min(min_ttc, tk)
             min_hw = min(min_hw, headway[i, k])
             min_dist = min(min_dist, distance[i, k])
