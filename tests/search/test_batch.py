@@ -12,7 +12,8 @@ from sensorgap.coverage import GridSpec, Scene, evaluate_points
 from sensorgap.coverage.logmiss import LogMissMaps, exact_log_miss, log_miss_of, lookup_log_miss
 from sensorgap.models import Conditions, load_system
 from sensorgap.scenarios import InfeasibleScenario, family_presets, load_family
-from sensorgap.scenarios.batch import LaneTable, tracks_along_lane, tracks_from_path
+from sensorgap.scenarios.batch import LaneTable, tracks_from_path
+from sensorgap.scenarios.fastpath import track_extremes
 from sensorgap.search.evaluate import DetectionRule, Evaluator, kinematics
 from sensorgap.search.metrics import compute_all_batch, get_metric, metric_names
 from sensorgap.search.problem import SearchProblem
@@ -69,16 +70,27 @@ def test_lane_follower_heading_is_the_lanes(travel: int) -> None:
     """A lane follower's heading is the lane's in its travel direction (not the chord of
     its samples), its speed the central differences: on the 500 m arc at 30 m/s and
     20 Hz the chord heading agrees inside to the chord's half-step turn, and at the two
-    one-sided ends to half a step's turn (1.5 m / 500 m / 2 = 1.5e-3 rad)."""
+    one-sided ends to half a step's turn (1.5 m / 500 m / 2 = 1.5e-3 rad). The one-pass
+    ``LaneTable.tracks`` gives the table's poses and the feasibility extremes of
+    ``track_extremes`` exactly."""
     fam = load_family("slow_ahead_curve")
     tab = LaneTable(fam.network, "1", -1)
     t = np.arange(201) * 0.05
-    s = 600.0 + travel * 30.0 * t[None, :]
+    s = 600.0 + travel * 30.0 * t[None, :] + np.array([[0.0], [7.3]])
     x, y, h = tab.poses(s, travel)
-    lane = tracks_along_lane(t, x, y, h)
+    lane = tab.tracks(s, travel, t)
     chord = tracks_from_path(t, x, y, h)
+    np.testing.assert_array_equal(lane.x, x)
+    np.testing.assert_array_equal(lane.y, y)
     np.testing.assert_array_equal(lane.heading, h)
     np.testing.assert_array_equal(lane.speed, chord.speed)
+    ext = np.empty((2, 3))
+    track_extremes(lane.heading, lane.speed, 0.05, ext)
+    assert lane.extremes is not None
+    np.testing.assert_array_equal(lane.extremes, ext)
+    # 30 m/s of reference-line s; the lane's centre is 1.9 m off it on the 500 m arc
+    assert ext[0, 0] == pytest.approx(30.0, rel=0.005)
+    assert ext[0, 2] == pytest.approx(30.0**2 / 500.0, rel=0.05)  # v^2 / R on the arc
     dh = np.abs(lane.heading - chord.heading)[0]
     assert np.max(dh[1:-1]) <= 1e-5
     assert np.max(dh[[0, -1]]) == pytest.approx(1.5 / 500.0 / 2.0, rel=0.05)

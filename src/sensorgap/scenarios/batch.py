@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sensorgap.roads import RoadNetwork
-from sensorgap.scenarios.fastpath import path_speeds, path_states, table_poses, track_extremes
+from sensorgap.scenarios.fastpath import lane_tracks, path_states, table_poses, track_extremes
 from sensorgap.scenarios.trajectory import Limits, Trajectory, blend
 
 
@@ -62,6 +62,9 @@ class Tracks:
     y: F64
     heading: F64
     speed: F64
+    #: (B, 3) per row: max speed, max |longitudinal| and |lateral| acceleration (the
+    #: ``check_tracks`` extremes), when the generator computed them on the way
+    extremes: F64 | None = None
 
     def row(self, t: F64, i: int) -> Trajectory:
         """Row ``i`` as a ``Trajectory``."""
@@ -75,7 +78,13 @@ class Tracks:
 
     def take(self, rows: NDArray[np.intp]) -> Tracks:
         """The selected rows."""
-        return Tracks(self.x[rows], self.y[rows], self.heading[rows], self.speed[rows])
+        return Tracks(
+            self.x[rows],
+            self.y[rows],
+            self.heading[rows],
+            self.speed[rows],
+            None if self.extremes is None else self.extremes[rows],
+        )
 
 
 @dataclass(frozen=True)
@@ -182,6 +191,37 @@ class LaneTable:
         x, y, h, _ = net.lane_center(road_id, lane, self.s)
         self.x, self.y, self.h = x, y, np.unwrap(h)
 
+    def tracks(self, s: F64, travel: int, t: F64) -> Tracks:
+        """Tracks of objects that follow the lane (never backwards) at (B, T) road ``s``
+        (m) on the uniform time axis ``t`` (s), in one compiled pass
+        (``fastpath.lane_tracks``): positions as ``poses``; heading the lane's in the
+        travel direction; speed by central differences as ``tracks_from_path``; and the
+        feasibility extremes. (The heading ``tracks_from_path`` derives from the sampled
+        positions is a chord's: on the benchmark's motorway curve within 1e-4 rad of the
+        lane's inside, up to 1.8e-3 rad at the two ends, where one-sided differences lag
+        by half a step's turn; deriving it costs an ``atan2`` per step, about a tenth of a
+        lookup.)"""
+        sc = np.ascontiguousarray(s, dtype=np.float64)
+        b, n_t = sc.shape
+        x, y, h, v = (np.empty((b, n_t)) for _ in range(4))
+        ext = np.empty((b, 3))
+        lane_tracks(
+            sc,
+            self.step,
+            len(self.s),
+            self.x,
+            self.y,
+            self.h,
+            math.pi if travel < 0 else 0.0,
+            float(t[1] - t[0]),
+            x,
+            y,
+            h,
+            v,
+            ext,
+        )
+        return Tracks(x, y, h, v, ext)
+
     def poses(self, s: F64, travel: int) -> tuple[F64, F64, F64]:
         """x, y (m) and heading in the travel direction (rad) at road ``s`` (m, any
         shape; clipped to the road)."""
@@ -215,26 +255,13 @@ def tracks_from_path(t: F64, x: F64, y: F64, fallback_heading: F64) -> Tracks:
     return Tracks(x, y, heading, speed)
 
 
-def tracks_along_lane(t: F64, x: F64, y: F64, lane_heading: F64) -> Tracks:
-    """Tracks of an object that follows a lane (``LaneTable.poses``, never backwards): its
-    heading is the lane's in its travel direction, its speed the central differences of
-    ``tracks_from_path``. (The heading ``tracks_from_path`` derives from the sampled
-    positions is a chord's: on the benchmark's motorway curve within 1e-4 rad of the lane's
-    inside, up to 1.8e-3 rad at the two ends, where one-sided differences lag by half a
-    step's turn; deriving it costs an ``atan2`` per step, about a tenth of a lookup.)"""
-    x = np.ascontiguousarray(x, dtype=np.float64)
-    y = np.ascontiguousarray(y, dtype=np.float64)
-    heading = np.ascontiguousarray(np.broadcast_to(lane_heading, x.shape), dtype=np.float64)
-    speed = np.empty(x.shape)
-    path_speeds(x, y, float(t[1] - t[0]), speed)
-    return Tracks(x, y, heading, speed)
-
-
 def check_tracks(tr: Tracks, t: F64, limits: Limits, who: str) -> tuple[Mask, list[str]]:
     """Batched ``Trajectory.check``: (B,) bound exceeded, and the reason per row (1 %
     slack, same order and wording as the single check)."""
-    ext = np.empty((len(tr.speed), 3))
-    track_extremes(tr.heading, tr.speed, float(t[1] - t[0]), ext)
+    ext = tr.extremes
+    if ext is None:
+        ext = np.empty((len(tr.speed), 3))
+        track_extremes(tr.heading, tr.speed, float(t[1] - t[0]), ext)
     vmax, long_acc, lat_acc = ext[:, 0], ext[:, 1], ext[:, 2]
     bad = np.zeros(len(vmax), dtype=bool)
     notes = [""] * len(vmax)

@@ -21,24 +21,34 @@ F64 = NDArray[np.float64]
 STILL_M_S = 1e-6
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def _table_pose(
+    s: float, step: float, last: int, tx: F64, ty: F64, th: F64
+) -> tuple[float, float, float]:  # pragma: no cover - compiled
+    """Linear interpolation of a table sampled every ``step`` from 0 (samples 0..``last``)
+    at ``s`` (clipped to the table)."""
+    f = s / step
+    if not f > 0.0:
+        f = 0.0
+    if f >= last:
+        f = float(last)
+    i = min(int(f), last - 1)
+    a = f - i
+    return (
+        tx[i] + a * (tx[i + 1] - tx[i]),
+        ty[i] + a * (ty[i + 1] - ty[i]),
+        th[i] + a * (th[i + 1] - th[i]),
+    )
+
+
 @numba.njit(cache=True, nogil=True)
 def table_poses(
     s: F64, step: float, n: int, tx: F64, ty: F64, th: F64, ox: F64, oy: F64, oh: F64
 ) -> None:  # pragma: no cover - compiled
     """Linear interpolation of a table sampled every ``step`` from 0 (``n`` samples) at
     flat ``s`` (clipped to the table)."""
-    last = n - 1
     for k in range(s.size):
-        f = s[k] / step
-        if not f > 0.0:
-            f = 0.0
-        if f >= last:
-            f = float(last)
-        i = min(int(f), last - 1)
-        a = f - i
-        ox[k] = tx[i] + a * (tx[i + 1] - tx[i])
-        oy[k] = ty[i] + a * (ty[i + 1] - ty[i])
-        oh[k] = th[i] + a * (th[i + 1] - th[i])
+        ox[k], oy[k], oh[k] = _table_pose(s[k], step, n - 1, tx, ty, th)
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
@@ -90,30 +100,68 @@ def path_states(
             prev = h
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def _row_extremes(
+    heading: F64, speed: F64, i: int, dt: float
+) -> tuple[float, float, float]:  # pragma: no cover - compiled
+    """Row ``i``'s max speed (m/s), max |longitudinal acceleration| and max |lateral
+    acceleration| (speed x yaw rate), m/s2; differences as in ``path_states``."""
+    t = speed.shape[1]
+    vmax = 0.0
+    amax = 0.0
+    lmax = 0.0
+    for k in range(t):
+        if k == 0:
+            j0, j1, h = 0, 1, dt
+        elif k == t - 1:
+            j0, j1, h = k - 1, k, dt
+        else:
+            j0, j1, h = k - 1, k + 1, 2.0 * dt
+        a = abs((speed[i, j1] - speed[i, j0]) / h)
+        yr = (heading[i, j1] - heading[i, j0]) / h
+        lat = abs(speed[i, k] * yr)
+        vmax = max(vmax, speed[i, k])
+        amax = max(amax, a)
+        lmax = max(lmax, lat)
+    return vmax, amax, lmax
+
+
 @numba.njit(cache=True, nogil=True)
 def track_extremes(
     heading: F64, speed: F64, dt: float, out: F64
 ) -> None:  # pragma: no cover - compiled
     """Per row: max speed (m/s), max |longitudinal acceleration| and max |lateral
     acceleration| (speed x yaw rate), m/s2; differences as in ``path_states``."""
-    b, t = speed.shape
+    for i in range(speed.shape[0]):
+        out[i, 0], out[i, 1], out[i, 2] = _row_extremes(heading, speed, i, dt)
+
+
+@numba.njit(cache=True, nogil=True)
+def lane_tracks(
+    s: F64,
+    step: float,
+    n: int,
+    tx: F64,
+    ty: F64,
+    th: F64,
+    turn: float,
+    dt: float,
+    x: F64,
+    y: F64,
+    heading: F64,
+    speed: F64,
+    ext: F64,
+) -> None:  # pragma: no cover - compiled
+    """Objects following a lane, row by row in one pass (the row stays in the cache):
+    positions and the lane heading plus ``turn`` (rad: pi against the lane's direction)
+    from the lane table at (B, T) road ``s`` (as ``table_poses``), speeds (as
+    ``path_speeds``) and the feasibility extremes (as ``track_extremes``)."""
+    b, t = s.shape
     for i in range(b):
-        vmax = 0.0
-        amax = 0.0
-        lmax = 0.0
         for k in range(t):
-            if k == 0:
-                j0, j1, h = 0, 1, dt
-            elif k == t - 1:
-                j0, j1, h = k - 1, k, dt
-            else:
-                j0, j1, h = k - 1, k + 1, 2.0 * dt
-            a = abs((speed[i, j1] - speed[i, j0]) / h)
-            yr = (heading[i, j1] - heading[i, j0]) / h
-            lat = abs(speed[i, k] * yr)
-            vmax = max(vmax, speed[i, k])
-            amax = max(amax, a)
-            lmax = max(lmax, lat)
-        out[i, 0] = vmax
-        out[i, 1] = amax
-        out[i, 2] = lmax
+            x[i, k], y[i, k], hk = _table_pose(s[i, k], step, n - 1, tx, ty, th)
+            heading[i, k] = hk + turn if turn != 0.0 else hk
+        for k in range(t):
+            vx, vy = _velocity(x, y, i, k, dt)
+            speed[i, k] = math.sqrt(vx * vx + vy * vy)
+        ext[i, 0], ext[i, 1], ext[i, 2] = _row_extremes(heading, speed, i, dt)

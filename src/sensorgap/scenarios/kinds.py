@@ -21,7 +21,6 @@ from sensorgap.scenarios.batch import (
     Tracks,
     blend_batch,
     off_road,
-    tracks_along_lane,
     tracks_from_path,
 )
 from sensorgap.scenarios.family import Columns, Family, FamilyKind, Param, register_kind
@@ -75,9 +74,7 @@ class _LaneKind(FamilyKind):
 
     @staticmethod
     def _follow(family: Family, rid: str, lane: int, s: F64, travel: int, t: F64) -> Tracks:
-        tab = family.lane_table(rid, lane)
-        x, y, h = tab.poses(s, travel)
-        return tracks_along_lane(t, x, y, h)
+        return family.lane_table(rid, lane).tracks(s, travel, t)
 
     @staticmethod
     def _changing(
