@@ -64,16 +64,6 @@ def _velocity(x: F64, y: F64, i: int, k: int, dt: float) -> tuple[float, float]:
 
 
 @numba.njit(cache=True, nogil=True)
-def path_speeds(x: F64, y: F64, dt: float, speed: F64) -> None:  # pragma: no cover - compiled
-    """(B, T) positions (m) -> speed (m/s), as ``path_states``."""
-    b, t = x.shape
-    for i in range(b):
-        for k in range(t):
-            vx, vy = _velocity(x, y, i, k, dt)
-            speed[i, k] = math.sqrt(vx * vx + vy * vy)
-
-
-@numba.njit(cache=True, nogil=True)
 def path_states(
     x: F64, y: F64, fb: F64, dt: float, heading: F64, speed: F64
 ) -> None:  # pragma: no cover - compiled
@@ -155,7 +145,7 @@ def lane_tracks(
     """Objects following a lane, row by row in one pass (the row stays in the cache):
     positions and the lane heading plus ``turn`` (rad: pi against the lane's direction)
     from the lane table at (B, T) road ``s`` (as ``table_poses``), speeds (as
-    ``path_speeds``) and the feasibility extremes (as ``track_extremes``)."""
+    ``path_states``) and the feasibility extremes (as ``track_extremes``)."""
     b, t = s.shape
     for i in range(b):
         for k in range(t):
