@@ -127,7 +127,20 @@ def test_sun_rows_match_the_preset_and_searched_suns() -> None:
             np.testing.assert_allclose(got, want, rtol=0, atol=1e-12)
 
 
-def test_a_cameras_part_of_the_body_maps_is_removed_exactly() -> None:
+@pytest.fixture(scope="module")
+def cam_main_maps() -> tuple[LogMissMaps, GridSpec, int]:
+    """System B's lookup maps for a car in clear air on a 110 x 40 m grid, and the row of
+    its main camera."""
+    system = load_system("system_b")
+    car = load_target("car")
+    scene = Scene(system, car, Conditions(env=ENVS["clear"], sun_direction=None))
+    grid = GridSpec(-20.0, 90.0, -20.0, 20.0, 0.5, car.reference_height_m)
+    return LogMissMaps.build(scene, grid), grid, system.sensor_ids().index("cam_main")
+
+
+def test_a_cameras_part_of_the_body_maps_is_removed_exactly(
+    cam_main_maps: tuple[LogMissMaps, GridSpec, int],
+) -> None:
     """A glared camera's no-sun part is subtracted from the interpolated body total and
     its glared value added. The part subtracted (``_outline_layer``) must be what
     ``LogMissMaps.body_totals`` put in: re-interpolating the layer at the outline points
@@ -137,12 +150,7 @@ def test_a_cameras_part_of_the_body_maps_is_removed_exactly() -> None:
     rounding), for the min and a higher order statistic."""
     from sensorgap.coverage.logmiss import TrackLookup, _outline_layer
 
-    system = load_system("system_b")
-    car = load_target("car")
-    scene = Scene(system, car, Conditions(env=ENVS["clear"], sun_direction=None))
-    grid = GridSpec(-20.0, 90.0, -20.0, 20.0, 0.5, car.reference_height_m)
-    maps = LogMissMaps.build(scene, grid)
-    row = system.sensor_ids().index("cam_main")
+    maps, grid, row = cam_main_maps
     outline = np.array(
         [[x, y] for x in (-0.9, 0.0, 1.2, 3.9) for y in (-0.9, 0.9)] + [[-0.9, 0.0], [3.9, 0.0]]
     )
@@ -170,17 +178,14 @@ def test_a_cameras_part_of_the_body_maps_is_removed_exactly() -> None:
         assert np.min(want) < -10.0  # near-certain detections are among the points
 
 
-def test_a_body_layer_is_the_order_statistic_over_the_rotated_outline() -> None:
+def test_a_body_layer_is_the_order_statistic_over_the_rotated_outline(
+    cam_main_maps: tuple[LogMissMaps, GridSpec, int],
+) -> None:
     """``LogMissMaps.body_layer`` (which the body totals sum and the glared lookup takes
     out again): at random cells and heading bins, the q-th smallest of the sensor's layer
     over the outline rotated by the bin's angle and rounded to whole cells, 0 off the map,
     by hand; the crop holds every non-zero value."""
-    system = load_system("system_b")
-    car = load_target("car")
-    scene = Scene(system, car, Conditions(env=ENVS["clear"], sun_direction=None))
-    grid = GridSpec(-20.0, 90.0, -20.0, 20.0, 0.5, car.reference_height_m)
-    maps = LogMissMaps.build(scene, grid)
-    row = system.sensor_ids().index("cam_main")
+    maps, grid, row = cam_main_maps
     layer = maps.layers[row]
     ny, nx = layer.shape
     outline = np.array([[x, y] for x in (-0.9, 1.2, 3.9) for y in (-0.9, 0.9)] + [[3.9, 0.0]])
