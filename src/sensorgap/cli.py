@@ -235,6 +235,7 @@ def cmd_coverage(args: argparse.Namespace) -> int:
         raise InputError(
             "--occluder", "", "occluders hide parts of target bodies: add --heading DEG"
         )
+    _check_occluders_clear_of_ego(args.occluder, occluders, scene)
     with removed_on_error(args.out):
         summary = write_coverage(
             scene,
@@ -286,6 +287,24 @@ def _occluder(text: str) -> Occluder:
     except InputError as e:
         raise InputError("--occluder", "", f"unknown occluder kind {kind!r}: {e}") from None
     return Occluder.of_target(target, x, y, math.radians(heading))
+
+
+def _check_occluders_clear_of_ego(
+    texts: Sequence[str], occluders: Sequence[Occluder], scene: Scene
+) -> None:
+    """``--occluder``: no occluder's footprint may overlap the ego body's (a box standing
+    on the ego would hide the sensors mounted in it and make every map meaningless)."""
+    body = scene.system.config.vehicle
+    footprint = body.footprint()
+    for text, occ in zip(texts, occluders, strict=True):
+        if occ.overlaps(footprint):
+            raise InputError(
+                "--occluder",
+                "",
+                f"{text!r} overlaps the ego body ({body.name}: x {body.x_rear_m:g}.."
+                f"{body.x_front_m:g} m, y within +-{0.5 * body.width_m:g} m, the rear axle "
+                "at the origin); place the occluder outside it",
+            )
 
 
 def cmd_nearfield(args: argparse.Namespace) -> int:
