@@ -39,6 +39,7 @@ sys.path.insert(0, str(ROOT))
 from benchmarks.common import max_rss_mib, table  # noqa: E402
 from tests.bad_inputs.harness import (  # noqa: E402
     build_finished_run,
+    case_stdout,
     fsize_limiter,
     load_cases,
     needs_run,
@@ -121,21 +122,22 @@ def measure_case(case: dict[str, Any], finished_run: Path | None) -> CaseResult:
     with tempfile.TemporaryDirectory(prefix="bench_corpus_") as d:
         prepared = prepare_case(case, Path(d), finished_run, run_cli_child)
         result_file = Path(d) / "result.json"
-        t0 = time.perf_counter()
-        try:
-            proc = subprocess.run(
-                [sys.executable, "-c", CHILD, str(result_file), *prepared.argv],
-                stdout=subprocess.DEVNULL,
-                stderr=subprocess.PIPE,
-                env=_env(),
-                preexec_fn=fsize_limiter(case),
-                timeout=KILL_S,
-                check=False,
-            )
-            returncode, err = proc.returncode, proc.stderr.decode("utf-8", "replace")
-        except subprocess.TimeoutExpired:
-            returncode, err = -9, f"killed after {KILL_S:g} s"
-        seconds = time.perf_counter() - t0
+        with case_stdout(case) as stdout:
+            t0 = time.perf_counter()
+            try:
+                proc = subprocess.run(
+                    [sys.executable, "-c", CHILD, str(result_file), *prepared.argv],
+                    stdout=subprocess.DEVNULL if stdout is None else stdout,
+                    stderr=subprocess.PIPE,
+                    env=_env(),
+                    preexec_fn=fsize_limiter(case),
+                    timeout=KILL_S,
+                    check=False,
+                )
+                returncode, err = proc.returncode, proc.stderr.decode("utf-8", "replace")
+            except subprocess.TimeoutExpired:
+                returncode, err = -9, f"killed after {KILL_S:g} s"
+            seconds = time.perf_counter() - t0
         died = not result_file.is_file()
         r = (
             {"exit": returncode, "main_s": float("nan"), "self_mib": float("nan")}

@@ -9,6 +9,7 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+from contextlib import nullcontext, redirect_stdout
 from pathlib import Path
 from typing import Any
 
@@ -18,6 +19,7 @@ import sensorgap
 from sensorgap.cli import main
 from tests.bad_inputs.harness import (
     build_finished_run,
+    case_stdout,
     fsize_limiter,
     load_cases,
     outcome_problems,
@@ -62,22 +64,25 @@ def test_bad_input(
     prepared = prepare_case(case, tmp_path, finished_run, main)
     argv = prepared.argv
     cap = fsize_limiter(case)
-    if cap is not None:
-        proc = subprocess.run(
-            [sys.executable, "-m", "sensorgap", *argv],
-            capture_output=True,
-            env={**os.environ, "PYTHONPATH": SRC},
-            preexec_fn=cap,
-            timeout=300,
-            check=False,
-        )
-        code, err = proc.returncode, proc.stderr.decode("utf-8", "replace")
-    else:
-        try:
-            code = main(argv)
-        except SystemExit as exc:  # argparse errors
-            code = int(exc.code or 0)
-        err = capsys.readouterr().err
+    with case_stdout(case) as stdout:
+        if cap is not None:
+            proc = subprocess.run(
+                [sys.executable, "-m", "sensorgap", *argv],
+                stdout=subprocess.PIPE if stdout is None else stdout,
+                stderr=subprocess.PIPE,
+                env={**os.environ, "PYTHONPATH": SRC},
+                preexec_fn=cap,
+                timeout=300,
+                check=False,
+            )
+            code, err = proc.returncode, proc.stderr.decode("utf-8", "replace")
+        else:
+            with redirect_stdout(stdout) if stdout is not None else nullcontext():
+                try:
+                    code = main(argv)
+                except SystemExit as exc:  # argparse errors
+                    code = int(exc.code or 0)
+            err = capsys.readouterr().err
     problems = outcome_problems(prepared, code, err)
     assert not problems, problems[0]
 

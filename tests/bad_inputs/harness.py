@@ -15,15 +15,17 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 import re
 import resource
 import shutil
 import sqlite3
 import tomllib
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager, suppress
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, TextIO
 
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parents[1]
@@ -148,6 +150,31 @@ def fsize_limiter(case: dict[str, Any]) -> Callable[[], None] | None:
         resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
 
     return cap
+
+
+@contextmanager
+def case_stdout(case: dict[str, Any]) -> Iterator[TextIO | None]:
+    """The standard output a case's ``stdout`` field asks for, open while the block runs:
+    ``full`` (``/dev/full``: every write fails with ENOSPC once the buffer is flushed) or
+    ``closed_pipe`` (a pipe whose read end is closed: EPIPE); None without the field (the
+    caller's own). Closed afterwards, its failing flush ignored."""
+    kind = case.get("stdout")
+    if kind is None:
+        yield None
+        return
+    if kind == "full":
+        stream = open("/dev/full", "w", encoding="utf-8")  # noqa: SIM115 - closed below
+    elif kind == "closed_pipe":
+        read_end, write_end = os.pipe()
+        os.close(read_end)
+        stream = open(write_end, "w", encoding="utf-8")  # noqa: SIM115 - closed below
+    else:
+        raise CaseError(f"{case['name']}: stdout must be one of {STDOUT_KINDS}, got {kind!r}")
+    try:
+        yield stream
+    finally:
+        with suppress(OSError):
+            stream.close()
 
 
 def error_lines(err: str) -> list[str]:
