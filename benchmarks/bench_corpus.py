@@ -6,7 +6,7 @@ added, any process it started) and whether its outcome is the one the corpus exp
 checks of ``tests/test_bad_inputs.py``, from the shared ``tests/bad_inputs/harness.py``),
 against the per-case bounds of docs/limits.md (4 GiB, "a few minutes": ``MAX_CASE_S``).
 
-``python benchmarks/run.py corpus`` (every case: about a quarter of an hour on the
+``python benchmarks/run.py corpus`` (every case: about 10 minutes on the
 2-core machine) or ``python benchmarks/bench_corpus.py [--quick] [--filter REGEX]``
 (``--quick``: a few cases that need no finished run, seconds; ``--filter``: the cases
 whose name matches). The exit code of the latter is 1 when any case is wrong or beyond a
