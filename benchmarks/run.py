@@ -19,6 +19,7 @@ BENCHMARKS = {
     "memory": "benchmarks.bench_memory",
     "tradeoff": "benchmarks.bench_tradeoff",
     "limits": "benchmarks.bench_limits",
+    "corpus": "benchmarks.bench_corpus",
 }
 
 

@@ -5,10 +5,13 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
+import shutil
 import signal
 import sys
 import traceback
 from collections.abc import Callable, Sequence
+from contextlib import suppress
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn
 
@@ -16,7 +19,7 @@ from sensorgap.atomic import removed_on_error
 from sensorgap.config.common import parse_decimal, parse_integer
 from sensorgap.errors import InputError
 from sensorgap.filesio import refuse_if_changed, remove_outputs, write_manifest
-from sensorgap.runtime import tune_allocator
+from sensorgap.runtime import StdoutUnwritable, guarded_stdout, tune_allocator
 
 if TYPE_CHECKING:
     from sensorgap.coverage import Scene
@@ -235,6 +238,7 @@ def cmd_coverage(args: argparse.Namespace) -> int:
         raise InputError(
             "--occluder", "", "occluders hide parts of target bodies: add --heading DEG"
         )
+    _check_occluders_clear_of_ego(args.occluder, occluders, scene)
     with removed_on_error(args.out):
         summary = write_coverage(
             scene,
@@ -286,6 +290,24 @@ def _occluder(text: str) -> Occluder:
     except InputError as e:
         raise InputError("--occluder", "", f"unknown occluder kind {kind!r}: {e}") from None
     return Occluder.of_target(target, x, y, math.radians(heading))
+
+
+def _check_occluders_clear_of_ego(
+    texts: Sequence[str], occluders: Sequence[Occluder], scene: Scene
+) -> None:
+    """``--occluder``: no occluder's footprint may overlap the ego body's (a box standing
+    on the ego would hide the sensors mounted in it and make every map meaningless)."""
+    body = scene.system.config.vehicle
+    footprint = body.footprint()
+    for text, occ in zip(texts, occluders, strict=True):
+        if occ.overlaps(footprint):
+            raise InputError(
+                "--occluder",
+                "",
+                f"{text!r} overlaps the ego body ({body.name}: x {body.x_rear_m:g}.."
+                f"{body.x_front_m:g} m, y within +-{0.5 * body.width_m:g} m, the rear axle "
+                "at the origin); place the occluder outside it",
+            )
 
 
 def cmd_nearfield(args: argparse.Namespace) -> int:
@@ -1128,6 +1150,21 @@ def _flag_sources(exc: InputError, parser: argparse.ArgumentParser) -> None:
             e.source = flags[e.source]
 
 
+def _remove_fresh(path: Path | None) -> str:
+    """Remove ``path``, an ``--out`` that did not exist when the command started (its
+    standard output failed after it wrote there: a failed command leaves nothing); the
+    clause saying so, '' when there was nothing to remove. An --out that existed is
+    left alone (a run folder with its manifest)."""
+    if path is None or not os.path.lexists(path):
+        return ""
+    if path.is_dir() and not path.is_symlink():
+        shutil.rmtree(path, ignore_errors=True)
+    else:
+        with suppress(OSError):
+            path.unlink()
+    return f" and removed {path}, which it had written" if not os.path.lexists(path) else ""
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point: returns the exit code (0 ok, 2 bad input, 1 internal error)."""
     parser = build_parser()
@@ -1142,6 +1179,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
     previous = signal.signal(signal.SIGTERM, _terminate)
     tune_allocator()
+    out = getattr(args, "out", None)
+    # an --out the command creates: removed when its standard output fails afterwards
+    fresh = Path(out) if isinstance(out, str) and out.strip() and not os.path.lexists(out) else None
     try:
         for name in ("out", "catalog"):  # '' would mean the working directory
             value = getattr(args, name, None)
@@ -1152,7 +1192,15 @@ def main(argv: Sequence[str] | None = None) -> int:
                     "must name a folder or file (an empty "
                     "path would write into the working directory)",
                 )
-        return func(args)
+        with guarded_stdout():
+            return func(args)
+    except StdoutUnwritable as exc:
+        print(
+            f"sensorgap: error: stdout: cannot write: {exc.reason} (a full device or a "
+            f"closed pipe); the command stopped{_remove_fresh(fresh)}",
+            file=sys.stderr,
+        )
+        return EXIT_INPUT
     except InputError as exc:
         _flag_sources(exc, parser)
         for text in exc.lines():  # every error found, one line each

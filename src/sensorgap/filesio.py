@@ -335,6 +335,34 @@ def refuse_if_changed(folder: str | Path, rewrites: tuple[str, ...]) -> None:
         )
 
 
+def refuse_if_source_changed(folder: str | Path, reads: tuple[str, ...], what: str) -> None:
+    """Before a command copies files of a folder with a ``manifest.json`` into another
+    folder and certifies them there (``export --run RUN --out CAT`` copies ranking.json,
+    run.json and inputs/): every file the manifest lists below ``reads`` (as for
+    ``refuse_if_changed``) must be as recorded; a file changed by hand would otherwise be
+    certified by the new folder's manifest. ``what`` names the new folder (e.g. "a
+    catalog"). Raises ``InputError`` naming the source's manifest and the first such file;
+    a folder without a manifest is not checked."""
+    from sensorgap.errors import InputError
+
+    root = Path(folder)
+    if not (root / MANIFEST_NAME).is_file():
+        return
+    bad = [
+        why
+        for rel, why in _manifest_problems(root)
+        if _written_by(rel, reads) and not why.endswith("is not in the manifest")
+    ]
+    if bad:
+        more = f" (and {len(bad) - 1} more)" if len(bad) > 1 else ""
+        raise InputError(
+            root / MANIFEST_NAME,
+            "files",
+            f"the folder no longer matches its manifest: {bad[0]}{more}; {what} made from "
+            f"it would certify that; restore the file (sensorgap verify {root}) or search again",
+        )
+
+
 def verify_manifest(folder: str | Path) -> list[str]:
     """Problems of a run folder against its ``manifest.json`` (checked with
     ``read_manifest``): listed files missing, not regular files or changed (size or

@@ -18,6 +18,14 @@ points ``NUMBA_CACHE_DIR`` (unless already set) at a writable folder owned by th
 ``$XDG_CACHE_HOME/sensorgap/numba``, ``~/.cache/sensorgap/numba`` or
 ``<tmp>/sensorgap-numba-<uid>`` (created 0700), and only when the package folder is not
 writable.
+
+``guarded_stdout``: a command's standard output that cannot be written (``> /dev/full``, a
+pipe whose reader has gone: ``| head -0``) raised ``OSError`` from wherever the command
+printed, reported as if one of its files could not be written; a line still buffered
+failed only at interpreter exit ("Exception ignored ... OSError", exit code 120). While a
+command runs, its ``print`` calls go through a guard that turns such a failure into
+``StdoutUnwritable`` and the buffer is flushed before the command returns, so the CLI
+reports it as one line (``cli.main``).
 """
 
 from __future__ import annotations
@@ -28,8 +36,10 @@ import os
 import stat
 import sys
 import tempfile
-from collections.abc import Callable, MutableMapping
+from collections.abc import Callable, Iterator, MutableMapping
+from contextlib import contextmanager, suppress
 from pathlib import Path
+from typing import Any, TextIO
 
 #: mallopt parameters (glibc <malloc.h>) and the values set, bytes.
 _M_TRIM_THRESHOLD, _M_TOP_PAD, _M_MMAP_THRESHOLD = -1, -2, -3
@@ -176,3 +186,75 @@ def configure_matplotlib_dir() -> str | None:
         return matplotlib_config_dir()
     except Exception:  # noqa: BLE001 - a config folder must never stop a command
         return None
+
+
+class StdoutUnwritable(Exception):
+    """Standard output could not be written (a full device, a closed pipe); ``reason`` is
+    the system's message. Not an ``OSError``: a handler of file errors never takes it for
+    one of its own files."""
+
+    def __init__(self, reason: str) -> None:
+        super().__init__(reason)
+        self.reason = reason
+
+
+class _GuardedStdout:
+    """``sys.stdout`` while a command runs: a failed write or flush raises
+    ``StdoutUnwritable``; everything else is the stream's own."""
+
+    def __init__(self, inner: TextIO) -> None:
+        self._inner = inner
+
+    def write(self, text: str) -> int:
+        try:
+            return self._inner.write(text)
+        except OSError as exc:
+            raise StdoutUnwritable(exc.strerror or type(exc).__name__) from None
+
+    def flush(self) -> None:
+        try:
+            self._inner.flush()
+        except OSError as exc:
+            raise StdoutUnwritable(exc.strerror or type(exc).__name__) from None
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._inner, name)
+
+
+def _discard_stdout(stream: TextIO) -> None:
+    """After ``stream`` failed: when it is this process's own standard output, point file
+    descriptor 1 at the null device, so Python's final flush of what is still buffered
+    succeeds instead of printing "Exception ignored" lines (a stream of a caller, e.g. a
+    test's capture, is left to its owner)."""
+    if stream is not sys.__stdout__:
+        return
+    with suppress(OSError, ValueError):
+        null = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(null, stream.fileno())
+        os.close(null)
+
+
+@contextmanager
+def guarded_stdout() -> Iterator[None]:
+    """While the block runs, writing ``sys.stdout`` raises ``StdoutUnwritable`` when the
+    stream cannot take it, and the stream is flushed when the block ends (a buffered line
+    fails here, not at interpreter exit). After a failure, or when the block raised
+    something else and the flush fails too, the process's own standard output is
+    discarded (``_discard_stdout``)."""
+    inner = sys.stdout
+    guard = _GuardedStdout(inner)
+    sys.stdout = guard
+    try:
+        yield
+        guard.flush()
+    except StdoutUnwritable:
+        _discard_stdout(inner)
+        raise
+    except BaseException:
+        try:
+            inner.flush()
+        except (OSError, ValueError):
+            _discard_stdout(inner)
+        raise
+    finally:
+        sys.stdout = inner

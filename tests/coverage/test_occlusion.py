@@ -185,6 +185,48 @@ def test_coverage_cli_with_an_occluder(tmp_path) -> None:
     assert (tmp_path / "b" / "coverage.png").stat().st_size > 10_000
 
 
+def test_occluder_overlaps_the_ego_footprint() -> None:
+    """``Occluder.overlaps``: boxes against a 4 x 2 m footprint (x -1..3, y -1..1): inside,
+    across an edge, rotated with a corner inside -> overlap; beside it, touching an edge or
+    a corner only -> none; a diamond (a square at 45 deg) whose bounding box overlaps the
+    footprint's corner but which stops short of it -> none (only its own axes separate)."""
+    foot = [(-1.0, -1.0), (3.0, -1.0), (3.0, 1.0), (-1.0, 1.0)]
+
+    def box(x: float, y: float, heading_deg: float = 0.0, side: float | None = None) -> Occluder:
+        length, width = (2.0, 1.0) if side is None else (side, side)
+        return Occluder(x, y, math.radians(heading_deg), length, width, 1.0)
+
+    assert box(0.0, 0.0).overlaps(foot)
+    assert box(3.9, 0.0).overlaps(foot)  # 2.9..4.9: 0.1 m into the front
+    assert box(1.0, 1.45).overlaps(foot)  # 0.05 m into the left side
+    assert box(3.5, 1.2, 45.0).overlaps(foot)  # its corner (2.44, 0.85) is inside
+    assert not box(4.0, 0.0).overlaps(foot)  # touches the front edge only
+    assert not box(1.0, 1.5).overlaps(foot)  # touches the left edge only
+    assert not box(4.0, 1.5).overlaps(foot)  # touches the front-left corner only
+    assert not box(1.0, -3.0, 30.0).overlaps(foot)
+    # diamonds of half-diagonal 1 m: |x - cx| + |y - cy| <= 1
+    assert not box(3.8, 1.8, 45.0, math.sqrt(2.0)).overlaps(foot)  # corner (3, 1): 1.6
+    assert box(3.4, 1.4, 45.0, math.sqrt(2.0)).overlaps(foot)  # corner (3, 1): 0.8
+
+
+def test_coverage_cli_refuses_an_occluder_on_the_ego(tmp_path, capsys) -> None:
+    """``--occluder truck@0,0,0`` stands on the ego itself: one line naming the option, exit
+    2, nothing written; the same truck in the next lane is accepted (tested above)."""
+    from sensorgap.cli import main
+
+    out = tmp_path / "o"
+    argv = [
+        *("coverage", "--vehicle", "system_a", "--environment", "clear", "--target", "car"),
+        *("--extent", "-10,20,-5,5", "--resolution", "1", "--heading", "0"),
+        *("--occluder", "truck@15,-3.5,0", "--occluder", "truck@0,0,0", "--out", str(out)),
+    ]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("sensorgap: error: --occluder: 'truck@0,0,0'")
+    assert "overlaps the ego body" in err[0]
+    assert not out.exists()
+
+
 def _random_poses_and_boxes(
     xr: tuple[float, float],
     yr: tuple[float, float],

@@ -82,6 +82,22 @@ class Occluder:
             [self.x + c * local[:, 0] - s * local[:, 1], self.y + s * local[:, 0] + c * local[:, 1]]
         )
 
+    def overlaps(self, footprint: Sequence[tuple[float, float]]) -> bool:
+        """Whether this box's footprint and a convex ``footprint`` (corners in order, m,
+        vehicle frame; e.g. the ego body's, ``BodyConfig.footprint``) share interior
+        area (separating-axis test on both polygons' edge normals; boxes that only touch
+        along an edge or at a corner do not overlap)."""
+        a = self.corners()
+        b = np.asarray(footprint, dtype=np.float64)
+        for poly in (a, b):
+            edges = np.roll(poly, -1, axis=0) - poly
+            for nx, ny in np.column_stack([-edges[:, 1], edges[:, 0]]):
+                pa, pb = a @ (nx, ny), b @ (nx, ny)
+                tol = 1e-9 * max(1.0, float(np.hypot(nx, ny)))
+                if pa.max() <= pb.min() + tol or pb.max() <= pa.min() + tol:
+                    return False  # a separating axis
+        return True
+
 
 def occluder_array(occluders: Sequence[Occluder] | None) -> F64:
     """(M, 7) array of ``COLUMNS`` (M = 0 without occluders)."""

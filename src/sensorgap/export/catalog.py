@@ -35,7 +35,13 @@ from sensorgap.export.maneuver import build_maneuver_scenario, supported
 from sensorgap.export.spec import ScenarioSpec, read_run, specs_of_run
 from sensorgap.export.validate import FOOTWAY_M, semantic_errors, xsd_errors
 from sensorgap.export.xosc import DEFAULT_VERSION, VERSIONS, build_scenario
-from sensorgap.filesio import refuse_if_changed, write_json, write_manifest, write_npz
+from sensorgap.filesio import (
+    refuse_if_changed,
+    refuse_if_source_changed,
+    write_json,
+    write_manifest,
+    write_npz,
+)
 from sensorgap.models import Conditions
 from sensorgap.roads import read_opendrive
 from sensorgap.search.runfolder import INPUTS_DIR, copy_record
@@ -126,6 +132,8 @@ def _inside_only(out: Path) -> None:
 #: What an export writes into its folder (``filesio.refuse_if_changed``): everything else
 #: listed in an existing manifest must be unchanged before the manifest is rewritten.
 EXPORT_WRITES = ("scenarios/", "roads/", "coverage/*", "catalog.json", "simulation.csv")
+#: What an export into another folder copies from the run (``filesio.refuse_if_source_changed``).
+COPIED_FROM_RUN = ("ranking.csv", "ranking.json", "run.json", f"{INPUTS_DIR}/")
 
 
 def export_catalog(
@@ -175,6 +183,8 @@ def export_catalog(
         else (*EXPORT_WRITES, "ranking.csv", "ranking.json", "run.json", f"{INPUTS_DIR}/")
     )
     refuse_if_changed(out, writes)
+    if not in_place:  # what it copies from the run: certified there, so certified here
+        refuse_if_source_changed(run.folder, COPIED_FROM_RUN, "a catalog")
     (out / "scenarios").mkdir(parents=True, exist_ok=True)
     (out / "roads").mkdir(parents=True, exist_ok=True)
     if not in_place:

@@ -55,7 +55,11 @@ class CriticalScenarios(ScenarioGenerator):
         row = dict(self._rows[int(rank)])
         for k, v in overrides.items():
             row[f"p_{k}"] = v
-        return ScenarioSpec.from_row(row, self.system, self.run.folder / "ranking.json", self.run)
+        # a sweep's row carries other parameters under the ranked row's id (its files'
+        # name); the ranked row itself is checked against its id
+        return ScenarioSpec.from_row(
+            row, self.system, self.run.folder / "ranking.json", self.run, check_id=not overrides
+        )
 
     def scenario(self, **kwargs: Any) -> xosc.Scenario:
         """The OpenSCENARIO object for one permutation (``rank`` plus overrides)."""

@@ -21,7 +21,7 @@ from sensorgap.scenarios import InfeasibleScenario, Scenario, load_family
 from sensorgap.scenarios.family import Family, Param, ParamValue
 from sensorgap.search.metrics import metric_names
 from sensorgap.search.problem import Candidate
-from sensorgap.search.runfolder import RunFolder, read_run
+from sensorgap.search.runfolder import STORE_FILE, RunFolder, read_run
 
 __all__ = ["RunInfo", "ScenarioSpec", "read_run", "specs_of_run"]
 
@@ -59,10 +59,15 @@ class ScenarioSpec:
         system: System,
         source: Path | str = "ranking.json",
         run: RunFolder | None = None,
+        check_id: bool = True,
     ) -> ScenarioSpec:
         """Rebuild a ranking row (``InputError`` naming ``source`` if it is inconsistent)
         from the inputs ``run`` recorded (family, its road, environments, targets); without
-        ``run``, from the shipped presets."""
+        ``run``, from the shipped presets. In a run the search wrote (``run.searched``:
+        it holds search.sqlite) the row's ``scenario_id`` must be the store's id of its
+        family, environment, sun and parameters (``check_id``; off for a generator's
+        parameter sweep, whose rows keep the ranked row's id to name their files); a run
+        folder written by another tool may name its rows freely (``SCENARIO_ID``)."""
         at = _row_label(row, run)
         field = "family"
         try:
@@ -141,6 +146,18 @@ class ScenarioSpec:
             scenario = family.generate(params)
         except (KeyError, TypeError, ValueError, InfeasibleScenario) as exc:
             raise InputError(source, at, f"cannot rebuild the scenario: {exc}") from None
+        if check_id and run is not None and run.searched:
+            # the id names the row's files and report entries: an id edited by hand would
+            # export and report this scenario under another scenario's name
+            cid = Candidate(family.name, env_name, sun, params).scenario_id
+            if str(row["scenario_id"]) != cid:
+                raise InputError(
+                    source,
+                    f"{at}.scenario_id",
+                    f"{str(row['scenario_id'])[:64]!r} is not the id the run's "
+                    f"{STORE_FILE} gives the row's family, environment, sun and parameters "
+                    f"({cid!r}); restore the row or search again",
+                )
         metrics = {k: float(row[k]) for k in metric_names() if isinstance(row.get(k), int | float)}
         targets = run.targets() if run is not None else None
         target = (

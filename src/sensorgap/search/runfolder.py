@@ -67,6 +67,9 @@ ROW_TEXT = ("scenario_id", "family", "environment")
 ROW_CLASSES = ("sensor-critical", "marginal", "unavoidable", "not critical")
 #: What a scenario id may be (it names the exported files).
 SCENARIO_ID = re.compile(r"[A-Za-z0-9_-]{1,64}")
+#: The search's store of every evaluated candidate (``search.store``): a folder holding
+#: one was written by ``sensorgap search``, whose ranked rows carry the store's ids.
+STORE_FILE = "search.sqlite"
 #: Most rows a ranking holds (``search --top``; ``ranking.json`` rows read by export,
 #: report and compare): a report draws each row's figures (~0.5 s a row on a 2-core
 #: machine), so the largest ranking stays within a few minutes (docs/limits.md).
@@ -391,6 +394,12 @@ class RunFolder:
     def vehicle(self) -> str:
         """Alias of ``vehicle_ref`` (the vehicle as given to the search)."""
         return self.vehicle_ref
+
+    @property
+    def searched(self) -> bool:
+        """True when the folder holds the search's store (``STORE_FILE``): its ranked rows
+        are search results, each ``scenario_id`` the store's id of the row's candidate."""
+        return (self.folder / STORE_FILE).is_file()
 
     @property
     def recorded(self) -> bool:

@@ -1,0 +1,451 @@
+"""Preparing and checking the cases of the bad-input corpus (``cases.toml``, format in
+README.md), shared by ``tests/test_bad_inputs.py`` (in process) and
+``benchmarks/bench_corpus.py`` (each case in a fresh child process).
+
+``prepare_case`` builds a case's folder, output path and run-folder copy, its argv with
+the placeholders replaced and its ``setup`` steps done; ``outcome_problems`` says what is
+wrong with the exit code and stderr a case gave (empty: the case passed). Neither runs
+the case itself. Commands a setup step runs (``existing_search``) go through a
+``run_cli`` callable, so a caller decides in which process they run. This module imports
+nothing of sensorgap at import time (a benchmark's parent process stays small: a child's
+``ru_maxrss`` is at least its parent's resident size when it was started).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import re
+import resource
+import shutil
+import sqlite3
+import tomllib
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager, suppress
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, TextIO
+
+HERE = Path(__file__).resolve().parent
+REPO = HERE.parents[1]
+CASES_FILE = HERE / "cases.toml"
+
+#: Runs ``sensorgap`` with an argv and returns its exit code.
+RunCli = Callable[[list[str]], int]
+
+#: Arguments of the small finished search run that ``{run}`` copies: System B on a rural
+#: curve into the low sun (a sensor-critical scenario to export), its near field and
+#: its export. ``{out}`` is the run folder.
+FINISHED_RUN_COMMANDS: tuple[tuple[str, ...], ...] = (
+    (
+        "search",
+        "--vehicle",
+        "system_b",
+        "--families",
+        "stopped_rural_curve",
+        "--environments",
+        "glare_front_right",
+        "--budget",
+        "60",
+        "--top",
+        "2",
+        "--strategy",
+        "lhs",
+        "--out",
+        "{out}",
+    ),
+    ("nearfield", "--vehicle", "system_a", "--resolution", "0.2", "--out", "{out}/nearfield"),
+    ("export", "--run", "{out}"),
+)
+
+#: Where a case's ``stdout`` field sends the command's standard output.
+STDOUT_KINDS = ("full", "closed_pipe")
+
+
+class CaseError(Exception):
+    """A case of the corpus is itself wrong (an unknown setup step, a replacement whose
+    text is not in its file): a fault of the corpus, not of sensorgap."""
+
+
+def load_cases(path: Path = CASES_FILE) -> list[dict[str, Any]]:
+    """Every ``[[case]]`` of the corpus, in file order."""
+    cases: list[dict[str, Any]] = tomllib.loads(path.read_text(encoding="utf-8"))["case"]
+    return cases
+
+
+def needs_run(case: dict[str, Any]) -> bool:
+    """Whether the case works on a copy of the finished run (``{run}`` in its argv)."""
+    return any("{run}" in a for a in case["argv"])
+
+
+def build_finished_run(out: Path, run_cli: RunCli) -> Path:
+    """The small finished, exported search run with a near-field analysis and a manifest
+    that ``{run}`` copies, made in ``out`` by ``FINISHED_RUN_COMMANDS``."""
+    for command in FINISHED_RUN_COMMANDS:
+        argv = [a.replace("{out}", str(out)) for a in command]
+        code = run_cli(argv)
+        if code != 0:
+            raise CaseError(f"building the finished run: exit {code} from {argv}")
+    return out
+
+
+@dataclass
+class Prepared:
+    """A case made ready to run: its argv (placeholders replaced), its folder ``{dir}``,
+    output path ``{out}`` and run copy ``{run}``, and the files below ``{out}`` before the
+    command runs."""
+
+    case: dict[str, Any]
+    argv: list[str]
+    folder: Path
+    out: Path
+    run: Path
+    before: set[str]
+
+
+def prepare_case(
+    case: dict[str, Any], tmp: Path, finished_run: Path | None, run_cli: RunCli
+) -> Prepared:
+    """Make ``case`` ready to run in the empty folder ``tmp``: its files, the run copy and
+    its edits, the argv, the setup steps (``run_cli`` runs the commands they need). A case
+    on ``{run}`` needs ``finished_run`` (``build_finished_run``)."""
+    folder = tmp / "case"
+    folder.mkdir()
+    out = tmp / "out"
+    run = tmp / "run"
+    if needs_run(case):
+        if finished_run is None:
+            raise CaseError(f"{case['name']}: needs the finished run ({{run}})")
+        shutil.copytree(finished_run, run)
+    _write_files(case, folder)
+    if run.is_dir():
+        _edit_run(case, run)
+        if case.get("drop_manifest"):  # test a file's own check, not the folder's integrity
+            (run / "manifest.json").unlink()
+    subs = {
+        "{dir}": str(folder),
+        "{out}": str(out),
+        "{run}": str(run),
+        "{templates}": str(REPO / "templates"),
+        "{roads}": str(REPO / "roads"),
+    }
+    argv = list(case["argv"])
+    for i, a in enumerate(argv):
+        for k, v in subs.items():
+            a = a.replace(k, v)
+        argv[i] = a
+    _setup(case, argv, folder, out, run, run_cli)
+    return Prepared(case, argv, folder, out, run, files_below(out))
+
+
+def fsize_limiter(case: dict[str, Any]) -> Callable[[], None] | None:
+    """For a case with ``rlimit_fsize``: a ``preexec_fn`` that caps the size of any file
+    the child writes (a full disk); else None."""
+    if "rlimit_fsize" not in case:
+        return None
+    limit = int(case["rlimit_fsize"])
+
+    def cap() -> None:
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+
+    return cap
+
+
+@contextmanager
+def case_stdout(case: dict[str, Any]) -> Iterator[TextIO | None]:
+    """The standard output a case's ``stdout`` field asks for, open while the block runs:
+    ``full`` (``/dev/full``: every write fails with ENOSPC once the buffer is flushed) or
+    ``closed_pipe`` (a pipe whose read end is closed: EPIPE); None without the field (the
+    caller's own). Closed afterwards, its failing flush ignored."""
+    kind = case.get("stdout")
+    if kind is None:
+        yield None
+        return
+    if kind == "full":
+        stream = open("/dev/full", "w", encoding="utf-8")  # noqa: SIM115 - closed below
+    elif kind == "closed_pipe":
+        read_end, write_end = os.pipe()
+        os.close(read_end)
+        stream = open(write_end, "w", encoding="utf-8")  # noqa: SIM115 - closed below
+    else:
+        raise CaseError(f"{case['name']}: stdout must be one of {STDOUT_KINDS}, got {kind!r}")
+    try:
+        yield stream
+    finally:
+        with suppress(OSError):
+            stream.close()
+
+
+def error_lines(err: str) -> list[str]:
+    """The lines of stderr that count: a run folder's one-line notes and warnings
+    (docs/runs.md) are not errors."""
+    return [
+        ln
+        for ln in err.strip().splitlines()
+        if not ln.startswith(("sensorgap: note: ", "sensorgap: warning: "))
+    ]
+
+
+def outcome_problems(prepared: Prepared, code: int, err: str) -> list[str]:
+    """What is wrong with the outcome of a prepared case (exit ``code``, stderr ``err``):
+    the exit code the case expects; one error line per error found (``lines`` if the case
+    says, at least one), each ``sensorgap...: error: ...``, the first matching
+    ``message``; no traceback; no temporary file below ``{out}`` and, for exit 2, no file
+    there that was not there before; a symbolic-linked output folder unchanged. The first
+    problem found only (as one assertion after another would): empty when the case
+    passed."""
+    case = prepared.case
+    lines = error_lines(err)
+    if code != case["exit"]:
+        return [f"exit {code}: {err}"]
+    if "lines" in case and len(lines) != int(case["lines"]):
+        return [f"{len(lines)} lines, expected {case['lines']}: {err}"]
+    if not lines:
+        return [f"no error line: {err}"]
+    if not all(ln.startswith("sensorgap") and ": error: " in ln for ln in lines):
+        return [f"not an error line: {err}"]
+    if "Traceback" in err:
+        return [f"a traceback: {err}"]
+    if not re.search(case["message"], lines[0]):
+        return [f"message does not match {case['message']!r}: {lines[0]}"]
+    after = files_below(prepared.out)
+    tmp_files = sorted(f for f in after if ".tmp" in f)
+    if tmp_files:
+        return [f"temporary files left: {tmp_files}"]
+    if code == 2 and not after <= prepared.before:
+        return [f"files written despite the error: {sorted(after - prepared.before)}"]
+    elsewhere = prepared.folder / "elsewhere"
+    if elsewhere.is_dir() and files_below(elsewhere) != {"keep.xodr"}:
+        return [f"the symbolic-linked folder changed: {sorted(files_below(elsewhere))}"]
+    return []
+
+
+def files_below(folder: Path) -> set[str]:
+    """Relative POSIX paths of the files below ``folder`` (empty if it is not a folder)."""
+    return (
+        {p.relative_to(folder).as_posix() for p in folder.rglob("*") if p.is_file()}
+        if folder.is_dir()
+        else set()
+    )
+
+
+# -- files and run edits ---------------------------------------------------------------
+
+
+def _write_files(case: dict[str, Any], folder: Path, key: str = "files") -> None:
+    for name, spec in case.get(key, {}).items():
+        if isinstance(spec, str):
+            text = spec
+        else:
+            text = (REPO / spec["from"]).read_text(encoding="utf-8")
+            for old, new in spec.get("replace", []):
+                if old not in text:
+                    raise CaseError(f"{case['name']}: {old!r} not in {spec['from']}")
+                text = text.replace(old, new)
+        (folder / name).parent.mkdir(parents=True, exist_ok=True)
+        (folder / name).write_text(text, encoding="utf-8")
+
+
+def _edit_manifest(run: Path, entry: str) -> None:
+    manifest = json.loads((run / "manifest.json").read_text())
+    manifest["files"][entry] = {"bytes": 4, "sha256": "0" * 64}
+    (run / "manifest.json").write_text(json.dumps(manifest))
+
+
+def _edit_run(case: dict[str, Any], run: Path) -> None:
+    """``run_files`` (inline text written into ``{run}``), ``run_edit`` ([file, regex,
+    replacement]: the first match replaced) and ``run_input_edit`` (a recorded input's
+    copy edited, [old, new] pairs, with its SHA-256 in run.json updated to match)."""
+    for name, text in case.get("run_files", {}).items():
+        (run / name).write_text(text, encoding="utf-8")
+    for name, pattern, repl in case.get("run_edit", []):
+        text, n = re.subn(pattern, repl, (run / name).read_text(encoding="utf-8"), count=1)
+        if n != 1:
+            raise CaseError(f"{case['name']}: {pattern!r} not in {name}")
+        (run / name).write_text(text, encoding="utf-8")
+    for label, pairs in case.get("run_input_edit", {}).items():
+        info = json.loads((run / "run.json").read_text())
+        copy = run / info["inputs"][label]["copy"]
+        text = copy.read_text(encoding="utf-8")
+        for old, new in pairs:
+            if old not in text:
+                raise CaseError(f"{case['name']}: {old!r} not in {copy.name}")
+            text = text.replace(old, new)
+        copy.write_text(text, encoding="utf-8")
+        info["inputs"][label]["sha256"] = hashlib.sha256(copy.read_bytes()).hexdigest()
+        (run / "run.json").write_text(json.dumps(info))
+
+
+def _sql(db: Path, script: str) -> None:
+    con = sqlite3.connect(db)
+    con.executescript(script)
+    con.close()
+
+
+def _many_geometries(path: Path, n: int) -> None:
+    geoms = "".join(
+        f'<geometry s="{i}" x="{i}" y="0" hdg="0" length="1"><line/></geometry>' for i in range(n)
+    )
+    lanes = (
+        '<lanes><laneSection s="0"><center><lane id="0" type="none"/></center><right>'
+        '<lane id="-1" type="driving"><width sOffset="0" a="3.5" b="0" c="0" d="0"/>'
+        "</lane></right></laneSection></lanes>"
+    )
+    path.write_text(
+        f'<?xml version="1.0"?><OpenDRIVE><header revMajor="1" revMinor="6"/>'
+        f'<road id="1" junction="-1" length="{n}"><planView>{geoms}</planView>'
+        f"{lanes}</road></OpenDRIVE>"
+    )
+
+
+def _coverage_map(folder: Path, damage: str) -> None:
+    """A small coverage map (coverage.npz, summary.json) in ``folder`` with one damage:
+    ``pd_nan``, ``x_reversed``, ``huge_header`` (pd's .npy header claims 1e10 cells),
+    ``summary_nan`` (an area of summary.json is NaN)."""
+    import io
+    import zipfile
+
+    import numpy as np
+
+    folder.mkdir(parents=True)
+    x, y = np.arange(-59.0, 160.0, 2.0), np.arange(-39.0, 40.0, 2.0)
+    arrays = {
+        "x": x,
+        "y": y,
+        "pd": np.zeros((y.size, x.size)),
+        "resolution": np.array(2.0),
+        "height": np.array(0.75),
+    }
+    if damage == "pd_nan":
+        arrays["pd"][0, 0] = np.nan
+    if damage == "x_reversed":
+        arrays["x"] = x[::-1].copy()
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w") as zf:
+        for k, v in arrays.items():
+            b = io.BytesIO()
+            np.save(b, v)
+            data = b.getvalue()
+            if damage == "huge_header" and k == "pd":
+                hdr = "{'descr': '<f8', 'fortran_order': False, 'shape': (100000, 100000), }"
+                hdr = hdr.ljust(117) + "\n"
+                data = b"\x93NUMPY\x01\x00" + len(hdr).to_bytes(2, "little") + hdr.encode()
+            zf.writestr(f"{k}.npy", data)
+    (folder / "coverage.npz").write_bytes(buf.getvalue())
+    area = "NaN" if damage == "summary_nan" else "0.0"
+    summary = (
+        '{"area_m2_by_level": {"pd=1.0": AREA, "pd>=0.8": 0.0, "pd>=0.5": 0.0, "pd>0": 0.0, '
+        '"pd=0": 17600.0}, "environment": "clear", "grid": {"resolution_m": 2.0}, '
+        '"target": "car"}'
+    )
+    (folder / "summary.json").write_text(summary.replace("AREA", area))
+
+
+# -- setup steps -----------------------------------------------------------------------
+
+
+def _setup(
+    case: dict[str, Any], argv: list[str], folder: Path, out: Path, run: Path, run_cli: RunCli
+) -> None:
+    db = out / "search.sqlite"
+    for step in case.get("setup", []):
+        if step == "out_parent_is_file":
+            out.write_text("a file where a folder is expected")
+        elif step == "sparse_huge_road":
+            with (folder / "huge.xodr").open("wb") as f:
+                f.truncate(300 * 2**20)  # sparse: costs no disk
+        elif step == "delete_first_scenario":
+            next((run / "scenarios").glob("*.xosc")).unlink()
+        elif step == "corrupt_nearfield":
+            (run / "nearfield" / "nearfield.json").write_text("{broken")
+        elif step == "existing_search":
+            code = run_cli([*argv[:-2], "--out", str(out)])
+            if code != 0:
+                raise CaseError(f"{case['name']}: the existing search gave exit {code}")
+            _write_files(case, folder, "files_after")
+        elif step == "store_garbage":
+            db.write_bytes(b"definitely not an SQLite database " * 200)
+        elif step == "store_truncated":
+            db.write_bytes(db.read_bytes()[:1500])
+        elif step == "store_wrong_schema":
+            _sql(db, "DROP TABLE candidates; CREATE TABLE candidates (x TEXT);")
+        elif step == "store_bad_json":
+            _sql(db, "UPDATE candidates SET params = '{not json' WHERE idx = 0;")
+        elif step == "store_param_changed":  # a parameter of row 0 edited, its id kept
+            _sql(db, "UPDATE candidates SET params = json_set(params, '$.zz_m', 1) WHERE idx = 0;")
+        elif step == "store_not_a_probability":
+            _sql(
+                db,
+                "UPDATE candidates SET metrics = replace(metrics, "
+                "'\"mean_pd\": ', '\"mean_pd\": 7') WHERE idx = 0;",
+            )
+        elif step == "store_feasible_text":
+            _sql(db, "UPDATE candidates SET feasible = 'yes' WHERE idx = 0;")
+        elif step == "store_empty_metrics":
+            _sql(db, "UPDATE candidates SET metrics = '{}' WHERE idx = 0;")
+        elif step == "store_deep_json":
+            _sql(
+                db,
+                "UPDATE candidates SET params = '" + "[" * 5000 + "]" * 5000 + "' WHERE idx = 0;",
+            )
+        elif step.startswith("deep_json:"):  # deep_json:<file in {dir}>
+            (folder / step.removeprefix("deep_json:")).parent.mkdir(parents=True, exist_ok=True)
+            (folder / step.removeprefix("deep_json:")).write_text("[" * 5000 + "]" * 5000)
+        elif step == "huge_vehicle_name":  # a 1 MB name in {dir}/v.toml
+            v = folder / "v.toml"
+            v.write_text(
+                re.sub(r'(?m)^name = ".*"$', 'name = "' + "A" * 2**20 + '"', v.read_text(), count=1)
+            )
+        elif step == "road_symlink_loop":
+            (folder / "loop.xodr").symlink_to(folder / "loop.xodr")
+        elif step in ("deep_catalog_json", "deep_ranking_json"):
+            name = "catalog.json" if step == "deep_catalog_json" else "ranking.json"
+            (run / name).write_text('{"junk": ' + "[" * 5000 + "]" * 5000 + "}")
+        elif step == "out_roads_symlink":  # {out}/roads links to {dir}/elsewhere
+            (folder / "elsewhere").mkdir()
+            (folder / "elsewhere" / "keep.xodr").write_text("not the export's")
+            out.mkdir()
+            (out / "roads").symlink_to(folder / "elsewhere")
+        elif step == "run_roads_symlink":  # {run}/roads links to {dir}/elsewhere
+            (folder / "elsewhere").mkdir()
+            (folder / "elsewhere" / "keep.xodr").write_text("not the export's")
+            shutil.rmtree(run / "roads")
+            (run / "roads").symlink_to(folder / "elsewhere")
+        elif step == "many_geometries":
+            _many_geometries(folder / "many.xodr", 50_001)
+            argv[argv.index(str(folder / "r.xodr"))] = str(folder / "many.xodr")
+        elif step == "big_csv_field":
+            (folder / "p.csv").write_text("x,y\n1," + "1" * 200_000 + "\n")
+        elif step == "manifest_escape":
+            _edit_manifest(run, "../../etc/passwd")
+        elif step == "manifest_absolute":
+            _edit_manifest(run, "/etc/passwd")
+        elif step == "symlink_out":
+            (run / "etc_link").symlink_to("/etc")
+        elif step == "symlink_loop":
+            (run / "loop").symlink_to(run / "loop")
+        elif step == "journal_file":
+            (run / "search.sqlite-journal").write_bytes(b"journal")
+        elif step == "hidden_tmp":
+            (run / ".x.tmp.xosc").write_text("<half")
+        elif step == "edit_first_scenario":
+            first = sorted((run / "scenarios").glob("*.xosc"))[0]
+            first.write_text(first.read_text() + "<!-- edited -->\n")
+        elif step == "unlisted_file":
+            (run / "extra.txt").write_text("not listed")
+        elif step == "many_ranking_rows":  # row 0 of {run}/ranking.json, 301 times
+            data = json.loads((run / "ranking.json").read_text())
+            row = data["ranking"][0]
+            data["ranking"] = [{**row, "rank": i + 1} for i in range(301)]
+            (run / "ranking.json").write_text(json.dumps(data))
+        elif step == "duplicate_first_row":  # row 0 of {run}/ranking.json twice
+            data = json.loads((run / "ranking.json").read_text())
+            data["ranking"].append({**data["ranking"][0], "rank": len(data["ranking"]) + 1})
+            (run / "ranking.json").write_text(json.dumps(data))
+        elif step.startswith("coverage_map:"):  # {run}/coverage/car_clear, damaged
+            _coverage_map(run / "coverage" / "car_clear", step.removeprefix("coverage_map:"))
+        elif step == "manifest_symlink":
+            (folder / "manifest.json").symlink_to("/etc/hostname")
+        else:
+            raise CaseError(f"unknown setup step {step!r}")
