@@ -48,7 +48,7 @@ from sensorgap.report.summary import (
 )
 from sensorgap.search.evaluate import MAP_RESOLUTION_M, DetectionRule
 from sensorgap.search.metrics import metric_names
-from sensorgap.search.problem import START_TTC_S
+from sensorgap.search.possible import START_TTC_S
 from sensorgap.search.runfolder import RunFolder, open_run
 
 REPORT_DIR = "report"

@@ -80,6 +80,7 @@ from sensorgap.search.outcome import (
     encounter_geometry,
     reaction_outcome,
 )
+from sensorgap.search.possible import possible
 
 F64 = NDArray[np.float64]
 
@@ -712,7 +713,9 @@ class Evaluator:
         ``collisions_only`` (the search's metrics): Pd is evaluated only on rows with an
         open-loop collision after t = 0, the only rows with a collision to avoid; on the
         others it stays 0 (their collision probability is exactly 0 and, their path TTC
-        being infinite, so are the risk terms; their Pd columns are never shown).
+        being infinite, so are the risk terms; their Pd columns are never shown); nor on
+        the encounters the search may not use (``search.possible``), which it stores as
+        infeasible with their metrics at 0.
         """
         target = self.target(batch.target_class)
         if rows is None or len(rows) == len(batch):
@@ -755,6 +758,9 @@ class Evaluator:
         )
         collided = enc.collide_step >= 0
         n = np.where(collided, enc.collide_step + 1, t).astype(np.int64)
+        look = enc.collide_step > 0
+        if collisions_only:  # the search stores the others as infeasible (search.possible)
+            look &= possible(enc, kin.x, kin.psi, body.x_front_m, target.length_m, target.width_m)
         valid = np.arange(t)[None, :] < n[:, None]
         log_miss = np.zeros((b, t))
         log_conf: F64 | None = None
@@ -770,7 +776,7 @@ class Evaluator:
             env = presets[str(name)]
             g = np.flatnonzero(names == name)
             if collisions_only:
-                g = g[enc.collide_step[g] > 0]
+                g = g[look[g]]
                 if not g.size:
                     continue
             scene = self.scene(env, target)

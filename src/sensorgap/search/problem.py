@@ -24,8 +24,9 @@ from numpy.typing import ArrayLike, NDArray
 from sensorgap.config import EnvironmentConfig
 from sensorgap.errors import InputError
 from sensorgap.scenarios.family import Family, Param, ParamValue, Scenario
-from sensorgap.search.evaluate import BatchTrace, Evaluator, Trace
+from sensorgap.search.evaluate import Evaluator, Trace
 from sensorgap.search.metrics import compute_all_batch, metric_names, summary
+from sensorgap.search.possible import encounter_problems
 from sensorgap.search.speedlimit import SpeedLimit, speed_limit
 
 F64 = NDArray[np.float64]
@@ -36,10 +37,6 @@ SUN_ELEVATION = Param("sun_elevation_deg", 2.0, 30.0, unit="deg")
 EGO_SPEED = "ego_speed_m_s"
 
 
-#: A candidate must start non-critical: TTC at t = 0 at least this, s (about twice the
-#: risk's time constant). An encounter that begins at a smaller TTC measures its initial
-#: condition (a target placed close in front), not what the sensors saw while it developed.
-START_TTC_S = 4.0
 #: Smallest chunk worth a thread of its own, candidates.
 MIN_ROWS_PER_THREAD = 64
 #: Largest piece of a batch evaluated at once, candidates: 1,024 x 201 steps keeps each
@@ -175,49 +172,6 @@ def search_objective(
     if perfect_margin_s is not None:
         lost |= (p > 0.0) & ~enough_margin(perfect_margin_s)
     return np.where(lost, OBJECTIVE_UNAVOIDABLE, out)
-
-
-#: One step before the first open-loop contact the target's rear-most point must be ahead
-#: of the ego's front bumper less this tolerance, m (estimate: angled front-corner
-#: contacts); otherwise the target moved into the ego's side or rear, an impossible
-#: encounter for this search. (The step before: at the contact step itself a rear-end
-#: overlaps by up to the closing distance of one step, 0.75 m at 15 m/s and 20 Hz.)
-CONTACT_TOLERANCE_M = 0.5
-
-
-def impossible_encounters(
-    bt: BatchTrace, x_front: float, length: float, width: float
-) -> list[tuple[int, str]]:
-    """Rows whose bodies overlap at t = 0 or whose first open-loop contact is not with the
-    ego's front (the target moves into its side or rear): (row, note)."""
-    out: list[tuple[int, str]] = []
-    enc = bt.encounter
-    if enc is None:
-        return out
-    rows = np.flatnonzero(enc.collide_step >= 0)
-    k = enc.collide_step[rows]
-    at_start = k == 0
-    kb = np.maximum(k - 1, 0)  # the step before the contact
-    psi = np.zeros(rows.size) if bt.psi is None else bt.psi[rows, kb]
-    xc = bt.x[rows, kb]
-    x_min = xc - 0.5 * (np.abs(np.cos(psi)) * length + np.abs(np.sin(psi)) * width)
-    side = ~at_start & (x_min < x_front - CONTACT_TOLERANCE_M)
-    for j, kk, x0, st, sd in zip(
-        rows.tolist(), k.tolist(), xc.tolist(), at_start.tolist(), side.tolist(), strict=True
-    ):
-        if st:
-            out.append((j, "impossible encounter: the bodies overlap at t = 0"))
-        elif sd:
-            where = "side" if x0 > 0.0 else "rear"
-            out.append(
-                (
-                    j,
-                    f"impossible encounter: the target moves into the ego's "
-                    f"{where} at t = {bt.t[kk]:.2f} s (first contact not with "
-                    "the ego's front)",
-                )
-            )
-    return out
 
 
 @dataclass(frozen=True)
@@ -489,22 +443,16 @@ class SearchProblem:
             )
             target = self.evaluator.target(self.family.target_class)
             body = self.evaluator.system.config.vehicle
-            bad = [
-                (j, note)
-                for j, note in impossible_encounters(
-                    bt, body.x_front_m, target.length_m, target.width_m
-                )
-            ]
-            marked = {b for b, _ in bad}
-            bad += [
-                (
-                    int(j),
-                    f"starts critical: TTC {bt.ttc[j, 0]:.2f} s at t = 0 "
-                    f"(at least {START_TTC_S:g} s)",
-                )
-                for j in np.flatnonzero(bt.ttc[:, 0] < START_TTC_S)
-                if int(j) not in marked
-            ]
+            assert bt.encounter is not None
+            bad = encounter_problems(
+                bt.encounter,
+                bt.t,
+                bt.x,
+                bt.psi,
+                body.x_front_m,
+                target.length_m,
+                target.width_m,
+            )
             for j, note in bad:
                 notes[ok[j]] = note
             drop = ok[np.array([j for j, _ in bad], dtype=np.intp)]
