@@ -52,15 +52,18 @@ def table_poses(
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _velocity(x: F64, y: F64, i: int, k: int, dt: float) -> tuple[float, float]:  # pragma: no cover
+def _velocity(
+    x: F64, y: F64, i: int, k: int, inv_dt: float, inv_2dt: float
+) -> tuple[float, float]:  # pragma: no cover
     """Velocity (m/s) of row ``i`` at step ``k``: central differences inside, one-sided at
-    both ends."""
+    both ends (``inv_dt``, ``inv_2dt``: 1 / dt and 1 / (2 dt), 1/s; multiplying by them
+    instead of dividing by dt differs in the last bit and takes a third less time)."""
     t = x.shape[1]
     if k == 0:
-        return (x[i, 1] - x[i, 0]) / dt, (y[i, 1] - y[i, 0]) / dt
+        return (x[i, 1] - x[i, 0]) * inv_dt, (y[i, 1] - y[i, 0]) * inv_dt
     if k == t - 1:
-        return (x[i, k] - x[i, k - 1]) / dt, (y[i, k] - y[i, k - 1]) / dt
-    return (x[i, k + 1] - x[i, k - 1]) / (2.0 * dt), (y[i, k + 1] - y[i, k - 1]) / (2.0 * dt)
+        return (x[i, k] - x[i, k - 1]) * inv_dt, (y[i, k] - y[i, k - 1]) * inv_dt
+    return (x[i, k + 1] - x[i, k - 1]) * inv_2dt, (y[i, k + 1] - y[i, k - 1]) * inv_2dt
 
 
 @numba.njit(cache=True, nogil=True)
@@ -70,10 +73,11 @@ def path_states(
     """(B, T) positions (m) and fallback headings (rad) -> heading and speed."""
     b, t = x.shape
     two_pi = 2.0 * math.pi
+    inv_dt, inv_2dt = 1.0 / dt, 1.0 / (2.0 * dt)
     for i in range(b):
         prev = 0.0
         for k in range(t):
-            vx, vy = _velocity(x, y, i, k, dt)
+            vx, vy = _velocity(x, y, i, k, inv_dt, inv_2dt)
             v = math.sqrt(vx * vx + vy * vy)
             speed[i, k] = v
             f = fb[i, k]
@@ -92,7 +96,7 @@ def path_states(
 
 @numba.njit(cache=True, nogil=True, inline="always")
 def _row_extremes(
-    heading: F64, speed: F64, i: int, dt: float
+    heading: F64, speed: F64, i: int, inv_dt: float, inv_2dt: float
 ) -> tuple[float, float, float]:  # pragma: no cover - compiled
     """Row ``i``'s max speed (m/s), max |longitudinal acceleration| and max |lateral
     acceleration| (speed x yaw rate), m/s2; differences as in ``path_states``."""
@@ -102,13 +106,13 @@ def _row_extremes(
     lmax = 0.0
     for k in range(t):
         if k == 0:
-            j0, j1, h = 0, 1, dt
+            j0, j1, f = 0, 1, inv_dt
         elif k == t - 1:
-            j0, j1, h = k - 1, k, dt
+            j0, j1, f = k - 1, k, inv_dt
         else:
-            j0, j1, h = k - 1, k + 1, 2.0 * dt
-        a = abs((speed[i, j1] - speed[i, j0]) / h)
-        yr = (heading[i, j1] - heading[i, j0]) / h
+            j0, j1, f = k - 1, k + 1, inv_2dt
+        a = abs((speed[i, j1] - speed[i, j0]) * f)
+        yr = (heading[i, j1] - heading[i, j0]) * f
         lat = abs(speed[i, k] * yr)
         vmax = max(vmax, speed[i, k])
         amax = max(amax, a)
@@ -122,8 +126,9 @@ def track_extremes(
 ) -> None:  # pragma: no cover - compiled
     """Per row: max speed (m/s), max |longitudinal acceleration| and max |lateral
     acceleration| (speed x yaw rate), m/s2; differences as in ``path_states``."""
+    inv_dt, inv_2dt = 1.0 / dt, 1.0 / (2.0 * dt)
     for i in range(speed.shape[0]):
-        out[i, 0], out[i, 1], out[i, 2] = _row_extremes(heading, speed, i, dt)
+        out[i, 0], out[i, 1], out[i, 2] = _row_extremes(heading, speed, i, inv_dt, inv_2dt)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -147,11 +152,12 @@ def lane_tracks(
     from the lane table at (B, T) road ``s`` (as ``table_poses``), speeds (as
     ``path_states``) and the feasibility extremes (as ``track_extremes``)."""
     b, t = s.shape
+    inv_dt, inv_2dt = 1.0 / dt, 1.0 / (2.0 * dt)
     for i in range(b):
         for k in range(t):
             x[i, k], y[i, k], hk = _table_pose(s[i, k], step, n - 1, tx, ty, th)
             heading[i, k] = hk + turn if turn != 0.0 else hk
         for k in range(t):
-            vx, vy = _velocity(x, y, i, k, dt)
+            vx, vy = _velocity(x, y, i, k, inv_dt, inv_2dt)
             speed[i, k] = math.sqrt(vx * vx + vy * vy)
-        ext[i, 0], ext[i, 1], ext[i, 2] = _row_extremes(heading, speed, i, dt)
+        ext[i, 0], ext[i, 1], ext[i, 2] = _row_extremes(heading, speed, i, inv_dt, inv_2dt)
