@@ -57,7 +57,8 @@ def summarize(
     headway and distance at detection (their minimum over the steps if never detected);
     min distance; log10 risk without the floor (-inf without a finite TTC).
     """
-    ln10 = math.log(10.0)
+    inv_ln10 = 1.0 / math.log(10.0)
+    inv_tau = 1.0 / tau  # (multiplying: a division per step took longer)
     limit = 1.0 - threshold
     for i in range(log_miss.shape[0]):
         m = n[i]
@@ -83,10 +84,11 @@ def summarize(
             sum_pd += pd
             tk = ttc[i, k]
             if t[k] >= lead_in and tk < np.inf:  # exp(-inf) = 0: no risk at this step
-                r = math.exp(lu) * math.exp(-tk / tau)
+                q = tk * inv_tau
+                r = math.exp(lu) * math.exp(-q)
                 if r > risk:
                     risk = r
-                lraw = max(lraw, (lu - tk / tau) / ln10)
+                lraw = max(lraw, (lu - q) * inv_ln10)
             min_ttc = min(min_ttc, tk)
             min_hw = min(min_hw, headway[i, k])
             min_dist = min(min_dist, distance[i, k])
