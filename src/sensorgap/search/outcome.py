@@ -380,6 +380,7 @@ def _geometry_kernel(
     exit_out: F64,
 ) -> None:  # pragma: no cover
     b, t = ex.shape
+    inv_dt = 1.0 / dt  # (a multiplication per step instead of a division)
     ec = np.empty(t)
     es = np.empty(t)
     done = np.empty(t, dtype=np.bool_)
@@ -398,7 +399,7 @@ def _geometry_kernel(
         else:  # a standing ego: every sample is the same point
             near[:] = 0
             more[:] = False
-        kappa = 0.0  # largest path curvature of the row, 1/m
+        turn = 0.0  # largest heading change between path samples, rad
         for k in range(t):
             done[k] = False
             if k > 0 and step > 0.0:
@@ -406,7 +407,10 @@ def _geometry_kernel(
                 if d > 0.0:
                     if d > math.pi:
                         d = abs(d - 2.0 * math.pi * math.floor(d / (2.0 * math.pi) + 0.5))
-                    kappa = max(kappa, d / step)
+                    turn = max(turn, d)
+        # largest path curvature of the row, 1/m (one division: the same as the largest
+        # of the per-sample quotients, division by a positive number being monotone)
+        kappa = turn / step if step > 0.0 else 0.0
         # lateral error of a single straight frame over the span (0 on straight paths)
         delta = 0.5 * kappa * (span + step) ** 2
         lh = np.nan  # the last ego heading whose cos/sin were computed, and those
@@ -439,7 +443,7 @@ def _geometry_kernel(
             # the lateral rate is known once a previous step is (a causal difference)
             vdot = 0.0
             if predict > 0.0 and px == cpx and py == cpy and th[r, j] == cth and pvc == pvc:
-                vdot = (cvc - pvc) / dt
+                vdot = (cvc - pvc) * inv_dt
             if px == cpx and py == cpy and th[r, j] == cth and vdot == cvd:
                 a, z, w1, w2, s_i = ca, cz, cw1, cw2, cs
                 pvc = cvc
@@ -465,7 +469,7 @@ def _geometry_kernel(
                 # (constant lateral rate relative to the path; = vc without prediction)
                 vp = vc
                 if predict > 0.0:
-                    vdot = 0.0 if pvc != pvc else (vc - pvc) / dt
+                    vdot = 0.0 if pvc != pvc else (vc - pvc) * inv_dt
                     v1 = vc + vdot * predict
                     if vc * v1 <= 0.0:
                         vp = 0.0
