@@ -484,6 +484,15 @@ def test_rows_are_independent_and_only_allowed_fields_are_nan() -> None:
         o1 = reaction_outcome(e1, pd[r : r + 1], nv[r : r + 1], 3, 5, 0.3, 12.0, np.array([8.0]))
         for name in o.__dataclass_fields__:
             np.testing.assert_array_equal(getattr(o, name)[r], getattr(o1, name)[0])
+    # only some rows worked out: those equal the full batch's, the others are open-loop
+    wanted = np.arange(b) % 2 == 0
+    part = reaction_outcome(enc, pd, nv, 3, 5, 0.3, 12.0, np.full(b, 8.0), rows=wanted)
+    hit = (enc.collide_step >= 0).astype(float)
+    for name in o.__dataclass_fields__:
+        np.testing.assert_array_equal(getattr(part, name)[wanted], getattr(o, name)[wanted])
+    np.testing.assert_array_equal(part.collision_probability[~wanted], hit[~wanted])
+    np.testing.assert_array_equal(part.collision_perfect[~wanted], hit[~wanted])
+    assert np.any(hit[~wanted] != o.collision_probability[~wanted])  # differs from worked out
     assert (enc.collide_step >= 0).any() and (enc.collide_step < 0).any()
     for name in (
         "collision_probability",

@@ -330,6 +330,9 @@ class BatchTrace:
     #: (B,) step at which perfect perception confirms the target, limited to the line of
     #: sight past the occluders (``coverage.sightline``; -1: never); None: M - 1
     perfect_step: NDArray[np.int64] | None = None
+    #: (B,) the rows whose collision outcome is worked out (the encounters the search may
+    #: use, ``search.possible``; the others get the open-loop outcome); None: every row
+    outcome_rows: NDArray[np.bool_] | None = None
 
     def __len__(self) -> int:
         return len(self.n)
@@ -350,13 +353,17 @@ class BatchTrace:
             r.jerk_m_s3,
             self.decel_m_s2,
             self.perfect_step,
+            self.outcome_rows,
         )
 
     @cached_property
     def pd_confirm(self) -> F64:
         """(B, T) per-step Pd of the confirming sensors (0 beyond the valid steps)."""
         lm = self.log_miss if self.log_miss_confirm is None else self.log_miss_confirm
-        return np.asarray(-np.expm1(lm) + 0.0, dtype=np.float64)
+        out = np.zeros(lm.shape)
+        rows = np.flatnonzero(lm.any(axis=1))  # (rows the lookup skipped hold 0: Pd 0)
+        out[rows] = -np.expm1(lm[rows]) + 0.0
+        return out
 
     @cached_property
     def valid(self) -> NDArray[np.bool_]:
@@ -759,8 +766,10 @@ class Evaluator:
         collided = enc.collide_step >= 0
         n = np.where(collided, enc.collide_step + 1, t).astype(np.int64)
         look = enc.collide_step > 0
+        usable: NDArray[np.bool_] | None = None
         if collisions_only:  # the search stores the others as infeasible (search.possible)
-            look &= possible(enc, kin.x, kin.psi, body.x_front_m, target.length_m, target.width_m)
+            usable = possible(enc, kin.x, kin.psi, body.x_front_m, target.length_m, target.width_m)
+            look &= usable
         valid = np.arange(t)[None, :] < n[:, None]
         log_miss = np.zeros((b, t))
         log_conf: F64 | None = None
@@ -866,6 +875,7 @@ class Evaluator:
             occluders=occ if self.occlusion else None,
             occluder_labels=tuple(o.label for o in occ_tracks) if self.occlusion else (),
             perfect_step=perfect,
+            outcome_rows=usable,
         )
 
     def _occluded_exact(

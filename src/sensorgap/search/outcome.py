@@ -944,6 +944,7 @@ def _reaction_kernel(
     amax: F64,
     pstep: I64,
     exit_s: F64,
+    wanted: NDArray[np.bool_],
     out_p: F64,
     out_v: F64,
     out_perfect: F64,
@@ -966,9 +967,9 @@ def _reaction_kernel(
             v_never = _rel_speed(v0[r], eh[r, kc], th[r, kc], tv[r, kc])
         out_med[r] = np.nan
         out_never[r] = np.nan
-        if kc < 0 or kt < 0 or v0[r] < MIN_EGO_SPEED_M_S:
-            # nothing to avoid (no open-loop collision), never a threat, or nothing to
-            # brake: every onset gives the open-loop outcome
+        if kc < 0 or kt < 0 or v0[r] < MIN_EGO_SPEED_M_S or not wanted[r]:
+            # nothing to avoid (no open-loop collision), never a threat, nothing to brake
+            # (or not asked for): every onset gives the open-loop outcome
             hit = 1.0 if kc >= 0 else 0.0
             out_p[r] = hit
             out_v[r] = v_never
@@ -1206,6 +1207,7 @@ def reaction_outcome(
     jerk_m_s3: float,
     decel_m_s2: ArrayLike,
     perfect_step: ArrayLike | None = None,
+    rows: ArrayLike | None = None,
 ) -> Outcome:
     """The collision outcome of an encounter for (B, T) per-step Pd of the confirming
     sensors (only the first ``n_valid`` (B,) steps count), M-of-N confirmation, latency
@@ -1213,7 +1215,9 @@ def reaction_outcome(
     the reachable deceleration ``min(decel_max, mu g)`` per row, m/s2. ``perfect_step``
     (B,): the step at which perfect perception confirms the target (-1: never; default
     ``confirm_m - 1``, seen at every step; ``coverage.sightline`` limits it to the line of
-    sight past occluders)."""
+    sight past occluders). ``rows`` (B,) bool: the rows whose confirmation and braking are
+    worked out (default all); the others get the open-loop outcome, as a row with nothing
+    to brake (the search's encounters it may not use, whose metrics it sets to 0)."""
     b, t = enc.lo.shape
     if not 1 <= confirm_m <= confirm_n <= MAX_CONFIRM_N:
         raise ValueError(
@@ -1228,8 +1232,13 @@ def reaction_outcome(
     if pd.shape != (b, t):
         raise ValueError(f"pd_confirm has shape {pd.shape}, the encounter ({b}, {t})")
     # the confirmation distribution matters only where there is a collision to avoid
+    wanted = (
+        np.ones(b, dtype=np.bool_)
+        if rows is None
+        else np.ascontiguousarray(np.broadcast_to(np.asarray(rows, dtype=np.bool_), (b,)))
+    )
     rows = np.flatnonzero(
-        (enc.collide_step >= 0) & (enc.threat_step >= 0) & (enc.v0 >= MIN_EGO_SPEED_M_S)
+        wanted & (enc.collide_step >= 0) & (enc.threat_step >= 0) & (enc.v0 >= MIN_EGO_SPEED_M_S)
     ).astype(np.int64)
     f = np.zeros((b, t + 1))
     if rows.size:
@@ -1259,6 +1268,7 @@ def reaction_outcome(
         decel,
         pstep,
         np.full(b, np.inf) if enc.exit_s is None else np.ascontiguousarray(enc.exit_s),
+        wanted,
         *out,
     )
     p, v, perfect, safe, vperf, med, never = out
