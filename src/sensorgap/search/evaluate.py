@@ -360,10 +360,7 @@ class BatchTrace:
     def pd_confirm(self) -> F64:
         """(B, T) per-step Pd of the confirming sensors (0 beyond the valid steps)."""
         lm = self.log_miss if self.log_miss_confirm is None else self.log_miss_confirm
-        out = np.zeros(lm.shape)
-        rows = np.flatnonzero(lm.any(axis=1))  # (rows the lookup skipped hold 0: Pd 0)
-        out[rows] = -np.expm1(lm[rows]) + 0.0
-        return out
+        return np.asarray(-np.expm1(lm) + 0.0, dtype=np.float64)
 
     @cached_property
     def valid(self) -> NDArray[np.bool_]:
