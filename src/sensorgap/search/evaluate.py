@@ -651,6 +651,18 @@ class Evaluator:
         lm = self.log_miss(env, target, x, y, Conditions.sun_directions(env, heading), psi)
         return np.asarray(-np.expm1(lm) + 0.0, dtype=np.float64)
 
+    def _outline(self, target: TargetConfig) -> F64:
+        """The target body's footprint outline, (K, 2) m in the target frame: its samples'
+        distinct (x, y) (cached per target class)."""
+        cache: dict[str, F64] = self.__dict__.setdefault("_outlines", {})
+        hit = cache.get(target.name)
+        if hit is None:
+            body = body_samples(target)
+            hit = cache[target.name] = np.asarray(
+                np.unique(np.round(np.column_stack([body.x, body.y]), 6), axis=0), dtype=np.float64
+            )
+        return hit
+
     def _track_lookup(
         self, maps: LogMissMaps, scene: Scene, kin: Kinematics, heading: F64, sun: F64
     ) -> TrackLookup:
@@ -664,10 +676,7 @@ class Evaluator:
         outline: F64 | None = None
         order: dict[int, int] | None = None
         if self.bodies:
-            body = body_samples(scene.target)
-            outline = np.asarray(
-                np.unique(np.round(np.column_stack([body.x, body.y]), 6), axis=0), dtype=np.float64
-            )
+            outline = self._outline(scene.target)
             # a minimum visible fraction f of the facing outline (about half of it): the
             # ceil(f K / 2)-th best of the K outline points
             order = {
@@ -778,9 +787,9 @@ class Evaluator:
         )
         if self.mode == "exact" and len(self.confirm_rows) < len(self.system.sensors):
             log_conf = np.zeros((b, t))
-        for name in np.unique(names):
-            env = presets[str(name)]
-            g = np.flatnonzero(names == name)
+        groups = [(str(name), np.flatnonzero(names == name)) for name in np.unique(names)]
+        for name, g in groups:
+            env = presets[name]
             if collisions_only:
                 g = g[look[g]]
                 if not g.size:
@@ -842,10 +851,10 @@ class Evaluator:
                 need.astype(np.int64),
             )
         decel = np.zeros(b)
-        for name in np.unique(names):  # per environment: its road's friction
-            decel[names == name] = min(
+        for name, g in groups:  # per environment: its road's friction
+            decel[g] = min(
                 self.reaction.decel_max_m_s2,
-                self.friction[road_condition(presets[str(name)])] * G_M_S2,
+                self.friction[road_condition(presets[name])] * G_M_S2,
             )
         return BatchTrace(
             t=batch.t,
