@@ -215,7 +215,6 @@ class Kinematics:
 
     x: F64
     y: F64
-    ttc: F64
     headway: F64
     distance: F64
     psi: F64
@@ -243,7 +242,7 @@ def at_least_m_of_window_batch(pd: F64, m: int, n: int) -> F64:
 def kinematics_arrays(
     ego: Tracks | Scenario, target_tracks: Tracks | None, system: System, target: TargetConfig
 ) -> Kinematics:
-    """Target position in the ego frame, TTC (longitudinal, in-path only) and headway,
+    """Target position in the ego frame and time headway (in path ahead only),
     element-wise over arrays of any shape (states of ``Tracks`` or one ``Scenario``)."""
     e: Tracks | Trajectory
     g: Tracks | Trajectory
@@ -259,7 +258,7 @@ def kinematics_arrays(
         return np.ascontiguousarray(a, dtype=np.float64).reshape(-1, shape[-1] if shape else 1)
 
     m = rows(np.asarray(e.x)).shape
-    out = [np.empty(m) for _ in range(6)]
+    out = [np.empty(m) for _ in range(5)]
     kinematics_kernel(
         rows(e.x),
         rows(e.y),
@@ -268,7 +267,6 @@ def kinematics_arrays(
         rows(g.x),
         rows(g.y),
         rows(g.heading),
-        rows(g.speed),
         target.length_m,
         target.width_m,
         0.5 * body.width_m,
@@ -277,12 +275,12 @@ def kinematics_arrays(
         LATERAL_MARGIN_M,
         *out,
     )
-    xr, yr, ttc, headway, dist, psi = (a.reshape(shape) for a in out)
-    return Kinematics(xr, yr, ttc, headway, dist, psi)
+    xr, yr, headway, dist, psi = (a.reshape(shape) for a in out)
+    return Kinematics(xr, yr, headway, dist, psi)
 
 
 def kinematics(sc: Scenario, system: System, target: TargetConfig) -> Kinematics:
-    """Target position in the ego frame, TTC (longitudinal, in-path only), headway."""
+    """Target position in the ego frame and time headway (in path ahead only)."""
     return kinematics_arrays(sc, None, system, target)
 
 

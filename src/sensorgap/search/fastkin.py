@@ -38,7 +38,6 @@ def kinematics_kernel(
     tx: F64,
     ty: F64,
     th: F64,
-    tv: F64,
     length: float,
     width: float,
     body_half_width: float,
@@ -47,14 +46,14 @@ def kinematics_kernel(
     margin: float,
     xr: F64,
     yr: F64,
-    ttc: F64,
     headway: F64,
     dist: F64,
     psi: F64,
 ) -> None:  # pragma: no cover - compiled
     """(B, T) arrays of ego (rear axle) and target (centre) states -> ego-frame target
-    position (m), TTC (s, inf: not in path or not closing, 0: overlapping), time headway
-    (s, inf unless in path ahead), distance (m) and relative heading ``th - eh`` (rad)."""
+    position (m), time headway (s, inf unless in path ahead and not overlapping), distance
+    (m) and relative heading ``th - eh`` (rad). (The time to collision is the encounter
+    geometry's path TTC, ``search.outcome``.)"""
     mid = 0.5 * (x_front + x_rear)
     b, t = ex.shape
     for r in range(b):
@@ -75,29 +74,14 @@ def kinematics_kernel(
             dy = ty[r, k] - ey[r, k]
             x = c * dx + s * dy
             y = -s * dx + c * dy
-            dvx = tv[r, k] * ct - ev[r, k] * c
-            dvy = tv[r, k] * st - ev[r, k] * s
-            vxr = c * dvx + s * dvy
             ac = abs(ct * c + st * s)  # |cos(th - eh)|
             as_ = abs(st * c - ct * s)  # |sin(th - eh)|
             half_long = 0.5 * (ac * length + as_ * width)
             half_lat = 0.5 * (as_ * length + ac * width)
             in_path = abs(y) <= body_half_width + half_lat + margin
             front = x >= mid
-            if front:
-                gap = x - half_long - x_front
-                closing = -vxr
-            else:
-                gap = x_rear - x - half_long
-                closing = vxr
-            hit = in_path and gap <= 0.0
-            if hit:
-                ttc[r, k] = 0.0
-            elif in_path and closing > 1e-9:
-                ttc[r, k] = gap / closing
-            else:
-                ttc[r, k] = np.inf
-            if in_path and front and not hit and ev[r, k] > 0.1:
+            gap = x - half_long - x_front
+            if in_path and front and gap > 0.0 and ev[r, k] > 0.1:
                 headway[r, k] = gap / ev[r, k]
             else:
                 headway[r, k] = np.inf
