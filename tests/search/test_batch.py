@@ -319,3 +319,27 @@ def test_distance_at_detection_is_not_capped() -> None:
         ScenarioBatch.of(sc), ["clear"], load_environments(), duration_s=fam.duration_s
     )
     assert m.compute_batch(bt)[0] == pytest.approx(d, abs=1e-9)
+
+
+def test_lane_progress_and_row_bounds_equal_numpy() -> None:
+    """``lane_progress`` equals the numpy expression ``s0 + travel * (offset + v t)`` bit
+    for bit (both travel directions, offset 0 included) and ``row_bounds`` equals
+    ``numpy.min`` / ``numpy.max`` along the rows, NaN rows included."""
+    from sensorgap.scenarios.batch import lane_progress
+    from sensorgap.scenarios.fastpath import row_bounds
+
+    rng = np.random.default_rng(4)
+    t = np.arange(201) / 20.0
+    s0, off, v = (rng.uniform(-500.0, 900.0, (64, 1)) for _ in range(3))
+    for travel in (1, -1):
+        np.testing.assert_array_equal(
+            lane_progress(s0, travel, off, v, t), s0 + travel * (off + v * t)
+        )
+        np.testing.assert_array_equal(lane_progress(s0, travel, 0.0, v, t), s0 + travel * v * t)
+    s = rng.normal(size=(6, 9))
+    s[2, 4] = np.nan
+    s[5, 0] = np.nan
+    lo, hi = np.empty(6), np.empty(6)
+    row_bounds(s, lo, hi)
+    np.testing.assert_array_equal(lo, np.min(s, axis=1))
+    np.testing.assert_array_equal(hi, np.max(s, axis=1))

@@ -591,7 +591,17 @@ class _Cones:
 
 def _cones(scene: Scene, subset: frozenset[int] | None = None) -> _Cones | None:
     """The scene's glare cones (of the sensor rows in ``subset``, default all), or ``None``
-    if a glare-prone sensor has no cone form."""
+    if a glare-prone sensor has no cone form; cached on the scene per subset."""
+    cache: dict[frozenset[int] | None, _Cones | None] = scene.__dict__.setdefault(
+        "_glare_cones", {}
+    )
+    if subset not in cache:
+        cache[subset] = _cones_of(scene, subset)
+    return cache[subset]
+
+
+def _cones_of(scene: Scene, subset: frozenset[int] | None) -> _Cones | None:
+    """``_cones`` computed."""
     rows, cones = [], []
     for row, s in enumerate(scene.sensors):
         if subset is not None and row not in subset:

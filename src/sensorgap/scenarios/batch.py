@@ -19,7 +19,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sensorgap.roads import RoadNetwork
-from sensorgap.scenarios.fastpath import lane_tracks, path_states, table_poses, track_extremes
+from sensorgap.scenarios.fastpath import (
+    affine_progress,
+    lane_tracks,
+    path_states,
+    row_bounds,
+    table_poses,
+    track_extremes,
+)
 from sensorgap.scenarios.trajectory import Limits, Trajectory, blend
 
 
@@ -277,9 +284,35 @@ def check_tracks(tr: Tracks, t: F64, limits: Limits, who: str) -> tuple[Mask, li
     return bad, notes
 
 
+def lane_progress(s0: F64, travel: int, offset: F64 | float, speed: F64, t: F64) -> F64:
+    """(B, T) road s (m) of objects moving at constant ``speed`` (m/s, (B,) or (B, 1))
+    along a lane in its ``travel`` direction (+1 / -1) from ``s0 + travel * offset`` (m),
+    at times ``t`` (s): ``s0 + travel * (offset + speed t)`` in one compiled pass
+    (``fastpath.affine_progress``), the same values as that numpy expression."""
+    b = np.size(s0)
+
+    def col(a: F64 | float) -> F64:
+        return np.ascontiguousarray(
+            np.broadcast_to(np.asarray(a, dtype=np.float64).reshape(-1), (b,))
+        )
+
+    out = np.empty((b, len(t)))
+    affine_progress(
+        col(s0),
+        float(travel),
+        col(offset),
+        col(speed),
+        np.ascontiguousarray(t, dtype=np.float64),
+        out,
+    )
+    return out
+
+
 def off_road(s: F64, length: float, road_id: str, who: str) -> tuple[Mask, list[str]]:
     """(B,) rows whose s (B, T) leaves [0, length] (m), with the reason."""
-    lo, hi = np.min(s, axis=-1), np.max(s, axis=-1)
+    sc = np.ascontiguousarray(s, dtype=np.float64).reshape(len(s), -1)
+    lo, hi = np.empty(len(sc)), np.empty(len(sc))
+    row_bounds(sc, lo, hi)
     bad = (lo < 0.0) | (hi > length)
     notes = [""] * len(lo)
     for i in np.flatnonzero(bad):

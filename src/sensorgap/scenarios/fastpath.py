@@ -161,3 +161,32 @@ def lane_tracks(
             vx, vy = _velocity(x, y, i, k, inv_dt, inv_2dt)
             speed[i, k] = math.sqrt(vx * vx + vy * vy)
         ext[i, 0], ext[i, 1], ext[i, 2] = _row_extremes(heading, speed, i, inv_dt, inv_2dt)
+
+
+@numba.njit(cache=True, nogil=True)
+def affine_progress(
+    s0: F64, sign: float, offset: F64, speed: F64, t: F64, out: F64
+) -> None:  # pragma: no cover - compiled
+    """``out[i, k] = s0[i] + sign * (offset[i] + speed[i] * t[k])``: road s (m) of objects
+    moving at constant speed (m/s) along a lane in direction ``sign`` (+1 / -1), in one
+    pass (the numpy expression made three (B, T) temporaries)."""
+    for i in range(out.shape[0]):
+        for k in range(out.shape[1]):
+            out[i, k] = s0[i] + sign * (offset[i] + speed[i] * t[k])
+
+
+@numba.njit(cache=True, nogil=True)
+def row_bounds(s: F64, lo: F64, hi: F64) -> None:  # pragma: no cover - compiled
+    """Each row's smallest and largest value, in one pass (as ``numpy.min`` and
+    ``numpy.max`` along the last axis; a row with a NaN gets NaN for both, as there)."""
+    for i in range(s.shape[0]):
+        a = s[i, 0]
+        z = s[i, 0]
+        nan = a != a
+        for k in range(1, s.shape[1]):
+            v = s[i, k]
+            a = min(a, v)
+            z = max(z, v)
+            nan |= v != v
+        lo[i] = np.nan if nan else a
+        hi[i] = np.nan if nan else z

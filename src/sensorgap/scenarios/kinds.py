@@ -20,6 +20,7 @@ from sensorgap.scenarios.batch import (
     ScenarioBatch,
     Tracks,
     blend_batch,
+    lane_progress,
     off_road,
     tracks_from_path,
 )
@@ -123,8 +124,8 @@ class CutIn(_LaneKind):
     def generate_batch(self, family: Family, cols: Columns, net: RoadNetwork) -> ScenarioBatch:
         rid, lane, tr, t = self._start(family, "ego_lane")
         s0 = _col(cols, "ego_s0_m")
-        s_e = s0 + tr * _col(cols, "ego_speed_m_s") * t
-        s_t = s0 + tr * (_col(cols, "dx0_m") + _col(cols, "target_speed_m_s") * t)
+        s_e = lane_progress(s0, tr, 0.0, _col(cols, "ego_speed_m_s"), t)
+        s_t = lane_progress(s0, tr, _col(cols, "dx0_m"), _col(cols, "target_speed_m_s"), t)
         length = net.road(rid).length
         checks = [off_road(s_e, length, rid, "ego"), off_road(s_t, length, rid, "target")]
         u = (t - _col(cols, "lc_start_s")) / _col(cols, "lc_duration_s")
@@ -166,7 +167,7 @@ class Overtake(_LaneKind):
             _col(cols, "dx0_m"),
         )
         s0 = _col(cols, "ego_s0_m")
-        s_e = s0 + tr * ve * t
+        s_e = lane_progress(s0, tr, 0.0, ve, t)
         t_m = (_col(cols, "merge_gap_m") - dx0) / dv
         md = _col(cols, "merge_duration_s")
         t_b = t_m + md + _col(cols, "brake_delay_s")
@@ -205,8 +206,8 @@ class SlowAhead(_LaneKind):
     def generate_batch(self, family: Family, cols: Columns, net: RoadNetwork) -> ScenarioBatch:
         rid, lane, tr, t = self._start(family, "lane")
         s0 = _col(cols, "ego_s0_m")
-        s_e = s0 + tr * _col(cols, "ego_speed_m_s") * t
-        s_t = s0 + tr * (_col(cols, "gap0_m") + _col(cols, "target_speed_m_s") * t)
+        s_e = lane_progress(s0, tr, 0.0, _col(cols, "ego_speed_m_s"), t)
+        s_t = lane_progress(s0, tr, _col(cols, "gap0_m"), _col(cols, "target_speed_m_s"), t)
         length = net.road(rid).length
         checks = [off_road(s_e, length, rid, "ego"), off_road(s_t, length, rid, "target")]
         ego = self._follow(family, rid, lane, s_e, tr, t)
@@ -245,7 +246,7 @@ class Crossing(_LaneKind):
         rid, lane, tr, t = self._start(family, "ego_lane")
         ve = _col(cols, "ego_speed_m_s")
         s0 = _col(cols, "ego_s0_m")
-        s_e = s0 + tr * ve * t
+        s_e = lane_progress(s0, tr, 0.0, ve, t)
         s_c = s0 + tr * _col(cols, "cross_ahead_m")  # (B, 1)
         length = net.road(rid).length
         checks = [off_road(s_e, length, rid, "ego"), off_road(s_c, length, rid, "crossing line")]

@@ -16,7 +16,13 @@ from numpy.typing import NDArray
 
 from sensorgap.config import TargetConfig, load_target
 from sensorgap.roads import RoadNetwork
-from sensorgap.scenarios.batch import OccluderTracks, ScenarioBatch, blend_batch, off_road
+from sensorgap.scenarios.batch import (
+    OccluderTracks,
+    ScenarioBatch,
+    blend_batch,
+    lane_progress,
+    off_road,
+)
 from sensorgap.scenarios.family import Columns, Family, Param, register_kind
 from sensorgap.scenarios.kinds import (
     _ROAD_SETTINGS,
@@ -110,12 +116,12 @@ class CutInBehindTruck(_LaneKind):
         truck = _target(str(family.settings["occluder"]))
         car = _target(family.target_class)
         s0 = _col(cols, "ego_s0_m")
-        s_e = s0 + tr * _col(cols, "ego_speed_m_s") * t
+        s_e = lane_progress(s0, tr, 0.0, _col(cols, "ego_speed_m_s"), t)
         v_truck = _col(cols, "truck_speed_m_s")
-        s_k = s0 + tr * (_col(cols, "truck_dx_m") + v_truck * t)
+        s_k = lane_progress(s0, tr, _col(cols, "truck_dx_m"), v_truck, t)
         ahead = 0.5 * truck.length_m + _col(cols, "target_gap_m") + 0.5 * car.length_m
-        s_t = s0 + tr * (
-            _col(cols, "truck_dx_m") + ahead + (v_truck + _col(cols, "speed_delta_m_s")) * t
+        s_t = lane_progress(
+            s0, tr, _col(cols, "truck_dx_m") + ahead, v_truck + _col(cols, "speed_delta_m_s"), t
         )
         length = net.road(rid).length
         checks = [
@@ -170,9 +176,9 @@ class CutOutReveal(_LaneKind):
         gap = (t0 + md + _col(cols, "reveal_s")) * closing + 0.5 * (
             lead_cfg.length_m + car.length_m
         )
-        s_e = s0 + tr * ve * t
-        s_l = s0 + tr * (_col(cols, "lead_gap_m") + ve * t)
-        s_t = s0 + tr * (_col(cols, "lead_gap_m") + gap + vt * t)
+        s_e = lane_progress(s0, tr, 0.0, ve, t)
+        s_l = lane_progress(s0, tr, _col(cols, "lead_gap_m"), ve, t)
+        s_t = lane_progress(s0, tr, _col(cols, "lead_gap_m") + gap, vt, t)
         length = net.road(rid).length
         checks = [
             off_road(s_e, length, rid, "ego"),
