@@ -64,8 +64,9 @@ def summarize(
         m = n[i]
         lu = 0.0
         det = -1 if cumulative else det_given[i]
-        risk = 0.0
-        lraw = -np.inf
+        # the largest ln(P_undet) - TTC / tau over the scored steps: the risk is its exp (exp
+        # being monotone, one exp per row instead of two per step; the same up to rounding)
+        top = -np.inf
         sum_pd = 0.0
         min_ttc = np.inf
         min_hw = np.inf
@@ -84,11 +85,7 @@ def summarize(
             sum_pd += pd
             tk = ttc[i, k]
             if t[k] >= lead_in and tk < np.inf:  # exp(-inf) = 0: no risk at this step
-                q = tk * inv_tau
-                r = math.exp(lu) * math.exp(-q)
-                if r > risk:
-                    risk = r
-                lraw = max(lraw, (lu - q) * inv_ln10)
+                top = max(top, lu - tk * inv_tau)
             min_ttc = min(min_ttc, tk)
             min_hw = min(min_hw, headway[i, k])
             min_dist = min(min_dist, distance[i, k])
@@ -99,7 +96,8 @@ def summarize(
                     best_end = k + 1
             else:
                 run = 0
-        out[i, 0] = risk
+        lraw = top * inv_ln10
+        out[i, 0] = math.exp(top)
         out[i, 1] = max(lraw, floor)
         out[i, 2] = math.exp(lu)
         out[i, 3] = sum_pd / m
