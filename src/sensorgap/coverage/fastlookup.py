@@ -62,6 +62,15 @@ def bilinear_finite_at(
     return bilerp(fx - i, fy - j, a, b, c, d), 1
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def heading_bin(psi: float, inv_bin: float, n_bins: int) -> int:  # pragma: no cover - compiled
+    """The bin of a relative heading ``psi`` (rad) among ``n_bins`` over a half turn (a box
+    is symmetric under it): ``round(psi / bin width) mod n_bins``, ``inv_bin`` = n_bins /
+    pi. (The same bin as ``round((psi mod pi) / bin width) mod n_bins`` but at exact
+    rounding ties; the float modulo took 15 % of ``lookup_pass``.)"""
+    return int(round(psi * inv_bin)) % n_bins
+
+
 @numba.njit(cache=True, nogil=True)
 def fade(o: float, margin: float) -> float:  # pragma: no cover - compiled
     """Glare weight at an angle ``o`` (rad) outside the field of view."""
@@ -190,7 +199,7 @@ def lookup_pass(
     (``level``, pitch 0) get their weight analytically (sensor azimuth a - ``yaw``,
     elevation the sun's), others through ``rot``."""
     n_bins, ny, nx = total.shape[0], total.shape[1], total.shape[2]
-    bin_w = math.pi / n_bins
+    inv_bin = n_bins / math.pi
     t = x.shape[1]
     n_cam = rot.shape[0]
     # per camera and row: 0 never glared, 1 a constant weight wc, 2 a weight per step
@@ -258,7 +267,7 @@ def lookup_pass(
             ay = fy - j
             h = 0
             if n_bins > 1:
-                h = int(round((psi[r, k] % math.pi) / bin_w)) % n_bins
+                h = heading_bin(psi[r, k], inv_bin, n_bins)
             tot = total[h]
             out[r, k] = bilerp(ax, ay, tot[j, i], tot[j, i + 1], tot[j + 1, i], tot[j + 1, i + 1])
             if n_active == 0:
@@ -335,7 +344,7 @@ def body_layer_pass(
     heading bin of ``psi`` (rad), the four cells around the centre (``x0``, ``y0``: first
     cell centre, m; ``inv_res``: cells per m) clamped to the map, bilinear."""
     n_bins, cy, cx = values.shape
-    bin_w = math.pi / n_bins
+    inv_bin = n_bins / math.pi
     c = np.empty(4)
     for m in range(xs.size):
         fx = (xs[m] - x0) * inv_res
@@ -344,7 +353,7 @@ def body_layer_pass(
         j = min(max(int(math.floor(fy)), 0), ny - 2)
         h = 0
         if n_bins > 1:
-            h = int(round((psi[m] % math.pi) / bin_w)) % n_bins
+            h = heading_bin(psi[m], inv_bin, n_bins)
         for corner in range(4):
             jj = j + corner // 2 - j0
             ii = i + corner % 2 - i0
