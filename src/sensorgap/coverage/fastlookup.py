@@ -82,11 +82,17 @@ def fade(o: float, margin: float) -> float:  # pragma: no cover - compiled
     return w if w > GLARE_W_MIN else 0.0
 
 
+#: 1 / (2 pi), 1/rad.
+_INV_TWO_PI = 0.5 / math.pi
+
+
 @numba.njit(cache=True, nogil=True)
 def _azimuth_off(a: float, yaw: float) -> float:  # pragma: no cover - compiled
     """|a - yaw| wrapped to [0, pi], rad."""
     d = a - yaw
-    return abs(d - 2.0 * math.pi * math.floor((d + math.pi) / (2.0 * math.pi)))
+    # (the turn count by a multiplication: it differs from the division only where d + pi
+    # is within a rounding of a whole turn, where both wraps give the same angle)
+    return abs(d - 2.0 * math.pi * math.floor((d + math.pi) * _INV_TWO_PI))
 
 
 @numba.njit(cache=True, nogil=True)
