@@ -304,8 +304,6 @@ def refuse_if_changed(folder: str | Path, rewrites: tuple[str, ...]) -> None:
     them); a file lost at the top of the folder (the run's own record) is. Raises
     ``InputError`` naming the first such file and how many there are; a folder without a
     manifest is not checked (nothing certified yet)."""
-    from sensorgap.errors import InputError
-
     root = Path(folder)
     if not (root / MANIFEST_NAME).is_file():
         return
@@ -324,15 +322,13 @@ def refuse_if_changed(folder: str | Path, rewrites: tuple[str, ...]) -> None:
         )
         and not (why.endswith(" is missing") and "/" in rel)
     ]
-    if bad:
-        more = f" (and {len(bad) - 1} more; run 'sensorgap verify {root}')" if len(bad) > 1 else ""
-        raise InputError(
-            root / MANIFEST_NAME,
-            "files",
-            f"the folder no longer matches its manifest: {bad[0]}{more}; "
-            "writing into it would certify that; restore the file or run "
-            "the command again into a fresh folder",
-        )
+    _refuse_unmatched(
+        root,
+        bad,
+        f"; run 'sensorgap verify {root}'",
+        "writing into it would certify that; restore the file or run the command again "
+        "into a fresh folder",
+    )
 
 
 def refuse_if_source_changed(folder: str | Path, reads: tuple[str, ...], what: str) -> None:
@@ -343,8 +339,6 @@ def refuse_if_source_changed(folder: str | Path, reads: tuple[str, ...], what: s
     certified by the new folder's manifest. ``what`` names the new folder (e.g. "a
     catalog"). Raises ``InputError`` naming the source's manifest and the first such file;
     a folder without a manifest is not checked."""
-    from sensorgap.errors import InputError
-
     root = Path(folder)
     if not (root / MANIFEST_NAME).is_file():
         return
@@ -353,14 +347,28 @@ def refuse_if_source_changed(folder: str | Path, reads: tuple[str, ...], what: s
         for rel, why in _manifest_problems(root)
         if _written_by(rel, reads) and not why.endswith("is not in the manifest")
     ]
-    if bad:
-        more = f" (and {len(bad) - 1} more)" if len(bad) > 1 else ""
-        raise InputError(
-            root / MANIFEST_NAME,
-            "files",
-            f"the folder no longer matches its manifest: {bad[0]}{more}; {what} made from "
-            f"it would certify that; restore the file (sensorgap verify {root}) or search again",
-        )
+    _refuse_unmatched(
+        root,
+        bad,
+        "",
+        f"{what} made from it would certify that; restore the file (sensorgap verify "
+        f"{root}) or search again",
+    )
+
+
+def _refuse_unmatched(root: Path, bad: list[str], more_hint: str, advice: str) -> None:
+    """Raise the one-line ``InputError`` of a folder that no longer matches its manifest
+    (``bad``: the problems, the first named; none: return)."""
+    from sensorgap.errors import InputError
+
+    if not bad:
+        return
+    more = f" (and {len(bad) - 1} more{more_hint})" if len(bad) > 1 else ""
+    raise InputError(
+        root / MANIFEST_NAME,
+        "files",
+        f"the folder no longer matches its manifest: {bad[0]}{more}; {advice}",
+    )
 
 
 def verify_manifest(folder: str | Path) -> list[str]:
