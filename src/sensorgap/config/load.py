@@ -25,21 +25,17 @@ MAX_TOML_DEPTH = 16
 
 
 def toml_depth(data: Any) -> int:
-    """Nesting depth of parsed TOML (a scalar is 0, ``{"a": 1}`` is 1); iterative."""
-    deepest, stack = 0, [(data, 0)]
-    while stack:
-        node, depth = stack.pop()
-        if isinstance(node, dict):
-            children = list(node.values())
-        elif isinstance(node, list):
-            children = node
-        else:
-            continue
-        deepest = max(deepest, depth + 1)
+    """Nesting depth of parsed TOML (a scalar is 0, ``{"a": 1}`` is 1); level by level,
+    iterative (stops at the first level deeper than ``MAX_TOML_DEPTH``)."""
+    deepest, level = 0, [data]
+    while True:
+        level = [node for node in level if isinstance(node, dict | list)]
+        if not level:
+            return deepest
+        deepest += 1
         if deepest > MAX_TOML_DEPTH:
             return deepest
-        stack.extend((c, depth + 1) for c in children)
-    return deepest
+        level = [c for node in level for c in (node.values() if isinstance(node, dict) else node)]
 
 
 def read_toml(path: Path) -> dict[str, Any]:
