@@ -3,7 +3,10 @@
 from __future__ import annotations
 
 import os
+import pickle
+import threading
 import tomllib
+from collections import OrderedDict
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -38,6 +41,16 @@ def toml_depth(data: Any) -> int:
         level = [c for node in level for c in (node.values() if isinstance(node, dict) else node)]
 
 
+#: Data of the texts ``read_toml`` parsed last (pickled; up to ``_PARSED_MAX_TEXTS`` texts
+#: of at most ``_PARSED_MAX_CHARS`` characters): a text parses to the same data every time,
+#: and a process reads the same files many times (each ``load_environment`` reads the whole
+#: environments.toml). The file is still read and checked on every call.
+_PARSED: OrderedDict[str, bytes] = OrderedDict()
+_PARSED_LOCK = threading.Lock()
+_PARSED_MAX_TEXTS = 64
+_PARSED_MAX_CHARS = 65_536
+
+
 def read_toml(path: Path) -> dict[str, Any]:
     """Parse a TOML file; missing, unreadable, oversized or malformed -> ``InputError``."""
     if not path.exists():
@@ -57,6 +70,13 @@ def read_toml(path: Path) -> dict[str, Any]:
         raise InputError(
             path, "", "starts with a byte-order mark (U+FEFF); save it as UTF-8 without BOM"
         )
+    with _PARSED_LOCK:
+        known = _PARSED.get(text)
+        if known is not None:
+            _PARSED.move_to_end(text)
+    if known is not None:
+        parsed: dict[str, Any] = pickle.loads(known)  # a copy of its own for the caller
+        return parsed
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -69,6 +89,11 @@ def read_toml(path: Path) -> dict[str, Any]:
             "",
             f"tables and arrays nested too deeply; at most {MAX_TOML_DEPTH} levels allowed",
         )
+    if len(text) <= _PARSED_MAX_CHARS:
+        with _PARSED_LOCK:
+            _PARSED[text] = pickle.dumps(data, protocol=pickle.HIGHEST_PROTOCOL)
+            while len(_PARSED) > _PARSED_MAX_TEXTS:
+                _PARSED.popitem(last=False)
     return data
 
 
