@@ -32,20 +32,37 @@ OWN_GROUP = (
     "tests/search/test_credible.py::test_system_a_ranked_bodies_are_unseen",
     "tests/report/test_summary.py::test_summary_names_the_rear_blind_wedges",
 )
-#: The longest groups (seconds of one worker, 2-core machine, with coverage), started
-#: first: the scheduler otherwise starts the groups with the most tests first, and a long
-#: group started late left one worker waiting for the other at the end.
+#: The groups of more than ~2.5 s, longest first (CPU seconds of one worker, 2-core machine,
+#: with coverage, 2026-11-26), started in this order, the short ones after them: xdist's
+#: own order (most tests first) started the long one-test groups last, and whichever worker
+#: took the last of them finished up to 12 s after the other. A folder or file names its
+#: group; an entry with "::" is a node-id prefix of a one-test group (``OWN_GROUP``).
 LONG_GROUPS = (
-    "tests/report",
-    "tests/export",
-    "tests/search/test_credible.py",
-    "tests/search/test_runfolder.py",
-    "tests/test_bad_inputs.py",
-    "tests/search/test_compare_maps.py",
-    "tests/analysis/test_nearfield.py",
-    "tests/cli/test_paper.py",
-    "tests/search/test_batch.py",
-    "tests/search/test_search.py",
+    "tests/report",  # 60
+    "tests/export",  # 19
+    "tests/test_bad_inputs.py",  # 15
+    "tests/search/test_credible.py",  # 11
+    "tests/search/test_occluded.py",  # 11
+    "tests/test_determinism.py::test_byte_identical_outputs[search+export+report]",  # 10
+    "tests/search/test_compare_maps.py",  # 9
+    "tests/search/test_credible.py::test_ranked_rows_reproduce_with_evaluate",  # 9
+    "tests/test_crash_safety.py",  # 9
+    "tests/cli/test_run_vehicle.py",  # 9
+    "tests/search/test_credible.py::test_system_a_ranked_bodies_are_unseen",  # 8
+    "tests/analysis/test_nearfield.py",  # 7
+    "tests/search/test_executors.py",  # 7
+    "tests/search/test_runfolder.py",  # 7
+    "tests/search/test_search.py",  # 6
+    "tests/cli/test_paper.py",  # 5
+    "tests/search/test_batch.py",  # 5
+    "tests/test_hostile_runtime.py::test_report_and_export_do_not_certify",  # 4
+    "tests/cli/test_cli.py",  # 4
+    "tests/test_determinism.py::test_byte_identical_outputs[nearfield]",  # 3
+    "tests/test_tradeoff.py",  # 3
+    "tests/test_api_docs.py",  # 3
+    "tests/report/test_summary.py::test_summary_names_the_rear_blind_wedges",  # 3
+    "tests/models/test_sweep.py",  # 3
+    "tests/test_hostile_runtime.py::test_a_resumed_search_that_changes",  # 3
 )
 
 
@@ -60,6 +77,14 @@ def xdist_group_of(nodeid: str) -> str:
     if len(parts) > 2 and parts[0] == "tests" and parts[1] in SHARED_FIXTURE_DIRS:
         return "/".join(parts[:2])
     return path
+
+
+def long_rank(group: str) -> int:
+    """The place of a group in ``LONG_GROUPS`` (``len(LONG_GROUPS)``: not listed)."""
+    for i, entry in enumerate(LONG_GROUPS):
+        if group == entry or ("::" in entry and group.startswith(entry)):
+            return i
+    return len(LONG_GROUPS)
 
 
 @pytest.hookimpl(optionalhook=True)
@@ -79,10 +104,9 @@ def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> Any:
 
         def _assign_work_unit(self, node: Any) -> None:
             # the longest groups first (``LONG_GROUPS``), then xdist's order (most tests)
-            for scope in LONG_GROUPS:
-                if scope in self.workqueue:
-                    self.workqueue.move_to_end(scope, last=False)
-                    break
+            first = min(self.workqueue, key=long_rank)
+            if long_rank(first) < len(LONG_GROUPS):
+                self.workqueue.move_to_end(first, last=False)
             super()._assign_work_unit(node)
 
     return FileOrFolderScheduling(config, log)

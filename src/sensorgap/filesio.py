@@ -39,13 +39,12 @@ def csv_bytes(columns: Sequence[str], data: Sequence[NDArray[Any]]) -> bytes:
     """CSV text (``\\n`` line ends) of equally long columns; floats in round-trip form."""
     for name, col in zip(columns, data, strict=True):
         _check_finite(name, np.asarray(col))
-    lines = [",".join(columns)]
-    cols = [np.asarray(c) for c in data]
-    n = len(cols[0]) if cols else 0
-    fmt = [(format_float if c.dtype.kind == "f" else str) for c in cols]
-    lists = [c.tolist() for c in cols]
-    for i in range(n):
-        lines.append(",".join(f(col[i]) for f, col in zip(fmt, lists, strict=True)))
+    # each column as text: floats as ``format_float`` writes them (finite: checked above)
+    text = [
+        list(map(repr, (c + 0.0).tolist())) if c.dtype.kind == "f" else list(map(str, c.tolist()))
+        for c in (np.asarray(c) for c in data)
+    ]
+    lines = [",".join(columns), *map(",".join, zip(*text, strict=True))]
     return ("\n".join(lines) + "\n").encode("utf-8")
 
 

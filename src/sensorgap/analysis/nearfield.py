@@ -34,6 +34,8 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from itertools import islice, repeat
+from operator import itemgetter
 from pathlib import Path
 from typing import Any, TypeAlias
 
@@ -49,6 +51,7 @@ from sensorgap.models.geometry import Mount, fov_mask, in_range, rotate_offsets
 from sensorgap.models.system import Sensor, System
 
 F64 = NDArray[np.float64]
+IntArr = NDArray[np.intp]
 Area: TypeAlias = Polygon | MultiPolygon
 
 #: Heights an object ("road user") may occupy, m: from the ground to 4 m (EU maximum vehicle
@@ -156,24 +159,22 @@ def _theta_pieces(
     return t1, t2, valid
 
 
-def _components(t1: list[float], t2: list[float], valid: list[bool]) -> list[Interval]:
-    """Maximal runs of in-view elementary intervals (zero-width pieces are transparent)."""
-    comps: list[Interval] = []
-    cur: list[float] | None = None
-    for a, b, v in zip(t1, t2, valid, strict=True):
-        if b <= a:
-            continue
-        if v:
-            if cur is None:
-                cur = [a, b]
-            else:
-                cur[1] = b
-        elif cur is not None:
-            comps.append((cur[0], cur[1]))
-            cur = None
-    if cur is not None:
-        comps.append((cur[0], cur[1]))
-    return comps
+def _components(t1: F64, t2: F64, valid: NDArray[np.bool_]) -> tuple[F64, F64, IntArr, IntArr]:
+    """The maximal runs of in-view elementary intervals of every direction (row; zero-width
+    pieces are transparent): (start of each run's first piece, end of its last piece, the
+    run's row, the number of runs per row), runs in row order. A run starts at an in-view
+    piece whose kept predecessor in its row is not in view, and ends likewise."""
+    n, k = t1.shape
+    idx = np.flatnonzero(~(t2 <= t1).ravel())  # kept pieces, row by row
+    row = idx // k
+    v = valid.ravel()[idx]
+    same = row[1:] == row[:-1]
+    start = v.copy()
+    start[1:] &= ~(same & v[:-1])
+    end = v.copy()
+    end[:-1] &= ~(same & v[1:])
+    runs = row[start]
+    return t1.ravel()[idx[start]], t2.ravel()[idx[end]], runs, np.bincount(runs, minlength=n)
 
 
 def _merge(ivs: list[Interval]) -> list[Interval]:
@@ -184,6 +185,21 @@ def _merge(ivs: list[Interval]) -> list[Interval]:
         else:
             out.append((a, b))
     return out
+
+
+def _per_direction(
+    lo: F64, hi: F64, rows: IntArr, n_runs: IntArr
+) -> tuple[list[list[Interval]], list[Signature]]:
+    """rho intervals ``(lo, hi)`` (in row order, ``rows``: the direction of each) as merged
+    lists per direction, and each direction's signature (runs, merged intervals)."""
+    counts = np.bincount(rows, minlength=n_runs.size)
+    it = iter(zip(lo.tolist(), hi.tolist(), strict=True))
+    # each direction's list: the next counts[i] intervals (no Python loop per direction)
+    ivs_all: list[list[Interval]] = list(map(list, map(islice, repeat(it), counts.tolist())))
+    for i in np.flatnonzero(counts > 1).tolist():
+        ivs_all[i] = _merge(ivs_all[i])
+        counts[i] = len(ivs_all[i])
+    return ivs_all, list(zip(n_runs.tolist(), counts.tolist(), strict=True))
 
 
 PolarFn = Callable[[F64], tuple[list[list[Interval]], list[Signature]]]
@@ -198,33 +214,21 @@ def _any_height_fn(m: Mount, h_lo: float, h_hi: float) -> PolarFn:
     t_lo = -math.asin(min(1.0, down / rmin)) if rmin > 0.0 else -_HALF_PI
     t_hi = math.asin(min(1.0, up / rmin)) if rmin > 0.0 else _HALF_PI
 
-    def r_hi_cos(t: float) -> float:
-        if t < 0.0:
-            st = -math.sin(t)
-            r = min(rmax, down / st) if down < rmax * st else rmax
-        elif t > 0.0:
-            st = math.sin(t)
-            r = min(rmax, up / st) if up < rmax * st else rmax
-        else:
-            r = rmax
-        return r * math.cos(t)
+    def r_hi_cos(t: F64) -> F64:
+        r = np.full(t.shape, rmax)
+        st = np.sin(t)
+        for side, s, h in ((t < 0.0, -st, down), (t > 0.0, st, up)):
+            near = side & (h < rmax * s)  # the height bound comes first
+            r[near] = np.minimum(rmax, h / s[near])
+        return np.asarray(r * np.cos(t), dtype=np.float64)
 
     def fn(phis: F64) -> tuple[list[list[Interval]], list[Signature]]:
         if t_lo == t_hi == 0.0 or rmax <= rmin:
             return [[] for _ in phis], [(0, 0) for _ in phis]
-        t1, t2, valid = _theta_pieces(m, phis, t_lo, t_hi)
-        ivs_all: list[list[Interval]] = []
-        sigs: list[Signature] = []
-        for a_row, b_row, v_row in zip(t1.tolist(), t2.tolist(), valid.tolist(), strict=True):
-            comps = _components(a_row, b_row, v_row)
-            ivs = []
-            for a, b in comps:
-                t_star = min(max(0.0, a), b)  # r_hi(t) cos t decreases with |t|
-                ivs.append((rmin * min(math.cos(a), math.cos(b)), r_hi_cos(t_star)))
-            merged = _merge(ivs)
-            ivs_all.append(merged)
-            sigs.append((len(comps), len(merged)))
-        return ivs_all, sigs
+        a, b, rows, n_runs = _components(*_theta_pieces(m, phis, t_lo, t_hi))
+        t_star = np.minimum(np.maximum(0.0, a), b)  # r_hi(t) cos t decreases with |t|
+        lo = rmin * np.minimum(np.cos(a), np.cos(b))
+        return _per_direction(lo, r_hi_cos(t_star), rows, n_runs)
 
     return fn
 
@@ -237,38 +241,32 @@ def _at_height_fn(m: Mount, z: float) -> PolarFn:
     rho_a = math.sqrt(max(rmin * rmin - dz * dz, 0.0))
     rho_b = math.sqrt(max(rmax * rmax - dz * dz, 0.0))
 
-    def rho_of(a: float, b: float) -> Interval | None:
-        # the horizontal line at height dz meets the rays t in [a, b] at rho = dz / tan(t)
-        if dz > 0.0:
-            if b <= 0.0:
-                return None
-            lo = dz * math.cos(b) / math.sin(b)
-            hi = math.inf if a <= 0.0 else dz * math.cos(a) / math.sin(a)
-        elif dz < 0.0:
-            if a >= 0.0:
-                return None
-            lo = -dz * math.cos(a) / -math.sin(a)
-            hi = math.inf if b >= 0.0 else -dz * math.cos(b) / -math.sin(b)
-        else:
-            if not a <= 0.0 <= b:
-                return None
-            lo, hi = 0.0, math.inf
-        lo, hi = max(lo, rho_a), min(hi, rho_b)
-        return (lo, hi) if hi > lo else None
+    def rho_of(a: F64, b: F64) -> tuple[NDArray[np.bool_], F64, F64]:
+        # the horizontal line at height dz meets the rays t in [a, b] at rho = dz / tan(t):
+        # (which ray intervals meet it in range, rho from, rho to)
+        lo, hi = np.zeros_like(a), np.full_like(a, math.inf)
+        with np.errstate(over="ignore"):  # a ray just above the horizon: rho = inf
+            if dz > 0.0:
+                ok = ~(b <= 0.0)
+                lo[ok] = dz * np.cos(b[ok]) / np.sin(b[ok])
+                up = ok & ~(a <= 0.0)
+                hi[up] = dz * np.cos(a[up]) / np.sin(a[up])
+            elif dz < 0.0:
+                ok = ~(a >= 0.0)
+                lo[ok] = -dz * np.cos(a[ok]) / -np.sin(a[ok])
+                down = ok & ~(b >= 0.0)
+                hi[down] = -dz * np.cos(b[down]) / -np.sin(b[down])
+            else:
+                ok = (a <= 0.0) & (b >= 0.0)
+        lo, hi = np.maximum(lo, rho_a), np.minimum(hi, rho_b)
+        return ok & (hi > lo), lo, hi
 
     def fn(phis: F64) -> tuple[list[list[Interval]], list[Signature]]:
         if empty:
             return [[] for _ in phis], [(0, 0) for _ in phis]
-        t1, t2, valid = _theta_pieces(m, phis, -_HALF_PI, _HALF_PI)
-        ivs_all: list[list[Interval]] = []
-        sigs: list[Signature] = []
-        for a_row, b_row, v_row in zip(t1.tolist(), t2.tolist(), valid.tolist(), strict=True):
-            comps = _components(a_row, b_row, v_row)
-            ivs = [iv for a, b in comps if (iv := rho_of(a, b)) is not None]
-            merged = _merge(ivs)
-            ivs_all.append(merged)
-            sigs.append((len(comps), len(merged)))
-        return ivs_all, sigs
+        a, b, rows, n_runs = _components(*_theta_pieces(m, phis, -_HALF_PI, _HALF_PI))
+        ok, lo, hi = rho_of(a, b)
+        return _per_direction(lo[ok], hi[ok], rows[ok], n_runs)
 
     return fn
 
@@ -292,9 +290,17 @@ def _polar_region(m: Mount, fn: PolarFn, dphi_deg: float) -> Area:
     pieces: list[list[tuple[float, list[Interval]]]] = []
     cur: list[tuple[float, list[Interval]]] = []
     cur_sig = sigs[0]
-    for i in range(n + 1):
-        phi, iv, sg = float(phis[i]), ivs[i], sigs[i]
-        left_phi, left_iv = (float(phis[i - 1]), ivs[i - 1]) if i else (phi, iv)
+    phi_l = phis.tolist()
+    quarter = n // 4
+    # the samples where the structure changes or a quarter ends; the samples between two of
+    # them join the current piece as they are
+    sig_arr = np.array(sigs)
+    changed = np.flatnonzero(np.any(sig_arr[1:] != sig_arr[:-1], axis=1)) + 1
+    done = 0
+    for i in sorted(set(changed.tolist()).union(range(quarter, n + 1, quarter))):
+        cur.extend(zip(phi_l[done:i], ivs[done:i], strict=True))
+        phi, iv, sg = phi_l[i], ivs[i], sigs[i]
+        left_phi, left_iv = phi_l[i - 1], ivs[i - 1]
         while sg != cur_sig:
             lo, hi = left_phi, phi
             lo_iv, hi_iv, hi_sig = left_iv, iv, sg
@@ -316,9 +322,11 @@ def _polar_region(m: Mount, fn: PolarFn, dphi_deg: float) -> Area:
             cur_sig = hi_sig
             left_phi, left_iv = hi, hi_iv
         cur.append((phi, iv))
-        if i % (n // 4) == 0 and i > 0:
+        if i % quarter == 0:
             pieces.append(cur)
             cur = [(phi, iv)]
+        done = i + 1
+    cur.extend(zip(phi_l[done:], ivs[done:], strict=True))
     pieces.append(cur)
 
     polys: list[Polygon] = []
@@ -327,11 +335,11 @@ def _polar_region(m: Mount, fn: PolarFn, dphi_deg: float) -> Area:
         if k == 0 or len(piece) < 2:
             continue
         piece = _refine(fn, piece, math.radians(dphi_deg))
-        ph = np.array([p for p, _ in piece])
+        ph = np.array(list(map(itemgetter(0), piece)), dtype=np.float64)
+        r = np.array(list(map(itemgetter(1), piece)), dtype=np.float64)  # (samples, k, 2)
         cx, cy = np.cos(ph), np.sin(ph)
         for j in range(k):
-            lo_r = np.array([iv[j][0] for _, iv in piece])
-            hi_r = np.array([iv[j][1] for _, iv in piece])
+            lo_r, hi_r = r[:, j, 0], r[:, j, 1]
             ring = np.concatenate(
                 [
                     np.column_stack([m.x + hi_r * cx, m.y + hi_r * cy]),
@@ -377,8 +385,8 @@ def _refine(
     rho intervals differs from the piece's is not inserted."""
     k = len(piece[0][1])
     rel = max(REFINE_TOL_REL, 0.25 * dphi * dphi)
-    order = [phi for phi, _ in piece]
-    arr = _boundary_points(order, [iv for _, iv in piece])
+    order = list(map(itemgetter(0), piece))
+    arr = _boundary_points(order, list(map(itemgetter(1), piece)))
     pts = dict(zip(order, arr, strict=True))
     data = dict(piece)
     cand: set[tuple[float, float]] = set()

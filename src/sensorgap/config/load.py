@@ -3,7 +3,10 @@
 from __future__ import annotations
 
 import os
+import pickle
+import threading
 import tomllib
+from collections import OrderedDict
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -25,21 +28,27 @@ MAX_TOML_DEPTH = 16
 
 
 def toml_depth(data: Any) -> int:
-    """Nesting depth of parsed TOML (a scalar is 0, ``{"a": 1}`` is 1); iterative."""
-    deepest, stack = 0, [(data, 0)]
-    while stack:
-        node, depth = stack.pop()
-        if isinstance(node, dict):
-            children = list(node.values())
-        elif isinstance(node, list):
-            children = node
-        else:
-            continue
-        deepest = max(deepest, depth + 1)
+    """Nesting depth of parsed TOML (a scalar is 0, ``{"a": 1}`` is 1); level by level,
+    iterative (stops at the first level deeper than ``MAX_TOML_DEPTH``)."""
+    deepest, level = 0, [data]
+    while True:
+        level = [node for node in level if isinstance(node, dict | list)]
+        if not level:
+            return deepest
+        deepest += 1
         if deepest > MAX_TOML_DEPTH:
             return deepest
-        stack.extend((c, depth + 1) for c in children)
-    return deepest
+        level = [c for node in level for c in (node.values() if isinstance(node, dict) else node)]
+
+
+#: Data of the texts ``read_toml`` parsed last (pickled; up to ``_PARSED_MAX_TEXTS`` texts
+#: of at most ``_PARSED_MAX_CHARS`` characters): a text parses to the same data every time,
+#: and a process reads the same files many times (each ``load_environment`` reads the whole
+#: environments.toml). The file is still read and checked on every call.
+_PARSED: OrderedDict[str, bytes] = OrderedDict()
+_PARSED_LOCK = threading.Lock()
+_PARSED_MAX_TEXTS = 64
+_PARSED_MAX_CHARS = 65_536
 
 
 def read_toml(path: Path) -> dict[str, Any]:
@@ -61,6 +70,13 @@ def read_toml(path: Path) -> dict[str, Any]:
         raise InputError(
             path, "", "starts with a byte-order mark (U+FEFF); save it as UTF-8 without BOM"
         )
+    with _PARSED_LOCK:
+        known = _PARSED.get(text)
+        if known is not None:
+            _PARSED.move_to_end(text)
+    if known is not None:
+        parsed: dict[str, Any] = pickle.loads(known)  # a copy of its own for the caller
+        return parsed
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -73,6 +89,11 @@ def read_toml(path: Path) -> dict[str, Any]:
             "",
             f"tables and arrays nested too deeply; at most {MAX_TOML_DEPTH} levels allowed",
         )
+    if len(text) <= _PARSED_MAX_CHARS:
+        with _PARSED_LOCK:
+            _PARSED[text] = pickle.dumps(data, protocol=pickle.HIGHEST_PROTOCOL)
+            while len(_PARSED) > _PARSED_MAX_TEXTS:
+                _PARSED.popitem(last=False)
     return data
 
 

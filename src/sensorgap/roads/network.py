@@ -17,6 +17,7 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from functools import cached_property
+from itertools import chain
 from typing import Any, overload
 
 import networkx as nx
@@ -339,11 +340,11 @@ class RoadNetwork:
         pts = np.column_stack([px, py])
         _, nearest = idx.tree.query(pts)
         balls = idx.tree.query_ball_point(pts, r=float(np.max(idx.reach)))
-        counts = np.fromiter((len(b) for b in balls), dtype=np.intp, count=len(balls))
+        counts = np.fromiter(map(len, balls), dtype=np.intp, count=len(balls))
         pt = np.concatenate([np.repeat(np.arange(px.size), counts), np.arange(px.size)])
         samp = np.concatenate(
             [
-                np.fromiter((j for b in balls for j in b), dtype=np.intp, count=int(counts.sum())),
+                np.fromiter(chain.from_iterable(balls), dtype=np.intp, count=int(counts.sum())),
                 nearest,
             ]
         )
