@@ -5,7 +5,9 @@ PYTHON ?= python3
 PYTEST_WORKERS ?= auto
 # line coverage of src/ (pytest-cov), printed, no threshold: pytest 2 min 11 s -> 2 min 49 s
 # on the 2-core machine (2026-11-26; tests/numba_warmup.py keeps numba compiling untraced).
-COV ?= --cov --cov-report=term
+# The table is printed by `coverage report` after the run: pytest-cov's own report parses
+# every source file twice (once for the total), about 1.2 s each at the end of the run.
+COV ?= --cov --cov-report=
 VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
@@ -43,10 +45,12 @@ lint-warm: $(STAMP)
 # folder sharing session fixtures, tests/conftest.py) on one worker. Coverage: report only.
 # While working: .venv/bin/pytest -q -m "not slow" tests/<area> skips the long end-to-end runs.
 test: lint-warm
-	$(BIN)/pytest -q -n $(PYTEST_WORKERS) --dist loadgroup $(COV)
+	$(BIN)/pytest -q -n $(PYTEST_WORKERS) --dist loadgroup $(COV); status=$$?; \
+	$(if $(COV),$(BIN)/coverage report;) exit $$status
 
 coverage: lint-warm
-	$(BIN)/pytest -q -n $(PYTEST_WORKERS) --dist loadgroup --cov --cov-report=term-missing
+	$(BIN)/pytest -q -n $(PYTEST_WORKERS) --dist loadgroup --cov --cov-report=; status=$$?; \
+	$(BIN)/coverage report --show-missing; exit $$status
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/run.py
