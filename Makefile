@@ -3,10 +3,11 @@
 # process; COV= runs it without coverage).
 PYTHON ?= python3
 PYTEST_WORKERS ?= auto
-# line coverage of src/ (pytest-cov), printed, no threshold: pytest 2 min 11 s -> 2 min 49 s
-# on the 2-core machine (2026-11-26; tests/numba_warmup.py keeps numba compiling untraced).
-# The table is printed by `coverage report` after the run: pytest-cov's own report parses
-# every source file twice (once for the total), about 1.2 s each at the end of the run.
+# line coverage of src/ (pytest-cov), printed, no threshold: pytest 2 min 08 s -> 2 min 35 s
+# and 1 s for the table on the 2-core machine (2026-11-26, quiet, warm numba cache; in the
+# same hour the suite before branch suite-speed: 2 min 28 s -> 3 min 01 s). numba compiles
+# untraced (tests/numba_warmup.py). The table is printed by `coverage report` after the
+# run: pytest-cov's own report parses every source file twice at the end of the run.
 COV ?= --cov --cov-report=
 VENV   := .venv
 BIN    := $(VENV)/bin
