@@ -286,7 +286,7 @@ def _nearest_sample(
     ex: F64, ey: F64, r: int, i: int, px: float, py: float
 ) -> int:  # pragma: no cover - compiled
     """The ego path sample of row ``r`` nearest the point (``px``, ``py``), m: a hill-climb
-    from sample ``i`` (the last answer; the target moves little between steps)."""
+    from sample ``i`` (``_nearest_guess``'s, or the last answer at the end of a row)."""
     t = ex.shape[1]
     best = (ex[r, i] - px) ** 2 + (ey[r, i] - py) ** 2
     while i + 1 < t:
