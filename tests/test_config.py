@@ -127,6 +127,24 @@ def test_bad_vehicle_files(tmp_path: Path, old: str, new: str, pattern: str) -> 
     assert re.search(pattern, line), line
 
 
+def test_sensor_mounts_must_sit_on_the_body(tmp_path: Path) -> None:
+    """A mount up to 0.5 m outside the body box is accepted (mirrors, roof pods); farther
+    out is refused in one line naming the sensor and the distance (by hand: System A's body
+    spans x -1.13..4.04 m, |y| <= 0.975 m, z <= 1.47 m)."""
+    body = load_system(PRESET_A).config.vehicle
+    assert body.outside_by(2.2, 1.05, 1.02) == pytest.approx(0.075, abs=1e-12)  # mirror
+    assert body.outside_by(0.0, 0.0, 0.5) == 0.0
+    assert body.outside_by(4.04 + 0.3, 0.975 + 0.4, 1.0) == pytest.approx(0.5, abs=1e-12)
+    ok = mutate(tmp_path, "position_m = [4.02, 0.00, 0.50]", "position_m = [4.53, 0.00, 0.50]")
+    assert load_system(ok).config.vehicle.x_front_m == pytest.approx(4.04)  # 0.49 m: kept
+    bad = mutate(tmp_path, "position_m = [4.02, 0.00, 0.50]", "position_m = [4.56, 0.00, 0.50]")
+    with pytest.raises(InputError) as info:
+        load_system(bad)
+    line = info.value.line()
+    assert "\n" not in line and line.startswith(str(bad)), line
+    assert re.search(r"'radar_front_center' at \(4\.56, 0, 0\.5\) m lies 0\.52 m outside", line)
+
+
 def test_empty_sensor_list(tmp_path: Path) -> None:
     text = PRESET_A.read_text()
     p = tmp_path / "v.toml"

@@ -18,6 +18,15 @@ from sensorgap.config.common import Name, Strict
 MAX_RANGE_M = 10_000.0
 #: At most this many sensors (mounts) and devices per vehicle (docs/limits.md).
 MAX_SENSORS = 128
+#: A sensor is mounted on the body: its position may lie at most this far outside the body
+#: box, m (estimate: side mirrors stick out 0.1-0.25 m, roof sensor pods up to about
+#: 0.4 m; System A's mirror cameras are 0.075 m outside its 1.95 m width). Farther out is
+#: almost always a position measured from another origin (front axle, body centre).
+MOUNT_TOLERANCE_M = 0.5
+
+
+def _xyz(v: list[float]) -> str:
+    return "(" + ", ".join(f"{c:g}" for c in v) + ")"
 
 
 #: Largest false-alarm probability of a ROC (a detector declaring a target in one cell of
@@ -174,6 +183,13 @@ class BodyConfig(Strict):
         """x of the front bumper in the vehicle frame, m."""
         return self.length_m - self.rear_overhang_m
 
+    def outside_by(self, x: float, y: float, z: float) -> float:
+        """How far a vehicle-frame point (m) lies outside the body box (0 inside), m."""
+        dx = max(self.x_rear_m - x, x - self.x_front_m, 0.0)
+        dy = max(abs(y) - 0.5 * self.width_m, 0.0)
+        dz = max(z - self.height_m, 0.0)  # z >= 0 is checked with the position
+        return math.sqrt(dx * dx + dy * dy + dz * dz)
+
     def footprint(self) -> list[tuple[float, float]]:
         """Footprint rectangle corners (x, y) in the vehicle frame, m, counter-clockwise."""
         xr, xf, hw = self.x_rear_m, self.x_front_m, 0.5 * self.width_m
@@ -207,5 +223,15 @@ class VehicleConfig(Strict):
                 raise ValueError(
                     f"sensors[{i}].device: unknown device {s.device!r}; "
                     f"defined: {', '.join(sorted(self.devices)) or 'none'}"
+                )
+            off = self.vehicle.outside_by(*s.position_m)
+            if off > MOUNT_TOLERANCE_M:
+                raise ValueError(
+                    f"sensors[{i}].position_m: {s.id!r} at {_xyz(s.position_m)} m lies "
+                    f"{off:.2f} m outside the body (x {self.vehicle.x_rear_m:g}.."
+                    f"{self.vehicle.x_front_m:g}, |y| <= {0.5 * self.vehicle.width_m:g}, "
+                    f"z <= {self.vehicle.height_m:g} m); allowed: within "
+                    f"{MOUNT_TOLERANCE_M:g} m of it (positions are from the rear-axle "
+                    "centre on the ground, x forward, y left)"
                 )
         return self
