@@ -326,7 +326,8 @@ def cmd_nearfield(args: argparse.Namespace) -> int:
     bs = summary["blind_spot_m2"]
     print(
         f"{args.out}: blind spots {bs['exact']:.2f} m2 exact, {bs['grid']:.2f} m2 on the "
-        f"{res:g} m grid"
+        f"{res:g} m grid; no sensor at any height "
+        f"{summary['unseen_any_height_m2']['exact']:.2f} m2 in all"
     )
     return 0
 

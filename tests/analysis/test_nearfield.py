@@ -15,6 +15,7 @@ from hypothesis import strategies as st
 
 from sensorgap.analysis import nearfield as nf
 from sensorgap.analysis.paper import NEARFIELD_TOLERANCE, PAPER_BLIND_SPOT_M2
+from sensorgap.config import vehicle as vehicle_config
 from sensorgap.models import System, load_system
 from sensorgap.models.geometry import Mount, fov_mask, in_range, rotate_offsets
 
@@ -190,7 +191,12 @@ def test_triangular_hole_between_two_sectors_and_the_body(tmp_path: Path) -> Non
     assert grid.area == pytest.approx(length**2 / 4.0, rel=0.02)
 
 
-def test_rectangular_hole_between_three_half_planes_and_the_body(tmp_path: Path) -> None:
+def test_rectangular_hole_between_three_half_planes_and_the_body(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # a sensor on a pole 2 m beside the body: a geometric construction, not a vehicle
+    # (vehicle files refuse mounts farther than MOUNT_TOLERANCE_M from the body)
+    monkeypatch.setattr(vehicle_config, "MOUNT_TOLERANCE_M", 3.0)
     system = _vehicle_with(
         tmp_path,
         [
@@ -206,6 +212,26 @@ def test_rectangular_hole_between_three_half_planes_and_the_body(tmp_path: Path)
     assert nf.grid_blind_spots(system, 0.05).area == pytest.approx(10.34, rel=0.02)
     # a hole reaching beyond the near-field window is not a near-field blind spot
     assert nf.blind_spots(system, radius=1.0) == []
+
+
+def test_unseen_area_open_to_the_outside_is_reported(tmp_path: Path) -> None:
+    """A vehicle with one forward-looking sensor has no *enclosed* blind spot (the paper's
+    measure), yet everything behind its front bumper is seen by no sensor. By hand: System
+    A's body x -1.13..4.04, |y| <= 0.975; window = body grown by 5 m; the sensor at the
+    front bumper with a 180 deg field of view sees x >= 4.04 (its sector's arc, 20 m, lies
+    beyond the window). Unseen = 10.17 m x 11.95 m - 5.17 m x 1.95 m = 111.45 m2."""
+    system = _vehicle_with(
+        tmp_path,
+        [{"id": "front", "x": 4.04, "y": 0.0, "yaw": 0.0, "hfov": 180.0, "range": 20.0}],
+    )
+    assert nf.blind_spots(system) == []
+    unseen = nf.unseen_at_any_height(system)
+    assert unseen.area == pytest.approx(10.17 * 11.95 - 5.17 * 1.95, rel=1e-6)
+    assert unseen.bounds == pytest.approx((-6.13, -5.975, 4.04, 5.975), abs=1e-6)
+    summary = nf.write_nearfield(system, tmp_path / "nf", resolution=0.2, dphi_deg=0.5)
+    block = summary["unseen_any_height_m2"]
+    assert block["enclosed"] == summary["blind_spot_m2"]["exact"] == 0.0
+    assert block["open_to_outside"] == block["exact"] == pytest.approx(111.45, abs=1e-5)
 
 
 # ----------------------------------------------------------------------- presets
@@ -264,6 +290,9 @@ def test_write_nearfield_is_deterministic(tmp_path: Path, system_b: System) -> N
             assert math.isfinite(block[f]) and block[f] >= 0.0
         assert block["resolution_m"] == 0.2
         assert block["difference"] == pytest.approx(block["grid"] - block["exact"], abs=1e-5)
+    unseen = data["unseen_any_height_m2"]  # B sees all around: only enclosed spots
+    assert unseen["exact"] == pytest.approx(data["blind_spot_m2"]["exact"], abs=1e-5)
+    assert unseen["open_to_outside"] == pytest.approx(0.0, abs=1e-5)
     holes = data["blind_spot_m2"]["holes"]
     assert sum(h["area_m2"] for h in holes) == pytest.approx(
         data["blind_spot_m2"]["exact"], abs=1e-5

@@ -421,6 +421,34 @@ def test_summary_names_the_rear_blind_wedges_without_rear_radars(tmp_path: Path)
     assert " m² each behind-left and behind-right: " in text
 
 
+def test_summary_says_what_no_sensor_sees_beyond_the_enclosed_blind_spots(
+    tmp_path: Path,
+) -> None:
+    # a vehicle looking forward only has no *enclosed* blind spot (the paper's measure);
+    # the summary must not read "0.00 m2 seen by no sensor" with everything behind unseen
+    from sensorgap.analysis.nearfield import write_nearfield
+    from sensorgap.config.presets import templates_dir
+
+    text = (templates_dir() / "vehicles" / "system_a.toml").read_text(encoding="utf-8")
+    blocks = text.split("[[sensors]]")
+    kept = [b for b in blocks[1:] if 'id = "cam_windshield"' in b or 'id = "lidar' in b]
+    path = tmp_path / "front_only.toml"
+    path.write_text("[[sensors]]".join([blocks[0], *kept]), encoding="utf-8")
+    system = load_system(path)
+    write_nearfield(system, tmp_path / "nearfield", resolution=0.2, dphi_deg=0.5)
+    near = json.loads((tmp_path / "nearfield" / "nearfield.json").read_text())
+    unseen = near["unseen_any_height_m2"]
+    assert unseen["exact"] > 50.0 and unseen["open_to_outside"] > 50.0
+    sec = summary_section(tmp_path, system, {}, None, None, None, 0)
+    para = next(b.text for b in sec.blocks if getattr(b, "text", "").startswith("Blind spots"))
+    assert (
+        f"near field: {unseen['exact']:.2f} m² within 5 m of the body seen by no sensor at "
+        f"any height, {unseen['exact'] - near['blind_spot_m2']['exact']:.2f} m² of it open "
+        f"to the outside (no sensor looks there) and "
+        f"{near['blind_spot_m2']['exact']:.2f} m² enclosed blind spots"
+    ) in para
+
+
 def test_summary_names_the_blind_spots(job: Path) -> None:
     doc = _doc(job / "report.html")
     text = " ".join(doc.get_element_by_id("summary").text_content().split())

@@ -573,6 +573,28 @@ def uncovered_at_height(
     return _as_area(shapely.difference(win, covered, grid_size=SNAP_M))
 
 
+def unseen_at_any_height(
+    system: System,
+    radius: float = NEAR_FIELD_RADIUS_M,
+    height_range: tuple[float, float] = HEIGHT_RANGE_M,
+    dphi_deg: float = DPHI_DEG,
+    footprints: dict[str, Area] | None = None,
+) -> Area:
+    """Region (m) of the near-field window (footprint grown by ``radius`` m) outside the
+    vehicle footprint that no sensor sees at any height in ``height_range``: the enclosed
+    blind spots (``blind_spots``, the paper's Fig. 5 measure) together with the unseen
+    region open to the outside, which the paper's measure leaves out (a vehicle without
+    rear sensors has no blind spot behind it by that measure, only this)."""
+    fps = (
+        footprints
+        if footprints is not None
+        else any_height_footprints(system, height_range, dphi_deg)
+    )
+    win = near_field_window(system, radius)
+    covered = shapely.union_all([*fps.values(), vehicle_polygon(system)], grid_size=SNAP_M)
+    return _as_area(shapely.difference(win, covered, grid_size=SNAP_M))
+
+
 # --------------------------------------------------------------------------- grid method
 
 
@@ -811,7 +833,8 @@ def write_nearfield(
     """Write ``nearfield.json`` and ``nearfield.png`` into ``out_dir``; return the summary.
 
     Summary keys: ``system``, ``window``, ``height_range_m``, ``blind_spot_m2`` (exact,
-    per-hole, grid, resolution, difference), ``uncovered_0p1m_m2`` (same at ``z``),
+    per-hole, grid, resolution, difference), ``unseen_any_height_m2`` (exact: enclosed and
+    open to the outside), ``uncovered_0p1m_m2`` (same as the blind spots, at ``z``),
     ``method``. Same inputs -> byte-identical files.
     """
     from sensorgap.coverage.plot import save_figure
@@ -832,6 +855,7 @@ def write_nearfield(
     every_hole = holes(list(fp_any.values()), vehicle_polygon(system))
     spots = [h for h in every_hole if win.covers(h)]
     unc = uncovered_at_height(system, z, None, radius, dphi_deg, footprints=fp_z)
+    unseen = unseen_at_any_height(system, radius, height_range, dphi_deg, footprints=fp_any)
     g_bs = grid_blind_spots(system, resolution, radius, height_range)
     g_un = grid_uncovered_at_height(system, z, resolution, None, radius)
     exact_bs = sum(p.area for p in spots)
@@ -862,6 +886,13 @@ def write_nearfield(
             "resolution_m": _r(resolution),
             "difference": _r(g_bs.area - exact_bs),
             "holes_outside_window": len(every_hole) - len(spots),
+        },
+        "unseen_any_height_m2": {
+            "definition": "the window outside the body that no sensor sees at any height "
+            "in the height range: the enclosed blind spots and the region open to the outside",
+            "exact": _r(unseen.area),
+            "enclosed": _r(exact_bs),
+            "open_to_outside": _r(max(unseen.area - exact_bs, 0.0)),
         },
         "uncovered_0p1m_m2": {
             "height_m": _r(z),

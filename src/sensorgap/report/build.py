@@ -190,6 +190,14 @@ def read_nearfield(path: Path) -> dict[str, Any]:
         ("exact", "grid", "difference"),
     )
     _numbers(path, _object(path, d, key="window"), "window", ("radius_m",))
+    if "unseen_any_height_m2" in d:  # (absent from runs made before it was written)
+        _numbers(
+            path,
+            _object(path, d, key="unseen_any_height_m2"),
+            "unseen_any_height_m2",
+            ("exact", "enclosed", "open_to_outside"),
+            ("exact",),
+        )
     if not isinstance(d.get("method", ""), str | dict):
         raise InputError(path, "method", "expected a string or an object")
     return d
@@ -401,23 +409,36 @@ def _nearfield_section(folder: Path) -> Section:
         return Section("nearfield", "Near-field blind spots", [Para(NOT_RUN)])
     d = read_nearfield(nf)
     bs, u = d.get("blind_spot_m2", {}), d.get("uncovered_0p1m_m2", {})
+    unseen = d.get("unseen_any_height_m2")
+    rows = [
+        [
+            "blind spot: enclosed, no sensor at any height (paper Fig. 5)",
+            fmt(bs.get("exact")),
+            fmt(bs.get("grid")),
+            fmt(bs.get("difference")),
+        ]
+    ]
+    if isinstance(unseen, dict):
+        rows.append(
+            [
+                "no sensor at any height, in all (enclosed and open to the outside)",
+                fmt(unseen.get("exact")),
+                "(exact only)",
+                "",
+            ]
+        )
+    rows.append(
+        [
+            "uncovered at 0.1 m height",
+            fmt(u.get("exact")),
+            fmt(u.get("grid")),
+            fmt(u.get("difference")),
+        ]
+    )
     blocks: list[Any] = [
         Table(
             ["quantity", "exact polygons [m2]", "grid [m2]", "difference [m2]"],
-            [
-                [
-                    "blind spot (no sensor at any height)",
-                    fmt(bs.get("exact")),
-                    fmt(bs.get("grid")),
-                    fmt(bs.get("difference")),
-                ],
-                [
-                    "uncovered at 0.1 m height",
-                    fmt(u.get("exact")),
-                    fmt(u.get("grid")),
-                    fmt(u.get("difference")),
-                ],
-            ],
+            rows,
             f"Near field within {d.get('window', {}).get('radius_m', 5)} m of the body",
         )
     ]

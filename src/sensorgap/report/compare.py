@@ -140,6 +140,7 @@ def _nearfield(cm: Completed, out: Path) -> Section:
             [_unmade(s, "The near field") for s in (a, b) if s.nearfield is None],
         )
     vals: dict[str, tuple[float, float]] = {}
+    unseen: dict[str, float] = {}
     imgs: list[Block] = []
     for side in (a, b):
         folder = side.nearfield
@@ -150,6 +151,8 @@ def _nearfield(cm: Completed, out: Path) -> Section:
                 float(d["blind_spot_m2"]["exact"]),
                 float(d["uncovered_0p1m_m2"]["exact"]),
             )
+            if "unseen_any_height_m2" in d:  # (runs made before it was written lack it)
+                unseen[side.tag] = float(d["unseen_any_height_m2"]["exact"])
         except (KeyError, TypeError, ValueError) as exc:
             raise InputError(
                 folder / "nearfield.json", "blind_spot_m2.exact", f"unreadable: {exc}"
@@ -169,11 +172,22 @@ def _nearfield(cm: Completed, out: Path) -> Section:
     na, nb = a.name, b.name
     rows = [
         [
-            "blind spot (no sensor at any height) [m2]",
+            "blind spot: enclosed, no sensor at any height (paper Fig. 5) [m2]",
             fmt(vals["a"][0]),
             fmt(vals["b"][0]),
             fmt(vals["b"][0] - vals["a"][0]),
         ],
+    ]
+    if len(unseen) == 2:
+        rows.append(
+            [
+                "no sensor at any height, in all (enclosed and open to the outside) [m2]",
+                fmt(unseen["a"]),
+                fmt(unseen["b"]),
+                fmt(unseen["b"] - unseen["a"]),
+            ]
+        )
+    rows += [
         [
             "uncovered at 0.1 m [m2]",
             fmt(vals["a"][1]),

@@ -549,12 +549,22 @@ def _nearfield_words(nf: Path, system: System) -> str:
         for _, b, c in holes:
             if len(b) != 4 or len(c) != 2:
                 raise ValueError("bounds_m: 4 numbers, centroid_m: 2 numbers expected")
+        unseen = d.get("unseen_any_height_m2")
+        total = None if unseen is None else float(unseen["exact"])
     except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
         raise InputError(nf, "blind_spot_m2", f"unreadable: {exc}") from None
-    text = (
-        f"near field: {exact:.2f} m² within {radius:g} m of the body seen by no sensor "
-        "at any height"
-    )
+    if total is not None and total - exact >= 0.005:
+        # the paper's measure counts enclosed regions only: say what lies open to the outside
+        text = (
+            f"near field: {total:.2f} m² within {radius:g} m of the body seen by no sensor "
+            f"at any height, {total - exact:.2f} m² of it open to the outside (no sensor "
+            f"looks there) and {exact:.2f} m² enclosed blind spots"
+        )
+    else:
+        text = (
+            f"near field: {exact:.2f} m² within {radius:g} m of the body seen by no sensor "
+            "at any height" + ("" if total is not None else " (enclosed blind spots)")
+        )
     big = [(f"{a:.2f} m²", spot_words(b, c, system)) for a, b, c in holes if a >= MIN_SPOT_WORDS_M2]
     small = [h for h in holes if h[0] < MIN_SPOT_WORDS_M2]
     if big:
