@@ -748,10 +748,12 @@ def nearfield_figure(
     spots: list[Polygon],
     uncovered: BaseGeometry,
     z: float,
+    unseen: BaseGeometry | None = None,
 ) -> Any:
     """Fig. 5 style: vehicle, sensor footprints (outlines), blind spots blue, area not
-    covered at height ``z`` green; axes in metres, equal aspect; the legend below the
-    plot."""
+    covered at height ``z`` green, and (hatched) the part of ``unseen`` (no sensor at any
+    height, ``unseen_at_any_height``) open to the outside; axes in metres, equal aspect;
+    the legend below the plot."""
     import matplotlib.pyplot as plt
     from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
@@ -771,6 +773,21 @@ def nearfield_figure(
     for spot in spots:
         if (
             p := _path_patch(spot, facecolor="tab:blue", edgecolor="navy", linewidth=0.6, zorder=3)
+        ) is not None:
+            ax.add_artist(p)
+    open_area = 0.0
+    if unseen is not None:
+        outside = shapely.difference(unseen, shapely.union_all(spots), grid_size=SNAP_M)
+        open_area = float(outside.area)
+        if (
+            p := _path_patch(
+                outside,
+                facecolor="none",
+                edgecolor="dimgray",
+                hatch="////",
+                linewidth=0.0,
+                zorder=3,
+            )
         ) is not None:
             ax.add_artist(p)
     types_used = []
@@ -797,15 +814,29 @@ def nearfield_figure(
     ax.set_xlabel("x (vehicle frame) [m]")
     ax.set_ylabel("y (vehicle frame) [m]")
     area = sum(sp.area for sp in spots)
+    seen_nowhere = (
+        f"\nno sensor at any height, open to the outside: {open_area:.2f} m$^2$ (hatched)"
+        if open_area >= 0.005
+        else ""
+    )
     ax.set_title(
         f"{plain_text(system.name)}: blind spots {area:.2f} m$^2$ (blue), not covered at "
-        f"{z:g} m (green)",
+        f"{z:g} m (green){seen_nowhere}",
         fontsize=10,
     )
     handles: list[Any] = [
         Patch(facecolor="tab:blue", edgecolor="navy", label="blind spot (no sensor, any height)"),
         Patch(facecolor="tab:green", alpha=0.55, label=f"not covered at {z:g} m"),
     ]
+    if open_area >= 0.005:
+        handles.append(
+            Patch(
+                facecolor="none",
+                edgecolor="dimgray",
+                hatch="////",
+                label="no sensor at any height, open to the outside",
+            )
+        )
     handles += [
         Line2D(
             [],
@@ -911,6 +942,6 @@ def write_nearfield(
         },
     }
     write_json(out_dir / "nearfield.json", summary)
-    fig = nearfield_figure(system, win, fp_any, spots, unc, z)
+    fig = nearfield_figure(system, win, fp_any, spots, unc, z, unseen)
     save_figure(fig, out_dir / "nearfield.png")
     return summary
