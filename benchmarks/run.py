@@ -20,6 +20,7 @@ BENCHMARKS = {
     "tradeoff": "benchmarks.bench_tradeoff",
     "limits": "benchmarks.bench_limits",
     "corpus": "benchmarks.bench_corpus",
+    "job": "benchmarks.bench_job",
 }
 
 
