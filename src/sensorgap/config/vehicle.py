@@ -225,7 +225,7 @@ class VehicleConfig(Strict):
                     f"defined: {', '.join(sorted(self.devices)) or 'none'}"
                 )
             off = self.vehicle.outside_by(*s.position_m)
-            if off > MOUNT_TOLERANCE_M:
+            if off > MOUNT_TOLERANCE_M + 1e-9:  # (at the tolerance itself: accepted)
                 raise ValueError(
                     f"sensors[{i}].position_m: {s.id!r} at {_xyz(s.position_m)} m lies "
                     f"{off:.2f} m outside the body (x {self.vehicle.x_rear_m:g}.."
