@@ -568,9 +568,13 @@ def uncovered_at_height(
     sees at height ``z`` (paper Fig. 5, green, at 0.1 m). The window is ``extent``
     ``(xmin, xmax, ymin, ymax)`` if given, else the footprint grown by ``radius``."""
     fps = footprints if footprints is not None else at_height_footprints(system, z, dphi_deg)
-    win = _window(system, extent, radius)
-    covered = shapely.union_all([*fps.values(), vehicle_polygon(system)], grid_size=SNAP_M)
-    return _as_area(shapely.difference(win, covered, grid_size=SNAP_M))
+    return _not_covered(system, fps, _window(system, extent, radius))
+
+
+def _not_covered(system: System, footprints: dict[str, Area], window: Polygon) -> Area:
+    """The part of ``window`` (m) outside the vehicle footprint and every footprint."""
+    covered = shapely.union_all([*footprints.values(), vehicle_polygon(system)], grid_size=SNAP_M)
+    return _as_area(shapely.difference(window, covered, grid_size=SNAP_M))
 
 
 def unseen_at_any_height(
@@ -585,14 +589,9 @@ def unseen_at_any_height(
     blind spots (``blind_spots``, the paper's Fig. 5 measure) together with the unseen
     region open to the outside, which the paper's measure leaves out (a vehicle without
     rear sensors has no blind spot behind it by that measure, only this)."""
-    fps = (
-        footprints
-        if footprints is not None
-        else any_height_footprints(system, height_range, dphi_deg)
-    )
-    win = near_field_window(system, radius)
-    covered = shapely.union_all([*fps.values(), vehicle_polygon(system)], grid_size=SNAP_M)
-    return _as_area(shapely.difference(win, covered, grid_size=SNAP_M))
+    if footprints is None:
+        footprints = any_height_footprints(system, height_range, dphi_deg)
+    return _not_covered(system, footprints, near_field_window(system, radius))
 
 
 # --------------------------------------------------------------------------- grid method
