@@ -235,6 +235,40 @@ def sensor_pd(
     return idx, detection_probability(snr, sensor.roc, scene.roc_shift_db)
 
 
+def sensor_log_miss(
+    scene: Scene, sensor: Sensor, x: F64, y: F64, z: F64, sun_dirs: F64 | None = None
+) -> F64:
+    """ln(1 - Pd) of one sensor at every flat vehicle-frame point (m; 0 out of its view),
+    with a per-point sun (see ``sensor_snr``)."""
+    idx, pd = sensor_pd(scene, sensor, x, y, z, sun_dirs)
+    vals = np.zeros(np.shape(x))
+    vals[idx] = log_miss_of(pd)
+    return vals
+
+
+def _glare_change(
+    maps: LogMissMaps,
+    scene: Scene,
+    row: int,
+    x: F64,
+    y: F64,
+    z: F64 | float,
+    sun_dirs: F64,
+    weights: F64,
+    exact_edge: Callable[[NDArray[np.int64]], F64],
+) -> tuple[F64, int]:
+    """The change of a glared camera's ln(1 - Pd) at vehicle-frame points (m) when its
+    layer of the maps is replaced by its glared value from the signal map, exact where a
+    point lies at the edge of its view (``exact_edge(indices into the points)``). Returns
+    the changes and how many points were evaluated exactly."""
+    layer, _ = maps.interpolate(row, x, y)
+    new, state = _glared_from_maps(maps, scene, row, x, y, z, sun_dirs, weights)
+    edge = np.flatnonzero(state == 2)
+    if edge.size:  # at the edge of the field of view: exact
+        new[edge] = exact_edge(edge)
+    return new - layer, int(edge.size)
+
+
 def exact_log_miss(
     scene: Scene,
     x: F64,
@@ -559,17 +593,16 @@ def lookup_log_miss(
         g = ins[w > 0.0]
         if g.size == 0:
             continue
-        layer, _ = maps.interpolate(row, x[g], y[g])
-        new, state = _glared_from_maps(maps, scene, row, x[g], y[g], z[g], sun_dirs[g], w[w > 0.0])
-        edge = np.flatnonzero(state == 2)
-        if edge.size:  # at the edge of the field of view: exact
+
+        def exact_edge(edge: NDArray[np.int64], g: IntArr = g, s: Sensor = s) -> F64:
             ge = g[edge]
-            idx, pd = sensor_pd(scene, s, x[ge], y[ge], z[ge], sun_dirs[ge])
-            vals = np.zeros(edge.size)
-            vals[idx] = log_miss_of(pd)
-            new[edge] = vals
-            n_exact += edge.size
-        out[g] += new - layer
+            return sensor_log_miss(scene, s, x[ge], y[ge], z[ge], sun_dirs[ge])
+
+        change, k = _glare_change(
+            maps, scene, row, x[g], y[g], z[g], sun_dirs[g], w[w > 0.0], exact_edge
+        )
+        out[g] += change
+        n_exact += k
     return out, n_exact
 
 
@@ -780,13 +813,13 @@ def lookup_log_miss_tracks(
                 )
                 of[gi[keep]] = np.minimum(of[gi[keep]] + new - layer, 0.0)
             continue
-        layer, _ = maps.interpolate(row, xs, ys)
-        new, state = _glared_from_maps(maps, scene, row, xs, ys, z0, sd, wg)
-        edge = np.flatnonzero(state == 2)
-        if edge.size:  # at the edge of the field of view: exact
-            new[edge] = how.exact_camera(row, gi[edge])
-            n_exact += edge.size
-        of[gi] += new - layer  # each point at most once per camera
+
+        def exact_edge(edge: NDArray[np.int64], gi: NDArray[np.int64] = gi, row: int = row) -> F64:
+            return how.exact_camera(row, gi[edge])
+
+        change, k = _glare_change(maps, scene, row, xs, ys, z0, sd, wg, exact_edge)
+        of[gi] += change  # each point at most once per camera
+        n_exact += k
     return n_exact
 
 
@@ -808,12 +841,9 @@ def point_evaluators(
         )
 
     def exact_camera(row: int, flat: NDArray[np.int64]) -> F64:
-        idx, pd = sensor_pd(
+        return sensor_log_miss(
             scene, scene.sensors[row], xf[flat], yf[flat], np.full(flat.size, z0), dirs_at(flat)
         )
-        vals = np.zeros(flat.size)
-        vals[idx] = log_miss_of(pd)
-        return vals
 
     return exact_points, exact_camera
 
@@ -863,10 +893,7 @@ def _glared_outline(
     edge = np.flatnonzero(state.reshape(-1) == 2)
     if edge.size:
         px, py = _outline_points(how, gi, edge, xf, yf)
-        idx, pd = sensor_pd(scene, s, px, py, np.full(edge.size, z0), sun_dirs[edge // k])
-        vals_e = np.zeros(edge.size)
-        vals_e[idx] = log_miss_of(pd)
-        new[edge] = vals_e
+        new[edge] = sensor_log_miss(scene, s, px, py, np.full(edge.size, z0), sun_dirs[edge // k])
     return _order_stat(new, k, how, row) - _outline_layer(maps, row, gi, xf, yf, how)
 
 
