@@ -175,20 +175,18 @@ def _bodies(x: F64, y: F64, psi: F64, z: F64 | float, sun_dirs: F64, weights: F6
     )
 
 
+def _centres(x: F64, y: F64, z: F64 | float, sun_dirs: F64, weights: F64) -> GlaredBodies:
+    """``GlaredBodies`` reduced to points (heading 0, outline ``_CENTRE``) at vehicle-frame
+    ``x``, ``y``, height ``z`` (m)."""
+    return _bodies(x, y, np.zeros(len(x)), z, sun_dirs, weights)
+
+
 def _glared_from_maps(
-    maps: LogMissMaps,
-    scene: Scene,
-    row: int,
-    x: F64,
-    y: F64,
-    z: F64 | float,
-    sun_dirs: F64,
-    weights: F64,
+    maps: LogMissMaps, scene: Scene, row: int, centres: GlaredBodies
 ) -> tuple[F64, NDArray[np.int8]]:
-    """A glared camera's ln(1 - Pd) at vehicle-frame points (m) from its signal map (the
-    one glare correction of every lookup): ``_glared_values`` at the points."""
-    bodies = _bodies(x, y, np.zeros(len(x)), z, sun_dirs, weights)
-    vals, state = _glared_values(maps, scene, row, bodies, _CENTRE)
+    """A glared camera's ln(1 - Pd) at points (``_centres``) from its signal map (the one
+    glare correction of every lookup): ``_glared_values`` at the points, and their states."""
+    vals, state = _glared_values(maps, scene, row, centres, _CENTRE)
     return vals[:, 0], state[:, 0]
 
 
@@ -250,19 +248,15 @@ def _glare_change(
     maps: LogMissMaps,
     scene: Scene,
     row: int,
-    x: F64,
-    y: F64,
-    z: F64 | float,
-    sun_dirs: F64,
-    weights: F64,
+    centres: GlaredBodies,
     exact_edge: Callable[[NDArray[np.int64]], F64],
 ) -> tuple[F64, int]:
-    """The change of a glared camera's ln(1 - Pd) at vehicle-frame points (m) when its
-    layer of the maps is replaced by its glared value from the signal map, exact where a
-    point lies at the edge of its view (``exact_edge(indices into the points)``). Returns
-    the changes and how many points were evaluated exactly."""
-    layer, _ = maps.interpolate(row, x, y)
-    new, state = _glared_from_maps(maps, scene, row, x, y, z, sun_dirs, weights)
+    """The change of a glared camera's ln(1 - Pd) at points (``_centres``) when its layer
+    of the maps is replaced by its glared value from the signal map, exact where a point
+    lies at the edge of its view (``exact_edge(indices into the points)``). Returns the
+    changes and how many points were evaluated exactly."""
+    layer, _ = maps.interpolate(row, centres.x, centres.y)
+    new, state = _glared_from_maps(maps, scene, row, centres)
     edge = np.flatnonzero(state == 2)
     if edge.size:  # at the edge of the field of view: exact
         new[edge] = exact_edge(edge)
@@ -598,9 +592,8 @@ def lookup_log_miss(
             ge = g[edge]
             return sensor_log_miss(scene, s, x[ge], y[ge], z[ge], sun_dirs[ge])
 
-        change, k = _glare_change(
-            maps, scene, row, x[g], y[g], z[g], sun_dirs[g], w[w > 0.0], exact_edge
-        )
+        centres = _centres(x[g], y[g], z[g], sun_dirs[g], w[w > 0.0])
+        change, k = _glare_change(maps, scene, row, centres, exact_edge)
         out[g] += change
         n_exact += k
     return out, n_exact
@@ -809,7 +802,7 @@ def lookup_log_miss_tracks(
             if keep.size:
                 layer = _outline_layer(maps, row, gi[keep], xf, yf, how)
                 new, _ = _glared_from_maps(
-                    maps, scene, row, xs[keep], ys[keep], z0, sd[keep], wg[keep]
+                    maps, scene, row, _centres(xs[keep], ys[keep], z0, sd[keep], wg[keep])
                 )
                 of[gi[keep]] = np.minimum(of[gi[keep]] + new - layer, 0.0)
             continue
@@ -817,7 +810,7 @@ def lookup_log_miss_tracks(
         def exact_edge(edge: NDArray[np.int64], gi: NDArray[np.int64] = gi, row: int = row) -> F64:
             return how.exact_camera(row, gi[edge])
 
-        change, k = _glare_change(maps, scene, row, xs, ys, z0, sd, wg, exact_edge)
+        change, k = _glare_change(maps, scene, row, _centres(xs, ys, z0, sd, wg), exact_edge)
         of[gi] += change  # each point at most once per camera
         n_exact += k
     return n_exact
