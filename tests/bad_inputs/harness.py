@@ -407,6 +407,13 @@ def _setup(
             (folder / "elsewhere" / "keep.xodr").write_text("not the export's")
             out.mkdir()
             (out / "roads").symlink_to(folder / "elsewhere")
+        elif step in ("out_store_symlink", "out_journal_symlink"):
+            # {out}/search.sqlite (or its -journal) links to {dir}/elsewhere/store.sqlite
+            (folder / "elsewhere").mkdir()
+            (folder / "elsewhere" / "keep.xodr").write_text("not the search's")
+            out.mkdir(exist_ok=True)
+            name = "search.sqlite" if step == "out_store_symlink" else "search.sqlite-journal"
+            (out / name).symlink_to(folder / "elsewhere" / "store.sqlite")
         elif step == "run_roads_symlink":  # {run}/roads links to {dir}/elsewhere
             (folder / "elsewhere").mkdir()
             (folder / "elsewhere" / "keep.xodr").write_text("not the export's")

@@ -400,6 +400,14 @@ def run_search(
         )
     )
     db = out / "search.sqlite"
+    for name in (db.name, f"{db.name}-journal"):  # SQLite opens them through a link
+        if (out / name).is_symlink():
+            raise InputError(
+                "out",
+                "",
+                f"{out / name} is a symbolic link; a search writes its store only inside "
+                "--out (remove the link, or use another --out)",
+            )
     new_db = not db.exists()
     new_out = not out.exists()
     out.mkdir(parents=True, exist_ok=True)
