@@ -659,6 +659,8 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 
 def cmd_report(args: argparse.Namespace) -> int:
     """The audit report of a run folder, or two runs side by side."""
+    if args.compare and args.run:  # one of them would be ignored
+        raise InputError("--run", "", "give --run DIR or --compare RUN_A RUN_B, not both")
     if args.compare:
         from sensorgap.report.compare import write_compare_report
         from sensorgap.search.compare import check_rankings
