@@ -508,16 +508,21 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
             why = None  # not a number: parse_params names it
         if why:
             raise InputError("param", name, why)
-    ev = evaluate_candidate(
-        args.vehicle,
-        args.family,
-        args.environment,
-        parse_sun(args.sun),
-        args.param or [],
-        Path(args.out),
-        Path(args.environments_file) if args.environments_file else None,
-        Path(args.run) if args.run else None,
-    )
+    try:
+        ev = evaluate_candidate(
+            args.vehicle,
+            args.family,
+            args.environment,
+            parse_sun(args.sun),
+            args.param or [],
+            Path(args.out),
+            Path(args.environments_file) if args.environments_file else None,
+            Path(args.run) if args.run else None,
+        )
+    except InputError as exc:
+        if exc.source == "families":  # the family loader names search's --families
+            exc.source = "--family"
+        raise
     m = ev["metrics"]
     if not ev["feasible"]:
         print(f"{args.out}: infeasible: {ev['note']}")
