@@ -1199,6 +1199,14 @@ def main(argv: Sequence[str] | None = None) -> int:
                     "must name a folder or file (an empty "
                     "path would write into the working directory)",
                 )
+        for name in ("environments_file", "points", "run", "road", "esmini"):
+            value = getattr(args, name, None)  # '' would read a default or the cwd instead
+            if isinstance(value, str) and not value.strip():
+                raise InputError(
+                    f"--{name.replace('_', '-')}",
+                    "",
+                    f"must not be empty: give a path (or a preset name), got {value!r}",
+                )
         with guarded_stdout():
             return func(args)
     except StdoutUnwritable as exc:
