@@ -18,7 +18,12 @@ from typing import TYPE_CHECKING, Any, NoReturn
 from sensorgap.atomic import removed_on_error
 from sensorgap.config.common import parse_decimal, parse_integer
 from sensorgap.errors import InputError
-from sensorgap.filesio import refuse_if_changed, remove_outputs, write_manifest
+from sensorgap.filesio import (
+    refuse_foreign_outputs,
+    refuse_if_changed,
+    remove_outputs,
+    write_manifest,
+)
 from sensorgap.runtime import StdoutUnwritable, guarded_stdout, tune_allocator
 
 if TYPE_CHECKING:
@@ -43,6 +48,14 @@ NEARFIELD_RESOLUTION_M = (0.02, 1.0)
 #: farfield: path length range, m.
 MAX_FARFIELD_LENGTH_M = 10_000.0
 EXIT_INTERNAL = 1
+#: What each analysis command writes into its --out folder (besides manifest.json): an
+#: existing --out must hold nothing else (``filesio.refuse_foreign_outputs``).
+ANALYSIS_WRITES = {
+    "coverage": ("coverage.npz", "coverage.png", "summary.json"),
+    "nearfield": ("nearfield.json", "nearfield.png"),
+    "farfield": ("farfield.csv", "farfield.png", "levels.csv", "summary.json"),
+    "corridor": ("corridor.csv", "corridor.png", "summary.json"),
+}
 _GLUED_OPTIONS = {
     "--extent",
     "--height",
@@ -174,6 +187,7 @@ def cmd_coverage(args: argparse.Namespace) -> int:
     from sensorgap.coverage import GridSpec
     from sensorgap.coverage.outputs import write_coverage
 
+    refuse_foreign_outputs(args.out, ANALYSIS_WRITES["coverage"], "coverage")
     if not 1 <= args.workers <= 64:
         raise InputError("--workers", "", f"must be 1..64, got {args.workers}")
     xmin, xmax, ymin, ymax = _float_list(args.extent, 4, "--extent")
@@ -315,6 +329,7 @@ def cmd_nearfield(args: argparse.Namespace) -> int:
     from sensorgap.analysis.nearfield import write_nearfield
     from sensorgap.models import load_system
 
+    refuse_foreign_outputs(args.out, ANALYSIS_WRITES["nearfield"], "nearfield")
     res = _positive(args.resolution, "--resolution")
     lo, hi = NEARFIELD_RESOLUTION_M
     if not lo <= res <= hi:
@@ -339,6 +354,7 @@ def cmd_farfield(args: argparse.Namespace) -> int:
     from sensorgap.models import load_system
     from sensorgap.roads import read_opendrive
 
+    refuse_foreign_outputs(args.out, ANALYSIS_WRITES["farfield"], "farfield")
     length = _positive(args.length, "--length")
     if length > MAX_FARFIELD_LENGTH_M:
         raise InputError(
@@ -727,6 +743,7 @@ def cmd_corridor(args: argparse.Namespace) -> int:
     """The least-detectable approach path into a critical zone (corridor search)."""
     from sensorgap.search.corridor import corridor_search
 
+    refuse_foreign_outputs(args.out, ANALYSIS_WRITES["corridor"], "corridor")
     lanes = []
     for part in args.lanes.split(","):
         lo_hi = _float_list(part.replace(":", ","), 2, "--lanes")

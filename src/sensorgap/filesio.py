@@ -330,6 +330,59 @@ def refuse_if_changed(folder: str | Path, rewrites: tuple[str, ...]) -> None:
     )
 
 
+#: Files and folders an existing ``--out`` of an analysis command may hold (a user's
+#: project folder): more are refused before any work, since the command lists the folder
+#: before it starts and hashes every file into its manifest (``--out /`` or ``~``).
+MAX_OUT_ENTRIES = 100_000
+#: Files at the top of a search run or catalog folder (``search``, ``export``).
+RUN_FOLDER_FILES = ("ranking.json", "run.json", "search.sqlite", "catalog.json")
+
+
+def refuse_foreign_outputs(folder: str | Path, writes: tuple[str, ...], command: str) -> None:
+    """Before an analysis command (``coverage``, ``nearfield``, ``farfield``,
+    ``corridor``) writes its files (``writes``, at the top of ``folder``) and a new
+    manifest of every file there into an existing ``folder``: refused (``InputError``
+    naming ``--out``) when the folder is another command's certified output (its
+    ``manifest.json`` lists a file this command does not write: the new manifest would
+    certify a file edited by hand since, and e.g. a search's ``summary.json`` would be
+    overwritten), a search run or catalog without a manifest, or holds more than
+    ``MAX_OUT_ENTRIES`` files and folders (counted up to that). A user's folder with other
+    files is accepted (the manifest lists them), as is an earlier output of the same
+    command."""
+    import os
+
+    from sensorgap.errors import InputError
+
+    root = Path(folder)
+    if not root.is_dir():
+        return
+
+    def refuse(why: str) -> InputError:
+        return InputError(
+            "--out",
+            "",
+            f"{root} {why}; {command} writes only into a new folder, a folder of your own "
+            f"files or one it wrote before; give another --out",
+        )
+
+    if (root / MANIFEST_NAME).is_file():
+        foreign = [rel for rel in read_manifest(root) if rel not in writes]
+        if foreign:
+            raise refuse(
+                f"holds the certified outputs of another command (its {MANIFEST_NAME} "
+                f"lists {foreign[0]}, which {command} does not write)"
+            )
+    else:
+        marker = next((n for n in RUN_FOLDER_FILES if (root / n).exists()), None)
+        if marker is not None:
+            raise refuse(f"holds a search run or catalog ({marker})")
+    seen = 0
+    for _dirpath, dirnames, filenames in os.walk(root):
+        seen += len(dirnames) + len(filenames)
+        if seen > MAX_OUT_ENTRIES:
+            raise refuse(f"holds more than {MAX_OUT_ENTRIES} files and folders")
+
+
 def refuse_if_source_changed(folder: str | Path, reads: tuple[str, ...], what: str) -> None:
     """Before a command copies files of a folder with a ``manifest.json`` into another
     folder and certifies them there (``export --run RUN --out CAT`` copies ranking.json,

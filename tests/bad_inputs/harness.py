@@ -75,8 +75,9 @@ def load_cases(path: Path = CASES_FILE) -> list[dict[str, Any]]:
 
 
 def needs_run(case: dict[str, Any]) -> bool:
-    """Whether the case works on a copy of the finished run (``{run}`` in its argv)."""
-    return any("{run}" in a for a in case["argv"])
+    """Whether the case works on a copy of the finished run (``{run}`` in its argv, or a
+    setup step that exports it)."""
+    return any("{run}" in a for a in case["argv"]) or "export_into_out" in case.get("setup", [])
 
 
 def build_finished_run(out: Path, run_cli: RunCli) -> Path:
@@ -414,6 +415,10 @@ def _setup(
             out.mkdir(exist_ok=True)
             name = "search.sqlite" if step == "out_store_symlink" else "search.sqlite-journal"
             (out / name).symlink_to(folder / "elsewhere" / "store.sqlite")
+        elif step == "export_into_out":  # {out}: a catalog exported from {run}
+            code = run_cli(["export", "--run", str(run), "--out", str(out)])
+            if code != 0:
+                raise CaseError(f"{case['name']}: the export gave exit {code}")
         elif step == "run_roads_symlink":  # {run}/roads links to {dir}/elsewhere
             (folder / "elsewhere").mkdir()
             (folder / "elsewhere" / "keep.xodr").write_text("not the export's")
