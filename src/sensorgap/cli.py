@@ -415,6 +415,7 @@ def cmd_paper(args: argparse.Namespace) -> int:
     """Reproduce the paper's results section into --out."""
     from sensorgap.analysis.paper import run_paper
 
+    _refuse_unsafe_out(args.out, "paper")
     result = run_paper(Path(args.out))
     write_manifest(args.out)
     for name, ok in result["checks"].items():
@@ -550,6 +551,15 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _refuse_unsafe_out(out: str | Path, command: str) -> None:
+    """``--out`` of a command with many outputs that then certifies the whole folder
+    (``paper``, ``tradeoff``, ``compare``): not a search run or catalog (it would add to
+    and re-certify it, overwriting e.g. its report), and no certified file changed by
+    hand since (the new manifest would certify it)."""
+    refuse_foreign_outputs(out, None, command)
+    refuse_if_changed(out, ())
+
+
 def _out_outside(out: Path, *runs: Path) -> None:
     """``--out`` of a comparison must not be a run folder or lie inside one (it would add
     files to a certified folder, which ``verify`` then reports)."""
@@ -574,6 +584,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     # both must be search runs with readable rankings: refused before anything is written
     check_rankings(Path(args.run_a), Path(args.run_b))
     _out_outside(Path(args.out), Path(args.run_a), Path(args.run_b))
+    _refuse_unsafe_out(args.out, "compare")
     with removed_on_error(args.out):
         html_path, _ = write_compare_report(Path(args.run_a), Path(args.run_b), Path(args.out))
         write_manifest(args.out)
@@ -690,6 +701,7 @@ def cmd_report(args: argparse.Namespace) -> int:
         out = Path(args.out) if args.out else a.parent / f"compare_{a.name}_vs_{b.name}"
         check_rankings(a, b)  # both search runs: refused before anything is written
         _out_outside(out, a, b)
+        _refuse_unsafe_out(out, "report --compare")
         html_path, md_path = write_compare_report(a, b, out)
         write_manifest(out)
     else:
@@ -734,6 +746,7 @@ def cmd_tradeoff(args: argparse.Namespace) -> int:
     """Measure speed against accuracy of every approximation."""
     from sensorgap.tradeoff import run_tradeoff
 
+    _refuse_unsafe_out(args.out, "tradeoff")
     rows = run_tradeoff(Path(args.out), quick=args.quick)
     print(f"{args.out}: {len(rows)} measurements (tradeoff.csv, tradeoff.md, resolution.png)")
     return 0

@@ -338,7 +338,9 @@ MAX_OUT_ENTRIES = 100_000
 RUN_FOLDER_FILES = ("ranking.json", "run.json", "search.sqlite", "catalog.json")
 
 
-def refuse_foreign_outputs(folder: str | Path, writes: tuple[str, ...], command: str) -> None:
+def refuse_foreign_outputs(
+    folder: str | Path, writes: tuple[str, ...] | None, command: str
+) -> None:
     """Before an analysis command (``coverage``, ``nearfield``, ``farfield``,
     ``corridor``) writes its files (``writes``, at the top of ``folder``) and a new
     manifest of every file there into an existing ``folder``: refused (``InputError``
@@ -348,7 +350,9 @@ def refuse_foreign_outputs(folder: str | Path, writes: tuple[str, ...], command:
     overwritten), a search run or catalog without a manifest, or holds more than
     ``MAX_OUT_ENTRIES`` files and folders (counted up to that). A user's folder with other
     files is accepted (the manifest lists them), as is an earlier output of the same
-    command."""
+    command. ``writes`` None (``paper``, ``tradeoff``, ``compare``: many outputs, named
+    after the runs): only a search run or catalog is refused, with or without its
+    manifest (the caller checks the rest with ``refuse_if_changed``)."""
     import os
 
     from sensorgap.errors import InputError
@@ -365,7 +369,7 @@ def refuse_foreign_outputs(folder: str | Path, writes: tuple[str, ...], command:
             f"files or one it wrote before; give another --out",
         )
 
-    if (root / MANIFEST_NAME).is_file():
+    if writes is not None and (root / MANIFEST_NAME).is_file():
         foreign = [rel for rel in read_manifest(root) if rel not in writes]
         if foreign:
             raise refuse(
