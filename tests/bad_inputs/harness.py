@@ -415,6 +415,12 @@ def _setup(
             out.mkdir(exist_ok=True)
             name = "search.sqlite" if step == "out_store_symlink" else "search.sqlite-journal"
             (out / name).symlink_to(folder / "elsewhere" / "store.sqlite")
+        elif step == "fifo_out":  # {dir}/out.csv is a named pipe
+            os.mkfifo(folder / "out.csv")
+        elif step == "link_out":  # {dir}/out.csv links to {dir}/elsewhere/keep.xodr
+            (folder / "elsewhere").mkdir()
+            (folder / "elsewhere" / "keep.xodr").write_text("not the probe's")
+            (folder / "out.csv").symlink_to(folder / "elsewhere" / "keep.xodr")
         elif step == "export_into_out":  # {out}: a catalog exported from {run}
             code = run_cli(["export", "--run", str(run), "--out", str(out)])
             if code != 0:
