@@ -415,6 +415,10 @@ def _setup(
             out.mkdir(exist_ok=True)
             name = "search.sqlite" if step == "out_store_symlink" else "search.sqlite-journal"
             (out / name).symlink_to(folder / "elsewhere" / "store.sqlite")
+        elif step == "run_report_symlink":  # {run}/report links to {dir}/elsewhere
+            (folder / "elsewhere").mkdir()
+            (folder / "elsewhere" / "keep.xodr").write_text("not the report's")
+            (run / "report").symlink_to(folder / "elsewhere")
         elif step == "fifo_out":  # {dir}/out.csv is a named pipe
             os.mkfifo(folder / "out.csv")
         elif step == "link_out":  # {dir}/out.csv links to {dir}/elsewhere/keep.xodr

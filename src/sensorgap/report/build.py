@@ -832,6 +832,12 @@ def build(folder: Path) -> tuple[str, list[str], Section, list[Section]]:
     folder = Path(folder)
     if not folder.is_dir():
         raise InputError(folder, "", "run folder does not exist")
+    if (folder / REPORT_DIR).is_symlink():  # its figures would be written where it points
+        raise InputError(
+            folder / REPORT_DIR,
+            "",
+            "is a symbolic link; report writes only inside the run folder (remove the link)",
+        )
     run = open_run(folder, ranking=False)
     info = run.info
     settings = {**run.settings, **info.get("settings", {})}
