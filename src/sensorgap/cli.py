@@ -1252,7 +1252,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(f"sensorgap: error: {text}", file=sys.stderr)
         return EXIT_INPUT
     except OSError as exc:  # disk full, file too large, permissions, a file as a folder
-        where = exc.filename or "output"
+        # a path holding a line break stays on the one line (as InputError.line does)
+        where = " ".join(str(exc.filename or "output").splitlines())
         print(
             f"sensorgap: error: {where}: cannot write or read: "
             f"{exc.strerror or type(exc).__name__} (no partial file was left)",
