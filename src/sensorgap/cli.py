@@ -553,7 +553,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
 
 def _refuse_unsafe_out(out: str | Path, command: str) -> None:
     """``--out`` of a command with many outputs that then certifies the whole folder
-    (``paper``, ``tradeoff``, ``compare``): not a search run or catalog (it would add to
+    (``paper``, ``tradeoff``, ``compare``, ``run``): not a search run or catalog (it would add to
     and re-certify it, overwriting e.g. its report), and no certified file changed by
     hand since (the new manifest would certify it)."""
     refuse_foreign_outputs(out, None, command)
@@ -864,6 +864,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 
     families = _families(args.families)
     load_families(families)  # every family (and its road) checked before any work
+    _refuse_unsafe_out(args.out, "run")
     run_default(
         Path(args.out),
         workers=args.workers,

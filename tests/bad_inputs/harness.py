@@ -419,6 +419,12 @@ def _setup(
             (folder / "elsewhere").mkdir()
             (folder / "elsewhere" / "keep.xodr").write_text("not the report's")
             (run / "report").symlink_to(folder / "elsewhere")
+        elif step == "manifest_above_run":  # {run}/.. certified with {run}'s files
+            files = json.loads((run / "manifest.json").read_text())["files"]
+            listed = {f"run/{rel}": meta for rel, meta in files.items()}
+            (run.parent / "manifest.json").write_text(
+                json.dumps({"algorithm": "sha256", "files": listed})
+            )
         elif step == "fifo_out":  # {dir}/out.csv is a named pipe
             os.mkfifo(folder / "out.csv")
         elif step == "link_out":  # {dir}/out.csv links to {dir}/elsewhere/keep.xodr
