@@ -129,6 +129,8 @@ def _inside_only(out: Path) -> None:
             )
 
 
+#: Files only a search run folder holds (never a catalog exported elsewhere).
+SEARCH_RUN_FILES = ("search.sqlite", "summary.json", "unavoidable.csv")
 #: What an export writes into its folder (``filesio.refuse_if_changed``): everything else
 #: listed in an existing manifest must be unchanged before the manifest is rewritten.
 EXPORT_WRITES = ("scenarios/", "roads/", "coverage/*", "catalog.json", "simulation.csv")
@@ -177,6 +179,16 @@ def export_catalog(
             "",
             f"must be the run folder itself or outside it; {out} is inside {run.folder}",
         )
+    if not in_place:  # another search run: its ranking, run.json and inputs/ replaced,
+        # its search.sqlite and summary.json kept, the mixed folder certified
+        other = next((n for n in SEARCH_RUN_FILES if (out / n).exists()), None)
+        if other is not None:
+            raise InputError(
+                "out",
+                "",
+                f"{out} holds another search run ({other}); export into the run folder "
+                "itself, a new folder or a catalog",
+            )
     writes = (
         EXPORT_WRITES
         if in_place
