@@ -203,7 +203,15 @@ def export_catalog(
         for name in ("ranking.csv", "ranking.json"):
             if (run.folder / name).is_file():
                 atomic_write_bytes(out / name, (run.folder / name).read_bytes())
-        copy_record(run.folder, out)  # run.json and inputs/: the catalog rebuilds alike
+        copied = copy_record(run.folder, out)  # run.json and inputs/: rebuilt alike
+        # inputs of an earlier export of another run into this catalog are removed (the
+        # manifest would certify files no run.json entry names)
+        for old in sorted((out / INPUTS_DIR).rglob("*"), key=lambda q: -len(q.parts)):
+            rel = old.relative_to(out).as_posix()
+            if old.is_file() and not old.is_symlink() and rel not in copied:
+                old.unlink()
+            elif old.is_dir() and not old.is_symlink() and not any(old.iterdir()):
+                old.rmdir()
     files: dict[str, dict[str, Any]] = {}
     scenarios = []
     nets = {}
@@ -263,6 +271,9 @@ def export_catalog(
     if coverage:
         for p in _coverage_maps(specs, out / "coverage"):
             files[f"coverage/{p.name}"] = {"role": "coverage map"}
+        for old in [*(out / "coverage").glob("*.npz"), *(out / "coverage").glob("*.png")]:
+            if f"coverage/{old.name}" not in files and old.is_file() and not old.is_symlink():
+                old.unlink()  # a map of an earlier export (another target or environment)
     for name in ("ranking.csv", "ranking.json"):
         if (out / name).is_file():
             files[name] = {"role": "ranking"}
