@@ -425,6 +425,8 @@ def _setup(
             (run.parent / "manifest.json").write_text(
                 json.dumps({"algorithm": "sha256", "files": listed})
             )
+        elif step == "run_store_deleted":  # {run}/search.sqlite removed
+            (run / "search.sqlite").unlink()
         elif step == "fifo_out":  # {dir}/out.csv is a named pipe
             os.mkfifo(folder / "out.csv")
         elif step == "link_out":  # {dir}/out.csv links to {dir}/elsewhere/keep.xodr

@@ -83,6 +83,11 @@ SEARCH_WRITES = (
 )
 
 
+#: Files of a finished run or catalog: a new search (no --resume) into a folder holding
+#: one but no stored candidates is refused (its export and report would stay, stale).
+EARLIER_RUN_FILES = ("ranking.json", "run.json", "catalog.json")
+
+
 def _finite_or_none(v: float) -> float | None:
     """A metric value for the output files: None (an empty cell) where it is undefined."""
     return None if not math.isfinite(v) else v
@@ -419,6 +424,15 @@ def run_search(
                 "",
                 f"{out} already holds a search ({n_stored} candidates "
                 "stored); add --resume to continue it, or use another --out",
+            )
+        earlier = next((n for n in EARLIER_RUN_FILES if (out / n).exists()), None)
+        if not resume and earlier is not None:  # its export and report would stay, stale
+            raise InputError(
+                "out",
+                "",
+                f"{out} holds an earlier run or catalog ({earlier}) without a stored "
+                "search; a new search would leave its scenarios and report beside the new "
+                "ranking: use another --out",
             )
         try:
             store = Store(db, p.record, p.inputs)
