@@ -602,10 +602,24 @@ def cmd_export(args: argparse.Namespace) -> int:
     from sensorgap.export import export_catalog
 
     out = Path(args.out) if args.out else None
+    folder = out or Path(args.run)
+    before = sorted(p.name for p in (folder / "scenarios").glob("*.xosc"))
     with removed_on_error(out or args.run):  # a failed export leaves no partial catalog
         index = export_catalog(
             Path(args.run), out, osc_version=args.osc_version, top=args.top, style=args.style
         )
+    if before and before != sorted(p.name for p in (folder / "scenarios").glob("*.xosc")):
+        # a report of the folder links the previous export's scenario files
+        from sensorgap.export.catalog import EXPORT_WRITES
+        from sensorgap.report.build import REPORT_WRITES
+
+        gone = remove_outputs(folder, REPORT_WRITES)
+        if gone:
+            write_manifest(folder, (*EXPORT_WRITES, *REPORT_WRITES))
+            print(
+                f"the export changed the scenario files: removed {len(gone)} files of the "
+                "previous report (run report again)"
+            )
     print(
         f"{out or args.run}: {len(index['scenarios'])} scenarios, {args.style} style, "
         f"OpenSCENARIO {args.osc_version}, every file XSD-valid"
