@@ -425,6 +425,16 @@ def _setup(
             (run.parent / "manifest.json").write_text(
                 json.dumps({"algorithm": "sha256", "files": listed})
             )
+        elif step == "out_inputs_symlink":  # {out}/inputs links to {dir}/elsewhere
+            (folder / "elsewhere").mkdir()
+            (folder / "elsewhere" / "keep.xodr").write_text("not the search's")
+            out.mkdir()
+            (out / "inputs").symlink_to(folder / "elsewhere")
+        elif step == "run_inputs_vehicle_symlink":  # {run}/inputs/vehicle -> {dir}/elsewhere
+            (folder / "elsewhere").mkdir()
+            (folder / "elsewhere" / "keep.xodr").write_text("not the search's")
+            shutil.rmtree(run / "inputs" / "vehicle")
+            (run / "inputs" / "vehicle").symlink_to(folder / "elsewhere")
         elif step == "run_store_deleted":  # {run}/search.sqlite removed
             (run / "search.sqlite").unlink()
         elif step == "fifo_out":  # {dir}/out.csv is a named pipe

@@ -47,7 +47,7 @@ from sensorgap.search.ranking import (
     rank_exact,
     reevaluate,
 )
-from sensorgap.search.runfolder import record_inputs, write_search_record
+from sensorgap.search.runfolder import INPUTS_DIR, record_inputs, write_search_record
 from sensorgap.search.settings import (
     Prepared,
     SearchSettings,
@@ -405,13 +405,19 @@ def run_search(
         )
     )
     db = out / "search.sqlite"
-    for name in (db.name, f"{db.name}-journal"):  # SQLite opens them through a link
-        if (out / name).is_symlink():
+    # what it writes, followed through a link, would land outside --out (SQLite opens
+    # the store and its journal through one; the inputs are copied into inputs/*/)
+    inputs = out / INPUTS_DIR
+    written = [out / w.rstrip("/") for w in SEARCH_WRITES] + [out / f"{db.name}-journal"]
+    if inputs.is_dir() and not inputs.is_symlink():
+        written += sorted(inputs.iterdir())
+    for path in written:
+        if path.is_symlink():
             raise InputError(
                 "out",
                 "",
-                f"{out / name} is a symbolic link; a search writes its store only inside "
-                "--out (remove the link, or use another --out)",
+                f"{path} is a symbolic link; a search writes only inside --out (remove the "
+                "link, or use another --out)",
             )
     new_db = not db.exists()
     new_out = not out.exists()
