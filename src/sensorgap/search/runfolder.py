@@ -496,6 +496,9 @@ class RunFolder:
             self.system(), mode=mode, rule=rule, reaction=self.reaction(), friction=self.friction()
         )
         ev._targets.update(self.targets())  # the cache Evaluator.target fills from presets
+        recorded = self.input_path("targets")
+        if recorded is not None:  # a class the recorded copy lacks is refused
+            ev.targets_source = str(recorded)
         return ev
 
     def check_inputs(self) -> None:
