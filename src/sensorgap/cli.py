@@ -870,8 +870,10 @@ def cmd_run(args: argparse.Namespace) -> int:
 
     if not 1 <= args.workers <= 64:
         raise InputError("--workers", "", f"must be 1..64, got {args.workers}")
-    if not 1 <= args.budget <= 10_000_000:
-        raise InputError("--budget", "", f"must be 1..1e7 evaluations, got {args.budget}")
+    from sensorgap.search.settings import MAX_BUDGET
+
+    if not 1 <= args.budget <= MAX_BUDGET:  # the search's own limit, said before any work
+        raise InputError("--budget", "", f"must be within 1..{MAX_BUDGET}, got {args.budget}")
     if not 0 <= args.seed < 2**63:
         raise InputError("--seed", "", f"must be a non-negative integer, got {args.seed}")
     from sensorgap.scenarios import load_families
