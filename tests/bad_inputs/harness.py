@@ -435,6 +435,15 @@ def _setup(
             (folder / "elsewhere" / "keep.xodr").write_text("not the search's")
             shutil.rmtree(run / "inputs" / "vehicle")
             (run / "inputs" / "vehicle").symlink_to(folder / "elsewhere")
+        elif step == "many_environments":  # {dir}/e.toml with 1,001 environments
+            (folder / "e.toml").write_text(
+                "".join(
+                    f"[environments.e{i}]\nvisibility_m = 23000.0\nirradiance_w_m2 = 534.0\n"
+                    f'[environments.e{i}.sources]\nvisibility_m = "x"\n'
+                    f'irradiance_w_m2 = "x"\n'
+                    for i in range(1001)
+                )
+            )
         elif step == "run_store_deleted":  # {run}/search.sqlite removed
             (run / "search.sqlite").unlink()
         elif step == "fifo_out":  # {dir}/out.csv is a named pipe
