@@ -247,6 +247,10 @@ def cmd_coverage(args: argparse.Namespace) -> int:
         )
     clipped = (xmin + nx * res, ymin + ny * res)
     grid = GridSpec(xmin, clipped[0], ymin, clipped[1], res, height)
+    if len(args.occluder) > MAX_OCCLUDERS:
+        raise InputError(
+            "--occluder", "", f"{len(args.occluder)} occluders; at most {MAX_OCCLUDERS} allowed"
+        )
     occluders = [_occluder(text) for text in args.occluder]
     if occluders and args.heading is None:
         raise InputError(
@@ -280,6 +284,10 @@ def cmd_coverage(args: argparse.Namespace) -> int:
 
 #: Largest occluder centre distance from the ego accepted by ``--occluder``, m.
 MAX_OCCLUDER_M = 1000.0
+#: Most ``--occluder`` of one map: the time grows with cells x occluders (~0.3 us a
+#: pair here: 1,000 occluders over 70,400 cells took 20 s, so over the 4e6 cells allowed
+#: with --heading ~19 min; 100 keep it near 2 min).
+MAX_OCCLUDERS = 100
 
 
 def _occluder(text: str) -> Occluder:
