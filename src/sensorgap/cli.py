@@ -19,6 +19,7 @@ from sensorgap.atomic import removed_on_error
 from sensorgap.config.common import parse_decimal, parse_integer
 from sensorgap.errors import InputError
 from sensorgap.filesio import (
+    refuse_crowded_out,
     refuse_foreign_outputs,
     refuse_if_changed,
     remove_outputs,
@@ -448,6 +449,7 @@ def cmd_search(args: argparse.Namespace) -> int:
     env_file = Path(args.environments_file) if args.environments_file else None
     ranking = Path(args.out) / "ranking.json"
     before = ranking.read_bytes() if args.resume and ranking.is_file() else None
+    refuse_crowded_out(args.out, "search")
     if args.resume:  # the new manifest must not certify a file changed by hand
         refuse_if_changed(args.out, SEARCH_WRITES)
     outcome = run_search(
@@ -611,6 +613,7 @@ def cmd_export(args: argparse.Namespace) -> int:
 
     out = Path(args.out) if args.out else None
     folder = out or Path(args.run)
+    refuse_crowded_out(folder, "export")
     before = sorted(p.name for p in (folder / "scenarios").glob("*.xosc"))
     with removed_on_error(out or args.run):  # a failed export leaves no partial catalog
         index = export_catalog(

@@ -353,7 +353,6 @@ def refuse_foreign_outputs(
     command. ``writes`` None (``paper``, ``tradeoff``, ``compare``: many outputs, named
     after the runs): only a search run or catalog is refused, with or without its
     manifest (the caller checks the rest with ``refuse_if_changed``)."""
-    import os
 
     from sensorgap.errors import InputError
 
@@ -380,11 +379,36 @@ def refuse_foreign_outputs(
         marker = next((n for n in RUN_FOLDER_FILES if (root / n).exists()), None)
         if marker is not None:
             raise refuse(f"holds a search run or catalog ({marker})")
+    if crowded(root):
+        raise refuse(f"holds more than {MAX_OUT_ENTRIES} files and folders")
+
+
+def crowded(folder: str | Path) -> bool:
+    """Whether ``folder`` holds more than ``MAX_OUT_ENTRIES`` files and folders (counted
+    up to that: cheap for ``/``)."""
+    import os
+
     seen = 0
-    for _dirpath, dirnames, filenames in os.walk(root):
+    for _dirpath, dirnames, filenames in os.walk(folder):
         seen += len(dirnames) + len(filenames)
         if seen > MAX_OUT_ENTRIES:
-            raise refuse(f"holds more than {MAX_OUT_ENTRIES} files and folders")
+            return True
+    return False
+
+
+def refuse_crowded_out(folder: str | Path, command: str) -> None:
+    """``--out`` of ``search`` or ``export``, which hash every file of the folder into its
+    manifest: an existing folder of more than ``MAX_OUT_ENTRIES`` files and folders (a
+    user's home) is refused before any work (``InputError`` naming ``--out``)."""
+    from sensorgap.errors import InputError
+
+    if Path(folder).is_dir() and crowded(folder):
+        raise InputError(
+            "--out",
+            "",
+            f"{folder} holds more than {MAX_OUT_ENTRIES} files and folders; {command} lists "
+            "and hashes every file of its folder into manifest.json: give another --out",
+        )
 
 
 def refuse_if_source_changed(folder: str | Path, reads: tuple[str, ...], what: str) -> None:

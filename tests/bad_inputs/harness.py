@@ -444,6 +444,10 @@ def _setup(
                     for i in range(1001)
                 )
             )
+        elif step == "crowded_dir":  # {dir}/crowd/ holds 100,001 empty files
+            (folder / "crowd").mkdir()
+            for i in range(100_001):
+                (folder / "crowd" / f"f{i}").touch()
         elif step == "run_store_deleted":  # {run}/search.sqlite removed
             (run / "search.sqlite").unlink()
         elif step == "fifo_out":  # {dir}/out.csv is a named pipe
