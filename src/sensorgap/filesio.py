@@ -368,6 +368,10 @@ def refuse_foreign_outputs(
             f"files or one it wrote before; give another --out",
         )
 
+    for name in (*(writes or ()), MANIFEST_NAME):  # renamed onto: refused mid-way
+        own = root / name
+        if own.is_symlink() or (own.exists() and not own.is_file()):
+            raise refuse(f"holds {name}, a symbolic link or not a regular file")
     if writes is not None and (root / MANIFEST_NAME).is_file():
         foreign = [rel for rel in read_manifest(root) if rel not in writes]
         if foreign:

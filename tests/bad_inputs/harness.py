@@ -444,6 +444,11 @@ def _setup(
                     for i in range(1001)
                 )
             )
+        elif step == "nearfield_png_symlink":  # {run}/nearfield/nearfield.png -> elsewhere
+            (folder / "elsewhere").mkdir()
+            (folder / "elsewhere" / "keep.xodr").write_text("not the near field's")
+            (run / "nearfield" / "nearfield.png").unlink()
+            (run / "nearfield" / "nearfield.png").symlink_to(folder / "elsewhere" / "keep.xodr")
         elif step == "crowded_dir":  # {dir}/crowd/ holds 100,001 empty files
             (folder / "crowd").mkdir()
             for i in range(100_001):
