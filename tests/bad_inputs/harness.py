@@ -449,6 +449,11 @@ def _setup(
             (folder / "elsewhere" / "keep.xodr").write_text("not the near field's")
             (run / "nearfield" / "nearfield.png").unlink()
             (run / "nearfield" / "nearfield.png").symlink_to(folder / "elsewhere" / "keep.xodr")
+        elif step == "run_catalog_symlink":  # {run}/catalog.json -> {dir}/elsewhere/...
+            (folder / "elsewhere").mkdir()
+            (folder / "elsewhere" / "keep.xodr").write_text("not the export's")
+            (run / "catalog.json").unlink()
+            (run / "catalog.json").symlink_to(folder / "elsewhere" / "keep.xodr")
         elif step == "crowded_dir":  # {dir}/crowd/ holds 100,001 empty files
             (folder / "crowd").mkdir()
             for i in range(100_001):

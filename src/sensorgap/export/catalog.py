@@ -119,6 +119,12 @@ def _inside_only(out: Path) -> None:
     subs = [out / s for s in ("scenarios", "roads", "coverage", INPUTS_DIR)]
     if (out / INPUTS_DIR).is_dir() and not (out / INPUTS_DIR).is_symlink():
         subs += sorted((out / INPUTS_DIR).iterdir())
+    # the files it renames onto (refused by atomic_path only after the scenarios were
+    # rewritten: a half-updated catalog)
+    subs += [
+        out / f
+        for f in ("catalog.json", "ranking.json", "ranking.csv", "run.json", "manifest.json")
+    ]
     for p in subs:
         if p.is_symlink():
             raise InputError(
