@@ -454,6 +454,10 @@ def _setup(
             (folder / "elsewhere" / "keep.xodr").write_text("not the export's")
             (run / "catalog.json").unlink()
             (run / "catalog.json").symlink_to(folder / "elsewhere" / "keep.xodr")
+        elif step == "run_report_md_symlink":  # {run}/report.md -> {dir}/elsewhere/...
+            (folder / "elsewhere").mkdir()
+            (folder / "elsewhere" / "keep.xodr").write_text("not the report's")
+            (run / "report.md").symlink_to(folder / "elsewhere" / "keep.xodr")
         elif step == "crowded_dir":  # {dir}/crowd/ holds 100,001 empty files
             (folder / "crowd").mkdir()
             for i in range(100_001):
