@@ -423,6 +423,52 @@ def test_esmini_log_with_a_short_row_is_a_bad_log(tmp_path: Path) -> None:
         parse_esmini_csv(_esmini_log(tmp_path / "empty.csv", []))
 
 
+def test_a_flooding_or_hanging_esmini_stays_bounded(tmp_path: Path) -> None:
+    """Hostile round seven: esmini's output was captured whole (700 MB of stdout peaked at
+    4.6 GB RSS), and a timeout killed only a wrapper script, not what it started. Now
+    only the tails of its output are read, and the whole session is killed."""
+    import resource
+    import time
+
+    from sensorgap.export import simulate
+
+    def script(name: str, body: str) -> Path:
+        path = tmp_path / name
+        path.write_text(f"#!/bin/sh\n{body}\n")
+        path.chmod(0o755)
+        return path
+
+    work = tmp_path / "work"
+    work.mkdir()
+    xosc = tmp_path / "s.xosc"
+    xosc.write_text("<OpenSCENARIO/>")
+    flood = script("flood.sh", "yes 'flood line' | head -c 200000000\necho 'last words' >&2")
+    before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    res = simulate.run_esmini(flood, xosc, work, 60.0, 0.05)
+    assert res == "crashed: esmini exit code 0: last words"
+    assert resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before < 100_000  # KiB
+    marker = tmp_path / "still_running"
+    wrapper = script("wrap.sh", f"(sleep 3; touch {marker}) &\nsleep 30")
+    t0 = time.perf_counter()
+    assert simulate.run_esmini(wrapper, xosc, work, 0.5, 0.05) == (
+        "timeout: esmini did not finish within 0.5 s (killed)"
+    )
+    assert time.perf_counter() - t0 < 5.0
+    time.sleep(3.5)
+    assert not marker.exists()  # the wrapper's children were killed with it
+
+
+def test_an_oversized_esmini_log_is_a_bad_log(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from sensorgap.export import simulate
+
+    monkeypatch.setattr(simulate, "MAX_ESMINI_LOG_BYTES", 100)
+    log = _esmini_log(tmp_path / "big.csv", ["0, 0.00, Ego, 0, 10.0, 1.0, 2.0, 0.0, 0.1,"] * 5)
+    with pytest.raises(ValueError, match=r"big\.csv: \d+ bytes; at most 100 read"):
+        simulate.parse_esmini_csv(log)
+
+
 def test_sigterm_unwinds_and_leaves_no_temporary_file(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -6,10 +6,13 @@ A reader never sees a half-written file: either the old content or the new one.
 from __future__ import annotations
 
 import os
+import stat
 import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager, suppress
 from pathlib import Path
+
+from sensorgap.errors import InputError
 
 
 @contextmanager
@@ -20,6 +23,22 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     exception the temporary file is removed and ``path`` is untouched.
     """
     target = Path(path)
+    try:
+        mode: int | None = os.lstat(target).st_mode
+    except OSError:
+        mode = None
+    if mode is not None and stat.S_ISDIR(mode):  # the rename would fail: name the file
+        raise InputError(target, "", "is a folder; give the path of a file")
+    if mode is not None and not stat.S_ISREG(mode):
+        # the rename would replace the node itself: a device (/dev/null, /dev/full as
+        # root), a pipe, or a symbolic link such as /dev/stdout instead of its target
+        raise InputError(
+            target,
+            "",
+            "not a regular file (a symbolic link, device, pipe or socket): an output is "
+            "written to a temporary file and renamed onto its path, which would replace "
+            "it; give the path of a regular file",
+        )
     target.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp_name = tempfile.mkstemp(
         prefix=f".{target.name}.", suffix=".tmp" + target.suffix, dir=target.parent

@@ -18,7 +18,13 @@ from typing import TYPE_CHECKING, Any, NoReturn
 from sensorgap.atomic import removed_on_error
 from sensorgap.config.common import parse_decimal, parse_integer
 from sensorgap.errors import InputError
-from sensorgap.filesio import refuse_if_changed, remove_outputs, write_manifest
+from sensorgap.filesio import (
+    refuse_crowded_out,
+    refuse_foreign_outputs,
+    refuse_if_changed,
+    remove_outputs,
+    write_manifest,
+)
 from sensorgap.runtime import StdoutUnwritable, guarded_stdout, tune_allocator
 
 if TYPE_CHECKING:
@@ -43,6 +49,14 @@ NEARFIELD_RESOLUTION_M = (0.02, 1.0)
 #: farfield: path length range, m.
 MAX_FARFIELD_LENGTH_M = 10_000.0
 EXIT_INTERNAL = 1
+#: What each analysis command writes into its --out folder (besides manifest.json): an
+#: existing --out must hold nothing else (``filesio.refuse_foreign_outputs``).
+ANALYSIS_WRITES = {
+    "coverage": ("coverage.npz", "coverage.png", "summary.json"),
+    "nearfield": ("nearfield.json", "nearfield.png"),
+    "farfield": ("farfield.csv", "farfield.png", "levels.csv", "summary.json"),
+    "corridor": ("corridor.csv", "corridor.png", "summary.json"),
+}
 _GLUED_OPTIONS = {
     "--extent",
     "--height",
@@ -174,6 +188,7 @@ def cmd_coverage(args: argparse.Namespace) -> int:
     from sensorgap.coverage import GridSpec
     from sensorgap.coverage.outputs import write_coverage
 
+    refuse_foreign_outputs(args.out, ANALYSIS_WRITES["coverage"], "coverage")
     if not 1 <= args.workers <= 64:
         raise InputError("--workers", "", f"must be 1..64, got {args.workers}")
     xmin, xmax, ymin, ymax = _float_list(args.extent, 4, "--extent")
@@ -233,6 +248,10 @@ def cmd_coverage(args: argparse.Namespace) -> int:
         )
     clipped = (xmin + nx * res, ymin + ny * res)
     grid = GridSpec(xmin, clipped[0], ymin, clipped[1], res, height)
+    if len(args.occluder) > MAX_OCCLUDERS:
+        raise InputError(
+            "--occluder", "", f"{len(args.occluder)} occluders; at most {MAX_OCCLUDERS} allowed"
+        )
     occluders = [_occluder(text) for text in args.occluder]
     if occluders and args.heading is None:
         raise InputError(
@@ -266,6 +285,10 @@ def cmd_coverage(args: argparse.Namespace) -> int:
 
 #: Largest occluder centre distance from the ego accepted by ``--occluder``, m.
 MAX_OCCLUDER_M = 1000.0
+#: Most ``--occluder`` of one map: the time grows with cells x occluders (~0.3 us a
+#: pair here: 1,000 occluders over 70,400 cells took 20 s, so over the 4e6 cells allowed
+#: with --heading ~19 min; 100 keep it near 2 min).
+MAX_OCCLUDERS = 100
 
 
 def _occluder(text: str) -> Occluder:
@@ -315,6 +338,7 @@ def cmd_nearfield(args: argparse.Namespace) -> int:
     from sensorgap.analysis.nearfield import write_nearfield
     from sensorgap.models import load_system
 
+    refuse_foreign_outputs(args.out, ANALYSIS_WRITES["nearfield"], "nearfield")
     res = _positive(args.resolution, "--resolution")
     lo, hi = NEARFIELD_RESOLUTION_M
     if not lo <= res <= hi:
@@ -340,6 +364,7 @@ def cmd_farfield(args: argparse.Namespace) -> int:
     from sensorgap.models import load_system
     from sensorgap.roads import read_opendrive
 
+    refuse_foreign_outputs(args.out, ANALYSIS_WRITES["farfield"], "farfield")
     length = _positive(args.length, "--length")
     if length > MAX_FARFIELD_LENGTH_M:
         raise InputError(
@@ -400,6 +425,7 @@ def cmd_paper(args: argparse.Namespace) -> int:
     """Reproduce the paper's results section into --out."""
     from sensorgap.analysis.paper import run_paper
 
+    _refuse_unsafe_out(args.out, "paper")
     result = run_paper(Path(args.out))
     write_manifest(args.out)
     for name, ok in result["checks"].items():
@@ -424,6 +450,7 @@ def cmd_search(args: argparse.Namespace) -> int:
     env_file = Path(args.environments_file) if args.environments_file else None
     ranking = Path(args.out) / "ranking.json"
     before = ranking.read_bytes() if args.resume and ranking.is_file() else None
+    refuse_crowded_out(args.out, "search")
     if args.resume:  # the new manifest must not certify a file changed by hand
         refuse_if_changed(args.out, SEARCH_WRITES)
     outcome = run_search(
@@ -509,16 +536,21 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
             why = None  # not a number: parse_params names it
         if why:
             raise InputError("param", name, why)
-    ev = evaluate_candidate(
-        args.vehicle,
-        args.family,
-        args.environment,
-        parse_sun(args.sun),
-        args.param or [],
-        Path(args.out),
-        Path(args.environments_file) if args.environments_file else None,
-        Path(args.run) if args.run else None,
-    )
+    try:
+        ev = evaluate_candidate(
+            args.vehicle,
+            args.family,
+            args.environment,
+            parse_sun(args.sun),
+            args.param or [],
+            Path(args.out),
+            Path(args.environments_file) if args.environments_file else None,
+            Path(args.run) if args.run else None,
+        )
+    except InputError as exc:
+        if exc.source == "families":  # the family loader names search's --families
+            exc.source = "--family"
+        raise
     m = ev["metrics"]
     if not ev["feasible"]:
         print(f"{args.out}: infeasible: {ev['note']}")
@@ -528,6 +560,15 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
             f"impact {m['impact_speed_kmh']:.1f} km/h"
         )
     return 0
+
+
+def _refuse_unsafe_out(out: str | Path, command: str) -> None:
+    """``--out`` of a command with many outputs that then certifies the whole folder
+    (``paper``, ``tradeoff``, ``compare``, ``run``): not a search run or catalog (it would add to
+    and re-certify it, overwriting e.g. its report), and no certified file changed by
+    hand since (the new manifest would certify it)."""
+    refuse_foreign_outputs(out, None, command)
+    refuse_if_changed(out, ())
 
 
 def _out_outside(out: Path, *runs: Path) -> None:
@@ -554,6 +595,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     # both must be search runs with readable rankings: refused before anything is written
     check_rankings(Path(args.run_a), Path(args.run_b))
     _out_outside(Path(args.out), Path(args.run_a), Path(args.run_b))
+    _refuse_unsafe_out(args.out, "compare")
     with removed_on_error(args.out):
         html_path, _ = write_compare_report(Path(args.run_a), Path(args.run_b), Path(args.out))
         write_manifest(args.out)
@@ -571,10 +613,25 @@ def cmd_export(args: argparse.Namespace) -> int:
     from sensorgap.export import export_catalog
 
     out = Path(args.out) if args.out else None
+    folder = out or Path(args.run)
+    refuse_crowded_out(folder, "export")
+    before = sorted(p.name for p in (folder / "scenarios").glob("*.xosc"))
     with removed_on_error(out or args.run):  # a failed export leaves no partial catalog
         index = export_catalog(
             Path(args.run), out, osc_version=args.osc_version, top=args.top, style=args.style
         )
+    if before and before != sorted(p.name for p in (folder / "scenarios").glob("*.xosc")):
+        # a report of the folder links the previous export's scenario files
+        from sensorgap.export.catalog import EXPORT_WRITES
+        from sensorgap.report.build import REPORT_WRITES
+
+        gone = remove_outputs(folder, REPORT_WRITES)
+        if gone:
+            write_manifest(folder, (*EXPORT_WRITES, *REPORT_WRITES))
+            print(
+                f"the export changed the scenario files: removed {len(gone)} files of the "
+                "previous report (run report again)"
+            )
     print(
         f"{out or args.run}: {len(index['scenarios'])} scenarios, {args.style} style, "
         f"OpenSCENARIO {args.osc_version}, every file XSD-valid"
@@ -660,6 +717,8 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 
 def cmd_report(args: argparse.Namespace) -> int:
     """The audit report of a run folder, or two runs side by side."""
+    if args.compare and args.run:  # one of them would be ignored
+        raise InputError("--run", "", "give --run DIR or --compare RUN_A RUN_B, not both")
     if args.compare:
         from sensorgap.report.compare import write_compare_report
         from sensorgap.search.compare import check_rankings
@@ -668,6 +727,7 @@ def cmd_report(args: argparse.Namespace) -> int:
         out = Path(args.out) if args.out else a.parent / f"compare_{a.name}_vs_{b.name}"
         check_rankings(a, b)  # both search runs: refused before anything is written
         _out_outside(out, a, b)
+        _refuse_unsafe_out(out, "report --compare")
         html_path, md_path = write_compare_report(a, b, out)
         write_manifest(out)
     else:
@@ -712,6 +772,7 @@ def cmd_tradeoff(args: argparse.Namespace) -> int:
     """Measure speed against accuracy of every approximation."""
     from sensorgap.tradeoff import run_tradeoff
 
+    _refuse_unsafe_out(args.out, "tradeoff")
     rows = run_tradeoff(Path(args.out), quick=args.quick)
     print(f"{args.out}: {len(rows)} measurements (tradeoff.csv, tradeoff.md, resolution.png)")
     return 0
@@ -721,6 +782,7 @@ def cmd_corridor(args: argparse.Namespace) -> int:
     """The least-detectable approach path into a critical zone (corridor search)."""
     from sensorgap.search.corridor import corridor_search
 
+    refuse_foreign_outputs(args.out, ANALYSIS_WRITES["corridor"], "corridor")
     lanes = []
     for part in args.lanes.split(","):
         lo_hi = _float_list(part.replace(":", ","), 2, "--lanes")
@@ -820,14 +882,17 @@ def cmd_run(args: argparse.Namespace) -> int:
 
     if not 1 <= args.workers <= 64:
         raise InputError("--workers", "", f"must be 1..64, got {args.workers}")
-    if not 1 <= args.budget <= 10_000_000:
-        raise InputError("--budget", "", f"must be 1..1e7 evaluations, got {args.budget}")
+    from sensorgap.search.settings import MAX_BUDGET
+
+    if not 1 <= args.budget <= MAX_BUDGET:  # the search's own limit, said before any work
+        raise InputError("--budget", "", f"must be within 1..{MAX_BUDGET}, got {args.budget}")
     if not 0 <= args.seed < 2**63:
         raise InputError("--seed", "", f"must be a non-negative integer, got {args.seed}")
     from sensorgap.scenarios import load_families
 
     families = _families(args.families)
     load_families(families)  # every family (and its road) checked before any work
+    _refuse_unsafe_out(args.out, "run")
     run_default(
         Path(args.out),
         workers=args.workers,
@@ -1193,6 +1258,14 @@ def main(argv: Sequence[str] | None = None) -> int:
                     "must name a folder or file (an empty "
                     "path would write into the working directory)",
                 )
+        for name in ("environments_file", "points", "run", "road", "esmini"):
+            value = getattr(args, name, None)  # '' would read a default or the cwd instead
+            if isinstance(value, str) and not value.strip():
+                raise InputError(
+                    f"--{name.replace('_', '-')}",
+                    "",
+                    f"must not be empty: give a path (or a preset name), got {value!r}",
+                )
         with guarded_stdout():
             return func(args)
     except StdoutUnwritable as exc:
@@ -1208,7 +1281,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(f"sensorgap: error: {text}", file=sys.stderr)
         return EXIT_INPUT
     except OSError as exc:  # disk full, file too large, permissions, a file as a folder
-        where = exc.filename or "output"
+        # a path holding a line break stays on the one line (as InputError.line does)
+        where = " ".join(str(exc.filename or "output").splitlines())
         print(
             f"sensorgap: error: {where}: cannot write or read: "
             f"{exc.strerror or type(exc).__name__} (no partial file was left)",

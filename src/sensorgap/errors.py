@@ -39,7 +39,8 @@ class InputError(Exception):
         if self.field:
             parts.append(self.field)
         parts.append(self.message)
-        return ": ".join(p.replace("\n", " ") for p in parts)
+        # every line break Python knows (\r, \u2028, ...), not only \n: one line
+        return ": ".join(" ".join(p.splitlines()) for p in parts)
 
     def lines(self) -> list[str]:
         """Every error found: this one, then the others, one line each."""

@@ -330,6 +330,91 @@ def refuse_if_changed(folder: str | Path, rewrites: tuple[str, ...]) -> None:
     )
 
 
+#: Files and folders an existing ``--out`` of an analysis command may hold (a user's
+#: project folder): more are refused before any work, since the command lists the folder
+#: before it starts and hashes every file into its manifest (``--out /`` or ``~``).
+MAX_OUT_ENTRIES = 100_000
+#: Files at the top of a search run or catalog folder (``search``, ``export``).
+RUN_FOLDER_FILES = ("ranking.json", "run.json", "search.sqlite", "catalog.json")
+
+
+def refuse_foreign_outputs(
+    folder: str | Path, writes: tuple[str, ...] | None, command: str
+) -> None:
+    """Before an analysis command (``coverage``, ``nearfield``, ``farfield``,
+    ``corridor``) writes its files (``writes``, at the top of ``folder``) and a new
+    manifest of every file there into an existing ``folder``: refused (``InputError``
+    naming ``--out``) when the folder is another command's certified output (its
+    ``manifest.json`` lists a file this command does not write: the new manifest would
+    certify a file edited by hand since, and e.g. a search's ``summary.json`` would be
+    overwritten), a search run or catalog without a manifest, or holds more than
+    ``MAX_OUT_ENTRIES`` files and folders (counted up to that). A user's folder with other
+    files is accepted (the manifest lists them), as is an earlier output of the same
+    command. ``writes`` None (``paper``, ``tradeoff``, ``compare``: many outputs, named
+    after the runs): only a search run or catalog is refused, with or without its
+    manifest (the caller checks the rest with ``refuse_if_changed``)."""
+
+    from sensorgap.errors import InputError
+
+    root = Path(folder)
+    if not root.is_dir():
+        return
+
+    def refuse(why: str) -> InputError:
+        return InputError(
+            "--out",
+            "",
+            f"{root} {why}; {command} writes only into a new folder, a folder of your own "
+            f"files or one it wrote before; give another --out",
+        )
+
+    for name in (*(writes or ()), MANIFEST_NAME):  # renamed onto: refused mid-way
+        own = root / name
+        if own.is_symlink() or (own.exists() and not own.is_file()):
+            raise refuse(f"holds {name}, a symbolic link or not a regular file")
+    if writes is not None and (root / MANIFEST_NAME).is_file():
+        foreign = [rel for rel in read_manifest(root) if rel not in writes]
+        if foreign:
+            raise refuse(
+                f"holds the certified outputs of another command (its {MANIFEST_NAME} "
+                f"lists {foreign[0]}, which {command} does not write)"
+            )
+    else:
+        marker = next((n for n in RUN_FOLDER_FILES if (root / n).exists()), None)
+        if marker is not None:
+            raise refuse(f"holds a search run or catalog ({marker})")
+    if crowded(root):
+        raise refuse(f"holds more than {MAX_OUT_ENTRIES} files and folders")
+
+
+def crowded(folder: str | Path) -> bool:
+    """Whether ``folder`` holds more than ``MAX_OUT_ENTRIES`` files and folders (counted
+    up to that: cheap for ``/``)."""
+    import os
+
+    seen = 0
+    for _dirpath, dirnames, filenames in os.walk(folder):
+        seen += len(dirnames) + len(filenames)
+        if seen > MAX_OUT_ENTRIES:
+            return True
+    return False
+
+
+def refuse_crowded_out(folder: str | Path, command: str) -> None:
+    """``--out`` of ``search`` or ``export``, which hash every file of the folder into its
+    manifest: an existing folder of more than ``MAX_OUT_ENTRIES`` files and folders (a
+    user's home) is refused before any work (``InputError`` naming ``--out``)."""
+    from sensorgap.errors import InputError
+
+    if Path(folder).is_dir() and crowded(folder):
+        raise InputError(
+            "--out",
+            "",
+            f"{folder} holds more than {MAX_OUT_ENTRIES} files and folders; {command} lists "
+            "and hashes every file of its folder into manifest.json: give another --out",
+        )
+
+
 def refuse_if_source_changed(folder: str | Path, reads: tuple[str, ...], what: str) -> None:
     """Before a command copies files of a folder with a ``manifest.json`` into another
     folder and certifies them there (``export --run RUN --out CAT`` copies ranking.json,

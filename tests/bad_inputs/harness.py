@@ -75,8 +75,9 @@ def load_cases(path: Path = CASES_FILE) -> list[dict[str, Any]]:
 
 
 def needs_run(case: dict[str, Any]) -> bool:
-    """Whether the case works on a copy of the finished run (``{run}`` in its argv)."""
-    return any("{run}" in a for a in case["argv"])
+    """Whether the case works on a copy of the finished run (``{run}`` in its argv, or a
+    setup step that exports it)."""
+    return any("{run}" in a for a in case["argv"]) or "export_into_out" in case.get("setup", [])
 
 
 def build_finished_run(out: Path, run_cli: RunCli) -> Path:
@@ -407,6 +408,72 @@ def _setup(
             (folder / "elsewhere" / "keep.xodr").write_text("not the export's")
             out.mkdir()
             (out / "roads").symlink_to(folder / "elsewhere")
+        elif step in ("out_store_symlink", "out_journal_symlink"):
+            # {out}/search.sqlite (or its -journal) links to {dir}/elsewhere/store.sqlite
+            (folder / "elsewhere").mkdir()
+            (folder / "elsewhere" / "keep.xodr").write_text("not the search's")
+            out.mkdir(exist_ok=True)
+            name = "search.sqlite" if step == "out_store_symlink" else "search.sqlite-journal"
+            (out / name).symlink_to(folder / "elsewhere" / "store.sqlite")
+        elif step == "run_report_symlink":  # {run}/report links to {dir}/elsewhere
+            (folder / "elsewhere").mkdir()
+            (folder / "elsewhere" / "keep.xodr").write_text("not the report's")
+            (run / "report").symlink_to(folder / "elsewhere")
+        elif step == "manifest_above_run":  # {run}/.. certified with {run}'s files
+            files = json.loads((run / "manifest.json").read_text())["files"]
+            listed = {f"run/{rel}": meta for rel, meta in files.items()}
+            (run.parent / "manifest.json").write_text(
+                json.dumps({"algorithm": "sha256", "files": listed})
+            )
+        elif step == "out_inputs_symlink":  # {out}/inputs links to {dir}/elsewhere
+            (folder / "elsewhere").mkdir()
+            (folder / "elsewhere" / "keep.xodr").write_text("not the search's")
+            out.mkdir()
+            (out / "inputs").symlink_to(folder / "elsewhere")
+        elif step == "run_inputs_vehicle_symlink":  # {run}/inputs/vehicle -> {dir}/elsewhere
+            (folder / "elsewhere").mkdir()
+            (folder / "elsewhere" / "keep.xodr").write_text("not the search's")
+            shutil.rmtree(run / "inputs" / "vehicle")
+            (run / "inputs" / "vehicle").symlink_to(folder / "elsewhere")
+        elif step == "many_environments":  # {dir}/e.toml with 1,001 environments
+            (folder / "e.toml").write_text(
+                "".join(
+                    f"[environments.e{i}]\nvisibility_m = 23000.0\nirradiance_w_m2 = 534.0\n"
+                    f'[environments.e{i}.sources]\nvisibility_m = "x"\n'
+                    f'irradiance_w_m2 = "x"\n'
+                    for i in range(1001)
+                )
+            )
+        elif step == "nearfield_png_symlink":  # {run}/nearfield/nearfield.png -> elsewhere
+            (folder / "elsewhere").mkdir()
+            (folder / "elsewhere" / "keep.xodr").write_text("not the near field's")
+            (run / "nearfield" / "nearfield.png").unlink()
+            (run / "nearfield" / "nearfield.png").symlink_to(folder / "elsewhere" / "keep.xodr")
+        elif step == "run_catalog_symlink":  # {run}/catalog.json -> {dir}/elsewhere/...
+            (folder / "elsewhere").mkdir()
+            (folder / "elsewhere" / "keep.xodr").write_text("not the export's")
+            (run / "catalog.json").unlink()
+            (run / "catalog.json").symlink_to(folder / "elsewhere" / "keep.xodr")
+        elif step == "run_report_md_symlink":  # {run}/report.md -> {dir}/elsewhere/...
+            (folder / "elsewhere").mkdir()
+            (folder / "elsewhere" / "keep.xodr").write_text("not the report's")
+            (run / "report.md").symlink_to(folder / "elsewhere" / "keep.xodr")
+        elif step == "crowded_dir":  # {dir}/crowd/ holds 100,001 empty files
+            (folder / "crowd").mkdir()
+            for i in range(100_001):
+                (folder / "crowd" / f"f{i}").touch()
+        elif step == "run_store_deleted":  # {run}/search.sqlite removed
+            (run / "search.sqlite").unlink()
+        elif step == "fifo_out":  # {dir}/out.csv is a named pipe
+            os.mkfifo(folder / "out.csv")
+        elif step == "link_out":  # {dir}/out.csv links to {dir}/elsewhere/keep.xodr
+            (folder / "elsewhere").mkdir()
+            (folder / "elsewhere" / "keep.xodr").write_text("not the probe's")
+            (folder / "out.csv").symlink_to(folder / "elsewhere" / "keep.xodr")
+        elif step == "export_into_out":  # {out}: a catalog exported from {run}
+            code = run_cli(["export", "--run", str(run), "--out", str(out)])
+            if code != 0:
+                raise CaseError(f"{case['name']}: the export gave exit {code}")
         elif step == "run_roads_symlink":  # {run}/roads links to {dir}/elsewhere
             (folder / "elsewhere").mkdir()
             (folder / "elsewhere" / "keep.xodr").write_text("not the export's")

@@ -165,6 +165,50 @@ def test_export_rewrites_the_catalog_completely(run_dir: Path, tmp_path: Path) -
     assert main(["verify", str(out)]) == 0
 
 
+def test_export_of_another_run_leaves_no_inputs_or_maps_of_the_first(
+    run_dir: Path, tmp_path: Path
+) -> None:
+    """Hostile round seven: exporting run B into a catalog made from run A kept A's
+    recorded inputs (inputs/vehicle/system_b.toml beside B's v.toml) and maps of A's
+    environments, and the new manifest certified them. What an earlier export left in
+    inputs/ and coverage/ that this one does not write is removed."""
+    out = tmp_path / "cat"
+    export_catalog(run_dir, out)
+    stale = [
+        out / "inputs" / "vehicle" / "vehicle_of_run_a.toml",
+        out / "inputs" / "other" / "old.toml",
+        out / "coverage" / "bike_rain_5.png",
+        out / "coverage" / "bike_rain_5.npz",
+    ]
+    for p in stale:  # what an export of another run would have left
+        p.parent.mkdir(parents=True, exist_ok=True)
+        p.write_text("of the first run")
+    export_catalog(run_dir, out)
+    assert not any(p.exists() for p in stale)
+    assert not (out / "inputs" / "other").exists()
+    assert main(["verify", str(out)]) == 0
+
+
+def test_a_smaller_export_in_place_removes_the_report_linking_the_old_one(
+    run_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Hostile round seven: export --top 1 in a run folder with a report removed the
+    other scenario files but kept report.html linking them, certified by the new
+    manifest. Now the report is removed (one line says so) and verify passes."""
+    run = tmp_path / "run"
+    shutil.copytree(run_dir, run)
+    assert main(["export", "--run", str(run)]) == 0
+    assert main(["report", "--run", str(run)]) == 0
+    assert (run / "report.html").is_file()
+    capsys.readouterr()
+    assert main(["export", "--run", str(run), "--top", "1"]) == 0
+    assert "removed" in capsys.readouterr().out
+    assert not (run / "report.html").exists() and not (run / "report").exists()
+    assert main(["verify", str(run)]) == 0
+    assert main(["export", "--run", str(run), "--top", "1"]) == 0  # same files: kept
+    assert "removed" not in capsys.readouterr().out
+
+
 def test_export_is_byte_identical(run_dir: Path, tmp_path: Path) -> None:
     a, b = tmp_path / "a", tmp_path / "b"
     export_catalog(run_dir, a)

@@ -119,6 +119,12 @@ def _inside_only(out: Path) -> None:
     subs = [out / s for s in ("scenarios", "roads", "coverage", INPUTS_DIR)]
     if (out / INPUTS_DIR).is_dir() and not (out / INPUTS_DIR).is_symlink():
         subs += sorted((out / INPUTS_DIR).iterdir())
+    # the files it renames onto (refused by atomic_path only after the scenarios were
+    # rewritten: a half-updated catalog)
+    subs += [
+        out / f
+        for f in ("catalog.json", "ranking.json", "ranking.csv", "run.json", "manifest.json")
+    ]
     for p in subs:
         if p.is_symlink():
             raise InputError(
@@ -129,6 +135,8 @@ def _inside_only(out: Path) -> None:
             )
 
 
+#: Files only a search run folder holds (never a catalog exported elsewhere).
+SEARCH_RUN_FILES = ("search.sqlite", "summary.json", "unavoidable.csv")
 #: What an export writes into its folder (``filesio.refuse_if_changed``): everything else
 #: listed in an existing manifest must be unchanged before the manifest is rewritten.
 EXPORT_WRITES = ("scenarios/", "roads/", "coverage/*", "catalog.json", "simulation.csv")
@@ -177,6 +185,16 @@ def export_catalog(
             "",
             f"must be the run folder itself or outside it; {out} is inside {run.folder}",
         )
+    if not in_place:  # another search run: its ranking, run.json and inputs/ replaced,
+        # its search.sqlite and summary.json kept, the mixed folder certified
+        other = next((n for n in SEARCH_RUN_FILES if (out / n).exists()), None)
+        if other is not None:
+            raise InputError(
+                "out",
+                "",
+                f"{out} holds another search run ({other}); export into the run folder "
+                "itself, a new folder or a catalog",
+            )
     writes = (
         EXPORT_WRITES
         if in_place
@@ -191,7 +209,15 @@ def export_catalog(
         for name in ("ranking.csv", "ranking.json"):
             if (run.folder / name).is_file():
                 atomic_write_bytes(out / name, (run.folder / name).read_bytes())
-        copy_record(run.folder, out)  # run.json and inputs/: the catalog rebuilds alike
+        copied = copy_record(run.folder, out)  # run.json and inputs/: rebuilt alike
+        # inputs of an earlier export of another run into this catalog are removed (the
+        # manifest would certify files no run.json entry names)
+        for old in sorted((out / INPUTS_DIR).rglob("*"), key=lambda q: -len(q.parts)):
+            rel = old.relative_to(out).as_posix()
+            if old.is_file() and not old.is_symlink() and rel not in copied:
+                old.unlink()
+            elif old.is_dir() and not old.is_symlink() and not any(old.iterdir()):
+                old.rmdir()
     files: dict[str, dict[str, Any]] = {}
     scenarios = []
     nets = {}
@@ -251,6 +277,9 @@ def export_catalog(
     if coverage:
         for p in _coverage_maps(specs, out / "coverage"):
             files[f"coverage/{p.name}"] = {"role": "coverage map"}
+        for old in [*(out / "coverage").glob("*.npz"), *(out / "coverage").glob("*.png")]:
+            if f"coverage/{old.name}" not in files and old.is_file() and not old.is_symlink():
+                old.unlink()  # a map of an earlier export (another target or environment)
     for name in ("ranking.csv", "ranking.json"):
         if (out / name).is_file():
             files[name] = {"role": "ranking"}

@@ -16,10 +16,12 @@ run.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import re
 import shutil
+import signal
 import subprocess
 import tempfile
 import time
@@ -53,6 +55,12 @@ DEFAULT_STEP_S = 0.05
 #: and the relative position (triggering entity in the reference entity's frame), m.
 MAX_TRIGGER_DT_S = 0.1
 MAX_TRIGGER_REL_M = 0.5
+#: Largest esmini log (CSV or text) read, bytes: 60 s at a 1 ms step with a few entities
+#: is ~30 MB; a larger one is a bad log, never read into memory whole. Of esmini's
+#: standard output and error only the last ``ESMINI_TAIL_BYTES`` are read (a program
+#: that floods them -- 700 MB peaked at 4.6 GB RSS when they were captured whole).
+MAX_ESMINI_LOG_BYTES = 200_000_000
+ESMINI_TAIL_BYTES = 4096
 COLUMNS = [
     "scenario_id",
     "rank",
@@ -113,6 +121,9 @@ class SimPaths:
 
 def parse_esmini_csv(path: Path) -> SimPaths:
     """esmini's ``--csv_logger`` file: one row per step, one column block per entity."""
+    size = path.stat().st_size
+    if size > MAX_ESMINI_LOG_BYTES:
+        raise ValueError(f"{path}: {size} bytes; at most {MAX_ESMINI_LOG_BYTES} read")
     lines = path.read_text(encoding="utf-8", errors="replace").splitlines()
     head = next((i for i, ln in enumerate(lines) if ln.startswith("Index")), None)
     if head is None:
@@ -334,18 +345,40 @@ def run_esmini(
         "--logfile_path",
         str(text_log),
     ]
-    try:
-        proc = subprocess.run(cmd, cwd=tmp, capture_output=True, timeout=timeout_s, check=False)
-    except subprocess.TimeoutExpired:
-        return f"timeout: esmini did not finish within {timeout_s:g} s (killed)"
+    outputs = (tmp / "esmini.stdout", tmp / "esmini.stderr")
+    try:  # into files, of which only the tails are read (memory stays bounded)
+        with outputs[0].open("wb") as out, outputs[1].open("wb") as err:
+            # a session of its own: a timeout kills what a wrapper script started, too
+            proc = subprocess.Popen(cmd, cwd=tmp, stdout=out, stderr=err, start_new_session=True)
+            try:
+                proc.wait(timeout=timeout_s)
+            except subprocess.TimeoutExpired:
+                with contextlib.suppress(OSError):
+                    os.killpg(proc.pid, signal.SIGKILL)
+                proc.wait()
+                return f"timeout: esmini did not finish within {timeout_s:g} s (killed)"
+            finally:
+                if proc.poll() is None:  # an interrupt while waiting
+                    with contextlib.suppress(OSError):
+                        os.killpg(proc.pid, signal.SIGKILL)
+                    proc.wait()
     except OSError as exc:
         return f"error: cannot run esmini: {exc}"
     if proc.returncode != 0 or not log.is_file():
-        tail = (proc.stderr or proc.stdout).decode("utf-8", "replace").strip()
+        tail = _tail(outputs[1]) or _tail(outputs[0])
         last = tail.splitlines()[-1] if tail else ""
         return f"crashed: esmini exit code {proc.returncode}: {last}"[:300]
+    if text_log.is_file() and text_log.stat().st_size > MAX_ESMINI_LOG_BYTES:
+        return f"bad log: {text_log}: larger than {MAX_ESMINI_LOG_BYTES} bytes"
     text = text_log.read_text(encoding="utf-8", errors="replace") if text_log.is_file() else ""
     return log, text
+
+
+def _tail(path: Path) -> str:
+    """The last ``ESMINI_TAIL_BYTES`` of a file as text, stripped."""
+    with path.open("rb") as f:
+        f.seek(max(0, path.stat().st_size - ESMINI_TAIL_BYTES))
+        return f.read().decode("utf-8", "replace").strip()
 
 
 def run_one(

@@ -160,6 +160,14 @@ class ScenarioSpec:
                 )
         metrics = {k: float(row[k]) for k in metric_names() if isinstance(row.get(k), int | float)}
         targets = run.targets() if run is not None else None
+        if run is not None and targets is not None and scenario.target_class not in targets:
+            # never the shipped preset of that name instead of the run's own targets
+            raise InputError(
+                run.input_path("targets") or "targets",
+                "targets",
+                f"no target class {scenario.target_class!r} (the target of family "
+                f"{family.name!r}); it defines {', '.join(targets) or 'none'}",
+            )
         target = (
             targets[scenario.target_class]
             if targets is not None and scenario.target_class in targets

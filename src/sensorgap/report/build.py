@@ -853,6 +853,13 @@ def build(folder: Path) -> tuple[str, list[str], Section, list[Section]]:
     folder = Path(folder)
     if not folder.is_dir():
         raise InputError(folder, "", "run folder does not exist")
+    for name in (REPORT_DIR, "report.html", "report.md"):  # written through, or refused
+        if (folder / name).is_symlink():  # by atomic_path after the figures were redrawn
+            raise InputError(
+                folder / name,
+                "",
+                "is a symbolic link; report writes only inside the run folder (remove the link)",
+            )
     run = open_run(folder, ranking=False)
     info = run.info
     settings = {**run.settings, **info.get("settings", {})}

@@ -463,6 +463,9 @@ class Evaluator:
         self._maps: OrderedDict[tuple[str, str], LogMissMaps] = OrderedDict()
         self._scenes: dict[tuple[str, str], Scene] = {}
         self._targets: dict[str, TargetConfig] = {}
+        #: the targets file ``_targets`` was filled from (a run's recorded copy): a class
+        #: it lacks is refused, never taken from the shipped presets instead
+        self.targets_source: str | None = None
         self.sensor_ids = system.sensor_ids()
         #: viewpoint of perfect perception (``coverage.sightline``): the driver's eye, m
         self.perfect_views = viewpoints(system.config.vehicle)
@@ -481,6 +484,12 @@ class Evaluator:
     def target(self, name: str) -> TargetConfig:
         """A target class by name (cached)."""
         if name not in self._targets:
+            if self.targets_source is not None:
+                raise InputError(
+                    self.targets_source,
+                    "targets",
+                    f"no target class {name!r}; it defines {', '.join(self._targets) or 'none'}",
+                )
             self._targets[name] = load_target(name)
         return self._targets[name]
 

@@ -47,7 +47,7 @@ from sensorgap.search.ranking import (
     rank_exact,
     reevaluate,
 )
-from sensorgap.search.runfolder import record_inputs, write_search_record
+from sensorgap.search.runfolder import INPUTS_DIR, record_inputs, write_search_record
 from sensorgap.search.settings import (
     Prepared,
     SearchSettings,
@@ -81,6 +81,11 @@ SEARCH_WRITES = (
     "search.sqlite",
     "inputs/",
 )
+
+
+#: Files of a finished run or catalog: a new search (no --resume) into a folder holding
+#: one but no stored candidates is refused (its export and report would stay, stale).
+EARLIER_RUN_FILES = ("ranking.json", "run.json", "catalog.json")
 
 
 def _finite_or_none(v: float) -> float | None:
@@ -400,6 +405,20 @@ def run_search(
         )
     )
     db = out / "search.sqlite"
+    # what it writes, followed through a link, would land outside --out (SQLite opens
+    # the store and its journal through one; the inputs are copied into inputs/*/)
+    inputs = out / INPUTS_DIR
+    written = [out / w.rstrip("/") for w in SEARCH_WRITES] + [out / f"{db.name}-journal"]
+    if inputs.is_dir() and not inputs.is_symlink():
+        written += sorted(inputs.iterdir())
+    for path in written:
+        if path.is_symlink():
+            raise InputError(
+                "out",
+                "",
+                f"{path} is a symbolic link; a search writes only inside --out (remove the "
+                "link, or use another --out)",
+            )
     new_db = not db.exists()
     new_out = not out.exists()
     out.mkdir(parents=True, exist_ok=True)
@@ -411,6 +430,15 @@ def run_search(
                 "",
                 f"{out} already holds a search ({n_stored} candidates "
                 "stored); add --resume to continue it, or use another --out",
+            )
+        earlier = next((n for n in EARLIER_RUN_FILES if (out / n).exists()), None)
+        if not resume and earlier is not None:  # its export and report would stay, stale
+            raise InputError(
+                "out",
+                "",
+                f"{out} holds an earlier run or catalog ({earlier}) without a stored "
+                "search; a new search would leave its scenarios and report beside the new "
+                "ranking: use another --out",
             )
         try:
             store = Store(db, p.record, p.inputs)

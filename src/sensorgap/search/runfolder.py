@@ -194,18 +194,22 @@ def write_search_record(
     return info
 
 
-def copy_record(src: Path, dst: Path) -> None:
+def copy_record(src: Path, dst: Path) -> set[str]:
     """Copy ``run.json`` and the recorded inputs of run folder ``src`` into ``dst`` (a
-    catalog exported elsewhere keeps the inputs it was built from)."""
+    catalog exported elsewhere keeps the inputs it was built from); returns the relative
+    POSIX paths of the inputs copied."""
     src, dst = Path(src), Path(dst)
     info = read_run_info(src)
+    copied: set[str] = set()
     if not isinstance(info.get("inputs"), dict):
-        return
+        return copied
     for _, e in _entries(info["inputs"]):
         rel = str(e.get("copy", ""))
         if rel and (src / rel).is_file() and ".." not in Path(rel).parts:
             atomic_write_bytes(dst / rel, (src / rel).read_bytes())
+            copied.add(Path(rel).as_posix())
     atomic_write_bytes(dst / RUN_JSON, (src / RUN_JSON).read_bytes())
+    return copied
 
 
 # -- reading ---------------------------------------------------------------------------
@@ -492,6 +496,9 @@ class RunFolder:
             self.system(), mode=mode, rule=rule, reaction=self.reaction(), friction=self.friction()
         )
         ev._targets.update(self.targets())  # the cache Evaluator.target fills from presets
+        recorded = self.input_path("targets")
+        if recorded is not None:  # a class the recorded copy lacks is refused
+            ev.targets_source = str(recorded)
         return ev
 
     def check_inputs(self) -> None:
