@@ -13,16 +13,20 @@ from sensorgap.config.vehicle import RocConfig
 from sensorgap.coverage import GridSpec, Scene
 from sensorgap.coverage.fastglare import roc_log_miss
 from sensorgap.coverage.fastkernel import roc_constants
+from sensorgap.coverage.kernel import evaluate_offsets
 from sensorgap.coverage.logmiss import (
     GlaredBodies,
     LogMissMaps,
+    _glare_at,
     _glared_values,
     _glared_values_numpy,
     log_miss_of,
 )
 from sensorgap.models import Conditions, load_system
+from sensorgap.models.geometry import rotate_offsets, spherical
 from sensorgap.models.numerics import clip_snr_db
 from sensorgap.models.roc import detection_probability
+from sensorgap.models.system import Sensor
 
 ENVS = load_environments()
 
@@ -58,12 +62,43 @@ def test_roc_log_miss_equals_the_numpy_roc(roc: RocConfig, shift_db: float) -> N
     assert np.any(want > -1e-5) and np.any(want < -30.0)  # both ends of the curve hit
 
 
+def _exact_at(
+    scene: Scene, s: Sensor, bodies: GlaredBodies, outline: np.ndarray, flat: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """ln(1 - Pd) of camera ``s`` at outline points ``flat`` of the (M * K) points of
+    ``bodies`` in numpy, with the bodies' own glare weights: the camera's field of view and
+    range (``evaluate_offsets``), ``snr_db_glare`` at its range and angles with the factor
+    of ``glare_factors``, and the ROC. Also whether each point is in view."""
+    k = len(outline)
+    b, o = flat // k, flat % k
+    c, sn = np.cos(bodies.psi[b]), np.sin(bodies.psi[b])
+    px = bodies.x[b] + c * outline[o, 0] - sn * outline[o, 1]
+    py = bodies.y[b] + sn * outline[o, 0] + c * outline[o, 1]
+    m = s.mount
+    dx, dy, dz = px - m.x, py - m.y, bodies.z[b] - m.z
+    ok, _, _ = evaluate_offsets(scene, s, dx, dy, dz)
+    vals = np.zeros(flat.size)
+    if ok.any():
+        r, az, el = spherical(*rotate_offsets(m, dx[ok], dy[ok], dz[ok]))
+        fac, _ = _glare_at(
+            s, px[ok], py[ok], bodies.z[b][ok], bodies.sun_dirs[b][ok], bodies.weights[b][ok]
+        )
+        prepared = scene.prepared(s)
+        assert prepared.snr_db_glare is not None
+        snr = clip_snr_db(prepared.snr_db_glare(r, az, el, fac))
+        vals[ok] = log_miss_of(detection_probability(snr, s.roc, scene.roc_shift_db))
+    return vals, ok
+
+
 @pytest.mark.parametrize("env_name", ["clear", "glare_front_right"])
 def test_compiled_glare_equals_the_numpy_reference(env_name: str) -> None:
     """System B's glare-prone cameras in a scene with a sun, bodies of a car at random
     headings and places (in, at the edge of and out of view), random vehicle-frame sun
     directions (some near each camera's boresight) and glare weights: the same states and
-    Pd (see ``_same_log_miss``), at the centres and over the outline."""
+    Pd (see ``_same_log_miss``), at the centres and over the outline. Where the reference
+    leaves a point to exact evaluation (state 2: the edge of the view, off the map), the
+    compiled pass evaluates it exactly itself (state 3, or 0 out of view): equal to the
+    camera's numpy model at the point (``_exact_at``)."""
     env = ENVS[env_name]
     system = load_system("system_b")
     car = load_target("car")
@@ -93,8 +128,14 @@ def test_compiled_glare_equals_the_numpy_reference(env_name: str) -> None:
         for shape in (np.zeros((1, 2)), outline):
             got, st = _glared_values(maps, scene, row, bodies, shape)
             want, st_want = _glared_values_numpy(maps, scene, row, bodies, shape)
-            np.testing.assert_array_equal(st, st_want)
-            _same_log_miss(got, want)
-            assert set(np.unique(st)) == {0, 1, 2}  # in, out and at the edge of view
+            edge = st_want == 2
+            np.testing.assert_array_equal(st[~edge], st_want[~edge])
+            _same_log_miss(got[~edge], want[~edge])
+            exact, in_view = _exact_at(scene, s, bodies, shape, np.flatnonzero(edge.ravel()))
+            np.testing.assert_array_equal(st[edge], np.where(in_view, 3, 0))
+            _same_log_miss(got[edge], exact)
+            assert set(np.unique(st_want)) == {0, 1, 2}  # in, out and at the edge of view
+            assert 3 in st and int(np.count_nonzero(st[edge] == 0)) > 0
+            seen_glare += int(np.count_nonzero((st == 3) & (got > -30.0) & (got < -1e-6)))
             seen_glare += int(np.count_nonzero((st == 1) & (want > -30.0) & (want < -1e-6)))
     assert seen_glare > 100  # the steep part of the ROC under glare is exercised

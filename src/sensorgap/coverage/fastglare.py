@@ -19,7 +19,7 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-from sensorgap.coverage.fastkernel import ROC_SMOOTHSTEP
+from sensorgap.coverage.fastkernel import ROC_SMOOTHSTEP, sensor_frame
 from sensorgap.coverage.fastlookup import bilinear_finite_at
 from sensorgap.models.numerics import LN10_OVER_10, SNR_CEIL_DB, SNR_FLOOR_DB
 
@@ -64,6 +64,25 @@ def roc_log_miss(snr_db: float, code: int, c: F64) -> float:  # pragma: no cover
     return math.log1p(-min(pd, _ALMOST_ONE))
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def camera_signal_db(r: float, az: float, el: float, s: F64) -> float:  # pragma: no cover
+    """The built-in camera's received signal, dB (``models/camera.py`` ``signal_db``, with
+    the constants of ``PreparedSensor.signal_constants`` ``s``: k, sigma, IFOV and pixel
+    count in dB, one-way weather loss dB/m, edge loss dB, hfov and vfov rad) at range r
+    (m), sensor-frame azimuth and elevation (rad); the edge loss as
+    ``geometry.pattern_loss_db``."""
+    lr20 = 20.0 * math.log10(r)
+    ne = s[0] + min(s[1] - lr20 - s[2], s[3]) - lr20 - s[4] * r
+    if s[5] > 0.0:
+        loss = 0.0
+        if s[6] > 0.0:
+            loss += (2.0 * az / s[6]) ** 2
+        if s[7] > 0.0:
+            loss += (2.0 * el / s[7]) ** 2
+        ne -= s[5] * loss
+    return ne
+
+
 @numba.njit(cache=True, nogil=True)
 def glared_pass(
     signal: F32,
@@ -81,6 +100,8 @@ def glared_pass(
     veil: F64,
     code: int,
     c: F64,
+    view: F64,
+    sig_c: F64,
     out: F64,
     state: NDArray[np.int8],
 ) -> None:  # pragma: no cover - compiled
@@ -93,7 +114,11 @@ def glared_pass(
     m; ``inv_res`` cells per m) around the point are in view (``state`` 1); else 0 with
     state 0 (out of view) or 2 (the edge of the view or off the map: the caller evaluates
     it exactly). ``mount``: the camera's position (m); ``veil``: (ln veil-to-object ratio
-    at theta_min, ln thermal noise, one-way weather loss dB/m, theta_min deg)."""
+    at theta_min, ln thermal noise, one-way weather loss dB/m, theta_min deg). With the
+    camera's ``signal_constants`` ``sig_c`` (non-empty) and ``view``
+    (``fastkernel.mount_constants``), those points are evaluated exactly here instead: the
+    field of view and range at the point and ``camera_signal_db`` there (state 3, or 0 out
+    of view)."""
     ln_veil0 = veil[0]
     ln_thermal = veil[1]
     one_way = veil[2]
@@ -108,13 +133,20 @@ def glared_pass(
             px = xs[m] + cp * ox - sp * oy
             py = ys[m] + sp * ox + cp * oy
             sig, st = bilinear_finite_at(signal, x0, y0, inv_res, px, py)
-            state[m, k] = st
-            out[m, k] = 0.0
-            if st != 1:
-                continue
             dx = px - mount[0]
             dy = py - mount[1]
             dz = z[m] - mount[2]
+            if st == 2 and sig_c.size:  # the edge of the view or off the map: exact
+                ok, rs, u, v, ws, rho2 = sensor_frame(dx, dy, dz, view)
+                st = 3 if ok else 0
+                if ok:
+                    sig = camera_signal_db(
+                        rs, math.atan2(v, u), math.atan2(ws, math.sqrt(rho2)), sig_c
+                    )
+            state[m, k] = st
+            out[m, k] = 0.0
+            if st == 0 or st == 2:
+                continue
             r = math.sqrt(dx * dx + dy * dy + dz * dz)
             g = 0.0
             if w[m] > 0.0:

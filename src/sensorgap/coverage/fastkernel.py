@@ -55,6 +55,36 @@ def mount_constants(m: Mount) -> F64:
     )
 
 
+@numba.njit(cache=True, nogil=True, fastmath=False, inline="always")
+def sensor_frame(
+    ddx: float, ddy: float, dz: float, c: F64
+) -> tuple[bool, float, float, float, float, float]:  # pragma: no cover - compiled
+    """Whether the offset (``ddx``, ``ddy``, ``dz``) from a mount (vehicle-frame axes, m) is
+    in view of it (``mount_constants`` ``c``: field of view and range, as
+    ``geometry.fov_mask`` and ``in_range``), with its range r (m) and sensor-frame u, v, w
+    (m) and u^2 + v^2 (m2)."""
+    cy, sy, cp, sp = c[0], c[1], c[2], c[3]
+    mode, th, tv2 = int(c[5]), c[6], c[8]
+    u = cy * ddx + sy * ddy
+    v = -sy * ddx + cy * ddy
+    w = dz
+    if c[4] != 0.0:
+        u, w = cp * u - sp * dz, sp * u + cp * dz
+    if mode == 2:
+        if not (u > 0.0 and abs(v) <= u * th):
+            return False, 0.0, u, v, w, 0.0
+    elif mode == 1:
+        if not (u >= 0.0):
+            return False, 0.0, u, v, w, 0.0
+    elif mode == 3 and u < 0.0 and abs(v) < -u * th:
+        return False, 0.0, u, v, w, 0.0
+    rho2 = u * u + v * v
+    if c[7] == 0.0 and not (w * w <= rho2 * tv2):
+        return False, 0.0, u, v, w, rho2
+    r = math.sqrt(rho2 + w * w)
+    return r > 0.0 and r <= c[10] and r >= c[9], r, u, v, w, rho2
+
+
 @numba.njit(cache=True, nogil=True, fastmath=False)
 def subgrid_geometry(
     dx: F64, dy: F64, dz: float, c: F64, skip: NDArray[np.bool_], want_angles: bool
@@ -62,9 +92,7 @@ def subgrid_geometry(
     """For the sub-grid of offsets (dy rows x dx columns, m) return the flat indices of the
     cells in view with their range (m), azimuth and elevation (rad; zeros unless
     ``want_angles``). Cells with ``skip`` set (same shape as the sub-grid) are left out."""
-    cy, sy, cp, sp, pitched = c[0], c[1], c[2], c[3], c[4] != 0.0
-    mode, th, v_all, tv2 = int(c[5]), c[6], c[7] != 0.0, c[8]
-    rmin, rmax = c[9], c[10]
+    rmax = c[10]
     ny, nx = dy.size, dx.size
     n = ny * nx
     idx = np.empty(n, np.int64)
@@ -91,24 +119,8 @@ def subgrid_geometry(
             r2 = ddx * ddx + ddy * ddy + dz * dz
             if r2 > rmax2:
                 continue
-            u = cy * ddx + sy * ddy
-            v = -sy * ddx + cy * ddy
-            w = dz
-            if pitched:
-                u, w = cp * u - sp * dz, sp * u + cp * dz
-            if mode == 2:
-                if not (u > 0.0 and abs(v) <= u * th):
-                    continue
-            elif mode == 1:
-                if not (u >= 0.0):
-                    continue
-            elif mode == 3 and u < 0.0 and abs(v) < -u * th:
-                continue
-            rho2 = u * u + v * v
-            if not v_all and not (w * w <= rho2 * tv2):
-                continue
-            r = math.sqrt(rho2 + w * w)
-            if not (r > 0.0 and r <= rmax and r >= rmin):
+            ok, r, u, v, w, rho2 = sensor_frame(ddx, ddy, dz, c)
+            if not ok:
                 continue
             idx[k] = j * nx + i
             rr[k] = r

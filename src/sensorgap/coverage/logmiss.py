@@ -34,7 +34,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sensorgap.coverage.fastglare import glared_pass
-from sensorgap.coverage.fastkernel import roc_constants
+from sensorgap.coverage.fastkernel import mount_constants, roc_constants
 from sensorgap.coverage.fastlookup import (
     bilerp,
     bilinear_finite_at,
@@ -113,15 +113,15 @@ def _glared_values(
     signal with the point's glare factor, where the four cells around the point are in
     view (state 1); 0 with state 0 (out of view) or 2 (the edge of the view, or no signal
     map): the caller evaluates those exactly. (M, K) values and states. Compiled
-    (``fastglare.glared_pass``) for the built-in camera with a closed-form ROC;
-    ``_glared_values_numpy`` otherwise (and as the reference)."""
-    s = scene.sensors[row]
-    prepared = scene.prepared(s)
+    (``fastglare.glared_pass``) for the built-in camera with a closed-form ROC, which
+    evaluates the edge points exactly itself (state 3: its ``signal_constants``);
+    ``_glared_values_numpy`` otherwise (and, with the exact evaluation of its state-2
+    points, as the reference)."""
     n, k = len(bodies.x), len(outline)
-    if row not in maps.signal or prepared.snr_from_signal is None:
+    if row not in maps.signal or scene.prepared(scene.sensors[row]).snr_from_signal is None:
         return np.zeros((n, k)), np.full((n, k), 2, dtype=np.int8)
-    roc = roc_constants(s.roc, scene.roc_shift_db)
-    if prepared.veil_constants is None or roc is None:
+    cc = _compiled_camera(scene, row)
+    if cc is None:
         return _glared_values_numpy(maps, scene, row, bodies, outline)
     out = np.empty((n, k))
     state = np.empty((n, k), dtype=np.int8)
@@ -133,16 +133,54 @@ def _glared_values(
         np.ascontiguousarray(bodies.psi, dtype=np.float64),
         np.ascontiguousarray(outline, dtype=np.float64),
         np.ascontiguousarray(bodies.z, dtype=np.float64),
-        np.array([s.mount.x, s.mount.y, s.mount.z]),
+        cc.mount,
         np.ascontiguousarray(bodies.sun_dirs, dtype=np.float64),
         np.ascontiguousarray(bodies.weights, dtype=np.float64),
-        np.array(prepared.veil_constants, dtype=np.float64),
-        roc[0],
-        roc[1],
+        cc.veil,
+        cc.roc_code,
+        cc.roc,
+        cc.view,
+        cc.signal,
         out,
         state,
     )
     return out, state
+
+
+class _CompiledCamera(NamedTuple):
+    """What ``fastglare.glared_pass`` needs of a glare-prone camera, as arrays: its
+    position (m), ``veil_constants``, ROC kind and constants, ``mount_constants`` and
+    ``signal_constants`` (empty: edge points left to numpy)."""
+
+    mount: F64
+    veil: F64
+    roc_code: int
+    roc: F64
+    view: F64
+    signal: F64
+
+
+def _compiled_camera(scene: Scene, row: int) -> _CompiledCamera | None:
+    """``_CompiledCamera`` of sensor ``row`` (``None``: no compiled form: another sensor
+    type or ROC kind); cached on the scene (they were rebuilt at every call)."""
+    cache: dict[int, _CompiledCamera | None] = scene.__dict__.setdefault("_compiled_cameras", {})
+    if row not in cache:
+        s = scene.sensors[row]
+        prepared = scene.prepared(s)
+        roc = roc_constants(s.roc, scene.roc_shift_db)
+        cache[row] = (
+            None
+            if prepared.veil_constants is None or roc is None
+            else _CompiledCamera(
+                np.array([s.mount.x, s.mount.y, s.mount.z]),
+                np.array(prepared.veil_constants, dtype=np.float64),
+                roc[0],
+                roc[1],
+                mount_constants(s.mount),
+                np.array(prepared.signal_constants or (), dtype=np.float64),
+            )
+        )
+    return cache[row]
 
 
 def _glared_values_numpy(
@@ -260,7 +298,8 @@ def _glare_change(
     edge = np.flatnonzero(state == 2)
     if edge.size:  # at the edge of the field of view: exact
         new[edge] = exact_edge(edge)
-    return new - layer, int(edge.size)
+    # (state 3: at the edge too, evaluated exactly in the compiled pass)
+    return new - layer, int(edge.size) + int(np.count_nonzero(state == 3))
 
 
 def exact_log_miss(

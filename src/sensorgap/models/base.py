@@ -53,6 +53,11 @@ class PreparedSensor:
             electrons, the one-way weather loss in dB/m, ``theta_min`` in deg) for the
             compiled glare lookup (``coverage.fastglare``); ``None``: the lookup calls
             ``snr_from_signal``.
+        signal_constants: the constants of the built-in camera's ``signal_db`` (k in dB,
+            sigma in dBsm, the IFOV in dB, the pixel count in dB, the one-way weather loss
+            in dB/m, the field-of-view edge loss in dB, hfov and vfov in rad), so the
+            compiled glare lookup evaluates points at the edge of the view exactly
+            (``coverage.fastglare.camera_signal_db``); ``None``: it leaves them to numpy.
     """
 
     snr_db: SnrFunction
@@ -61,6 +66,7 @@ class PreparedSensor:
     signal_db: SnrFunction | None = None
     snr_from_signal: Callable[[F64, F64, F64], F64] | None = None
     veil_constants: tuple[float, float, float, float] | None = None
+    signal_constants: tuple[float, ...] | None = None
     terms_db: dict[str, float] = field(default_factory=dict)
     effects: dict[str, str] = field(default_factory=dict)
 

@@ -254,4 +254,9 @@ class Camera(SensorModel):
             signal_db=signal_db if glare else None,
             snr_from_signal=snr_from_signal if glare else None,
             veil_constants=(ln_veil0, ln_thermal, one_way_db_m, t_min) if glare else None,
+            signal_constants=(
+                (k_db, sigma_db, ifov_db, n_pix_db, one_way_db_m, edge, hfov, vfov)
+                if glare
+                else None
+            ),
         )
