@@ -518,14 +518,18 @@ def _polygons(g: BaseGeometry) -> list[Polygon]:
 
 
 def holes(
-    covered: Sequence[BaseGeometry], body: Polygon, window: Polygon | None = None
+    covered: Sequence[BaseGeometry],
+    body: Polygon,
+    window: Polygon | None = None,
+    union: BaseGeometry | None = None,
 ) -> list[Polygon]:
     """Bounded uncovered regions: the connected components of the complement of the union
     of ``covered`` and ``body`` that do not reach infinity (those lying inside ``window`` if
     given), largest first (ties by position). Regions that touch the outside only at a
     point count as enclosed (as for 4-connected grid cells). Overlay slivers below
-    ``MIN_HOLE_M2`` are dropped."""
-    union = shapely.union_all([*covered, body], grid_size=SNAP_M)
+    ``MIN_HOLE_M2`` are dropped. ``union``: that union if the caller has it."""
+    if union is None:
+        union = shapely.union_all([*covered, body], grid_size=SNAP_M)
     xmin, ymin, xmax, ymax = union.bounds
     frame = box(xmin - 1.0, ymin - 1.0, xmax + 1.0, ymax + 1.0)
     found: list[Polygon] = []
@@ -882,10 +886,12 @@ def write_nearfield(
     win = near_field_window(system, radius)
     fp_any = any_height_footprints(system, height_range, dphi_deg)
     fp_z = at_height_footprints(system, z, dphi_deg)
-    every_hole = holes(list(fp_any.values()), vehicle_polygon(system))
+    body = vehicle_polygon(system)
+    union = shapely.union_all([*fp_any.values(), body], grid_size=SNAP_M)  # computed once
+    every_hole = holes(list(fp_any.values()), body, union=union)
     spots = [h for h in every_hole if win.covers(h)]
     unc = uncovered_at_height(system, z, None, radius, dphi_deg, footprints=fp_z)
-    unseen = unseen_at_any_height(system, radius, height_range, dphi_deg, footprints=fp_any)
+    unseen = _as_area(shapely.difference(win, union, grid_size=SNAP_M))  # unseen_at_any_height
     g_bs = grid_blind_spots(system, resolution, radius, height_range)
     g_un = grid_uncovered_at_height(system, z, resolution, None, radius)
     exact_bs = sum(p.area for p in spots)
