@@ -123,6 +123,15 @@ def _scene(args: argparse.Namespace, ego_heading_rad: float = 0.0) -> Scene:
     return Scene(system, target, Conditions.from_config(env, ego_heading_rad))
 
 
+def _same_file(a: str, b: str) -> bool:
+    """Whether two paths name the same file (the same resolved path, or one file under two
+    names)."""
+    try:
+        return Path(a).resolve() == Path(b).resolve() or os.path.samefile(a, b)
+    except OSError:
+        return False
+
+
 def cmd_probe(args: argparse.Namespace) -> int:
     """Per-sensor SNR/Pd and fused Pd at points read from a CSV."""
     from sensorgap.atomic import atomic_write_bytes
@@ -130,6 +139,10 @@ def cmd_probe(args: argparse.Namespace) -> int:
     from sensorgap.coverage.outputs import probe_csv
     from sensorgap.coverage.pointsio import MAX_POINT_SENSOR_VALUES, read_points_csv
 
+    if args.out and _same_file(args.out, args.points):
+        raise InputError(
+            "--out", "", f"is the --points file {args.points}: writing would overwrite the input"
+        )
     scene = _scene(args)
     pts = read_points_csv(Path(args.points), default_z=scene.target.reference_height_m)
     per_point = len(scene.sensors) * (1 if args.heading is None else BODY_COST)
@@ -799,6 +812,7 @@ def cmd_corridor(args: argparse.Namespace) -> int:
             "x_start/x_goal": "--start/--goal",
             "lanes": "--lanes",
             "lateral_res": "--lateral-res",
+            "speed_rel": "--speed",
         }.get(exc.field)
         if exc.source == "corridor" and flag:
             raise InputError(flag, "", exc.message) from None

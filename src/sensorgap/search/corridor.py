@@ -117,6 +117,14 @@ def corridor_search(
     # the lattice size before anything is allocated (a graph node costs ~1 kB)
     cols_est = (x_goal - x_start) / step + 1.0
     rows_est = (y_hi - y_lo) / lateral_res + 1.0
+    if cols_est > MAX_CORRIDOR_NODES:  # too many columns even for a single row
+        raise InputError(
+            "corridor",
+            "speed_rel",
+            f"{cols_est:.3g} columns of the lattice (one per {dt:g} s over "
+            f"{abs(x_goal - x_start):g} m at {speed_rel:g} m/s) are too many (at most "
+            f"{MAX_CORRIDOR_NODES:.0e} nodes); raise the speed or shorten the approach",
+        )
     if cols_est * rows_est > MAX_CORRIDOR_NODES:
         raise InputError(
             "corridor",
