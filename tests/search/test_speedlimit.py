@@ -4,6 +4,7 @@ environment, checked against closed-form answers computed here independently."""
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -112,3 +113,33 @@ def test_search_never_drives_above_the_lawful_speed() -> None:
     res = prob.evaluate(cand)
     assert not res.feasible
     assert "lawful speed in fog_50" in res.note and "within sight" in res.note
+
+
+def test_search_never_drives_above_the_vehicles_top_speed(tmp_path: Path) -> None:
+    """A vehicle whose top speed (``vehicle.max_speed_m_s``) lies inside the family's ego
+    speeds: the search's ego speeds stop at it in every environment (an ego asked to drive
+    faster would not play as planned in esmini), and a given speed above it is an
+    infeasible row naming the top speed. System A's 250 km/h binds nowhere."""
+    from sensorgap.config.presets import templates_dir
+
+    text = (templates_dir() / "vehicles" / "system_a.toml").read_text(encoding="utf-8")
+    path = tmp_path / "slow.toml"
+    path.write_text(text.replace("max_speed_m_s = 69.4", "max_speed_m_s = 20.0"), "utf-8")
+    prob = SearchProblem(
+        load_family("cut_in_right"),
+        {"clear": ENVS["clear"], "fog_50": ENVS["fog_50"]},
+        Evaluator(load_system(path), "lookup"),
+    )
+    assert prob.speed_limits["clear"].speed_m_s == 20.0
+    assert "top speed 72 km/h" in prob.speed_limits["clear"].rule
+    d = prob.decode_batch(np.random.default_rng(4).random((2000, prob.dim)))
+    v = np.asarray(d.params[EGO_SPEED], dtype=float)
+    assert v.max() <= 20.0 and v.max() > 19.9
+    cand = prob.candidates(d.take(np.arange(1)))[0]
+    cand.params[EGO_SPEED] = 30.0
+    res = prob.evaluate(cand)
+    assert not res.feasible and "top speed 72 km/h" in res.note
+    preset = SearchProblem(
+        load_family("cut_in_right"), {"clear": ENVS["clear"]}, Evaluator(load_system("system_a"))
+    )
+    assert math.isinf(preset.speed_limits["clear"].speed_m_s)  # the lawful bound, unchanged

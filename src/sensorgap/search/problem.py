@@ -263,11 +263,24 @@ class SearchProblem:
         #: per environment: the lawful ego speed bound (driving within sight); the ego
         #: speed dimension spans ``[low, min(high, bound)]`` in each environment, and a row
         #: above the bound (``evaluate`` with given values) is infeasible
+        self._ego_speed = next((p for p in family.space if p.name == EGO_SPEED), None)
         self.speed_limits: dict[str, SpeedLimit] = {
-            n: speed_limit(e, evaluator.reaction, evaluator.friction)
+            n: self._with_top_speed(speed_limit(e, evaluator.reaction, evaluator.friction))
             for n, e in environments.items()
         }
-        self._ego_speed = next((p for p in family.space if p.name == EGO_SPEED), None)
+
+    def _with_top_speed(self, lim: SpeedLimit) -> SpeedLimit:
+        """``lim``, or the vehicle's top speed (``vehicle.max_speed_m_s``) where that binds
+        first within the family's ego speeds: an ego cannot drive faster than it can (and
+        an exported scenario asking it to would not play as planned)."""
+        top = self.evaluator.system.config.vehicle.max_speed_m_s
+        if self._ego_speed is None or top >= min(lim.speed_m_s, self._ego_speed.high):
+            return lim
+        return SpeedLimit(
+            top,
+            lim.visibility_m,
+            f"the vehicle's top speed {top * 3.6:.0f} km/h (vehicle.max_speed_m_s)",
+        )
 
     def ego_speed_range(self, env: str) -> tuple[float, float]:
         """The ego speed range searched in environment ``env``, m/s: the family's range cut
