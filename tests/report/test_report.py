@@ -272,3 +272,26 @@ def test_scenario_figure_shows_the_named_step(
     assert any(lab.startswith("P(confirmed") for lab in labels)
     assert "path TTC [s] (cut at 10 s)" in labels
     assert {"threat onset", "t_safe"} <= set(labels)
+
+
+def test_markdown_shows_names_as_written_not_as_html() -> None:
+    """report.md: text a Markdown renderer would take for HTML (a family file named
+    ``st op&<x>``, the report's own ``difference/<map>/``) is written with entities that
+    show it as written; ``Pd < 0.5`` and plain ``&`` stay as they are."""
+    from sensorgap.report.document import Bullets, Link, Para, Section, Table, render_markdown
+
+    sec = Section(
+        "s",
+        "From st op&<x>",
+        [
+            Para("The ranked scenarios come from st op&<x> (1); Pd < 0.5 & more."),
+            Bullets([("<b>bold</b>", "&amp; &#60;")]),
+            Table(["family"], [["st op&<x>"], [Link("<x>", "x.html")]], "maps: difference/<map>/"),
+        ],
+    )
+    md = render_markdown("Report <i>", ["run <script>"], [sec])
+    assert "<x>" not in md and "<map>" not in md and "<b>" not in md and "<i>" not in md
+    assert "<script>" not in md
+    assert "st op&&lt;x> (1); Pd < 0.5 & more." in md
+    assert "difference/&lt;map>/" in md and "&amp;amp; &amp;#60;" in md
+    assert "[&lt;x>](x.html)" in md

@@ -233,34 +233,45 @@ def render_html(
     )
 
 
+#: What a Markdown renderer would take for HTML in text: a tag's or comment's opening
+#: ``<`` and an entity's ``&`` (a family file named ``st op&<x>.toml`` printed raw; the
+#: report's own ``difference/<map>/`` vanished as a tag).
+_MD_HTML = re.compile(r"<(?=[A-Za-z/!?])|&(?=#?[A-Za-z0-9]+;)")
+
+
+def _md(text: str) -> str:
+    """Text for Markdown: HTML-like ``<`` and ``&`` as entities (shown as themselves)."""
+    return _MD_HTML.sub(lambda m: "&lt;" if m.group(0) == "<" else "&amp;", text)
+
+
 def _md_cell(c: Cell) -> str:
     if isinstance(c, Link):
         return f"[{_md_cell(c.text)}]({c.href})"
-    return c.replace("|", "\\|").replace("\n", " ")
+    return _md(c).replace("|", "\\|").replace("\n", " ")
 
 
 def _md_block(b: Block) -> str:
     if isinstance(b, Para):
-        return b.text
+        return _md(b.text)
     if isinstance(b, Bullets):
         return "\n".join(
             f"{f'{i}.' if b.ordered else '-'} "
-            + (t if isinstance(t, str) else f"**{t[0]}** {t[1]}")
+            + (_md(t) if isinstance(t, str) else f"**{_md(t[0])}** {_md(t[1])}")
             for i, t in enumerate(b.items, start=1)
         )
     if isinstance(b, Table):
-        lines = [f"*{b.caption}*", ""] if b.caption else []
+        lines = [f"*{_md(b.caption)}*", ""] if b.caption else []
         lines.append("| " + " | ".join(_md_cell(h) for h in b.headers) + " |")
         lines.append("|" + "---|" * len(b.headers))
         lines += ["| " + " | ".join(_md_cell(c) for c in r) + " |" for r in b.rows]
         return "\n".join(lines)
     if isinstance(b, Image):
-        return f"![{b.caption}]({b.rel or b.path.name})\n\n*{b.caption}*"
-    return "\n".join(f"- [{text}]({href})" for text, href in b.items)
+        return f"![{_md(b.caption)}]({b.rel or b.path.name})\n\n*{_md(b.caption)}*"
+    return "\n".join(f"- [{_md(text)}]({href})" for text, href in b.items)
 
 
 def _md_section(s: Section, level: int) -> str:
-    parts = [f"{'#' * level} {s.title}"]
+    parts = [f"{'#' * level} {_md(s.title)}"]
     parts += [_md_block(b) for b in s.blocks]
     parts += [_md_section(sub, min(level + 1, 6)) for sub in s.subsections]
     return "\n\n".join(parts)
@@ -270,6 +281,6 @@ def render_markdown(
     title: str, meta: list[str], sections: list[Section], front: Section | None = None
 ) -> str:
     """The same content as Markdown with linked PNGs (``front`` first)."""
-    head = [f"# {title}", *meta]
+    head = [f"# {_md(title)}", *(_md(m) for m in meta)]
     secs = ([front] if front is not None else []) + sections
     return "\n\n".join([*head, *(_md_section(s, 2) for s in secs)]) + "\n"
