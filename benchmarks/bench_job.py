@@ -21,7 +21,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from benchmarks.common import table
+from benchmarks.common import load_average, table
 from sensorgap.jobs import TARGET_PEAK_MIB, TARGET_TIME_S
 
 RUNS = 3
@@ -93,12 +93,12 @@ def _one(out: Path) -> dict[str, float]:
 
 def run(runs: int = RUNS) -> str:
     """Run the benchmark; returns the Markdown table."""
-    load_start = os.getloadavg()[0]
+    load_start = load_average()
     results = []
     for i in range(runs):
         with tempfile.TemporaryDirectory() as tmp:
             results.append(_one(Path(tmp) / f"run{i}"))
-    load_end = os.getloadavg()[0]
+    load_end = load_average()
 
     def cell(key: str, fmt: str) -> str:
         vals = [r[key] for r in results]
@@ -126,7 +126,7 @@ def run(runs: int = RUNS) -> str:
         f"Default job (System A, every family and environment, 100,000 candidates), {runs} "
         "runs in fresh child processes: median (each run)\n\n"
         + table(["quantity", "median (runs)", "target", "met"], rows)
-        + f"\n\nLoad average (1 min) {load_start:.2f} before, {load_end:.2f} after "
+        + f"\n\nLoad average (1 min) {load_start} before, {load_end} after "
         f"({os.cpu_count()} CPUs); time is met on the median, memory on the largest run.\n"
     )
 

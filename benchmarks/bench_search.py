@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks.common import table
+from benchmarks.common import load_average, table
 from sensorgap.config import load_environments
 from sensorgap.models import load_system
 from sensorgap.scenarios import load_family
@@ -75,14 +75,6 @@ def _rates(prob: SearchProblem, U: np.ndarray) -> tuple[list[float], list[float]
     return one, two, cpu
 
 
-def _load() -> str:
-    """The 1-minute load average (other work on the machine), or ``n/a``."""
-    try:
-        return f"{os.getloadavg()[0]:.2f}"
-    except OSError:
-        return "n/a"
-
-
 #: Adaptive vs random: (vehicle, family, environments) problems, every family and both
 #: vehicles. The two cut-ins from the left are needles: the riskiest candidates fill about
 #: 1e-4 of the cube (a target alongside at matched speed; a rear-left approach with the sun
@@ -124,7 +116,7 @@ def run(quick: bool = False) -> str:
     rng = np.random.default_rng(0)
     dim = _problem("lookup").dim
     rows = []
-    load_start = _load()
+    load_start = load_average()
     for mode, n in (("lookup", N_LOOKUP), ("exact", N_EXACT)):
         U = rng.random((max(512, int(n * scale)), dim))
         prob = _problem(mode)
@@ -143,7 +135,7 @@ def run(quick: bool = False) -> str:
                 "yes" if r2 >= target else "no",
             ]
         )
-    load_end = _load()
+    load_end = load_average()
     U = rng.random((max(256, int(N_ERROR * scale)), dim))
     look = _problem("lookup").evaluate_decoded(_problem("lookup").decode_batch(U), 2)
     exact = _problem("exact").evaluate_decoded(_problem("exact").decode_batch(U), 2)

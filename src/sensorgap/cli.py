@@ -124,11 +124,10 @@ def _scene(args: argparse.Namespace, ego_heading_rad: float = 0.0) -> Scene:
 
 
 def _same_file(a: str, b: str) -> bool:
-    """Whether two paths name the same file (the same resolved path, or one file under two
-    names)."""
+    """Whether two existing paths name the same file (also under two names)."""
     try:
-        return Path(a).resolve() == Path(b).resolve() or os.path.samefile(a, b)
-    except OSError:
+        return os.path.samefile(a, b)
+    except OSError:  # one of them does not exist: not the same file
         return False
 
 

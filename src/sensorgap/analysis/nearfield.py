@@ -552,11 +552,7 @@ def blind_spots(
     """Blind spots (paper Fig. 5, blue): regions outside the vehicle footprint, enclosed by
     covered area, that no sensor sees at any height in ``height_range``; only those lying
     inside the near-field window (footprint grown by ``radius`` m). Polygons in m."""
-    fps = (
-        footprints
-        if footprints is not None
-        else any_height_footprints(system, height_range, dphi_deg)
-    )
+    fps = _any_height(system, height_range, dphi_deg, footprints)
     return holes(list(fps.values()), vehicle_polygon(system), near_field_window(system, radius))
 
 
@@ -572,13 +568,29 @@ def uncovered_at_height(
     sees at height ``z`` (paper Fig. 5, green, at 0.1 m). The window is ``extent``
     ``(xmin, xmax, ymin, ymax)`` if given, else the footprint grown by ``radius``."""
     fps = footprints if footprints is not None else at_height_footprints(system, z, dphi_deg)
-    return _not_covered(system, fps, _window(system, extent, radius))
+    return _not_covered(_window(system, extent, radius), _covered(system, fps))
 
 
-def _not_covered(system: System, footprints: dict[str, Area], window: Polygon) -> Area:
-    """The part of ``window`` (m) outside the vehicle footprint and every footprint."""
-    covered = shapely.union_all([*footprints.values(), vehicle_polygon(system)], grid_size=SNAP_M)
+def _covered(system: System, footprints: dict[str, Area]) -> BaseGeometry:
+    """The union of the vehicle footprint and every footprint (m)."""
+    return shapely.union_all([*footprints.values(), vehicle_polygon(system)], grid_size=SNAP_M)
+
+
+def _not_covered(window: Polygon, covered: BaseGeometry) -> Area:
+    """The part of ``window`` (m) outside ``covered`` (``_covered``)."""
     return _as_area(shapely.difference(window, covered, grid_size=SNAP_M))
+
+
+def _any_height(
+    system: System,
+    height_range: tuple[float, float],
+    dphi_deg: float,
+    footprints: dict[str, Area] | None,
+) -> dict[str, Area]:
+    """``footprints``, or the any-height footprints of ``system`` when not given."""
+    if footprints is not None:
+        return footprints
+    return any_height_footprints(system, height_range, dphi_deg)
 
 
 def unseen_at_any_height(
@@ -593,9 +605,8 @@ def unseen_at_any_height(
     blind spots (``blind_spots``, the paper's Fig. 5 measure) together with the unseen
     region open to the outside, which the paper's measure leaves out (a vehicle without
     rear sensors has no blind spot behind it by that measure, only this)."""
-    if footprints is None:
-        footprints = any_height_footprints(system, height_range, dphi_deg)
-    return _not_covered(system, footprints, near_field_window(system, radius))
+    fps = _any_height(system, height_range, dphi_deg, footprints)
+    return _not_covered(near_field_window(system, radius), _covered(system, fps))
 
 
 # --------------------------------------------------------------------------- grid method
@@ -886,12 +897,11 @@ def write_nearfield(
     win = near_field_window(system, radius)
     fp_any = any_height_footprints(system, height_range, dphi_deg)
     fp_z = at_height_footprints(system, z, dphi_deg)
-    body = vehicle_polygon(system)
-    union = shapely.union_all([*fp_any.values(), body], grid_size=SNAP_M)  # computed once
-    every_hole = holes(list(fp_any.values()), body, union=union)
+    union = _covered(system, fp_any)  # once, for the holes and the unseen area
+    every_hole = holes(list(fp_any.values()), vehicle_polygon(system), union=union)
     spots = [h for h in every_hole if win.covers(h)]
     unc = uncovered_at_height(system, z, None, radius, dphi_deg, footprints=fp_z)
-    unseen = _as_area(shapely.difference(win, union, grid_size=SNAP_M))  # unseen_at_any_height
+    unseen = _not_covered(win, union)  # as unseen_at_any_height
     g_bs = grid_blind_spots(system, resolution, radius, height_range)
     g_un = grid_uncovered_at_height(system, z, resolution, None, radius)
     exact_bs = sum(p.area for p in spots)

@@ -133,6 +133,10 @@ def glared_pass(
             px = xs[m] + cp * ox - sp * oy
             py = ys[m] + sp * ox + cp * oy
             sig, st = bilinear_finite_at(signal, x0, y0, inv_res, px, py)
+            if st == 0:  # all four cells out of view
+                state[m, k] = 0
+                out[m, k] = 0.0
+                continue
             dx = px - mount[0]
             dy = py - mount[1]
             dz = z[m] - mount[2]
