@@ -132,3 +132,22 @@ def test_corridor_cli(tmp_path: object, capsys: pytest.CaptureFixture[str]) -> N
         == 2
     )
     assert "--lanes" in capsys.readouterr().err and not (out / "bad").exists()
+
+
+def test_paths_never_enter_the_ego_body(system_a: System) -> None:
+    """A band across the ego: the path keeps the target's footprint (car, centred on the
+    node) off the body box (System A: x -1.13..4.04 m, half width 0.975 m); a band the body
+    fills wholly at some column is refused."""
+    scene = make_scene(system_a, "car", "clear")
+    body, car = system_a.config.vehicle, scene.target
+    c = corridor_search(scene, -30.0, 10.0, [(-3.0, 3.0)], speed_rel=10.0, lateral_res=0.25)
+    beside = np.abs(c.y) >= 0.5 * body.width_m + 0.5 * car.width_m
+    ahead_or_behind = (c.x <= body.x_rear_m - 0.5 * car.length_m) | (
+        c.x >= body.x_front_m + 0.5 * car.length_m
+    )
+    assert np.all(beside | ahead_or_behind)
+    assert not np.all(ahead_or_behind)  # it did pass the body, beside it
+    with pytest.raises(InputError, match="runs into the vehicle's own body"):
+        corridor_search(scene, -30.0, 10.0, [(-1.0, 1.0)], speed_rel=10.0, lateral_res=0.25)
+    # a band ending before the rear bumper is not affected
+    corridor_search(scene, -30.0, -4.0, [(-1.0, 1.0)], speed_rel=10.0, lateral_res=0.25)

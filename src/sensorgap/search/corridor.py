@@ -12,7 +12,11 @@ path is relative motion), a lattice over the coverage map:
   (kinematics) and the lateral speed ``<= max_lateral_cells * res / dt``;
 * cost of entering a cell: ``-ln(1 - Pd)``, the negative log of the probability that the
   sensor cycle there misses the target (per-cycle independence, as the search metrics), so
-  the shortest path maximises ``P_undet = exp(-sum cost)`` over the whole approach.
+  the shortest path maximises ``P_undet = exp(-sum cost)`` over the whole approach;
+* no node where the target's footprint (its length along x, its width across, centred on
+  the node) overlaps the ego's body: a path cannot run through the vehicle itself (lane
+  bands across the ego, ``--lanes -1:1``, were searched through it). Where every path
+  would, the search is refused.
 
 The path runs from the start column (``x_start``) to the critical zone (``x_goal``; e.g.
 just ahead of the ego's front bumper for an overtaking target). The networkx shortest path
@@ -145,21 +149,33 @@ def corridor_search(
     if not on_lane.any():
         raise InputError("lanes", "", f"no row of {lateral_res:g} m fits the lanes")
     rows = np.flatnonzero(on_lane)
+    inside = _inside_body(scene, xs, ys[rows])
+    if _blocked(inside):
+        raise _through_body(scene, x_start, x_goal)
     pd = _pd_nodes(scene, xs, ys[rows], h)
     with np.errstate(divide="ignore"):
         cost = np.where(pd >= 1.0, CERTAIN_COST, -np.log1p(-np.minimum(pd, 1.0)))
     g = nx.DiGraph()
     for r in range(rows.size):
-        g.add_edge("source", (0, r), weight=float(cost[0, r]))
+        if not inside[0, r]:
+            g.add_edge("source", (0, r), weight=float(cost[0, r]))
         g.add_edge((n_cols - 1, r), "sink", weight=0.0)
     for c in range(n_cols - 1):
         for r in range(rows.size):
             for dr in range(-max_lateral_cells, max_lateral_cells + 1):
                 r2 = r + dr
-                # stay on the lattice and do not jump across a gap between lane bands
-                if 0 <= r2 < rows.size and abs(int(rows[r2]) - int(rows[r])) == abs(dr):
+                # stay on the lattice, do not jump across a gap between lane bands, never
+                # enter the ego's body
+                if (
+                    0 <= r2 < rows.size
+                    and abs(int(rows[r2]) - int(rows[r])) == abs(dr)
+                    and not inside[c + 1, r2]
+                ):
                     g.add_edge((c, r), (c + 1, r2), weight=float(cost[c + 1, r2]))
-    path = nx.shortest_path(g, "source", "sink", weight="weight")[1:-1]
+    try:
+        path = nx.shortest_path(g, "source", "sink", weight="weight")[1:-1]
+    except nx.NetworkXNoPath:  # the body leaves gaps that no lateral move can reach
+        raise _through_body(scene, x_start, x_goal) from None
     cols = np.array([p[0] for p in path])
     rr = np.array([p[1] for p in path])
     x, y = xs[cols], ys[rows[rr]]
@@ -176,6 +192,34 @@ def corridor_search(
         log10_p_undetected=-total / math.log(10.0),
         speed_rel=speed_rel,
     )
+
+
+def _inside_body(scene: Scene, xs: F64, ys: F64) -> NDArray[np.bool_]:
+    """(columns, rows): the target centred at (``xs[i]``, ``ys[j]``) (m, vehicle frame,
+    heading along x) overlaps the ego's body box."""
+    body = scene.system.config.vehicle
+    half_l, half_w = 0.5 * scene.target.length_m, 0.5 * scene.target.width_m
+    in_x = (xs > body.x_rear_m - half_l) & (xs < body.x_front_m + half_l)
+    in_y = np.abs(ys) < 0.5 * body.width_m + half_w
+    return np.asarray(in_x[:, None] & in_y[None, :], dtype=bool)
+
+
+def _through_body(scene: Scene, x_start: float, x_goal: float) -> InputError:
+    """The refusal of lane bands that lead every path into the ego's body."""
+    body = scene.system.config.vehicle
+    return InputError(
+        "corridor",
+        "lanes",
+        f"every path from x {x_start:g} to {x_goal:g} m on these bands runs into the "
+        f"vehicle's own body (x {body.x_rear_m:g} to {body.x_front_m:g} m, y within "
+        f"+-{0.5 * body.width_m:g} m, widened by the {scene.target.name}'s size); "
+        "choose bands beside it",
+    )
+
+
+def _blocked(inside: NDArray[np.bool_]) -> bool:
+    """Some column lies wholly inside the body (every row of it), so no path passes."""
+    return bool(inside.all(axis=1).any())
 
 
 def _pd_nodes(scene: Scene, xs: F64, ys: F64, height: float) -> F64:
