@@ -279,3 +279,37 @@ def test_junction_connection_errors(write_xodr: Write) -> None:
         write_xodr(document(arm, outside, junction(good)), "outside.xodr"),
         "road 2 must belong to junction 9",
     )
+
+
+def _with_elevation(profile: str) -> str:
+    return document(road_xml().replace("</planView>", f"</planView>{profile}"))
+
+
+def test_elevation_profile_is_checked_not_modelled(write_xodr: Write) -> None:
+    """A hilly but real road reads (8 % grade); a road 10,000 km up, one steeper than 0.5 m/m
+    on a piece (grade b + 3 d ds^2, worst at the road end, by hand: ds = 50 m,
+    0.02 + 3e-4 * 2500 = 0.77) and pieces out of order are refused in one line."""
+    hilly = _with_elevation(
+        '<elevationProfile><elevation s="0" a="250" b="0.08" c="0" d="0"/>'
+        '<elevation s="50" a="254" b="0.08" c="-0.0008" d="0"/></elevationProfile>'
+    )
+    flat = read_opendrive(write_xodr(VALID, "flat.xodr"))
+    net = read_opendrive(write_xodr(hilly, "hilly.xodr"))
+    assert net.road(1).length == flat.road(1).length == 100.0
+    high = _with_elevation(
+        '<elevationProfile><elevation s="0" a="1e7" b="0" c="0" d="0"/></elevationProfile>'
+    )
+    _fails(write_xodr(high, "high.xodr"), "the height must stay within +-10000 m")
+    steep = _with_elevation(
+        '<elevationProfile><elevation s="0" a="0" b="0" c="0" d="0"/>'
+        '<elevation s="50" a="0" b="0.02" c="0" d="1e-4"/></elevationProfile>'
+    )
+    _fails(
+        write_xodr(steep, "steep.xodr"),
+        "elevation[1]: the grade must stay within +-0.5 m/m, reaches 0.77 m/m at s 100",
+    )
+    unordered = _with_elevation(
+        '<elevationProfile><elevation s="60" a="0" b="0" c="0" d="0"/>'
+        '<elevation s="10" a="0" b="0" c="0" d="0"/></elevationProfile>'
+    )
+    _fails(write_xodr(unordered, "unordered.xodr"), "elevation[1]@s: must not decrease")

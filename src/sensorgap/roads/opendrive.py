@@ -3,7 +3,10 @@
 Reads the 2-D road layout of OpenDRIVE 1.4-1.7 files: planView geometries (line, arc,
 spiral, poly3, paramPoly3), laneOffset, lane sections with lane widths and lane links, road
 links and junctions (default, direct, virtual) with their connections and lane links.
-Elevation, superelevation, lane heights, road marks, objects and signals are ignored.
+Elevation is checked but not modelled: the analysis assumes a flat road, and a profile
+beyond any real road (height ``MAX_ELEVATION_M``, grade ``MAX_GRADE``) is refused, since
+the scenarios exported on the road would be played on it. Superelevation, lane heights,
+road marks, objects and signals are ignored.
 
 Every problem is one ``InputError`` naming the file and the element, e.g.
 ``roads/x.xodr: road[id=3]/planView/geometry[2]@length: must be > 0, got -5 (line 12)``.
@@ -65,6 +68,10 @@ MAX_CURVATURE = 10.0
 #: widest lane and largest lane offset anywhere along its record, m.
 MAX_LANE_WIDTH_M = 100.0
 MAX_LANE_OFFSET_M = 1000.0
+#: Elevation profile bounds: height above the datum, m (the highest road, about 5.8 km, with
+#: margin), and grade, m/m (steeper than any public street, about 0.35 at most; an estimate).
+MAX_ELEVATION_M = 10_000.0
+MAX_GRADE = 0.5
 
 
 def _local(el: etree._Element) -> str:
@@ -269,6 +276,7 @@ class _Reader:
             pred = self.road_link(link, "predecessor", where)
             succ = self.road_link(link, "successor", where)
         geoms = self.plan_view(el, where, length)
+        self.elevation(el, where, length)
         offsets, sections = self.lanes(el, where, length)
         return Road(
             rid, length, junction, geoms, offsets, sections, pred, succ, rule, el.get("name", "")
@@ -426,7 +434,14 @@ class _Reader:
         return value
 
     def bounded_cubic(
-        self, piece: CubicPiece, end: float, limit: float, where: str, what: str, el: etree._Element
+        self,
+        piece: CubicPiece,
+        end: float,
+        limit: float,
+        where: str,
+        what: str,
+        el: etree._Element,
+        unit: str = "m",
     ) -> None:
         """``InputError`` if the cubic record exceeds ``limit`` in magnitude on its span."""
         lo_at, lo = _cubic_min(piece, end)
@@ -435,9 +450,31 @@ class _Reader:
         if not (math.isfinite(worst) and abs(worst) <= limit):
             self.fail(
                 where,
-                f"{what} must stay within +-{limit:g} m, reaches {worst:.6g} m at s {at:.6g}",
+                f"{what} must stay within +-{limit:g} {unit}, reaches {worst:.6g} {unit} at "
+                f"s {at:.6g}",
                 el,
             )
+
+    def elevation(self, el: etree._Element, where: str, length: float) -> None:
+        """Checks the elevation profile (not modelled: a flat road is assumed): pieces in
+        order within the road, height within ``MAX_ELEVATION_M`` (m), grade within
+        ``MAX_GRADE`` (m/m)."""
+        pieces: list[tuple[CubicPiece, etree._Element]] = []
+        for prof in _kids(el, "elevationProfile"):
+            for i, e in enumerate(_kids(prof, "elevation")):
+                w = f"{where}/elevationProfile/elevation[{i}]"
+                piece = self.cubic(e, w, "s")
+                if not -S_TOLERANCE <= piece.s <= length + S_TOLERANCE:
+                    self.fail(f"{w}@s", f"must be within [0, {length:g}] m, got {piece.s:g}", e)
+                if pieces and piece.s < pieces[-1][0].s:
+                    self.fail(f"{w}@s", f"must not decrease (previous {pieces[-1][0].s:g})", e)
+                pieces.append((piece, e))
+        for i, (piece, e) in enumerate(pieces):
+            end = pieces[i + 1][0].s if i + 1 < len(pieces) else max(length, piece.s)
+            w = f"{where}/elevationProfile/elevation[{i}]"
+            self.bounded_cubic(piece, end, MAX_ELEVATION_M, w, "the height", e)
+            grade = CubicPiece(piece.s, piece.b, 2.0 * piece.c, 3.0 * piece.d, 0.0)
+            self.bounded_cubic(grade, end, MAX_GRADE, w, "the grade", e, unit="m/m")
 
     # -- lanes -------------------------------------------------------------------------
     def lanes(
