@@ -385,6 +385,10 @@ def refuse_foreign_outputs(
             raise refuse(f"holds a search run or catalog ({marker})")
     if crowded(root):
         raise refuse(f"holds more than {MAX_OUT_ENTRIES} files and folders")
+    if writes is None:  # outputs named after the runs: any link could be renamed onto
+        odd = _first_link(root)
+        if odd is not None:
+            raise refuse(f"holds {odd}, a symbolic link or not a regular file")
 
 
 def crowded(folder: str | Path) -> bool:
@@ -398,6 +402,19 @@ def crowded(folder: str | Path) -> bool:
         if seen > MAX_OUT_ENTRIES:
             return True
     return False
+
+
+def _first_link(folder: Path) -> str | None:
+    """The first entry below ``folder`` (relative path) that is a symbolic link or neither a
+    file nor a folder, or None (walked as ``crowded``: call it first to bound the walk)."""
+    import os
+
+    for dirpath, dirnames, filenames in os.walk(folder):
+        for name in sorted(dirnames) + sorted(filenames):
+            path = Path(dirpath) / name
+            if path.is_symlink() or not (path.is_dir() or path.is_file()):
+                return path.relative_to(folder).as_posix()
+    return None
 
 
 def refuse_crowded_out(folder: str | Path, command: str) -> None:

@@ -466,6 +466,11 @@ def _setup(
             (run / "search.sqlite").unlink()
         elif step == "fifo_out":  # {dir}/out.csv is a named pipe
             os.mkfifo(folder / "out.csv")
+        elif step == "out_holds_link":  # {out}/figures/a.png links to {dir}/elsewhere/keep.xodr
+            (folder / "elsewhere").mkdir()
+            (folder / "elsewhere" / "keep.xodr").write_text("not the command's")
+            (out / "figures").mkdir(parents=True)
+            (out / "figures" / "a.png").symlink_to(folder / "elsewhere" / "keep.xodr")
         elif step == "link_out":  # {dir}/out.csv links to {dir}/elsewhere/keep.xodr
             (folder / "elsewhere").mkdir()
             (folder / "elsewhere" / "keep.xodr").write_text("not the probe's")
