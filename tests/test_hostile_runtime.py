@@ -782,3 +782,65 @@ def test_a_resumed_search_that_changes_the_ranking_removes_the_stale_export(
     for gone in ("catalog.json", "report.html", "report.md", "scenarios", "roads", "report"):
         assert not (run / gone).exists(), gone
     assert main(["verify", str(run)]) == 0
+
+
+def _as_unprivileged(argv: list[str]) -> tuple[list[str], dict[str, str]]:
+    """The sensorgap command line run as a user without write rights to the package (root
+    drops to nobody with setpriv; others run as themselves), with no HOME."""
+    import shutil
+    import sys
+
+    cmd = [sys.executable, "-m", "sensorgap", *argv]
+    env = {"PATH": "/usr/bin:/bin", "PYTHONPATH": os.pathsep.join(sys.path)}
+    if os.geteuid() == 0:
+        setpriv = shutil.which("setpriv")
+        if setpriv is None:
+            pytest.skip("running as root without setpriv: no unprivileged user to run as")
+        cmd = [setpriv, "--reuid=65534", "--regid=65534", "--clear-groups", *cmd]
+    return cmd, env
+
+
+def test_read_only_places_as_a_real_user_are_one_line(tmp_path: Path) -> None:
+    """Issue #18 on a real file system, not a patched sqlite: as a user who cannot write the
+    output folder (nor the package: the numba cache moves), search and coverage into it are
+    one line, exit 2, and nothing is written there."""
+    import shutil
+    import tempfile
+
+    top = Path(tempfile.mkdtemp(prefix="sensorgap-ro-"))  # pytest's own folders are 0700
+    ro = top / "ro"
+    ro.mkdir()
+    top.chmod(0o755)
+    ro.chmod(0o555)
+    try:
+        _read_only_cases(ro)
+    finally:
+        ro.chmod(0o755)
+        shutil.rmtree(top)
+
+
+def _read_only_cases(ro: Path) -> None:
+    import subprocess
+
+    cases = {
+        "search.sqlite: cannot open": ["search", "--vehicle", "system_a", "--budget", "40"],
+        "cannot write or read: Permission denied": [
+            "coverage",
+            "--vehicle",
+            "system_a",
+            "--environment",
+            "clear",
+            "--target",
+            "car",
+            "--resolution",
+            "2",
+            "--extent=-10,10,-10,10",
+        ],
+    }
+    for expected, argv in cases.items():
+        cmd, env = _as_unprivileged([*argv, "--out", str(ro)])
+        done = subprocess.run(cmd, env=env, cwd="/", capture_output=True, text=True, timeout=300)
+        lines = done.stderr.strip().splitlines()
+        assert done.returncode == 2 and len(lines) == 1, done.stderr
+        assert lines[0].startswith("sensorgap: error: ") and expected in lines[0], lines[0]
+        assert list(ro.iterdir()) == []
