@@ -243,3 +243,18 @@ def test_within_plan_by_hand() -> None:
     vp = (ve * ve + 2.0 * a * 0.5) ** 0.5
     assert case(a, vp * 3.6, ve * 3.6)
     assert not case(a, vp * 3.6 * 1.001, ve * 3.6)
+
+
+def test_a_contact_in_esminis_step_past_the_end_counts_only_against_a_predicted_one() -> None:
+    """System C's rank 3 (cut_out_reveal, rain_25, 90th-percentile confirmation): contact
+    predicted at 9.95 s of a 10 s run, esmini's at 10.05 s (its last step, past the end) at
+    18.2 vs 20.1 km/h: compared (it had been dropped, a disagreement). Without a predicted
+    contact, esmini's contact past the end is not compared; within the run it always is."""
+    from sensorgap.export.reaction import Prediction, compared_contact
+
+    hit = Prediction(98, 4.9, 5.2, 9.95, 20.08)
+    miss = Prediction(98, 4.9, 5.2, None, None)
+    assert compared_contact(10.05, 10.0, hit) == 10.05
+    assert compared_contact(10.05, 10.0, miss) is None
+    assert compared_contact(10.0, 10.0, miss) == 10.0
+    assert compared_contact(None, 10.0, hit) is None
