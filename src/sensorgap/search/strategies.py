@@ -31,6 +31,10 @@ class Strategy(ABC):
     description: ClassVar[str] = ""
     #: Batch size when the caller names none.
     default_batch: ClassVar[int] = 32
+    #: ``batch_for``: the budget in about this many batches (generations) ...
+    generations: ClassVar[int] = 1
+    #: ... of at least and at most this many candidates each.
+    batch_range: ClassVar[tuple[int, int]] = (1, 2048)
 
     def __init__(
         self,
@@ -54,9 +58,12 @@ class Strategy(ABC):
 
     @classmethod
     def batch_for(cls, budget: int) -> int:
-        """Batch size for a budget (candidates are evaluated a batch at a time, so larger
-        batches are faster; adaptive strategies override it)."""
-        return max(1, min(budget, 2048))
+        """Batch size for a budget: ``budget // generations`` within ``batch_range``
+        (candidates are evaluated a batch at a time, so larger batches are faster; the
+        adaptive strategies take several generations, the others as few batches as the
+        range allows)."""
+        lo, hi = cls.batch_range
+        return max(lo, min(hi, budget // cls.generations))
 
     def ask(self) -> F64:
         """The next batch (never beyond the budget)."""
@@ -162,11 +169,8 @@ class CrossEntropy(Strategy):
     name = "cem"
     description = "cross-entropy method (adaptive)"
     default_batch = 20
-
-    @classmethod
-    def batch_for(cls, budget: int) -> int:
-        """About 40 generations per budget, 20..500 samples each."""
-        return max(20, min(500, budget // 40))
+    generations = 40
+    batch_range = (20, 500)
 
     def _configure(
         self, elite: float = 0.2, alpha: float = 0.7, min_std: float = 0.03, **options: Any
@@ -215,11 +219,8 @@ class DifferentialEvolution(Strategy):
     name = "de"
     description = "differential evolution (adaptive, multimodal)"
     default_batch = 40
-
-    @classmethod
-    def batch_for(cls, budget: int) -> int:
-        """Population: about 25 generations per budget, 20..200 members."""
-        return max(20, min(200, budget // 25))
+    generations = 25  # the batch is the population: 20..200 members
+    batch_range = (20, 200)
 
     def _configure(self, f: float = 0.7, cr: float = 0.2, **options: Any) -> None:
         super()._configure(**options)
