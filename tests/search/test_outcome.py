@@ -23,6 +23,7 @@ from sensorgap.config.reaction import (
     road_condition,
 )
 from sensorgap.errors import InputError
+from sensorgap.scenarios.batch import Tracks
 from sensorgap.search.outcome import (
     G_M_S2,
     Encounter,
@@ -63,14 +64,8 @@ def _straight(
     z = np.zeros((1, steps))
     tx = (X_FRONT + gap + CAR_L / 2 + vt * t)[None]
     return encounter_geometry(
-        (v0 * t)[None],
-        z,
-        z,
-        np.full((1, steps), v0),
-        tx,
-        z + lateral,
-        z,
-        np.full((1, steps), vt),
+        Tracks((v0 * t)[None], z, z, np.full((1, steps), v0)),
+        Tracks(tx, z + lateral, z, np.full((1, steps), vt)),
         DT,
         (CAR_L, CAR_W),
         BODY,
@@ -449,14 +444,8 @@ def test_rows_are_independent_and_only_allowed_fields_are_nan() -> None:
     b = len(cases)
     pd = rng.random((b, T))
     enc = encounter_geometry(
-        ex,
-        ey,
-        eh,
-        np.repeat(v0[:, None], T, 1),
-        tx,
-        ty,
-        th,
-        np.repeat(vt[:, None], T, 1),
+        Tracks(ex, ey, eh, np.repeat(v0[:, None], T, 1)),
+        Tracks(tx, ty, th, np.repeat(vt[:, None], T, 1)),
         DT,
         (CAR_L, CAR_W),
         BODY,
@@ -467,14 +456,8 @@ def test_rows_are_independent_and_only_allowed_fields_are_nan() -> None:
     o = reaction_outcome(enc, pd, nv, 3, 5, 0.3, 12.0, np.full(b, 8.0))
     for r in range(b):
         e1 = encounter_geometry(
-            ex[r : r + 1],
-            ey[r : r + 1],
-            eh[r : r + 1],
-            np.full((1, T), v0[r]),
-            tx[r : r + 1],
-            ty[r : r + 1],
-            th[r : r + 1],
-            np.full((1, T), vt[r]),
+            Tracks(ex[r : r + 1], ey[r : r + 1], eh[r : r + 1], np.full((1, T), v0[r])),
+            Tracks(tx[r : r + 1], ty[r : r + 1], th[r : r + 1], np.full((1, T), vt[r])),
             DT,
             (CAR_L, CAR_W),
             BODY,
@@ -516,14 +499,8 @@ def test_collision_outcome_uses_friction_and_the_reaction_model() -> None:
     z = np.zeros((1, T))
     tx = np.full((1, T), X_FRONT + 80.0 + CAR_L / 2)  # stopped car 80 m ahead, 15 m/s
     args = (
-        (15.0 * t)[None],
-        z,
-        z,
-        np.full((1, T), 15.0),
-        tx,
-        z,
-        z,
-        z,
+        Tracks((15.0 * t)[None], z, z, np.full((1, T), 15.0)),
+        Tracks(tx, z, z, z),
         DT,
         (CAR_L, CAR_W),
         BODY,
@@ -642,14 +619,8 @@ def test_interval_method_equals_brute_force_box_tests(seed: int, radius: float) 
     case = _random_case(rng, radius, ("cut_in", "ahead")[seed % 2])
     v0, ex, ey, eh, vt, tx, ty, th = case
     enc = encounter_geometry(
-        ex[None],
-        ey[None],
-        eh[None],
-        np.full((1, T), v0),
-        tx[None],
-        ty[None],
-        th[None],
-        np.full((1, T), vt),
+        Tracks(ex[None], ey[None], eh[None], np.full((1, T), v0)),
+        Tracks(tx[None], ty[None], th[None], np.full((1, T), vt)),
         DT,
         (CAR_L, CAR_W),
         BODY,
@@ -799,14 +770,13 @@ def _walker(
     z = np.zeros((1, steps))
     ty = (y0 + vy * t)[None]
     enc = encounter_geometry(
-        (v0 * t)[None],
-        z,
-        z,
-        np.full((1, steps), v0),
-        np.full((1, steps), ahead),
-        ty,
-        np.full((1, steps), math.pi / 2),
-        np.full((1, steps), vy),
+        Tracks((v0 * t)[None], z, z, np.full((1, steps), v0)),
+        Tracks(
+            np.full((1, steps), ahead),
+            ty,
+            np.full((1, steps), math.pi / 2),
+            np.full((1, steps), vy),
+        ),
         DT,
         size,
         BODY,
@@ -845,14 +815,8 @@ def test_prediction_ignores_targets_moving_along_or_away_from_the_path() -> None
     z = np.zeros((1, T))
     for ty in (np.full(T, 3.5), 3.5 + 0.5 * t):
         args = (
-            (20.0 * t)[None],
-            z,
-            z,
-            np.full((1, T), 20.0),
-            (30.0 + 15.0 * t)[None],
-            ty[None],
-            z,
-            np.full((1, T), 15.0),
+            Tracks((20.0 * t)[None], z, z, np.full((1, T), 20.0)),
+            Tracks((30.0 + 15.0 * t)[None], ty[None], z, np.full((1, T), 15.0)),
             DT,
             (CAR_L, CAR_W),
             BODY,
@@ -879,14 +843,8 @@ def test_prediction_on_a_curve_follows_the_path_not_a_straight_line() -> None:
     Ro = R - 3.5  # the left lane is inside the left-hand curve
     tx, ty = Ro * np.sin(ao), R - Ro * np.cos(ao)
     enc = encounter_geometry(
-        ex[None],
-        ey[None],
-        eh[None],
-        np.full((1, T), v),
-        tx[None],
-        ty[None],
-        ao[None],
-        np.full((1, T), v * Ro / R),
+        Tracks(ex[None], ey[None], eh[None], np.full((1, T), v)),
+        Tracks(tx[None], ty[None], ao[None], np.full((1, T), v * Ro / R)),
         DT,
         (CAR_L, CAR_W),
         BODY,

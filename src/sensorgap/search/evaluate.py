@@ -760,14 +760,8 @@ class Evaluator:
         b, t = kin.x.shape
         body = self.system.config.vehicle
         enc = encounter_geometry(
-            ego.x,
-            ego.y,
-            ego.heading,
-            ego.speed,
-            tgt.x,
-            tgt.y,
-            tgt.heading,
-            tgt.speed,
+            ego,
+            tgt,
             float(batch.t[1] - batch.t[0]),
             (target.length_m, target.width_m),
             (body.x_front_m, body.x_rear_m, body.width_m),

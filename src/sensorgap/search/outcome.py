@@ -6,7 +6,7 @@ steps of ``dt`` s); units: m, s, rad, m/s, m/s2, m/s3.
 
 1. **Encounter geometry** (``encounter_geometry``, sensor-independent). The ego drives its
    planned path (rear-axle samples ``x, y, heading``) at its planned speed ``v0`` (open
-   loop; ``ego_speed[:, 0]`` is used: the families keep it constant, to within ~1 % where a
+   loop; ``ego.speed[:, 0]`` is used: the families keep it constant, to within ~1 % where a
    lane offset meets a curve), so its progress (arc length) along the path is
    ``p_k = v0 t_k``. Its body is the box
    ``[x_rear, x_front] x [-width/2, width/2]`` about the rear axle. For every step j the
@@ -97,6 +97,7 @@ from sensorgap.search.fastkin import cos_sin_near
 
 if TYPE_CHECKING:
     from sensorgap.config.reaction import ReactionConfig
+    from sensorgap.scenarios.batch import Tracks
 
 F64 = NDArray[np.float64]
 I64 = NDArray[np.int64]
@@ -650,14 +651,8 @@ def _geometry_kernel(
 
 
 def encounter_geometry(
-    ego_x: ArrayLike,
-    ego_y: ArrayLike,
-    ego_heading: ArrayLike,
-    ego_speed: ArrayLike,
-    tgt_x: ArrayLike,
-    tgt_y: ArrayLike,
-    tgt_heading: ArrayLike,
-    tgt_speed: ArrayLike,
+    ego: Tracks,
+    target: Tracks,
     dt: float,
     target_size: tuple[float, float],
     ego_body: tuple[float, float, float],
@@ -666,9 +661,10 @@ def encounter_geometry(
     threat_prediction_s: float = 0.0,
     ego_frame_x: ArrayLike | None = None,
 ) -> Encounter:
-    """Encounter geometry of (B, T) world-frame planned states: ego rear axle (x, y in m,
-    heading in rad, speed in m/s; the speed is taken as constant, ``ego_speed[:, 0]``) and
-    target box centre (same units), on a time axis of step ``dt`` s.
+    """Encounter geometry of (B, T) world-frame planned states (``scenarios.batch.Tracks``):
+    ``ego``, the ego rear axle (x, y in m, heading in rad, speed in m/s; the speed is taken
+    as constant, ``ego.speed[:, 0]``) and ``target``, the target box centre (same units), on
+    a time axis of step ``dt`` s.
 
     ``target_size`` = (length, width), m; ``ego_body`` = (x_front, x_rear, width), m, the
     bumpers relative to the rear axle (``x_rear < 0 < x_front``); ``threat_margin_m``, m,
@@ -677,7 +673,7 @@ def encounter_geometry(
     centre's distance ahead of the ego rear axle along the ego heading, m, if known
     (``search.fastkin``; computed here otherwise): where the search for the nearest path
     sample starts."""
-    ex = np.ascontiguousarray(ego_x, dtype=np.float64)
+    ex = np.ascontiguousarray(ego.x, dtype=np.float64)
     if ex.ndim != 2 or ex.shape[1] < 2:
         raise ValueError(f"expected (B, T >= 2) states, got shape {ex.shape}")
     b, t = ex.shape
@@ -694,12 +690,12 @@ def encounter_geometry(
         raise ValueError("need dt > 0 and non-negative threat margin, horizon and prediction")
     arrays = [
         np.ascontiguousarray(a, dtype=np.float64)
-        for a in (ego_y, ego_heading, tgt_x, tgt_y, tgt_heading, tgt_speed)
+        for a in (ego.y, ego.heading, target.x, target.y, target.heading, target.speed)
     ]
     ey, eh, tx, ty, th, tv = arrays
     if any(a.shape != (b, t) for a in arrays):
         raise ValueError("all state arrays must have the same (B, T) shape")
-    v0 = np.ascontiguousarray(np.asarray(ego_speed, dtype=np.float64).reshape(b, t)[:, 0])
+    v0 = np.ascontiguousarray(np.asarray(ego.speed, dtype=np.float64).reshape(b, t)[:, 0])
     if ego_frame_x is None:
         xr = np.ascontiguousarray((tx - ex) * np.cos(eh) + (ty - ey) * np.sin(eh))
     else:
@@ -1278,14 +1274,8 @@ def reaction_outcome(
 
 
 def collision_outcome(
-    ego_x: ArrayLike,
-    ego_y: ArrayLike,
-    ego_heading: ArrayLike,
-    ego_speed: ArrayLike,
-    tgt_x: ArrayLike,
-    tgt_y: ArrayLike,
-    tgt_heading: ArrayLike,
-    tgt_speed: ArrayLike,
+    ego: Tracks,
+    target: Tracks,
     dt: float,
     target_size: tuple[float, float],
     ego_body: tuple[float, float, float],
@@ -1294,19 +1284,14 @@ def collision_outcome(
     reaction: ReactionConfig,
     mu: float | ArrayLike,
 ) -> tuple[Encounter, Outcome]:
-    """Both stages in one call: the encounter geometry of (B, T) planned states (see
-    ``encounter_geometry`` for units) and the collision outcome for the confirming Pd,
-    ``reaction`` (M-of-N, latency, jerk, decel_max, threat margin and horizon) and the
-    road's peak friction ``mu`` (scalar or (B,)): deceleration ``min(decel_max, mu g)``."""
+    """Both stages in one call: the encounter geometry of the (B, T) planned states of
+    ``ego`` and ``target`` (see ``encounter_geometry`` for units) and the collision outcome
+    for the confirming Pd, ``reaction`` (M-of-N, latency, jerk, decel_max, threat margin
+    and horizon) and the road's peak friction ``mu`` (scalar or (B,)): deceleration
+    ``min(decel_max, mu g)``."""
     enc = encounter_geometry(
-        ego_x,
-        ego_y,
-        ego_heading,
-        ego_speed,
-        tgt_x,
-        tgt_y,
-        tgt_heading,
-        tgt_speed,
+        ego,
+        target,
         dt,
         target_size,
         ego_body,

@@ -23,10 +23,18 @@ F64 = NDArray[np.float64]
 
 
 class Strategy(ABC):
-    """Base class: ``ask() -> (n, d)`` (n = 0 when done), ``tell(X, risk)``."""
+    """Base class: ``ask() -> (n, d)`` (n = 0 when done), ``tell(X, risk)``. A strategy's
+    own keyword options are the parameters of its ``_configure`` (which calls the base's
+    first), its batch size without one ``default_batch``."""
 
     name: ClassVar[str]
     description: ClassVar[str] = ""
+    #: Batch size when the caller names none.
+    default_batch: ClassVar[int] = 32
+    #: ``batch_for``: the budget in about this many batches (generations) ...
+    generations: ClassVar[int] = 1
+    #: ... of at least and at most this many candidates each.
+    batch_range: ClassVar[tuple[int, int]] = (1, 2048)
 
     def __init__(
         self,
@@ -34,20 +42,28 @@ class Strategy(ABC):
         levels: list[int | None],
         budget: int,
         rng: np.random.Generator,
-        batch: int = 32,
+        batch: int | None = None,
         **options: Any,
     ) -> None:
+        self.dim, self.levels, self.budget, self.rng = dim, levels, budget, rng
+        self.batch = max(1, self.default_batch if batch is None else batch)
+        self.asked = 0
+        self._configure(**options)
+
+    def _configure(self, **options: Any) -> None:
+        """The strategy's own options (keyword arguments of the constructor, set up after
+        the common attributes); an option no strategy in the chain takes is a ValueError."""
         if options:
             raise ValueError(f"{self.name}: unknown options {', '.join(sorted(options))}")
-        self.dim, self.levels, self.budget, self.rng = dim, levels, budget, rng
-        self.batch = max(1, batch)
-        self.asked = 0
 
     @classmethod
     def batch_for(cls, budget: int) -> int:
-        """Batch size for a budget (candidates are evaluated a batch at a time, so larger
-        batches are faster; adaptive strategies override it)."""
-        return max(1, min(budget, 2048))
+        """Batch size for a budget: ``budget // generations`` within ``batch_range``
+        (candidates are evaluated a batch at a time, so larger batches are faster; the
+        adaptive strategies take several generations, the others as few batches as the
+        range allows)."""
+        lo, hi = cls.batch_range
+        return max(lo, min(hi, budget // cls.generations))
 
     def ask(self) -> F64:
         """The next batch (never beyond the budget)."""
@@ -123,16 +139,9 @@ class GridSearch(Strategy):
         "the largest k whose product fits the budget (cell centres)"
     )
 
-    def __init__(
-        self,
-        dim: int,
-        levels: list[int | None],
-        budget: int,
-        rng: np.random.Generator,
-        batch: int = 32,
-        **options: Any,
-    ) -> None:
-        super().__init__(dim, levels, budget, rng, batch, **options)
+    def _configure(self, **options: Any) -> None:
+        super()._configure(**options)
+        levels, budget = self.levels, self.budget
         fixed = math.prod(v for v in levels if v)
         n_cont = sum(1 for v in levels if not v)
         k = 1
@@ -159,27 +168,16 @@ class CrossEntropy(Strategy):
 
     name = "cem"
     description = "cross-entropy method (adaptive)"
+    default_batch = 20
+    generations = 40
+    batch_range = (20, 500)
 
-    @classmethod
-    def batch_for(cls, budget: int) -> int:
-        """About 40 generations per budget, 20..500 samples each."""
-        return max(20, min(500, budget // 40))
-
-    def __init__(
-        self,
-        dim: int,
-        levels: list[int | None],
-        budget: int,
-        rng: np.random.Generator,
-        batch: int = 20,
-        elite: float = 0.2,
-        alpha: float = 0.7,
-        min_std: float = 0.03,
-        **options: Any,
+    def _configure(
+        self, elite: float = 0.2, alpha: float = 0.7, min_std: float = 0.03, **options: Any
     ) -> None:
-        super().__init__(dim, levels, budget, rng, batch, **options)
-        self.mean = np.full(dim, 0.5)
-        self.std = np.full(dim, 0.35)
+        super()._configure(**options)
+        self.mean = np.full(self.dim, 0.5)
+        self.std = np.full(self.dim, 0.35)
         self.elite, self.alpha, self.min_std = elite, alpha, min_std
         self._archive_x: list[F64] = []
         self._archive_f: list[float] = []
@@ -220,24 +218,12 @@ class DifferentialEvolution(Strategy):
 
     name = "de"
     description = "differential evolution (adaptive, multimodal)"
+    default_batch = 40
+    generations = 25  # the batch is the population: 20..200 members
+    batch_range = (20, 200)
 
-    @classmethod
-    def batch_for(cls, budget: int) -> int:
-        """Population: about 25 generations per budget, 20..200 members."""
-        return max(20, min(200, budget // 25))
-
-    def __init__(
-        self,
-        dim: int,
-        levels: list[int | None],
-        budget: int,
-        rng: np.random.Generator,
-        batch: int = 40,
-        f: float = 0.7,
-        cr: float = 0.2,
-        **options: Any,
-    ) -> None:
-        super().__init__(dim, levels, budget, rng, batch, **options)
+    def _configure(self, f: float = 0.7, cr: float = 0.2, **options: Any) -> None:
+        super()._configure(**options)
         self.f, self.cr = f, cr
         self.pop: F64 | None = None
         self.fit: F64 | None = None
