@@ -611,21 +611,6 @@ def body_per_sensor_pd(
     return pd, frac
 
 
-def body_log_miss(
-    scene: Scene,
-    x: F64,
-    y: F64,
-    psi: F64,
-    sun_dirs: F64 | None = None,
-    sensors: Sequence[Sensor] | None = None,
-    occluders: F64 | None = None,
-) -> F64:
-    """Fused ln P_miss (eq. 11 in the log domain) of N target bodies (see
-    ``body_per_sensor_pd``)."""
-    pd, _ = body_per_sensor_pd(scene, x, y, psi, sun_dirs, sensors, occluders)
-    return np.asarray(log_miss_of(pd).sum(axis=0), dtype=np.float64)
-
-
 def body_grid(
     scene: Scene,
     grid: GridSpec,
