@@ -136,6 +136,14 @@ def _ego_box(scene: Scene) -> tuple[F64, F64]:
     return lo, hi
 
 
+def _inside(sensor: Sensor, lo: F64, hi: F64) -> bool:
+    """Whether the sensor's mount lies strictly inside the ego's box ``lo``..``hi`` (m,
+    ``_ego_box``): then the box never hides a sample from it."""
+    m = sensor.mount
+    p = np.array([m.x, m.y, m.z])
+    return bool(np.all(p > lo) and np.all(p < hi))
+
+
 @numba.njit(cache=True, nogil=True)
 def _hidden_by_box(
     ox: float, oy: float, oz: float, px: float, py: float, pz: float, lo: F64, hi: F64
@@ -442,7 +450,6 @@ def body_sensor_pd(
     (M, 7) for every pose or (N, M, 7) per pose; ``None``: an empty road. Returns
     (pd, fraction), (N,)."""
     n, k = px.shape
-    m = sensor.mount
     pd = np.zeros(n)
     frac = np.zeros(n)
     # poses whose outline can reach the sensor's range and field of view
@@ -450,7 +457,6 @@ def body_sensor_pd(
     if near.size == 0:
         return pd, frac
     lo, hi = _ego_box(scene)
-    inside = bool(np.all(np.array([m.x, m.y, m.z]) > lo) and np.all(np.array([m.x, m.y, m.z]) < hi))
     mount = _mount_row(sensor)
     buf = np.empty(near.size * k, dtype=np.int64)
     n_face = np.empty(near.size, dtype=np.int64)
@@ -464,7 +470,7 @@ def body_sensor_pd(
         mount,
         lo,
         hi,
-        not inside,
+        not _inside(sensor, lo, hi),
         CULL,
         _occ3(occluders, n),
         buf,
@@ -520,9 +526,6 @@ def occlusion_changes(
     rad = _radius(px, py, x, y)
     for sensor in scene.sensors if sensors is None else sensors:
         m = sensor.mount
-        inside = bool(
-            np.all(np.array([m.x, m.y, m.z]) > lo) and np.all(np.array([m.x, m.y, m.z]) < hi)
-        )
         _changes_kernel(
             px,
             py,
@@ -538,7 +541,7 @@ def occlusion_changes(
             CULL,
             lo,
             hi,
-            not inside,
+            not _inside(sensor, lo, hi),
             occ,
             out,
         )
