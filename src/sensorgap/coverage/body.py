@@ -144,6 +144,16 @@ def _inside(sensor: Sensor, lo: F64, hi: F64) -> bool:
     return bool(np.all(p > lo) and np.all(p < hi))
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def facing_offset(
+    nx: float, ny: float, px: float, py: float, vx: float, vy: float
+) -> float:  # pragma: no cover - compiled
+    """How much an outline sample at (``px``, ``py``) on a face with outward horizontal
+    normal (``nx``, ``ny``) faces the point (``vx``, ``vy``) (a mount or a viewpoint), m:
+    the offset to the point along the normal; > 0 facing it, <= 0 looking away."""
+    return (vx - px) * nx + (vy - py) * ny
+
+
 @numba.njit(cache=True, nogil=True)
 def _hidden_by_box(
     ox: float, oy: float, oz: float, px: float, py: float, pz: float, lo: F64, hi: F64
@@ -185,7 +195,7 @@ def _sample_in_view(
     mx, my, mz = mount[0], mount[1], mount[2]
     ddx = x - mx
     ddy = y - my
-    if nx * (-ddx) + ny * (-ddy) <= 0.0:
+    if facing_offset(nx, ny, x, y, mx, my) <= 0.0:
         return 0
     ddz = z - mz
     if prefilter:
@@ -250,7 +260,7 @@ def _view_kernel(
         for j in range(k):
             # facing the mount (counted), then the cheaper of the two remaining rejections
             # first: hidden by an occluder, out of view (the same samples are kept)
-            if nx[i, j] * (mx - px[i, j]) + ny[i, j] * (my - py[i, j]) <= 0.0:
+            if facing_offset(nx[i, j], ny[i, j], px[i, j], py[i, j], mx, my) <= 0.0:
                 continue
             nf += 1
             if occ.shape[1] and hidden_by_boxes(
@@ -337,7 +347,7 @@ def _changes_kernel(
         for j in range(k):
             # the same conjunction as ``_view_kernel``'s, cheapest rejections first:
             # facing the mount, hidden by an occluder, then in view
-            if nx[i, j] * (mx - px[i, j]) + ny[i, j] * (my - py[i, j]) <= 0.0:
+            if facing_offset(nx[i, j], ny[i, j], px[i, j], py[i, j], mx, my) <= 0.0:
                 continue
             if not hidden_by_boxes(mx, my, mz, px[i, j], py[i, j], pz[i, j], boxes):
                 continue
@@ -354,6 +364,16 @@ def _changes_kernel(
 #: (N, K) sample positions x, y, z (m) and face normals nx, ny of N target poses
 #: (``body_points``).
 BodyPoints = tuple[F64, F64, F64, F64, F64]
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def place_sample(
+    x: float, y: float, c: float, s: float, bx: float, by: float, bnx: float, bny: float
+) -> tuple[float, float, float, float]:  # pragma: no cover - compiled
+    """One outline sample (``bx``, ``by``, m, with face normal ``bnx``, ``bny``; target
+    frame) of a body posed at (``x``, ``y``), m, heading cosine ``c`` and sine ``s``: its
+    position (m) and normal in the frame of the pose."""
+    return (x + c * bx) - s * by, (y + s * bx) + c * by, c * bnx - s * bny, s * bnx + c * bny
 
 
 @numba.njit(cache=True, nogil=True)
@@ -378,11 +398,10 @@ def _points_kernel(
     for i in range(x.size):
         c, s = cos[i], sin[i]
         for j in range(bx.size):
-            px[i, j] = (x[i] + c * bx[j]) - s * by[j]
-            py[i, j] = (y[i] + s * bx[j]) + c * by[j]
+            px[i, j], py[i, j], nx[i, j], ny[i, j] = place_sample(
+                x[i], y[i], c, s, bx[j], by[j], bnx[j], bny[j]
+            )
             pz[i, j] = bz[j]
-            nx[i, j] = c * bnx[j] - s * bny[j]
-            ny[i, j] = s * bnx[j] + c * bny[j]
 
 
 def _scene_points(scene: Scene, x: F64, y: F64, psi: ArrayLike) -> BodyPoints:
