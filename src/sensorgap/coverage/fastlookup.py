@@ -39,6 +39,23 @@ def bilerp(
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
+def map_cell(
+    x0: float, y0: float, inv_res: float, nx: int, ny: int, x: float, y: float
+) -> tuple[bool, int, int, float, float]:  # pragma: no cover - compiled
+    """The cell of an (``ny``, ``nx``) map (``x0``, ``y0``: first cell centre, m;
+    ``inv_res``: cells per m) whose four corner cells surround the point (``x``, ``y``),
+    m: (on the map, column i, row j, fractions ax, ay in [0, 1] for ``bilerp``); off the
+    map (False, 0, 0, 0, 0). The one placement of every compiled map lookup."""
+    fx = (x - x0) * inv_res
+    fy = (y - y0) * inv_res
+    if not (fx >= 0.0 and fy >= 0.0 and fx <= nx - 1 and fy <= ny - 1):
+        return False, 0, 0, 0.0, 0.0
+    i = min(int(fx), nx - 2)
+    j = min(int(fy), ny - 2)
+    return True, i, j, fx - i, fy - j
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
 def bilinear_finite_at(
     img: F32, x0: float, y0: float, inv_res: float, x: float, y: float
 ) -> tuple[float, int]:  # pragma: no cover - compiled
@@ -47,19 +64,16 @@ def bilinear_finite_at(
     four corner cells in view (interpolated), 0 none (out of view), 2 some (the edge of
     the field of view) or off the map; the value is 0 unless the state is 1."""
     ny, nx = img.shape
-    fx = (x - x0) * inv_res
-    fy = (y - y0) * inv_res
-    if not (fx >= 0.0 and fy >= 0.0 and fx <= nx - 1 and fy <= ny - 1):
+    on_map, i, j, ax, ay = map_cell(x0, y0, inv_res, nx, ny, x, y)
+    if not on_map:
         return 0.0, 2
-    i = min(int(fx), nx - 2)
-    j = min(int(fy), ny - 2)
     a, b, c, d = img[j, i], img[j, i + 1], img[j + 1, i], img[j + 1, i + 1]
     n_in = int(np.isfinite(a)) + int(np.isfinite(b)) + int(np.isfinite(c)) + int(np.isfinite(d))
     if n_in == 0:
         return 0.0, 0
     if n_in < 4:
         return 0.0, 2
-    return bilerp(fx - i, fy - j, a, b, c, d), 1
+    return bilerp(ax, ay, a, b, c, d), 1
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
@@ -260,17 +274,12 @@ def lookup_pass(
                     mode[c] = 0
                 n_active += int(mode[c] != 0)
         for k in range(n[r]):
-            fx = (x[r, k] - x0) * inv_res
-            fy = (y[r, k] - y0) * inv_res
-            if not (fx >= 0.0 and fy >= 0.0 and fx <= nx - 1 and fy <= ny - 1):
+            on_map, i, j, ax, ay = map_cell(x0, y0, inv_res, nx, ny, x[r, k], y[r, k])
+            if not on_map:
                 out[r, k] = 0.0
                 outside[counts[0]] = r * t + k
                 counts[0] += 1
                 continue
-            i = min(int(fx), nx - 2)
-            j = min(int(fy), ny - 2)
-            ax = fx - i
-            ay = fy - j
             h = 0
             if n_bins > 1:
                 h = heading_bin(psi[r, k], inv_bin, n_bins)
