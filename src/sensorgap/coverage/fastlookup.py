@@ -56,6 +56,18 @@ def map_cell(
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
+def corners_in_view(
+    img: F32, i: int, j: int
+) -> tuple[int, float, float, float, float]:  # pragma: no cover - compiled
+    """How many of the four corner cells of a map that is NaN out of view are in view
+    (finite, 0 to 4), and their values (j, i), (j, i + 1), (j + 1, i), (j + 1, i + 1) in
+    the order of ``bilerp``."""
+    a, b, c, d = img[j, i], img[j, i + 1], img[j + 1, i], img[j + 1, i + 1]
+    n_in = int(np.isfinite(a)) + int(np.isfinite(b)) + int(np.isfinite(c)) + int(np.isfinite(d))
+    return n_in, a, b, c, d
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
 def bilinear_finite_at(
     img: F32, x0: float, y0: float, inv_res: float, x: float, y: float
 ) -> tuple[float, int]:  # pragma: no cover - compiled
@@ -67,8 +79,7 @@ def bilinear_finite_at(
     on_map, i, j, ax, ay = map_cell(x0, y0, inv_res, nx, ny, x, y)
     if not on_map:
         return 0.0, 2
-    a, b, c, d = img[j, i], img[j, i + 1], img[j + 1, i], img[j + 1, i + 1]
-    n_in = int(np.isfinite(a)) + int(np.isfinite(b)) + int(np.isfinite(c)) + int(np.isfinite(d))
+    n_in, a, b, c, d = corners_in_view(img, i, j)
     if n_in == 0:
         return 0.0, 0
     if n_in < 4:
@@ -316,13 +327,7 @@ def lookup_pass(
                     oy = y[r, k] - mount_xy[c, 1]
                     if ox * ox + oy * oy > reach2[c]:  # every corner cell beyond its range
                         continue
-                    sg = signal[c]
-                    n_in = (
-                        int(np.isfinite(sg[j, i]))
-                        + int(np.isfinite(sg[j, i + 1]))
-                        + int(np.isfinite(sg[j + 1, i]))
-                        + int(np.isfinite(sg[j + 1, i + 1]))
-                    )
+                    n_in = corners_in_view(signal[c], i, j)[0]
                     if n_in == 0:
                         if not keep_unseen:
                             continue  # out of its view: Pd = 0 with or without glare
