@@ -40,6 +40,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from sensorgap.config.target import TargetConfig
+from sensorgap.coverage.fastlookup import place
 from sensorgap.coverage.grid import GridCoverage, GridSpec
 from sensorgap.coverage.logmiss import log_miss_of, sensor_snr
 from sensorgap.coverage.occluders import COLUMNS as OCC_COLUMNS
@@ -373,7 +374,8 @@ def place_sample(
     """One outline sample (``bx``, ``by``, m, with face normal ``bnx``, ``bny``; target
     frame) of a body posed at (``x``, ``y``), m, heading cosine ``c`` and sine ``s``: its
     position (m) and normal in the frame of the pose."""
-    return (x + c * bx) - s * by, (y + s * bx) + c * by, c * bnx - s * bny, s * bnx + c * bny
+    px, py = place(x, y, c, s, bx, by)
+    return px, py, c * bnx - s * bny, s * bnx + c * bny
 
 
 @numba.njit(cache=True, nogil=True)

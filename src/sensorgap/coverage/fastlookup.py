@@ -39,6 +39,16 @@ def bilerp(
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
+def place(
+    x: float, y: float, c: float, s: float, u: float, v: float
+) -> tuple[float, float]:  # pragma: no cover - compiled
+    """A point (``u``, ``v``) of a target's frame (m) with the target at (``x``, ``y``), m,
+    heading cosine ``c`` and sine ``s``: the point's position, m (vehicle frame when the
+    pose is; the outline points of ``fastglare.glared_pass``, ``body.place_sample``)."""
+    return x + c * u - s * v, y + s * u + c * v
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
 def map_cell(
     x0: float, y0: float, inv_res: float, nx: int, ny: int, x: float, y: float
 ) -> tuple[bool, int, int, float, float]:  # pragma: no cover - compiled
