@@ -182,27 +182,24 @@ def _sample_in_view(
     x: float,
     y: float,
     z: float,
-    nx: float,
-    ny: float,
     mount: F64,
     lo: F64,
     hi: F64,
     check_ego: bool,
     prefilter: bool,
-) -> int:  # pragma: no cover - compiled
-    """One sample for one sensor (``_view_kernel``'s tests without the occluders): 0 not
-    facing the mount, 1 facing but out of view (loose field-of-view and range test, the
-    ego's own box), 2 facing and in view."""
+) -> bool:  # pragma: no cover - compiled
+    """Whether a sample at (``x``, ``y``, ``z``), m, that faces the mount (the callers test
+    that first, ``facing_offset``) is in view of one sensor: ``_view_kernel``'s remaining
+    tests without the occluders (loose field-of-view and range test, the ego's own
+    box)."""
     mx, my, mz = mount[0], mount[1], mount[2]
     ddx = x - mx
     ddy = y - my
-    if facing_offset(nx, ny, x, y, mx, my) <= 0.0:
-        return 0
     ddz = z - mz
     if prefilter:
         r2 = ddx * ddx + ddy * ddy + ddz * ddz
         if r2 > (mount[10] * (1.0 + 1e-9) + 1e-9) ** 2 or r2 < (mount[9] * (1.0 - 1e-9)) ** 2:
-            return 1
+            return False
         cy, sy, cp, sp = mount[3], mount[4], mount[5], mount[6]
         tan_h, tan2_v, half_h = mount[7], mount[8], mount[11]
         u = cy * ddx + sy * ddy
@@ -212,17 +209,15 @@ def _sample_in_view(
         slack = 1e-9 * (abs(xs) + abs(v) + abs(zs)) + 1e-12
         if tan_h >= 0.0:
             if not (xs > -slack and abs(v) <= xs * tan_h + slack):
-                return 1
+                return False
         elif half_h < math.pi and half_h > 0.5 * math.pi:
             if xs < -slack and abs(v) < -xs * math.tan(math.pi - half_h) - slack:
-                return 1
+                return False
         elif half_h == 0.5 * math.pi and xs < -slack:
-            return 1
+            return False
         if tan2_v >= 0.0 and zs * zs > (xs * xs + v * v) * tan2_v * (1.0 + 1e-9) + slack:
-            return 1
-    if check_ego and _hidden_by_box(mx, my, mz, x, y, z, lo, hi):
-        return 1
-    return 2
+            return False
+    return not (check_ego and _hidden_by_box(mx, my, mz, x, y, z, lo, hi))
 
 
 @numba.njit(cache=True, nogil=True)
@@ -268,20 +263,8 @@ def _view_kernel(
                 mx, my, mz, px[i, j], py[i, j], pz[i, j], occ[i if occ.shape[0] > 1 else 0]
             ):
                 continue
-            if (
-                _sample_in_view(
-                    px[i, j],
-                    py[i, j],
-                    pz[i, j],
-                    nx[i, j],
-                    ny[i, j],
-                    mount,
-                    lo,
-                    hi,
-                    check_ego,
-                    prefilter,
-                )
-                != 2
+            if not _sample_in_view(
+                px[i, j], py[i, j], pz[i, j], mount, lo, hi, check_ego, prefilter
             ):
                 continue
             flat[m] = q * k + j
@@ -352,12 +335,7 @@ def _changes_kernel(
                 continue
             if not hidden_by_boxes(mx, my, mz, px[i, j], py[i, j], pz[i, j], boxes):
                 continue
-            if (
-                _sample_in_view(
-                    px[i, j], py[i, j], pz[i, j], nx[i, j], ny[i, j], mount, lo, hi, check_ego, True
-                )
-                == 2
-            ):
+            if _sample_in_view(px[i, j], py[i, j], pz[i, j], mount, lo, hi, check_ego, True):
                 out[i] = True
                 break
 
