@@ -40,6 +40,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from sensorgap.config.target import TargetConfig
+from sensorgap.coverage.fastlookup import place
 from sensorgap.coverage.grid import GridCoverage, GridSpec
 from sensorgap.coverage.logmiss import log_miss_of, sensor_snr
 from sensorgap.coverage.occluders import COLUMNS as OCC_COLUMNS
@@ -136,6 +137,24 @@ def _ego_box(scene: Scene) -> tuple[F64, F64]:
     return lo, hi
 
 
+def _inside(sensor: Sensor, lo: F64, hi: F64) -> bool:
+    """Whether the sensor's mount lies strictly inside the ego's box ``lo``..``hi`` (m,
+    ``_ego_box``): then the box never hides a sample from it."""
+    m = sensor.mount
+    p = np.array([m.x, m.y, m.z])
+    return bool(np.all(p > lo) and np.all(p < hi))
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def facing_offset(
+    nx: float, ny: float, px: float, py: float, vx: float, vy: float
+) -> float:  # pragma: no cover - compiled
+    """How much an outline sample at (``px``, ``py``) on a face with outward horizontal
+    normal (``nx``, ``ny``) faces the point (``vx``, ``vy``) (a mount or a viewpoint), m:
+    the offset to the point along the normal; > 0 facing it, <= 0 looking away."""
+    return (vx - px) * nx + (vy - py) * ny
+
+
 @numba.njit(cache=True, nogil=True)
 def _hidden_by_box(
     ox: float, oy: float, oz: float, px: float, py: float, pz: float, lo: F64, hi: F64
@@ -163,27 +182,24 @@ def _sample_in_view(
     x: float,
     y: float,
     z: float,
-    nx: float,
-    ny: float,
     mount: F64,
     lo: F64,
     hi: F64,
     check_ego: bool,
     prefilter: bool,
-) -> int:  # pragma: no cover - compiled
-    """One sample for one sensor (``_view_kernel``'s tests without the occluders): 0 not
-    facing the mount, 1 facing but out of view (loose field-of-view and range test, the
-    ego's own box), 2 facing and in view."""
+) -> bool:  # pragma: no cover - compiled
+    """Whether a sample at (``x``, ``y``, ``z``), m, that faces the mount (the callers test
+    that first, ``facing_offset``) is in view of one sensor: ``_view_kernel``'s remaining
+    tests without the occluders (loose field-of-view and range test, the ego's own
+    box)."""
     mx, my, mz = mount[0], mount[1], mount[2]
     ddx = x - mx
     ddy = y - my
-    if nx * (-ddx) + ny * (-ddy) <= 0.0:
-        return 0
     ddz = z - mz
     if prefilter:
         r2 = ddx * ddx + ddy * ddy + ddz * ddz
         if r2 > (mount[10] * (1.0 + 1e-9) + 1e-9) ** 2 or r2 < (mount[9] * (1.0 - 1e-9)) ** 2:
-            return 1
+            return False
         cy, sy, cp, sp = mount[3], mount[4], mount[5], mount[6]
         tan_h, tan2_v, half_h = mount[7], mount[8], mount[11]
         u = cy * ddx + sy * ddy
@@ -193,17 +209,15 @@ def _sample_in_view(
         slack = 1e-9 * (abs(xs) + abs(v) + abs(zs)) + 1e-12
         if tan_h >= 0.0:
             if not (xs > -slack and abs(v) <= xs * tan_h + slack):
-                return 1
+                return False
         elif half_h < math.pi and half_h > 0.5 * math.pi:
             if xs < -slack and abs(v) < -xs * math.tan(math.pi - half_h) - slack:
-                return 1
+                return False
         elif half_h == 0.5 * math.pi and xs < -slack:
-            return 1
+            return False
         if tan2_v >= 0.0 and zs * zs > (xs * xs + v * v) * tan2_v * (1.0 + 1e-9) + slack:
-            return 1
-    if check_ego and _hidden_by_box(mx, my, mz, x, y, z, lo, hi):
-        return 1
-    return 2
+            return False
+    return not (check_ego and _hidden_by_box(mx, my, mz, x, y, z, lo, hi))
 
 
 @numba.njit(cache=True, nogil=True)
@@ -242,27 +256,15 @@ def _view_kernel(
         for j in range(k):
             # facing the mount (counted), then the cheaper of the two remaining rejections
             # first: hidden by an occluder, out of view (the same samples are kept)
-            if nx[i, j] * (mx - px[i, j]) + ny[i, j] * (my - py[i, j]) <= 0.0:
+            if facing_offset(nx[i, j], ny[i, j], px[i, j], py[i, j], mx, my) <= 0.0:
                 continue
             nf += 1
             if occ.shape[1] and hidden_by_boxes(
                 mx, my, mz, px[i, j], py[i, j], pz[i, j], occ[i if occ.shape[0] > 1 else 0]
             ):
                 continue
-            if (
-                _sample_in_view(
-                    px[i, j],
-                    py[i, j],
-                    pz[i, j],
-                    nx[i, j],
-                    ny[i, j],
-                    mount,
-                    lo,
-                    hi,
-                    check_ego,
-                    prefilter,
-                )
-                != 2
+            if not _sample_in_view(
+                px[i, j], py[i, j], pz[i, j], mount, lo, hi, check_ego, prefilter
             ):
                 continue
             flat[m] = q * k + j
@@ -329,16 +331,11 @@ def _changes_kernel(
         for j in range(k):
             # the same conjunction as ``_view_kernel``'s, cheapest rejections first:
             # facing the mount, hidden by an occluder, then in view
-            if nx[i, j] * (mx - px[i, j]) + ny[i, j] * (my - py[i, j]) <= 0.0:
+            if facing_offset(nx[i, j], ny[i, j], px[i, j], py[i, j], mx, my) <= 0.0:
                 continue
             if not hidden_by_boxes(mx, my, mz, px[i, j], py[i, j], pz[i, j], boxes):
                 continue
-            if (
-                _sample_in_view(
-                    px[i, j], py[i, j], pz[i, j], nx[i, j], ny[i, j], mount, lo, hi, check_ego, True
-                )
-                == 2
-            ):
+            if _sample_in_view(px[i, j], py[i, j], pz[i, j], mount, lo, hi, check_ego, True):
                 out[i] = True
                 break
 
@@ -346,6 +343,17 @@ def _changes_kernel(
 #: (N, K) sample positions x, y, z (m) and face normals nx, ny of N target poses
 #: (``body_points``).
 BodyPoints = tuple[F64, F64, F64, F64, F64]
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def place_sample(
+    x: float, y: float, c: float, s: float, bx: float, by: float, bnx: float, bny: float
+) -> tuple[float, float, float, float]:  # pragma: no cover - compiled
+    """One outline sample (``bx``, ``by``, m, with face normal ``bnx``, ``bny``; target
+    frame) of a body posed at (``x``, ``y``), m, heading cosine ``c`` and sine ``s``: its
+    position (m) and normal in the frame of the pose."""
+    px, py = place(x, y, c, s, bx, by)
+    return px, py, c * bnx - s * bny, s * bnx + c * bny
 
 
 @numba.njit(cache=True, nogil=True)
@@ -370,11 +378,10 @@ def _points_kernel(
     for i in range(x.size):
         c, s = cos[i], sin[i]
         for j in range(bx.size):
-            px[i, j] = (x[i] + c * bx[j]) - s * by[j]
-            py[i, j] = (y[i] + s * bx[j]) + c * by[j]
+            px[i, j], py[i, j], nx[i, j], ny[i, j] = place_sample(
+                x[i], y[i], c, s, bx[j], by[j], bnx[j], bny[j]
+            )
             pz[i, j] = bz[j]
-            nx[i, j] = c * bnx[j] - s * bny[j]
-            ny[i, j] = s * bnx[j] + c * bny[j]
 
 
 def _scene_points(scene: Scene, x: F64, y: F64, psi: ArrayLike) -> BodyPoints:
@@ -442,7 +449,6 @@ def body_sensor_pd(
     (M, 7) for every pose or (N, M, 7) per pose; ``None``: an empty road. Returns
     (pd, fraction), (N,)."""
     n, k = px.shape
-    m = sensor.mount
     pd = np.zeros(n)
     frac = np.zeros(n)
     # poses whose outline can reach the sensor's range and field of view
@@ -450,7 +456,6 @@ def body_sensor_pd(
     if near.size == 0:
         return pd, frac
     lo, hi = _ego_box(scene)
-    inside = bool(np.all(np.array([m.x, m.y, m.z]) > lo) and np.all(np.array([m.x, m.y, m.z]) < hi))
     mount = _mount_row(sensor)
     buf = np.empty(near.size * k, dtype=np.int64)
     n_face = np.empty(near.size, dtype=np.int64)
@@ -464,7 +469,7 @@ def body_sensor_pd(
         mount,
         lo,
         hi,
-        not inside,
+        not _inside(sensor, lo, hi),
         CULL,
         _occ3(occluders, n),
         buf,
@@ -520,9 +525,6 @@ def occlusion_changes(
     rad = _radius(px, py, x, y)
     for sensor in scene.sensors if sensors is None else sensors:
         m = sensor.mount
-        inside = bool(
-            np.all(np.array([m.x, m.y, m.z]) > lo) and np.all(np.array([m.x, m.y, m.z]) < hi)
-        )
         _changes_kernel(
             px,
             py,
@@ -538,7 +540,7 @@ def occlusion_changes(
             CULL,
             lo,
             hi,
-            not inside,
+            not _inside(sensor, lo, hi),
             occ,
             out,
         )
@@ -609,21 +611,6 @@ def body_per_sensor_pd(
     for row, s in enumerate(sens):
         pd[row], frac[row] = body_sensor_pd(scene, s, x, y, px, py, pz, nx, ny, sun_dirs, occluders)
     return pd, frac
-
-
-def body_log_miss(
-    scene: Scene,
-    x: F64,
-    y: F64,
-    psi: F64,
-    sun_dirs: F64 | None = None,
-    sensors: Sequence[Sensor] | None = None,
-    occluders: F64 | None = None,
-) -> F64:
-    """Fused ln P_miss (eq. 11 in the log domain) of N target bodies (see
-    ``body_per_sensor_pd``)."""
-    pd, _ = body_per_sensor_pd(scene, x, y, psi, sun_dirs, sensors, occluders)
-    return np.asarray(log_miss_of(pd).sum(axis=0), dtype=np.float64)
 
 
 def body_grid(

@@ -20,7 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sensorgap.coverage.fastkernel import ROC_SMOOTHSTEP, sensor_frame
-from sensorgap.coverage.fastlookup import bilinear_finite_at
+from sensorgap.coverage.fastlookup import bilinear_finite_at, place
 from sensorgap.models.numerics import LN10_OVER_10, SNR_CEIL_DB, SNR_FLOOR_DB
 
 F64 = NDArray[np.float64]
@@ -130,8 +130,7 @@ def glared_pass(
         for k in range(k_out):
             ox = outline[k, 0]
             oy = outline[k, 1]
-            px = xs[m] + cp * ox - sp * oy
-            py = ys[m] + sp * ox + cp * oy
+            px, py = place(xs[m], ys[m], cp, sp, ox, oy)
             sig, st = bilinear_finite_at(signal, x0, y0, inv_res, px, py)
             if st == 0:  # all four cells out of view
                 state[m, k] = 0

@@ -39,6 +39,45 @@ def bilerp(
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
+def place(
+    x: float, y: float, c: float, s: float, u: float, v: float
+) -> tuple[float, float]:  # pragma: no cover - compiled
+    """A point (``u``, ``v``) of a target's frame (m) with the target at (``x``, ``y``), m,
+    heading cosine ``c`` and sine ``s``: the point's position, m (vehicle frame when the
+    pose is; the outline points of ``fastglare.glared_pass``, ``body.place_sample``)."""
+    return x + c * u - s * v, y + s * u + c * v
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def map_cell(
+    x0: float, y0: float, inv_res: float, nx: int, ny: int, x: float, y: float
+) -> tuple[bool, int, int, float, float]:  # pragma: no cover - compiled
+    """The cell of an (``ny``, ``nx``) map (``x0``, ``y0``: first cell centre, m;
+    ``inv_res``: cells per m) whose four corner cells surround the point (``x``, ``y``),
+    m: (on the map, column i, row j, fractions ax, ay in [0, 1] for ``bilerp``); off the
+    map (False, 0, 0, 0, 0). The one placement of every compiled map lookup."""
+    fx = (x - x0) * inv_res
+    fy = (y - y0) * inv_res
+    if not (fx >= 0.0 and fy >= 0.0 and fx <= nx - 1 and fy <= ny - 1):
+        return False, 0, 0, 0.0, 0.0
+    i = min(int(fx), nx - 2)
+    j = min(int(fy), ny - 2)
+    return True, i, j, fx - i, fy - j
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def corners_in_view(
+    img: F32, i: int, j: int
+) -> tuple[int, float, float, float, float]:  # pragma: no cover - compiled
+    """How many of the four corner cells of a map that is NaN out of view are in view
+    (finite, 0 to 4), and their values (j, i), (j, i + 1), (j + 1, i), (j + 1, i + 1) in
+    the order of ``bilerp``."""
+    a, b, c, d = img[j, i], img[j, i + 1], img[j + 1, i], img[j + 1, i + 1]
+    n_in = int(np.isfinite(a)) + int(np.isfinite(b)) + int(np.isfinite(c)) + int(np.isfinite(d))
+    return n_in, a, b, c, d
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
 def bilinear_finite_at(
     img: F32, x0: float, y0: float, inv_res: float, x: float, y: float
 ) -> tuple[float, int]:  # pragma: no cover - compiled
@@ -47,19 +86,15 @@ def bilinear_finite_at(
     four corner cells in view (interpolated), 0 none (out of view), 2 some (the edge of
     the field of view) or off the map; the value is 0 unless the state is 1."""
     ny, nx = img.shape
-    fx = (x - x0) * inv_res
-    fy = (y - y0) * inv_res
-    if not (fx >= 0.0 and fy >= 0.0 and fx <= nx - 1 and fy <= ny - 1):
+    on_map, i, j, ax, ay = map_cell(x0, y0, inv_res, nx, ny, x, y)
+    if not on_map:
         return 0.0, 2
-    i = min(int(fx), nx - 2)
-    j = min(int(fy), ny - 2)
-    a, b, c, d = img[j, i], img[j, i + 1], img[j + 1, i], img[j + 1, i + 1]
-    n_in = int(np.isfinite(a)) + int(np.isfinite(b)) + int(np.isfinite(c)) + int(np.isfinite(d))
+    n_in, a, b, c, d = corners_in_view(img, i, j)
     if n_in == 0:
         return 0.0, 0
     if n_in < 4:
         return 0.0, 2
-    return bilerp(fx - i, fy - j, a, b, c, d), 1
+    return bilerp(ax, ay, a, b, c, d), 1
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
@@ -260,17 +295,12 @@ def lookup_pass(
                     mode[c] = 0
                 n_active += int(mode[c] != 0)
         for k in range(n[r]):
-            fx = (x[r, k] - x0) * inv_res
-            fy = (y[r, k] - y0) * inv_res
-            if not (fx >= 0.0 and fy >= 0.0 and fx <= nx - 1 and fy <= ny - 1):
+            on_map, i, j, ax, ay = map_cell(x0, y0, inv_res, nx, ny, x[r, k], y[r, k])
+            if not on_map:
                 out[r, k] = 0.0
                 outside[counts[0]] = r * t + k
                 counts[0] += 1
                 continue
-            i = min(int(fx), nx - 2)
-            j = min(int(fy), ny - 2)
-            ax = fx - i
-            ay = fy - j
             h = 0
             if n_bins > 1:
                 h = heading_bin(psi[r, k], inv_bin, n_bins)
@@ -307,13 +337,7 @@ def lookup_pass(
                     oy = y[r, k] - mount_xy[c, 1]
                     if ox * ox + oy * oy > reach2[c]:  # every corner cell beyond its range
                         continue
-                    sg = signal[c]
-                    n_in = (
-                        int(np.isfinite(sg[j, i]))
-                        + int(np.isfinite(sg[j, i + 1]))
-                        + int(np.isfinite(sg[j + 1, i]))
-                        + int(np.isfinite(sg[j + 1, i + 1]))
-                    )
+                    n_in = corners_in_view(signal[c], i, j)[0]
                     if n_in == 0:
                         if not keep_unseen:
                             continue  # out of its view: Pd = 0 with or without glare

@@ -41,6 +41,7 @@ from sensorgap.coverage.fastlookup import (
     body_layer_pass,
     cone_cos_bound,
     lookup_pass,
+    map_cell,
     near_view_mask,
     sun_directions_at,
 )
@@ -350,16 +351,13 @@ def _bilinear(
         if finite:
             out[k], flags[k] = bilinear_finite_at(img, x0, y0, inv_res, xs[k], ys[k])
             continue
-        fx = (xs[k] - x0) * inv_res
-        fy = (ys[k] - y0) * inv_res
-        if not (fx >= 0.0 and fy >= 0.0 and fx <= nx - 1 and fy <= ny - 1):
+        on_map, i, j, ax, ay = map_cell(x0, y0, inv_res, nx, ny, xs[k], ys[k])
+        if not on_map:
             flags[k] = 0
             out[k] = 0.0
             continue
         flags[k] = 1
-        i = min(int(fx), nx - 2)
-        j = min(int(fy), ny - 2)
-        out[k] = bilerp(fx - i, fy - j, img[j, i], img[j, i + 1], img[j + 1, i], img[j + 1, i + 1])
+        out[k] = bilerp(ax, ay, img[j, i], img[j, i + 1], img[j + 1, i], img[j + 1, i + 1])
 
 
 def interpolate_map(

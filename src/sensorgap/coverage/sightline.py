@@ -29,7 +29,7 @@ from numpy.typing import NDArray
 
 from sensorgap.config.target import TargetConfig
 from sensorgap.config.vehicle import BodyConfig
-from sensorgap.coverage.body import body_samples
+from sensorgap.coverage.body import body_samples, facing_offset, place_sample
 from sensorgap.coverage.occluders import hidden_by_boxes
 
 F64 = NDArray[np.float64]
@@ -90,15 +90,12 @@ def _seen(
     nx = np.empty(k)
     ny = np.empty(k)
     for j in range(k):
-        px[j] = x + c * bx[j] - s * by[j]
-        py[j] = y + s * bx[j] + c * by[j]
-        nx[j] = c * bnx[j] - s * bny[j]
-        ny[j] = s * bnx[j] + c * bny[j]
+        px[j], py[j], nx[j], ny[j] = place_sample(x, y, c, s, bx[j], by[j], bnx[j], bny[j])
     for v in range(views.shape[0]):
         vx, vy, vz = views[v, 0], views[v, 1], views[v, 2]
         facing = 0
         for j in range(k):
-            if (vx - px[j]) * nx[j] + (vy - py[j]) * ny[j] > 0.0:
+            if facing_offset(nx[j], ny[j], px[j], py[j], vx, vy) > 0.0:
                 facing += 1
         if facing == 0:
             continue
@@ -106,7 +103,7 @@ def _seen(
         seen = 0
         left = facing
         for j in range(k):
-            if (vx - px[j]) * nx[j] + (vy - py[j]) * ny[j] <= 0.0:
+            if facing_offset(nx[j], ny[j], px[j], py[j], vx, vy) <= 0.0:
                 continue  # the sample's face looks away from this viewpoint
             left -= 1
             if not hidden_by_boxes(vx, vy, vz, px[j], py[j], bz[j], boxes):
