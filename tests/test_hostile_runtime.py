@@ -844,3 +844,40 @@ def _read_only_cases(ro: Path) -> None:
         assert done.returncode == 2 and len(lines) == 1, done.stderr
         assert lines[0].startswith("sensorgap: error: ") and expected in lines[0], lines[0]
         assert list(ro.iterdir()) == []
+
+
+def test_cached_kernels_are_dropped_when_an_inlined_helpers_module_changes(
+    tmp_path: Path,
+) -> None:
+    """numba checks a cached kernel against its own file only: a change to a helper it
+    inlines from another kernel module must drop the cache (``runtime.drop_stale_kernels``);
+    a change to a module without kernels must not."""
+    from sensorgap.runtime import SOURCES_STAMP, drop_stale_kernels
+
+    pkg = tmp_path / "pkg"
+    (pkg / "sub" / "__pycache__").mkdir(parents=True)
+    (pkg / "kernel.py").write_text("import numba\n@numba.njit(cache=True)\ndef k(x): return h(x)\n")
+    (pkg / "sub" / "helper.py").write_text(
+        "import numba\n@numba.njit(inline='always')\ndef h(x): return x\n"
+    )
+    (pkg / "cli.py").write_text("print('no kernels here')\n")
+
+    def cached() -> list[Path]:
+        (pkg / "sub" / "__pycache__" / "kernel.k-3.py311.nbi").write_bytes(b"i")
+        (pkg / "sub" / "__pycache__" / "kernel.k-3.py311.1.nbc").write_bytes(b"c")
+        return sorted((pkg / "sub" / "__pycache__").glob("*.nb?"))
+
+    cached()
+    assert drop_stale_kernels(pkg, pkg)  # no record yet: provenance unknown, dropped
+    assert (pkg / "__pycache__" / SOURCES_STAMP).is_file()
+    assert len(cached()) == 2 and not drop_stale_kernels(pkg, pkg)  # same sources: kept
+    (pkg / "cli.py").write_text("print('still no kernels')\n")
+    assert not drop_stale_kernels(pkg, pkg) and len(cached()) == 2
+    (pkg / "sub" / "helper.py").write_text(
+        "import numba\n@numba.njit(inline='always')\ndef h(x): return -x\n"
+    )
+    assert drop_stale_kernels(pkg, pkg)
+    assert not list((pkg / "sub" / "__pycache__").glob("*.nb?"))
+    # a cache folder of its own (package read-only): the record lives in that folder
+    own = tmp_path / "cache"
+    assert not drop_stale_kernels(pkg, own) and (own / SOURCES_STAMP).is_file()

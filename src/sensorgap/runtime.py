@@ -17,7 +17,12 @@ folder is read-only, under the user's home; without a writable package folder an
 points ``NUMBA_CACHE_DIR`` (unless already set) at a writable folder owned by the user:
 ``$XDG_CACHE_HOME/sensorgap/numba``, ``~/.cache/sensorgap/numba`` or
 ``<tmp>/sensorgap-numba-<uid>`` (created 0700), and only when the package folder is not
-writable.
+writable. numba checks a cached kernel against its own source file only, not against the
+helpers it inlines from other modules (``fastlookup.map_cell`` in ``logmiss._bilinear``):
+after an edit or an update of a helper's module alone, the old machine code was reused
+silently. ``configure_numba_cache`` therefore keeps a digest of every kernel module's
+source beside the cache (``numba-sources.sha256``) and removes the cached kernels when it
+no longer matches; a ``NUMBA_CACHE_DIR`` set by the user is left alone.
 
 ``guarded_stdout``: a command's standard output that cannot be written (``> /dev/full``, a
 pipe whose reader has gone: ``| head -0``) raised ``OSError`` from wherever the command
@@ -125,14 +130,65 @@ def numba_cache_dir(
     return chosen
 
 
+#: The file beside the kernel cache holding the digest of the kernel modules' sources.
+SOURCES_STAMP = "numba-sources.sha256"
+
+
+def kernel_sources_digest(package_dir: Path) -> str:
+    """SHA-256 (hex) of the relative paths and contents of the package's modules that
+    compile kernels (their text holds ``numba.njit``), in path order."""
+    import hashlib
+
+    h = hashlib.sha256()
+    for path in sorted(package_dir.rglob("*.py")):
+        data = path.read_bytes()
+        if b"numba.njit" in data:
+            h.update(path.relative_to(package_dir).as_posix().encode() + b"\0")
+            h.update(data + b"\0")
+    return h.hexdigest()
+
+
+def drop_stale_kernels(package_dir: Path, cache_root: Path) -> bool:
+    """Remove numba's cached kernels (``*.nbi``, ``*.nbc``) below ``cache_root`` when the
+    digest recorded there (``SOURCES_STAMP``; in ``__pycache__`` when the cache is beside
+    the source) is not that of the kernel modules of
+    ``package_dir`` now, then record it; True if anything was removed. OS errors are
+    ignored (the cache is then only not cleaned)."""
+    digest = kernel_sources_digest(package_dir)
+    # beside the source: in the package's __pycache__, which version control ignores
+    folder = cache_root / "__pycache__" if cache_root == package_dir else cache_root
+    stamp = folder / SOURCES_STAMP
+    with suppress(OSError):
+        if stamp.read_text(encoding="ascii").strip() == digest:
+            return False
+    removed = False
+    for pattern in ("*.nbi", "*.nbc"):
+        for old in cache_root.rglob(pattern):
+            with suppress(OSError):
+                old.unlink()
+                removed = True
+    with suppress(OSError):
+        folder.mkdir(parents=True, exist_ok=True)
+        tmp = folder / f".{SOURCES_STAMP}.{os.getpid()}.tmp"
+        tmp.write_text(digest + "\n", encoding="ascii")
+        os.replace(tmp, stamp)
+    return removed
+
+
 def configure_numba_cache() -> str | None:
-    """``numba_cache_dir`` for this package; also updates numba's config when numba was
-    imported first. Never raises: at worst numba falls back to its own behaviour."""
+    """``numba_cache_dir`` for this package, then ``drop_stale_kernels`` in the folder
+    used (beside the source, or the one chosen; not a ``NUMBA_CACHE_DIR`` set by the user);
+    also updates numba's config when numba was imported first. Never raises: at worst numba
+    falls back to its own behaviour."""
     try:
-        chosen = numba_cache_dir(Path(__file__).resolve().parent)
+        package_dir = Path(__file__).resolve().parent
+        user_set = bool(os.environ.get("NUMBA_CACHE_DIR"))
+        chosen = numba_cache_dir(package_dir)
         config = sys.modules.get("numba.core.config")
         if chosen is not None and config is not None:
             config.CACHE_DIR = chosen  # type: ignore[attr-defined]
+        if not user_set:
+            drop_stale_kernels(package_dir, Path(chosen) if chosen else package_dir)
         return chosen
     except Exception:  # noqa: BLE001 - a cache folder must never stop a command
         return None
