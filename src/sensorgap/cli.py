@@ -955,6 +955,17 @@ class _HelpParser(_Parser):
         super().__init__(*args, **kwargs)
 
 
+def _budget_options(
+    p: argparse.ArgumentParser,
+    budget: tuple[int, str],
+    seed: tuple[int, str],
+    seeds: tuple[int, str],
+) -> None:
+    """``--budget``, ``--seed`` and ``--seeds`` of a searching command: (default, help)."""
+    for flag, (default, text) in (("--budget", budget), ("--seed", seed), ("--seeds", seeds)):
+        p.add_argument(flag, type=_integer, default=default, help=text)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``sensorgap`` command."""
     parser = _Parser(prog="sensorgap", description=__doc__)
@@ -1047,14 +1058,15 @@ def build_parser() -> argparse.ArgumentParser:
         "--environments-file",
         help="environments file defining the presets (default: the shipped ones)",
     )
-    p.add_argument("--budget", type=_integer, default=200, help="evaluations in total")
-    p.add_argument("--seed", type=_integer, default=0, help="random seed")
-    p.add_argument(
-        "--seeds",
-        type=_integer,
-        default=1,
-        help="run the budget as this many independent searches (1..10) and "
-        "say per ranked row how many found it (the ranking's stability)",
+    _budget_options(
+        p,
+        (200, "evaluations in total"),
+        (0, "random seed"),
+        (
+            1,
+            "run the budget as this many independent searches (1..10) and "
+            "say per ranked row how many found it (the ranking's stability)",
+        ),
     )
     p.add_argument("--top", type=_integer, default=10, help="ranked scenarios to write")
     p.add_argument("--strategy", default="de", help="de | cem | lhs | random | grid (or a plugin)")
@@ -1193,14 +1205,15 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--vehicle", default="system_a", help="preset name or .toml path")
     p.add_argument("--out", default="output", help="output folder")
-    p.add_argument("--budget", type=_integer, default=100_000, help="search evaluations in total")
-    p.add_argument("--seed", type=_integer, default=1, help="random seed of the search")
-    p.add_argument(
-        "--seeds",
-        type=_integer,
-        default=3,
-        help="the budget as this many independent searches (1..10): the report "
-        "says how many found each top weakness",
+    _budget_options(
+        p,
+        (100_000, "search evaluations in total"),
+        (1, "random seed of the search"),
+        (
+            3,
+            "the budget as this many independent searches (1..10): the report "
+            "says how many found each top weakness",
+        ),
     )
     p.add_argument(
         "--families", default="all", help="'all' or comma-separated family names or .toml paths"
