@@ -407,3 +407,20 @@ def test_a_second_search_into_a_folder_being_searched_is_refused(tmp_path: Path)
     finally:
         os.close(fd)
     assert list(out.iterdir()) == []
+
+
+def test_output_times_carry_no_float_noise() -> None:
+    """Times written to the ranking and evaluation files are rounded to 1 ns (96 steps of
+    0.05 s is 4.800000000000001 in float64; a ranking showed it as written); other values
+    are kept to the last digit; undefined ones are empty."""
+    import math
+
+    from sensorgap.search.metrics import output_value
+
+    assert 96 * 0.05 != 4.8 and output_value("t_confirm_median_s", 96 * 0.05) == 4.8
+    assert output_value("perfect_margin_s", 4.8 - 4.5) == 0.3
+    assert output_value("headway_at_detect_s", 3.192289204316428) == 3.192289204
+    assert output_value("collision_probability", 0.47511776826255747) == 0.47511776826255747
+    assert output_value("impact_speed_kmh", 17.97601861207741) == 17.97601861207741
+    assert output_value("t_detect_s", math.nan) is None
+    assert output_value("t_detect_s", math.inf) is None

@@ -121,6 +121,20 @@ M = TypeVar("M", bound=type[Metric])
 _METRICS: Registry[type[Metric]] = Registry("metric", key=lambda c: c.name, on_lookup=load_plugins)
 
 
+#: Decimals of a time (s) in the output files: the evaluation's step is 0.05 s, and a
+#: time computed as ``k * dt`` carries float noise (96 * 0.05 = 4.800000000000001).
+TIME_DECIMALS = 9
+
+
+def output_value(name: str, value: float) -> float | None:
+    """A metric's value as written to the output files (ranking, evaluation): None (an
+    empty cell) where it is undefined (NaN, inf); a time (name ending in ``_s``) rounded to
+    ``TIME_DECIMALS`` (1 ns); anything else as it is."""
+    if not math.isfinite(value):
+        return None
+    return round(value, TIME_DECIMALS) if name.endswith("_s") else value
+
+
 def register_metric(cls: M) -> M:
     """Class decorator: register a metric under ``cls.name``."""
     return _METRICS.register(cls)

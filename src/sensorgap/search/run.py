@@ -31,7 +31,7 @@ from sensorgap.errors import InputError
 from sensorgap.filesio import format_float, write_json
 from sensorgap.search.executors import make_executor
 from sensorgap.search.loop import LoopResult, search_loop
-from sensorgap.search.metrics import metric_names
+from sensorgap.search.metrics import metric_names, output_value
 from sensorgap.search.problem import Result, SearchProblem
 from sensorgap.search.ranking import (
     MIN_DISTANCE,
@@ -86,11 +86,6 @@ SEARCH_WRITES = (
 #: Files of a finished run or catalog: a new search (no --resume) into a folder holding
 #: one but no stored candidates is refused (its export and report would stay, stale).
 EARLIER_RUN_FILES = ("ranking.json", "run.json", "catalog.json")
-
-
-def _finite_or_none(v: float) -> float | None:
-    """A metric value for the output files: None (an empty cell) where it is undefined."""
-    return None if not math.isfinite(v) else v
 
 
 @dataclass
@@ -241,12 +236,12 @@ def rank_results(p: Prepared, loop: LoopResult) -> Ranked:
             "risk": r.risk,
             "dominant_effect": ex.dominant,
             "reason": ex.reason,
-            "named_step_t_s": ex.step_t_s,
+            "named_step_t_s": output_value("named_step_t_s", ex.step_t_s),
             "lookup_collision_probability": (
                 None if lk is None or s.mode == "exact" else lk.metrics.get("collision_probability")
             ),
         }
-        row.update({m: _finite_or_none(r.metrics[m]) for m in metrics})
+        row.update({m: output_value(m, r.metrics[m]) for m in metrics})
         row.update({f"p_{k}": v for k, v in c.params.items()})
         return row
 

@@ -24,7 +24,7 @@ from sensorgap.models import Conditions, load_system
 from sensorgap.scenarios import load_families
 from sensorgap.scenarios.family import ParamValue
 from sensorgap.search.evaluate import Evaluator, _sun_directions
-from sensorgap.search.metrics import metric_names
+from sensorgap.search.metrics import metric_names, output_value
 from sensorgap.search.outcome import first_confirmation
 from sensorgap.search.problem import Candidate, SearchProblem
 from sensorgap.search.ranking import classify, explain
@@ -144,11 +144,7 @@ def evaluate_candidate(
         raise InputError("sun", "", f"environment {environment!r} has no visible sun")
     cand = Candidate(fam.name, environment, sun, parse_params(params, prob))
     res = prob.evaluate(cand, keep_trace=True)
-    metrics = (
-        {m: (None if not math.isfinite(res.metrics[m]) else res.metrics[m]) for m in metric_names()}
-        if res.feasible
-        else {}
-    )
+    metrics = {m: output_value(m, res.metrics[m]) for m in metric_names()} if res.feasible else {}
     evaluation: dict[str, Any] = {
         "scenario_id": cand.scenario_id,
         "vehicle": system.name,
@@ -170,7 +166,11 @@ def evaluate_candidate(
     if res.feasible:
         ex = explain(prob, cand)
         evaluation.update(
-            {"dominant_effect": ex.dominant, "reason": ex.reason, "named_step_t_s": ex.step_t_s}
+            {
+                "dominant_effect": ex.dominant,
+                "reason": ex.reason,
+                "named_step_t_s": output_value("named_step_t_s", ex.step_t_s),
+            }
         )
         atomic_write_bytes(out / "trace.csv", _trace_csv(prob, cand, ev))
     write_json(out / "evaluation.json", evaluation)
