@@ -11,7 +11,7 @@ import json
 import math
 import re
 import zipfile
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -304,26 +304,24 @@ def refuse_if_changed(folder: str | Path, rewrites: tuple[str, ...]) -> None:
     ``InputError`` naming the first such file and how many there are; a folder without a
     manifest is not checked (nothing certified yet)."""
     root = Path(folder)
-    if not (root / MANIFEST_NAME).is_file():
-        return
 
     # a file added since (another command's outputs in a sub-folder, e.g. a job's near
     # field) is listed by the new manifest; a file of a part lost (in a sub-folder: an
     # analysis, the export) stays listed (write_manifest with the same rewrites), so
     # verify still reports it; a certified file changed, or one of the run's own record
     # at the top of the folder (ranking, summary, run.json) lost, is refused
-    bad = [
-        why
-        for rel, why in _manifest_problems(root)
-        if not _written_by(rel, rewrites)
-        and not why.endswith(
-            ("(from an interrupted command; not in the manifest)", "is not in the manifest")
+    def refused(rel: str, why: str) -> bool:
+        return (
+            not _written_by(rel, rewrites)
+            and not why.endswith(
+                ("(from an interrupted command; not in the manifest)", "is not in the manifest")
+            )
+            and not (why.endswith(" is missing") and "/" in rel)
         )
-        and not (why.endswith(" is missing") and "/" in rel)
-    ]
+
     _refuse_unmatched(
         root,
-        bad,
+        refused,
         f"; run 'sensorgap verify {root}'",
         "writing into it would certify that; restore the file or run the command again "
         "into a fresh folder",
@@ -441,27 +439,26 @@ def refuse_if_source_changed(folder: str | Path, reads: tuple[str, ...], what: s
     catalog"). Raises ``InputError`` naming the source's manifest and the first such file;
     a folder without a manifest is not checked."""
     root = Path(folder)
-    if not (root / MANIFEST_NAME).is_file():
-        return
-    bad = [
-        why
-        for rel, why in _manifest_problems(root)
-        if _written_by(rel, reads) and not why.endswith("is not in the manifest")
-    ]
     _refuse_unmatched(
         root,
-        bad,
+        lambda rel, why: _written_by(rel, reads) and not why.endswith("is not in the manifest"),
         "",
         f"{what} made from it would certify that; restore the file (sensorgap verify "
         f"{root}) or search again",
     )
 
 
-def _refuse_unmatched(root: Path, bad: list[str], more_hint: str, advice: str) -> None:
-    """Raise the one-line ``InputError`` of a folder that no longer matches its manifest
-    (``bad``: the problems, the first named; none: return)."""
+def _refuse_unmatched(
+    root: Path, refused: Callable[[str, str], bool], more_hint: str, advice: str
+) -> None:
+    """Raise the one-line ``InputError`` of a folder with a ``manifest.json`` that no
+    longer matches it: the problems (``_manifest_problems``: relative path, message) that
+    ``refused`` picks, the first named; none, or no manifest: return."""
     from sensorgap.errors import InputError
 
+    if not (root / MANIFEST_NAME).is_file():
+        return
+    bad = [why for rel, why in _manifest_problems(root) if refused(rel, why)]
     if not bad:
         return
     more = f" (and {len(bad) - 1} more{more_hint})" if len(bad) > 1 else ""

@@ -19,8 +19,8 @@ class SunConfig(Strict):
     heading at evaluation time.
     """
 
-    azimuth_deg: float = Field(ge=-360.0, le=360.0, allow_inf_nan=False)
-    elevation_deg: float = Field(ge=-90.0, le=90.0, allow_inf_nan=False)
+    azimuth_deg: float = Field(ge=-360.0, le=360.0)
+    elevation_deg: float = Field(ge=-90.0, le=90.0)
     frame: Literal["vehicle", "world"] = "vehicle"
     visible: bool = Field(
         default=True, description="Sun disc visible (clear sky); False under overcast/fog"
@@ -29,7 +29,6 @@ class SunConfig(Strict):
         default=480.0,
         ge=0.0,
         le=1.0e4,
-        allow_inf_nan=False,
         description="Direct-normal irradiance in the camera band, W/m2 (for glare, eq. 10)",
     )
 
@@ -49,45 +48,40 @@ class EnvironmentConfig(Strict):
 
     name: PresetName
     description: str = ""
-    rain_mm_h: float = Field(default=0.0, ge=0.0, le=500.0, allow_inf_nan=False)
-    snow_mm_h: float = Field(default=0.0, ge=0.0, le=100.0, allow_inf_nan=False)
+    rain_mm_h: float = Field(default=0.0, ge=0.0, le=500.0)
+    snow_mm_h: float = Field(default=0.0, ge=0.0, le=100.0)
     snow_wet: bool = False
     visibility_m: float = Field(
         default=23000.0,
         ge=1.0,
         le=1.0e6,
-        allow_inf_nan=False,
         description="Meteorological optical range, m (23 km = standard clear air)",
     )
     fog_lwc_g_m3: float | None = Field(
         default=None,
         ge=0.0,
         le=5.0,
-        allow_inf_nan=False,
         description="Fog liquid water content, g/m3; default derived from visibility (Kunkel 1984)",
     )
-    temperature_c: float = Field(default=15.0, ge=-60.0, le=60.0, allow_inf_nan=False)
-    relative_humidity_pct: float = Field(default=50.0, ge=0.0, le=100.0, allow_inf_nan=False)
+    temperature_c: float = Field(default=15.0, ge=-60.0, le=60.0)
+    relative_humidity_pct: float = Field(default=50.0, ge=0.0, le=100.0)
     pressure_hpa: float = Field(
         default=1013.25,
         ge=500.0,
         le=1100.0,
-        allow_inf_nan=False,
         description="Total barometric pressure (roads: ~500-1100), hPa",
     )
-    water_vapour_g_m3: float = Field(default=7.5, ge=0.0, le=50.0, allow_inf_nan=False)
+    water_vapour_g_m3: float = Field(default=7.5, ge=0.0, le=50.0)
     irradiance_w_m2: float = Field(
         default=534.0,
         ge=0.0,
         le=1.0e4,
-        allow_inf_nan=False,
         description="Irradiance on objects in the camera band (E_sun of eq. 6), W/m2",
     )
     roc_shift_db: float = Field(
         default=0.0,
         ge=-100.0,
         le=100.0,
-        allow_inf_nan=False,
         description="SNR penalty of the ROC in this weather (paper: curves shifted), dB",
     )
     sun: SunConfig | None = None

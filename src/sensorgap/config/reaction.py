@@ -74,27 +74,25 @@ class ReactionConfig(Strict):
     latency_s: float = Field(
         ge=0.0,
         le=10.0,
-        allow_inf_nan=False,
         description="Confirmation (or threat onset) to brake onset, s",
     )
-    jerk_m_s3: float = Field(ge=0.1, le=1000.0, allow_inf_nan=False, description="Brake ramp, m/s3")
+    jerk_m_s3: float = Field(ge=0.1, le=1000.0, description="Brake ramp, m/s3")
     decel_max_m_s2: float = Field(
-        gt=0.0, le=20.0, allow_inf_nan=False, description="Deceleration limit before friction, m/s2"
+        gt=0.0, le=20.0, description="Deceleration limit before friction, m/s2"
     )
     confirm_with: tuple[SensorType, ...] = Field(
         min_length=1, description="Sensor types whose detections confirm a target"
     )
     threat_margin_m: float = Field(
-        ge=0.0, le=10.0, allow_inf_nan=False, description="Lateral widening of the threat test, m"
+        ge=0.0, le=10.0, description="Lateral widening of the threat test, m"
     )
     threat_horizon_s: float = Field(
-        gt=0.0, le=30.0, allow_inf_nan=False, description="Planned path ahead in the threat test, s"
+        gt=0.0, le=30.0, description="Planned path ahead in the threat test, s"
     )
     threat_prediction_s: float = Field(
         0.0,
         ge=0.0,
         le=5.0,
-        allow_inf_nan=False,
         description="Lateral prediction in the threat test, s",
     )
     sources: dict[str, str] = Field(default_factory=dict)

@@ -20,19 +20,17 @@ class TargetConfig(Strict):
     rcs_m2: float = Field(
         ge=1.0e-6,
         le=1.0e4,
-        allow_inf_nan=False,
         description="Cross-section for active sensors, m2 (paper Sec. III)",
     )
     camera_cross_section_m2: float = Field(
-        ge=1.0e-6, le=1.0e3, allow_inf_nan=False, description="Geometric cross-section, m2 (paper)"
+        ge=1.0e-6, le=1.0e3, description="Geometric cross-section, m2 (paper)"
     )
-    length_m: float = Field(ge=0.01, le=50.0, allow_inf_nan=False)
-    width_m: float = Field(ge=0.01, le=10.0, allow_inf_nan=False)
-    height_m: float = Field(ge=0.01, le=10.0, allow_inf_nan=False)
+    length_m: float = Field(ge=0.01, le=50.0)
+    width_m: float = Field(ge=0.01, le=10.0)
+    height_m: float = Field(ge=0.01, le=10.0)
     reference_height_m: float = Field(
         ge=0.0,
         le=10.0,
-        allow_inf_nan=False,
         description="Height at which coverage is evaluated for this class, m",
     )
     lidar_reflectance: float = Field(
@@ -45,7 +43,6 @@ class TargetConfig(Strict):
         default=70.0,
         ge=0.1,
         le=150.0,
-        allow_inf_nan=False,
         description="Upper bound for trajectories, m/s",
     )
     sources: dict[str, str] = Field(default_factory=dict)

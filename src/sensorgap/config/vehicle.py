@@ -49,11 +49,11 @@ class RocConfig(Strict):
     """
 
     kind: Literal["paper", "smoothstep", "swerling0", "swerling1", "albersheim"] = "paper"
-    snr50_db: float = Field(default=10.0, ge=-50.0, le=100.0, allow_inf_nan=False)
-    floor_db: float = Field(default=0.0, ge=-300.0, le=100.0, allow_inf_nan=False)
-    half_width_db: float = Field(default=6.0, gt=0.0, le=50.0, allow_inf_nan=False)
+    snr50_db: float = Field(default=10.0, ge=-50.0, le=100.0)
+    floor_db: float = Field(default=0.0, ge=-300.0, le=100.0)
+    half_width_db: float = Field(default=6.0, gt=0.0, le=50.0)
     #: at most ``MAX_PFA``: a pfa near 1 (1 - 1e-15) overflowed scipy's Marcum Q (tgamma)
-    pfa: float = Field(default=1.0e-6, ge=1.0e-15, le=MAX_PFA, allow_inf_nan=False)
+    pfa: float = Field(default=1.0e-6, ge=1.0e-15, le=MAX_PFA)
     n_pulses: int = Field(default=1, ge=1, le=8096)
 
     @model_validator(mode="after")
@@ -90,16 +90,15 @@ class MountConfig(Strict):
     position_m: list[float] = Field(
         min_length=3, max_length=3, description="x, y, z in the vehicle frame, m"
     )
-    yaw_deg: float = Field(default=0.0, ge=-360.0, le=360.0, allow_inf_nan=False)
-    pitch_deg: float = Field(default=0.0, ge=-90.0, le=90.0, allow_inf_nan=False)
+    yaw_deg: float = Field(default=0.0, ge=-360.0, le=360.0)
+    pitch_deg: float = Field(default=0.0, ge=-90.0, le=90.0)
     # > 0: a sensor without a field of view sees nothing (refused rather than evaluated)
-    hfov_deg: float = Field(gt=0.0, le=360.0, allow_inf_nan=False)
-    vfov_deg: float = Field(gt=0.0, le=180.0, allow_inf_nan=False)
-    min_range_m: float = Field(default=0.0, ge=0.0, le=MAX_RANGE_M, allow_inf_nan=False)
+    hfov_deg: float = Field(gt=0.0, le=360.0)
+    vfov_deg: float = Field(gt=0.0, le=180.0)
+    min_range_m: float = Field(default=0.0, ge=0.0, le=MAX_RANGE_M)
     max_range_m: float = Field(
         ge=0.01,
         le=MAX_RANGE_M,
-        allow_inf_nan=False,
         description="Detection range limit, m (at most 10 km)",
     )
     source: str = Field(description="Where pose, field of view and range come from")
@@ -148,12 +147,12 @@ class BodyConfig(Strict):
 
     name: Name
     description: str = ""
-    length_m: float = Field(gt=0.5, le=30.0, allow_inf_nan=False)
-    width_m: float = Field(gt=0.5, le=5.0, allow_inf_nan=False)
-    height_m: float = Field(gt=0.5, le=6.0, allow_inf_nan=False)
-    wheelbase_m: float = Field(gt=0.5, le=20.0, allow_inf_nan=False)
-    rear_overhang_m: float = Field(ge=0.0, le=10.0, allow_inf_nan=False)
-    max_speed_m_s: float = Field(default=70.0, ge=0.1, le=150.0, allow_inf_nan=False)
+    length_m: float = Field(gt=0.5, le=30.0)
+    width_m: float = Field(gt=0.5, le=5.0)
+    height_m: float = Field(gt=0.5, le=6.0)
+    wheelbase_m: float = Field(gt=0.5, le=20.0)
+    rear_overhang_m: float = Field(ge=0.0, le=10.0)
+    max_speed_m_s: float = Field(default=70.0, ge=0.1, le=150.0)
     sources: dict[str, str] = Field(default_factory=dict)
 
     @model_validator(mode="after")

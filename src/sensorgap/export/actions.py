@@ -207,9 +207,12 @@ def after_change(
     return s0 + tr * v * t_from, s0 + tr * v * t_total
 
 
-def declare_shape(b: Build) -> str:
-    """The declared OpenSCENARIO shape of the family's lane-change blend (reference)."""
-    shape = str(b.spec.params.get("shape", "cosine"))
+def declare_shape(b: Build, shape: str | None = None) -> str:
+    """The declared OpenSCENARIO shape of a lane-change blend (reference): the family's
+    ``shape`` parameter, or ``shape`` for kinds whose blend is fixed (overtake's merge and
+    cut-out's lead vehicle: ``cosine``)."""
+    if shape is None:
+        shape = str(b.spec.params.get("shape", "cosine"))
     b.p.values["lane_change_shape"] = LANE_CHANGE_SHAPE[shape]
     return b.p.ref("lane_change_shape")
 

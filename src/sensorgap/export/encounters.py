@@ -100,14 +100,13 @@ def _overtake(b: Build) -> None:
     trig = gap_trigger(
         b, "merge_gap", TARGET, EGO, f"$merge_gap_m - {off}", float(p["speed_delta_m_s"])
     )
-    b.p.values["lane_change_shape"] = "sinusoidal"
     stretch = after_change(b, tr, s0, v0, t_m, t_e)
     lane_change(
         b,
         TARGET,
         "merge",
         None,
-        b.p.ref("lane_change_shape"),
+        declare_shape(b, "cosine"),
         b.p.ref("merge_duration_s"),
         trig,
         t_m,
@@ -166,13 +165,12 @@ def _cut_out_reveal(b: Build) -> None:
     )
     closing = float(p["target_speed_m_s"]) - float(p["ego_speed_m_s"])
     trig = gap_trigger(b, "reveal_gap", TARGET, EGO, gap, closing)
-    b.p.values["lane_change_shape"] = "sinusoidal"
     lane_change(
         b,
         name,
         "cut_out",
         other,
-        b.p.ref("lane_change_shape"),
+        declare_shape(b, "cosine"),
         b.p.ref("lc_duration_s"),
         trig,
         t_s,

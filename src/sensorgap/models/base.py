@@ -19,7 +19,7 @@ from pydantic import BaseModel
 
 from sensorgap.config.target import TargetConfig
 from sensorgap.models.conditions import Band, Conditions
-from sensorgap.models.geometry import Mount, separation_cos
+from sensorgap.models.geometry import Mount, pattern_loss_db, separation_cos
 
 F64 = NDArray[np.float64]
 SnrFunction = Callable[[F64, F64, F64], F64]
@@ -69,6 +69,63 @@ class PreparedSensor:
     signal_constants: tuple[float, ...] | None = None
     terms_db: dict[str, float] = field(default_factory=dict)
     effects: dict[str, str] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class RangeLosses:
+    """The range-dependent losses the built-in sensors share: the weather loss along the
+    path and the gain loss over the field of view (``pattern_loss_db``). Each sensor's own
+    range law (R^-4, R^-2 beam fill, pixel count) stays in its module.
+
+    Attributes:
+        weather_db_m: weather loss per metre of range, dB/m (the one-way specific
+            attenuation times the passes through the weather: 2 for the active sensors,
+            1 for a camera).
+        edge_loss_db: one-way gain loss at the field-of-view edge, dB (0: none).
+        hfov, vfov: the mount's field of view, rad.
+        edge_passes: how often the pattern loss applies (2: transmit and receive antenna).
+    """
+
+    weather_db_m: float
+    edge_loss_db: float
+    hfov: float
+    vfov: float
+    edge_passes: float = 1.0
+
+    @classmethod
+    def of(
+        cls,
+        one_way_db_km: float,
+        weather_passes: float,
+        mount: Mount,
+        edge_loss_db: float,
+        edge_passes: float = 1.0,
+    ) -> RangeLosses:
+        """The losses of a sensor at ``mount`` in weather of one-way specific attenuation
+        ``one_way_db_km`` (dB/km) crossed ``weather_passes`` times, with ``edge_loss_db``
+        (dB) at the edge of the view applied ``edge_passes`` times."""
+        return cls(
+            weather_passes * one_way_db_km / 1000.0,
+            edge_loss_db,
+            mount.hfov,
+            mount.vfov,
+            edge_passes,
+        )
+
+    @property
+    def uses_angles(self) -> bool:
+        """Whether the losses depend on azimuth and elevation (an edge loss)."""
+        return self.edge_loss_db > 0.0
+
+    def apply(self, level_db: F64 | float, spreading_db: F64, r: F64, az: F64, el: F64) -> F64:
+        """``level_db - spreading_db - weather_db_m r`` less the pattern loss, dB, at
+        range ``r`` (m), azimuth ``az`` and elevation ``el`` (rad, sensor frame)."""
+        out = level_db - spreading_db - self.weather_db_m * r
+        if self.edge_loss_db > 0.0:
+            out = out - self.edge_passes * pattern_loss_db(
+                az, el, self.hfov, self.vfov, self.edge_loss_db
+            )
+        return out
 
 
 class SensorModel(ABC):

@@ -41,15 +41,10 @@ from pydantic import Field
 
 from sensorgap.config.common import Strict
 from sensorgap.config.target import TargetConfig
-from sensorgap.models.base import F64, GlareCone, PreparedSensor, SensorModel
+from sensorgap.models.base import F64, GlareCone, PreparedSensor, RangeLosses, SensorModel
 from sensorgap.models.conditions import Band, Conditions
 from sensorgap.models.constants import BOLTZMANN_J_K, PLANCK_J_S, SPEED_OF_LIGHT_M_S
-from sensorgap.models.geometry import (
-    Mount,
-    angle_outside_fov,
-    angles_outside_fov,
-    pattern_loss_db,
-)
+from sensorgap.models.geometry import Mount, angle_outside_fov, angles_outside_fov
 from sensorgap.models.numerics import LN10_OVER_10
 from sensorgap.models.registry import register
 
@@ -195,9 +190,11 @@ class Camera(SensorModel):
         glare = e_dir > 0.0 and p.veiling_glare_k > 0.0
         ln_thermal = math.log(thermal)
         gamma = conditions.attenuation_db_km(self.band())
-        one_way_db_m = gamma / 1000.0  # object -> camera: one pass (Koschmieder)
+        # object -> camera: one pass (Koschmieder)
+        losses = RangeLosses.of(gamma, 1.0, mount, p.fov_edge_loss_db)
+        one_way_db_m = losses.weather_db_m
         ifov_db = 20.0 * math.log10(ifov)
-        edge, hfov, vfov = p.fov_edge_loss_db, mount.hfov, mount.vfov
+        edge, hfov, vfov = losses.edge_loss_db, losses.hfov, losses.vfov
         sun_s = None  # this scene's sun in the sensor frame, when it reaches this camera
         if w > 0.0 and glare and conditions.sun_direction is not None:
             sun_s = mount.rotation().T @ np.asarray(conditions.sun_direction, dtype=np.float64)
@@ -212,10 +209,7 @@ class Camera(SensorModel):
         def signal_db(r: F64, az: F64, el: F64) -> F64:
             lr20 = 20.0 * np.log10(r)
             npo_db = np.minimum(sigma_db - lr20 - ifov_db, n_pix_db)
-            ne_db = k_db + npo_db - lr20 - one_way_db_m * r
-            if edge > 0.0:
-                ne_db = ne_db - pattern_loss_db(az, el, hfov, vfov, edge)
-            return np.asarray(ne_db, dtype=np.float64)
+            return np.asarray(losses.apply(k_db + npo_db, lr20, r, az, el), dtype=np.float64)
 
         def snr_from_signal(ne_db: F64, g: F64, r: F64) -> F64:
             ln_ne = ne_db * LN10_OVER_10
@@ -249,7 +243,7 @@ class Camera(SensorModel):
             snr_db=snr_db,
             terms_db=terms,
             effects=effects,
-            uses_angles=edge > 0.0 or sun_s is not None,
+            uses_angles=losses.uses_angles or sun_s is not None,
             snr_db_glare=snr_db_glare if glare else None,
             signal_db=signal_db if glare else None,
             snr_from_signal=snr_from_signal if glare else None,

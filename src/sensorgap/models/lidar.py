@@ -22,10 +22,10 @@ from pydantic import Field
 
 from sensorgap.config.common import Strict
 from sensorgap.config.target import TargetConfig
-from sensorgap.models.base import F64, PreparedSensor, SensorModel
+from sensorgap.models.base import F64, PreparedSensor, RangeLosses, SensorModel
 from sensorgap.models.conditions import Band, Conditions
 from sensorgap.models.constants import BOLTZMANN_J_K, PLANCK_J_S, SPEED_OF_LIGHT_M_S
-from sensorgap.models.geometry import Mount, pattern_loss_db
+from sensorgap.models.geometry import Mount
 from sensorgap.models.registry import register
 
 
@@ -81,18 +81,14 @@ class Lidar(SensorModel):
         fill_db = 10.0 * math.log10(target.lidar_reflectance * math.pi * p.beam_divergence_rad**2)
         extended = p.target_law == "min"
         gamma = conditions.attenuation_db_km(self.band())
-        two_way_db_m = 2.0 * gamma / 1000.0
-        edge, hfov, vfov = p.fov_edge_loss_db, mount.hfov, mount.vfov
+        losses = RangeLosses.of(gamma, 2.0, mount, p.fov_edge_loss_db)
 
         def snr_db(r: F64, az: F64, el: F64) -> F64:
             lr = np.log10(r)
             sig = np.minimum(sigma_db, fill_db + 20.0 * lr) if extended else sigma_db
-            out = k_db + sig - 40.0 * lr - two_way_db_m * r
-            if edge > 0.0:
-                out -= pattern_loss_db(az, el, hfov, vfov, edge)
-            return np.asarray(out, dtype=np.float64)
+            return np.asarray(losses.apply(k_db + sig, 40.0 * lr, r, az, el), dtype=np.float64)
 
         terms["sigma [dBsm]"] = sigma_db
         terms["rho pi Theta^2 [dB]"] = fill_db
         terms["weather one-way [dB/km]"] = gamma
-        return PreparedSensor(snr_db=snr_db, terms_db=terms, uses_angles=edge > 0.0)
+        return PreparedSensor(snr_db=snr_db, terms_db=terms, uses_angles=losses.uses_angles)

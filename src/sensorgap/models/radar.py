@@ -9,12 +9,9 @@ from __future__ import annotations
 from pydantic import Field
 
 from sensorgap.config.common import Strict
-from sensorgap.config.target import TargetConfig
-from sensorgap.models.base import PreparedSensor, SensorModel
-from sensorgap.models.conditions import Band, Conditions
+from sensorgap.models.conditions import Conditions
 from sensorgap.models.constants import SPEED_OF_LIGHT_M_S, T0_K
-from sensorgap.models.geometry import Mount
-from sensorgap.models.radar_equation import prepare_radar_device
+from sensorgap.models.radar_equation import RadarEquationSensor
 from sensorgap.models.registry import register
 
 
@@ -42,24 +39,14 @@ class RadarParams(Strict):
 
 
 @register
-class Radar(SensorModel):
-    """Automotive radar, eq. 2-3 of Ponn et al. 2019."""
+class Radar(RadarEquationSensor):
+    """Automotive radar, eq. 2-3 of Ponn et al. 2019, in the radio band."""
 
     type_name = "radar"
     Params = RadarParams
     params: RadarParams
+    band_kind = "radio"
 
-    def band(self) -> Band:
-        """Radio band at the carrier frequency."""
-        return Band("radio", frequency_hz=self.params.frequency_hz)
-
-    def prepare(self, mount: Mount, target: TargetConfig, conditions: Conditions) -> PreparedSensor:
-        """Radar equation with the target's radar cross-section (``rcs_m2``)."""
-        p = self.params
-        return prepare_radar_device(
-            p,
-            SPEED_OF_LIGHT_M_S / p.frequency_hz,
-            target.rcs_m2,
-            conditions.attenuation_db_km(self.band()),
-            mount,
-        )
+    def wavelength_m(self, conditions: Conditions) -> float:
+        """``c / f``, m."""
+        return SPEED_OF_LIGHT_M_S / self.params.frequency_hz

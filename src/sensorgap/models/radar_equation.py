@@ -10,13 +10,16 @@ antenna gains reduced over the field of view by ``pattern_loss_db`` (each antenn
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+from abc import abstractmethod
+from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 
-from sensorgap.models.base import F64, PreparedSensor
+from sensorgap.config.target import TargetConfig
+from sensorgap.models.base import F64, PreparedSensor, RangeLosses, SensorModel
+from sensorgap.models.conditions import Band, BandKind, Conditions
 from sensorgap.models.constants import BOLTZMANN_J_K
-from sensorgap.models.geometry import Mount, pattern_loss_db
+from sensorgap.models.geometry import Mount
 
 if TYPE_CHECKING:
     from sensorgap.models.radar import RadarParams
@@ -54,20 +57,17 @@ def radar_constant_db(
 def prepare_radar_equation(
     terms_db: dict[str, float], one_way_db_km: float, mount: Mount, edge_loss_db: float
 ) -> PreparedSensor:
-    """A ``PreparedSensor`` evaluating eq. 3 with R^-4 spreading and two-way weather loss."""
+    """A ``PreparedSensor`` evaluating eq. 3 with R^-4 spreading, two-way weather loss and
+    the pattern loss of both antennas."""
     k_db = math.fsum(terms_db.values())
-    two_way_db_m = 2.0 * one_way_db_km / 1000.0
-    hfov, vfov = mount.hfov, mount.vfov
+    losses = RangeLosses.of(one_way_db_km, 2.0, mount, edge_loss_db, edge_passes=2.0)
 
     def snr_db(r: F64, az: F64, el: F64) -> F64:
-        out = k_db - 40.0 * np.log10(r) - two_way_db_m * r
-        if edge_loss_db > 0.0:
-            out -= 2.0 * pattern_loss_db(az, el, hfov, vfov, edge_loss_db)
-        return out
+        return losses.apply(k_db, 40.0 * np.log10(r), r, az, el)
 
     terms = dict(terms_db)
     terms["weather one-way [dB/km]"] = one_way_db_km
-    return PreparedSensor(snr_db=snr_db, terms_db=terms, uses_angles=edge_loss_db > 0.0)
+    return PreparedSensor(snr_db=snr_db, terms_db=terms, uses_angles=losses.uses_angles)
 
 
 def prepare_radar_device(
@@ -92,3 +92,32 @@ def prepare_radar_device(
         system_noise_temperature_k=p.system_noise_temperature_k,
     )
     return prepare_radar_equation(terms, one_way_db_km, mount, p.fov_edge_loss_db)
+
+
+class RadarEquationSensor(SensorModel):
+    """A sensor of the radar equation (radar, ultrasonic): eq. 2-3 with the target's
+    ``rcs_m2`` and the wavelength of its carrier (``wavelength_m``), in the band of kind
+    ``band_kind`` at the carrier frequency."""
+
+    #: The band's kind (``radio``, ``acoustic``): selects the weather attenuation.
+    band_kind: ClassVar[BandKind]
+    params: RadarParams | UltrasonicParams
+
+    def band(self) -> Band:
+        """The ``band_kind`` band at the carrier frequency (``frequency_hz``)."""
+        return Band(self.band_kind, frequency_hz=self.params.frequency_hz)
+
+    @abstractmethod
+    def wavelength_m(self, conditions: Conditions) -> float:
+        """The carrier's wavelength in ``conditions``, m."""
+
+    def prepare(self, mount: Mount, target: TargetConfig, conditions: Conditions) -> PreparedSensor:
+        """Radar equation with the carrier wavelength and the target's radar cross-section
+        (``rcs_m2``)."""
+        return prepare_radar_device(
+            self.params,
+            self.wavelength_m(conditions),
+            target.rcs_m2,
+            conditions.attenuation_db_km(self.band()),
+            mount,
+        )

@@ -10,12 +10,9 @@ from __future__ import annotations
 from pydantic import Field
 
 from sensorgap.config.common import Strict
-from sensorgap.config.target import TargetConfig
-from sensorgap.models.base import PreparedSensor, SensorModel
-from sensorgap.models.conditions import Band, Conditions
+from sensorgap.models.conditions import Conditions
 from sensorgap.models.constants import speed_of_sound_m_s
-from sensorgap.models.geometry import Mount
-from sensorgap.models.radar_equation import prepare_radar_device
+from sensorgap.models.radar_equation import RadarEquationSensor
 from sensorgap.models.registry import register
 
 
@@ -35,21 +32,15 @@ class UltrasonicParams(Strict):
 
 
 @register
-class Ultrasonic(SensorModel):
-    """Ultrasonic park-distance sensor, eq. 2-3 of Ponn et al. 2019."""
+class Ultrasonic(RadarEquationSensor):
+    """Ultrasonic park-distance sensor, eq. 2-3 of Ponn et al. 2019, in the acoustic band
+    (attenuation: the paper's constant 1000 dB/km)."""
 
     type_name = "ultrasonic"
     Params = UltrasonicParams
     params: UltrasonicParams
+    band_kind = "acoustic"
 
-    def band(self) -> Band:
-        """Acoustic band (attenuation: the paper's constant 1000 dB/km)."""
-        return Band("acoustic", frequency_hz=self.params.frequency_hz)
-
-    def prepare(self, mount: Mount, target: TargetConfig, conditions: Conditions) -> PreparedSensor:
-        """Radar equation with the acoustic wavelength at the ambient temperature."""
-        p = self.params
-        wavelength = speed_of_sound_m_s(conditions.env.temperature_c) / p.frequency_hz
-        return prepare_radar_device(
-            p, wavelength, target.rcs_m2, conditions.attenuation_db_km(self.band()), mount
-        )
+    def wavelength_m(self, conditions: Conditions) -> float:
+        """The acoustic wavelength ``c_sound / f`` at the ambient temperature, m."""
+        return speed_of_sound_m_s(conditions.env.temperature_c) / self.params.frequency_hz

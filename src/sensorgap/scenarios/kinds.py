@@ -78,14 +78,30 @@ class _LaneKind(FamilyKind):
         return family.lane_table(rid, lane).tracks(s, travel, t)
 
     @staticmethod
+    def _blend(
+        family: Family, rid: str, lane_from: int, lane_to: int, s: F64, travel: int, w: F64
+    ) -> tuple[F64, F64, F64]:
+        """Poses (x, y in m, heading in rad: ``lane_from``'s) at road ``s`` (m) of a lane
+        change from ``lane_from`` to ``lane_to``, ``w`` (0..1) of the way across."""
+        xa, ya, ha = family.lane_table(rid, lane_from).poses(s, travel)
+        xb, yb, _ = family.lane_table(rid, lane_to).poses(s, travel)
+        return (1.0 - w) * xa + w * xb, (1.0 - w) * ya + w * yb, ha
+
+    @staticmethod
     def _changing(
         family: Family, rid: str, lane_from: int, lane_to: int, s: F64, travel: int, t: F64, w: F64
     ) -> Tracks:
-        xa, ya, ha = family.lane_table(rid, lane_from).poses(s, travel)
-        xb, yb, _ = family.lane_table(rid, lane_to).poses(s, travel)
-        x = (1.0 - w) * xa + w * xb
-        y = (1.0 - w) * ya + w * yb
-        return tracks_from_path(t, x, y, ha)
+        x, y, h = _LaneKind._blend(family, rid, lane_from, lane_to, s, travel, w)
+        return tracks_from_path(t, x, y, h)
+
+    @staticmethod
+    def _off_road(
+        net: RoadNetwork, rid: str, tracks: dict[str, F64]
+    ) -> list[tuple[NDArray[np.bool_], list[str]]]:
+        """Per named track (its road s, m), the rows whose s leaves road ``rid``, with the
+        reason (``off_road``), in the order given: the ``checks`` of ``_batch``."""
+        length = net.road(rid).length
+        return [off_road(s, length, rid, who) for who, s in tracks.items()]
 
     @staticmethod
     def _batch(
@@ -126,8 +142,7 @@ class CutIn(_LaneKind):
         s0 = _col(cols, "ego_s0_m")
         s_e = lane_progress(s0, tr, 0.0, _col(cols, "ego_speed_m_s"), t)
         s_t = lane_progress(s0, tr, _col(cols, "dx0_m"), _col(cols, "target_speed_m_s"), t)
-        length = net.road(rid).length
-        checks = [off_road(s_e, length, rid, "ego"), off_road(s_t, length, rid, "target")]
+        checks = self._off_road(net, rid, {"ego": s_e, "target": s_t})
         u = (t - _col(cols, "lc_start_s")) / _col(cols, "lc_duration_s")
         w = blend_batch(np.asarray(cols["shape"]).astype(str), u)
         ego = self._follow(family, rid, lane, s_e, tr, t)
@@ -180,8 +195,7 @@ class Overtake(_LaneKind):
             v0 * np.minimum(t, t_b) + v0 * u - 0.5 * a * u * u + vf * np.maximum(t - t_b - td, 0.0)
         )
         s_t = s0 + tr * (dx0 + travelled)
-        length = net.road(rid).length
-        checks = [off_road(s_e, length, rid, "ego"), off_road(s_t, length, rid, "target")]
+        checks = self._off_road(net, rid, {"ego": s_e, "target": s_t})
         w = blend_batch(np.full(len(s0), "cosine"), (t - t_m) / md)
         ego = self._follow(family, rid, lane, s_e, tr, t)
         tgt = self._changing(family, rid, int(family.settings["target_lane"]), lane, s_t, tr, t, w)
@@ -208,8 +222,7 @@ class SlowAhead(_LaneKind):
         s0 = _col(cols, "ego_s0_m")
         s_e = lane_progress(s0, tr, 0.0, _col(cols, "ego_speed_m_s"), t)
         s_t = lane_progress(s0, tr, _col(cols, "gap0_m"), _col(cols, "target_speed_m_s"), t)
-        length = net.road(rid).length
-        checks = [off_road(s_e, length, rid, "ego"), off_road(s_t, length, rid, "target")]
+        checks = self._off_road(net, rid, {"ego": s_e, "target": s_t})
         ego = self._follow(family, rid, lane, s_e, tr, t)
         tgt = self._follow(family, rid, lane, s_t, tr, t)
         return self._batch(t, ego, tgt, family, checks)
@@ -248,9 +261,8 @@ class Crossing(_LaneKind):
         s0 = _col(cols, "ego_s0_m")
         s_e = lane_progress(s0, tr, 0.0, ve, t)
         s_c = s0 + tr * _col(cols, "cross_ahead_m")  # (B, 1)
-        length = net.road(rid).length
-        checks = [off_road(s_e, length, rid, "ego"), off_road(s_c, length, rid, "crossing line")]
-        s_cc = np.clip(s_c[:, 0], 0.0, length)
+        checks = self._off_road(net, rid, {"ego": s_e, "crossing line": s_c})
+        s_cc = np.clip(s_c[:, 0], 0.0, net.road(rid).length)
         inner, outer = net.lane_edges(rid, lane, s_cc)
         t_c = (0.5 * (inner + outer))[:, None]
         right = -tr  # the ego's right in road t: -t when driving along +s

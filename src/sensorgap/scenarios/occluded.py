@@ -21,7 +21,6 @@ from sensorgap.scenarios.batch import (
     ScenarioBatch,
     blend_batch,
     lane_progress,
-    off_road,
 )
 from sensorgap.scenarios.family import Columns, Family, Param, register_kind
 from sensorgap.scenarios.kinds import (
@@ -123,12 +122,7 @@ class CutInBehindTruck(_LaneKind):
         s_t = lane_progress(
             s0, tr, _col(cols, "truck_dx_m") + ahead, v_truck + _col(cols, "speed_delta_m_s"), t
         )
-        length = net.road(rid).length
-        checks = [
-            off_road(s_e, length, rid, "ego"),
-            off_road(s_t, length, rid, "target"),
-            off_road(s_k, length, rid, "truck"),
-        ]
+        checks = self._off_road(net, rid, {"ego": s_e, "target": s_t, "truck": s_k})
         u = (t - _col(cols, "lc_start_s")) / _col(cols, "lc_duration_s")
         w = blend_batch(np.asarray(cols["shape"]).astype(str), u)
         ego = self._follow(family, rid, lane, s_e, tr, t)
@@ -179,18 +173,11 @@ class CutOutReveal(_LaneKind):
         s_e = lane_progress(s0, tr, 0.0, ve, t)
         s_l = lane_progress(s0, tr, _col(cols, "lead_gap_m"), ve, t)
         s_t = lane_progress(s0, tr, _col(cols, "lead_gap_m") + gap, vt, t)
-        length = net.road(rid).length
-        checks = [
-            off_road(s_e, length, rid, "ego"),
-            off_road(s_t, length, rid, "target"),
-            off_road(s_l, length, rid, "lead vehicle"),
-        ]
+        checks = self._off_road(net, rid, {"ego": s_e, "target": s_t, "lead vehicle": s_l})
         w = blend_batch(np.full(len(s0), "cosine"), (t - t0) / md)
         ego = self._follow(family, rid, lane, s_e, tr, t)
         tgt = self._follow(family, rid, lane, s_t, tr, t)
-        xa, ya, ha = family.lane_table(rid, lane).poses(s_l, tr)
-        xb, yb, _ = family.lane_table(rid, other).poses(s_l, tr)
-        lx, ly = (1.0 - w) * xa + w * xb, (1.0 - w) * ya + w * yb
+        lx, ly, ha = self._blend(family, rid, lane, other, s_l, tr, w)
         b = self._batch(t, ego, tgt, family, checks)
         b.occluders = (
             _occluder(family, "lead " + str(family.settings["occluder"]), lx, ly, ha, t),
