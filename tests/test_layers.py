@@ -17,6 +17,7 @@ LAYERS = [
     "provenance",
     "runtime",
     "version",
+    "apinames",
     "config",
     "models",
     "coverage",
@@ -32,7 +33,17 @@ LAYERS = [
     "cli",
 ]
 #: Shared base modules count as one layer (they may import each other).
-_BASE = {"errors", "atomic", "filesio", "registry", "plugins", "provenance", "runtime", "version"}
+_BASE = {
+    "errors",
+    "atomic",
+    "filesio",
+    "registry",
+    "plugins",
+    "provenance",
+    "runtime",
+    "version",
+    "apinames",
+}
 ROOT = Path(sensorgap.__file__).parent
 
 

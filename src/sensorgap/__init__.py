@@ -13,25 +13,13 @@ The facade's names (``sensorgap.api``) are imported on first use, so ``import se
 stays light.
 """
 
+from sensorgap.apinames import API_NAMES as _API  # the facade's names (sensorgap.api)
 from sensorgap.runtime import configure_matplotlib_dir as _configure_matplotlib_dir
 from sensorgap.runtime import configure_numba_cache as _configure_numba_cache
 from sensorgap.version import __version__
 
 _configure_numba_cache()  # a writable numba cache folder even when installed read-only
 _configure_matplotlib_dir()  # and matplotlib's, without its warning when HOME is read-only
-
-# the names of ``sensorgap.api.__all__``, listed here so that ``import sensorgap`` need not
-# import the facade (tests/test_api_docs.py checks the two lists are the same)
-_API = (
-    "Occluder",
-    "coverage_grid",
-    "evaluate_points",
-    "export_catalog",
-    "find_scenarios",
-    "load_vehicle",
-    "scene",
-    "write_report",
-)
 
 
 def __getattr__(name: str) -> object:
