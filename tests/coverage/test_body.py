@@ -159,6 +159,54 @@ def test_hidden_by_the_ego_body(scene_a):
     assert nf[0] == 1 and got == 0
 
 
+def test_body_points_are_the_samples_rotated_and_moved(scene_a):
+    """``body_points`` (``body._points_kernel``, ``place_sample``) against the rotation
+    and translation written out in numpy: position = centre + R(psi) (bx, by), normal =
+    R(psi) (nx, ny), z unchanged, for random poses and headings 0, +-pi/2, +-pi and past
+    +-pi; positions to 1e-12 m, normals to 1e-15. By hand from the car's length and width:
+    at heading pi/2 the front face (normal +x) lies at y + length/2 facing +y, across
+    x -+ half the width."""
+    body = body_samples(scene_a.target)
+    rng = np.random.default_rng(17)
+    n = 64
+    x = rng.uniform(-120.0, 120.0, n)
+    y = rng.uniform(-60.0, 60.0, n)
+    psi = rng.uniform(-math.pi, math.pi, n)
+    psi[:8] = [0.0, 0.5 * math.pi, -0.5 * math.pi, math.pi, -math.pi, 4.0, -4.0, 3.0 * math.pi]
+    px, py, pz, nx, ny = body_points(body, x, y, psi)
+    k = len(body)
+    assert px.shape == py.shape == pz.shape == nx.shape == ny.shape == (n, k)
+    rot = np.empty((n, 2, 2))
+    rot[:, 0, 0], rot[:, 0, 1] = np.cos(psi), -np.sin(psi)
+    rot[:, 1, 0], rot[:, 1, 1] = np.sin(psi), np.cos(psi)
+    pos = np.einsum("nab,bk->nak", rot, np.stack([body.x, body.y]))
+    nrm = np.einsum("nab,bk->nak", rot, np.stack([body.nx, body.ny]))
+    np.testing.assert_allclose(px, x[:, None] + pos[:, 0], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(py, y[:, None] + pos[:, 1], rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(pz, np.broadcast_to(body.z, (n, k)))
+    np.testing.assert_allclose(nx, nrm[:, 0], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(ny, nrm[:, 1], rtol=0, atol=1e-15)
+    # by hand: a car at (10, -3) heading pi/2
+    car = scene_a.target
+    half_l, half_w = 0.5 * car.length_m, 0.5 * car.width_m
+    pose = np.array([10.0]), np.array([-3.0]), np.array([0.5 * math.pi])
+    px, py, _, nx, ny = body_points(body, *pose)
+    front = (body.nx == 1.0) & (body.ny == 0.0)
+    assert front.sum() >= 2
+    np.testing.assert_allclose(py[0, front], -3.0 + half_l, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(px[0, front], 10.0 - body.y[front], rtol=0, atol=1e-12)
+    assert np.all(np.abs(px[0, front] - 10.0) < half_w)
+    np.testing.assert_allclose(nx[0, front], 0.0, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(ny[0, front], 1.0, rtol=0, atol=1e-15)
+    # every sample on the turned box's outline (heading pi/2: along the car is +y, its
+    # left -x): |along| = half length or |across| = half width, inside the other extent
+    along, across = py[0] + 3.0, 10.0 - px[0]
+    on_end = np.isclose(np.abs(along), half_l, rtol=0, atol=1e-12)
+    on_side = np.isclose(np.abs(across), half_w, rtol=0, atol=1e-12)
+    assert np.all(on_end | on_side)
+    assert np.all(np.abs(along) <= half_l + 1e-12) and np.all(np.abs(across) <= half_w + 1e-12)
+
+
 def test_probe_and_coverage_with_heading(tmp_path, capsys):
     """``probe --heading`` and ``coverage --heading`` evaluate bodies: the issue's car
     beside the ego (centre in a side blind spot) is unseen as a point and seen as a body."""

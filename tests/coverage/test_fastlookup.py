@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from sensorgap.config import load_environments, load_target
+from sensorgap.config import EnvironmentConfig, SunConfig, load_environments, load_target
 from sensorgap.coverage import GridSpec, Scene
 from sensorgap.coverage.fastlookup import (
     SUN_NONE,
@@ -17,6 +17,7 @@ from sensorgap.coverage.fastlookup import (
     SUN_WORLD,
     cone_cos_bound,
     glare_cone_weight,
+    sun_directions_at,
     sun_directions_of,
 )
 from sensorgap.coverage.logmiss import LogMissMaps, lookup_log_miss, lookup_log_miss_tracks
@@ -125,6 +126,97 @@ def test_sun_rows_match_the_preset_and_searched_suns() -> None:
             assert np.all(rows[:, 0] == SUN_NONE)
         else:
             np.testing.assert_allclose(got, want, rtol=0, atol=1e-12)
+
+
+def _sun_by_hand(kind: float, az: float, el: float, heading: float) -> np.ndarray:
+    """The vehicle-frame sun unit vector written out (not the kernel's angle sum): a
+    vehicle-frame sun at azimuth ``az`` (counter-clockwise from x) and elevation ``el``;
+    a world-frame sun at compass azimuth ``az`` (clockwise from north): its east-north-up
+    vector, then rotated by minus the ego ``heading`` (counter-clockwise from east); NaN
+    for no sun."""
+    if kind == SUN_NONE:
+        return np.full(3, np.nan)
+    ce, se = math.cos(el), math.sin(el)
+    if kind == SUN_VEHICLE:
+        return np.array([ce * math.cos(az), ce * math.sin(az), se])
+    east, north = ce * math.sin(az), ce * math.cos(az)
+    ch, sh = math.cos(heading), math.sin(heading)
+    return np.array([ch * east + sh * north, -sh * east + ch * north, se])
+
+
+def test_sun_directions_equal_the_rotation_by_hand() -> None:
+    """``_sun_directions`` (``sun_directions_of``, ``sun_directions_at``) against the
+    world sun rotated into the vehicle frame by hand (``_sun_by_hand``) and the numpy
+    ``Conditions.sun_directions``: compass azimuths all round, elevations 0 (horizon:
+    the kernel gets it only when a caller passes it; it has no cut-off), 90 deg and
+    between, headings wrapping past +-pi (up to +-3 pi, as unwrapped track headings),
+    vehicle-frame suns (heading ignored) and no sun (NaN). Tolerance atol 4e-15: the
+    kernel rounds the angle sum pi/2 - azimuth - heading (|a| < 14 rad here, ulp
+    1.8e-15; measured 8.3e-16)."""
+    az = np.radians(np.arange(0.0, 360.0, 22.5))
+    el = np.radians([0.0, 0.5, 15.0, 45.0, 89.0, 90.0])
+    heading = np.array(
+        [0.0, 0.7, -2.0, math.pi, -math.pi, math.pi + 0.1, -math.pi - 0.1, 3.0 * math.pi, -8.0]
+    )
+    a, e, h = (g.ravel() for g in np.meshgrid(az, el, heading, indexing="ij"))
+    n = a.size
+    kind = np.resize([SUN_WORLD, SUN_WORLD, SUN_VEHICLE, SUN_NONE], n).astype(float)
+    sun = np.column_stack([kind, a, e])
+    got = sun_directions_of(sun, h)
+    want = np.array([_sun_by_hand(*sun[i], h[i]) for i in range(n)])
+    none = kind == SUN_NONE
+    assert np.all(np.isnan(got[none])) and not np.any(np.isnan(got[~none]))
+    np.testing.assert_allclose(got[~none], want[~none], rtol=0, atol=4e-15)
+    np.testing.assert_allclose(np.linalg.norm(got[~none], axis=1), 1.0, rtol=0, atol=4e-15)
+    # a few directions written down: heading 0 (east), sun due north on the horizon: to
+    # the left; heading pi/2 (north): straight ahead; heading -pi/2 (south), sun due east:
+    # to the left; the zenith is straight up whatever the heading; pi + 0.1 = -pi + 0.1
+    rows = np.array(
+        [
+            [SUN_WORLD, 0.0, 0.0],
+            [SUN_WORLD, 0.0, 0.0],
+            [SUN_WORLD, 0.5 * math.pi, 0.0],
+            [SUN_WORLD, 1.0, 0.5 * math.pi],
+            [SUN_VEHICLE, -0.5 * math.pi, 0.0],
+        ]
+    )
+    got = sun_directions_of(rows, np.array([0.0, 0.5 * math.pi, -0.5 * math.pi, 2.5, 1.0]))
+    want = [[0, 1, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [0, -1, 0]]
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-15)
+    wrap = sun_directions_of(
+        np.array([[SUN_WORLD, 2.0, 0.3]] * 2), np.array([math.pi + 0.1, -math.pi + 0.1])
+    )
+    np.testing.assert_allclose(wrap[0], wrap[1], rtol=0, atol=4e-15)
+    # the numpy ``Conditions.sun_directions`` (elevation > 0 only: None at the horizon)
+    for frame in ("world", "vehicle"):
+        for el_deg in (0.5, 30.0, 90.0):
+            env = EnvironmentConfig(
+                name="clear", sun=SunConfig(azimuth_deg=250.0, elevation_deg=el_deg, frame=frame)
+            )
+            want = Conditions.sun_directions(env, heading)
+            assert want is not None
+            k = SUN_WORLD if frame == "world" else SUN_VEHICLE
+            row = [k, math.radians(250.0), math.radians(el_deg)]
+            got = sun_directions_of(np.array([row] * heading.size), heading)
+            np.testing.assert_allclose(got, want, rtol=0, atol=4e-15)
+    env0 = EnvironmentConfig(name="clear", sun=SunConfig(azimuth_deg=250.0, elevation_deg=0.0))
+    assert Conditions.sun_directions(env0, heading) is None
+
+
+def test_sun_directions_at_take_the_row_of_each_flat_index() -> None:
+    """``sun_directions_at``: flat index m of (B, T) tracks takes the sun of row m // T
+    and the heading at m (three rows, one per kind, picked in any order)."""
+    t = 4
+    sun = np.array([[SUN_WORLD, 1.2, 0.4], [SUN_NONE, 0.0, 0.0], [SUN_VEHICLE, -0.7, 0.2]])
+    heading = np.linspace(-3.5, 3.5, 3 * t).reshape(3, t)
+    flat = np.array([11, 0, 5, 3, 8, 4, 9], dtype=np.int64)
+    got = sun_directions_at(sun, heading, flat, t)
+    for m, f in enumerate(flat):
+        want = _sun_by_hand(*sun[f // t], heading.ravel()[f])
+        if f // t == 1:
+            assert np.all(np.isnan(got[m]))
+        else:
+            np.testing.assert_allclose(got[m], want, rtol=0, atol=4e-15)
 
 
 @pytest.fixture(scope="module")

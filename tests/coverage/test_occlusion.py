@@ -12,6 +12,7 @@ import pytest
 
 from sensorgap.config import EnvironmentConfig, load_target
 from sensorgap.coverage import Scene
+from sensorgap.coverage import body as body_mod
 from sensorgap.coverage.body import body_per_sensor_pd, body_points, body_samples
 from sensorgap.coverage.occluders import Occluder, occluder_array, shadow_polygon
 from sensorgap.models import Conditions, load_system
@@ -299,3 +300,57 @@ def test_occlusion_changes_is_exact_about_where_the_pd_changes(monkeypatch) -> N
         scene, x[sub], y[sub], psi[sub], occluders=boxes[sub], points=take_points(pts, sub)
     )
     np.testing.assert_array_equal(ps, p1[:, sub])
+
+
+def test_occlusion_changes_marks_the_poses_by_hand(monkeypatch) -> None:
+    """``occlusion_changes`` (``body._changes_kernel``) in a scene worked out by hand: the
+    windscreen camera (mount x 2.05, y 0, z 1.32 m; level, forward, HFOV 50 deg, VFOV 28
+    deg, range 0.5-120 m) and a van-sized box at x 20-26 m, |y| <= 1.25 m, 3.5 m high.
+    Car bodies (4.5 x 1.8 x 1.5 m, samples at 0.375 and 1.125 m high) at:
+
+    0. (40, 0), heading 0: squarely behind the box, in view: marked;
+    1. (40, 15): in view (its outline 19-24 deg off the axis), every ray passes the box
+       at y > 6 m: not marked;
+    2. (12, 0): between the ego and the box (rear face at 9.75 m): not marked;
+    3. (150, 0): squarely behind the box but beyond the camera's 120 m: not marked (the
+       front radar, 250 m, and lidar, 150 m, do see it hidden: marked for all sensors);
+    4. (-40, 0): behind the ego, out of view, the box ahead: not marked;
+    5. (40, 0), heading 90 deg: crosswise behind the box (side face at 39.1 m, samples at
+       |y| <= 1.69 m cross x 20-26 m at |y| <= 1.09 m): marked.
+
+    The box's height decides in 3D: the lowest ray (to a 0.375 m sample of pose 0) is at
+    z 0.845 m at x 20 m and 0.686 m at x 26 m (pose 5: 0.709 m), so a 0.8 m box still
+    hides samples of poses 0 and 5 and a 0.5 m box none. Per-pose boxes: pose 0's box
+    moved to y = -5 m hides nothing; pose 1's box put on its line of sight hides it. The
+    per-pose culling switched off gives the same marks."""
+    from sensorgap.coverage.body import occlusion_changes
+
+    scene = _scene()
+    cam = scene.sensors[_row(scene, "cam_windshield")]
+    m = cam.mount
+    assert (m.x, m.y, m.z, m.yaw, m.pitch, m.max_range) == (2.05, 0.0, 1.32, 0.0, 0.0, 120.0)
+    x = np.array([40.0, 40.0, 12.0, 150.0, -40.0, 40.0])
+    y = np.array([0.0, 15.0, 0.0, 0.0, 0.0, 0.0])
+    psi = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.5 * math.pi])
+
+    def van(h: float) -> np.ndarray:
+        return occluder_array([Occluder(23.0, 0.0, 0.0, 6.0, 2.5, h)])
+
+    marked = [True, False, False, False, False, True]
+    for cull in (True, False):
+        monkeypatch.setattr(body_mod, "CULL", cull)
+        for h in (3.5, 0.8):
+            got = occlusion_changes(scene, x, y, psi, van(h), sensors=[cam])
+            np.testing.assert_array_equal(got, marked)
+        got = occlusion_changes(scene, x, y, psi, van(0.5), sensors=[cam])
+        np.testing.assert_array_equal(got, [False] * 6)
+        got = occlusion_changes(scene, x, y, psi, van(3.5))  # every sensor
+        np.testing.assert_array_equal(got, [True, False, False, True, False, True])
+        per = np.repeat(van(3.5)[None], 6, axis=0)
+        per[0] = occluder_array([Occluder(23.0, -5.0, 0.0, 6.0, 2.5, 3.5)])
+        b = math.atan2(15.0, 40.0 - m.x)  # the bearing of pose 1
+        per[1] = occluder_array(
+            [Occluder(m.x + 22.0 * math.cos(b), 22.0 * math.sin(b), b, 6.0, 2.5, 3.5)]
+        )
+        got = occlusion_changes(scene, x, y, psi, per, sensors=[cam])
+        np.testing.assert_array_equal(got, [False, True, False, False, False, True])

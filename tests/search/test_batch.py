@@ -98,6 +98,54 @@ def test_lane_follower_heading_is_the_lanes(travel: int) -> None:
     assert abs(math.remainder(chord.heading[0, 0] - expected, 2.0 * math.pi)) <= 1e-12
 
 
+def test_path_states_equal_trajectory_from_path_and_hand() -> None:
+    """``fastpath.path_states`` (``tracks_from_path``) against the numpy
+    ``Trajectory.from_path`` (np.gradient, np.unwrap) and by hand, at 20 Hz over 10 s:
+    straight lines at 25 m/s (headings 0, 0.3, -2, pi and +-(pi - 1e-3), 300 m from the
+    origin), circles at 20 m/s (R 50 m, crossing +-pi; R 15 m, 2.1 turns), a braking
+    curve that stops and stands, an object standing still. Speed: atol 1e-12 m/s + rtol
+    1e-12 against ``from_path`` (measured 1.3e-12 m/s at 25 m/s: np.gradient's formula
+    for uneven spacing sees the rounding of t = k * 0.05); by hand rel 1e-12: the
+    straight lines 25 m/s; on a circle the central differences give the chord speed,
+    v sin(w dt) / (w dt) inside and v sin(w dt / 2) / (w dt / 2) at the one-sided ends
+    (w = v / R; not v: 6.7e-5 lower on the 50 m circle). Heading: atol 1e-12 rad against
+    ``from_path`` (measured 2.8e-13, unwrapped to 16 rad), where standing the fallback."""
+    from sensorgap.scenarios.trajectory import Trajectory
+
+    dt, n = 0.05, 201
+    t = np.arange(n) * dt
+    rows = []
+    lines = (0.0, 0.3, -2.0, math.pi, math.pi - 1e-3, -math.pi + 1e-3)
+    for th in lines:
+        rows.append((300.0 + 25.0 * t * math.cos(th), -200.0 + 25.0 * t * math.sin(th), th))
+    circles = ((50.0, 20.0, 2.5), (15.0, 20.0, 0.0))  # radius, speed, start angle
+    for r, v, a0 in circles:
+        a = a0 + v / r * t
+        rows.append((100.0 + r * np.cos(a), -40.0 + r * np.sin(a), a + 0.5 * math.pi))
+    s = np.where(t < 7.5, 30.0 * t - 2.0 * t**2, 112.5)  # brakes at 4 m/s2 to a stop
+    rows.append((s, 3.0 * np.sin(s / 20.0), 0.1))
+    rows.append((np.full(n, 5.0), np.full(n, -2.0), -2.5))
+    x = np.array([r[0] for r in rows])
+    y = np.array([r[1] for r in rows])
+    fb = np.array([np.broadcast_to(r[2], t.shape) for r in rows])
+    tr = tracks_from_path(t, x, y, fb)
+    for i in range(len(rows)):
+        ref = Trajectory.from_path(t, x[i], y[i], fb[i])
+        np.testing.assert_allclose(tr.speed[i], ref.speed, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(tr.heading[i], ref.heading, rtol=0, atol=1e-12)
+    k = len(lines)
+    np.testing.assert_allclose(tr.speed[:k], 25.0, rtol=1e-12, atol=0)
+    for j, (r, v, _) in enumerate(circles):
+        wdt = v / r * dt
+        want = np.full(n, v * math.sin(wdt) / wdt)
+        want[[0, -1]] = v * math.sin(0.5 * wdt) / (0.5 * wdt)
+        np.testing.assert_allclose(tr.speed[k + j], want, rtol=1e-12, atol=0)
+    assert abs(tr.speed[k, 5] - 20.0) > 1e-3  # the chord, not v
+    stop = np.flatnonzero(t > 7.6)
+    assert np.all(tr.speed[k + 2, stop] == 0.0) and np.all(tr.heading[k + 2, stop] == 0.1)
+    assert np.all(tr.speed[-1] == 0.0) and np.all(tr.heading[-1] == -2.5)
+
+
 def test_kinematics_by_hand() -> None:
     """Ego at 20 m/s behind a stopped car 50 m ahead (straight road): gap = 50 - half
     length - x_front, headway = gap / 20 s (the TTC is the encounter geometry's,
@@ -114,6 +162,48 @@ def test_kinematics_by_hand() -> None:
     gap = float(kin.x[0]) - 0.5 * car.length_m - body.x_front_m
     assert abs(float(kin.x[0]) - 50.0) < 1e-6
     assert kin.headway[0] == pytest.approx(gap / 20.0, rel=1e-9)
+
+
+def test_cos_sin_near_equals_numpy_cos_and_sin() -> None:
+    """``fastkin.cos_sin_near`` (cos/sin of h from those of a nearby h0: angle addition
+    with a Taylor series of d = h - h0 when |d| < 0.02 rad, truncation error < 1e-18; else
+    cos/sin) against np.cos/np.sin. One step from exact cos/sin of h0, series branch
+    (|d| < 0.02, ends and tiny d included, h0 in +-4 pi) and the other branch (|d| >=
+    0.02, h0 NaN: the kernels' first step): atol 1e-15 (the float64 rounding of the
+    angle addition, about 1 ulp, dominates the truncation; measured 2.2e-16). Chained as
+    ``kinematics_kernel`` and ``outcome._geometry_kernel`` use it (each step from the
+    previous step's result), over 401-step headings (20 s at 20 Hz) turning by up to
+    0.02 rad a step, with some larger jumps: the rounding accumulates; bound 1e-14
+    (measured 2.1e-15)."""
+    from sensorgap.search.fastkin import cos_sin_near
+
+    rng = np.random.default_rng(23)
+    h0 = rng.uniform(-4.0 * math.pi, 4.0 * math.pi, 4000)
+    d = rng.uniform(-0.02, 0.02, 4000)
+    d[:6] = [0.0, 0.019999999, -0.019999999, 1e-300, -5e-17, 1e-9]
+    far = rng.choice([-1.0, 1.0], 4000) * rng.uniform(0.02, 3.0, 4000)
+    far[:2] = [0.02, -0.02]
+    for h in (h0 + d, h0 + far):
+        got = np.array(
+            [cos_sin_near(a, b, math.cos(b), math.sin(b)) for a, b in zip(h, h0, strict=True)]
+        )
+        np.testing.assert_allclose(got[:, 0], np.cos(h), rtol=0, atol=1e-15)
+        np.testing.assert_allclose(got[:, 1], np.sin(h), rtol=0, atol=1e-15)
+    c, s = cos_sin_near(0.3, math.nan, 1.0, 0.0)  # no previous heading
+    assert abs(c - np.cos(0.3)) <= 1e-15 and abs(s - np.sin(0.3)) <= 1e-15
+    worst = 0.0
+    for _ in range(40):
+        steps = rng.uniform(-0.02, 0.02, 400) * rng.uniform(0.0, 1.0)
+        steps[rng.integers(0, 400, 2)] = rng.uniform(-1.0, 1.0, 2)  # a jump: exact again
+        hs = np.cumsum(np.r_[rng.uniform(-math.pi, math.pi), steps])
+        c, s, last = 1.0, 0.0, math.nan
+        got = np.empty((hs.size, 2))
+        for k, hk in enumerate(hs):
+            c, s = cos_sin_near(hk, last, c, s)
+            last = hk
+            got[k] = c, s
+        worst = max(worst, np.max(np.abs(got - np.column_stack([np.cos(hs), np.sin(hs)]))))
+    assert worst <= 1e-14
 
 
 @pytest.mark.parametrize("heading_deg", [0.0, 35.0, 170.0, -100.0])
