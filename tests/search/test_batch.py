@@ -18,6 +18,7 @@ from sensorgap.search.evaluate import DetectionRule, Evaluator, kinematics
 from sensorgap.search.metrics import compute_all_batch, get_metric, metric_names
 from sensorgap.search.problem import SearchProblem
 from tests.search.metric_oracles import oracle
+from tests.search.path_oracle import trajectory_from_path
 
 ENVS = load_environments()
 
@@ -110,7 +111,6 @@ def test_path_states_equal_trajectory_from_path_and_hand() -> None:
     v sin(w dt) / (w dt) inside and v sin(w dt / 2) / (w dt / 2) at the one-sided ends
     (w = v / R; not v: 6.7e-5 lower on the 50 m circle). Heading: atol 1e-12 rad against
     ``from_path`` (measured 2.8e-13, unwrapped to 16 rad), where standing the fallback."""
-    from sensorgap.scenarios.trajectory import Trajectory
 
     dt, n = 0.05, 201
     t = np.arange(n) * dt
@@ -130,7 +130,7 @@ def test_path_states_equal_trajectory_from_path_and_hand() -> None:
     fb = np.array([np.broadcast_to(r[2], t.shape) for r in rows])
     tr = tracks_from_path(t, x, y, fb)
     for i in range(len(rows)):
-        ref = Trajectory.from_path(t, x[i], y[i], fb[i])
+        ref = trajectory_from_path(t, x[i], y[i], fb[i])
         np.testing.assert_allclose(tr.speed[i], ref.speed, rtol=1e-12, atol=1e-12)
         np.testing.assert_allclose(tr.heading[i], ref.heading, rtol=0, atol=1e-12)
     k = len(lines)

@@ -14,7 +14,6 @@ from sensorgap.scenarios import family_presets, load_family
 from sensorgap.scenarios.trajectory import (
     LIMITS,
     InfeasibleScenario,
-    Trajectory,
     blend,
     time_axis,
 )
@@ -29,6 +28,7 @@ from sensorgap.search.problem import SearchProblem
 from sensorgap.search.run import run_search
 from sensorgap.search.strategies import get_strategy, strategy_names
 from tests.search.metric_oracles import corridor, detection_index
+from tests.search.path_oracle import trajectory_from_path
 
 FAST = ["cut_in_right", "crossing_pedestrian"]
 
@@ -51,10 +51,10 @@ def test_trajectory_feasibility_check() -> None:
     t = time_axis(2.0)
     assert len(t) == 41 and t[1] == pytest.approx(0.05)
     x = 0.5 * 20.0 * t**2  # 20 m/s2: too hard for a car
-    tr = Trajectory.from_path(t, x, np.zeros_like(t), np.zeros_like(t))
+    tr = trajectory_from_path(t, x, np.zeros_like(t), np.zeros_like(t))
     with pytest.raises(InfeasibleScenario, match="longitudinal"):
         tr.check(LIMITS["car"], "target")
-    ok = Trajectory.from_path(t, 10.0 * t, np.zeros_like(t), np.zeros_like(t))
+    ok = trajectory_from_path(t, 10.0 * t, np.zeros_like(t), np.zeros_like(t))
     ok.check(LIMITS["car"], "ego")
     assert np.allclose(ok.speed, 10.0)
 

@@ -70,18 +70,6 @@ class Trajectory:
         if n < 2:
             raise ValueError("a trajectory needs at least two samples")
 
-    @classmethod
-    def from_path(cls, t: F64, x: F64, y: F64, fallback_heading: F64) -> Trajectory:
-        """Heading and speed from the sampled path (central differences); where the object
-        stands still the heading is ``fallback_heading`` (e.g. the lane's)."""
-        vx, vy = np.gradient(x, t), np.gradient(y, t)
-        speed = np.hypot(vx, vy)
-        moving = speed > 1e-6
-        heading = np.where(moving, np.arctan2(vy, vx), fallback_heading)
-        # keep the heading continuous and close to the fallback's branch
-        heading = fallback_heading + np.angle(np.exp(1j * (heading - fallback_heading)))
-        return cls(t=t, x=x, y=y, heading=np.unwrap(heading), speed=speed)
-
     def long_accel(self) -> F64:
         """Longitudinal acceleration, m/s2."""
         return np.gradient(self.speed, self.t)
