@@ -785,8 +785,10 @@ def test_a_resumed_search_that_changes_the_ranking_removes_the_stale_export(
 
 
 def _as_unprivileged(argv: list[str]) -> tuple[list[str], dict[str, str]]:
-    """The sensorgap command line run as a user without write rights to the package (root
-    drops to nobody with setpriv; others run as themselves), with no HOME."""
+    """The sensorgap command line run without the right to override file permissions, with
+    no HOME: root keeps its identity (so it can still read a checkout in a private folder)
+    but loses CAP_DAC_OVERRIDE and CAP_DAC_READ_SEARCH (setpriv); others run as
+    themselves."""
     import shutil
     import sys
 
@@ -795,28 +797,24 @@ def _as_unprivileged(argv: list[str]) -> tuple[list[str], dict[str, str]]:
     if os.geteuid() == 0:
         setpriv = shutil.which("setpriv")
         if setpriv is None:
-            pytest.skip("running as root without setpriv: no unprivileged user to run as")
-        cmd = [setpriv, "--reuid=65534", "--regid=65534", "--clear-groups", *cmd]
+            pytest.skip("running as root without setpriv: permissions cannot be enforced")
+        drop = ["--bounding-set=-dac_override,-dac_read_search", "--inh-caps=-all"]
+        cmd = [setpriv, *drop, *cmd]
     return cmd, env
 
 
 def test_read_only_places_as_a_real_user_are_one_line(tmp_path: Path) -> None:
-    """Issue #18 on a real file system, not a patched sqlite: as a user who cannot write the
-    output folder (nor the package: the numba cache moves), search and coverage into it are
-    one line, exit 2, and nothing is written there."""
-    import shutil
-    import tempfile
-
-    top = Path(tempfile.mkdtemp(prefix="sensorgap-ro-"))  # pytest's own folders are 0700
-    ro = top / "ro"
+    """Issue #18 on a real file system, not a patched sqlite: for a process that may not
+    write the output folder (mode 0555), search and coverage into it are one line, exit 2,
+    and nothing is written there. (As root, first checked: the folder really refuses the
+    process's writes.)"""
+    ro = tmp_path / "ro"
     ro.mkdir()
-    top.chmod(0o755)
     ro.chmod(0o555)
     try:
         _read_only_cases(ro)
     finally:
         ro.chmod(0o755)
-        shutil.rmtree(top)
 
 
 def _read_only_cases(ro: Path) -> None:
@@ -837,6 +835,12 @@ def _read_only_cases(ro: Path) -> None:
             "--extent=-10,10,-10,10",
         ],
     }
+    import sys
+
+    probe, env = _as_unprivileged([])
+    probe = [*probe[: probe.index("-m")], "-c", f"open({str(ro / 'x')!r}, 'w')"]
+    refused = subprocess.run(probe, env=env, capture_output=True, text=True, timeout=60)
+    assert refused.returncode != 0 and "Permission denied" in refused.stderr, sys.executable
     for expected, argv in cases.items():
         cmd, env = _as_unprivileged([*argv, "--out", str(ro)])
         done = subprocess.run(cmd, env=env, cwd="/", capture_output=True, text=True, timeout=300)
