@@ -118,9 +118,11 @@ def pytest_configure(config: pytest.Config) -> None:
     workers themselves, not without ``-n``."""
     if hasattr(config, "workerinput") or not config.getoption("numprocesses", None):
         return
-    from tests.numba_warmup import cache_is_warm
+    from tests.numba_warmup import cache_is_warm, warmup_running
 
-    if not cache_is_warm():
+    # a warm-up still running (``make test`` starts it beside mypy and goes on): the
+    # workers wait for it after collecting (``pytest_collection_finish``)
+    if not cache_is_warm() and not warmup_running():
         subprocess.run(
             [sys.executable, "-m", "tests.numba_warmup"],
             cwd=TESTS.parent,
@@ -128,6 +130,16 @@ def pytest_configure(config: pytest.Config) -> None:
             stderr=subprocess.DEVNULL,
             check=False,
         )
+
+
+def pytest_collection_finish(session: pytest.Session) -> None:
+    """A parallel worker, its tests collected, waits for a numba warm-up that is still
+    running (``tests/numba_warmup.py``): its kernels then load from the cache instead of
+    compiling under coverage tracing in every worker."""
+    if hasattr(session.config, "workerinput"):
+        from tests.numba_warmup import wait_for_warmup
+
+        wait_for_warmup()
 
 
 @pytest.fixture(autouse=True)

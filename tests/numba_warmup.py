@@ -11,9 +11,13 @@ coverage map); it checks nothing, the suite does. When the cache is already warm
 
 from __future__ import annotations
 
+import contextlib
+import fcntl
+import hashlib
 import importlib
 import sys
 import tempfile
+from collections.abc import Iterator
 from pathlib import Path
 
 #: Kernels whose cache index files tell whether the cache was filled (module:name).
@@ -24,6 +28,42 @@ KERNELS = (
     "sensorgap.coverage.fastkernel:accumulate_log_miss",
     "sensorgap.scenarios.fastpath:path_states",
 )
+
+
+def lock_path() -> Path:
+    """The lock a running warm-up holds (one per checkout, in the temporary folder): test
+    workers wait on it before their first test (``wait_for_warmup``), so ``make test`` can
+    start pytest, whose workers start and collect meanwhile, while the warm-up ends."""
+    tag = hashlib.sha256(str(Path(__file__).resolve().parent).encode()).hexdigest()[:16]
+    return Path(tempfile.gettempdir()) / f"sensorgap-numba-warmup-{tag}.lock"
+
+
+@contextlib.contextmanager
+def _locked(mode: int) -> Iterator[bool]:
+    """``flock`` of ``lock_path`` in ``mode``; yields False when ``LOCK_NB`` is in ``mode``
+    and the lock is held elsewhere (released with the file, also when a process dies)."""
+    with open(lock_path(), "a+b") as f:
+        try:
+            fcntl.flock(f, mode)
+        except BlockingIOError:
+            yield False
+            return
+        try:
+            yield True
+        finally:
+            fcntl.flock(f, fcntl.LOCK_UN)
+
+
+def warmup_running() -> bool:
+    """Whether a warm-up holds its lock now."""
+    with _locked(fcntl.LOCK_EX | fcntl.LOCK_NB) as free:
+        return not free
+
+
+def wait_for_warmup() -> None:
+    """Block until no warm-up holds its lock (at once when none runs)."""
+    with _locked(fcntl.LOCK_SH):
+        pass
 
 
 def cache_is_warm() -> bool:
@@ -88,9 +128,12 @@ def warm(out: Path) -> None:
 
 
 if __name__ == "__main__":
-    # --if-cold: nothing when the cache is already warm (``make test`` runs this beside mypy)
-    if "--if-cold" in sys.argv[1:] and cache_is_warm():
-        sys.exit(0)
-    with tempfile.TemporaryDirectory(prefix="sensorgap-warmup-") as tmp:
-        warm(Path(tmp))
+    # the lock first, before the slow imports: pytest, started meanwhile, must see it held
+    with _locked(fcntl.LOCK_EX):
+        # --if-cold: nothing when the cache is already warm (``make test`` runs this beside
+        # mypy, and pytest starts without waiting for it)
+        if "--if-cold" in sys.argv[1:] and cache_is_warm():
+            sys.exit(0)
+        with tempfile.TemporaryDirectory(prefix="sensorgap-warmup-") as tmp:
+            warm(Path(tmp))
     sys.exit(0)
