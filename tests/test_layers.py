@@ -32,18 +32,9 @@ LAYERS = [
     "api",
     "cli",
 ]
-#: Shared base modules count as one layer (they may import each other).
-_BASE = {
-    "errors",
-    "atomic",
-    "filesio",
-    "registry",
-    "plugins",
-    "provenance",
-    "runtime",
-    "version",
-    "apinames",
-}
+#: Shared base modules count as one layer (they may import each other): those listed
+#: before ``config``.
+_BASE = set(LAYERS[: LAYERS.index("config")])
 ROOT = Path(sensorgap.__file__).parent
 
 
