@@ -840,6 +840,8 @@ def _read_only_cases(ro: Path) -> None:
     probe, env = _as_unprivileged([])
     probe = [*probe[: probe.index("-m")], "-c", f"open({str(ro / 'x')!r}, 'w')"]
     refused = subprocess.run(probe, env=env, capture_output=True, text=True, timeout=60)
+    if refused.stderr.startswith("setpriv:"):  # a container without CAP_SETPCAP
+        pytest.skip(f"setpriv cannot drop capabilities here: {refused.stderr.strip()}")
     assert refused.returncode != 0 and "Permission denied" in refused.stderr, sys.executable
     for expected, argv in cases.items():
         cmd, env = _as_unprivileged([*argv, "--out", str(ro)])
