@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -914,3 +915,44 @@ def test_nearest_path_sample_is_the_nearest(radius: float) -> None:
         assert wrong == 0 and climb_wrong == 0
     else:  # a tight turn: both searches are local; the guess misses no more often
         assert wrong <= climb_wrong < 0.02 * b * t
+
+
+def test_moving_only_confirmation(tmp_path: Path) -> None:
+    """``confirm_moving_with``: System B's radar confirms a target moving at 5 m/s or more
+    and nothing slower (``Evaluator.confirming``); a file naming an unknown type, or a type
+    of ``confirm_with`` again, is one line."""
+    from sensorgap.models import load_system
+    from sensorgap.search.evaluate import Evaluator
+
+    ev = Evaluator(load_system("system_b"), "exact")
+    radars = {i for i, s in enumerate(ev.system.sensors) if s.type_name == "radar"}
+    assert radars and set(ev.moving_rows) == radars and not radars & set(ev.confirm_rows)
+    assert set(ev.confirming(4.99)) == set(ev.confirm_rows)
+    assert set(ev.confirming(5.0)) == set(ev.confirm_rows) | radars
+    base = (
+        "[reactions.r]\nconfirm_m = 3\nconfirm_n = 5\nlatency_s = 0.3\njerk_m_s3 = 12.0\n"
+        'decel_max_m_s2 = 9.0\nconfirm_with = ["camera"]\nthreat_margin_m = 0.5\n'
+        "threat_horizon_s = 6.0\n"
+    )
+    sources = "".join(
+        f'{k} = "estimate"\n'
+        for k in [
+            "confirm_m",
+            "confirm_n",
+            "latency_s",
+            "jerk_m_s3",
+            "decel_max_m_s2",
+            "confirm_with",
+            "threat_margin_m",
+            "threat_horizon_s",
+            "confirm_moving_with",
+        ]
+    )
+    for moving, msg in (
+        ('["sonar"]', "confirm_moving_with[0]: unknown sensor type 'sonar'"),
+        ('["camera"]', "confirm_moving_with: lists a sensor type twice or one of confirm_with"),
+    ):
+        path = tmp_path / "r.toml"
+        path.write_text(base + f"confirm_moving_with = {moving}\n[reactions.r.sources]\n" + sources)
+        with pytest.raises(InputError, match=re.escape(msg)):
+            load_reaction(path)

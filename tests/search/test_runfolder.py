@@ -26,8 +26,10 @@ from sensorgap.search.runfolder import open_run
 NARROW = [
     ("ego_s0_m = [50.0, 700.0]", "ego_s0_m = [100.0, 250.0]"),
     ("ego_speed_m_s = [15.0, 36.0]", "ego_speed_m_s = [20.0, 26.0]"),
-    ("target_speed_m_s = [10.0, 36.0]", "target_speed_m_s = [12.0, 18.0]"),
-    ("dx0_m = [-15.0, 60.0]", "dx0_m = [35.0, 50.0]"),
+    # a slow car (below camera_confirmed's 5 m/s: B's radar does not confirm it) merging
+    # ahead in the environments file's fog, which B's cameras see late
+    ("target_speed_m_s = [10.0, 36.0]", "target_speed_m_s = [3.0, 4.5]"),
+    ("dx0_m = [-15.0, 60.0]", "dx0_m = [70.0, 100.0]"),
     ("lc_start_s = [0.5, 6.0]", "lc_start_s = [0.5, 1.5]"),
     ("lc_duration_s = [2.5, 6.0]", "lc_duration_s = [4.5, 6.0]"),
 ]

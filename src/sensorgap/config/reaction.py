@@ -57,6 +57,11 @@ class ReactionConfig(Strict):
         jerk_m_s3: brake ramp, m/s3. decel_max_m_s2: system limit before friction, m/s2
             (the outcome uses ``min(decel_max_m_s2, mu g)``).
         confirm_with: sensor types whose detections can confirm a target for braking.
+        confirm_moving_with: sensor types whose detections confirm a target only while it
+            moves over the ground at ``moving_min_speed_m_s`` or more (a radar that brakes
+            for a moving vehicle ahead but suppresses stationary returns).
+        moving_min_speed_m_s: the target's ground speed from which ``confirm_moving_with``
+            confirms, m/s.
         threat_margin_m, threat_horizon_s: a target is a threat once its box, widened by
             the margin (m) on each side of the ego's path, overlaps the ego's boxes along
             its planned path over the horizon (s).
@@ -83,6 +88,15 @@ class ReactionConfig(Strict):
     confirm_with: tuple[SensorType, ...] = Field(
         min_length=1, description="Sensor types whose detections confirm a target"
     )
+    confirm_moving_with: tuple[SensorType, ...] = Field(
+        (), description="Sensor types that confirm a target only while it moves"
+    )
+    moving_min_speed_m_s: float = Field(
+        5.0,
+        ge=0.0,
+        le=100.0,
+        description="Target ground speed from which confirm_moving_with confirms, m/s",
+    )
     threat_margin_m: float = Field(
         ge=0.0, le=10.0, description="Lateral widening of the threat test, m"
     )
@@ -99,9 +113,15 @@ class ReactionConfig(Strict):
 
     def label(self) -> str:
         """Short text for settings and reports."""
+        moving = (
+            f" (and {'/'.join(self.confirm_moving_with)} for targets moving at "
+            f">= {self.moving_min_speed_m_s:g} m/s)"
+            if self.confirm_moving_with
+            else ""
+        )
         return (
             f"{self.name}: {self.confirm_m}/{self.confirm_n} confirmation by "
-            f"{'/'.join(self.confirm_with)}, latency {self.latency_s:g} s, "
+            f"{'/'.join(self.confirm_with)}{moving}, latency {self.latency_s:g} s, "
             f"{self.decel_max_m_s2:g} m/s2 (jerk {self.jerk_m_s3:g} m/s3)"
         )
 
@@ -151,16 +171,17 @@ def load_reaction(
     if not isinstance(raw, dict):
         raise InputError(path, f"reactions.{name}", "must be a table")
     raw = dict(raw)
-    if isinstance(raw.get("confirm_with"), list):
-        allowed = get_args(SensorType)
-        for i, v in enumerate(raw["confirm_with"]):  # one line per file, not pydantic's two
-            if v not in allowed:
-                raise InputError(
-                    path,
-                    f"reactions.{name}.confirm_with[{i}]",
-                    f"unknown sensor type {str(v)[:80]!r}; allowed: {', '.join(allowed)}",
-                )
-        raw["confirm_with"] = tuple(raw["confirm_with"])
+    for key in ("confirm_with", "confirm_moving_with"):
+        if isinstance(raw.get(key), list):
+            allowed = get_args(SensorType)
+            for i, v in enumerate(raw[key]):  # one line per file, not pydantic's two
+                if v not in allowed:
+                    raise InputError(
+                        path,
+                        f"reactions.{name}.{key}[{i}]",
+                        f"unknown sensor type {str(v)[:80]!r}; allowed: {', '.join(allowed)}",
+                    )
+            raw[key] = tuple(raw[key])
     try:
         cfg = ReactionConfig.model_validate({"name": name, **raw})
     except ValidationError as exc:
@@ -173,6 +194,13 @@ def load_reaction(
         )
     if len(set(cfg.confirm_with)) != len(cfg.confirm_with):
         raise InputError(path, f"reactions.{name}.confirm_with", "lists a sensor type twice")
+    both = sorted(set(cfg.confirm_with) & set(cfg.confirm_moving_with))
+    if len(set(cfg.confirm_moving_with)) != len(cfg.confirm_moving_with) or both:
+        raise InputError(
+            path,
+            f"reactions.{name}.confirm_moving_with",
+            "lists a sensor type twice or one of confirm_with" + (f" ({both[0]})" if both else ""),
+        )
     for key in ReactionConfig.model_fields:
         if key in _NOT_PARAMETERS or (
             key not in cfg.model_fields_set

@@ -457,6 +457,13 @@ class Evaluator:
         self.confirm_rows: tuple[int, ...] = tuple(
             i for i, sn in enumerate(system.sensors) if sn.type_name in types
         )
+        moving_types = set(self.reaction.confirm_moving_with)
+        #: sensor rows that confirm a target only while it moves over the ground at the
+        #: reaction model's ``moving_min_speed_m_s`` or more (a radar suppressing
+        #: stationary returns)
+        self.moving_rows: tuple[int, ...] = tuple(
+            i for i, sn in enumerate(system.sensors) if sn.type_name in moving_types
+        )
         self.rule = rule or DetectionRule()
         self.resolution_m = resolution_m
         self.max_maps = max_maps
@@ -670,16 +677,31 @@ class Evaluator:
             )
         return hit
 
+    def confirming(self, target_speed_m_s: float) -> tuple[int, ...]:
+        """The sensor rows that confirm a target moving over the ground at
+        ``target_speed_m_s`` (m/s): ``confirm_rows``, and ``moving_rows`` from the reaction
+        model's ``moving_min_speed_m_s``."""
+        if self.moving_rows and target_speed_m_s >= self.reaction.moving_min_speed_m_s:
+            return tuple(sorted(self.confirm_rows + self.moving_rows))
+        return self.confirm_rows
+
     def _track_lookup(
-        self, maps: LogMissMaps, scene: Scene, kin: Kinematics, heading: F64, sun: F64
+        self,
+        maps: LogMissMaps,
+        scene: Scene,
+        kin: Kinematics,
+        heading: F64,
+        sun: F64,
+        subset: tuple[int, ...] | None = None,
     ) -> TrackLookup:
-        """The body maps and exact evaluators of one lookup pass over the confirming
-        sensors. Off the map and for glared cameras at the edge of their view the lookup
-        evaluates the target's centre exactly (a proposal: far targets and field-of-view
-        edges under glare; exact evaluation decides)."""
+        """The body maps and exact evaluators of one lookup pass over the sensor rows
+        ``subset`` (default: the confirming sensors). Off the map and for glared cameras
+        at the edge of their view the lookup evaluates the target's centre exactly (a
+        proposal: far targets and field-of-view edges under glare; exact evaluation
+        decides)."""
         t = kin.x.shape[1]
         xf, yf = kin.x.reshape(-1), kin.y.reshape(-1)
-        subset = self.confirm_rows
+        subset = self.confirm_rows if subset is None else subset
         outline: F64 | None = None
         order: dict[int, int] | None = None
         if self.bodies:
@@ -729,7 +751,9 @@ class Evaluator:
         a world-frame sun replacing the preset's (NaN: keep the preset's sun). In
         ``exact`` mode every sensor is evaluated (``log_miss``) and the confirming ones
         fused apart (``log_miss_confirm``); in ``lookup`` mode only the confirming sensors
-        are looked up (both fields hold them: the lookup proposes, ``exact`` decides).
+        are looked up (both fields hold them: the lookup proposes, ``exact`` decides). The
+        reaction model's moving-only sensors (``moving_rows``) count as confirming at the
+        steps where the target's ground speed reaches ``moving_min_speed_m_s``.
         ``collisions_only`` (the search's metrics): Pd is evaluated only on rows with an
         open-loop collision after t = 0, the only rows with a collision to avoid; on the
         others it stays 0 (their collision probability is exactly 0 and, their path TTC
@@ -778,6 +802,8 @@ class Evaluator:
             usable = possible(enc, kin.x, kin.psi, body.x_front_m, target.length_m, target.width_m)
             look &= usable
         valid = np.arange(t)[None, :] < n[:, None]
+        #: where the reaction model's moving-only sensors confirm (target ground speed)
+        moving = tgt.speed >= self.reaction.moving_min_speed_m_s
         log_miss = np.zeros((b, t))
         log_conf: F64 | None = None
         names = np.asarray(env_names)[rows]
@@ -815,6 +841,36 @@ class Evaluator:
                     n_exact += self._occluded_exact(
                         scene, env, kin, ego.heading, sun, valid, g, occ, log_miss
                     )
+                if self.moving_rows:  # confirming only where the target moves
+                    extra = np.zeros((b, t))
+                    n_exact += lookup_log_miss_tracks(
+                        maps,
+                        scene,
+                        kin.x,
+                        kin.y,
+                        ego.heading,
+                        n,
+                        g,
+                        sun_rows,
+                        extra,
+                        self._track_lookup(
+                            maps, scene, kin, ego.heading, sun_rows, self.moving_rows
+                        ),
+                    )
+                    if occ is not None and self.occlusion:
+                        n_exact += self._occluded_exact(
+                            scene,
+                            env,
+                            kin,
+                            ego.heading,
+                            sun,
+                            valid,
+                            g,
+                            occ,
+                            extra,
+                            self.moving_rows,
+                        )
+                    log_miss[g] += np.where(moving[g], extra[g], 0.0)
                 with self._lock:
                     self.exact_pairs += n_exact
                 continue
@@ -834,6 +890,9 @@ class Evaluator:
             if log_conf is not None:
                 keep = [i for i, r in enumerate(srows) if r in self.confirm_rows]
                 log_conf[gr, vc] = lm[keep].sum(axis=0)
+                if self.moving_rows:  # confirming only where the target moves
+                    mv = [i for i, r in enumerate(srows) if r in self.moving_rows]
+                    log_conf[gr, vc] += np.where(moving[gr, vc], lm[mv].sum(axis=0), 0.0)
         ttc = np.where(valid, enc.ttc_path, np.inf)
         headway = np.where(valid, kin.headway, np.inf)
         perfect: NDArray[np.int64] | None = None
@@ -896,11 +955,13 @@ class Evaluator:
         g: NDArray[np.intp],
         occ: F64,
         log_miss: F64,
+        subset: tuple[int, ...] | None = None,
     ) -> int:
         """Lookup mode with occluders: at the valid steps of rows ``g`` where an occluder
-        may hide part of the target (``coverage.occluders.may_hide``), the confirming
-        sensors are evaluated exactly with the occluders, replacing the map's value (the
-        maps know no occluders). Returns how many point-sensor pairs were evaluated."""
+        may hide part of the target (``coverage.occluders.may_hide``), the sensor rows
+        ``subset`` (default: the confirming sensors) are evaluated exactly with the
+        occluders, replacing the map's value (the maps know no occluders). Returns how
+        many point-sensor pairs were evaluated."""
         vr, vc = np.nonzero(valid[g])
         gr = g[vr]
         if not gr.size:
@@ -912,7 +973,7 @@ class Evaluator:
         gr, vc = gr[hit], vc[hit]
         if not gr.size:
             return 0
-        sensors = [scene.sensors[i] for i in self.confirm_rows]
+        sensors = [scene.sensors[i] for i in (self.confirm_rows if subset is None else subset)]
         # where the occluders hide no sample from the confirming sensors the maps' value
         # stands (geometry only, cheap); the body samples are computed once for both steps
         x, y, psi = kin.x[gr, vc], kin.y[gr, vc], kin.psi[gr, vc]

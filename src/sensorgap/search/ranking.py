@@ -163,7 +163,7 @@ def explain(problem: SearchProblem, cand: Candidate) -> Explanation:
     ]
     pd_ref = ev.per_sensor_pd(reference_environment(), target, h, x, y, psi=psi)[:, 0]
     frac = ev.visible_fraction(env, target, x, y, psi)[:, 0]
-    confirm = set(ev.confirm_rows)
+    confirm = set(ev.confirming(float(sc.target.speed[k])))
     effects: dict[str, str] = {}
     low: list[tuple[str, str, float, float]] = []
     for i, s in enumerate(ev.system.sensors):
