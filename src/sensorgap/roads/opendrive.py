@@ -455,23 +455,32 @@ class _Reader:
                 el,
             )
 
+    def spans(
+        self, els: list[etree._Element], where: str, length: float
+    ) -> list[tuple[CubicPiece, float, str, etree._Element]]:
+        """Cubic records along a road (``laneOffset``, ``elevation``; ``where``: their path,
+        the i-th is ``where[i]``) in order within its ``length`` (m): (piece, end of its span
+        in s, its path, its element), each span ending where the next record starts."""
+        pieces: list[tuple[CubicPiece, str, etree._Element]] = []
+        for i, e in enumerate(els):
+            w = f"{where}[{i}]"
+            piece = self.cubic(e, w, "s")
+            if not -S_TOLERANCE <= piece.s <= length + S_TOLERANCE:
+                self.fail(f"{w}@s", f"must be within [0, {length:g}] m, got {piece.s:g}", e)
+            if pieces and piece.s < pieces[-1][0].s:
+                self.fail(f"{w}@s", f"must not decrease (previous {pieces[-1][0].s:g})", e)
+            pieces.append((piece, w, e))
+        return [
+            (piece, pieces[i + 1][0].s if i + 1 < len(pieces) else max(length, piece.s), w, e)
+            for i, (piece, w, e) in enumerate(pieces)
+        ]
+
     def elevation(self, el: etree._Element, where: str, length: float) -> None:
         """Checks the elevation profile (not modelled: a flat road is assumed): pieces in
         order within the road, height within ``MAX_ELEVATION_M`` (m), grade within
         ``MAX_GRADE`` (m/m)."""
-        pieces: list[tuple[CubicPiece, etree._Element]] = []
-        for prof in _kids(el, "elevationProfile"):
-            for i, e in enumerate(_kids(prof, "elevation")):
-                w = f"{where}/elevationProfile/elevation[{i}]"
-                piece = self.cubic(e, w, "s")
-                if not -S_TOLERANCE <= piece.s <= length + S_TOLERANCE:
-                    self.fail(f"{w}@s", f"must be within [0, {length:g}] m, got {piece.s:g}", e)
-                if pieces and piece.s < pieces[-1][0].s:
-                    self.fail(f"{w}@s", f"must not decrease (previous {pieces[-1][0].s:g})", e)
-                pieces.append((piece, e))
-        for i, (piece, e) in enumerate(pieces):
-            end = pieces[i + 1][0].s if i + 1 < len(pieces) else max(length, piece.s)
-            w = f"{where}/elevationProfile/elevation[{i}]"
+        els = [e for prof in _kids(el, "elevationProfile") for e in _kids(prof, "elevation")]
+        for piece, end, w, e in self.spans(els, f"{where}/elevationProfile/elevation", length):
             self.bounded_cubic(piece, end, MAX_ELEVATION_M, w, "the height", e)
             grade = CubicPiece(piece.s, piece.b, 2.0 * piece.c, 3.0 * piece.d, 0.0)
             self.bounded_cubic(grade, end, MAX_GRADE, w, "the grade", e, unit="m/m")
@@ -487,25 +496,10 @@ class _Reader:
                 "missing: every road needs <lanes> with at least one <laneSection>",
                 el,
             )
-        offsets: list[CubicPiece] = []
-        for i, o in enumerate(_kids(lel, "laneOffset")):
-            w = f"{where}/lanes/laneOffset[{i}]"
-            piece = self.cubic(o, w, "s")
-            if not -S_TOLERANCE <= piece.s <= length + S_TOLERANCE:
-                self.fail(f"{w}@s", f"must be within [0, {length:g}] m, got {piece.s:g}", o)
-            if offsets and piece.s < offsets[-1].s:
-                self.fail(f"{w}@s", f"must not decrease (previous {offsets[-1].s:g})", o)
-            offsets.append(piece)
-        for i, piece in enumerate(offsets):
-            end = offsets[i + 1].s if i + 1 < len(offsets) else max(length, piece.s)
-            self.bounded_cubic(
-                piece,
-                end,
-                MAX_LANE_OFFSET_M,
-                f"{where}/lanes/laneOffset[{i}]",
-                "the lane offset",
-                el,
-            )
+        spans = self.spans(_kids(lel, "laneOffset"), f"{where}/lanes/laneOffset", length)
+        for piece, end, w, _ in spans:
+            self.bounded_cubic(piece, end, MAX_LANE_OFFSET_M, w, "the lane offset", el)
+        offsets = [piece for piece, _, _, _ in spans]
         sels = self.some(lel, "laneSection", f"{where}/lanes")
         starts: list[float] = []
         for i, sec in enumerate(sels):

@@ -803,7 +803,7 @@ class Evaluator:
             look &= usable
         valid = np.arange(t)[None, :] < n[:, None]
         #: where the reaction model's moving-only sensors confirm (target ground speed)
-        moving = tgt.speed >= self.reaction.moving_min_speed_m_s
+        moving = tgt.speed >= self.reaction.moving_min_speed_m_s if self.moving_rows else None
         log_miss = np.zeros((b, t))
         log_conf: F64 | None = None
         names = np.asarray(env_names)[rows]
@@ -825,51 +825,11 @@ class Evaluator:
             if self.mode == "lookup":
                 sun_rows = _sun_rows(env, sun)
                 maps = self.maps(env, target)
-                n_exact = lookup_log_miss_tracks(
-                    maps,
-                    scene,
-                    kin.x,
-                    kin.y,
-                    ego.heading,
-                    n,
-                    g,
-                    sun_rows,
-                    log_miss,
-                    self._track_lookup(maps, scene, kin, ego.heading, sun_rows),
-                )
-                if occ is not None and self.occlusion:
-                    n_exact += self._occluded_exact(
-                        scene, env, kin, ego.heading, sun, valid, g, occ, log_miss
-                    )
-                if self.moving_rows:  # confirming only where the target moves
+                args = (maps, scene, env, kin, ego.heading, sun, sun_rows, valid, g, n, occ)
+                n_exact = self._lookup_pass(*args, self.confirm_rows, log_miss)
+                if moving is not None:  # confirming only where the target moves
                     extra = np.zeros((b, t))
-                    n_exact += lookup_log_miss_tracks(
-                        maps,
-                        scene,
-                        kin.x,
-                        kin.y,
-                        ego.heading,
-                        n,
-                        g,
-                        sun_rows,
-                        extra,
-                        self._track_lookup(
-                            maps, scene, kin, ego.heading, sun_rows, self.moving_rows
-                        ),
-                    )
-                    if occ is not None and self.occlusion:
-                        n_exact += self._occluded_exact(
-                            scene,
-                            env,
-                            kin,
-                            ego.heading,
-                            sun,
-                            valid,
-                            g,
-                            occ,
-                            extra,
-                            self.moving_rows,
-                        )
+                    n_exact += self._lookup_pass(*args, self.moving_rows, extra)
                     log_miss[g] += np.where(moving[g], extra[g], 0.0)
                 with self._lock:
                     self.exact_pairs += n_exact
@@ -890,7 +850,7 @@ class Evaluator:
             if log_conf is not None:
                 keep = [i for i, r in enumerate(srows) if r in self.confirm_rows]
                 log_conf[gr, vc] = lm[keep].sum(axis=0)
-                if self.moving_rows:  # confirming only where the target moves
+                if moving is not None:  # confirming only where the target moves
                     mv = [i for i, r in enumerate(srows) if r in self.moving_rows]
                     log_conf[gr, vc] += np.where(moving[gr, vc], lm[mv].sum(axis=0), 0.0)
         ttc = np.where(valid, enc.ttc_path, np.inf)
@@ -943,6 +903,31 @@ class Evaluator:
             perfect_step=perfect,
             outcome_rows=usable,
         )
+
+    def _lookup_pass(
+        self,
+        maps: LogMissMaps,
+        scene: Scene,
+        env: EnvironmentConfig,
+        kin: Kinematics,
+        heading: F64,
+        sun: F64,
+        sun_rows: F64,
+        valid: NDArray[np.bool_],
+        g: NDArray[np.intp],
+        n: NDArray[np.int64],
+        occ: F64 | None,
+        subset: tuple[int, ...],
+        out: F64,
+    ) -> int:
+        """One lookup pass of the sensor rows ``subset`` over the rows ``g`` into ``out``
+        (ln P_miss, (B, T)), the steps an occluder may change evaluated exactly; returns
+        the point-sensor pairs evaluated exactly."""
+        tl = self._track_lookup(maps, scene, kin, heading, sun_rows, subset)
+        pairs = lookup_log_miss_tracks(maps, scene, kin.x, kin.y, heading, n, g, sun_rows, out, tl)
+        if occ is not None and self.occlusion:
+            pairs += self._occluded_exact(scene, env, kin, heading, sun, valid, g, occ, out, subset)
+        return pairs
 
     def _occluded_exact(
         self,
