@@ -825,12 +825,13 @@ class Evaluator:
             if self.mode == "lookup":
                 sun_rows = _sun_rows(env, sun)
                 maps = self.maps(env, target)
-                args = (maps, scene, env, kin, ego.heading, sun, sun_rows, valid, g, n, occ)
-                n_exact = self._lookup_pass(*args, self.confirm_rows, log_miss)
-                if moving is not None:  # confirming only where the target moves
+                args = (maps, scene, env, kin, ego.heading, sun, sun_rows, valid)
+                n_exact = self._lookup_pass(*args, g, n, occ, self.confirm_rows, log_miss)
+                gm = g if moving is None else g[moving[g].any(axis=1)]
+                if moving is not None and gm.size:  # confirming only where the target moves
                     extra = np.zeros((b, t))
-                    n_exact += self._lookup_pass(*args, self.moving_rows, extra)
-                    log_miss[g] += np.where(moving[g], extra[g], 0.0)
+                    n_exact += self._lookup_pass(*args, gm, n, occ, self.moving_rows, extra)
+                    log_miss[gm] += np.where(moving[gm], extra[gm], 0.0)
                 with self._lock:
                     self.exact_pairs += n_exact
                 continue
