@@ -27,6 +27,8 @@ from sensorgap.analysis.farfield_outputs import write_farfield
 from sensorgap.analysis.nearfield import write_nearfield
 from sensorgap.analysis.paper import FarFieldSetup, run_farfield
 from sensorgap.config import load_environment, load_environments, load_target
+from sensorgap.config.common import name_problem
+from sensorgap.config.load import short
 from sensorgap.config.presets import resolve_road, roads_dir, templates_dir
 from sensorgap.coverage import GridSpec, Scene
 from sensorgap.coverage.grid import GridCoverage
@@ -170,9 +172,21 @@ def _analysis(
 
 def vehicle_ref(vehicle: str) -> tuple[str, str]:
     """(folder name, reference to record) of a ``--vehicle``: a preset name as it is, a
-    .toml path by its stem and its absolute path (the run works from any folder)."""
+    .toml path by its stem and its absolute path (the run works from any folder). A stem
+    that cannot name a folder inside ``--out`` (``.``, ``..``, a leading dot, characters
+    outside ``config.common.NAME_CHARS``) is refused: ``..toml`` would put the whole job
+    into ``--out`` itself, ``...toml`` into its parent."""
     if vehicle.endswith(".toml") or "/" in vehicle:
         p = Path(vehicle).resolve()
+        why = name_problem(p.stem) or (
+            "a name that starts with a dot would not make a folder of its own"
+            if p.stem.startswith(".")
+            else None
+        )
+        if why:
+            raise InputError(
+                p, "", f"vehicle file name (stem) {short(p.stem)} names the run's folder: {why}"
+            )
         return p.stem, str(p)
     return vehicle, vehicle
 
