@@ -7,6 +7,7 @@ Also: an internal error is exit 1 and says so, with a traceback only under --deb
 from __future__ import annotations
 
 import os
+import shutil
 import subprocess
 import sys
 from contextlib import nullcontext, redirect_stdout
@@ -104,3 +105,17 @@ def test_internal_error_is_exit_1_without_traceback(
     assert main(["--debug", *argv]) == 1
     err = capsys.readouterr().err
     assert "Traceback" in err and "synthetic failure" in err
+
+
+def test_report_into_a_folder_whose_name_is_not_utf8(
+    finished_run: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A run folder whose name holds a byte that is not UTF-8 (hostile round eight:
+    ``report`` ended in an internal error encoding the path): the report is written, the
+    byte shown as its ``\\udcXX`` escape, and the folder still verifies."""
+    run = Path(os.fsdecode(os.fsencode(tmp_path) + b"/run\xfe"))
+    shutil.copytree(finished_run, run)
+    assert main(["report", "--run", str(run)]) == 0, capsys.readouterr().err
+    md = (run / "report.md").read_text(encoding="utf-8")
+    assert "run\\udcfe" in md
+    assert main(["verify", str(run)]) == 0

@@ -63,9 +63,17 @@ def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
     return Path(path)
 
 
+def utf8(text: str) -> bytes:
+    """``text`` as UTF-8 for an output file. A path that is not valid UTF-8 reaches text as
+    lone surrogates (Python's ``surrogateescape``); they are written as ``\\udcXX`` escapes
+    (readable, and no output fails on a folder name: the byte itself is in no encoding)."""
+    return text.encode("utf-8", errors="backslashreplace")
+
+
 def atomic_write_text(path: str | Path, text: str) -> Path:
-    """Write UTF-8 ``text`` with ``\\n`` line ends to ``path`` atomically; returns the path."""
-    return atomic_write_bytes(path, text.encode("utf-8"))
+    """Write UTF-8 ``text`` (``utf8``) with ``\\n`` line ends to ``path`` atomically;
+    returns the path."""
+    return atomic_write_bytes(path, utf8(text))
 
 
 @contextmanager

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from sensorgap.atomic import atomic_write_bytes
+from sensorgap.atomic import atomic_write_bytes, utf8
 
 _FIXED_ZIP_TIME = (1980, 1, 1, 0, 0, 0)
 
@@ -45,7 +45,7 @@ def csv_bytes(columns: Sequence[str], data: Sequence[NDArray[Any]]) -> bytes:
         for c in (np.asarray(c) for c in data)
     ]
     lines = [",".join(columns), *map(",".join, zip(*text, strict=True))]
-    return ("\n".join(lines) + "\n").encode("utf-8")
+    return utf8("\n".join(lines) + "\n")
 
 
 def write_csv(path: str | Path, columns: Sequence[str], data: Sequence[NDArray[Any]]) -> Path:
@@ -66,7 +66,7 @@ def _json_default(obj: Any) -> Any:
 def json_bytes(obj: Any) -> bytes:
     """Sorted, indented JSON; NaN/inf are refused (``allow_nan=False``)."""
     text = json.dumps(obj, indent=2, sort_keys=True, allow_nan=False, default=_json_default)
-    return (text + "\n").encode("utf-8")
+    return utf8(text + "\n")
 
 
 def write_json(path: str | Path, obj: Any) -> Path:

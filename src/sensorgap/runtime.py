@@ -256,14 +256,20 @@ class StdoutUnwritable(Exception):
 
 class _GuardedStdout:
     """``sys.stdout`` while a command runs: a failed write or flush raises
-    ``StdoutUnwritable``; everything else is the stream's own."""
+    ``StdoutUnwritable``; text the stream's encoding cannot take (a path that is not valid
+    UTF-8 holds lone surrogates; a UTF-8 locale's stream is strict) is written with
+    ``\\udcXX``-style escapes, as standard error does; everything else is the stream's own."""
 
     def __init__(self, inner: TextIO) -> None:
         self._inner = inner
 
     def write(self, text: str) -> int:
         try:
-            return self._inner.write(text)
+            try:
+                return self._inner.write(text)
+            except UnicodeEncodeError:
+                enc = getattr(self._inner, "encoding", None) or "utf-8"
+                return self._inner.write(text.encode(enc, "backslashreplace").decode(enc))
         except OSError as exc:
             raise StdoutUnwritable(exc.strerror or type(exc).__name__) from None
 

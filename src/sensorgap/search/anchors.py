@@ -29,7 +29,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from sensorgap.atomic import atomic_write_bytes
+from sensorgap.atomic import atomic_write_bytes, utf8
 from sensorgap.config import EnvironmentConfig, load_environments
 from sensorgap.filesio import format_float, write_json
 from sensorgap.models import System
@@ -169,5 +169,5 @@ def write_anchors(rows: list[dict[str, Any]], out: Path) -> None:
     out.mkdir(parents=True, exist_ok=True)
     lines = [",".join(COLUMNS)]
     lines += [",".join(_cell(r[c]) for c in COLUMNS) for r in rows]
-    atomic_write_bytes(out / "anchors.csv", ("\n".join(lines) + "\n").encode("utf-8"))
+    atomic_write_bytes(out / "anchors.csv", utf8("\n".join(lines) + "\n"))
     write_json(out / "anchors.json", {"anchors": rows})

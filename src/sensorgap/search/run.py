@@ -26,7 +26,7 @@ from typing import Any
 
 from tqdm import tqdm
 
-from sensorgap.atomic import atomic_write_bytes
+from sensorgap.atomic import atomic_write_bytes, utf8
 from sensorgap.errors import InputError
 from sensorgap.filesio import format_float, write_json
 from sensorgap.search.executors import make_executor
@@ -112,7 +112,7 @@ def ranking_csv(rows: list[dict[str, Any]], columns: list[str]) -> bytes:
     w.writerow(columns)
     for r in rows:
         w.writerow(["" if r.get(c) is None else _fmt(r[c]) for c in columns])
-    return buf.getvalue().encode("utf-8")
+    return utf8(buf.getvalue())
 
 
 def _speed_limits(prob: SearchProblem) -> dict[str, dict[str, Any]]:
