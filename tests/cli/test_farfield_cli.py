@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from sensorgap.analysis.farfield import EgoPose, farfield, level_lengths, path_ahead
-from sensorgap.analysis.paper import FarFieldSetup, run_farfield, target_path
+from sensorgap.analysis.paper import FarFieldSetup, ego_pose, run_farfield, target_path
 from sensorgap.cli import main
 from sensorgap.config.presets import resolve_road
 from sensorgap.errors import InputError
@@ -98,3 +98,33 @@ def test_farfield_cli_files(tmp_path: Path) -> None:
 
 
 # Bad road files and arguments of farfield: tests/bad_inputs/cases.toml (in process).
+
+
+@pytest.mark.parametrize(("rule", "lanes", "side"), [("RHT", (1, 2), -1.0), ("LHT", (-1, -2), 1.0)])
+def test_far_field_looks_along_the_ego_lanes_travel(
+    tmp_path: Path, system_b: System, rule: str, lanes: tuple[int, int], side: float
+) -> None:
+    """An ego on a lane that travels along -s (a left lane under right-hand traffic, a right
+    lane under left-hand traffic) faces -s and looks along -s (hostile round eight: it
+    faced +s, and an LHT road gave the RHT road's far field). By hand on the straight
+    motorway_3lane (reference line along +x, lanes 3.75 m wide): at s = 900 the ego faces
+    -x and the target lane's path runs from x = 900 towards x = 0, one lane (3.75 m) beside
+    the ego on the outer side: its right under right-hand traffic, its left under
+    left-hand traffic."""
+    text = resolve_road("motorway_3lane").read_text(encoding="utf-8")
+    road = tmp_path / "r.xodr"
+    road.write_text(text.replace('rule="RHT"', f'rule="{rule}"', 1), encoding="utf-8")
+    net = read_opendrive(road)
+    setup = FarFieldSetup(
+        road=str(road), ego_lane=lanes[0], target_lane=lanes[1], ego_s_m=900.0, length_m=200.0
+    )
+    pose = ego_pose(net, setup)
+    assert abs(abs(pose.heading) - np.pi) < 1e-9  # facing -x
+    assert abs(pose.x - 900.0) < 1e-9
+    path = target_path(net, setup)
+    assert path[0, 0] == pytest.approx(900.0, abs=1e-9)
+    assert np.all(np.diff(path[:, 0]) < 0.0) and path[-1, 0] < 1.0
+    _, ff = run_farfield(system_b, "clear", setup, net)
+    # vehicle frame: ahead (x > 0), one lane to the outer side (y = -3.75 m: right)
+    assert np.all(ff.vehicle[:, 0] > 0.0)
+    assert np.allclose(ff.vehicle[:, 1], side * 3.75, atol=1e-9)

@@ -107,7 +107,8 @@ def path_ahead(
             "target_lane",
             "",
             f"only {cum[-1] - s0:.1f} m of the target lane lie "
-            f"ahead of the ego; {length_m:g} m needed (choose a smaller ego s)",
+            f"ahead of the ego; {length_m:g} m needed (choose an ego s farther from the "
+            "road's end in its lane's direction of travel, or a shorter length)",
         )
     n = max(1, round(length_m / step_m))
     ds = np.full(n, length_m / n, dtype=np.float64)

@@ -7,6 +7,7 @@ paper's numbers with the difference per cell (``paper.md``).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -63,15 +64,21 @@ class FarFieldSetup:
 
 
 def ego_pose(net: RoadNetwork, setup: FarFieldSetup) -> EgoPose:
-    """The ego's rear axle on the centre of its lane at ``ego_s_m``."""
+    """The ego's rear axle on the centre of its lane at ``ego_s_m``, facing the lane's
+    direction of travel (``RoadNetwork.lane_travel``: along -s on a left lane of a
+    right-hand-traffic road, on a right lane of a left-hand-traffic one)."""
     x, y, h, _ = net.lane_center(setup.road_id, setup.ego_lane, np.array([setup.ego_s_m]))
-    return EgoPose(float(x[0]), float(y[0]), float(h[0]))
+    back = net.lane_travel(setup.road_id, setup.ego_lane, setup.ego_s_m) < 0
+    return EgoPose(float(x[0]), float(y[0]), float(h[0]) + (math.pi if back else 0.0))
 
 
 def target_path(net: RoadNetwork, setup: FarFieldSetup, step_m: float = 0.5) -> np.ndarray:
-    """Centre line of the target lane from the ego's s to the road end (world, m)."""
-    length = net.road(setup.road_id).length
-    s = np.arange(setup.ego_s_m, length, step_m)
+    """Centre line of the target lane ahead of the ego (world, m): from the ego's s to the
+    road's end in the ego lane's direction of travel (to s = 0 where it travels along -s)."""
+    if net.lane_travel(setup.road_id, setup.ego_lane, setup.ego_s_m) < 0:
+        s = np.arange(setup.ego_s_m, 0.0, -step_m)
+    else:
+        s = np.arange(setup.ego_s_m, net.road(setup.road_id).length, step_m)
     x, y, _, _ = net.lane_center(setup.road_id, setup.target_lane, s)
     return np.column_stack([x, y])
 

@@ -105,6 +105,17 @@ class RoadNetwork:
             return False
         return road.sections[int(road.section_index(s))].lane(lane_id) is not None
 
+    def lane_travel(self, road_id: str | int, lane_id: int, s: float) -> int:
+        """+1 if traffic on lane ``lane_id`` of road ``road_id`` at ``s`` (m) moves along
+        +s, -1 if along -s (right lanes along +s; ``LHT`` and ``direction="reversed"`` flip
+        it). ``InputError`` if the lane does not exist there."""
+        road = self.road(road_id)
+        ss = float(self._s(road, s)[0])
+        idx = int(road.section_index(ss))
+        lane = self._section_or_fail(road, idx, lane_id, ss).lane(lane_id)
+        assert lane is not None
+        return _travel(road, lane)
+
     def _s(self, road: Road, s: ArrayLike) -> F64:
         arr = np.atleast_1d(np.asarray(s, dtype=np.float64)).ravel()
         bad = ~np.isfinite(arr) | (arr < -S_TOLERANCE) | (arr > road.length + S_TOLERANCE)
