@@ -143,7 +143,11 @@ def cmd_probe(args: argparse.Namespace) -> int:
             "--out", "", f"is the --points file {args.points}: writing would overwrite the input"
         )
     scene = _scene(args)
-    pts = read_points_csv(Path(args.points), default_z=scene.target.reference_height_m)
+    pts = read_points_csv(
+        Path(args.points),
+        default_z=scene.target.reference_height_m,
+        heights=args.heading is None,
+    )
     per_point = len(scene.sensors) * (1 if args.heading is None else BODY_COST)
     if len(pts) * per_point > MAX_POINT_SENSOR_VALUES:
         raise InputError(
@@ -181,11 +185,12 @@ def _probe_bodies(scene: Scene, pts: Any, heading_deg: float) -> bytes:
 
     from sensorgap.coverage.body import body_per_sensor_pd
     from sensorgap.filesio import csv_bytes
+    from sensorgap.models.geometry import heading_rad
 
     _check_heading(heading_deg)
     x, y = pts[:, 0], pts[:, 1]
     # the scene carries its sun (its SNRs include the glare of that sun)
-    pd, frac = body_per_sensor_pd(scene, x, y, np.full(len(x), math.radians(heading_deg)))
+    pd, frac = body_per_sensor_pd(scene, x, y, np.full(len(x), heading_rad(heading_deg)))
     fused = -np.expm1(np.sum(np.log1p(-np.minimum(pd, np.nextafter(1.0, 0.0))), axis=0))
     cols = ["x", "y", "heading_deg"]
     data = [x, y, np.full(len(x), heading_deg)]
@@ -199,6 +204,7 @@ def cmd_coverage(args: argparse.Namespace) -> int:
     """A coverage grid, heat map and summary into --out."""
     from sensorgap.coverage import GridSpec
     from sensorgap.coverage.outputs import write_coverage
+    from sensorgap.coverage.pointsio import MAX_HEIGHT_M
 
     refuse_foreign_outputs(args.out, ANALYSIS_WRITES["coverage"], "coverage")
     if not 1 <= args.workers <= 64:
@@ -243,11 +249,11 @@ def cmd_coverage(args: argparse.Namespace) -> int:
         )
     scene = _scene(args)
     height = scene.target.reference_height_m if args.height is None else args.height
-    if not (math.isfinite(height) and 0.0 <= height <= 50.0):
+    if not (math.isfinite(height) and 0.0 <= height <= MAX_HEIGHT_M):
         raise InputError(
             "--height",
             "",
-            f"must be within 0..50 m (above the road plane the "
+            f"must be within 0..{MAX_HEIGHT_M:g} m (above the road plane the "
             f"vehicle stands on: the models know no terrain), got {height!r}",
         )
     if args.per_sensor and cells * len(scene.sensors) > MAX_PER_SENSOR_CELLS:
@@ -307,6 +313,7 @@ def _occluder(text: str) -> Occluder:
     """``KIND@X,Y,HEADING`` -> an occluder sized as the target class KIND."""
     from sensorgap.config import load_target
     from sensorgap.coverage.occluders import Occluder
+    from sensorgap.models.geometry import heading_rad
 
     kind, sep, rest = text.partition("@")
     if not sep:
@@ -324,7 +331,7 @@ def _occluder(text: str) -> Occluder:
         target = load_target(kind.strip())
     except InputError as e:
         raise InputError("--occluder", "", f"unknown occluder kind {kind!r}: {e}") from None
-    return Occluder.of_target(target, x, y, math.radians(heading))
+    return Occluder.of_target(target, x, y, heading_rad(heading))
 
 
 def _check_occluders_clear_of_ego(

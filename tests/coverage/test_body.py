@@ -306,3 +306,24 @@ def test_probe_and_coverage_with_heading(tmp_path, capsys):
         )
         == 2
     )
+
+
+def test_equal_headings_give_identical_body_maps() -> None:
+    """360 and -360 deg are 0 deg, -90 is 270 (hostile round eight: at cells where the
+    target's box touches the ego's body, 360 deg gave Pd 0 against 0.99999996 at 0 deg,
+    from sin(2 pi) = -2.4e-16). The cells (1.5, +-1.5) m are those cells."""
+    from sensorgap.coverage.grid import GridSpec
+    from sensorgap.coverage.outputs import compute_coverage
+    from tests.conftest import make_scene
+
+    scene = make_scene(load_system("system_b"))
+    grid = GridSpec(-4.0, 8.0, -4.0, 4.0, 1.0, 0.0)
+
+    def fused(heading_deg: float) -> np.ndarray:
+        return np.asarray(compute_coverage(scene, grid, False, 1, heading_deg).fused)
+
+    zero = fused(0.0)
+    for same in (360.0, -360.0):
+        assert np.array_equal(fused(same), zero)
+    assert np.array_equal(fused(-90.0), fused(270.0))
+    assert np.array_equal(fused(-180.0), fused(180.0))

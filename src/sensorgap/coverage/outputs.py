@@ -20,6 +20,7 @@ from sensorgap.coverage.points import PointCoverage
 from sensorgap.coverage.scene import Scene
 from sensorgap.errors import InputError
 from sensorgap.filesio import csv_bytes, write_json, write_npz
+from sensorgap.models.geometry import heading_rad
 from sensorgap.version import __version__
 
 
@@ -69,7 +70,7 @@ def compute_coverage(
     return body_grid(
         scene,
         grid,
-        math.radians(heading_deg),
+        heading_rad(heading_deg),
         per_sensor=per_sensor,
         occluders=occluder_array(occluders) if occluders else None,
     )

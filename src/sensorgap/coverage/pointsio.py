@@ -22,11 +22,18 @@ MAX_BYTES = 100_000_000
 MAX_POINT_SENSOR_VALUES = 12_000_000
 #: Longest CSV field accepted, characters (a number needs far fewer).
 MAX_FIELD_CHARS = 1_000
+#: Highest target point above the road plane, m (``probe`` z, ``coverage --height``): an
+#: estimate well above any road user (a truck is 4 m) and any sensor mount; the models know
+#: no terrain, so a point below the road (z < 0) is refused too.
+MAX_HEIGHT_M = 50.0
 
 
-def read_points_csv(path: Path, default_z: float) -> NDArray[np.float64]:
-    """(N, 3) points from a CSV with a header naming ``x`` and ``y`` (and optionally ``z``,
-    else ``default_z`` m). Other columns are ignored. Any bad cell -> ``InputError``."""
+def read_points_csv(path: Path, default_z: float, heights: bool = True) -> NDArray[np.float64]:
+    """(N, 3) points from a CSV with a header naming ``x`` and ``y`` (m, vehicle frame) and
+    optionally ``z`` (m above the road plane, within 0..``MAX_HEIGHT_M``; else
+    ``default_z``). Other columns are ignored. Without ``heights`` (target bodies, which
+    stand on the road) a ``z`` column is refused rather than dropped. Any bad cell ->
+    ``InputError``."""
     if not path.exists():
         raise InputError(path, "", "file not found")
     if not path.is_file():  # a folder, a device (/dev/zero) or a pipe: never read
@@ -61,6 +68,13 @@ def read_points_csv(path: Path, default_z: float) -> NDArray[np.float64]:
             )
     ix, iy = names.index("x"), names.index("y")
     iz = names.index("z") if "z" in names else None
+    if iz is not None and not heights:
+        raise InputError(
+            path,
+            "header",
+            "a z column is not used for target bodies (a body stands on the road); "
+            "remove it, or probe points without a heading",
+        )
     rows: list[tuple[float, float, float]] = []
     try:
         return _rows(path, reader, (ix, iy, iz, len(header)), default_z, rows)
@@ -112,6 +126,13 @@ def _rows(
                     path,
                     f"line {lineno}, column {name}",
                     f"expected a finite number within +-1e7 m, got {cell!r}",
+                )
+            if name == "z" and not 0.0 <= v <= MAX_HEIGHT_M:
+                raise InputError(
+                    path,
+                    f"line {lineno}, column z",
+                    f"must be within 0..{MAX_HEIGHT_M:g} m (above the road plane the vehicle "
+                    f"stands on: the models know no terrain), got {cell!r}",
                 )
             vals.append(v)
         rows.append((vals[0], vals[1], vals[2]))

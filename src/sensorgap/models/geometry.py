@@ -49,6 +49,13 @@ class Mount:
         return rz @ ry
 
 
+def heading_rad(heading_deg: float) -> float:
+    """A heading in degrees as radians in [0, 2 pi): equal angles (360 and 0, -90 and 270)
+    give the same value to the last bit, so they evaluate alike (a target pose that touches
+    the ego's body flipped with the sign of sin(2 pi) = -2.4e-16)."""
+    return math.radians(heading_deg % 360.0)
+
+
 def rotate_offsets(mount: Mount, dx: F64, dy: F64, dz: F64 | float) -> tuple[F64, F64, F64]:
     """Offsets from the mount (vehicle-frame axes, m) -> sensor-frame coordinates (m)."""
     cy, sy = math.cos(mount.yaw), math.sin(mount.yaw)
