@@ -295,3 +295,25 @@ def test_markdown_shows_names_as_written_not_as_html() -> None:
     assert "st op&&lt;x> (1); Pd < 0.5 & more." in md
     assert "difference/&lt;map>/" in md and "&amp;amp; &amp;#60;" in md
     assert "[&lt;x>](x.html)" in md
+
+
+def test_a_run_made_with_other_software_says_so(
+    search_only: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A run whose run.json records another sensorgap version (hostile round eight: the
+    report showed 9.9.9 and said nothing, while it rebuilt its figures with this code): the
+    versions table has both columns and a paragraph names what differs."""
+    from sensorgap.filesio import write_manifest
+
+    run = tmp_path / "run"
+    shutil.copytree(search_only, run)
+    info = json.loads((run / "run.json").read_text(encoding="utf-8"))
+    info["versions"]["sensorgap"] = "9.9.9"
+    (run / "run.json").write_text(json.dumps(info, indent=2), encoding="utf-8")
+    write_manifest(run)
+    assert main(["report", "--run", str(run)]) == 0, capsys.readouterr().err
+    text = _doc(run / "report.html").get_element_by_id("reproduce").text_content()
+    assert "9.9.9" in text
+    assert "The run was made with other software than this report (sensorgap)" in text
+    own = _doc(search_only / "report.html").get_element_by_id("reproduce").text_content()
+    assert "other software" not in own

@@ -921,7 +921,9 @@ def build(folder: Path) -> tuple[str, list[str], Section, list[Section]]:
         lve if isinstance(lve, dict) else None,
         n_unavoidable,
     )
-    ver = info.get("versions") or versions()
+    now = versions()
+    ver = info.get("versions") or now
+    changed = sorted(k for k in set(ver) | set(now) if str(ver.get(k)) != str(now.get(k)))
     repro = info.get("command") or ["sensorgap", "report", "--run", str(folder)]
     sections = [
         _vehicle_section(system),
@@ -937,9 +939,25 @@ def build(folder: Path) -> tuple[str, list[str], Section, list[Section]]:
             "Software, configuration and reproduction",
             [
                 Table(
-                    ["package", "version"],
-                    [[k, str(v)] for k, v in sorted(ver.items())],
+                    ["package", "version (run)", "version (this report)"],
+                    [
+                        [k, str(ver.get(k, "-")), str(now.get(k, "-"))]
+                        for k in sorted(set(ver) | set(now))
+                    ],
                     "Software versions",
+                ),
+                *(
+                    [
+                        Para(
+                            "The run was made with other software than this report ("
+                            + ", ".join(changed)
+                            + "): its stored results (ranking, search store, exported "
+                            "scenarios) are the run's; the figures and tables were rebuilt "
+                            "from them with this report's versions."
+                        )
+                    ]
+                    if changed
+                    else []
                 ),
                 Table(
                     ["file", "SHA-256"],
