@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from sensorgap.errors import InputError
@@ -313,3 +315,160 @@ def test_elevation_profile_is_checked_not_modelled(write_xodr: Write) -> None:
         '<elevation s="10" a="0" b="0" c="0" d="0"/></elevationProfile>'
     )
     _fails(write_xodr(unordered, "unordered.xodr"), "elevation[1]@s: must not decrease")
+
+
+def test_elevation_before_its_first_record_is_the_default_not_extrapolated(
+    write_xodr: Write,
+) -> None:
+    """The standard's default elevation (0) holds before the first record, so a record at
+    s = 90 is checked on [90, 100] only: by hand, grade 2 c ds reaches 2 * 0.02 * 10 = 0.4
+    m/m at the road end (allowed); extrapolated back to s = 0 it would be -3.6 m/m."""
+    late = _with_elevation(
+        '<elevationProfile><elevation s="90" a="0" b="0" c="0.02" d="0"/></elevationProfile>'
+    )
+    assert read_opendrive(write_xodr(late, "late.xodr")).road(1).length == 100.0
+    steeper = late.replace('c="0.02"', 'c="0.03"')  # 2 * 0.03 * 10 = 0.6 m/m at s 100
+    _fails(
+        write_xodr(steeper, "steeper.xodr"),
+        "elevation[0]: the grade must stay within +-0.5 m/m, reaches 0.6 m/m at s 100",
+    )
+
+
+def _lane_m1(records: str) -> str:
+    lane = f'<lane id="-1" type="driving">{records}</lane>'
+    return document(road_xml(lanes=f"<lanes>{section_xml(right=lane)}</lanes>"))
+
+
+def test_first_width_record_must_start_at_the_section_start(write_xodr: Write) -> None:
+    """A width record starting at sOffset 70 left the width before it undefined (it was
+    extrapolated: 3.75 + 0.05 * (4 - 70) = 0.45 m at 4, -0.25 m at 0); within 1 mm of the
+    start it is read, and checked from the section start: by hand a = 0, b = 1 at
+    sOffset 0.0005 is -0.0005 m wide at 0."""
+    late = _lane_m1('<width sOffset="70" a="3.75" b="0.05" c="0" d="0"/>')
+    _fails(
+        write_xodr(late, "late.xodr"),
+        "lane[id=-1]/width[0]@sOffset: the first width record must start at the lane section "
+        "start (sOffset 0), got 70: the width before it is undefined",
+    )
+    near = _lane_m1('<width sOffset="0.0005" a="3.5" b="0" c="0" d="0"/>')
+    np.testing.assert_allclose(
+        read_opendrive(write_xodr(near, "near.xodr")).lane_width(1, -1, 0.0), 3.5
+    )
+    neg = _lane_m1('<width sOffset="0.0005" a="0" b="1" c="0" d="0"/>')
+    _fails(write_xodr(neg, "neg.xodr"), "width[0]: width must be >= 0, got -0.0005 m at sOffset 0")
+    unordered = _lane_m1(
+        '<width sOffset="0" a="3" b="0" c="0" d="0"/><width sOffset="50" a="3" b="0" c="0" d="0"/>'
+        '<width sOffset="20" a="3" b="0" c="0" d="0"/>'
+    )
+    _fails(
+        write_xodr(unordered, "unordered.xodr"), "width[2]@sOffset: must not decrease (previous 50)"
+    )
+
+
+def _two_lines(hdg: str) -> str:
+    return document(
+        road_xml(
+            geometry='<geometry s="0" x="0" y="0" hdg="0" length="50"><line/></geometry>'
+            f'<geometry s="50" x="50" y="0" hdg="{hdg}" length="50"><line/></geometry>'
+        )
+    )
+
+
+def test_heading_jump_between_geometries(write_xodr: Write) -> None:
+    """End heading of geometry k against the start heading of k+1, modulo 2 pi, within 1 deg:
+    by hand 0.0174 rad = 0.997 deg reads, 0.0176 rad = 1.00841 deg and 90 deg are refused;
+    2 pi + 0.01 (0.573 deg) and -0.0174 read."""
+    for hdg in ("0.0174", "-0.0174", repr(2 * math.pi + 0.01)):
+        assert len(read_opendrive(write_xodr(_two_lines(hdg), "ok.xodr")).road(1).geometries) == 2
+    _fails(
+        write_xodr(_two_lines("0.0176"), "kink.xodr"),
+        "geometry[1]@hdg: must continue geometry[0]'s end heading within 1 deg; at s 50 the "
+        "heading jumps by 1.00841 deg",
+    )
+    _fails(write_xodr(_two_lines(repr(-math.pi / 2)), "corner.xodr"), "jumps by -90 deg")
+    # an arc's end heading: 0 + 50 m * 0.01 1/m = 0.5 rad; the next line continues it
+    arc = document(
+        road_xml(
+            geometry='<geometry s="0" x="0" y="0" hdg="0" length="50"><arc curvature="0.01"/>'
+            "</geometry>"
+            f'<geometry s="50" x="{100 * math.sin(0.5)!r}" y="{100 * (1 - math.cos(0.5))!r}" '
+            'hdg="{h}" length="50"><line/></geometry>'
+        )
+    )
+    assert read_opendrive(write_xodr(arc.replace("{h}", "0.5"), "arc.xodr"))
+    _fails(write_xodr(arc.replace("{h}", "0"), "arc0.xodr"), "jumps by -28.6479 deg")
+
+
+def _with_lateral(profile: str) -> str:
+    return document(road_xml().replace("</planView>", f"</planView>{profile}"))
+
+
+def test_superelevation_is_checked_not_modelled(write_xodr: Write) -> None:
+    """A 12 % bank (AASHTO's highest rate, 0.12 rad) reads; by hand a = 0.5, b = 0.005 reaches
+    1 rad at the road end (s 100) and is refused, and so is 1.5 rad (86 deg). A first record
+    at s = 90 (a = 0, b = 0.06: 0.6 rad at s 100) is checked from 90 on: 0 before it (it
+    would be -5.4 rad at s 0 extrapolated)."""
+    for sup in ('s="0" a="0.12" b="0"', 's="90" a="0" b="0.06"'):
+        ok = _with_lateral(f'<lateralProfile><superelevation {sup} c="0" d="0"/></lateralProfile>')
+        assert read_opendrive(write_xodr(ok, "ok.xodr")).road(1).length == 100.0
+    ramp = _with_lateral(
+        '<lateralProfile><superelevation s="0" a="0.5" b="0.005" c="0" d="0"/></lateralProfile>'
+    )
+    _fails(
+        write_xodr(ramp, "ramp.xodr"),
+        "road[id=1]/lateralProfile/superelevation[0]: the angle must stay within +-0.7 rad, "
+        "reaches 1 rad at s 100",
+    )
+    _fails(
+        write_xodr(ramp.replace('a="0.5" b="0.005"', 'a="1.5" b="0"'), "bank.xodr"),
+        "reaches 1.5 rad at s 0",
+    )
+    nan = ramp.replace('a="0.5"', 'a="nan"')
+    _fails(write_xodr(nan, "nan.xodr"), "superelevation[0]@a: must be a finite number")
+
+
+def test_shape_is_checked_over_the_cross_section(write_xodr: Write) -> None:
+    """The road is 3.5 m wide each side (t in [-3.5, 3.5]). A 7 cm crown reads; by hand the
+    last record (t = 0, b = 5) reaches 5 * 3.5 = 17.5 m at the left edge, and a single
+    record (a = 0, b = -3, c = 0.1) extrapolated to the right edge 10.5 + 1.225 = 11.725 m at
+    t -3.5: both refused."""
+    crown = _with_lateral(
+        '<lateralProfile><shape s="0" t="0" a="0.07" b="-0.02" c="0" d="0"/>'
+        '<shape s="0" t="-3.5" a="0" b="0.02" c="0" d="0"/></lateralProfile>'
+    )
+    assert read_opendrive(write_xodr(crown, "crown.xodr")).road(1).length == 100.0
+    steep = crown.replace('t="0" a="0.07" b="-0.02"', 't="0" a="0" b="5"')
+    _fails(
+        write_xodr(steep, "steep.xodr"),
+        "lateralProfile/shape[0]: the height must stay within +-10 m, reaches 17.5 m at t 3.5",
+    )
+    one = _with_lateral(
+        '<lateralProfile><shape s="0" t="0" a="0" b="-3" c="0.1" d="0"/></lateralProfile>'
+    )
+    _fails(
+        write_xodr(one, "one.xodr"),
+        "shape[0]: the height must stay within +-10 m, reaches 11.725 m at t -3.5",
+    )
+    high = _with_lateral(
+        '<lateralProfile><shape s="0" t="0" a="1e4" b="0" c="0" d="0"/></lateralProfile>'
+    )
+    _fails(write_xodr(high, "high.xodr"), "reaches 10000 m at t 0")
+
+
+def test_lane_height_is_bounded(write_xodr: Write) -> None:
+    """A 15 cm curb reads; a lane raised 12 m (or 5 km) is refused on the attribute."""
+    w = '<width sOffset="0" a="3.5" b="0" c="0" d="0"/>'
+    curb = _lane_m1(w + '<height sOffset="0" inner="0.15" outer="0.15"/>')
+    assert read_opendrive(write_xodr(curb, "curb.xodr")).road(1).length == 100.0
+    high = _lane_m1(
+        w + '<height sOffset="0" inner="0.15" outer="0.15"/>'
+        '<height sOffset="10" inner="0.15" outer="-12"/>'
+    )
+    _fails(
+        write_xodr(high, "high.xodr"),
+        "lane[id=-1]/height[1]@outer: must be within +-10 m, got -12",
+    )
+    back = _lane_m1(
+        w + '<height sOffset="10" inner="0" outer="0"/><height sOffset="5" inner="0" outer="0"/>'
+    )
+    _fails(write_xodr(back, "back.xodr"), "height[1]@sOffset: must not decrease (previous 10)")

@@ -193,3 +193,23 @@ def test_lane_centre_heading_and_curvature_on_a_clothoid_with_varying_offsets(
         np.testing.assert_allclose(h, np.arctan2(yp - ym, xp - xm), atol=1e-8)
         np.testing.assert_allclose(k, (hp - hm) / np.hypot(xp - xm, yp - ym), rtol=1e-6)
         assert np.all(np.abs(k) > 1e-3)  # the check is not trivially on a straight line
+
+
+def test_no_lane_offset_before_the_first_lane_offset_record(
+    load_xodr: Callable[..., RoadNetwork],
+) -> None:
+    """OpenDRIVE shifts the centre lane from each laneOffset record on; before the first one
+    there is no shift (it was extrapolated backwards: 0.1 * (30 - 60) = -3 m at s 30). By
+    hand, lane -1 (3.5 m) on a straight road along +x: centre y = -1.75 up to s 60, then
+    0.1 (s - 60) - 1.75: 0.25 at s 80; heading 0 before 60, atan(0.1) after."""
+    net = load_xodr(
+        document(
+            road_xml().replace("<lanes>", '<lanes><laneOffset s="60" a="0" b="0.1" c="0" d="0"/>')
+        )
+    )
+    x, y, h, _ = net.lane_center(1, -1, np.array([0.0, 30.0, 59.0, 80.0, 100.0]))
+    np.testing.assert_allclose(y, [-1.75, -1.75, -1.75, 0.25, 2.25], atol=1e-12)
+    np.testing.assert_allclose(h, [0.0, 0.0, 0.0, math.atan(0.1), math.atan(0.1)], atol=1e-12)
+    left, right = net.road_extents(1, np.array([30.0, 80.0]))
+    np.testing.assert_allclose(left, [3.5, 5.5], atol=1e-12)
+    np.testing.assert_allclose(right, [-3.5, -1.5], atol=1e-12)

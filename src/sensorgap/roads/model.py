@@ -33,7 +33,9 @@ class CubicPiece:
 
 def eval_pieces(pieces: tuple[CubicPiece, ...], s: ArrayLike) -> tuple[F64, F64, F64]:
     """Piecewise cubic value, first and second derivative at ``s`` (same frame as the
-    pieces' ``s``). Before the first piece the first piece is extrapolated; no pieces -> 0."""
+    pieces' ``s``). Before the first piece the first piece is extrapolated (at most 1 mm: the
+    reader starts laneOffsets with a zero record at s = 0 and a lane's first width record
+    within 1 mm of its section start); no pieces -> 0."""
     x = np.asarray(s, dtype=np.float64)
     if not pieces:
         z = np.zeros_like(x)
@@ -115,7 +117,9 @@ class Road:
         length: road length, m.
         junction: id of the junction this road belongs to, ``"-1"`` if none.
         geometries: planView records ordered by s.
-        lane_offsets: laneOffset records (road s), shift of the centre lane in t, m.
+        lane_offsets: laneOffset records (road s), shift of the centre lane in t, m; the
+            reader adds a zero record at s = 0 when the first starts later (no offset
+            before the first record, as in OpenDRIVE).
         sections: lane sections ordered by s.
         predecessor / successor: road links (or ``None``).
         rule: traffic rule, ``RHT`` (right-hand traffic, default) or ``LHT``.
@@ -138,6 +142,21 @@ class Road:
         starts = np.array([sec.s for sec in self.sections])
         idx = np.searchsorted(starts, np.asarray(s, dtype=np.float64), side="right") - 1
         return np.clip(idx, 0, len(self.sections) - 1)
+
+    def extents(self, s: ArrayLike) -> tuple[F64, F64]:
+        """t (m) of the outer border of the leftmost and of the rightmost lane at road ``s``
+        (m, array)."""
+        x = np.asarray(s, dtype=np.float64)
+        off = eval_pieces(self.lane_offsets, x)[0]
+        left, right = off.copy(), off.copy()
+        secs = self.section_index(x)
+        for i in np.unique(secs):
+            m = secs == i
+            sec = self.sections[int(i)]
+            ds = x[m] - sec.s
+            left[m] += sum((ln.width(ds) for ln in sec.left), np.zeros(ds.shape))
+            right[m] -= sum((ln.width(ds) for ln in sec.right), np.zeros(ds.shape))
+        return left, right
 
 
 @dataclass(frozen=True)

@@ -265,7 +265,7 @@ class RoadNetwork:
         """Lateral position t (m) of the outer border of the leftmost and of the rightmost
         lane of road ``road_id`` at ``s`` (m, array)."""
         road = self.road(road_id)
-        left, right = self._extents(road, self._s(road, s))
+        left, right = road.extents(self._s(road, s))
         return left.reshape(np.shape(s)), right.reshape(np.shape(s))
 
     def off_road_m(self, x: ArrayLike, y: ArrayLike) -> F64:
@@ -275,22 +275,9 @@ class RoadNetwork:
         out = np.zeros(len(s))
         for i in np.flatnonzero(np.asarray(lane) == 0):
             road = self.road(str(rid[i]))
-            left, right = self._extents(road, np.array([s[i]]))
+            left, right = road.extents(np.array([s[i]]))
             out[i] = max(float(t[i] - left[0]), float(right[0] - t[i]), 0.0)
         return out
-
-    def _extents(self, road: Road, s: F64) -> tuple[F64, F64]:
-        """t (m) of the outer border of the leftmost and of the rightmost lane."""
-        off = eval_pieces(road.lane_offsets, s)[0]
-        left, right = off.copy(), off.copy()
-        secs = road.section_index(s)
-        for i in np.unique(secs):
-            m = secs == i
-            sec = road.sections[int(i)]
-            ds = s[m] - sec.s
-            left[m] += sum((ln.width(ds) for ln in sec.left), np.zeros(ds.shape))
-            right[m] -= sum((ln.width(ds) for ln in sec.right), np.zeros(ds.shape))
-        return left, right
 
     def lane_at(self, road_id: str | int, s: ArrayLike, t: ArrayLike) -> NDArray[np.int64]:
         """Lane id containing road point (s, t) (m); 0 where the point is outside all lanes.
@@ -332,7 +319,7 @@ class RoadNetwork:
             n = max(2, math.ceil(road.length / SAMPLE_STEP) + 1)
             s = np.linspace(0.0, road.length, n)
             x, y, _, _, _ = self._reference(road, s)
-            left, right = self._extents(road, s)
+            left, right = road.extents(s)
             xs.append(x)
             ys.append(y)
             ss.append(s)

@@ -3,10 +3,11 @@
 Reads the 2-D road layout of OpenDRIVE 1.4-1.7 files: planView geometries (line, arc,
 spiral, poly3, paramPoly3), laneOffset, lane sections with lane widths and lane links, road
 links and junctions (default, direct, virtual) with their connections and lane links.
-Elevation is checked but not modelled: the analysis assumes a flat road, and a profile
-beyond any real road (height ``MAX_ELEVATION_M``, grade ``MAX_GRADE``) is refused, since
-the scenarios exported on the road would be played on it. Superelevation, lane heights,
-road marks, objects and signals are ignored.
+Elevation, superelevation, the lateral shape and lane heights are checked but not
+modelled: the analysis assumes a flat road, and a profile beyond any real road (height
+``MAX_ELEVATION_M``, grade ``MAX_GRADE``, bank ``MAX_SUPERELEVATION_RAD``, shape
+``MAX_SHAPE_HEIGHT_M``, lane height ``MAX_LANE_HEIGHT_M``) is refused, since the scenarios
+exported on the road would be played on it. Road marks, objects and signals are ignored.
 
 Every problem is one ``InputError`` naming the file and the element, e.g.
 ``roads/x.xodr: road[id=3]/planView/geometry[2]@length: must be > 0, got -5 (line 12)``.
@@ -44,6 +45,10 @@ from sensorgap.roads.xmlsafe import DEFAULT_MAX_BYTES, parse_xml_file
 S_TOLERANCE = 1e-3
 #: Largest distance between the end of a planView geometry and the start of the next, m.
 XY_TOLERANCE = 0.1
+#: Largest heading jump between the end of a planView geometry and the start of the next,
+#: rad (1 degree; an estimate: writers round headings to about 1e-9 rad and the shipped roads
+#: join exactly, while a kink of a degree or more is a corner no vehicle follows).
+HDG_TOLERANCE = math.radians(1.0)
 #: Largest relative difference between a paramPoly3's arc length and its ``length``.
 ARC_LENGTH_TOLERANCE = 0.01
 #: Samples along a poly3/paramPoly3 for its curvature and arc length.
@@ -72,6 +77,14 @@ MAX_LANE_OFFSET_M = 1000.0
 #: margin), and grade, m/m (steeper than any public street, about 0.35 at most; an estimate).
 MAX_ELEVATION_M = 10_000.0
 MAX_GRADE = 0.5
+#: Largest superelevation (bank angle), rad (about 40 degrees; an estimate: AASHTO's highest
+#: superelevation rate is 12 %, about 0.12 rad, and steep-banked race ovals reach about 33
+#: degrees, 0.58 rad).
+MAX_SUPERELEVATION_RAD = 0.7
+#: Largest height of the lateral shape and of a lane (``<height>``) above or below the road
+#: surface, m (an estimate: crowns, curbs and sidewalks are tens of centimetres).
+MAX_SHAPE_HEIGHT_M = 10.0
+MAX_LANE_HEIGHT_M = 10.0
 
 
 def _local(el: etree._Element) -> str:
@@ -278,9 +291,11 @@ class _Reader:
         geoms = self.plan_view(el, where, length)
         self.elevation(el, where, length)
         offsets, sections = self.lanes(el, where, length)
-        return Road(
+        road = Road(
             rid, length, junction, geoms, offsets, sections, pred, succ, rule, el.get("name", "")
         )
+        self.lateral_profile(el, where, road)
+        return road
 
     def road_link(self, link: etree._Element, kind: str, where: str) -> RoadLink | None:
         els = _kids(link, kind)
@@ -330,13 +345,23 @@ class _Reader:
             if geoms:
                 # contiguous in x, y too: a geometry starting kilometres from where the
                 # previous one ends made every path jump there (at any speed)
-                ex, ey, _ = geoms[-1].end()
+                ex, ey, eh = geoms[-1].end()
                 gap = math.hypot(x - ex, y - ey)
                 if not gap <= XY_TOLERANCE:
                     self.fail(
                         f"{w}@x/y",
                         f"must start where geometry[{i - 1}] ends ({ex:.6g}, {ey:.6g}), within "
                         f"{XY_TOLERANCE:g} m; got ({x:.6g}, {y:.6g}), {gap:.6g} m away",
+                        g,
+                    )
+                # and in heading: a kink made every path turn on the spot (modulo 2 pi)
+                jump = math.remainder(hdg - eh, 2.0 * math.pi)
+                if not abs(jump) <= HDG_TOLERANCE:
+                    self.fail(
+                        f"{w}@hdg",
+                        f"must continue geometry[{i - 1}]'s end heading within "
+                        f"{math.degrees(HDG_TOLERANCE):g} deg; at s {s:.6g} the heading jumps "
+                        f"by {math.degrees(jump):.6g} deg",
                         g,
                     )
             geoms.append(self.geometry(kids[0], f"{w}/{_local(kids[0])}", s, x, y, hdg, glen))
@@ -442,25 +467,31 @@ class _Reader:
         what: str,
         el: etree._Element,
         unit: str = "m",
+        start: float | None = None,
+        along: str = "s",
     ) -> None:
-        """``InputError`` if the cubic record exceeds ``limit`` in magnitude on its span."""
-        lo_at, lo = _cubic_min(piece, end)
-        hi_at, hi = _cubic_min(CubicPiece(piece.s, -piece.a, -piece.b, -piece.c, -piece.d), end)
+        """``InputError`` if the cubic record exceeds ``limit`` in magnitude on its span
+        [``start`` (default: the record's own start), ``end``] (in ``along``, m)."""
+        neg = CubicPiece(piece.s, -piece.a, -piece.b, -piece.c, -piece.d)
+        lo_at, lo = _cubic_min(piece, end, start)
+        hi_at, hi = _cubic_min(neg, end, start)
         at, worst = (lo_at, lo) if abs(lo) >= abs(hi) else (hi_at, -hi)
         if not (math.isfinite(worst) and abs(worst) <= limit):
             self.fail(
                 where,
                 f"{what} must stay within +-{limit:g} {unit}, reaches {worst:.6g} {unit} at "
-                f"s {at:.6g}",
+                f"{along} {at:.6g}",
                 el,
             )
 
     def spans(
         self, els: list[etree._Element], where: str, length: float
     ) -> list[tuple[CubicPiece, float, str, etree._Element]]:
-        """Cubic records along a road (``laneOffset``, ``elevation``; ``where``: their path,
-        the i-th is ``where[i]``) in order within its ``length`` (m): (piece, end of its span
-        in s, its path, its element), each span ending where the next record starts."""
+        """Cubic records along a road (``laneOffset``, ``elevation``, ``superelevation``,
+        ``shape``; ``where``: their path, the i-th is ``where[i]``) in order within its
+        ``length`` (m): (piece, end of its span in s, its path, its element), each span
+        ending where the next record starts. Before the first record the OpenDRIVE default
+        (0) holds: nothing is extrapolated backwards."""
         pieces: list[tuple[CubicPiece, str, etree._Element]] = []
         for i, e in enumerate(els):
             w = f"{where}[{i}]"
@@ -478,12 +509,39 @@ class _Reader:
     def elevation(self, el: etree._Element, where: str, length: float) -> None:
         """Checks the elevation profile (not modelled: a flat road is assumed): pieces in
         order within the road, height within ``MAX_ELEVATION_M`` (m), grade within
-        ``MAX_GRADE`` (m/m)."""
+        ``MAX_GRADE`` (m/m); 0 before the first piece (the standard's default)."""
         els = [e for prof in _kids(el, "elevationProfile") for e in _kids(prof, "elevation")]
         for piece, end, w, e in self.spans(els, f"{where}/elevationProfile/elevation", length):
             self.bounded_cubic(piece, end, MAX_ELEVATION_M, w, "the height", e)
             grade = CubicPiece(piece.s, piece.b, 2.0 * piece.c, 3.0 * piece.d, 0.0)
             self.bounded_cubic(grade, end, MAX_GRADE, w, "the grade", e, unit="m/m")
+
+    def lateral_profile(self, el: etree._Element, where: str, road: Road) -> None:
+        """Checks the lateral profile (not modelled: a flat road is assumed): superelevation
+        pieces in order within the road and within ``MAX_SUPERELEVATION_RAD`` (rad; 0 before
+        the first); shape pieces in order of s, each height cubic in t within
+        ``MAX_SHAPE_HEIGHT_M`` (m) from its t to the next t at the same s (sorted by t), the
+        first from the road's right edge, the last to its left edge (at that s)."""
+        profs = _kids(el, "lateralProfile")
+        w = f"{where}/lateralProfile"
+        sup = [e for prof in profs for e in _kids(prof, "superelevation")]
+        for piece, end, ws, e in self.spans(sup, f"{w}/superelevation", road.length):
+            self.bounded_cubic(piece, end, MAX_SUPERELEVATION_RAD, ws, "the angle", e, "rad")
+        shapes = [e for prof in profs for e in _kids(prof, "shape")]
+        stations: dict[float, list[tuple[float, CubicPiece, str, etree._Element]]] = {}
+        for piece, _, ws, e in self.spans(shapes, f"{w}/shape", road.length):
+            stations.setdefault(piece.s, []).append((self.num(e, "t", ws), piece, ws, e))
+        s_at = np.clip(np.array(list(stations), dtype=np.float64), 0.0, road.length)
+        lefts, rights = road.extents(s_at)
+        for recs, left, right in zip(stations.values(), lefts, rights, strict=True):
+            recs.sort(key=lambda r: r[0])
+            for k, (t, piece, ws, e) in enumerate(recs):
+                start = min(t, float(right)) if k == 0 else t
+                end = recs[k + 1][0] if k + 1 < len(recs) else max(t, float(left))
+                height = CubicPiece(t, piece.a, piece.b, piece.c, piece.d)
+                self.bounded_cubic(
+                    height, end, MAX_SHAPE_HEIGHT_M, ws, "the height", e, "m", start, "t"
+                )
 
     # -- lanes -------------------------------------------------------------------------
     def lanes(
@@ -500,6 +558,11 @@ class _Reader:
         for piece, end, w, _ in spans:
             self.bounded_cubic(piece, end, MAX_LANE_OFFSET_M, w, "the lane offset", el)
         offsets = [piece for piece, _, _, _ in spans]
+        if offsets and offsets[0].s > 0.0:
+            # no offset before the first record: the standard defines none there (its own
+            # example starts at s = 25 with a = 0); extrapolating the first one backwards
+            # put a path 13 km off the road
+            offsets.insert(0, CubicPiece(0.0, 0.0))
         sels = self.some(lel, "laneSection", f"{where}/lanes")
         starts: list[float] = []
         for i, sec in enumerate(sels):
@@ -571,6 +634,15 @@ class _Reader:
                 self.integer(p, "id", f"{w}/link/predecessor") for p in _kids(link, "predecessor")
             ]
             succs = [self.integer(p, "id", f"{w}/link/successor") for p in _kids(link, "successor")]
+        for hel, wh in self.lane_records(el, "height", w):
+            for attr in ("inner", "outer"):
+                value = self.num(hel, attr, wh)
+                if abs(value) > MAX_LANE_HEIGHT_M:
+                    self.fail(
+                        f"{wh}@{attr}",
+                        f"must be within +-{MAX_LANE_HEIGHT_M:g} m, got {value:g}",
+                        hel,
+                    )
         if lid == 0:
             return Lane(0, ltype, (), tuple(preds), tuple(succs), direction)
         if _kid(el, "border") is not None:
@@ -579,28 +651,50 @@ class _Reader:
                 "lane <border> records are not supported; describe the lane with <width> records",
                 _kid(el, "border"),
             )
-        widths: list[CubicPiece] = []
-        for i, wel in enumerate(_kids(el, "width")):
-            ww = f"{w}/width[{i}]"
-            piece = self.cubic(wel, ww, "sOffset")
-            if piece.s < 0.0:
-                self.fail(f"{ww}@sOffset", f"must be >= 0, got {piece.s:g}", wel)
-            if widths and piece.s < widths[-1].s:
-                self.fail(f"{ww}@sOffset", f"must not decrease (previous {widths[-1].s:g})", wel)
-            widths.append(piece)
+        widths = [self.cubic(e, ww, "sOffset") for e, ww in self.lane_records(el, "width", w)]
         if not widths:
             self.fail(w, "needs at least one <width> record", el)
+        if widths[0].s > S_TOLERANCE:
+            # the width is defined from each record on; before the first it is undefined
+            # (extrapolating it backwards made a lane -8.55 m wide)
+            self.fail(
+                f"{w}/width[0]@sOffset",
+                f"the first width record must start at the lane section start (sOffset 0), "
+                f"got {widths[0].s:g}: the width before it is undefined",
+                _kids(el, "width")[0],
+            )
         for i, piece in enumerate(widths):
             end = widths[i + 1].s if i + 1 < len(widths) else max(sec_len, piece.s)
-            at, wmin = _cubic_min(piece, end)
+            start = 0.0 if i == 0 else None  # the first record covers [0, its sOffset) too
+            at, wmin = _cubic_min(piece, end, start)
             if wmin < -WIDTH_TOLERANCE:
                 self.fail(
                     f"{w}/width[{i}]",
                     f"width must be >= 0, got {wmin:.6g} m at sOffset {at:.6g}",
                     el,
                 )
-            self.bounded_cubic(piece, end, MAX_LANE_WIDTH_M, f"{w}/width[{i}]", "the width", el)
+            self.bounded_cubic(
+                piece, end, MAX_LANE_WIDTH_M, f"{w}/width[{i}]", "the width", el, start=start
+            )
         return Lane(lid, ltype, tuple(widths), tuple(preds), tuple(succs), direction)
+
+    def lane_records(
+        self, el: etree._Element, name: str, w: str
+    ) -> list[tuple[etree._Element, str]]:
+        """The ``<name>`` records of a lane (``width``, ``height``) with their paths, their
+        ``sOffset`` (m from the section start) >= 0 and not decreasing."""
+        out: list[tuple[etree._Element, str]] = []
+        previous = 0.0
+        for i, rel in enumerate(_kids(el, name)):
+            wr = f"{w}/{name}[{i}]"
+            s = self.num(rel, "sOffset", wr)
+            if s < 0.0:
+                self.fail(f"{wr}@sOffset", f"must be >= 0, got {s:g}", rel)
+            if s < previous:
+                self.fail(f"{wr}@sOffset", f"must not decrease (previous {previous:g})", rel)
+            previous = s
+            out.append((rel, wr))
+        return out
 
     # -- junctions ---------------------------------------------------------------------
     def junction(self, el: etree._Element, index: int) -> Junction:
@@ -750,16 +844,18 @@ class _Reader:
         return Junction(j.id, j.name, j.type, tuple(out))
 
 
-def _cubic_min(piece: CubicPiece, end: float) -> tuple[float, float]:
-    """Smallest value of a cubic record over [piece.s, end] and where (exact: end points and
-    the real roots of the derivative)."""
+def _cubic_min(piece: CubicPiece, end: float, start: float | None = None) -> tuple[float, float]:
+    """Smallest value of a cubic record over [start, end] (``start`` defaults to piece.s; an
+    earlier one extrapolates the record backwards) and where (exact: end points and the real
+    roots of the derivative)."""
     if piece.b == piece.c == piece.d == 0.0:
         return piece.s, piece.a
-    span = max(end - piece.s, 0.0)
-    cands = [0.0, span]
+    lo = 0.0 if start is None else min(start - piece.s, 0.0)
+    hi = max(end - piece.s, 0.0)
+    cands = [lo, hi]
     if piece.c != 0.0 or piece.d != 0.0:
         roots = np.roots([3.0 * piece.d, 2.0 * piece.c, piece.b])
-        cands += [float(r.real) for r in roots if abs(r.imag) < 1e-12 and 0.0 < r.real < span]
+        cands += [float(r.real) for r in roots if abs(r.imag) < 1e-12 and lo < r.real < hi]
     u = np.array(cands)
     vals = eval_pieces((CubicPiece(0.0, piece.a, piece.b, piece.c, piece.d),), u)[0]
     k = int(np.argmin(vals))
