@@ -433,3 +433,32 @@ def test_lane_progress_and_row_bounds_equal_numpy() -> None:
     row_bounds(s, lo, hi)
     np.testing.assert_array_equal(lo, np.min(s, axis=1))
     np.testing.assert_array_equal(hi, np.max(s, axis=1))
+
+
+@pytest.mark.parametrize("family", ["slow_ahead_curve", "cut_in_behind_truck"])
+def test_moving_only_sensors_in_one_pass_equal_two_passes(
+    monkeypatch: pytest.MonkeyPatch, family: str
+) -> None:
+    """System B's radar confirms where the target moves (``confirm_moving_with``). Looked
+    up in the same compiled pass as the confirming sensors (``lookup_log_miss_tracks``'s
+    ``also``), the fused ln P_miss equals a pass of its own masked by the moving steps (the
+    way for glare-prone moving-only sensors) bit for bit, with occluders too (the truck)."""
+    import sensorgap.search.evaluate as evaluate_module
+
+    prob = _problem(family, mode="lookup")
+    assert prob.evaluator.moving_rows
+    d = prob.decode_batch(np.random.default_rng(11).random((400, prob.dim)))
+    batch = prob.family.generate_batch(d.params)
+    rows = np.flatnonzero(batch.ok)
+
+    def log_miss() -> np.ndarray:
+        bt = prob.evaluator.evaluate_batch(
+            batch, d.env_names, prob.environments, d.sun_deg, rows=rows, collisions_only=True
+        )
+        return np.asarray(bt.log_miss)
+
+    one = log_miss()
+    monkeypatch.setattr(evaluate_module, "also_glare_free", lambda *_: False)
+    two = log_miss()
+    assert np.count_nonzero(one) > 1000  # something was looked up
+    np.testing.assert_array_equal(one, two)

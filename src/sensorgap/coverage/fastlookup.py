@@ -215,6 +215,9 @@ def lookup_pass(
     has_signal: NDArray[np.bool_],
     keep_unseen: bool,
     near_view: NDArray[np.bool_],
+    also_total: F32,
+    also_at: NDArray[np.bool_],
+    also_out: F64,
     out: F64,
     outside: I64,
     glare_idx: I64,
@@ -238,8 +241,13 @@ def lookup_pass(
     cell diagonal)^2, beyond which no corner cell can be in range. ``sun[r]`` = (kind,
     azimuth rad, elevation rad); ``heading`` (B, T) ego heading, rad. Level cameras
     (``level``, pitch 0) get their weight analytically (sensor azimuth a - ``yaw``,
-    elevation the sun's), others through ``rot``."""
+    elevation the sun's), others through ``rot``. ``also_total`` ((H, ny, nx), or (0, ny,
+    nx) for none): fused maps of further sensors, none of them glare-prone, interpolated
+    alike into ``also_out[r, k]`` ((B, T)) at the steps where ``also_at[r, k]`` (a reaction
+    model's moving-only sensors where the target moves; left as they are elsewhere and
+    outside the map), in the same pass."""
     n_bins, ny, nx = total.shape[0], total.shape[1], total.shape[2]
+    also = also_total.shape[0] > 0
     inv_bin = n_bins / math.pi
     t = x.shape[1]
     n_cam = rot.shape[0]
@@ -306,6 +314,11 @@ def lookup_pass(
                 h = heading_bin(psi[r, k], inv_bin, n_bins)
             tot = total[h]
             out[r, k] = bilerp(ax, ay, tot[j, i], tot[j, i + 1], tot[j + 1, i], tot[j + 1, i + 1])
+            if also and also_at[r, k]:
+                tot = also_total[h]
+                also_out[r, k] = bilerp(
+                    ax, ay, tot[j, i], tot[j, i + 1], tot[j + 1, i], tot[j + 1, i + 1]
+                )
             if n_active == 0:
                 continue
             a = sun[r, 1]  # vehicle-frame azimuth of the sun, rad

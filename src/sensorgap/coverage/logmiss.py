@@ -735,6 +735,7 @@ def lookup_log_miss_tracks(
     sun: F64,
     out: F64,
     how: TrackLookup | None = None,
+    also: tuple[TrackLookup, NDArray[np.bool_], F64] | None = None,
 ) -> int:
     """``lookup_log_miss`` along (B, T) tracks in one compiled pass (``fastlookup``):
     writes the fused ln P_miss of the first ``n[r]`` steps of each row r in ``rows`` into
@@ -742,8 +743,11 @@ def lookup_log_miss_tracks(
     heading (rad); ``sun`` (B, 3): per row (kind, azimuth rad, elevation rad), see
     ``fastlookup.SUN_*``. Without ``how`` (point targets, every sensor) the values equal
     ``lookup_log_miss`` at the same points (up to rounding); with it, the maps, sensors and
-    exact evaluators of ``how`` (target bodies, ``search.evaluate``). Returns how many
-    point-sensor pairs were evaluated exactly."""
+    exact evaluators of ``how`` (target bodies, ``search.evaluate``). ``also`` = (lookup,
+    at, also_out): the fused ln P_miss of a second sensor set with no glare-prone sensor
+    (``also_glare_free``), in the same pass, into ``also_out`` (B, T) at the steps where
+    ``at`` (B, T) holds (elsewhere left as it is); the caller adds it (a reaction model's
+    moving-only sensors). Returns how many point-sensor pairs were evaluated exactly."""
     x = np.ascontiguousarray(x, dtype=np.float64)
     y = np.ascontiguousarray(y, dtype=np.float64)
     heading = np.ascontiguousarray(heading, dtype=np.float64)
@@ -761,12 +765,13 @@ def lookup_log_miss_tracks(
         how = TrackLookup(maps.total[None], np.zeros(x.shape), None, exact_points, exact_camera)
     cones = _cones(scene, how.subset)
     rows = np.ascontiguousarray(rows, dtype=np.int64)
+    also_total, also_at, also_out = _no_also(maps) if also is None else _also_arrays(scene, also)
     if cones is None:  # a glare model without a cone form: exact along the whole tracks
         rr = np.repeat(rows, n[rows])
         kk = np.arange(rr.size) - np.repeat(np.cumsum(n[rows]) - n[rows], n[rows])
         flat = rr * t + kk
         of[flat] = how.exact_points(flat)
-        return int(flat.size * len(scene.sensors))
+        return int(flat.size * len(scene.sensors)) + _also_exact(also, flat)
     n_pts = int(np.sum(n[rows]))
     n_cam = len(cones.sensors)
     pad = (
@@ -804,6 +809,9 @@ def lookup_log_miss_tracks(
         has_signal,
         pad > 0.0,
         maps.near_view(cones.sensors, pad),
+        also_total,
+        also_at,
+        also_out,
         out,
         outside,
         glare_idx,
@@ -815,7 +823,7 @@ def lookup_log_miss_tracks(
     if counts[0]:
         o = outside[: counts[0]]
         of[o] = how.exact_points(o)
-        n_exact += o.size * len(scene.sensors)
+        n_exact += o.size * len(scene.sensors) + _also_exact(also, o)
     for c, row in enumerate(cones.sensors):
         m = int(counts[1 + c])
         if m == 0:
@@ -851,6 +859,44 @@ def lookup_log_miss_tracks(
         of[gi] += change  # each point at most once per camera
         n_exact += k
     return n_exact
+
+
+def also_glare_free(scene: Scene, subset: tuple[int, ...]) -> bool:
+    """Whether the sensor rows ``subset`` hold no glare-prone sensor (their lookup needs no
+    glare correction: ``lookup_log_miss_tracks``'s ``also``)."""
+    return all(scene.prepared(scene.sensors[i]).snr_db_glare is None for i in subset)
+
+
+def _no_also(maps: LogMissMaps) -> tuple[F32, NDArray[np.bool_], F64]:
+    """``lookup_pass``'s arguments for no second sensor set."""
+    ny, nx = maps.total.shape
+    return np.zeros((0, ny, nx), dtype=np.float32), np.zeros((1, 1), bool), np.zeros((1, 1))
+
+
+def _also_arrays(
+    scene: Scene, also: tuple[TrackLookup, NDArray[np.bool_], F64]
+) -> tuple[F32, NDArray[np.bool_], F64]:
+    """``lookup_pass``'s arguments for a second sensor set (``lookup_log_miss_tracks``)."""
+    how, at, out = also
+    if how.subset is None or not also_glare_free(scene, tuple(how.subset)):
+        raise ValueError("the second sensor set must be a subset without glare-prone sensors")
+    if not out.flags.c_contiguous:
+        raise ValueError("also_out must be C-contiguous")
+    return how.totals, np.ascontiguousarray(at, dtype=np.bool_), out
+
+
+def _also_exact(
+    also: tuple[TrackLookup, NDArray[np.bool_], F64] | None, flat: NDArray[np.int64]
+) -> int:
+    """The second sensor set evaluated exactly at the flat track indices ``flat`` where it
+    counts (off the map, or along whole tracks); returns the point-sensor pairs."""
+    if also is None:
+        return 0
+    how, at, out = also
+    f = flat[at.reshape(-1)[flat]]
+    if f.size:
+        out.reshape(-1)[f] = how.exact_points(f)
+    return int(f.size * len(how.subset or ()))
 
 
 def point_evaluators(

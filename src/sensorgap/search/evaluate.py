@@ -57,6 +57,7 @@ from sensorgap.coverage.fastlookup import (
 from sensorgap.coverage.logmiss import (
     LogMissMaps,
     TrackLookup,
+    also_glare_free,
     log_miss_of,
     lookup_log_miss_tracks,
     per_sensor_pd,
@@ -825,13 +826,13 @@ class Evaluator:
             if self.mode == "lookup":
                 sun_rows = _sun_rows(env, sun)
                 maps = self.maps(env, target)
-                args = (maps, scene, env, kin, ego.heading, sun, sun_rows, valid)
-                n_exact = self._lookup_pass(*args, g, n, occ, self.confirm_rows, log_miss)
-                gm = g if moving is None else g[moving[g].any(axis=1)]
-                if moving is not None and gm.size:  # confirming only where the target moves
-                    extra = np.zeros((b, t))
-                    n_exact += self._lookup_pass(*args, gm, n, occ, self.moving_rows, extra)
-                    log_miss[gm] += np.where(moving[gm], extra[gm], 0.0)
+                pass_in = _PassInputs(
+                    maps, scene, env, kin, ego.heading, sun, sun_rows, valid, n, occ
+                )
+                if moving is None:
+                    n_exact = self._lookup_pass(pass_in, g, self.confirm_rows, log_miss)
+                else:  # the moving-only sensors confirm only where the target moves
+                    n_exact = self._moving_lookup(pass_in, g, moving, log_miss)
                 with self._lock:
                     self.exact_pairs += n_exact
                 continue
@@ -905,50 +906,64 @@ class Evaluator:
             outcome_rows=usable,
         )
 
+    def _moving_lookup(
+        self, a: _PassInputs, g: NDArray[np.intp], moving: NDArray[np.bool_], log_miss: F64
+    ) -> int:
+        """Lookup mode with moving-only sensors (``moving_rows``): the confirming sensors
+        into ``log_miss`` and, at the steps where the target moves (``moving``, (B, T)),
+        the moving-only ones added; one compiled pass for both when the moving-only
+        sensors hold no glare-prone one (``also_glare_free``), else a pass each. The
+        occluded steps of each set are evaluated exactly before the sum, as in two passes.
+        Returns the point-sensor pairs evaluated exactly."""
+        gm = g[moving[g].any(axis=1)]
+        if not gm.size:
+            return self._lookup_pass(a, g, self.confirm_rows, log_miss)
+        extra = np.zeros_like(log_miss)
+        if not also_glare_free(a.scene, self.moving_rows):
+            n_exact = self._lookup_pass(a, g, self.confirm_rows, log_miss)
+            n_exact += self._lookup_pass(a, gm, self.moving_rows, extra)
+        else:
+            also = self._track_lookup(
+                a.maps, a.scene, a.kin, a.heading, a.sun_rows, self.moving_rows
+            )
+            n_exact = self._lookup_pass(a, g, self.confirm_rows, log_miss, (also, moving, extra))
+            if a.occ is not None and self.occlusion:
+                n_exact += self._occluded_exact(a, gm, extra, self.moving_rows)
+        log_miss[gm] += np.where(moving[gm], extra[gm], 0.0)
+        return n_exact
+
     def _lookup_pass(
         self,
-        maps: LogMissMaps,
-        scene: Scene,
-        env: EnvironmentConfig,
-        kin: Kinematics,
-        heading: F64,
-        sun: F64,
-        sun_rows: F64,
-        valid: NDArray[np.bool_],
+        a: _PassInputs,
         g: NDArray[np.intp],
-        n: NDArray[np.int64],
-        occ: F64 | None,
         subset: tuple[int, ...],
         out: F64,
+        also: tuple[TrackLookup, NDArray[np.bool_], F64] | None = None,
     ) -> int:
         """One lookup pass of the sensor rows ``subset`` over the rows ``g`` into ``out``
-        (ln P_miss, (B, T)), the steps an occluder may change evaluated exactly; returns
-        the point-sensor pairs evaluated exactly."""
-        tl = self._track_lookup(maps, scene, kin, heading, sun_rows, subset)
-        pairs = lookup_log_miss_tracks(maps, scene, kin.x, kin.y, heading, n, g, sun_rows, out, tl)
-        if occ is not None and self.occlusion:
-            pairs += self._occluded_exact(scene, env, kin, heading, sun, valid, g, occ, out, subset)
+        (ln P_miss, (B, T)), the steps an occluder may change evaluated exactly (``also``:
+        a second sensor set looked up in the same pass, ``lookup_log_miss_tracks``; its
+        occluded steps are the caller's); returns the point-sensor pairs evaluated
+        exactly."""
+        tl = self._track_lookup(a.maps, a.scene, a.kin, a.heading, a.sun_rows, subset)
+        pairs = lookup_log_miss_tracks(
+            a.maps, a.scene, a.kin.x, a.kin.y, a.heading, a.n, g, a.sun_rows, out, tl, also
+        )
+        if a.occ is not None and self.occlusion:
+            pairs += self._occluded_exact(a, g, out, subset)
         return pairs
 
     def _occluded_exact(
-        self,
-        scene: Scene,
-        env: EnvironmentConfig,
-        kin: Kinematics,
-        heading: F64,
-        sun: F64,
-        valid: NDArray[np.bool_],
-        g: NDArray[np.intp],
-        occ: F64,
-        log_miss: F64,
-        subset: tuple[int, ...] | None = None,
+        self, a: _PassInputs, g: NDArray[np.intp], log_miss: F64, subset: tuple[int, ...]
     ) -> int:
-        """Lookup mode with occluders: at the valid steps of rows ``g`` where an occluder
-        may hide part of the target (``coverage.occluders.may_hide``), the sensor rows
-        ``subset`` (default: the confirming sensors) are evaluated exactly with the
-        occluders, replacing the map's value (the maps know no occluders). Returns how
-        many point-sensor pairs were evaluated."""
-        vr, vc = np.nonzero(valid[g])
+        """Lookup mode with occluders (``a.occ``): at the valid steps of rows ``g`` where an
+        occluder may hide part of the target (``coverage.occluders.may_hide``), the sensor
+        rows ``subset`` are evaluated exactly with the occluders, replacing the map's value
+        in ``log_miss`` (the maps know no occluders). Returns how many point-sensor pairs
+        were evaluated."""
+        scene, kin, occ = a.scene, a.kin, a.occ
+        assert occ is not None
+        vr, vc = np.nonzero(a.valid[g])
         gr = g[vr]
         if not gr.size:
             return 0
@@ -959,7 +974,7 @@ class Evaluator:
         gr, vc = gr[hit], vc[hit]
         if not gr.size:
             return 0
-        sensors = [scene.sensors[i] for i in (self.confirm_rows if subset is None else subset)]
+        sensors = [scene.sensors[i] for i in subset]
         # where the occluders hide no sample from the confirming sensors the maps' value
         # stands (geometry only, cheap); the body samples are computed once for both steps
         x, y, psi = kin.x[gr, vc], kin.y[gr, vc], kin.psi[gr, vc]
@@ -969,7 +984,7 @@ class Evaluator:
         gr, vc = gr[hit], vc[hit]
         if not gr.size:
             return 0
-        dirs = _sun_directions(env, sun[gr], heading[gr, vc])
+        dirs = _sun_directions(a.env, a.sun[gr], a.heading[gr, vc])
         # occluders exist only with target bodies (``evaluate_batch``): exact body Pd
         pd = body_per_sensor_pd(
             scene, x[hit], y[hit], psi[hit], dirs, sensors, boxes[hit], take_points(pts, hit)
@@ -981,6 +996,25 @@ class Evaluator:
         """Evaluate one generated scenario in ``env`` (a batch of one)."""
         batch = ScenarioBatch.of(sc)
         return self.evaluate_batch(batch, ["env"], {"env": env}, duration_s=duration_s).row(0)
+
+
+@dataclass(frozen=True)
+class _PassInputs:
+    """What every lookup pass of one environment group of ``evaluate_batch`` reads: the
+    maps and scene, the environment, the (B, T) kinematics, ego heading (rad), per-row sun
+    (``sun`` (B, 2) deg as given, ``sun_rows`` (B, 3) as ``_sun_rows``), the valid steps,
+    steps per row ``n`` and the (B, T, K, ...) occluder boxes (or None)."""
+
+    maps: LogMissMaps
+    scene: Scene
+    env: EnvironmentConfig
+    kin: Kinematics
+    heading: F64
+    sun: F64
+    sun_rows: F64
+    valid: NDArray[np.bool_]
+    n: NDArray[np.int64]
+    occ: F64 | None
 
 
 def _sun_rows(env: EnvironmentConfig, sun_deg: F64) -> F64:
