@@ -39,7 +39,7 @@ def test_nearfield_into_a_full_device(tmp_path: Path, unbuffered: bool) -> None:
     out = tmp_path / "nf"
     with open("/dev/full", "wb") as full:
         code, err = _child(
-            ["nearfield", "--vehicle", "system_a", "--resolution", "0.2", "--out", str(out)],
+            ["nearfield", "--vehicle", "system_a", "--resolution", "1", "--out", str(out)],
             full.fileno(),
             unbuffered,
         )
@@ -72,7 +72,7 @@ def test_an_existing_out_folder_is_kept(tmp_path: Path, capsys: pytest.CaptureFi
     full = open("/dev/full", "w", encoding="utf-8")  # noqa: SIM115 - closed below
     with redirect_stdout(full):
         code = main(
-            ["nearfield", "--vehicle", "system_a", "--resolution", "0.2", "--out", str(out)]
+            ["nearfield", "--vehicle", "system_a", "--resolution", "1", "--out", str(out)]
         )
     with suppress(OSError):  # its buffered line cannot be flushed either
         full.close()

@@ -216,7 +216,7 @@ class DifferentialEvolution(Strategy):
     glare of whichever camera sees the target, whatever the trajectory), and on the
     benchmark's ten problems x ten seeds 0.2 won 89 comparisons against random search
     with ten times the evaluations, 0.9 won 81, with point targets and the risk objective;
-    with target bodies and the collision objective DE wins 42 of 100, CEM 56
+    with target bodies and the collision objective DE wins 40 of 100, CEM 51
     (2026-11-26, docs/search.md)."""
 
     name = "de"
