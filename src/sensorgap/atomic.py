@@ -78,15 +78,17 @@ def atomic_write_text(path: str | Path, text: str) -> Path:
 
 @contextmanager
 def removed_on_error(folder: str | Path) -> Iterator[None]:
-    """On an exception (not an interrupt), remove every file below ``folder`` that was not
-    there before, and the folders created, so a failed command leaves nothing half-written
-    (e.g. a coverage.npz without its png and summary). Files that existed are kept."""
+    """On an exception or an interrupt (Ctrl-C, SIGTERM), remove every file below
+    ``folder`` that was not there before, and the folders created, so a failed or stopped
+    command leaves nothing half-written (e.g. a coverage.npz without its png and summary,
+    or the first figures of a report that its manifest does not list). Files that existed
+    are kept. (Resumable work, the search store, is not written under this guard.)"""
     root = Path(folder)
     existed = root.is_dir()
     before = {p for p in root.rglob("*")} if existed else set()
     try:
         yield
-    except Exception:
+    except BaseException:
         if root.is_dir():
             new = sorted(
                 (p for p in root.rglob("*") if p not in before),
