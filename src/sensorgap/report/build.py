@@ -18,6 +18,8 @@ import math
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from sensorgap.atomic import atomic_write_text
 from sensorgap.config.presets import templates_dir
 from sensorgap.errors import InputError
@@ -653,7 +655,6 @@ def _scenarios_section(
             f"expected 'cumulative' or M/N (e.g. 3/5), got {run.settings.get('detection')!r}",
         ) from None
     exact = run.evaluator("exact", rule)
-    confirming = tuple(system.sensors[i].id for i in exact.confirm_rows)
     metrics = metric_names()
     overview, subs, errors = [], [], []
     ranked: list[RankedScenario] = []
@@ -667,12 +668,16 @@ def _scenarios_section(
         # the reason's per-sensor causes, recomputed exactly as the search did (its text
         # is the row's reason; tested)
         why = explain_spec(spec, exact)
+        # the sensors that confirm at the named step: the reaction model's moving-only ones
+        # too where the target moves there (``Evaluator.confirming``, as the explanation)
+        k = int(np.argmin(np.abs(tr.t - why.step_t_s)))
+        speed = float(spec.scenario.target.speed[k])
         item = RankedScenario(
             row,
             spec,
             tr,
             why,
-            confirming,
+            tuple(system.sensors[i].id for i in exact.confirming(speed)),
             {"file": str(f["file"]), "road": str(f["road"])}
             if f and exported is not None
             else None,

@@ -128,11 +128,14 @@ def _seeing(
     target: Any,
     tr: Any,
     t_s: float,
-    confirm: set[int],
+    speed: Any,
 ) -> list[str]:
     """A vehicle's sensors with Pd >= ``SEES_PD`` (exact, with the trace's occluders) at the
-    step of trace ``tr`` nearest ``t_s`` s: ``id (type, Pd x[, cannot confirm])``."""
+    step of trace ``tr`` nearest ``t_s`` s: ``id (type, Pd x[, cannot confirm])``; which
+    sensors confirm there follows the target's ground speed ``speed`` (m/s per step) as
+    ``Evaluator.confirming`` does (a reaction model's moving-only sensors)."""
     k = int(np.argmin(np.abs(tr.t - t_s)))
+    confirm = set(ev.confirming(float(speed[k])))
     pd = ev.per_sensor_pd(
         env,
         target,
@@ -222,9 +225,8 @@ def compare_runs(run_a: Path, run_b: Path, margin_p: float = MARGIN_P) -> list[d
             )
             env = prob_b.environment(cand_w)
             target = ev_b.target(prob_b.family.target_class)
-            confirm = set(ev_b.confirm_rows)
-
-            sees = _seeing(sides[better].system, ev_b, env, target, tr, ex.step_t_s, confirm)
+            speed = prob_b.scenario(cand_w).target.speed  # m/s per step
+            sees = _seeing(sides[better].system, ev_b, env, target, tr, ex.step_t_s, speed)
             why += (
                 f" | {sides[better].name} at the same moment sees it with "
                 + ("; ".join(sees) if sees else "no sensor above Pd 0.5")
@@ -234,7 +236,7 @@ def compare_runs(run_a: Path, run_b: Path, margin_p: float = MARGIN_P) -> list[d
                 res_b = results[better][2]
                 t_med = float(res_b.metrics.get("t_confirm_median_s", math.nan))
                 if math.isfinite(t_med):
-                    later = _seeing(sides[better].system, ev_b, env, target, tr, t_med, confirm)
+                    later = _seeing(sides[better].system, ev_b, env, target, tr, t_med, speed)
                     why += f"; it confirms it at {t_med:.2f} s (median) with " + (
                         "; ".join(later) if later else "no single sensor above Pd 0.5"
                     )
