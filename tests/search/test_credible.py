@@ -231,3 +231,37 @@ def test_one_encounter_elsewhere_on_a_curve_is_one_row(monkeypatch: pytest.Monke
     monkeypatch.setattr(ranking, "SAME_OUTCOME", dict.fromkeys(ranking.SAME_OUTCOME, 0.0))
     rows, _ = ranking.rank_exact(pairs, {fam.name: prob}, 10)
     assert len(rows) == 2
+
+
+def test_evaluate_measures_detection_without_a_collision_too(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``sensorgap evaluate`` of an encounter without a collision (hostile round nine: the
+    search's shortcut, Pd only where there is a collision to avoid, left mean Pd 0,
+    'never detected' and P_undet 1 in evaluation.json while its trace.csv showed Pd 1 at
+    t = 0): the metrics are those of the trace it writes. A car cutting in 10 m ahead at
+    20 m/s beside an ego at 30 m/s, in clear air, is seen from the start."""
+    import csv
+
+    out = tmp_path / "ev"
+    params = {
+        "ego_s0_m": 100,
+        "ego_speed_m_s": 30,
+        "target_speed_m_s": 20,
+        "dx0_m": 10,
+        "lc_start_s": 1,
+        "lc_duration_s": 3,
+        "shape": "cosine",
+    }
+    argv = ["evaluate", "--vehicle", "system_a", "--family", "cut_in_left"]
+    argv += ["--environment", "clear", "--out", str(out)]
+    for k, v in params.items():
+        argv += ["--param", f"{k}={v}"]
+    assert main(argv) == 0, capsys.readouterr().err
+    m = json.loads((out / "evaluation.json").read_text())["metrics"]
+    with open(out / "trace.csv", encoding="utf-8") as f:
+        pd = np.array([float(r["pd"]) for r in csv.DictReader(f)])
+    assert m["collision_probability"] == 0.0
+    assert m["mean_pd"] == pytest.approx(float(pd.mean()), abs=1e-9) and m["mean_pd"] > 0.5
+    assert m["detected"] == 1.0 and m["p_undetected_end"] == pytest.approx(0.0, abs=1e-12)
+    assert m["t_detect_s"] == pytest.approx(0.0, abs=1e-9) and pd[0] > 0.99

@@ -152,6 +152,9 @@ def test_metrics_by_hand() -> None:
     never = compute_all(_trace([0.0] * 5), names)
     assert never["detected"] == 0.0 and never["t_detect_s"] == pytest.approx(0.2)
     assert never["ttc_at_detect_s"] == 99.0
+    # a corridor reaching the end of the time axis ends with it: 5 steps, 0 .. 0.2 s
+    # (hostile round nine: 0.25 s, longer than the scenario)
+    assert never["corridor_s"] == pytest.approx(0.2)
 
 
 def test_risk_is_not_assessed_during_the_lead_in() -> None:

@@ -341,11 +341,17 @@ _summary_metric("mean_pd", "mean_pd", "mean per-step fused Pd", better="lower")
 class CorridorDuration(Metric):
     name = "corridor_s"
     unit = "s"
-    description = "longest contiguous stretch with Pd < 0.5, duration"
+    description = (
+        "longest contiguous stretch with Pd < 0.5, duration (its sensor cycles, from the "
+        "start of the first to the end of the last, within the scenario's time axis)"
+    )
 
     def compute_batch(self, bt: BatchTrace) -> np.ndarray:
         a, b = corridor_batch(bt)
-        return (b - a) * DT_S
+        # a stretch reaching the last step ends with the time axis: N steps of a 10 s axis
+        # at 20 Hz (201) are 10 s, not 10.05 (hostile round nine)
+        end = np.minimum(b * DT_S, float(bt.t[-1] - bt.t[0]))
+        return np.asarray(np.maximum(end - a * DT_S, 0.0), dtype=np.float64)
 
 
 class _CorridorPoint(Metric):

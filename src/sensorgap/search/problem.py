@@ -16,7 +16,7 @@ import threading
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
-from functools import cached_property
+from functools import cached_property, partial
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -387,17 +387,22 @@ class SearchProblem:
             )
         return out
 
-    def evaluate_decoded(self, d: Decoded, threads: int = 1) -> BatchOutcome:
+    def evaluate_decoded(
+        self, d: Decoded, threads: int = 1, collisions_only: bool = True
+    ) -> BatchOutcome:
         """Generate and evaluate decoded rows; every metric per row. Rows are evaluated in
         contiguous pieces of at most ``PIECE_ROWS`` (their (B, T) arrays stay in the CPU
         caches), on ``threads`` threads when > 1 (the compiled kernels and numpy release
         the GIL); every row's values are independent of the piece it is in, so the result
-        is identical for any ``threads``."""
+        is identical for any ``threads``. ``collisions_only`` (the search): Pd is evaluated
+        only on rows with a collision to avoid (``Evaluator.evaluate_batch``); the
+        detection metrics of the other rows are then 0, not measured."""
         n = len(d)
         k = max(1, min(threads, n // MIN_ROWS_PER_THREAD))
         n_pieces = max(k, -(-n // PIECE_ROWS))
+        run = partial(self._evaluate_rows, collisions_only=collisions_only)
         if n_pieces == 1:
-            return self._evaluate_rows(d)
+            return run(d)
         bounds = np.linspace(0, n, n_pieces + 1).astype(int)
         parts = [d.take(np.arange(a, b)) for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
         if k > 1:
@@ -405,9 +410,9 @@ class SearchProblem:
                 self.evaluator.prepare(
                     self.environments[str(name)], self.evaluator.target(self.family.target_class)
                 )
-            outs = list(_pool(k).map(self._evaluate_rows, parts))
+            outs = list(_pool(k).map(run, parts))
         else:
-            outs = [self._evaluate_rows(p) for p in parts]
+            outs = [run(p) for p in parts]
         return BatchOutcome(
             {m: np.concatenate([o.metrics[m] for o in outs]) for m in outs[0].metrics},
             np.concatenate([o.feasible for o in outs]),
@@ -415,7 +420,7 @@ class SearchProblem:
             np.concatenate([o.objective for o in outs if o.objective is not None]),
         )
 
-    def _evaluate_rows(self, d: Decoded) -> BatchOutcome:
+    def _evaluate_rows(self, d: Decoded, collisions_only: bool = True) -> BatchOutcome:
         batch = self.family.generate_batch(d.params)
         ok = np.flatnonzero(batch.ok)
         names = metric_names()
@@ -441,7 +446,7 @@ class SearchProblem:
                 d.sun_deg,
                 rows=ok,
                 duration_s=self.family.duration_s,
-                collisions_only=True,
+                collisions_only=collisions_only,
             )
             for m, v in compute_all_batch(bt, names).items():
                 metrics[m][ok] = v
@@ -520,13 +525,19 @@ class SearchProblem:
         )
         return self.results(cands, self.evaluate_decoded(d, threads))
 
-    def evaluate(self, cand: Candidate, keep_trace: bool = False) -> Result:
-        """Generate, evaluate and compute every metric (a batch of one)."""
+    def evaluate(
+        self, cand: Candidate, keep_trace: bool = False, collisions_only: bool = True
+    ) -> Result:
+        """Generate, evaluate and compute every metric (a batch of one). Without
+        ``collisions_only`` the detection metrics are measured on an encounter without a
+        collision too (``sensorgap evaluate`` shows them); with it, as the search stores
+        them (0 there)."""
         sun = np.array([[np.nan, np.nan] if cand.sun is None else list(cand.sun)])
         d = Decoded(
             np.array([cand.environment]), sun, {k: np.array([v]) for k, v in cand.params.items()}
         )
-        r = self.results([cand], self.evaluate_decoded(d))[0]
+        out = self.evaluate_decoded(d, collisions_only=collisions_only)
+        r = self.results([cand], out)[0]
         if keep_trace and r.feasible:
             r.trace = self.evaluator.trace(
                 self.scenario(cand), self.environment(cand), self.family.duration_s

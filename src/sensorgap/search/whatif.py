@@ -143,7 +143,7 @@ def evaluate_candidate(
     if sun is not None and (env_cfg.sun is None or not env_cfg.sun.visible):
         raise InputError("sun", "", f"environment {environment!r} has no visible sun")
     cand = Candidate(fam.name, environment, sun, parse_params(params, prob))
-    res = prob.evaluate(cand, keep_trace=True)
+    res = prob.evaluate(cand, keep_trace=True, collisions_only=False)
     metrics = {m: output_value(m, res.metrics[m]) for m in metric_names()} if res.feasible else {}
     evaluation: dict[str, Any] = {
         "scenario_id": cand.scenario_id,
