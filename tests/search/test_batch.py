@@ -462,3 +462,26 @@ def test_moving_only_sensors_in_one_pass_equal_two_passes(
     two = log_miss()
     assert np.count_nonzero(one) > 1000  # something was looked up
     np.testing.assert_array_equal(one, two)
+
+
+@pytest.mark.parametrize("which", ["target_speed_m_s", "ego_speed_m_s"])
+def test_a_crossing_with_a_standing_party_is_infeasible(which: str) -> None:
+    """A crossing whose target or ego stands (speed 0, inside the documented 0..100 m/s
+    bound of every speed; hostile round nine: evaluate divided by it and ended in an
+    internal error) is an infeasible row with its reason, and no numpy warning (an error
+    in this suite) is raised on the way; the other rows are untouched."""
+    fam = load_family("crossing_pedestrian")
+    p = {
+        "ego_s0_m": np.array([90.0, 90.0]),
+        "ego_speed_m_s": np.array([8.0, 8.0]),
+        "cross_ahead_m": np.array([30.0, 30.0]),
+        "target_speed_m_s": np.array([1.2, 1.2]),
+        "conflict_offset_s": np.array([0.0, 0.0]),
+        "side": np.array(["right", "right"]),
+    }
+    p[which] = np.array([0.0, p[which][1]])
+    batch = fam.generate_batch(p)
+    assert not batch.ok[0] and batch.ok[1]
+    assert batch.notes[0] == (
+        "a crossing needs the target and the ego to move (target_speed_m_s and ego_speed_m_s > 0)"
+    )

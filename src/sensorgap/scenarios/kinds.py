@@ -274,7 +274,13 @@ class Crossing(_LaneKind):
         end = np.where(side > 0, t_right - CURB_OFFSET_M, t_left + CURB_OFFSET_M)
         d_near, d_total = np.abs(start - t_c), np.abs(start - end)
         a = CROSSING_ACCEL_M_S2.get(family.target_class, 1.5)
-        v = np.minimum(_col(cols, "target_speed_m_s"), np.sqrt(a * d_total))  # triangular
+        # a crossing needs both to move: the timing divides by both speeds (a standing
+        # target never crosses, a standing ego never reaches the crossing line); such rows
+        # are computed with a stand-in speed and rejected (hostile round nine: exit 1)
+        v_in, ve_in = _col(cols, "target_speed_m_s"), ve
+        still = (v_in[:, 0] <= 0.0) | (ve_in[:, 0] <= 0.0)
+        ve = np.where(ve_in > 0.0, ve_in, 1.0)
+        v = np.minimum(np.where(v_in > 0.0, v_in, 1.0), np.sqrt(a * d_total))  # triangular
         ta, da = v / a, v * v / (2.0 * a)
         t_cruise = (d_total - 2.0 * da) / v
         t_end = 2.0 * ta + t_cruise
@@ -303,4 +309,10 @@ class Crossing(_LaneKind):
         x, y = xr - lat * np.sin(hr), yr + lat * np.cos(hr)
         tgt = tracks_from_path(t, x, y, np.broadcast_to(hr - side * 0.5 * math.pi, x.shape))
         ego = self._follow(family, rid, lane, s_e, tr, t)
-        return self._batch(t, ego, tgt, family, checks)
+        batch = self._batch(t, ego, tgt, family, checks)
+        batch.reject(
+            still,
+            "a crossing needs the target and the ego to move "
+            "(target_speed_m_s and ego_speed_m_s > 0)",
+        )
+        return batch
