@@ -213,3 +213,63 @@ def test_cut_in_behind_truck_system_a_sees_round_the_truck() -> None:
     assert late["system_a"] <= 0.05 + 1e-9
     assert late["system_b"] <= 0.05 + 1e-9
     assert late["system_b camera only"] >= 0.3
+
+
+def test_occluder_contact_equals_polygon_intersection() -> None:
+    """``possible.occluder_contact`` (separating axes) against shapely's polygon
+    intersection, over random boxes near an ego body from -1 to 4 m, 2 m wide: the first
+    step with an overlap per row, and which box."""
+    from shapely.geometry import Polygon, box
+
+    from sensorgap.search.possible import occluder_contact
+
+    rng = np.random.default_rng(4)
+    b, t, m = 60, 5, 2
+    boxes = np.zeros((b, t, m, 7))
+    boxes[..., 0] = rng.uniform(-6.0, 9.0, (b, t, m))
+    boxes[..., 1] = rng.uniform(-4.0, 4.0, (b, t, m))
+    h = rng.uniform(-np.pi, np.pi, (b, t, m))
+    boxes[..., 2], boxes[..., 3] = np.cos(h), np.sin(h)
+    boxes[..., 4] = rng.uniform(0.2, 2.5, (b, t, m))
+    boxes[..., 5] = rng.uniform(0.2, 1.0, (b, t, m))
+    n = rng.integers(1, t + 1, b)
+    step, which = occluder_contact(boxes, n, 4.0, -1.0, 2.0)
+    ego = box(-1.0, -1.0, 4.0, 1.0)
+    for r in range(b):
+        want = (-1, -1)
+        for k in range(n[r]):
+            hits = []
+            for j in range(m):
+                cx, cy, c, s, hl, hw, _ = boxes[r, k, j]
+                corners = [(u, v) for u, v in ((hl, hw), (-hl, hw), (-hl, -hw), (hl, -hw))]
+                poly = Polygon([(cx + c * u - s * v, cy + s * u + c * v) for u, v in corners])
+                if poly.intersects(ego) and not poly.touches(ego):
+                    hits.append(j)
+            if hits:
+                want = (k, hits[0])
+                break
+        assert (step[r], which[r]) == want, r
+    assert (step >= 0).sum() > 10 and (step < 0).sum() > 10  # both kinds were drawn
+
+
+def test_a_lead_car_on_the_ego_is_an_impossible_encounter() -> None:
+    """A cut-out reveal whose lead car starts 1-5 m ahead of the ego's rear axle, i.e. on
+    the ego's body (hostile round nine: such rows were ranked sensor-critical): every row
+    is infeasible, its reason naming the lead car; from 12 m (the shipped range) none is."""
+    fam = load_family("cut_out_reveal")
+    prob = SearchProblem(
+        fam,
+        {"fog_50": load_environments()["fog_50"]},
+        Evaluator(load_system("system_b"), "exact"),
+        sun_search=False,
+    )
+    u = np.random.default_rng(2).random((40, prob.dim))
+    d = prob.decode_batch(u)
+    d.params["lead_gap_m"] = np.linspace(1.0, 5.0, 40)
+    out = prob.evaluate_decoded(d)
+    on_body = [note for note in out.notes if "overlaps the ego's body at t = 0.00 s" in note]
+    assert not out.feasible.any() and len(on_body) >= 30
+    assert all(note.startswith("impossible encounter: the lead car") for note in on_body)
+    d.params["lead_gap_m"] = np.linspace(12.0, 50.0, 40)
+    out = prob.evaluate_decoded(d)
+    assert not any("overlaps the ego's body" in note for note in out.notes)

@@ -81,7 +81,7 @@ from sensorgap.search.outcome import (
     encounter_geometry,
     reaction_outcome,
 )
-from sensorgap.search.possible import possible
+from sensorgap.search.possible import occluder_contact, possible
 
 F64 = NDArray[np.float64]
 
@@ -332,6 +332,9 @@ class BatchTrace:
     #: (B,) the rows whose collision outcome is worked out (the encounters the search may
     #: use, ``search.possible``; the others get the open-loop outcome); None: every row
     outcome_rows: NDArray[np.bool_] | None = None
+    #: ((B,) first step at which an occluder overlaps the ego's body, -1 for none; (B,)
+    #: which occluder; the occluders' labels) (``search.possible.occluder_contact``)
+    occluder_contact: tuple[NDArray[np.int64], NDArray[np.int64], tuple[str, ...]] | None = None
 
     def __len__(self) -> int:
         return len(self.n)
@@ -798,9 +801,21 @@ class Evaluator:
         collided = enc.collide_step >= 0
         n = np.where(collided, enc.collide_step + 1, t).astype(np.int64)
         look = enc.collide_step > 0
+        contact = None  # an occluder on the ego's body: an impossible encounter
+        if occ is not None:
+            step, which = occluder_contact(occ, n, body.x_front_m, body.x_rear_m, body.width_m)
+            contact = (step, which, tuple(o.label for o in occ_tracks))
         usable: NDArray[np.bool_] | None = None
         if collisions_only:  # the search stores the others as infeasible (search.possible)
-            usable = possible(enc, kin.x, kin.psi, body.x_front_m, target.length_m, target.width_m)
+            usable = possible(
+                enc,
+                kin.x,
+                kin.psi,
+                body.x_front_m,
+                target.length_m,
+                target.width_m,
+                None if contact is None else contact[0],
+            )
             look &= usable
         valid = np.arange(t)[None, :] < n[:, None]
         #: where the reaction model's moving-only sensors confirm (target ground speed)
@@ -904,6 +919,7 @@ class Evaluator:
             occluder_labels=tuple(o.label for o in occ_tracks) if self.occlusion else (),
             perfect_step=perfect,
             outcome_rows=usable,
+            occluder_contact=contact,
         )
 
     def _moving_lookup(

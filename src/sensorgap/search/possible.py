@@ -1,6 +1,7 @@
 """Which encounters the search may use (issue #13, "only possible encounters"): the bodies
 do not overlap at t = 0, the first open-loop contact is with the ego's front (a target
-does not move into the ego's side or rear), and the encounter starts non-critical (TTC at
+does not move into the ego's side or rear), no occluder (a parked car, a lead car)
+overlaps the ego's body at any step, and the encounter starts non-critical (TTC at
 t = 0 at least ``START_TTC_S``). The search stores the others as infeasible with a note
 (``problem.SearchProblem``) and does not look their detection up (``evaluate``)."""
 
@@ -44,14 +45,52 @@ def _contacts(
     return rows, k, xc, at_start, side
 
 
+def occluder_contact(
+    boxes: F64 | None, n: NDArray[np.int64], x_front: float, x_rear: float, width: float
+) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """(B,) the first step at which an occluder's box overlaps the ego's body, -1 for none,
+    and (B,) which occluder (its index). ``boxes``: (B, T, M, 7) occluder boxes in the ego
+    frame (``coverage.occluders.COLUMNS``: centre x, y, cos and sin of the heading, half
+    length, half width, height; m); ``n``: steps per row; the ego's body from ``x_rear`` to
+    ``x_front`` (m, ahead of the rear axle), ``width`` wide. Two rectangles overlap unless
+    one of their four edge directions separates them (separating axis theorem)."""
+    if boxes is None or boxes.shape[2] == 0:
+        none = np.full(len(n), -1, dtype=np.int64)
+        return none, none.copy()
+    ahl, ahw, ax = 0.5 * (x_front - x_rear), 0.5 * width, 0.5 * (x_front + x_rear)
+    dx, dy = boxes[..., 0] - ax, boxes[..., 1]
+    c, s = np.abs(boxes[..., 2]), np.abs(boxes[..., 3])
+    hl, hw = boxes[..., 4], boxes[..., 5]
+    apart = (
+        (np.abs(dx) > ahl + c * hl + s * hw)
+        | (np.abs(dy) > ahw + s * hl + c * hw)
+        | (np.abs(dx * boxes[..., 2] + dy * boxes[..., 3]) > hl + ahl * c + ahw * s)
+        | (np.abs(-dx * boxes[..., 3] + dy * boxes[..., 2]) > hw + ahl * s + ahw * c)
+    )
+    valid = np.arange(boxes.shape[1])[None, :, None] < n[:, None, None]
+    hit: NDArray[np.bool_] = np.asarray(~apart & valid)  # (B, T, M)
+    any_t = np.any(hit, axis=2)
+    step = np.where(any_t.any(axis=1), np.argmax(any_t, axis=1), -1).astype(np.int64)
+    which = np.argmax(hit[np.arange(len(n)), np.maximum(step, 0)], axis=1).astype(np.int64)
+    return step, np.where(step >= 0, which, -1)
+
+
 def possible(
-    enc: Encounter, x: F64, psi: F64 | None, x_front: float, length: float, width: float
+    enc: Encounter,
+    x: F64,
+    psi: F64 | None,
+    x_front: float,
+    length: float,
+    width: float,
+    occluder_step: NDArray[np.int64] | None = None,
 ) -> NDArray[np.bool_]:
     """(B,) whether each encounter is one the search may use (module docstring; arguments
     as ``encounter_problems``)."""
     ok = enc.ttc_path[:, 0] >= START_TTC_S
     rows, _, _, at_start, side = _contacts(enc, x, psi, x_front, length, width)
     ok[rows[at_start | side]] = False
+    if occluder_step is not None:
+        ok &= occluder_step < 0
     return np.asarray(ok)
 
 
@@ -63,17 +102,33 @@ def encounter_problems(
     x_front: float,
     length: float,
     width: float,
+    occluders: tuple[NDArray[np.int64], NDArray[np.int64], tuple[str, ...]] | None = None,
 ) -> list[tuple[int, str]]:
-    """(row, note) of every encounter the search may not use: the impossible ones (bodies
-    overlapping at t = 0, a first contact not with the ego's front), then those that start
-    critical. ``t``: the time axis, s; ``x``, ``psi``: (B, T) target centre ahead of the
-    ego's rear axle, m, and relative heading, rad; ``x_front``: the ego's front bumper, m;
-    target ``length`` and ``width``, m."""
+    """(row, note) of every encounter the search may not use: the impossible ones (an
+    occluder overlapping the ego's body at some step, bodies overlapping at t = 0, a first
+    contact not with the ego's front), then those that start critical. ``t``: the time
+    axis, s; ``x``, ``psi``: (B, T) target centre ahead of the ego's rear axle, m, and
+    relative heading, rad; ``x_front``: the ego's front bumper, m; target ``length`` and
+    ``width``, m; ``occluders``: ``occluder_contact``'s (step, occluder) and the labels."""
     out: list[tuple[int, str]] = []
+    if occluders is not None:
+        step, which, labels = occluders
+        for j in np.flatnonzero(step >= 0).tolist():
+            label = labels[which[j]] if 0 <= which[j] < len(labels) else "an occluder"
+            out.append(
+                (
+                    j,
+                    f"impossible encounter: the {label} overlaps the ego's body at "
+                    f"t = {t[step[j]]:.2f} s",
+                )
+            )
     rows, k, xc, at_start, side = _contacts(enc, x, psi, x_front, length, width)
+    marked = {j for j, _ in out}
     for j, kk, x0, st, sd in zip(
         rows.tolist(), k.tolist(), xc.tolist(), at_start.tolist(), side.tolist(), strict=True
     ):
+        if j in marked:
+            continue
         if st:
             out.append((j, "impossible encounter: the bodies overlap at t = 0"))
         elif sd:

@@ -470,6 +470,7 @@ class SearchProblem:
                 body.x_front_m,
                 target.length_m,
                 target.width_m,
+                bt.occluder_contact,
             )
             for j, note in bad:
                 notes[ok[j]] = note
