@@ -479,9 +479,34 @@ def test_a_crossing_with_a_standing_party_is_infeasible(which: str) -> None:
         "conflict_offset_s": np.array([0.0, 0.0]),
         "side": np.array(["right", "right"]),
     }
-    p[which] = np.array([0.0, p[which][1]])
-    batch = fam.generate_batch(p)
-    assert not batch.ok[0] and batch.ok[1]
+    for still in (0.0, 1e-300):  # (1e-300: the timing overflowed)
+        p[which] = np.array([still, p[which][1]])
+        batch = fam.generate_batch(p)
+        assert not batch.ok[0] and batch.ok[1]
     assert batch.notes[0] == (
-        "a crossing needs the target and the ego to move (target_speed_m_s and ego_speed_m_s > 0)"
+        "a crossing needs the target and the ego to move (target_speed_m_s and "
+        "ego_speed_m_s at least 0.01 m/s)"
     )
+
+
+@pytest.mark.parametrize(
+    ("which", "note"),
+    [
+        (
+            "speed_delta_m_s",
+            "an overtake needs the target faster than the ego (speed_delta_m_s > 0)",
+        ),
+        ("decel_m_s2", "the target's braking needs decel_m_s2 > 0"),
+    ],
+)
+def test_an_overtake_that_cannot_happen_is_infeasible(which: str, note: str) -> None:
+    """An overtake whose target is not faster than the ego, or cannot brake (0, within the
+    documented bounds; a systematic check of every parameter at 0 found a division by zero,
+    exit 1): an infeasible row with its reason, no numpy warning (an error here)."""
+    fam = load_family("overtake_left")
+    prob = _problem("overtake_left")
+    d = prob.decode_batch(np.random.default_rng(5).random((2, prob.dim)))
+    params = {k: np.asarray(v).copy() for k, v in d.params.items()}
+    params[which] = np.array([0.0, params[which][1]])
+    batch = fam.generate_batch(params)
+    assert not batch.ok[0] and batch.notes[0] == note

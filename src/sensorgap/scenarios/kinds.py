@@ -183,12 +183,17 @@ class Overtake(_LaneKind):
         )
         s0 = _col(cols, "ego_s0_m")
         s_e = lane_progress(s0, tr, 0.0, ve, t)
+        # an overtake needs a faster target and a braking one: rows without are computed
+        # with stand-ins and rejected (hostile check: a division by zero, exit 1)
+        a_in = _col(cols, "decel_m_s2")
+        slow, no_brake = dv[:, 0] <= 0.0, a_in[:, 0] <= 0.0
+        dv = np.where(dv > 0.0, dv, 1.0)
         t_m = (_col(cols, "merge_gap_m") - dx0) / dv
         md = _col(cols, "merge_duration_s")
         t_b = t_m + md + _col(cols, "brake_delay_s")
         v0 = ve + dv
         vf = np.maximum(ve - _col(cols, "final_delta_m_s"), 0.0)
-        a = _col(cols, "decel_m_s2")
+        a = np.where(a_in > 0.0, a_in, 1.0)
         td = (v0 - vf) / a
         u = np.clip(t - t_b, 0.0, td)
         travelled = (
@@ -199,7 +204,10 @@ class Overtake(_LaneKind):
         w = blend_batch(np.full(len(s0), "cosine"), (t - t_m) / md)
         ego = self._follow(family, rid, lane, s_e, tr, t)
         tgt = self._changing(family, rid, int(family.settings["target_lane"]), lane, s_t, tr, t, w)
-        return self._batch(t, ego, tgt, family, checks)
+        batch = self._batch(t, ego, tgt, family, checks)
+        batch.reject(slow, "an overtake needs the target faster than the ego (speed_delta_m_s > 0)")
+        batch.reject(no_brake, "the target's braking needs decel_m_s2 > 0")
+        return batch
 
 
 @register_kind
@@ -226,6 +234,11 @@ class SlowAhead(_LaneKind):
         ego = self._follow(family, rid, lane, s_e, tr, t)
         tgt = self._follow(family, rid, lane, s_t, tr, t)
         return self._batch(t, ego, tgt, family, checks)
+
+
+#: Slowest target or ego speed of a crossing, m/s (an estimate: below 1 cm/s a party
+#: stands; the crossing's timing divides by both speeds).
+MIN_CROSSING_SPEED_M_S = 0.01
 
 
 @register_kind
@@ -278,9 +291,10 @@ class Crossing(_LaneKind):
         # target never crosses, a standing ego never reaches the crossing line); such rows
         # are computed with a stand-in speed and rejected (hostile round nine: exit 1)
         v_in, ve_in = _col(cols, "target_speed_m_s"), ve
-        still = (v_in[:, 0] <= 0.0) | (ve_in[:, 0] <= 0.0)
-        ve = np.where(ve_in > 0.0, ve_in, 1.0)
-        v = np.minimum(np.where(v_in > 0.0, v_in, 1.0), np.sqrt(a * d_total))  # triangular
+        still = (v_in[:, 0] < MIN_CROSSING_SPEED_M_S) | (ve_in[:, 0] < MIN_CROSSING_SPEED_M_S)
+        ve = np.where(ve_in >= MIN_CROSSING_SPEED_M_S, ve_in, 1.0)
+        v = np.where(v_in >= MIN_CROSSING_SPEED_M_S, v_in, 1.0)
+        v = np.minimum(v, np.sqrt(a * d_total))  # triangular
         ta, da = v / a, v * v / (2.0 * a)
         t_cruise = (d_total - 2.0 * da) / v
         t_end = 2.0 * ta + t_cruise
@@ -312,7 +326,7 @@ class Crossing(_LaneKind):
         batch = self._batch(t, ego, tgt, family, checks)
         batch.reject(
             still,
-            "a crossing needs the target and the ego to move "
-            "(target_speed_m_s and ego_speed_m_s > 0)",
+            "a crossing needs the target and the ego to move (target_speed_m_s and "
+            f"ego_speed_m_s at least {MIN_CROSSING_SPEED_M_S:g} m/s)",
         )
         return batch
