@@ -572,9 +572,7 @@ def test_a_users_tmp_files_survive_a_write_into_their_folder(tmp_path: Path) -> 
     ours = out / ".nearfield.png.abcd1234.tmp.png"
     ours.write_text("half")
     assert is_own_temporary(ours.name) and not any(is_own_temporary(p.name) for p in mine)
-    assert (
-        main(["nearfield", "--vehicle", "system_a", "--resolution", "1", "--out", str(out)]) == 0
-    )
+    assert main(["nearfield", "--vehicle", "system_a", "--resolution", "1", "--out", str(out)]) == 0
     assert all(p.read_text() == "user data" for p in mine)
     assert not ours.exists()
 

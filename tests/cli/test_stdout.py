@@ -71,9 +71,7 @@ def test_an_existing_out_folder_is_kept(tmp_path: Path, capsys: pytest.CaptureFi
     out.mkdir()
     full = open("/dev/full", "w", encoding="utf-8")  # noqa: SIM115 - closed below
     with redirect_stdout(full):
-        code = main(
-            ["nearfield", "--vehicle", "system_a", "--resolution", "1", "--out", str(out)]
-        )
+        code = main(["nearfield", "--vehicle", "system_a", "--resolution", "1", "--out", str(out)])
     with suppress(OSError):  # its buffered line cannot be flushed either
         full.close()
     err = capsys.readouterr().err.strip().splitlines()
