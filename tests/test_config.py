@@ -153,6 +153,44 @@ def test_empty_sensor_list(tmp_path: Path) -> None:
         load_system(p)
 
 
+def _only_sensors(tmp_path: Path, device_prefix: str, reaction: str) -> Path:
+    """System A's file with only the mounts whose device starts with ``device_prefix`` and
+    ``reaction = <reaction>``."""
+    head, *mounts = PRESET_A.read_text().split("[[sensors]]\n")
+    keep = [m for m in mounts if f'device = "{device_prefix}' in m]
+    assert keep and len(keep) < len(mounts)
+    head = head.replace('reaction = "fusion_any"', f'reaction = "{reaction}"')
+    assert f'reaction = "{reaction}"' in head
+    p = tmp_path / f"{device_prefix}_{reaction}.toml"
+    p.write_text(head + "".join("[[sensors]]\n" + m for m in keep))
+    return p
+
+
+def test_vehicle_without_a_sensor_that_can_confirm_is_refused(tmp_path: Path) -> None:
+    """A vehicle none of whose sensors its reaction model confirms with could never brake:
+    refused at load, naming the file and ``reaction`` (System A's radars under ads_default,
+    camera/lidar only); a moving-only type (camera_confirmed's radar) counts as a way to
+    confirm; a run folder's recorded copy (``check_reaction=False``) is not checked here."""
+    radar_ads = _only_sensors(tmp_path, "radar", "ads_default")
+    with pytest.raises(InputError) as info:
+        load_system(radar_ads)
+    assert info.value.line() == (
+        f"{radar_ads}: reaction: reaction model ads_default confirms with camera/lidar, and "
+        "this vehicle has no such sensor (it has radar): it could never brake for a detection"
+    )
+    assert load_system(radar_ads, check_reaction=False).config.reaction == "ads_default"
+    radar_b = _only_sensors(tmp_path, "radar", "camera_confirmed")  # radar: moving targets
+    assert {s.type_name for s in load_system(radar_b).sensors} == {"radar"}
+    assert load_system(_only_sensors(tmp_path, "radar", "fusion_any")).sensors
+    us_b = _only_sensors(tmp_path, "ultrasonic", "camera_confirmed")
+    want = (
+        "reaction: reaction model camera_confirmed confirms with camera/lidar (and radar for "
+        "targets moving at >= 5 m/s), and this vehicle has no such sensor (it has ultrasonic)"
+    )
+    with pytest.raises(InputError, match=re.escape(want)):
+        load_system(us_b)
+
+
 def test_missing_file_and_unknown_preset(tmp_path: Path) -> None:
     with pytest.raises(InputError, match="file not found"):
         load_system(tmp_path / "nope.toml")
@@ -171,7 +209,19 @@ ENV_BAD = [
     ),
     ("fog = 3", r"environments\.wet\.fog: Extra inputs are not permitted"),
     ('roc_shift_db = "3"', r"environments\.wet\.roc_shift_db: Input should be a valid number"),
+    # the ROC shift's range (an estimate, docs/limits.md): -100 gave a radar Pd of 1.0 at
+    # -7.6 dB SNR
+    ("roc_shift_db = -10.5", r"environments\.wet\.roc_shift_db: .*greater than or equal to -10"),
+    ("roc_shift_db = 30.5", r"environments\.wet\.roc_shift_db: .*less than or equal to 30"),
 ]
+
+
+@pytest.mark.parametrize("shift", [-10.0, 0.0, 30.0])
+def test_roc_shift_range_bounds_are_accepted(tmp_path: Path, shift: float) -> None:
+    p = tmp_path / "env.toml"
+    p.write_text(f"[environments.wet]\nroc_shift_db = {shift}\n")
+    assert load_environments(p)["wet"].roc_shift_db == shift
+    assert all(-10.0 <= e.roc_shift_db <= 30.0 for e in load_environments().values())
 
 
 @pytest.mark.parametrize(("line", "pattern"), ENV_BAD)

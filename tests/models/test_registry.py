@@ -113,6 +113,23 @@ def test_user_sensor_type_without_core_edits(tmp_path: Path, ideal: None) -> Non
     assert np.all(np.isfinite(cov.snr_db))
 
 
+def test_vehicle_of_user_types_only_loads_but_cannot_brake(tmp_path: Path, ideal: None) -> None:
+    """No reaction model can name a user type (``confirm_with`` takes the built-in types):
+    a vehicle of user types only loads (its coverage above), and where it would brake (the
+    search's ``Evaluator``) it is refused in one line naming the file and ``reaction``."""
+    from sensorgap.errors import InputError
+    from sensorgap.search.evaluate import Evaluator
+
+    p = write(tmp_path, [{"id": "a", "yaw": 0, "hfov": 90, "vfov": 30}])
+    system = load_system(p)
+    with pytest.raises(InputError) as info:
+        Evaluator(system, "exact")
+    assert info.value.line() == (
+        f"{p}: reaction: reaction model ads_default confirms with camera/lidar, and this "
+        "vehicle has no such sensor (it has ideal_test): it could never brake for a detection"
+    )
+
+
 def test_unknown_type_lists_registered(tmp_path: Path) -> None:
     p = write(tmp_path, [{"id": "a", "yaw": 0, "hfov": 90, "vfov": 30}])
     from sensorgap.errors import InputError

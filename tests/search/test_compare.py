@@ -17,3 +17,90 @@ def test_missing_run_is_one_line_exit_2(tmp_path: Path, capsys: pytest.CaptureFi
     )
     err = capsys.readouterr().err.strip()
     assert "ranking.json is missing" in err and len(err.splitlines()) == 1
+
+
+def test_two_versions_of_one_vehicle_are_told_apart(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Two runs of vehicles with the same name (System B, and a version of its file whose
+    reaction model brakes 0.7 s later): every column, ``critical_for`` value and the report
+    name the side, ``System B (A: <run>)`` / ``System B (B: <run>)``; each side's own rank-1
+    row is there with its rank and its collision probability, and some rows are critical for
+    one side only, named (one side used to overwrite the other's columns, and every row read
+    ``critical_for = both``)."""
+    import json
+
+    from sensorgap.config.presets import templates_dir
+    from sensorgap.search.compare import side_labels
+    from sensorgap.search.run import run_search
+
+    shipped = (templates_dir() / "reactions.toml").read_text()
+    slow = shipped[shipped.index("[reactions.camera_confirmed]") : shipped.index("[reactions.cc")]
+    assert "latency_s = 0.3\n" in slow
+    (tmp_path / "v2").mkdir()
+    (tmp_path / "v2" / "slow.toml").write_text(
+        slow.replace("latency_s = 0.3\n", "latency_s = 1.0\n")
+    )
+    text = (templates_dir() / "vehicles" / "system_b.toml").read_text()
+    assert 'reaction = "camera_confirmed"' in text
+    v2 = tmp_path / "v2" / "system_b.toml"
+    v2.write_text(text.replace('reaction = "camera_confirmed"', 'reaction = "slow.toml"'))
+    runs = {"a": tmp_path / "base", "b": tmp_path / "slow_brake"}
+    for run, vehicle, seed in zip(runs.values(), ("system_b", v2), (5, 6), strict=True):
+        run_search(
+            vehicle,
+            ["cut_out_reveal"],
+            ["fog_50"],
+            60,
+            seed,
+            3,
+            run,
+            strategy="lhs",
+            progress=False,
+        )
+    out = tmp_path / "cmp"
+    assert main(["compare", str(runs["a"]), str(runs["b"]), "--out", str(out)]) == 0
+    capsys.readouterr()
+    la, lb = "System B (A: base)", "System B (B: slow_brake)"
+    assert side_labels("System B", "System B", runs["a"], runs["b"]) == (la, lb)
+    data = json.loads((out / "comparison.json").read_text())
+    cols = data["columns"]
+    for key in ("rank", "collision_probability", "impact_speed_kmh", "class"):
+        assert f"{key}_{la}" in cols and f"{key}_{lb}" in cols
+        assert f"{key}_System B" not in cols
+    rows = {r["scenario_id"]: r for r in data["rows"]}
+    for label, run in zip((la, lb), runs.values(), strict=True):
+        best = json.loads((run / "ranking.json").read_text())["ranking"][0]
+        row = rows[best["scenario_id"]]
+        assert row[f"rank_{label}"] == 1
+        assert row[f"collision_probability_{label}"] == pytest.approx(
+            best["collision_probability"], abs=1e-9
+        )
+        assert best["collision_probability"] > 0.05
+    who = {r["critical_for"] for r in data["rows"]}
+    assert who <= {la, lb, "both", "neither"}
+    assert {la, lb} <= who  # the two setups differ: some rows are critical for one only
+    for r in data["rows"]:
+        if r["critical_for"] in (la, lb):
+            other = lb if r["critical_for"] == la else la
+            assert r["why"].startswith(f"{r['critical_for']}: ")
+            assert (
+                r[f"collision_probability_{r['critical_for']}"]
+                - r[f"collision_probability_{other}"]
+            ) >= 0.1
+    md = (out / "report.md").read_text()
+    assert f"# sensorgap: {la} vs {lb}" in md and f"| rank {la} | rank {lb} |" in md
+    assert f"- **{la}:** run folder base;" in md
+
+
+def test_side_labels() -> None:
+    """Vehicles of different names keep them; equal names, or a name that is another value
+    of ``critical_for``, get the side's tag and run folder (odd characters replaced)."""
+    from sensorgap.search.compare import side_labels
+
+    assert side_labels("System A", "System B", Path("r1"), Path("r2")) == ("System A", "System B")
+    assert side_labels("both", "X", Path("/t/r|1"), Path("/t/r\n2")) == (
+        "both (A: r_1)",
+        "X (B: r_2)",
+    )
+    assert side_labels("V", "V", Path("/t/run"), Path("/u/run")) == ("V (A: run)", "V (B: run)")

@@ -730,6 +730,50 @@ def test_reaction_from_a_path_and_its_errors(tmp_path: Path) -> None:
         load_reaction("nope")
 
 
+def test_reaction_is_named_by_its_key(tmp_path: Path) -> None:
+    """A ``name`` key may only repeat the table's key (it renamed the model, unchecked: a
+    newline and BEL reached run.json and report.md); the key itself is a ``Name``."""
+    assert (
+        load_reaction(
+            _write(tmp_path, GOOD.replace("[reactions.x]\n", '[reactions.x]\nname = "x"\n'))
+        ).name
+        == "x"
+    )
+    for value in ('"evil\\nname\\u0007"', '"y"', "5"):
+        bad = GOOD.replace("[reactions.x]\n", f"[reactions.x]\nname = {value}\n")
+        with pytest.raises(InputError) as info:
+            load_reaction(_write(tmp_path, bad))
+        line = info.value.line()
+        assert "\n" not in line and "\x07" not in line
+        want = f"{tmp_path / 'r.toml'}: reactions.x.name: a reaction model is named by its "
+        assert line.startswith(want + "table's key ('x')"), line
+    key = GOOD.replace("[reactions.x", '[reactions."x\\u0007"')
+    with pytest.raises(InputError, match=r"reactions\.'x\\x07': the table's key is its name"):
+        load_reaction(_write(tmp_path, key))
+
+
+def test_moving_only_sensors_need_a_source_for_their_speed(tmp_path: Path) -> None:
+    """``confirm_moving_with`` makes ``moving_min_speed_m_s`` operative: its source is
+    required even when the file leaves the speed at its default (5 m/s)."""
+    moving = (
+        GOOD.replace(
+            'confirm_with = ["radar"]\n',
+            'confirm_with = ["camera"]\nconfirm_moving_with = ["radar"]\n',
+        )
+        + 'confirm_moving_with = "i"\n'
+    )
+    want = (
+        "reactions.x.sources.moving_min_speed_m_s: missing source: with confirm_moving_with "
+        "set, moving_min_speed_m_s (default 5 m/s) decides when they confirm"
+    )
+    with pytest.raises(InputError, match=re.escape(want)):
+        load_reaction(_write(tmp_path, moving))
+    r = load_reaction(_write(tmp_path, moving + 'moving_min_speed_m_s = "j"\n'))
+    assert r.moving_min_speed_m_s == 5.0 and r.confirm_moving_with == ("radar",)
+    assert load_reaction(_write(tmp_path, GOOD)).confirm_moving_with == ()  # not needed
+    assert load_reaction("camera_confirmed").sources["moving_min_speed_m_s"].strip()
+
+
 def test_friction_and_road_condition() -> None:
     mu = load_friction()
     assert set(mu) == {"dry", "wet", "snow"}

@@ -136,7 +136,10 @@ def test_compare_and_evaluate_rebuild_the_ranked_numbers(
     # it completes (their recorded inputs: tests/search/test_compare_maps.py)
     write_comparison(run, run, tmp_path / "cmp")
     cmp = json.loads((tmp_path / "cmp" / "comparison.json").read_text(encoding="utf-8"))
-    p = {r["scenario_id"]: r["collision_probability_System B"] for r in cmp["rows"]}
+    # the same vehicle on both sides: each side's columns by its tag and run folder
+    la, lb = f"System B (A: {run.name})", f"System B (B: {run.name})"
+    p = {r["scenario_id"]: r[f"collision_probability_{la}"] for r in cmp["rows"]}
+    assert all(r[f"collision_probability_{lb}"] == p[r["scenario_id"]] for r in cmp["rows"])
     assert {r["family"] for r in cmp["rows"]} == {"my_cut_in"}
     for r in rows:  # exact numbers of the search, recomputed from the recorded inputs
         assert p[r["scenario_id"]] == pytest.approx(r["collision_probability"], abs=1e-12)

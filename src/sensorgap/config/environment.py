@@ -43,6 +43,18 @@ class SunConfig(Strict):
         return math.radians(self.elevation_deg)
 
 
+#: Range of an environment's ROC shift ``roc_shift_db``, dB (docs/limits.md). An estimate:
+#: the paper shifts its ROC curves by unpublished amounts in adverse weather; the presets use
+#: 1-3 dB. +30 dB: beyond it the shift alone blinds every preset sensor (the camera/lidar
+#: curves' zero at 10 - 12 + 30 = 28 dB SNR, the radar floor at 7.5 + 30 = 37.5 dB); the
+#: weather's attenuation is computed apart, the shift is a penalty on top. -10 dB: a shift
+#: may make a curve better than the paper's sunny reference, at most so far that its 50 %
+#: point (10 dB) stays at 0 dB SNR or above (no more detection than noise; -100 gave a
+#: radar Pd of 1.0 at -7.6 dB SNR).
+MIN_ROC_SHIFT_DB = -10.0
+MAX_ROC_SHIFT_DB = 30.0
+
+
 class EnvironmentConfig(Strict):
     """One environment preset: weather, light, sun."""
 
@@ -80,9 +92,10 @@ class EnvironmentConfig(Strict):
     )
     roc_shift_db: float = Field(
         default=0.0,
-        ge=-100.0,
-        le=100.0,
-        description="SNR penalty of the ROC in this weather (paper: curves shifted), dB",
+        ge=MIN_ROC_SHIFT_DB,
+        le=MAX_ROC_SHIFT_DB,
+        description="SNR penalty of the ROC in this weather (paper: curves shifted), dB "
+        "(range: an estimate, docs/limits.md)",
     )
     sun: SunConfig | None = None
     sources: dict[str, str] = Field(default_factory=dict)

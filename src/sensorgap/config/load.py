@@ -185,23 +185,32 @@ def load_vehicle(
 ) -> tuple[VehicleConfig, Path]:
     """Load and validate a vehicle file; returns the config and the file it came from.
 
-    ``check_reaction``: also load the reaction model a path in ``reaction`` names (False
-    for a run folder's recorded vehicle copy, whose reaction model is recorded apart)."""
+    ``check_reaction``: also load the reaction model ``reaction`` names (a path's file, its
+    ``[friction]`` table included) and refuse a vehicle of the built-in sensor types none
+    of whose sensors could confirm a target under it (``config.reaction.unconfirmable``);
+    False for a run folder's recorded vehicle copy, whose reaction model is recorded
+    apart."""
+    from sensorgap.config.reaction import (
+        SENSOR_TYPES,
+        friction_source,
+        load_friction,
+        load_reaction,
+        reaction_presets,
+        unconfirmable,
+    )
+
     path = resolve_vehicle_path(name_or_path)
     cfg = parse_model(VehicleConfig, read_toml(path), path)
     reaction = cfg.reaction
+    model = None
     if reaction.endswith(".toml") or "/" in reaction:
         # a path: a relative one is relative to the vehicle file's folder (as a family
         # file's road); an absolute one stays as it is
         cfg = cfg.model_copy(update={"reaction": os.path.abspath(path.parent / reaction)})
         if check_reaction:  # checked for every command, as a preset name is
-            from sensorgap.config.reaction import friction_source, load_friction, load_reaction
-
-            load_reaction(cfg.reaction)  # a missing file: "<its path>: file not found"
+            model = load_reaction(cfg.reaction)  # a missing file: "<its path>: file not found"
             load_friction(friction_source(cfg.reaction))  # its [friction] table, if any
     else:  # a preset name: checked for every command, not only those that use it
-        from sensorgap.config.reaction import reaction_presets
-
         names = reaction_presets()
         if reaction not in names:
             raise InputError(
@@ -210,6 +219,14 @@ def load_vehicle(
                 f"unknown reaction model {reaction[:64]!r}; "
                 f"presets: {', '.join(names)} (or a path to a .toml file)",
             )
+        model = load_reaction(reaction) if check_reaction else None
+    types = {cfg.devices[m.device].type for m in cfg.sensors}
+    # a user-registered sensor type (models.registry) is one no reaction model can name:
+    # such a vehicle is checked where it would brake (search.evaluate.Evaluator), so that
+    # its coverage and near field stay possible
+    why = None if model is None or types - set(SENSOR_TYPES) else unconfirmable(model, types)
+    if why:
+        raise InputError(path, "reaction", why)
     return cfg, path
 
 

@@ -13,8 +13,9 @@ File layout (the shipped presets or a file of the same layout)::
     threat_margin_m = 0.5             # m
     threat_horizon_s = 6.0            # s
     threat_prediction_s = 1.0         # s (optional, default 0)
-    [reactions.<name>.sources]        # one non-empty source per parameter
-    confirm_m = "..."
+    [reactions.<name>.sources]        # one non-empty source per parameter (and for
+    confirm_m = "..."                 # moving_min_speed_m_s whenever confirm_moving_with
+                                      # is set, even at its default)
 
     [friction]                        # peak tyre-road friction per road condition
     dry = 0.9
@@ -22,6 +23,8 @@ File layout (the shipped presets or a file of the same layout)::
     snow = 0.2
     [friction.sources]
     dry = "..."
+
+The table's key is the model's name (a ``Name``); a ``name`` key may only repeat it.
 """
 
 from __future__ import annotations
@@ -31,14 +34,16 @@ from typing import Any, Literal, get_args
 
 from pydantic import Field, ValidationError
 
-from sensorgap.config.common import Strict
+from sensorgap.config.common import Name, Strict, name_problem
 from sensorgap.config.environment import EnvironmentConfig
-from sensorgap.config.load import read_toml, require_source, validation_to_input_error
+from sensorgap.config.load import read_toml, require_source, short, validation_to_input_error
 from sensorgap.config.presets import templates_dir
 from sensorgap.errors import InputError
 
 SensorType = Literal["camera", "lidar", "radar", "ultrasonic"]
 RoadCondition = Literal["dry", "wet", "snow"]
+#: The sensor types a reaction model may name (``confirm_with``, ``confirm_moving_with``).
+SENSOR_TYPES: tuple[str, ...] = get_args(SensorType)
 #: The reaction model ``load_reaction(None)`` gives.
 DEFAULT_REACTION = "ads_default"
 #: The road conditions of ``[friction]``, in this order.
@@ -70,9 +75,11 @@ class ReactionConfig(Strict):
             a file that leaves it out: the target is judged where it is).
         sources: one non-empty source per parameter (standard, paper, data sheet or
             ``estimate: why``); ``load_reaction`` checks it.
+        name: the key of its ``[reactions.<name>]`` table, a ``Name`` (a ``name`` key in
+            the table may only repeat it).
     """
 
-    name: str
+    name: Name
     description: str = ""
     confirm_m: int = Field(ge=1, le=12, description="M of the M-of-N confirmation, cycles")
     confirm_n: int = Field(ge=1, le=12, description="N of the M-of-N confirmation, cycles")
@@ -168,9 +175,19 @@ def load_reaction(
             f"{', '.join(data)} (or give a path to a .toml file)",
         )
     raw = data[name]
+    why = name_problem(name)  # the table's key is the model's name (run.json, reports)
+    if why:
+        raise InputError(path, f"reactions.{short(name)}", f"the table's key is its name: {why}")
     if not isinstance(raw, dict):
         raise InputError(path, f"reactions.{name}", "must be a table")
     raw = dict(raw)
+    if "name" in raw and raw["name"] != name:  # a name of its own would rename the model
+        raise InputError(
+            path,
+            f"reactions.{name}.name",
+            f"a reaction model is named by its table's key ({name!r}): leave name out or "
+            f"repeat the key, got {short(raw['name'])}",
+        )
     for key in ("confirm_with", "confirm_moving_with"):
         if isinstance(raw.get(key), list):
             allowed = get_args(SensorType)
@@ -209,12 +226,41 @@ def load_reaction(
         ):
             continue  # an optional parameter left at its default needs no source
         require_source(path, f"reactions.{name}.sources.{key}", cfg.sources.get(key))
+    if cfg.confirm_moving_with and not str(cfg.sources.get("moving_min_speed_m_s", "")).strip():
+        # the speed decides when those sensors confirm: an operative parameter, even at its
+        # default
+        raise InputError(
+            path,
+            f"reactions.{name}.sources.moving_min_speed_m_s",
+            "missing source: with confirm_moving_with set, moving_min_speed_m_s (default "
+            f"{ReactionConfig.model_fields['moving_min_speed_m_s'].default:g} m/s) decides when "
+            "they confirm; name the data sheet, paper or standard, or write 'estimate: <why>'",
+        )
     unknown = sorted(set(cfg.sources) - set(ReactionConfig.model_fields))
     if unknown:
         raise InputError(
             path, f"reactions.{name}.sources.{unknown[0]}", "source for an unknown parameter"
         )
     return cfg
+
+
+def unconfirmable(reaction: ReactionConfig, sensor_types: set[str]) -> str | None:
+    """Why a vehicle with sensors of ``sensor_types`` could never brake for a detection
+    under ``reaction`` (none of its sensors is of a type in ``confirm_with`` or
+    ``confirm_moving_with``), or None when some sensor can confirm."""
+    if sensor_types & {*reaction.confirm_with, *reaction.confirm_moving_with}:
+        return None
+    moving = (
+        f" (and {'/'.join(reaction.confirm_moving_with)} for targets moving at >= "
+        f"{reaction.moving_min_speed_m_s:g} m/s)"
+        if reaction.confirm_moving_with
+        else ""
+    )
+    return (
+        f"reaction model {reaction.name} confirms with {'/'.join(reaction.confirm_with)}"
+        f"{moving}, and this vehicle has no such sensor (it has "
+        f"{', '.join(sorted(sensor_types)) or 'none'}): it could never brake for a detection"
+    )
 
 
 def friction_source(reaction: str | None) -> Path:

@@ -11,7 +11,10 @@ Layout: the cross-evaluation table holds the numbers only (11 short columns, rea
 1280 px window); each scenario's explanation follows as a list. Figures from the run folders
 are copied beside the report as ``a_<vehicle>_...`` / ``b_<vehicle>_...`` with the vehicle
 name reduced to letters, digits, ``.``, ``_`` and ``-`` (Markdown links without spaces; two
-runs of vehicles with the same name do not overwrite each other's figures); figures made
+runs of vehicles with the same name do not overwrite each other's figures). Two vehicles of
+the same name (two versions of one vehicle file) are told apart everywhere by their tag and
+run folder, ``System B (A: run1)`` and ``System B (B: run2)`` (``search.compare.side_labels``:
+columns, ``critical_for``, headings and text); figures made
 for the comparison are linked where they were written (``difference/<map>/``,
 ``a_<vehicle>/``, ...)."""
 
@@ -114,7 +117,9 @@ def _compared(cm: Completed) -> Section:
                 f"run folder {side.run.folder.name}; near field, coverage maps and far "
                 "field all from the run (nothing computed)."
             )
-        items.append((f"{side.name} ({side.tag.upper()}):", text))
+        tag = side.tag.upper()  # a label of two same-named vehicles holds its tag already
+        head = side.name if f"({tag}: " in side.name else f"{side.name} ({tag})"
+        items.append((f"{head}:", text))
     items += [("Note:", n + ".") for n in cm.notes]
     return Section(
         "compared",

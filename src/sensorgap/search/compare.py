@@ -8,6 +8,11 @@ position in the ego frame), the sensors of X that miss the target and why
 (``ranking.explain``: glare, weather, range, FOV, partly in view) and the sensors of the
 other vehicle that see it (Pd >= 0.5) and may confirm it for braking, with their type, so
 every difference is traced back to the two sensor setups.
+
+The two sides are named by their vehicles' names; two vehicles of the same name (two
+versions of one vehicle file, two searches of one preset) by the name with the side's tag
+and run folder, ``System B (A: run1)`` / ``System B (B: run2)`` (``side_labels``), so no
+column, ``critical_for`` value or explanation of one side can be taken for the other's.
 """
 
 from __future__ import annotations
@@ -35,6 +40,7 @@ __all__ = [
     "check_rankings",
     "compare_runs",
     "read_run",
+    "side_labels",
     "write_comparison",
 ]
 
@@ -46,6 +52,33 @@ SEES_PD = 0.5
 
 #: A search run folder as compare reads it (``search.runfolder``).
 RunRanking = RunFolder
+#: Longest run folder name a side's label quotes, characters.
+MAX_LABEL_FOLDER_CHARS = 40
+
+
+def _folder_part(folder: Path) -> str:
+    """A run folder's name for a label: its own name (of the resolved path, so ``.`` has
+    one), characters outside a vehicle name's set (``config.common.NAME_CHARS``) and ``|``
+    (a Markdown cell) replaced by ``_``, at most ``MAX_LABEL_FOLDER_CHARS``."""
+    name = Path(folder).resolve().name or "run"
+    ok = "".join(
+        c if (" " <= c <= "~" or "\u00c0" <= c <= "\u017f") and c != "|" else "_" for c in name
+    )
+    return ok[:MAX_LABEL_FOLDER_CHARS].strip() or "run"
+
+
+def side_labels(name_a: str, name_b: str, folder_a: Path, folder_b: Path) -> tuple[str, str]:
+    """How the two sides of a comparison are named in its columns, ``critical_for`` and
+    text: their vehicles' names, or, when the names are equal (two versions of one vehicle
+    file, two searches of one preset) or one is ``both`` or ``neither`` (the other values
+    of ``critical_for``), the name with the side's tag and run folder:
+    ``System B (A: run1)`` and ``System B (B: run2)``."""
+    if name_a != name_b and not {name_a, name_b} & {"both", "neither"}:
+        return name_a, name_b
+    return (
+        f"{name_a} (A: {_folder_part(folder_a)})",
+        f"{name_b} (B: {_folder_part(folder_b)})",
+    )
 
 
 def candidate_of(
@@ -97,10 +130,8 @@ class _Side:
         self.system = run.system()
         self.evaluator = run.evaluator("exact")
         self.problems: dict[tuple[Path, str], SearchProblem] = {}
-
-    @property
-    def name(self) -> str:
-        return self.system.name
+        #: the side's label in columns and text (``side_labels``; set by ``compare_runs``)
+        self.name = self.system.name
 
     def problem(self, source: RunFolder, family: str) -> SearchProblem:
         """The problem of ``family`` as ``source`` (the run that ranked the scenario)
@@ -167,6 +198,7 @@ def compare_runs(run_a: Path, run_b: Path, margin_p: float = MARGIN_P) -> list[d
     """Cross-evaluate the ranked scenarios of two runs (see the module docstring)."""
     ra, rb = read_run(run_a), read_run(run_b)
     sides = [_Side(ra), _Side(rb)]
+    sides[0].name, sides[1].name = side_labels(sides[0].name, sides[1].name, ra.folder, rb.folder)
     seen: dict[str, dict[str, Any]] = {}
     for k, side in enumerate(sides):
         for row in side.run.rows:

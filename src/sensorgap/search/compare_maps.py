@@ -50,6 +50,7 @@ from sensorgap.errors import InputError
 from sensorgap.filesio import write_json, write_npz
 from sensorgap.models import Conditions, System
 from sensorgap.roads import read_opendrive
+from sensorgap.search.compare import side_labels
 from sensorgap.search.runfolder import RunFolder, open_run, read_json_file
 
 #: The default job's coverage grid (``jobs.DEFAULT_GRID``): x from, x to, y from, y to, cell
@@ -91,6 +92,8 @@ class SideMaps:
 
     tag: str
     run: RunFolder
+    #: the side's label in the report (``search.compare.side_labels``: the vehicle's name,
+    #: with the tag and run folder when both vehicles have the same name)
     name: str
     #: the folder computed pieces go to (``out/<tag>_<vehicle>``)
     made: Path
@@ -296,13 +299,17 @@ def complete_runs(run_a: Path, run_b: Path, out: Path, workers: int = 2) -> Comp
     """Gather or compute both vehicles' near field, coverage maps and far field and the
     difference maps into ``out`` (see the module docstring)."""
     ra, rb = open_run(Path(run_a), ranking=False), open_run(Path(run_b), ranking=False)
-    sides = []
-    for tag, run in (("a", ra), ("b", rb)):
+    names = []
+    for run in (ra, rb):
         try:
-            name = run.system().name
+            names.append(run.system().name)
         except InputError:
-            name = run.folder.name
-        sides.append(SideMaps(tag, run, name, Path(out) / f"{tag}_{slug(name)}"))
+            names.append(run.folder.name)
+    labels = side_labels(names[0], names[1], ra.folder, rb.folder)
+    sides = [
+        SideMaps(tag, run, label, Path(out) / f"{tag}_{slug(name)}")
+        for tag, run, name, label in zip(("a", "b"), (ra, rb), names, labels, strict=True)
+    ]
     a, b = sides
     notes: list[str] = []
     systems = {s.tag: _system(s) for s in sides}

@@ -37,6 +37,7 @@ from sensorgap.config.reaction import (
     load_friction,
     load_reaction,
     road_condition,
+    unconfirmable,
 )
 from sensorgap.coverage import GridSpec, Scene
 from sensorgap.coverage.body import (
@@ -468,6 +469,9 @@ class Evaluator:
         self.moving_rows: tuple[int, ...] = tuple(
             i for i, sn in enumerate(system.sensors) if sn.type_name in moving_types
         )
+        if not self.confirm_rows and not self.moving_rows:  # it could never brake
+            why = unconfirmable(self.reaction, {sn.type_name for sn in system.sensors})
+            raise InputError(system.source, "reaction", why or "no sensor can confirm")
         self.rule = rule or DetectionRule()
         self.resolution_m = resolution_m
         self.max_maps = max_maps

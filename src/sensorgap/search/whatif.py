@@ -32,8 +32,8 @@ from sensorgap.search.runfolder import open_run
 
 
 def parse_params(items: list[str], problem: SearchProblem) -> dict[str, ParamValue]:
-    """``NAME=VALUE`` items -> the family's parameters (every one required; numbers finite,
-    choices from the family's list); InputError naming what is allowed."""
+    """``NAME=VALUE`` items -> the family's parameters (every one required, each once;
+    numbers finite, choices from the family's list); InputError naming what is allowed."""
     space = {p.name: p for p in problem.family.space}
     out: dict[str, ParamValue] = {}
     for item in items:
@@ -44,6 +44,8 @@ def parse_params(items: list[str], problem: SearchProblem) -> dict[str, ParamVal
                 "",
                 f"expected NAME=VALUE with NAME one of {', '.join(space)}, got {item!r}",
             )
+        if name in out:  # the last would win silently
+            raise InputError("param", name, "given twice; give each parameter once")
         p = space[name]
         if p.categorical:
             if text not in p.choices:
