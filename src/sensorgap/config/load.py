@@ -248,7 +248,16 @@ def _named_tables(model: type[M], path: Path, key: str) -> dict[str, M]:
         label = f"{key}.{name if len(name) <= MAX_QUOTED_CHARS else short(name)}"
         if not isinstance(body, dict):
             raise InputError(path, label, "expected a table")
-        out[name] = parse_model(model, {"name": name, **body}, path, prefix=label)
+        if "name" in body and body["name"] != name:
+            # the table's key names it; a different `name` renamed it silently (two
+            # environments could share a name)
+            raise InputError(
+                path,
+                f"{label}.name",
+                f"must repeat the table's key {short(name)} (or be left out), "
+                f"got {short(body['name'])}",
+            )
+        out[name] = parse_model(model, {**body, "name": name}, path, prefix=label)
     return out
 
 
