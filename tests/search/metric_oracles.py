@@ -9,7 +9,6 @@ import functools
 
 import numpy as np
 
-from sensorgap.scenarios.trajectory import DT_S
 from sensorgap.search.evaluate import Trace
 from sensorgap.search.metrics import (
     CAP_S,
@@ -75,6 +74,16 @@ def _at_detection(tr: Trace, values: np.ndarray, cap: bool = True) -> float:
     return _cap(v) if cap else v
 
 
+def _corridor_duration(tr: Trace) -> float:
+    """From the time of the corridor's first step to that of the step after its last, or
+    to the end of the time axis when it runs to the last step (s)."""
+    a, b = corridor(tr)
+    if b <= a:
+        return 0.0
+    end = tr.t[b] if b < len(tr.t) else tr.t[-1]
+    return float(end - tr.t[a])
+
+
 def _corridor_point(tr: Trace, index: int, coord: str) -> float:
     a, b = corridor(tr)
     if b == a:
@@ -97,7 +106,7 @@ def oracle(name: str, tr: Trace) -> float:
         "distance_at_detect_m": lambda: _at_detection(tr, tr.distance, cap=False),
         "min_ttc_s": lambda: _cap(float(np.min(tr.ttc))),
         "mean_pd": lambda: float(np.mean(tr.pd)),
-        "corridor_s": lambda: (corridor(tr)[1] - corridor(tr)[0]) * DT_S,
+        "corridor_s": lambda: _corridor_duration(tr),
         "corridor_t0_s": lambda: float(tr.t[corridor(tr)[0]]),
         "corridor_x0_m": lambda: _corridor_point(tr, 0, "x"),
         "corridor_y0_m": lambda: _corridor_point(tr, 0, "y"),
