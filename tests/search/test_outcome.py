@@ -49,6 +49,19 @@ F64 = NDArray[np.float64]
 Case = tuple[float, F64, F64, F64, float, F64, F64, F64]
 
 
+#: The parameters every reaction model states with a source.
+REACTION_PARAMETERS = (
+    "confirm_m",
+    "confirm_n",
+    "latency_s",
+    "jerk_m_s3",
+    "decel_max_m_s2",
+    "confirm_with",
+    "threat_margin_m",
+    "threat_horizon_s",
+)
+
+
 def _straight(
     v0: float,
     gap: float,
@@ -674,16 +687,7 @@ def test_reaction_presets_load_with_sources() -> None:
     for name in names:
         r = load_reaction(name)
         assert r.confirm_m <= r.confirm_n
-        for key in (
-            "confirm_m",
-            "confirm_n",
-            "latency_s",
-            "jerk_m_s3",
-            "decel_max_m_s2",
-            "confirm_with",
-            "threat_margin_m",
-            "threat_horizon_s",
-        ):
+        for key in REACTION_PARAMETERS:
             assert r.sources[key].strip()
 
 
@@ -978,20 +982,7 @@ def test_moving_only_confirmation(tmp_path: Path) -> None:
         'decel_max_m_s2 = 9.0\nconfirm_with = ["camera"]\nthreat_margin_m = 0.5\n'
         "threat_horizon_s = 6.0\n"
     )
-    sources = "".join(
-        f'{k} = "estimate"\n'
-        for k in [
-            "confirm_m",
-            "confirm_n",
-            "latency_s",
-            "jerk_m_s3",
-            "decel_max_m_s2",
-            "confirm_with",
-            "threat_margin_m",
-            "threat_horizon_s",
-            "confirm_moving_with",
-        ]
-    )
+    sources = "".join(f'{k} = "estimate"\n' for k in [*REACTION_PARAMETERS, "confirm_moving_with"])
     for moving, msg in (
         ('["sonar"]', "confirm_moving_with[0]: unknown sensor type 'sonar'"),
         ('["camera"]', "confirm_moving_with: lists a sensor type twice or one of confirm_with"),

@@ -18,8 +18,6 @@ import math
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from sensorgap.atomic import atomic_write_text
 from sensorgap.config.presets import templates_dir
 from sensorgap.errors import InputError
@@ -51,6 +49,7 @@ from sensorgap.report.summary import (
 from sensorgap.search.evaluate import MAP_RESOLUTION_M, DetectionRule
 from sensorgap.search.metrics import metric_names
 from sensorgap.search.possible import START_TTC_S
+from sensorgap.search.ranking import named_step
 from sensorgap.search.runfolder import RunFolder, open_run
 
 REPORT_DIR = "report"
@@ -670,8 +669,7 @@ def _scenarios_section(
         why = explain_spec(spec, exact)
         # the sensors that confirm at the named step: the reaction model's moving-only ones
         # too where the target moves there (``Evaluator.confirming``, as the explanation)
-        k = int(np.argmin(np.abs(tr.t - why.step_t_s)))
-        speed = float(spec.scenario.target.speed[k])
+        speed = float(spec.scenario.target.speed[named_step(tr)])
         item = RankedScenario(
             row,
             spec,
