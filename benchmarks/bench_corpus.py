@@ -40,7 +40,7 @@ from benchmarks.common import max_rss_mib, table  # noqa: E402
 from tests.bad_inputs.harness import (  # noqa: E402
     build_finished_run,
     case_stdout,
-    fsize_limiter,
+    child_preexec,
     load_cases,
     needs_run,
     outcome_problems,
@@ -129,8 +129,8 @@ def measure_case(case: dict[str, Any], finished_run: Path | None) -> CaseResult:
                     [sys.executable, "-c", CHILD, str(result_file), *prepared.argv],
                     stdout=subprocess.DEVNULL if stdout is None else stdout,
                     stderr=subprocess.PIPE,
-                    env=_env(),
-                    preexec_fn=fsize_limiter(case),
+                    env={**_env(), **prepared.env},
+                    preexec_fn=child_preexec(prepared),
                     timeout=KILL_S,
                     check=False,
                 )

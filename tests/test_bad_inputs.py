@@ -20,8 +20,9 @@ import sensorgap
 from sensorgap.cli import main
 from tests.bad_inputs.harness import (
     build_finished_run,
+    case_cwd,
     case_stdout,
-    fsize_limiter,
+    child_preexec,
     load_cases,
     outcome_problems,
     prepare_case,
@@ -60,25 +61,35 @@ def finished_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 @pytest.mark.parametrize("case", CASES, ids=[c["name"] for c in CASES])
 def test_bad_input(
-    case: dict[str, Any], tmp_path: Path, finished_run: Path, capsys: pytest.CaptureFixture[str]
+    case: dict[str, Any],
+    tmp_path: Path,
+    finished_run: Path,
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     prepared = prepare_case(case, tmp_path, finished_run, main)
     argv = prepared.argv
-    cap = fsize_limiter(case)
     with case_stdout(case) as stdout:
-        if cap is not None:
+        if "rlimit_fsize" in case:  # a real process: the limit would hold for the tests too
             proc = subprocess.run(
                 [sys.executable, "-m", "sensorgap", *argv],
                 stdout=subprocess.PIPE if stdout is None else stdout,
                 stderr=subprocess.PIPE,
-                env={**os.environ, "PYTHONPATH": SRC},
-                preexec_fn=cap,
+                env={**os.environ, "PYTHONPATH": SRC, **prepared.env},
+                preexec_fn=child_preexec(prepared),
                 timeout=300,
                 check=False,
             )
             code, err = proc.returncode, proc.stderr.decode("utf-8", "replace")
         else:
-            with redirect_stdout(stdout) if stdout is not None else nullcontext():
+            for name, value in prepared.env.items():
+                monkeypatch.setenv(name, value)
+            closed = case.get("stdout") == "closed"  # as Python starts without fd 1
+            with (
+                redirect_stdout(None) if closed else nullcontext(),
+                redirect_stdout(stdout) if stdout is not None else nullcontext(),
+                case_cwd(prepared),
+            ):
                 try:
                     code = main(argv)
                 except SystemExit as exc:  # argparse errors

@@ -823,7 +823,8 @@ def _read_only_cases(ro: Path) -> None:
 
     cases = {
         "search.sqlite: cannot open": ["search", "--vehicle", "system_a", "--budget", "40"],
-        "cannot write or read: Permission denied": [
+        # the output file, not its hidden temporary (".coverage.npz.56l1knkx.tmp.npz")
+        f"{ro}/coverage.npz: cannot write or read: Permission denied": [
             "coverage",
             "--vehicle",
             "system_a",
@@ -888,3 +889,148 @@ def test_cached_kernels_are_dropped_when_an_inlined_helpers_module_changes(
     # a cache folder of its own (package read-only): the record lives in that folder
     own = tmp_path / "cache"
     assert not drop_stale_kernels(pkg, own) and (own / SOURCES_STAMP).is_file()
+
+
+# -- hostile round ten (streams, environment, messages) ---------------------------------
+
+
+def test_a_read_only_store_is_not_called_damaged(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``search --resume`` on a store the user may not write (another user's run folder)
+    was "not a readable sensorgap search database (attempt to write a readonly database);
+    delete it": advice that loses a valid run. It says it cannot be written."""
+    db = tmp_path / "search.sqlite"
+    _store_with_row(db, {"vehicle": "a"})
+    connect = sqlite3.connect
+
+    def read_only(path: Path, *args: object, **kwargs: object) -> sqlite3.Connection:
+        return connect(f"file:{path}?mode=ro", *args, uri=True, **kwargs)  # type: ignore[misc]
+
+    monkeypatch.setattr(sqlite3, "connect", read_only)
+    with pytest.raises(InputError) as info:
+        Store(db, SETTINGS, {"vehicle": "a"})
+    line = info.value.line()
+    assert line.startswith(f"{db}: cannot be written (attempt to write a readonly database)")
+    assert "stored results are kept" in line and "delete" not in line
+
+
+def test_verify_says_a_folder_it_cannot_list_cannot_be_read(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A sub-folder the user may not read (``chmod 000 run/scenarios``) hid its files from
+    the walk: verify said ``scenarios/X.xosc is missing``. (Root reads any folder: the
+    refusal is the system's, patched in.)"""
+    run = _folder(tmp_path)
+    (run / "empty").mkdir()
+    write_manifest(run)
+    scandir = os.scandir
+
+    def refuse(path: object = ".") -> object:
+        if Path(str(path)).name in ("sub", "empty"):
+            raise PermissionError(13, "Permission denied", str(path))
+        return scandir(path)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(os, "scandir", refuse)
+    assert verify_manifest(run) == [
+        "sub/b.txt cannot be read: its folder sub cannot be listed (Permission denied)",
+        "empty cannot be listed (Permission denied): what it holds cannot be checked",
+    ]
+    assert main(["verify", str(run)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [
+        f"sensorgap: error: {run / 'manifest.json'}: files: sub/b.txt cannot be read: its "
+        "folder sub cannot be listed (Permission denied) (and 1 more)"
+    ]
+    with pytest.raises(PermissionError):  # a manifest never leaves out what it cannot see
+        write_manifest(run)
+
+
+@pytest.mark.parametrize("umask", [0o077, 0o022, 0o002])
+def test_output_files_follow_the_umask(tmp_path: Path, umask: int) -> None:
+    """Every output file was chmod'ed to 0644 whatever the umask (``umask 077`` left the
+    folder 0700 and its files readable by all): a file gets what ``open(..., "w")``
+    would give, 0666 without the umask's bits."""
+    from sensorgap.atomic import atomic_write_bytes
+
+    old = os.umask(umask)
+    try:
+        atomic_write_bytes(tmp_path / "a.bin", b"x")
+        assert (
+            main(
+                [
+                    "nearfield",
+                    "--vehicle",
+                    "system_a",
+                    "--resolution",
+                    "1",
+                    "--out",
+                    str(tmp_path / "nf"),
+                ]
+            )
+            == 0
+        )
+    finally:
+        os.umask(old)
+    files = [tmp_path / "a.bin", *(tmp_path / "nf").iterdir()]
+    assert len(files) == 4
+    for f in files:
+        assert stat.S_IMODE(f.stat().st_mode) == 0o666 & ~umask, f
+
+
+def test_a_failed_write_names_the_output_file(tmp_path: Path) -> None:
+    """A write that fails names no file (ENOSPC, EFBIG: "output: cannot write or read: No
+    space left on device"): the error of ``atomic_path`` names the file being written."""
+    import errno
+
+    from sensorgap.atomic import atomic_path
+    from sensorgap.cli import _os_error_line
+
+    target = tmp_path / "map.npz"
+    with pytest.raises(OSError) as info, atomic_path(target):
+        raise OSError(errno.ENOSPC, "No space left on device")
+    assert info.value.filename == str(target)
+    assert list(tmp_path.iterdir()) == []
+    # a copy into the temporary file (shutil: filename the source, filename2 the copy)
+    with pytest.raises(OSError) as info, atomic_path(target) as tmp:
+        raise OSError(errno.ENOSPC, "No space left on device", "/src.xodr", None, str(tmp))
+    assert (info.value.filename, info.value.filename2) == ("/src.xodr", str(target))
+    assert _os_error_line(info.value, None) == (
+        f"sensorgap: error: {target}: cannot write or read: No space left on device "
+        "(no partial file was left)"
+    )
+
+
+def test_source_date_epoch_accepts_ascii_seconds_up_to_the_year_9999(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    from sensorgap.provenance import MAX_SOURCE_DATE_EPOCH, utc_now
+
+    for text, when in (
+        ("0", "1970-01-01T00:00:00Z"),
+        ("0001700000000", "2023-11-14T22:13:20Z"),
+        (str(MAX_SOURCE_DATE_EPOCH), "9999-12-31T23:59:59Z"),
+    ):
+        monkeypatch.setenv("SOURCE_DATE_EPOCH", text)
+        assert utc_now() == when
+    for text in ("", " 1", "+1", "-1", "1.5", "²", "１７００000000", "9" * 5000):
+        monkeypatch.setenv("SOURCE_DATE_EPOCH", text)
+        with pytest.raises(InputError, match="^SOURCE_DATE_EPOCH: must be whole seconds"):
+            utc_now()
+
+
+def test_every_quoted_or_named_value_in_an_error_line_is_cut() -> None:
+    """One place (``errors.clip``, applied by ``InputError.line``) keeps a 100 kB value out
+    of an error line, whatever message quoted it; short values and apostrophes inside
+    words are left alone."""
+    from sensorgap.errors import clip
+
+    long = "a" * 100_000
+    line = InputError(f"/x/{long}.toml", "", f"got {long!r} and {'b' * 300 + ' c'!r}").line()
+    assert len(line) < 500 and "(100008 characters)" in line and line.count("...") == 3
+    assert line.endswith(
+        "'bbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbb... (304 characters)"
+    )
+    text = "the table's key 'clear' (or be left out), got 'fog_50'; the vehicle's file"
+    assert clip(text) == text
+    assert clip(f"it's {long!r}") == f"it's {repr(long)[:60]}... (100002 characters)"

@@ -6,8 +6,8 @@ A reader never sees a half-written file: either the old content or the new one.
 from __future__ import annotations
 
 import os
+import secrets
 import stat
-import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager, suppress
 from pathlib import Path
@@ -39,21 +39,71 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
             "written to a temporary file and renamed onto its path, which would replace "
             "it; give the path of a regular file",
         )
-    target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp_name = tempfile.mkstemp(
-        prefix=f".{target.name}.", suffix=".tmp" + target.suffix, dir=target.parent
-    )
-    os.close(fd)
-    tmp = Path(tmp_name)
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        tmp = _create_temporary(target)
+    except OSError as exc:
+        raise _naming(exc, target, None) from None
     try:
         yield tmp
         with open(tmp, "rb+") as fh:
             os.fsync(fh.fileno())
-        os.chmod(tmp, 0o644)  # mkstemp creates 0600; outputs are meant to be shared
         os.replace(tmp, target)
-    except BaseException:
+    except BaseException as exc:
         tmp.unlink(missing_ok=True)
+        if isinstance(exc, OSError):
+            raise _naming(exc, target, tmp) from None
         raise
+
+
+#: The random part of a temporary file's name (as ``tempfile.mkstemp``'s: 8 of these;
+#: ``filesio.is_own_temporary`` recognises them).
+_NAME_CHARS = "abcdefghijklmnopqrstuvwxyz0123456789_"
+
+
+def _create_temporary(target: Path) -> Path:
+    """A new empty file ``.<name>.XXXXXXXX.tmp<suffix>`` beside ``target``, created with
+    mode 0o666 as ``open(..., "w")`` does, so the user's umask (and a folder's default
+    ACL) decides its permissions: ``umask 077`` keeps outputs private, 022 shares them.
+    (``tempfile.mkstemp`` creates 0600, which was then widened to 0644 whatever the
+    umask.)"""
+    for _ in range(100):
+        rand = "".join(secrets.choice(_NAME_CHARS) for _ in range(8))
+        tmp = target.parent / f".{target.name}.{rand}.tmp{target.suffix}"
+        try:
+            fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_CLOEXEC, 0o666)
+        except FileExistsError:
+            continue
+        os.close(fd)
+        return tmp
+    raise FileExistsError(f"no free temporary name beside {target}")
+
+
+def _naming(exc: OSError, target: Path, tmp: Path | None) -> OSError:
+    """``exc`` naming the output file ``target`` where it named the hidden temporary file
+    or no file at all (a failed write, a full disk: "output: cannot write or read: No
+    space left on device" said nothing of which file); a copy's destination
+    (``filename2`` of ``shutil.copyfile``) likewise."""
+    if exc.filename is None or _is_temporary_of(exc.filename, target, tmp):
+        exc.filename = str(target)
+        exc.filename2 = None
+    elif exc.filename2 is not None and _is_temporary_of(exc.filename2, target, tmp):
+        exc.filename2 = str(target)
+    return exc
+
+
+def _is_temporary_of(name: object, target: Path, tmp: Path | None) -> bool:
+    """Whether the file ``name`` (of an ``OSError``) is ``tmp`` or another temporary file
+    of ``target`` (``.<name>.XXXXXXXX.tmp...`` beside it, e.g. one ``_create_temporary``
+    could not create)."""
+    if not isinstance(name, str | bytes):
+        return False
+    path = Path(os.fsdecode(name))
+    return (tmp is not None and path == tmp) or (
+        path.parent == target.parent
+        and path.name.startswith(f".{target.name}.")
+        and ".tmp" in path.name
+    )
 
 
 def atomic_write_bytes(path: str | Path, data: bytes) -> Path:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import errno
 import json
 import math
 import os
@@ -17,7 +18,7 @@ from typing import TYPE_CHECKING, Any, NoReturn
 
 from sensorgap.atomic import removed_on_error
 from sensorgap.config.common import parse_decimal, parse_integer
-from sensorgap.errors import InputError
+from sensorgap.errors import InputError, clip, cut_name
 from sensorgap.filesio import (
     refuse_crowded_out,
     refuse_foreign_outputs,
@@ -25,7 +26,12 @@ from sensorgap.filesio import (
     remove_outputs,
     write_manifest,
 )
-from sensorgap.runtime import StdoutUnwritable, guarded_stdout, tune_allocator
+from sensorgap.runtime import (
+    StdoutUnwritable,
+    guarded_stdout,
+    standard_streams,
+    tune_allocator,
+)
 
 if TYPE_CHECKING:
     from sensorgap.coverage import Scene
@@ -941,7 +947,7 @@ class _Parser(argparse.ArgumentParser):
     """argparse with one-line errors (exit code 2)."""
 
     def error(self, message: str) -> NoReturn:
-        self.exit(EXIT_INPUT, f"{self.prog}: error: {message} (see --help)\n")
+        self.exit(EXIT_INPUT, f"{self.prog}: error: {clip(message)} (see --help)\n")
 
 
 class _DefaultsFormatter(argparse.ArgumentDefaultsHelpFormatter):
@@ -1264,8 +1270,58 @@ def _remove_fresh(path: Path | None) -> str:
     return f" and removed {path}, which it had written" if not os.path.lexists(path) else ""
 
 
+def _check_environment() -> None:
+    """The process's environment, checked before any command starts (one line, exit 2):
+    the working directory still exists (numba imports coverage.py, which resolves it:
+    every computing command failed with "output: cannot write or read: No such file or
+    directory"), ``SOURCE_DATE_EPOCH`` (``provenance.source_date_epoch``: numpy's f2py,
+    imported by numba, read it with ``int()`` and ``time.gmtime``: internal errors) and
+    ``SENSORGAP_TEMPLATES`` (``config.presets.templates_dir``)."""
+    from sensorgap.config.presets import templates_dir
+    from sensorgap.provenance import source_date_epoch
+
+    try:
+        os.getcwd()
+    except OSError as exc:
+        why = (
+            "no longer exists (it was deleted or moved after the shell entered it)"
+            if isinstance(exc, FileNotFoundError)
+            else f"cannot be read ({exc.strerror})"
+        )
+        raise InputError(
+            "working directory", "", f"{why}; change into an existing folder and run again"
+        ) from None
+    source_date_epoch()
+    templates_dir()
+
+
+def _os_error_line(exc: OSError, out: object) -> str:
+    """The one line of a failed file operation: the file named (a full disk's copy names
+    its destination, ``filename2``; a failed write names no file: ``--out``), the
+    system's reason."""
+    where = exc.filename
+    if exc.filename2 is not None and exc.errno in (errno.ENOSPC, errno.EDQUOT, errno.EFBIG):
+        where = exc.filename2  # shutil's copy: filename is the source, filename2 the copy
+    if where is None:
+        where = out if isinstance(out, str) and out.strip() else "output"
+    # a path holding a line break stays on the one line (as InputError.line does)
+    text = os.fsdecode(where) if isinstance(where, str | bytes) else str(where)
+    where = " ".join(text.splitlines())
+    return clip(
+        f"sensorgap: error: {cut_name(where)}: cannot write or read: "
+        f"{exc.strerror or type(exc).__name__} (no partial file was left)"
+    )
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point: returns the exit code (0 ok, 2 bad input, 1 internal error)."""
+    """Entry point: returns the exit code (0 ok, 2 bad input, 1 internal error). Runs
+    without standard streams too (``runtime.standard_streams``: started with ``>&-`` or
+    ``2>&-``)."""
+    with standard_streams():
+        return _main(argv)
+
+
+def _main(argv: Sequence[str] | None) -> int:
     parser = build_parser()
     argv = list(sys.argv[1:] if argv is None else argv)
     # "--extent -20,100,-5,5": glue values that start with '-' to their option
@@ -1279,9 +1335,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     previous = signal.signal(signal.SIGTERM, _terminate)
     tune_allocator()
     out = getattr(args, "out", None)
-    # an --out the command creates: removed when its standard output fails afterwards
-    fresh = Path(out) if isinstance(out, str) and out.strip() and not os.path.lexists(out) else None
+    fresh: Path | None = None
     try:
+        _check_environment()
+        # an --out the command creates: removed when its standard output fails afterwards
+        if isinstance(out, str) and out.strip() and not os.path.lexists(out):
+            fresh = Path(out)
         for name in ("out", "catalog"):  # '' would mean the working directory
             value = getattr(args, name, None)
             if isinstance(value, str) and not value.strip():
@@ -1302,11 +1361,17 @@ def main(argv: Sequence[str] | None = None) -> int:
         with guarded_stdout():
             return func(args)
     except StdoutUnwritable as exc:
-        print(
-            f"sensorgap: error: stdout: cannot write: {exc.reason} (a full device or a "
-            f"closed pipe); the command stopped{_remove_fresh(fresh)}",
-            file=sys.stderr,
-        )
+        if exc.closed:
+            line = (
+                f"stdout: cannot write: {exc.reason}; the command stopped before any work "
+                "(send it to /dev/null to discard what the command prints)"
+            )
+        else:
+            line = (
+                f"stdout: cannot write: {exc.reason} (a full device or a closed pipe); "
+                f"the command stopped{_remove_fresh(fresh)}"
+            )
+        print(clip(f"sensorgap: error: {line}"), file=sys.stderr)
         return EXIT_INPUT
     except InputError as exc:
         _flag_sources(exc, parser)
@@ -1314,13 +1379,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(f"sensorgap: error: {text}", file=sys.stderr)
         return EXIT_INPUT
     except OSError as exc:  # disk full, file too large, permissions, a file as a folder
-        # a path holding a line break stays on the one line (as InputError.line does)
-        where = " ".join(str(exc.filename or "output").splitlines())
-        print(
-            f"sensorgap: error: {where}: cannot write or read: "
-            f"{exc.strerror or type(exc).__name__} (no partial file was left)",
-            file=sys.stderr,
-        )
+        print(_os_error_line(exc, out), file=sys.stderr)
         return EXIT_INPUT
     except KeyboardInterrupt as exc:
         print("sensorgap: interrupted", file=sys.stderr)
@@ -1330,8 +1389,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             traceback.print_exc()
         msg = str(exc).splitlines()[0] if str(exc) else ""
         print(
-            f"sensorgap: internal error: {type(exc).__name__}: {msg} "
-            "(this is a bug; rerun with --debug for the traceback)",
+            clip(
+                f"sensorgap: internal error: {type(exc).__name__}: {msg} "
+                "(this is a bug; rerun with --debug for the traceback)"
+            ),
             file=sys.stderr,
         )
         return EXIT_INTERNAL

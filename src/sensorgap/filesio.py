@@ -132,17 +132,33 @@ def is_temporary(name: str) -> bool:
     )
 
 
-def _walk(root: Path) -> list[tuple[str, str]]:
+def _walk(root: Path, unreadable: dict[str, str] | None = None) -> list[tuple[str, str]]:
     """Every entry below ``root`` as (relative POSIX path, kind): kind is ``file``,
-    ``dir``, ``link`` (a symbolic link, never followed) or ``other``; sorted."""
+    ``dir``, ``link`` (a symbolic link, never followed) or ``other``; sorted. A folder that
+    cannot be listed raises its ``OSError``, or with ``unreadable`` is recorded there
+    (relative path, ``.`` for ``root``, -> the system's reason) and skipped: its files
+    were silently absent (``verify`` called them missing)."""
     import os
     import stat
 
+    def failed(exc: OSError) -> None:
+        if unreadable is None:
+            raise exc
+        where = Path(os.fsdecode(exc.filename)) if exc.filename is not None else root
+        rel = where.relative_to(root).as_posix() if where != root else "."
+        unreadable[rel] = exc.strerror or type(exc).__name__
+
     out: list[tuple[str, str]] = []
-    for dirpath, dirnames, filenames in os.walk(root, followlinks=False):
+    for dirpath, dirnames, filenames in os.walk(root, onerror=failed, followlinks=False):
         for name in [*dirnames, *filenames]:
             full = Path(dirpath) / name
-            mode = os.lstat(full).st_mode
+            try:
+                mode = os.lstat(full).st_mode
+            except OSError as exc:  # a folder that may be listed but not entered
+                exc.filename = dirpath
+                failed(exc)
+                dirnames.clear()
+                break
             kind = (
                 "link"
                 if stat.S_ISLNK(mode)
@@ -154,6 +170,16 @@ def _walk(root: Path) -> list[tuple[str, str]]:
             )
             out.append((full.relative_to(root).as_posix(), kind))
     return sorted(out)
+
+
+def _unreadable_folder(rel: str, unreadable: dict[str, str]) -> str | None:
+    """The folder of ``unreadable`` that holds ``rel`` (the nearest), or None."""
+    parts = rel.split("/")[:-1]
+    for i in range(len(parts), 0, -1):
+        folder = "/".join(parts[:i])
+        if folder in unreadable:
+            return folder
+    return "." if "." in unreadable else None
 
 
 def _sha256_file(path: Path) -> tuple[int, str]:
@@ -481,7 +507,8 @@ def verify_manifest(folder: str | Path) -> list[str]:
 def _manifest_problems(root: Path) -> list[tuple[str, str]]:
     """``verify_manifest``'s problems as (relative path, message)."""
     listed = read_manifest(root)
-    entries = dict(_walk(root))
+    unreadable: dict[str, str] = {}
+    entries = dict(_walk(root, unreadable))
     problems: list[tuple[str, str]] = []
     for rel, kind in entries.items():
         if kind == "link":
@@ -489,16 +516,34 @@ def _manifest_problems(root: Path) -> list[tuple[str, str]]:
     for rel, meta in sorted(listed.items()):
         found = entries.get(rel)
         if found is None:
-            problems.append((rel, f"{rel} is missing"))
+            folder = _unreadable_folder(rel, unreadable)
+            if folder is None:
+                problems.append((rel, f"{rel} is missing"))
+            else:
+                problems.append(
+                    (
+                        rel,
+                        f"{rel} cannot be read: its folder {folder} cannot be listed "
+                        f"({unreadable[folder]})",
+                    )
+                )
             continue
         if found != "file":
             problems.append((rel, f"{rel} is not a regular file"))
             continue
-        if meta["bytes"] != (root / rel).lstat().st_size or _sha256_file(root / rel) != (
-            meta["bytes"],
-            meta["sha256"],
-        ):
+        try:
+            size = (root / rel).lstat().st_size
+            same = meta["bytes"] == size and _sha256_file(root / rel) == (size, meta["sha256"])
+        except OSError as exc:
+            problems.append((rel, f"{rel} cannot be read ({exc.strerror})"))
+            continue
+        if not same:
             problems.append((rel, f"{rel} was changed (size or SHA-256 differs)"))
+    for folder, why in sorted(unreadable.items()):
+        if not any(_unreadable_folder(rel, unreadable) == folder for rel in listed):
+            problems.append(
+                (folder, f"{folder} cannot be listed ({why}): what it holds cannot be checked")
+            )
     for rel, kind in entries.items():
         if kind in ("dir", "link") or rel == MANIFEST_NAME or rel in listed:
             continue

@@ -17,7 +17,12 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any
 
+from sensorgap.errors import InputError
 from sensorgap.filesio import write_json
+
+#: Latest ``SOURCE_DATE_EPOCH`` accepted, seconds: 9999-12-31T23:59:59Z (the last second
+#: an ISO 8601 date of four digits, and Python's ``datetime``, can hold).
+MAX_SOURCE_DATE_EPOCH = 253_402_300_799
 
 #: Distributions whose versions a run records.
 PACKAGES = (
@@ -67,14 +72,33 @@ def config_hashes(paths: Iterable[Path], root: Path | None = None) -> dict[str, 
     return out
 
 
+def source_date_epoch() -> int | None:
+    """``SOURCE_DATE_EPOCH`` (the reproducible-builds convention: seconds since
+    1970-01-01T00:00:00Z) as an integer, None when it is not set. Only ASCII digits
+    within 0 .. ``MAX_SOURCE_DATE_EPOCH`` are accepted: anything else (empty, a sign,
+    spaces, '²' or full-width digits, which ``str.isdigit`` takes; a value past the year
+    9999, which overflowed) raises ``InputError`` naming the variable. numpy's f2py reads
+    the variable too when numba imports it (``int(...)``, ``time.gmtime``): the CLI checks
+    it before any command starts (``cli.main``)."""
+    text = os.environ.get("SOURCE_DATE_EPOCH")
+    if text is None:
+        return None
+    digits = text.isascii() and text.isdigit()
+    if not digits or len(text.lstrip("0")) > 12 or int(text) > MAX_SOURCE_DATE_EPOCH:
+        raise InputError(
+            "SOURCE_DATE_EPOCH",
+            "",
+            "must be whole seconds since 1970-01-01T00:00:00Z in ASCII digits, 0 .. "
+            f"{MAX_SOURCE_DATE_EPOCH} (9999-12-31T23:59:59Z), or not set; got {text!r}",
+        )
+    return int(text)
+
+
 def utc_now() -> str:
-    """The run's timestamp (ISO 8601, UTC; ``SOURCE_DATE_EPOCH`` when set)."""
-    epoch = os.environ.get("SOURCE_DATE_EPOCH")
-    t = (
-        dt.datetime.fromtimestamp(int(epoch), dt.UTC)
-        if epoch and epoch.isdigit()
-        else dt.datetime.now(dt.UTC)
-    )
+    """The run's timestamp (ISO 8601, UTC; ``SOURCE_DATE_EPOCH`` when set, checked by
+    ``source_date_epoch``)."""
+    epoch = source_date_epoch()
+    t = dt.datetime.now(dt.UTC) if epoch is None else dt.datetime.fromtimestamp(epoch, dt.UTC)
     return t.replace(microsecond=0).isoformat().replace("+00:00", "Z")
 
 

@@ -30,13 +30,21 @@ printed, reported as if one of its files could not be written; a line still buff
 failed only at interpreter exit ("Exception ignored ... OSError", exit code 120). While a
 command runs, its ``print`` calls go through a guard that turns such a failure into
 ``StdoutUnwritable`` and the buffer is flushed before the command returns, so the CLI
-reports it as one line (``cli.main``).
+reports it as one line (``cli.main``). Over an unbuffered stream (``PYTHONUNBUFFERED``) the
+guard writes every byte itself: Python's text layer dropped what a short write left.
+
+``standard_streams``: a process started without its standard streams (``>&-``, ``2>&-``)
+has ``sys.stdout`` or ``sys.stderr`` None; printing an error or asking the progress bar's
+``isatty()`` was an internal error. The CLI runs inside it: closed descriptors get the null
+device, a missing standard error is a stream on it, and a missing standard output is
+refused by ``guarded_stdout`` before the command does anything.
 """
 
 from __future__ import annotations
 
 import ctypes
 import ctypes.util
+import io
 import os
 import stat
 import sys
@@ -247,24 +255,60 @@ def configure_matplotlib_dir() -> str | None:
 class StdoutUnwritable(Exception):
     """Standard output could not be written (a full device, a closed pipe); ``reason`` is
     the system's message. Not an ``OSError``: a handler of file errors never takes it for
-    one of its own files."""
+    one of its own files. ``closed``: there was no standard output at all (file descriptor
+    1 not open when the process started, ``>&-``), found before the command did anything."""
 
-    def __init__(self, reason: str) -> None:
+    def __init__(self, reason: str, closed: bool = False) -> None:
         super().__init__(reason)
         self.reason = reason
+        self.closed = closed
+
+
+def _write_all(raw: Any, data: bytes) -> None:
+    """Write every byte of ``data`` to the unbuffered stream ``raw`` (``io.FileIO``): a
+    write may take only part of it (a pipe whose reader quits: the kernel returns the
+    count written so far), so the rest is written again until done or the stream fails
+    (``OSError``, e.g. EPIPE on the next write)."""
+    view = memoryview(data)
+    while view:
+        n = raw.write(view)
+        if n is None:  # a non-blocking descriptor that is full: wait until it takes more
+            import select
+
+            select.select([], [raw], [])
+            continue
+        view = view[n:]
 
 
 class _GuardedStdout:
     """``sys.stdout`` while a command runs: a failed write or flush raises
     ``StdoutUnwritable``; text the stream's encoding cannot take (a path that is not valid
     UTF-8 holds lone surrogates; a UTF-8 locale's stream is strict) is written with
-    ``\\udcXX``-style escapes, as standard error does; everything else is the stream's own."""
+    ``\\udcXX``-style escapes, as standard error does; everything else is the stream's own.
+    Over an unbuffered binary layer (``python -u``, ``PYTHONUNBUFFERED``: an ``io.FileIO``)
+    the text is encoded and written here until every byte is taken: ``TextIOWrapper``
+    writes it with one system call and drops what a short write left (a 6.2 MB ``probe``
+    into ``| head -c 100000`` delivered 73,728 bytes and exited 0)."""
 
     def __init__(self, inner: TextIO) -> None:
         self._inner = inner
 
+    def _encode(self, text: str) -> bytes:
+        enc = getattr(self._inner, "encoding", None) or "utf-8"
+        if os.linesep != "\n":
+            text = text.replace("\n", os.linesep)
+        try:
+            return text.encode(enc, getattr(self._inner, "errors", None) or "strict")
+        except UnicodeEncodeError:
+            return text.encode(enc, "backslashreplace")
+
     def write(self, text: str) -> int:
         try:
+            raw = getattr(self._inner, "buffer", None)
+            if isinstance(raw, io.RawIOBase):
+                self._inner.flush()
+                _write_all(raw, self._encode(text))
+                return len(text)
             try:
                 return self._inner.write(text)
             except UnicodeEncodeError:
@@ -302,8 +346,13 @@ def guarded_stdout() -> Iterator[None]:
     stream cannot take it, and the stream is flushed when the block ends (a buffered line
     fails here, not at interpreter exit). After a failure, or when the block raised
     something else and the flush fails too, the process's own standard output is
-    discarded (``_discard_stdout``)."""
+    discarded (``_discard_stdout``). No standard output at all (``sys.stdout`` is None:
+    file descriptor 1 was closed when Python started, ``>&-``) raises
+    ``StdoutUnwritable`` (``closed``) before the block runs: the command's printed lines
+    would be lost, as into a full device, so it does nothing."""
     inner = sys.stdout
+    if inner is None:
+        raise StdoutUnwritable("it is closed (file descriptor 1 is not open)", closed=True)
     guard = _GuardedStdout(inner)
     sys.stdout = guard
     try:
@@ -320,3 +369,56 @@ def guarded_stdout() -> Iterator[None]:
         raise
     finally:
         sys.stdout = inner
+
+
+def _open_closed_descriptors() -> None:
+    """Open the null device on file descriptors 0, 1 and 2 that are not open (a command
+    started with ``>&-``, ``2>&-``): otherwise the next file opened takes the number, and
+    whatever writes to standard error below Python (a C library, a child process) would
+    write into an output file. Inheritable, as the standard descriptors are."""
+    for fd in (0, 1, 2):
+        try:
+            os.fstat(fd)
+            continue
+        except OSError:
+            pass
+        with suppress(OSError):
+            null = os.open(os.devnull, os.O_RDWR)
+            if null != fd:
+                os.dup2(null, fd)
+                os.close(null)
+            os.set_inheritable(fd, True)
+
+
+class _Discard(io.TextIOBase):
+    """A text stream that takes everything and keeps nothing (not a terminal)."""
+
+    def write(self, text: str) -> int:
+        return len(text)
+
+
+@contextmanager
+def standard_streams() -> Iterator[None]:
+    """The one place that makes a command safe without its standard streams: closed
+    descriptors get the null device (``_open_closed_descriptors``) and, while the block
+    runs, a missing ``sys.stderr`` (None: descriptor 2 was closed when Python started,
+    ``2>&-``) is a stream on the null device, so error lines go nowhere (exit codes stay)
+    and progress bars are off (not a terminal); before, ``print(file=sys.stderr)`` wrote
+    them to standard output instead and ``sys.stderr.isatty()`` was an internal error.
+    A missing ``sys.stdout`` is ``guarded_stdout``'s to refuse."""
+    _open_closed_descriptors()
+    saved = sys.stderr
+    if saved is None:
+        try:
+            sys.stderr = open(  # noqa: SIM115 - closed below
+                2, "w", encoding="utf-8", errors="backslashreplace", closefd=False
+            )
+        except OSError:
+            sys.stderr = _Discard()
+    try:
+        yield
+    finally:
+        if saved is None:
+            stream, sys.stderr = sys.stderr, saved
+            with suppress(OSError, ValueError):
+                stream.close()

@@ -59,8 +59,15 @@ FINISHED_RUN_COMMANDS: tuple[tuple[str, ...], ...] = (
     ("export", "--run", "{out}"),
 )
 
-#: Where a case's ``stdout`` field sends the command's standard output.
-STDOUT_KINDS = ("full", "closed_pipe")
+#: Characters of the ``{long}`` placeholder: an option value of 100 kB.
+LONG_VALUE_CHARS = 100_000
+#: Longest error line a case may give, characters (a quoted value is cut to 80, a named
+#: file to about 200: ``sensorgap.errors.clip``).
+MAX_LINE_CHARS = 1_000
+
+#: Where a case's ``stdout`` field sends the command's standard output (``closed``: none,
+#: file descriptor 1 not open, as after ``>&-``: ``sys.stdout`` is None in process).
+STDOUT_KINDS = ("full", "closed_pipe", "closed")
 
 
 class CaseError(Exception):
@@ -103,6 +110,8 @@ class Prepared:
     out: Path
     run: Path
     before: set[str]
+    #: the case's ``env`` (variables set for the command), placeholders replaced
+    env: dict[str, str]
 
 
 def prepare_case(
@@ -130,14 +139,18 @@ def prepare_case(
         "{run}": str(run),
         "{templates}": str(REPO / "templates"),
         "{roads}": str(REPO / "roads"),
+        "{long}": "a" * LONG_VALUE_CHARS,
     }
-    argv = list(case["argv"])
-    for i, a in enumerate(argv):
+
+    def sub(text: str) -> str:
         for k, v in subs.items():
-            a = a.replace(k, v)
-        argv[i] = a
+            text = text.replace(k, v)
+        return text
+
+    argv = [sub(a) for a in case["argv"]]
+    env = {name: sub(value) for name, value in case.get("env", {}).items()}
     _setup(case, argv, folder, out, run, run_cli)
-    return Prepared(case, argv, folder, out, run, files_below(out))
+    return Prepared(case, argv, folder, out, run, files_below(out), env)
 
 
 def fsize_limiter(case: dict[str, Any]) -> Callable[[], None] | None:
@@ -153,14 +166,68 @@ def fsize_limiter(case: dict[str, Any]) -> Callable[[], None] | None:
     return cap
 
 
+def _gone(prepared: Prepared) -> Path:
+    """The working directory of a case with ``cwd = "deleted"``: made, entered, removed."""
+    return prepared.folder / "gone"
+
+
+def child_preexec(prepared: Prepared) -> Callable[[], None] | None:
+    """The ``preexec_fn`` of a case run in a child process: ``rlimit_fsize``
+    (``fsize_limiter``), ``stdout = "closed"`` (file descriptor 1 closed) and
+    ``cwd = "deleted"`` (the child enters a folder and removes it); None when the case
+    needs none of them."""
+    case = prepared.case
+    cap = fsize_limiter(case)
+    close_stdout = case.get("stdout") == "closed"
+    gone = _gone(prepared) if case.get("cwd") == "deleted" else None
+    if cap is None and not close_stdout and gone is None:
+        return None
+
+    def before_exec() -> None:
+        if cap is not None:
+            cap()
+        if close_stdout:
+            os.close(1)
+        if gone is not None:
+            gone.mkdir()
+            os.chdir(gone)
+            gone.rmdir()
+
+    return before_exec
+
+
+@contextmanager
+def case_cwd(prepared: Prepared) -> Iterator[None]:
+    """In process: a case with ``cwd = "deleted"`` runs in a working directory that no
+    longer exists (entered, then removed; the caller's restored afterwards). Other values
+    are refused; no field: nothing changes."""
+    kind = prepared.case.get("cwd")
+    if kind is None:
+        yield
+        return
+    if kind != "deleted":
+        raise CaseError(f"{prepared.case['name']}: cwd must be 'deleted', got {kind!r}")
+    before = os.getcwd()
+    gone = _gone(prepared)
+    gone.mkdir()
+    os.chdir(gone)
+    gone.rmdir()
+    try:
+        yield
+    finally:
+        os.chdir(before)
+
+
 @contextmanager
 def case_stdout(case: dict[str, Any]) -> Iterator[TextIO | None]:
     """The standard output a case's ``stdout`` field asks for, open while the block runs:
     ``full`` (``/dev/full``: every write fails with ENOSPC once the buffer is flushed) or
     ``closed_pipe`` (a pipe whose read end is closed: EPIPE); None without the field (the
-    caller's own). Closed afterwards, its failing flush ignored."""
+    caller's own, and for ``closed``, which a child gets from ``child_preexec`` and an
+    in-process run as ``sys.stdout = None``). Closed afterwards, its failing flush
+    ignored."""
     kind = case.get("stdout")
-    if kind is None:
+    if kind is None or kind == "closed":  # closed: by child_preexec, or in process None
         yield None
         return
     if kind == "full":
@@ -191,11 +258,11 @@ def error_lines(err: str) -> list[str]:
 def outcome_problems(prepared: Prepared, code: int, err: str) -> list[str]:
     """What is wrong with the outcome of a prepared case (exit ``code``, stderr ``err``):
     the exit code the case expects; one error line per error found (``lines`` if the case
-    says, at least one), each ``sensorgap...: error: ...``, the first matching
-    ``message``; no traceback; no temporary file below ``{out}`` and, for exit 2, no file
-    there that was not there before; a symbolic-linked output folder unchanged. The first
-    problem found only (as one assertion after another would): empty when the case
-    passed."""
+    says, at least one), each ``sensorgap...: error: ...`` of at most ``MAX_LINE_CHARS``
+    characters, the first matching ``message``; no traceback; no temporary file below
+    ``{out}`` and, for exit 2, no file there that was not there before; a symbolic-linked
+    output folder unchanged. The first problem found only (as one assertion after another
+    would): empty when the case passed."""
     case = prepared.case
     lines = error_lines(err)
     if code != case["exit"]:
@@ -205,7 +272,10 @@ def outcome_problems(prepared: Prepared, code: int, err: str) -> list[str]:
     if not lines:
         return [f"no error line: {err}"]
     if not all(ln.startswith("sensorgap") and ": error: " in ln for ln in lines):
-        return [f"not an error line: {err}"]
+        return [f"not an error line: {err[:2000]}"]
+    too_long = [ln for ln in lines if len(ln) > MAX_LINE_CHARS]
+    if too_long:
+        return [f"an error line of {len(too_long[0])} characters: {too_long[0][:300]}..."]
     if "Traceback" in err:
         return [f"a traceback: {err}"]
     if not re.search(case["message"], lines[0]):

@@ -16,13 +16,11 @@ from sensorgap.config.environment import EnvironmentConfig
 from sensorgap.config.presets import templates_dir, vehicle_presets
 from sensorgap.config.target import TargetConfig
 from sensorgap.config.vehicle import VehicleConfig
-from sensorgap.errors import InputError
+from sensorgap.errors import MAX_QUOTED_CHARS, InputError, cut_quoted
 
 M = TypeVar("M", bound=BaseModel)
 
 MAX_CONFIG_BYTES = 5_000_000
-#: Longest value or table name quoted in an error line, characters.
-MAX_QUOTED_CHARS = 80
 #: Deepest nesting of tables and arrays accepted in a TOML file (docs/limits.md).
 MAX_TOML_DEPTH = 16
 
@@ -100,10 +98,7 @@ def read_toml(path: Path) -> dict[str, Any]:
 def short(value: object) -> str:
     """``repr(value)``, cut to ``MAX_QUOTED_CHARS`` characters (an error stays one short
     line when a file holds a megabyte-long string)."""
-    text = repr(value)
-    if len(text) <= MAX_QUOTED_CHARS:
-        return text
-    return f"{text[: MAX_QUOTED_CHARS - 20]}... ({len(text)} characters)"
+    return cut_quoted(repr(value))
 
 
 def _loc(loc: tuple[int | str, ...]) -> str:

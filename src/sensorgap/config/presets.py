@@ -5,13 +5,49 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+from sensorgap.errors import InputError
+
+#: What a templates folder holds (``SENSORGAP_TEMPLATES``): folders, then files.
+TEMPLATE_FOLDERS = ("vehicles", "scenarios")
+TEMPLATE_FILES = ("environments.toml", "targets.toml", "reactions.toml")
+
+
+def _templates_problem(path: Path) -> str | None:
+    """What keeps ``path`` from being a templates folder (None: it is one)."""
+    everything = ", ".join([*(f"{d}/" for d in TEMPLATE_FOLDERS), *TEMPLATE_FILES])
+    if not path.exists():
+        return f"does not exist; it must name a folder of presets ({everything})"
+    if not path.is_dir():
+        return f"is not a folder; it must name a folder of presets ({everything})"
+    lacks = [f"{d}/" for d in TEMPLATE_FOLDERS if not (path / d).is_dir()]
+    lacks += [f for f in TEMPLATE_FILES if not (path / f).is_file()]
+    if lacks:
+        return f"holds no {', '.join(lacks)}; it must name a folder of presets"
+    if not any((path / "vehicles").glob("*.toml")):
+        return "holds no vehicle preset (vehicles/*.toml); it must name a folder of presets"
+    return None
+
 
 def templates_dir() -> Path:
     """The templates folder: ``$SENSORGAP_TEMPLATES``, the source checkout's ``templates/``,
-    or the copy packed into the wheel (``sensorgap/_templates``)."""
+    or the copy packed into the wheel (``sensorgap/_templates``). A set variable must name
+    a folder holding ``TEMPLATE_FOLDERS`` and ``TEMPLATE_FILES`` (at least one vehicle
+    preset), else ``InputError`` naming the variable: a missing or empty folder read as
+    a folder without presets ("unknown preset 'system_b'; presets: ", nothing listed)."""
     env = os.environ.get("SENSORGAP_TEMPLATES")
     if env:
-        return Path(env)
+        path = Path(env)
+        problem = _templates_problem(path)
+        if problem is not None:
+            # a path as it is (a long one keeps its end: errors.clip); quoted when spaces
+            # at its ends would not show
+            shown = env if env.strip() == env else repr(env)
+            raise InputError(
+                "SENSORGAP_TEMPLATES",
+                "",
+                f"{shown} {problem} like the shipped templates/, or not be set",
+            )
+        return path
     here = Path(__file__).resolve()
     checkout = here.parents[3] / "templates"
     if (checkout / "vehicles").is_dir():

@@ -77,11 +77,48 @@ def file_digest(path: Path) -> str:
 
 
 def _damaged(path: Path, what: object) -> InputError:
+    """A store that cannot be read as one (``what``: why), or one that is sound but cannot
+    be used here (``_unusable``: read-only, locked, a full disk)."""
+    if isinstance(what, sqlite3.Error):
+        unusable = _unusable(path, what)
+        if unusable is not None:
+            return unusable
     return InputError(
         path,
         "",
         f"not a readable sensorgap search database ({what}); delete it or use another --out folder",
     )
+
+
+#: SQLite's primary result codes (``sqlite_errorname`` up to its first ``_`` after
+#: ``SQLITE_``) that say the file cannot be used here, not that it is damaged: what each
+#: means for the user.
+_UNUSABLE = {
+    "SQLITE_READONLY": "cannot be written ({exc}): the file or its folder is read-only or "
+    "belongs to another user; its stored results are kept; give it write permission or "
+    "use another --out folder",
+    "SQLITE_PERM": "cannot be written ({exc}): permission denied; its stored results are "
+    "kept; give it write permission or use another --out folder",
+    "SQLITE_CANTOPEN": "cannot open ({exc}): check the permissions of the file and its folder",
+    "SQLITE_FULL": "cannot write: {exc} (the disk is full); free some space",
+    "SQLITE_IOERR": "cannot write or read: {exc}",
+    "SQLITE_BUSY": "is in use by another process ({exc}); wait for it to finish",
+    "SQLITE_LOCKED": "is in use by another process ({exc}); wait for it to finish",
+}
+
+
+def _unusable(path: Path, exc: sqlite3.Error) -> InputError | None:
+    """The error of a store that is sound but cannot be used here (read-only, owned by
+    another user, a full disk, locked): None when ``exc`` says something else (damage).
+    A read-only store was called "not a readable sensorgap search database ...; delete
+    it", advice that would lose a valid run."""
+    name = getattr(exc, "sqlite_errorname", None) or ""
+    if not name and "readonly database" in str(exc):  # an SQLite without error names
+        name = "SQLITE_READONLY"
+    for code, text in _UNUSABLE.items():
+        if name == code or name.startswith(code + "_"):
+            return InputError(path, "", text.format(exc=exc))
+    return None
 
 
 class Store:
