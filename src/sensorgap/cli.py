@@ -162,8 +162,9 @@ def cmd_probe(args: argparse.Namespace) -> int:
         data = probe_csv(evaluate_points(scene, pts))
     else:
         data = _probe_bodies(scene, pts, args.heading)
-    if args.out:
-        atomic_write_bytes(args.out, data)
+    if args.out:  # a failed write leaves no folder it made for the file
+        with removed_on_error(Path(args.out).parent, only=(Path(args.out).name,)):
+            atomic_write_bytes(args.out, data)
     else:
         sys.stdout.write(data.decode("utf-8"))
     return 0
@@ -445,8 +446,9 @@ def cmd_paper(args: argparse.Namespace) -> int:
     from sensorgap.analysis.paper import run_paper
 
     _refuse_unsafe_out(args.out, "paper")
-    result = run_paper(Path(args.out))
-    write_manifest(args.out)
+    with removed_on_error(args.out):  # a failed paper leaves no partial output
+        result = run_paper(Path(args.out))
+        write_manifest(args.out)
     for name, ok in result["checks"].items():
         print(f"[{'ok' if ok else 'FAIL'}] {name}")
     print(
@@ -556,16 +558,18 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         if why:
             raise InputError("param", name, why)
     try:
-        ev = evaluate_candidate(
-            args.vehicle,
-            args.family,
-            args.environment,
-            parse_sun(args.sun),
-            args.param or [],
-            Path(args.out),
-            Path(args.environments_file) if args.environments_file else None,
-            Path(args.run) if args.run else None,
-        )
+        # a failed evaluation leaves neither of its files nor a folder it made
+        with removed_on_error(args.out, only=("evaluation.json", "trace.csv")):
+            ev = evaluate_candidate(
+                args.vehicle,
+                args.family,
+                args.environment,
+                parse_sun(args.sun),
+                args.param or [],
+                Path(args.out),
+                Path(args.environments_file) if args.environments_file else None,
+                Path(args.run) if args.run else None,
+            )
     except InputError as exc:
         if exc.source == "families":  # the family loader names search's --families
             exc.source = "--family"
@@ -663,14 +667,16 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     from sensorgap.export.simulate import simulate_catalog
 
     refuse_if_changed(args.catalog, ("simulation.csv",))  # its manifest is rewritten
-    rows = simulate_catalog(
-        Path(args.catalog),
-        args.esmini,
-        timeout_s=args.timeout,
-        step_s=args.step,
-        ego_reaction=args.ego_reaction,
-    )
-    write_manifest(args.catalog, ("simulation.csv",))
+    # a failed run leaves the catalog as it was (simulation.csv and its manifest entry)
+    with removed_on_error(args.catalog, only=("simulation.csv", "manifest.json")):
+        rows = simulate_catalog(
+            Path(args.catalog),
+            args.esmini,
+            timeout_s=args.timeout,
+            step_s=args.step,
+            ego_reaction=args.ego_reaction,
+        )
+        write_manifest(args.catalog, ("simulation.csv",))
     ok = sum(1 for r in rows if r.get("status") == "ok")
     within = sum(1 for r in rows if r.get("within_0p5m") == "yes")
     coll = sum(1 for r in rows if r.get("collision_agrees") == "yes")
@@ -747,8 +753,9 @@ def cmd_report(args: argparse.Namespace) -> int:
         check_rankings(a, b)  # both search runs: refused before anything is written
         _out_outside(out, a, b)
         _refuse_unsafe_out(out, "report --compare")
-        html_path, md_path = write_compare_report(a, b, out)
-        write_manifest(out)
+        with removed_on_error(out):  # a failed comparison leaves no partial output
+            html_path, md_path = write_compare_report(a, b, out)
+            write_manifest(out)
     else:
         if not args.run:
             raise InputError("--run", "", "give --run DIR or --compare RUN_A RUN_B")
@@ -762,7 +769,9 @@ def cmd_report(args: argparse.Namespace) -> int:
         # the report rewrites the manifest: it must not certify a file changed by hand
         writes = REPORT_WRITES
         refuse_if_changed(args.run, writes)
-        with removed_on_error(args.run):  # no figure of a failed report is left behind
+        # a failed report leaves the run as it was: no figure of it left behind, and the
+        # earlier report.html, report.md and manifest.json back in place
+        with removed_on_error(args.run):
             html_path, md_path = write_report(Path(args.run))
             write_manifest(args.run, writes)
     print(f"{html_path} and {md_path}")
@@ -792,7 +801,8 @@ def cmd_tradeoff(args: argparse.Namespace) -> int:
     from sensorgap.tradeoff import run_tradeoff
 
     _refuse_unsafe_out(args.out, "tradeoff")
-    rows = run_tradeoff(Path(args.out), quick=args.quick)
+    with removed_on_error(args.out):
+        rows = run_tradeoff(Path(args.out), quick=args.quick)
     print(f"{args.out}: {len(rows)} measurements (tradeoff.csv, tradeoff.md, resolution.png)")
     return 0
 
@@ -922,8 +932,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         families=families,
         environments=_environments(args.environments, None),
         seeds=args.seeds,
+        certify_out=True,
     )
-    write_manifest(args.out)
     return 0
 
 
