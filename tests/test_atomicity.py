@@ -3,7 +3,8 @@
 ``atomic.removed_on_error`` puts an existing folder back (files replaced, deleted or
 changed in place, folders removed) and removes what a failed command made, parents of its
 ``--out`` included; ``report --run`` failing after it wrote its files leaves the run
-verifying; ``run`` refuses a clash with the run folder's search before any stage
+verifying; an export that changes the scenario files removes the report describing the
+previous ones; ``run`` refuses a clash with the run folder's search before any stage
 writes, and a job that fails over an earlier run leaves it as it was. (The one-line cases
 are in the bad-input corpus, ``# round 10``.)"""
 
@@ -177,6 +178,31 @@ def test_a_report_failing_after_its_files_were_written_leaves_the_run_verifying(
     monkeypatch.undo()
     assert tree_state(run) == before
     assert main(["verify", str(run)]) == 0
+
+
+def test_an_export_that_changes_the_scenario_files_removes_the_stale_report(
+    reported_run: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Hostile round ten: ``export --osc-version 1.0 --style replay`` over an exported and
+    reported run kept report.html/report.md ("OpenSCENARIO 1.2"), certified. An export
+    that changes any scenario file's bytes (or catalog.json) now removes the report, as
+    one changing the set of files did; an export giving the same files keeps it."""
+    run = tmp_path / "run"
+    shutil.copytree(reported_run, run)
+    assert "OpenSCENARIO 1.2" in (run / "report.md").read_text(encoding="utf-8")
+    capsys.readouterr()
+    argv = ["export", "--run", str(run), "--osc-version", "1.0", "--style", "replay"]
+    assert main(argv) == 0
+    assert "the export changed the scenario files: removed" in capsys.readouterr().out
+    for name in ("report.html", "report.md", "report"):
+        assert not (run / name).exists(), name
+    assert main(["verify", str(run)]) == 0
+    assert main(["report", "--run", str(run)]) == 0
+    assert "OpenSCENARIO 1.0" in (run / "report.md").read_text(encoding="utf-8")
+    capsys.readouterr()
+    assert main(argv) == 0  # the same files again: the report stays
+    assert "removed" not in capsys.readouterr().out
+    assert (run / "report.html").is_file() and main(["verify", str(run)]) == 0
 
 
 # -- the main job over an earlier run --------------------------------------------------

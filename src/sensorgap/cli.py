@@ -638,28 +638,47 @@ def cmd_export(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else None
     folder = out or Path(args.run)
     refuse_crowded_out(folder, "export")
-    before = sorted(p.name for p in (folder / "scenarios").glob("*.xosc"))
-    with removed_on_error(out or args.run):  # a failed export leaves no partial catalog
+    before = _catalog_digests(folder)
+    # a failed export leaves no partial catalog: a folder it made removed, the scenario
+    # files, maps, catalog.json and manifest.json of an earlier export back in place
+    with removed_on_error(folder):
         index = export_catalog(
             Path(args.run), out, osc_version=args.osc_version, top=args.top, style=args.style
         )
-    if before and before != sorted(p.name for p in (folder / "scenarios").glob("*.xosc")):
-        # a report of the folder links the previous export's scenario files
-        from sensorgap.export.catalog import EXPORT_WRITES
-        from sensorgap.report.build import REPORT_WRITES
+        if before != _catalog_digests(folder):
+            # a report of the folder describes and links the previous export's files
+            # (their OpenSCENARIO version and style too), or says there was none
+            from sensorgap.export.catalog import EXPORT_WRITES
+            from sensorgap.report.build import REPORT_WRITES
 
-        gone = remove_outputs(folder, REPORT_WRITES)
-        if gone:
-            write_manifest(folder, (*EXPORT_WRITES, *REPORT_WRITES))
-            print(
-                f"the export changed the scenario files: removed {len(gone)} files of the "
-                "previous report (run report again)"
-            )
+            gone = remove_outputs(folder, REPORT_WRITES)
+            if gone:
+                write_manifest(folder, (*EXPORT_WRITES, *REPORT_WRITES))
+                print(
+                    f"the export changed the scenario files: removed {len(gone)} files of "
+                    "the previous report (run report again)"
+                )
     print(
         f"{out or args.run}: {len(index['scenarios'])} scenarios, {args.style} style, "
         f"OpenSCENARIO {args.osc_version}, every file XSD-valid"
     )
     return 0
+
+
+def _catalog_digests(folder: Path) -> dict[str, str]:
+    """SHA-256 of each scenario file and of ``catalog.json`` in ``folder`` (relative
+    path -> digest; what a report of the folder describes and links): an export that
+    changes any of them makes the report stale."""
+    import hashlib
+
+    paths = sorted((folder / "scenarios").glob("*.xosc"))
+    if (folder / "catalog.json").is_file():
+        paths.append(folder / "catalog.json")
+    return {
+        p.relative_to(folder).as_posix(): hashlib.sha256(p.read_bytes()).hexdigest()
+        for p in paths
+        if p.is_file() and not p.is_symlink()
+    }
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:
