@@ -14,6 +14,7 @@ import os
 import shutil
 import subprocess
 import sys
+from contextlib import nullcontext
 from pathlib import Path
 
 import pytest
@@ -23,6 +24,7 @@ from sensorgap.atomic import RESTORE_PREFIX, atomic_write_text, removed_on_error
 from sensorgap.cli import main
 from sensorgap.config.presets import templates_dir
 from sensorgap.filesio import read_manifest, verify_manifest, write_manifest
+from sensorgap.search.run import exclusive_folder
 from tests.bad_inputs.harness import tree_state
 
 SRC = str(Path(sensorgap.__file__).resolve().parents[1])
@@ -242,7 +244,9 @@ def _rear_only(path: Path) -> Path:
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("clash", ["environments", "same_name_other_file", "vehicle_edited"])
+@pytest.mark.parametrize(
+    "clash", ["environments", "same_name_other_file", "vehicle_edited", "search_running"]
+)
 def test_run_refuses_a_clash_with_the_earlier_search_before_any_work(
     job: tuple[Path, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str], clash: str
 ) -> None:
@@ -250,7 +254,8 @@ def test_run_refuses_a_clash_with_the_earlier_search_before_any_work(
     another vehicle file of the same stem, or the same vehicle file edited) wrote the
     coverage, near and far field into the certified run before its search refused the
     store: verify failed and the original command was refused too. Now refused before
-    any stage writes: one line, exit 2, the folder byte for byte as it was."""
+    any stage writes: one line, exit 2, the folder byte for byte as it was. So is a job
+    into a folder a search is writing now (its lock held)."""
     src, vehicle = job
     out = tmp_path / "out"
     shutil.copytree(src, out)
@@ -262,15 +267,18 @@ def test_run_refuses_a_clash_with_the_earlier_search_before_any_work(
         elif clash == "same_name_other_file":
             other = _rear_only(tmp_path / "alt" / "system_b.toml")
             argv, why = _job_argv(other, out), "holds a search with different settings"
-        else:
+        elif clash == "vehicle_edited":
             vehicle.write_text(text + "\n# edited\n", encoding="utf-8")
             argv, why = _job_argv(vehicle, out), "holds results for other input files"
+        else:
+            argv, why = _job_argv(vehicle, out), "another search is writing to"
         capsys.readouterr()
-        assert main(argv) == 2
+        with exclusive_folder(out / "system_b") if clash == "search_running" else nullcontext():
+            assert main(argv) == 2
     finally:
         vehicle.write_text(text, encoding="utf-8")
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and why in err[0] and "system_b/search.sqlite" in err[0], err
+    assert len(err) == 1 and why in err[0] and "system_b" in err[0], err
     assert tree_state(out) == before
     assert main(["verify", str(out)]) == 0 and main(["verify", str(out / "system_b")]) == 0
 

@@ -48,7 +48,7 @@ from sensorgap.search.anchors import (
     ncap_obstructed_cases,
     write_anchors,
 )
-from sensorgap.search.run import refuse_search_clash, run_search
+from sensorgap.search.run import exclusive_folder, refuse_search_clash, run_search
 from sensorgap.search.runfolder import STORE_FILE
 from sensorgap.search.settings import Prepared, SearchSettings, prepare
 
@@ -237,7 +237,11 @@ def run_default(
     # a failed or stopped job leaves OUT as it was: a folder it made removed, an earlier
     # run restored (its search store, changed in place, kept as a copy)
     with removed_on_error(out, copies=(f"{name}/{STORE_FILE}",)):
-        info = _run_job(out, folder, ref, system, fams, envs, budget, top, seed, seeds, workers)
+        folder.mkdir(parents=True, exist_ok=True)
+        # no search into the folder while the job writes it (its own search included:
+        # it takes no lock of its own), nor a second job
+        with exclusive_folder(folder):
+            info = _run_job(out, folder, ref, system, fams, envs, budget, top, seed, seeds, workers)
         if certify_out:
             write_manifest(out)
     return info
@@ -252,9 +256,13 @@ def refuse_job_clash(prepared: Prepared, folder: Path) -> None:
     (``search.run.refuse_search_clash``, the check ``run_search`` itself makes: a store
     of a search with other settings, such as other environments or another vehicle file
     of the same name, or of other input file contents, a damaged store, a symbolic
-    link). ``InputError`` naming the file or ``--out``."""
-    refuse_if_changed(folder, (), lost_ok=True)
-    refuse_search_clash(prepared, folder, resume=True)
+    link), and no search may be writing it now (``search.run.exclusive_folder``).
+    ``InputError`` naming the file or ``--out``."""
+    if not folder.is_dir():
+        return  # a new folder: nothing to clash with
+    with exclusive_folder(folder):  # no search writing it now
+        refuse_if_changed(folder, (), lost_ok=True)
+        refuse_search_clash(prepared, folder, resume=True)
 
 
 def _run_job(
@@ -270,8 +278,8 @@ def _run_job(
     seeds: int,
     workers: int,
 ) -> dict[str, Any]:
-    """The job's stages into ``folder`` (checked by ``run_default``); returns run info."""
-    folder.mkdir(parents=True, exist_ok=True)
+    """The job's stages into ``folder`` (checked by ``run_default``, locked by it);
+    returns run info."""
     # the job rewrites the whole folder and certifies it at the end: its earlier
     # manifest would make the export refuse the job's own new search files as "changed
     # by hand" (refuse_job_clash checked them before any stage wrote)
@@ -293,6 +301,7 @@ def _run_job(
             workers=workers,
             resume=True,
             seeds=seeds,
+            lock=False,  # the job holds the folder's lock
         )
 
     side_peak = 0.0

@@ -312,7 +312,7 @@ def write_ranking(out: Path, p: Prepared, ranked: Ranked, summary: dict[str, Any
 
 
 @contextlib.contextmanager
-def _exclusive(out: Path) -> Iterator[None]:
+def exclusive_folder(out: Path) -> Iterator[None]:
     """Hold an exclusive lock on the folder ``out`` (``flock`` on the folder itself: no
     lock file is left in the run folder) while a search writes it; a second search into
     the same folder at the same time -> ``InputError`` (two searches storing into one
@@ -416,6 +416,7 @@ def run_search(
     executor: str = "local",
     scheduler: str | None = None,
     seeds: int = 1,
+    lock: bool = True,
 ) -> SearchOutcome:
     """Search, store every candidate, write the ranking; see the module docstring and
     ``SearchSettings`` for the arguments. ``workers``: threads per batch
@@ -424,7 +425,8 @@ def run_search(
     that many independent searches, each with its share; the ranking is over all of them,
     and each ranked row says how many of the searches found it on their own
     (``found_by_seeds``; ``summary.json`` ``stability``): the confidence a rerun with
-    another seed would find it too, at no extra cost.
+    another seed would find it too, at no extra cost. ``lock=False``: the caller holds
+    ``exclusive_folder(out)`` already (the main job, for all its stages).
     """
     p = prepare(
         SearchSettings(
@@ -450,7 +452,7 @@ def run_search(
     new_db = not db.exists()
     created = created_folders(out)  # removed again if nothing can be stored
     out.mkdir(parents=True, exist_ok=True)
-    with _exclusive(out):
+    with exclusive_folder(out) if lock else contextlib.nullcontext():
         refuse_search_clash(p, out, resume)
         try:
             store = Store(db, p.record, p.inputs)
