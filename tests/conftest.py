@@ -39,6 +39,7 @@ OWN_GROUP = (
 #: group; an entry with "::" is a node-id prefix of a one-test group (``OWN_GROUP``).
 LONG_GROUPS = (
     "tests/report",  # 60
+    "tests/test_atomicity.py",  # 23 (measured without coverage)
     "tests/export",  # 19
     "tests/test_bad_inputs.py",  # 15
     "tests/search/test_credible.py",  # 11

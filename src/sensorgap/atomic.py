@@ -7,7 +7,11 @@ from __future__ import annotations
 
 import os
 import secrets
+import shutil
+import signal
 import stat
+import tempfile
+import threading
 from collections.abc import Iterator
 from contextlib import contextmanager, suppress
 from pathlib import Path
@@ -126,32 +130,199 @@ def atomic_write_text(path: str | Path, text: str) -> Path:
     return atomic_write_bytes(path, utf8(text))
 
 
+#: Name prefix of the folder that holds, while a guarded command runs
+#: (``removed_on_error``), hard links to the files that were in its output folder before
+#: it started. The whole name (``.sensorgap-restore.<8 random>.tmp``) is a temporary
+#: one (``filesio.is_temporary``): a manifest never lists what lies below it, and
+#: ``verify`` reports it if a killed command left it behind.
+RESTORE_PREFIX = ".sensorgap-restore."
+#: The ``RESTORE_PREFIX`` folders of the guarded commands running in this process
+#: (absolute paths): ``filesio.write_manifest`` removes only the others (left behind by
+#: a killed command).
+ACTIVE_RESTORE_FOLDERS: set[str] = set()
+
+
+def created_folders(path: str | Path) -> list[Path]:
+    """``path`` and those of its parent folders that do not exist yet, deepest first:
+    the folders a command writing to ``path`` may create (``mkdir(parents=True)``), and
+    the only ones it may remove again when it fails. A path the system cannot look up
+    (too long, a file as a folder) ends the list: nothing can be created there."""
+    out: list[Path] = []
+    p = Path(path)
+    while True:
+        try:
+            os.lstat(p)
+        except FileNotFoundError:
+            out.append(p)
+            if p.parent == p:
+                break
+            p = p.parent
+            continue
+        except OSError:
+            pass
+        break
+    return out
+
+
+def remove_created_folders(created: list[Path]) -> None:
+    """Remove the folders of ``created`` (``created_folders``, deepest first) that are
+    empty now: a failed command leaves no folder it made, and never one it did not make
+    or one that holds anything."""
+    for p in created:
+        with suppress(OSError):
+            p.rmdir()
+
+
+def _entries(root: Path, only: tuple[str, ...] | None = None) -> tuple[set[str], set[str]]:
+    """(files, folders) below ``root`` as relative paths (symbolic links count as files
+    and are never followed); empty sets when ``root`` is not a folder. ``only``: just
+    these relative paths of files, those that exist (no folder)."""
+    files: set[str] = set()
+    dirs: set[str] = set()
+    if not os.path.isdir(root):
+        return files, dirs
+    if only is not None:
+        return {rel for rel in only if os.path.lexists(root / rel)}, dirs
+    for dirpath, dirnames, filenames in os.walk(root, followlinks=False):
+        rel = os.path.relpath(dirpath, root)
+        for name in dirnames:
+            full = os.path.join(dirpath, name)
+            target = files if os.path.islink(full) else dirs
+            target.add(os.path.normpath(os.path.join(rel, name)))
+        for name in filenames:
+            files.add(os.path.normpath(os.path.join(rel, name)))
+    return files, dirs
+
+
+def _back_up(
+    root: Path, files: set[str], copies: tuple[str, ...]
+) -> tuple[Path | None, dict[str, Path]]:
+    """Keep the regular files ``files`` of ``root`` (relative paths) restorable: a hard
+    link to each in a fresh ``RESTORE_PREFIX`` folder inside ``root`` (no data is
+    copied: the link keeps the old content when the command renames a new file onto the
+    path or deletes it), a copy of those in ``copies`` (files changed in place, such as
+    an SQLite store) and of any that cannot be linked (a file system without hard
+    links). Returns (the folder, None when there was nothing to keep; path -> kept
+    file). A file that can be neither linked nor copied raises ``OSError`` (the caller
+    removes the folder: nothing was changed yet)."""
+    regular = sorted(rel for rel in files if stat.S_ISREG(os.lstat(root / rel).st_mode))
+    if not regular:
+        return None, {}
+    keep = Path(tempfile.mkdtemp(prefix=RESTORE_PREFIX, suffix=".tmp", dir=root))
+    ACTIVE_RESTORE_FOLDERS.add(os.path.abspath(keep))
+    saved: dict[str, Path] = {}
+    try:
+        for i, rel in enumerate(regular):
+            dst = keep / str(i)
+            if rel not in copies:
+                try:
+                    os.link(root / rel, dst)
+                    saved[rel] = dst
+                    continue
+                except OSError:
+                    pass  # no hard links here: a copy instead
+            shutil.copy2(root / rel, dst)
+            saved[rel] = dst
+    except BaseException:
+        _drop(keep)
+        raise
+    return keep, saved
+
+
+def _restore(
+    root: Path,
+    files: set[str],
+    dirs: set[str],
+    keep: Path | None,
+    saved: dict[str, Path],
+    only: tuple[str, ...] | None,
+) -> None:
+    """Put ``root`` back as it was: every file and folder that was not there removed,
+    each kept file renamed back onto its path, the folders that were there made again,
+    the ``keep`` folder removed. Best effort: a step that fails is skipped. Ctrl-C and
+    SIGTERM wait until it is done (blocked, then delivered)."""
+    with _signals_held():
+        _put_back(root, files, dirs, keep, saved, only)
+
+
 @contextmanager
-def removed_on_error(folder: str | Path) -> Iterator[None]:
-    """On an exception or an interrupt (Ctrl-C, SIGTERM), remove every file below
-    ``folder`` that was not there before, and the folders created, so a failed or stopped
-    command leaves nothing half-written (e.g. a coverage.npz without its png and summary,
-    or the first figures of a report that its manifest does not list). Files that existed
-    are kept. (Resumable work, the search store, is not written under this guard.)"""
-    root = Path(folder)
-    existed = root.is_dir()
-    before = {p for p in root.rglob("*")} if existed else set()
+def _signals_held() -> Iterator[None]:
+    """Hold SIGINT and SIGTERM back while the block runs (in the main thread, where
+    Python handles them), so a second Ctrl-C cannot stop a restore half-way."""
+    held = {signal.SIGINT, signal.SIGTERM}
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, held)
     try:
         yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
+def _put_back(
+    root: Path,
+    files: set[str],
+    dirs: set[str],
+    keep: Path | None,
+    saved: dict[str, Path],
+    only: tuple[str, ...] | None,
+) -> None:
+    now_files, now_dirs = _entries(root, only)
+    skip = None if keep is None else keep.name
+    for rel in sorted(now_files - files, key=len, reverse=True):
+        if skip is not None and rel.split(os.sep, 1)[0] == skip:
+            continue
+        with suppress(OSError):
+            (root / rel).unlink()
+    for rel in sorted(now_dirs - dirs, key=lambda r: r.count(os.sep), reverse=True):
+        if skip is not None and rel.split(os.sep, 1)[0] == skip:
+            continue
+        with suppress(OSError):
+            shutil.rmtree(root / rel)
+    for rel in sorted(dirs, key=lambda r: r.count(os.sep)):
+        with suppress(OSError):
+            (root / rel).mkdir(parents=True, exist_ok=True)
+    for rel, kept in saved.items():
+        with suppress(OSError):
+            os.replace(kept, root / rel)
+    _drop(keep)
+
+
+def _drop(keep: Path | None) -> None:
+    """Remove a ``RESTORE_PREFIX`` folder (its links only: the files they kept are gone
+    or back in place)."""
+    if keep is not None:
+        shutil.rmtree(keep, ignore_errors=True)
+        ACTIVE_RESTORE_FOLDERS.discard(os.path.abspath(keep))
+
+
+@contextmanager
+def removed_on_error(
+    folder: str | Path, copies: tuple[str, ...] = (), only: tuple[str, ...] | None = None
+) -> Iterator[None]:
+    """On an exception or an interrupt (Ctrl-C, SIGTERM), put ``folder`` back as it was
+    before the block: every file and folder that was not there removed, every file that
+    was there with its earlier content (a hard link to each is kept while the block
+    runs, ``RESTORE_PREFIX``; ``copies``: relative paths of files the block changes in
+    place, such as an SQLite store, kept as copies), and ``folder`` itself and the parent
+    folders it had to make removed when they did not exist (``created_folders``). So a
+    failed or stopped command leaves nothing half-written: no coverage.npz without its
+    png and summary, no first figures of a report that its manifest does not list, no
+    rewritten report.html beside a manifest that lists the previous one, no empty
+    folder. On success the kept links are removed. ``only``: the block writes just these
+    files of ``folder`` (relative paths; ``evaluate``, ``probe``): nothing else there is
+    listed, kept or removed (a user's folder of any size)."""
+    root = Path(folder)
+    created = created_folders(root)
+    files, dirs = _entries(root, only)
+    keep: Path | None = None
+    saved: dict[str, Path] = {}
+    try:
+        keep, saved = _back_up(root, files, tuple(copies))
+        yield
     except BaseException:
-        if root.is_dir():
-            new = sorted(
-                (p for p in root.rglob("*") if p not in before),
-                key=lambda p: len(p.parts),
-                reverse=True,
-            )
-            for p in new:
-                with suppress(OSError):
-                    if p.is_symlink() or p.is_file():
-                        p.unlink()
-                    elif p.is_dir():
-                        p.rmdir()
-            if not existed:
-                with suppress(OSError):
-                    root.rmdir()
+        _restore(root, files, dirs, keep, saved, only)
+        remove_created_folders(created)
         raise
+    _drop(keep)

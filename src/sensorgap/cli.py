@@ -168,8 +168,9 @@ def cmd_probe(args: argparse.Namespace) -> int:
         data = probe_csv(evaluate_points(scene, pts))
     else:
         data = _probe_bodies(scene, pts, args.heading)
-    if args.out:
-        atomic_write_bytes(args.out, data)
+    if args.out:  # a failed write leaves no folder it made for the file
+        with removed_on_error(Path(args.out).parent, only=(Path(args.out).name,)):
+            atomic_write_bytes(args.out, data)
     else:
         sys.stdout.write(data.decode("utf-8"))
     return 0
@@ -451,8 +452,9 @@ def cmd_paper(args: argparse.Namespace) -> int:
     from sensorgap.analysis.paper import run_paper
 
     _refuse_unsafe_out(args.out, "paper")
-    result = run_paper(Path(args.out))
-    write_manifest(args.out)
+    with removed_on_error(args.out):  # a failed paper leaves no partial output
+        result = run_paper(Path(args.out))
+        write_manifest(args.out)
     for name, ok in result["checks"].items():
         print(f"[{'ok' if ok else 'FAIL'}] {name}")
     print(
@@ -562,16 +564,18 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         if why:
             raise InputError("param", name, why)
     try:
-        ev = evaluate_candidate(
-            args.vehicle,
-            args.family,
-            args.environment,
-            parse_sun(args.sun),
-            args.param or [],
-            Path(args.out),
-            Path(args.environments_file) if args.environments_file else None,
-            Path(args.run) if args.run else None,
-        )
+        # a failed evaluation leaves neither of its files nor a folder it made
+        with removed_on_error(args.out, only=("evaluation.json", "trace.csv")):
+            ev = evaluate_candidate(
+                args.vehicle,
+                args.family,
+                args.environment,
+                parse_sun(args.sun),
+                args.param or [],
+                Path(args.out),
+                Path(args.environments_file) if args.environments_file else None,
+                Path(args.run) if args.run else None,
+            )
     except InputError as exc:
         if exc.source == "families":  # the family loader names search's --families
             exc.source = "--family"
@@ -640,23 +644,26 @@ def cmd_export(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else None
     folder = out or Path(args.run)
     refuse_crowded_out(folder, "export")
-    before = sorted(p.name for p in (folder / "scenarios").glob("*.xosc"))
-    with removed_on_error(out or args.run):  # a failed export leaves no partial catalog
+    before = _catalog_digests(folder)
+    # a failed export leaves no partial catalog: a folder it made removed, the scenario
+    # files, maps, catalog.json and manifest.json of an earlier export back in place
+    with removed_on_error(folder):
         index = export_catalog(
             Path(args.run), out, osc_version=args.osc_version, top=args.top, style=args.style
         )
-    if before and before != sorted(p.name for p in (folder / "scenarios").glob("*.xosc")):
-        # a report of the folder links the previous export's scenario files
-        from sensorgap.export.catalog import EXPORT_WRITES
-        from sensorgap.report.build import REPORT_WRITES
+        if before != _catalog_digests(folder):
+            # a report of the folder describes and links the previous export's files
+            # (their OpenSCENARIO version and style too), or says there was none
+            from sensorgap.export.catalog import EXPORT_WRITES
+            from sensorgap.report.build import REPORT_WRITES
 
-        gone = remove_outputs(folder, REPORT_WRITES)
-        if gone:
-            write_manifest(folder, (*EXPORT_WRITES, *REPORT_WRITES))
-            print(
-                f"the export changed the scenario files: removed {len(gone)} files of the "
-                "previous report (run report again)"
-            )
+            gone = remove_outputs(folder, REPORT_WRITES)
+            if gone:
+                write_manifest(folder, (*EXPORT_WRITES, *REPORT_WRITES))
+                print(
+                    f"the export changed the scenario files: removed {len(gone)} files of "
+                    "the previous report (run report again)"
+                )
     print(
         f"{out or args.run}: {len(index['scenarios'])} scenarios, {args.style} style, "
         f"OpenSCENARIO {args.osc_version}, every file XSD-valid"
@@ -664,19 +671,37 @@ def cmd_export(args: argparse.Namespace) -> int:
     return 0
 
 
+def _catalog_digests(folder: Path) -> dict[str, str]:
+    """SHA-256 of each scenario file and of ``catalog.json`` in ``folder`` (relative
+    path -> digest; what a report of the folder describes and links): an export that
+    changes any of them makes the report stale."""
+    import hashlib
+
+    paths = sorted((folder / "scenarios").glob("*.xosc"))
+    if (folder / "catalog.json").is_file():
+        paths.append(folder / "catalog.json")
+    return {
+        p.relative_to(folder).as_posix(): hashlib.sha256(p.read_bytes()).hexdigest()
+        for p in paths
+        if p.is_file() and not p.is_symlink()
+    }
+
+
 def cmd_simulate(args: argparse.Namespace) -> int:
     """Run a catalog's scenarios in esmini; simulation.csv."""
     from sensorgap.export.simulate import simulate_catalog
 
     refuse_if_changed(args.catalog, ("simulation.csv",))  # its manifest is rewritten
-    rows = simulate_catalog(
-        Path(args.catalog),
-        args.esmini,
-        timeout_s=args.timeout,
-        step_s=args.step,
-        ego_reaction=args.ego_reaction,
-    )
-    write_manifest(args.catalog, ("simulation.csv",))
+    # a failed run leaves the catalog as it was (simulation.csv and its manifest entry)
+    with removed_on_error(args.catalog, only=("simulation.csv", "manifest.json")):
+        rows = simulate_catalog(
+            Path(args.catalog),
+            args.esmini,
+            timeout_s=args.timeout,
+            step_s=args.step,
+            ego_reaction=args.ego_reaction,
+        )
+        write_manifest(args.catalog, ("simulation.csv",))
     ok = sum(1 for r in rows if r.get("status") == "ok")
     within = sum(1 for r in rows if r.get("within_0p5m") == "yes")
     coll = sum(1 for r in rows if r.get("collision_agrees") == "yes")
@@ -753,8 +778,9 @@ def cmd_report(args: argparse.Namespace) -> int:
         check_rankings(a, b)  # both search runs: refused before anything is written
         _out_outside(out, a, b)
         _refuse_unsafe_out(out, "report --compare")
-        html_path, md_path = write_compare_report(a, b, out)
-        write_manifest(out)
+        with removed_on_error(out):  # a failed comparison leaves no partial output
+            html_path, md_path = write_compare_report(a, b, out)
+            write_manifest(out)
     else:
         if not args.run:
             raise InputError("--run", "", "give --run DIR or --compare RUN_A RUN_B")
@@ -768,7 +794,9 @@ def cmd_report(args: argparse.Namespace) -> int:
         # the report rewrites the manifest: it must not certify a file changed by hand
         writes = REPORT_WRITES
         refuse_if_changed(args.run, writes)
-        with removed_on_error(args.run):  # no figure of a failed report is left behind
+        # a failed report leaves the run as it was: no figure of it left behind, and the
+        # earlier report.html, report.md and manifest.json back in place
+        with removed_on_error(args.run):
             html_path, md_path = write_report(Path(args.run))
             write_manifest(args.run, writes)
     print(f"{html_path} and {md_path}")
@@ -798,7 +826,8 @@ def cmd_tradeoff(args: argparse.Namespace) -> int:
     from sensorgap.tradeoff import run_tradeoff
 
     _refuse_unsafe_out(args.out, "tradeoff")
-    rows = run_tradeoff(Path(args.out), quick=args.quick)
+    with removed_on_error(args.out):
+        rows = run_tradeoff(Path(args.out), quick=args.quick)
     print(f"{args.out}: {len(rows)} measurements (tradeoff.csv, tradeoff.md, resolution.png)")
     return 0
 
@@ -928,8 +957,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         families=families,
         environments=_environments(args.environments, None),
         seeds=args.seeds,
+        certify_out=True,
     )
-    write_manifest(args.out)
     return 0
 
 

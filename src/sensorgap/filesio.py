@@ -10,6 +10,7 @@ import io
 import json
 import math
 import re
+import shutil
 import zipfile
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
@@ -132,6 +133,26 @@ def is_temporary(name: str) -> bool:
     )
 
 
+def _in_temporary_folder(rel: str) -> bool:
+    """Whether the relative path ``rel`` lies below a temporary folder (a guarded
+    command's restore folder, ``atomic.RESTORE_PREFIX``): never part of a run folder."""
+    return any(is_temporary(part) for part in rel.split("/")[:-1])
+
+
+def _is_leftover_restore(path: Path) -> bool:
+    """Whether ``path`` is a restore folder of ``atomic.removed_on_error`` that no
+    command of this process is using (a killed command left it)."""
+    import os
+
+    from sensorgap.atomic import ACTIVE_RESTORE_FOLDERS, RESTORE_PREFIX
+
+    return (
+        path.name.startswith(RESTORE_PREFIX)
+        and is_own_temporary(path.name)
+        and os.path.abspath(path) not in ACTIVE_RESTORE_FOLDERS
+    )
+
+
 def _walk(root: Path, unreadable: dict[str, str] | None = None) -> list[tuple[str, str]]:
     """Every entry below ``root`` as (relative POSIX path, kind): kind is ``file``,
     ``dir``, ``link`` (a symbolic link, never followed) or ``other``; sorted. A folder that
@@ -197,8 +218,10 @@ def write_manifest(folder: str | Path, rewrites: tuple[str, ...] | None = None) 
     """Write ``folder/manifest.json``: every regular file below ``folder`` (sorted relative
     POSIX paths) with its size in bytes and SHA-256, so an assessor can verify that nothing
     was changed or lost. Deterministic: no timestamps. Left-over temporary files of
-    ``sensorgap.atomic`` (from an interrupted earlier command, ``is_own_temporary``) are
-    removed, other temporary-looking files left alone and unlisted; database
+    ``sensorgap.atomic`` (from an interrupted earlier command, ``is_own_temporary``) and
+    restore folders no running command uses (``atomic.RESTORE_PREFIX``, left by a killed
+    one) are removed, the files below a temporary folder never listed, other
+    temporary-looking files left alone and unlisted; database
     journals, symbolic links and the manifest itself are left out (``verify`` reports
     all but the manifest). With ``rewrites`` (a command adding to a folder, see
     ``refuse_if_changed``) the entries of files lost since that the command does not
@@ -211,9 +234,13 @@ def write_manifest(folder: str | Path, rewrites: tuple[str, ...] | None = None) 
         for rel, meta in read_manifest(root).items():
             if not _written_by(rel, rewrites) and not (root / rel).exists():
                 files[rel] = meta
-    for rel, kind in _walk(root):
+    entries = _walk(root)
+    for rel, kind in entries:  # a killed command's restore folder (atomic.removed_on_error)
+        if kind == "dir" and _is_leftover_restore(root / rel):
+            shutil.rmtree(root / rel, ignore_errors=True)
+    for rel, kind in entries:
         p = root / rel
-        if kind != "file" or rel == MANIFEST_NAME:
+        if kind != "file" or rel == MANIFEST_NAME or _in_temporary_folder(rel):
             continue
         if is_temporary(p.name):
             if is_own_temporary(p.name):  # never a user's file that merely looks like one
@@ -316,7 +343,7 @@ def remove_outputs(folder: str | Path, patterns: tuple[str, ...]) -> list[str]:
     return removed
 
 
-def refuse_if_changed(folder: str | Path, rewrites: tuple[str, ...]) -> None:
+def refuse_if_changed(folder: str | Path, rewrites: tuple[str, ...], lost_ok: bool = False) -> None:
     """Before a command adds to a folder that already has a ``manifest.json`` and then
     rewrites it: every file the manifest lists must be as recorded (and no symbolic link
     may be there), except below the paths this command writes itself (``rewrites``:
@@ -328,7 +355,8 @@ def refuse_if_changed(folder: str | Path, rewrites: tuple[str, ...]) -> None:
     ``write_manifest(folder, rewrites)`` keeps them listed, so ``verify`` still reports
     them); a file lost at the top of the folder (the run's own record) is. Raises
     ``InputError`` naming the first such file and how many there are; a folder without a
-    manifest is not checked (nothing certified yet)."""
+    manifest is not checked (nothing certified yet). ``lost_ok``: no lost file is
+    refused (the main job, which writes the whole run folder and its record again)."""
     root = Path(folder)
 
     # a file added since (another command's outputs in a sub-folder, e.g. a job's near
@@ -342,7 +370,7 @@ def refuse_if_changed(folder: str | Path, rewrites: tuple[str, ...]) -> None:
             and not why.endswith(
                 ("(from an interrupted command; not in the manifest)", "is not in the manifest")
             )
-            and not (why.endswith(" is missing") and "/" in rel)
+            and not (why.endswith(" is missing") and ("/" in rel or lost_ok))
         )
 
     _refuse_unmatched(
@@ -547,7 +575,7 @@ def _manifest_problems(root: Path) -> list[tuple[str, str]]:
     for rel, kind in entries.items():
         if kind in ("dir", "link") or rel == MANIFEST_NAME or rel in listed:
             continue
-        if is_temporary(rel.rsplit("/", 1)[-1]):
+        if is_temporary(rel.rsplit("/", 1)[-1]) or _in_temporary_folder(rel):
             problems.append(
                 (
                     rel,

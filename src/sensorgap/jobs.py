@@ -26,6 +26,7 @@ from sensorgap.analysis.farfield import LEVELS
 from sensorgap.analysis.farfield_outputs import write_farfield
 from sensorgap.analysis.nearfield import write_nearfield
 from sensorgap.analysis.paper import FarFieldSetup, run_farfield
+from sensorgap.atomic import removed_on_error
 from sensorgap.config import load_environment, load_environments, load_target
 from sensorgap.config.common import name_problem
 from sensorgap.config.load import short
@@ -35,8 +36,8 @@ from sensorgap.coverage.grid import GridCoverage
 from sensorgap.coverage.outputs import compute_coverage, write_coverage
 from sensorgap.errors import InputError
 from sensorgap.export import export_catalog
-from sensorgap.filesio import write_csv, write_manifest
-from sensorgap.models import Conditions, load_system
+from sensorgap.filesio import MANIFEST_NAME, refuse_if_changed, write_csv, write_manifest
+from sensorgap.models import Conditions, System, load_system
 from sensorgap.provenance import write_run_info
 from sensorgap.report import write_report
 from sensorgap.roads import read_opendrive
@@ -47,8 +48,9 @@ from sensorgap.search.anchors import (
     ncap_obstructed_cases,
     write_anchors,
 )
-from sensorgap.search.run import run_search
-from sensorgap.search.settings import SearchSettings, prepare
+from sensorgap.search.run import exclusive_folder, refuse_search_clash, run_search
+from sensorgap.search.runfolder import STORE_FILE
+from sensorgap.search.settings import Prepared, SearchSettings, prepare
 
 DEFAULT_SYSTEM = "system_a"
 #: Coverage grid of the default job: x from, x to, y from, y to, cell size (m); target
@@ -201,12 +203,16 @@ def run_default(
     families: list[str] | None = None,
     environments: list[str] | None = None,
     seeds: int = DEFAULT_SEEDS,
+    certify_out: bool = False,
 ) -> dict[str, Any]:
     """The whole pipeline for a vehicle (preset name or .toml path) into
     ``out/<vehicle>/``: coverage maps, near field, far field, search over ``families``
     and ``environments`` (default: all), the Euro NCAP anchor cases when their family is
     searched (``search.anchors``: ``anchors/anchors.csv``), export and report; returns run
-    info. ``seeds``: independent searches sharing the budget (``run_search``)."""
+    info. ``seeds``: independent searches sharing the budget (``run_search``).
+    ``certify_out``: also write ``out/manifest.json`` (``sensorgap run``). Every refusal
+    comes before any stage writes (``refuse_job_clash``); a job that fails or is stopped
+    later leaves ``out`` as it was (``atomic.removed_on_error``)."""
     name, ref = vehicle_ref(system_name)
     system = load_system(ref)  # bad input is refused before anything is written
     fams = family_presets() if families is None else list(families)
@@ -221,13 +227,63 @@ def run_default(
         )
     # every search setting (budget, seeds, families) checked before anything is written:
     # the coverage, near and far field run beside the search and would write first
-    prepare(
+    prepared = prepare(
         SearchSettings(
             ref, tuple(fams), tuple(envs), budget, seed, top, "de", workers=workers, seeds=seeds
         )
     )
     folder = out / name
-    folder.mkdir(parents=True, exist_ok=True)
+    refuse_job_clash(prepared, folder)
+    # a failed or stopped job leaves OUT as it was: a folder it made removed, an earlier
+    # run restored (its search store, changed in place, kept as a copy)
+    with removed_on_error(out, copies=(f"{name}/{STORE_FILE}",)):
+        folder.mkdir(parents=True, exist_ok=True)
+        # no search into the folder while the job writes it (its own search included:
+        # it takes no lock of its own), nor a second job
+        with exclusive_folder(folder):
+            info = _run_job(out, folder, ref, system, fams, envs, budget, top, seed, seeds, workers)
+        if certify_out:
+            write_manifest(out)
+    return info
+
+
+def refuse_job_clash(prepared: Prepared, folder: Path) -> None:
+    """Before any stage of the job writes into ``folder`` (an earlier run of the same
+    vehicle, or a new folder): everything a later stage would refuse, so a refused job
+    has written nothing. The folder's certified files must be unchanged or lost
+    (``filesio.refuse_if_changed``: the job certifies the folder again, so a file edited
+    by hand would be certified; a lost one it writes again), and the search must accept the folder
+    (``search.run.refuse_search_clash``, the check ``run_search`` itself makes: a store
+    of a search with other settings, such as other environments or another vehicle file
+    of the same name, or of other input file contents, a damaged store, a symbolic
+    link), and no search may be writing it now (``search.run.exclusive_folder``).
+    ``InputError`` naming the file or ``--out``."""
+    if not folder.is_dir():
+        return  # a new folder: nothing to clash with
+    with exclusive_folder(folder):  # no search writing it now
+        refuse_if_changed(folder, (), lost_ok=True)
+        refuse_search_clash(prepared, folder, resume=True)
+
+
+def _run_job(
+    out: Path,
+    folder: Path,
+    ref: str,
+    system: System,
+    fams: list[str],
+    envs: list[str],
+    budget: int,
+    top: int,
+    seed: int,
+    seeds: int,
+    workers: int,
+) -> dict[str, Any]:
+    """The job's stages into ``folder`` (checked by ``run_default``, locked by it);
+    returns run info."""
+    # the job rewrites the whole folder and certifies it at the end: its earlier
+    # manifest would make the export refuse the job's own new search files as "changed
+    # by hand" (refuse_job_clash checked them before any stage wrote)
+    (folder / MANIFEST_NAME).unlink(missing_ok=True)
     clock = _Clock()
     print(f"{folder}: main job for {system.name} ({ref})")
 
@@ -245,6 +301,7 @@ def run_default(
             workers=workers,
             resume=True,
             seeds=seeds,
+            lock=False,  # the job holds the folder's lock
         )
 
     side_peak = 0.0

@@ -23,7 +23,7 @@ import sqlite3
 import tomllib
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager, suppress
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TextIO
 
@@ -81,10 +81,16 @@ def load_cases(path: Path = CASES_FILE) -> list[dict[str, Any]]:
     return cases
 
 
+#: Setup steps that work on the finished run although the argv does not name ``{run}``.
+RUN_SETUP_STEPS = ("export_into_out", "job_folder_from_run")
+
+
 def needs_run(case: dict[str, Any]) -> bool:
-    """Whether the case works on a copy of the finished run (``{run}`` in its argv, or a
-    setup step that exports it)."""
-    return any("{run}" in a for a in case["argv"]) or "export_into_out" in case.get("setup", [])
+    """Whether the case works on a copy of the finished run (``{run}`` in its argv or its
+    ``unchanged``, or a setup step that exports or copies it)."""
+    return any("{run}" in a for a in [*case["argv"], *case.get("unchanged", [])]) or any(
+        step in RUN_SETUP_STEPS for step in case.get("setup", [])
+    )
 
 
 def build_finished_run(out: Path, run_cli: RunCli) -> Path:
@@ -101,8 +107,9 @@ def build_finished_run(out: Path, run_cli: RunCli) -> Path:
 @dataclass
 class Prepared:
     """A case made ready to run: its argv (placeholders replaced), its folder ``{dir}``,
-    output path ``{out}`` and run copy ``{run}``, and the files below ``{out}`` before the
-    command runs."""
+    output path ``{out}`` and run copy ``{run}``, the files below ``{out}`` before the
+    command runs, whether ``{out}`` existed then, and the state (``tree_state``) of each
+    folder the case's ``unchanged`` names."""
 
     case: dict[str, Any]
     argv: list[str]
@@ -112,6 +119,8 @@ class Prepared:
     before: set[str]
     #: the case's ``env`` (variables set for the command), placeholders replaced
     env: dict[str, str]
+    out_existed: bool = False
+    unchanged: dict[str, dict[str, str]] = field(default_factory=dict)
 
 
 def prepare_case(
@@ -150,7 +159,14 @@ def prepare_case(
     argv = [sub(a) for a in case["argv"]]
     env = {name: sub(value) for name, value in case.get("env", {}).items()}
     _setup(case, argv, folder, out, run, run_cli)
-    return Prepared(case, argv, folder, out, run, files_below(out), env)
+    unchanged = {}
+    for name in case.get("unchanged", []):
+        if name not in ("{run}", "{out}"):
+            raise CaseError(f"{case['name']}: unchanged names {{run}} or {{out}}, got {name!r}")
+        unchanged[name] = tree_state(run if name == "{run}" else out)
+    return Prepared(
+        case, argv, folder, out, run, files_below(out), env, os.path.lexists(out), unchanged
+    )
 
 
 def fsize_limiter(case: dict[str, Any]) -> Callable[[], None] | None:
@@ -286,10 +302,38 @@ def outcome_problems(prepared: Prepared, code: int, err: str) -> list[str]:
         return [f"temporary files left: {tmp_files}"]
     if code == 2 and not after <= prepared.before:
         return [f"files written despite the error: {sorted(after - prepared.before)}"]
+    if code == 2 and not prepared.out_existed and os.path.lexists(prepared.out):
+        left = sorted(p.relative_to(prepared.out).as_posix() for p in prepared.out.rglob("*"))
+        return [f"{{out}} did not exist and was left behind, holding {left[:5]}"]
+    for name, state in prepared.unchanged.items():
+        now = tree_state(prepared.run if name == "{run}" else prepared.out)
+        if now != state:
+            diff = sorted(k for k in {*state, *now} if state.get(k) != now.get(k))
+            return [f"{name} changed: {diff[:5]}"]
     elsewhere = prepared.folder / "elsewhere"
     if elsewhere.is_dir() and files_below(elsewhere) != {"keep.xodr"}:
         return [f"the symbolic-linked folder changed: {sorted(files_below(elsewhere))}"]
     return []
+
+
+def tree_state(folder: Path) -> dict[str, str]:
+    """Every entry below ``folder`` (relative POSIX path): a file's SHA-256, ``dir`` for a
+    folder, ``link`` for a symbolic link (not followed); empty when ``folder`` does not
+    exist. Equal states: the folder was left exactly as it was."""
+    state: dict[str, str] = {}
+    if not folder.is_dir():
+        return state
+    for dirpath, dirnames, filenames in os.walk(folder):
+        for name in [*dirnames, *filenames]:
+            p = Path(dirpath) / name
+            rel = p.relative_to(folder).as_posix()
+            if p.is_symlink():
+                state[rel] = "link"
+            elif p.is_dir():
+                state[rel] = "dir"
+            else:
+                state[rel] = hashlib.sha256(p.read_bytes()).hexdigest()
+    return state
 
 
 def files_below(folder: Path) -> set[str]:
@@ -587,6 +631,15 @@ def _setup(
             (run / "ranking.json").write_text(json.dumps(data))
         elif step.startswith("coverage_map:"):  # {run}/coverage/car_clear, damaged
             _coverage_map(run / "coverage" / "car_clear", step.removeprefix("coverage_map:"))
+        elif step == "job_folder_from_run":  # {out}/system_b: a copy of {run}
+            shutil.copytree(run, out / "system_b", symlinks=True)
+        elif step == "path_max_out":  # {out} in argv: a folder path of 4,070 bytes
+            deep = out  # (PATH_MAX 4,096: its folders can be made, its files' names not)
+            while len(str(deep)) < 4066 - 251:
+                deep = deep / ("d" * 250)
+            if len(str(deep)) < 4065:
+                deep = deep / ("e" * (4065 - len(str(deep))))
+            argv[argv.index(str(out))] = str(deep / "out")
         elif step == "manifest_symlink":
             (folder / "manifest.json").symlink_to("/etc/hostname")
         else:

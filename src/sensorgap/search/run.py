@@ -26,7 +26,7 @@ from typing import Any
 
 from tqdm import tqdm
 
-from sensorgap.atomic import atomic_write_bytes, utf8
+from sensorgap.atomic import atomic_write_bytes, created_folders, remove_created_folders, utf8
 from sensorgap.errors import InputError
 from sensorgap.filesio import format_float, write_json
 from sensorgap.search.executors import make_executor
@@ -54,7 +54,7 @@ from sensorgap.search.settings import (
     prepare,
     vehicle_ref,
 )
-from sensorgap.search.store import Store
+from sensorgap.search.store import Store, check_store
 
 #: The ranking's leading metric columns (collision terms), in this order.
 HEAD_METRICS = (
@@ -312,7 +312,7 @@ def write_ranking(out: Path, p: Prepared, ranked: Ranked, summary: dict[str, Any
 
 
 @contextlib.contextmanager
-def _exclusive(out: Path) -> Iterator[None]:
+def exclusive_folder(out: Path) -> Iterator[None]:
     """Hold an exclusive lock on the folder ``out`` (``flock`` on the folder itself: no
     lock file is left in the run folder) while a search writes it; a second search into
     the same folder at the same time -> ``InputError`` (two searches storing into one
@@ -349,6 +349,53 @@ def _stored_count(db: Path) -> int:
     return int(row[0]) if row else 0
 
 
+def refuse_search_clash(p: Prepared, out: Path, resume: bool) -> None:
+    """Everything a search with the resolved settings ``p`` refuses about its folder
+    ``out`` before it stores anything, checked without writing: a file it writes (or its
+    journal, ``inputs/`` and its sub-folders) that is a symbolic link; without ``resume``
+    a folder that already holds stored candidates, or a finished run or catalog
+    (``EARLIER_RUN_FILES``); a ``search.sqlite`` that is damaged, holds a search with
+    other settings, or results for other input files (``store.check_store``: the checks
+    ``Store`` makes when it opens). ``InputError`` naming ``out`` or the file. Used by
+    ``run_search`` and, before any of its stages writes, by the main job
+    (``jobs.run_default``), so a job refused at its search has written nothing."""
+    db = out / "search.sqlite"
+    # what it writes, followed through a link, would land outside --out (SQLite opens
+    # the store and its journal through one; the inputs are copied into inputs/*/)
+    inputs = out / INPUTS_DIR
+    written = [out / w.rstrip("/") for w in SEARCH_WRITES] + [out / f"{db.name}-journal"]
+    if inputs.is_dir() and not inputs.is_symlink():
+        written += sorted(inputs.iterdir())
+    for path in written:
+        if path.is_symlink():
+            raise InputError(
+                "out",
+                "",
+                f"{path} is a symbolic link; a search writes only inside --out (remove the "
+                "link, or use another --out)",
+            )
+    if not out.is_dir():
+        return
+    n_stored = 0 if resume else _stored_count(db)
+    if n_stored:  # refused before the store is opened for writing (it would change)
+        raise InputError(
+            "out",
+            "",
+            f"{out} already holds a search ({n_stored} candidates "
+            "stored); add --resume to continue it, or use another --out",
+        )
+    earlier = next((n for n in EARLIER_RUN_FILES if (out / n).exists()), None)
+    if not resume and earlier is not None:  # its export and report would stay, stale
+        raise InputError(
+            "out",
+            "",
+            f"{out} holds an earlier run or catalog ({earlier}) without a stored "
+            "search; a new search would leave its scenarios and report beside the new "
+            "ranking: use another --out",
+        )
+    check_store(db, p.record, p.inputs)
+
+
 def run_search(
     vehicle: str | Path,
     families: list[str],
@@ -369,6 +416,7 @@ def run_search(
     executor: str = "local",
     scheduler: str | None = None,
     seeds: int = 1,
+    lock: bool = True,
 ) -> SearchOutcome:
     """Search, store every candidate, write the ranking; see the module docstring and
     ``SearchSettings`` for the arguments. ``workers``: threads per batch
@@ -377,7 +425,8 @@ def run_search(
     that many independent searches, each with its share; the ranking is over all of them,
     and each ranked row says how many of the searches found it on their own
     (``found_by_seeds``; ``summary.json`` ``stability``): the confidence a rerun with
-    another seed would find it too, at no extra cost.
+    another seed would find it too, at no extra cost. ``lock=False``: the caller holds
+    ``exclusive_folder(out)`` already (the main job, for all its stages).
     """
     p = prepare(
         SearchSettings(
@@ -400,41 +449,11 @@ def run_search(
         )
     )
     db = out / "search.sqlite"
-    # what it writes, followed through a link, would land outside --out (SQLite opens
-    # the store and its journal through one; the inputs are copied into inputs/*/)
-    inputs = out / INPUTS_DIR
-    written = [out / w.rstrip("/") for w in SEARCH_WRITES] + [out / f"{db.name}-journal"]
-    if inputs.is_dir() and not inputs.is_symlink():
-        written += sorted(inputs.iterdir())
-    for path in written:
-        if path.is_symlink():
-            raise InputError(
-                "out",
-                "",
-                f"{path} is a symbolic link; a search writes only inside --out (remove the "
-                "link, or use another --out)",
-            )
     new_db = not db.exists()
-    new_out = not out.exists()
+    created = created_folders(out)  # removed again if nothing can be stored
     out.mkdir(parents=True, exist_ok=True)
-    with _exclusive(out):
-        n_stored = 0 if resume else _stored_count(db)
-        if n_stored:  # refused before the store is opened for writing (it would change)
-            raise InputError(
-                "out",
-                "",
-                f"{out} already holds a search ({n_stored} candidates "
-                "stored); add --resume to continue it, or use another --out",
-            )
-        earlier = next((n for n in EARLIER_RUN_FILES if (out / n).exists()), None)
-        if not resume and earlier is not None:  # its export and report would stay, stale
-            raise InputError(
-                "out",
-                "",
-                f"{out} holds an earlier run or catalog ({earlier}) without a stored "
-                "search; a new search would leave its scenarios and report beside the new "
-                "ranking: use another --out",
-            )
+    with exclusive_folder(out) if lock else contextlib.nullcontext():
+        refuse_search_clash(p, out, resume)
         try:
             store = Store(db, p.record, p.inputs)
         except InputError:
@@ -443,9 +462,7 @@ def run_search(
             if new_db:
                 for leftover in (db, db.with_name(db.name + "-journal")):
                     leftover.unlink(missing_ok=True)
-            if new_out:
-                with contextlib.suppress(OSError):
-                    out.rmdir()
+            remove_created_folders(created)
             raise
         if store.count() and not resume:
             n = store.count()
@@ -463,9 +480,7 @@ def run_search(
             store.close()
             if new_db:  # nothing was stored: leave no empty database behind
                 db.unlink(missing_ok=True)
-            if new_out:  # nor an empty folder this search created
-                with contextlib.suppress(OSError):
-                    out.rmdir()
+            remove_created_folders(created)  # nor a folder this search created
             raise
         # the run folder keeps its inputs: copies under inputs/, paths and SHA-256 in run.json
         write_search_record(

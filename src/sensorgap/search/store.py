@@ -121,6 +121,85 @@ def _unusable(path: Path, exc: sqlite3.Error) -> InputError | None:
     return None
 
 
+def _refuse_other_search(
+    db: sqlite3.Connection, path: Path, settings: dict[str, Any], inputs: dict[str, str]
+) -> int:
+    """What a search store at ``path`` (open as ``db``, read-only or not) refuses before
+    anything is stored into it: a damaged file (integrity check), a table of another
+    layout, a search with other ``settings``, or stored results for other ``inputs``
+    (content digests by name) -> ``InputError`` naming the file; an
+    ``sqlite3.DatabaseError`` for a file SQLite cannot read. Returns the number of stored
+    candidates (0: no tables yet). The one check behind ``Store`` and ``check_store``."""
+    check = db.execute("PRAGMA quick_check").fetchone()
+    if not check or check[0] != "ok":
+        raise _damaged(path, f"integrity check: {check[0] if check else 'failed'}")
+    tables = {r[0] for r in db.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
+    for table, cols in COLUMNS.items():
+        have = [r[1] for r in db.execute(f"PRAGMA table_info({table})")]
+        if table in tables and have != cols:
+            raise _damaged(path, f"table {table} has columns {', '.join(have)}")
+    count = (
+        int(db.execute("SELECT COUNT(*) FROM candidates").fetchone()[0])
+        if "candidates" in tables
+        else 0
+    )
+    meta = (
+        dict(db.execute("SELECT key, value FROM meta WHERE key IN ('settings', 'inputs')"))
+        if "meta" in tables
+        else {}
+    )
+    if "settings" in meta and meta["settings"] != json.dumps(settings, sort_keys=True):
+        raise InputError(
+            "out",
+            "",
+            f"{path} holds a search with different settings; "
+            "use another --out folder (or delete it) to start a new search",
+        )
+    old: Any = None
+    if "inputs" in meta:
+        try:
+            old = json.loads(meta["inputs"])
+        except (TypeError, ValueError, RecursionError):
+            raise _damaged(path, "meta row 'inputs' is not JSON") from None
+    if old != inputs and count:
+        changed = sorted(
+            k
+            for k in {*inputs, *(old if isinstance(old, dict) else {})}
+            if not isinstance(old, dict) or old.get(k) != inputs.get(k)
+        )
+        raise InputError(
+            "out",
+            "",
+            f"{path} holds results for other input files "
+            f"(changed since they were stored: {', '.join(changed)}); "
+            "use another --out folder (or delete it) to start a new search",
+        )
+    return count
+
+
+def check_store(path: Path, settings: dict[str, Any], inputs: dict[str, str]) -> int:
+    """Whether ``Store(path, settings, inputs)`` would open, checked without writing (the
+    file opened read-only; nothing is created): the same refusals (``InputError`` naming
+    the file: damaged, another layout, other settings, results of other input files), so
+    a job that writes other files before its search can refuse up front. Returns the
+    number of stored candidates (0: no store, or an empty file)."""
+    try:
+        if not path.is_file() or path.stat().st_size == 0:
+            return 0
+    except OSError as exc:
+        raise InputError(path, "", f"cannot read: {exc.strerror}") from None
+    try:
+        db = sqlite3.connect(f"{path.resolve().as_uri()}?mode=ro", uri=True)
+    except sqlite3.Error as exc:
+        raise InputError(path, "", f"cannot open: {exc}") from None
+    try:
+        return _refuse_other_search(db, path, settings, inputs)
+    except sqlite3.DatabaseError as exc:
+        raise _damaged(path, exc) from None
+    finally:
+        db.close()
+
+
 class Store:
     """The run's SQLite file.
 
@@ -145,7 +224,7 @@ class Store:
         except sqlite3.Error as exc:
             raise InputError(path, "", f"cannot open: {exc}") from None
         try:
-            self._open(settings, inputs or {}, existed)
+            self._open(settings, inputs or {})
         except sqlite3.DatabaseError as exc:
             self.db.close()
             if isinstance(exc, sqlite3.OperationalError) and not existed:
@@ -155,47 +234,14 @@ class Store:
             self.db.close()
             raise
 
-    def _open(self, settings: dict[str, Any], inputs: dict[str, str], existed: bool) -> None:
-        path = self.path
-        if existed:
-            check = self.db.execute("PRAGMA quick_check").fetchone()
-            if not check or check[0] != "ok":
-                raise _damaged(path, f"integrity check: {check[0] if check else 'failed'}")
+    def _open(self, settings: dict[str, Any], inputs: dict[str, str]) -> None:
+        # the same refusals a check without writing makes (``check_store``)
+        _refuse_other_search(self.db, self.path, settings, inputs)
         self.db.executescript(SCHEMA)
-        for table, cols in COLUMNS.items():
-            have = [r[1] for r in self.db.execute(f"PRAGMA table_info({table})")]
-            if have != cols:
-                raise _damaged(path, f"table {table} has columns {', '.join(have)}")
-        text = json.dumps(settings, sort_keys=True)
         row = self.db.execute("SELECT value FROM meta WHERE key = 'settings'").fetchone()
         if row is None:
-            self.db.execute("INSERT INTO meta VALUES ('settings', ?)", (text,))
-        elif row[0] != text:
-            raise InputError(
-                "out",
-                "",
-                f"{path} holds a search with different settings; "
-                "use another --out folder (or delete it) to start a new search",
-            )
-        stored = self.db.execute("SELECT value FROM meta WHERE key = 'inputs'").fetchone()
-        old: Any = None
-        if stored is not None:
-            try:
-                old = json.loads(stored[0])
-            except (TypeError, ValueError, RecursionError):
-                raise _damaged(path, "meta row 'inputs' is not JSON") from None
-        if old != inputs and self.count():
-            changed = sorted(
-                k
-                for k in {*inputs, *(old if isinstance(old, dict) else {})}
-                if not isinstance(old, dict) or old.get(k) != inputs.get(k)
-            )
-            raise InputError(
-                "out",
-                "",
-                f"{path} holds results for other input files "
-                f"(changed since they were stored: {', '.join(changed)}); "
-                "use another --out folder (or delete it) to start a new search",
+            self.db.execute(
+                "INSERT INTO meta VALUES ('settings', ?)", (json.dumps(settings, sort_keys=True),)
             )
         self.db.execute(
             "INSERT OR REPLACE INTO meta VALUES ('inputs', ?)",

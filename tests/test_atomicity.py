@@ -1,0 +1,335 @@
+"""Hostile round ten: a command that fails leaves its folder as it was.
+
+``atomic.removed_on_error`` puts an existing folder back (files replaced, deleted or
+changed in place, folders removed) and removes what a failed command made, parents of its
+``--out`` included; ``report --run`` failing after it wrote its files leaves the run
+verifying; an export that changes the scenario files removes the report describing the
+previous ones; ``run`` refuses a clash with the run folder's search before any stage
+writes, and a job that fails over an earlier run leaves it as it was. (The one-line cases
+are in the bad-input corpus, ``# round 10``.)"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from contextlib import nullcontext
+from pathlib import Path
+
+import pytest
+
+import sensorgap
+from sensorgap.atomic import RESTORE_PREFIX, atomic_write_text, removed_on_error
+from sensorgap.cli import main
+from sensorgap.config.presets import templates_dir
+from sensorgap.filesio import read_manifest, verify_manifest, write_manifest
+from sensorgap.search.run import exclusive_folder
+from tests.bad_inputs.harness import tree_state
+
+SRC = str(Path(sensorgap.__file__).resolve().parents[1])
+
+
+# -- removed_on_error ------------------------------------------------------------------
+
+
+def _folder(root: Path) -> Path:
+    (root / "sub").mkdir(parents=True)
+    (root / "a.txt").write_text("a")
+    (root / "sub" / "b.txt").write_text("b")
+    (root / "gone").mkdir()
+    (root / "gone" / "c.txt").write_text("c")
+    (root / "empty").mkdir()
+    (root / "store.sqlite").write_bytes(b"stored")
+    return root
+
+
+@pytest.mark.parametrize("stop", [OSError, KeyboardInterrupt])
+def test_a_failed_block_puts_an_existing_folder_back(
+    tmp_path: Path, stop: type[BaseException]
+) -> None:
+    """Files replaced (renamed onto), deleted or changed in place, folders removed and
+    made, a manifest written: after an error or an interrupt the folder is exactly as it
+    was, and the restore folder is gone (never listed by the manifest written inside)."""
+    root = _folder(tmp_path / "run")
+    before = tree_state(root)
+    with pytest.raises(stop), removed_on_error(root, copies=("store.sqlite",)):
+        atomic_write_text(root / "a.txt", "new a")
+        (root / "sub" / "b.txt").unlink()
+        shutil.rmtree(root / "gone")
+        (root / "empty").rmdir()
+        atomic_write_text(root / "new" / "deeper" / "d.txt", "d")
+        with open(root / "store.sqlite", "r+b") as fh:  # as SQLite does: in place
+            fh.write(b"STORED")
+        assert [p.name for p in root.iterdir() if p.name.startswith(RESTORE_PREFIX)]
+        write_manifest(root)
+        assert not [rel for rel in read_manifest(root) if RESTORE_PREFIX in rel]
+        raise stop()
+    assert tree_state(root) == before
+
+
+def test_a_successful_block_keeps_its_changes_and_no_restore_folder(tmp_path: Path) -> None:
+    root = _folder(tmp_path / "run")
+    with removed_on_error(root, copies=("store.sqlite",)):
+        atomic_write_text(root / "a.txt", "new a")
+        (root / "sub" / "b.txt").unlink()
+    assert (root / "a.txt").read_text() == "new a" and not (root / "sub" / "b.txt").exists()
+    assert not [p for p in root.iterdir() if p.name.startswith(RESTORE_PREFIX)]
+
+
+def test_a_failed_block_removes_only_the_folders_it_made(tmp_path: Path) -> None:
+    """--out a/b/c/out whose b, c and out did not exist: b, c and out removed again; a
+    and what it held stay."""
+    (tmp_path / "a").mkdir()
+    (tmp_path / "a" / "keep.txt").write_text("mine")
+    out = tmp_path / "a" / "b" / "c" / "out"
+    with pytest.raises(OSError), removed_on_error(out):
+        atomic_write_text(out / "x.txt", "x")
+        raise OSError(28, "No space left on device")
+    assert sorted(p.name for p in (tmp_path / "a").iterdir()) == ["keep.txt"]
+
+
+def test_only_the_named_files_are_kept_and_removed(tmp_path: Path) -> None:
+    """``only`` (evaluate, probe into a user's folder): the other files there are neither
+    linked nor touched; a new file of the block removed, a replaced one put back."""
+    (tmp_path / "mine.txt").write_text("mine")
+    (tmp_path / "trace.csv").write_text("old trace")
+    before = tree_state(tmp_path)
+    with (
+        pytest.raises(OSError),
+        removed_on_error(tmp_path, only=("evaluation.json", "trace.csv")),
+    ):
+        atomic_write_text(tmp_path / "trace.csv", "new trace")
+        atomic_write_text(tmp_path / "evaluation.json", "{}")
+        assert [p for p in tmp_path.iterdir() if p.name.startswith(RESTORE_PREFIX)]
+        assert os.stat(tmp_path / "mine.txt").st_nlink == 1  # not linked: not kept
+        raise OSError(28, "No space left on device")
+    assert tree_state(tmp_path) == before
+
+
+def test_a_killed_commands_restore_folder_is_reported_then_removed(tmp_path: Path) -> None:
+    """A restore folder left by a command killed with SIGKILL: verify names it as a
+    left-over temporary; the next manifest written removes it (not one in use)."""
+    root = tmp_path / "run"
+    root.mkdir()
+    (root / "a.txt").write_text("a")
+    write_manifest(root)
+    left = root / f"{RESTORE_PREFIX}abcd1234.tmp"
+    left.mkdir()
+    os.link(root / "a.txt", left / "0")
+    problems = verify_manifest(root)
+    assert len(problems) == 1 and "left-over temporary" in problems[0], problems
+    write_manifest(root)
+    assert not left.exists() and verify_manifest(root) == []
+
+
+# -- report and export of a finished run -----------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def reported_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A small search of System B, exported and reported (OpenSCENARIO 1.2, maneuver)."""
+    run = tmp_path_factory.mktemp("reported") / "run"
+    argv = ["search", "--vehicle", "system_b", "--families", "slow_ahead_curve"]
+    argv += ["--environments", "snow", "--budget", "30", "--top", "2", "--out", str(run)]
+    assert main(argv) == 0
+    assert main(["export", "--run", str(run)]) == 0
+    assert main(["report", "--run", str(run)]) == 0
+    assert main(["verify", str(run)]) == 0
+    return run
+
+
+@pytest.mark.parametrize("fails", ["manifest", "report.md"])
+def test_a_report_failing_after_its_files_were_written_leaves_the_run_verifying(
+    reported_run: Path,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+    fails: str,
+) -> None:
+    """Hostile round ten: ``report --run`` with a run file it cannot read (chmod 000
+    scenarios/ as a user) failed while hashing the folder for its manifest, after
+    report.html and report.md had been replaced: verify failed. Likewise a write failing
+    between report.html and report.md. Now the earlier report is back in place."""
+    import sensorgap.cli as cli
+    import sensorgap.report.build as build
+
+    run = tmp_path / "run"
+    shutil.copytree(reported_run, run)
+    before = tree_state(run)
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", "0")  # the new report differs from the old
+    if fails == "manifest":
+
+        def unreadable(folder: str | Path, *_: object) -> Path:
+            raise PermissionError(13, "Permission denied", str(Path(folder) / "scenarios"))
+
+        monkeypatch.setattr(cli, "write_manifest", unreadable)
+    else:
+        write = build.atomic_write_text
+
+        def full(path: str | Path, text: str) -> Path:
+            if Path(path).name == fails:
+                raise OSError(28, "No space left on device", str(path))
+            return write(path, text)
+
+        monkeypatch.setattr(build, "atomic_write_text", full)
+    capsys.readouterr()
+    assert main(["report", "--run", str(run)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "cannot write or read" in err[0], err
+    monkeypatch.undo()
+    assert tree_state(run) == before
+    assert main(["verify", str(run)]) == 0
+
+
+def test_an_export_that_changes_the_scenario_files_removes_the_stale_report(
+    reported_run: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Hostile round ten: ``export --osc-version 1.0 --style replay`` over an exported and
+    reported run kept report.html/report.md ("OpenSCENARIO 1.2"), certified. An export
+    that changes any scenario file's bytes (or catalog.json) now removes the report, as
+    one changing the set of files did; an export giving the same files keeps it."""
+    run = tmp_path / "run"
+    shutil.copytree(reported_run, run)
+    assert "OpenSCENARIO 1.2" in (run / "report.md").read_text(encoding="utf-8")
+    capsys.readouterr()
+    argv = ["export", "--run", str(run), "--osc-version", "1.0", "--style", "replay"]
+    assert main(argv) == 0
+    assert "the export changed the scenario files: removed" in capsys.readouterr().out
+    for name in ("report.html", "report.md", "report"):
+        assert not (run / name).exists(), name
+    assert main(["verify", str(run)]) == 0
+    assert main(["report", "--run", str(run)]) == 0
+    assert "OpenSCENARIO 1.0" in (run / "report.md").read_text(encoding="utf-8")
+    capsys.readouterr()
+    assert main(argv) == 0  # the same files again: the report stays
+    assert "removed" not in capsys.readouterr().out
+    assert (run / "report.html").is_file() and main(["verify", str(run)]) == 0
+
+
+# -- the main job over an earlier run --------------------------------------------------
+
+JOB = ["--budget", "60", "--seeds", "1", "--families", "slow_ahead_curve", "--workers", "1"]
+
+
+def _job_argv(vehicle: Path | str, out: Path, *more: str, env: str = "clear") -> list[str]:
+    return ["run", "--vehicle", str(vehicle), "--out", str(out), *JOB, "--environments", env, *more]
+
+
+@pytest.fixture(scope="module")
+def job(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    """(a finished small job's --out, the vehicle file it ran: System B's preset copied
+    to ``system_b.toml``)."""
+    base = tmp_path_factory.mktemp("job")
+    vehicle = base / "vehicle" / "system_b.toml"
+    vehicle.parent.mkdir()
+    shutil.copyfile(templates_dir() / "vehicles" / "system_b.toml", vehicle)
+    out = base / "out"
+    assert main(_job_argv(vehicle, out)) == 0
+    assert main(["verify", str(out / "system_b")]) == 0
+    return out, vehicle
+
+
+def _rear_only(path: Path) -> Path:
+    """A vehicle file named like System B's with only rear-facing sensors kept."""
+    import re
+
+    text = (templates_dir() / "vehicles" / "system_b.toml").read_text(encoding="utf-8")
+    blocks = re.split(r"(?m)^(?=\[\[sensors\]\])", text)
+    rear = [b for b in blocks[1:] if re.search(r"(?m)^yaw_deg = (1[0-9]{2}|-1[0-9]{2})", b)]
+    assert rear, "System B has rear-facing sensors"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(blocks[0] + "".join(rear), encoding="utf-8")
+    return path
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    "clash", ["environments", "same_name_other_file", "vehicle_edited", "search_running"]
+)
+def test_run_refuses_a_clash_with_the_earlier_search_before_any_work(
+    job: tuple[Path, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str], clash: str
+) -> None:
+    """Hostile round ten: ``run`` into an earlier run with other environments (or
+    another vehicle file of the same stem, or the same vehicle file edited) wrote the
+    coverage, near and far field into the certified run before its search refused the
+    store: verify failed and the original command was refused too. Now refused before
+    any stage writes: one line, exit 2, the folder byte for byte as it was. So is a job
+    into a folder a search is writing now (its lock held)."""
+    src, vehicle = job
+    out = tmp_path / "out"
+    shutil.copytree(src, out)
+    before = tree_state(out)
+    text = vehicle.read_text(encoding="utf-8")
+    try:
+        if clash == "environments":
+            argv, why = _job_argv(vehicle, out, env="fog_50"), "holds a search with different"
+        elif clash == "same_name_other_file":
+            other = _rear_only(tmp_path / "alt" / "system_b.toml")
+            argv, why = _job_argv(other, out), "holds a search with different settings"
+        elif clash == "vehicle_edited":
+            vehicle.write_text(text + "\n# edited\n", encoding="utf-8")
+            argv, why = _job_argv(vehicle, out), "holds results for other input files"
+        else:
+            argv, why = _job_argv(vehicle, out), "another search is writing to"
+        capsys.readouterr()
+        with exclusive_folder(out / "system_b") if clash == "search_running" else nullcontext():
+            assert main(argv) == 2
+    finally:
+        vehicle.write_text(text, encoding="utf-8")
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and why in err[0] and "system_b" in err[0], err
+    assert tree_state(out) == before
+    assert main(["verify", str(out)]) == 0 and main(["verify", str(out / "system_b")]) == 0
+
+
+@pytest.mark.slow
+def test_run_again_with_a_larger_budget_continues_the_earlier_run(
+    job: tuple[Path, Path], tmp_path: Path
+) -> None:
+    """The same job with a larger budget resumes the earlier search and certifies the
+    folder again (it was refused at its export: the job's own new ranking counted as
+    "changed by hand" against the earlier manifest)."""
+    src, vehicle = job
+    out = tmp_path / "out"
+    shutil.copytree(src, out)
+    argv = _job_argv(vehicle, out)
+    argv[argv.index("60")] = "90"
+    assert main(argv) == 0
+    assert main(["verify", str(out)]) == 0 and main(["verify", str(out / "system_b")]) == 0
+    assert not [p for p in out.iterdir() if p.name.startswith(RESTORE_PREFIX)]
+
+
+@pytest.mark.slow
+def test_a_job_failing_over_an_earlier_run_leaves_it_as_it_was(
+    job: tuple[Path, Path], tmp_path: Path
+) -> None:
+    """A full disk (RLIMIT_FSIZE) during a job with a larger budget over an earlier run:
+    its search stored more candidates (in place) and rewrote the ranking and run.json
+    before the coverage stage beside it failed. Now everything is put back, the search
+    store included, and both folders verify."""
+    import resource
+
+    src, vehicle = job
+    out = tmp_path / "out"
+    shutil.copytree(src, out)
+    before = tree_state(out)
+    argv = _job_argv(vehicle, out)
+    argv[argv.index("60")] = "90"
+    argv[argv.index("--workers") + 1] = "2"  # the coverage in a second process fails
+
+    def cap() -> None:
+        resource.setrlimit(resource.RLIMIT_FSIZE, (700_000, 700_000))
+
+    proc = subprocess.run(
+        [sys.executable, "-m", "sensorgap", *argv],
+        capture_output=True,
+        env={**os.environ, "PYTHONPATH": SRC},
+        preexec_fn=cap,
+        timeout=300,
+        check=False,
+    )
+    err = proc.stderr.decode("utf-8", "replace").strip().splitlines()
+    assert proc.returncode == 2 and len(err) == 1 and "File too large" in err[0], err
+    assert tree_state(out) == before
+    assert main(["verify", str(out)]) == 0 and main(["verify", str(out / "system_b")]) == 0
