@@ -242,7 +242,25 @@ def _restore(
     the ``keep`` folder removed. Best effort: a step that fails is skipped. Ctrl-C and
     SIGTERM wait until it is done (blocked, then delivered)."""
     with _signals_held():
-        _put_back(root, files, dirs, keep, saved, only)
+        now_files, now_dirs = _entries(root, only)
+        skip = None if keep is None else keep.name
+        for rel in sorted(now_files - files, key=len, reverse=True):
+            if skip is not None and rel.split(os.sep, 1)[0] == skip:
+                continue
+            with suppress(OSError):
+                (root / rel).unlink()
+        for rel in sorted(now_dirs - dirs, key=lambda r: r.count(os.sep), reverse=True):
+            if skip is not None and rel.split(os.sep, 1)[0] == skip:
+                continue
+            with suppress(OSError):
+                shutil.rmtree(root / rel)
+        for rel in sorted(dirs, key=lambda r: r.count(os.sep)):
+            with suppress(OSError):
+                (root / rel).mkdir(parents=True, exist_ok=True)
+        for rel, kept in saved.items():
+            with suppress(OSError):
+                os.replace(kept, root / rel)
+        _drop(keep)
 
 
 @contextmanager
@@ -258,35 +276,6 @@ def _signals_held() -> Iterator[None]:
         yield
     finally:
         signal.pthread_sigmask(signal.SIG_SETMASK, old)
-
-
-def _put_back(
-    root: Path,
-    files: set[str],
-    dirs: set[str],
-    keep: Path | None,
-    saved: dict[str, Path],
-    only: tuple[str, ...] | None,
-) -> None:
-    now_files, now_dirs = _entries(root, only)
-    skip = None if keep is None else keep.name
-    for rel in sorted(now_files - files, key=len, reverse=True):
-        if skip is not None and rel.split(os.sep, 1)[0] == skip:
-            continue
-        with suppress(OSError):
-            (root / rel).unlink()
-    for rel in sorted(now_dirs - dirs, key=lambda r: r.count(os.sep), reverse=True):
-        if skip is not None and rel.split(os.sep, 1)[0] == skip:
-            continue
-        with suppress(OSError):
-            shutil.rmtree(root / rel)
-    for rel in sorted(dirs, key=lambda r: r.count(os.sep)):
-        with suppress(OSError):
-            (root / rel).mkdir(parents=True, exist_ok=True)
-    for rel, kept in saved.items():
-        with suppress(OSError):
-            os.replace(kept, root / rel)
-    _drop(keep)
 
 
 def _drop(keep: Path | None) -> None:
