@@ -23,6 +23,9 @@ from sensorgap.filesio import write_json
 #: Latest ``SOURCE_DATE_EPOCH`` accepted, seconds: 9999-12-31T23:59:59Z (the last second
 #: an ISO 8601 date of four digits, and Python's ``datetime``, can hold).
 MAX_SOURCE_DATE_EPOCH = 253_402_300_799
+#: Longest ``SOURCE_DATE_EPOCH`` accepted, characters (leading zeros count: ``int`` refuses
+#: a string of more than 4,300 digits).
+MAX_SOURCE_DATE_EPOCH_CHARS = 20
 
 #: Distributions whose versions a run records.
 PACKAGES = (
@@ -77,14 +80,16 @@ def source_date_epoch() -> int | None:
     1970-01-01T00:00:00Z) as an integer, None when it is not set. Only ASCII digits
     within 0 .. ``MAX_SOURCE_DATE_EPOCH`` are accepted: anything else (empty, a sign,
     spaces, '²' or full-width digits, which ``str.isdigit`` takes; a value past the year
-    9999, which overflowed) raises ``InputError`` naming the variable. numpy's f2py reads
+    9999, which overflowed; more than ``MAX_SOURCE_DATE_EPOCH_CHARS`` characters, leading
+    zeros included, which ``int`` refuses past 4,300 digits) raises ``InputError`` naming
+    the variable. numpy's f2py reads
     the variable too when numba imports it (``int(...)``, ``time.gmtime``): the CLI checks
     it before any command starts (``cli.main``)."""
     text = os.environ.get("SOURCE_DATE_EPOCH")
     if text is None:
         return None
     digits = text.isascii() and text.isdigit()
-    if not digits or len(text.lstrip("0")) > 12 or int(text) > MAX_SOURCE_DATE_EPOCH:
+    if not digits or len(text) > MAX_SOURCE_DATE_EPOCH_CHARS or int(text) > MAX_SOURCE_DATE_EPOCH:
         raise InputError(
             "SOURCE_DATE_EPOCH",
             "",

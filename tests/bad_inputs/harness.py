@@ -149,6 +149,7 @@ def prepare_case(
         "{templates}": str(REPO / "templates"),
         "{roads}": str(REPO / "roads"),
         "{long}": "a" * LONG_VALUE_CHARS,
+        "{zeros}": "0" * 5000,
     }
 
     def sub(text: str) -> str:
