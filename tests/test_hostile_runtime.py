@@ -1029,8 +1029,31 @@ def test_every_quoted_or_named_value_in_an_error_line_is_cut() -> None:
     line = InputError(f"/x/{long}.toml", "", f"got {long!r} and {'b' * 300 + ' c'!r}").line()
     assert len(line) < 500 and "(100008 characters)" in line and line.count("...") == 3
     assert line.endswith(
-        "'bbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbb... (304 characters)"
+        "'bbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbb... (302 characters)"
     )
     text = "the table's key 'clear' (or be left out), got 'fog_50'; the vehicle's file"
     assert clip(text) == text
-    assert clip(f"it's {long!r}") == f"it's {repr(long)[:60]}... (100002 characters)"
+    assert clip(f"it's {long!r}") == f"it's {repr(long)[:60]}... (100000 characters)"
+
+
+def test_error_lines_escape_control_and_bidi_characters_and_count_the_users_characters() -> None:
+    """Hostile round 11 (F8): an ESC, another C0/C1 control or a bidirectional or format
+    character (U+200E/F, U+202A-202E, U+2066-2069) in a file name, a folder or a TOML key
+    named without quotes reached the error line raw (``verify $'x\\e[2Jy'`` cleared the
+    screen). Every unprintable character is now escaped as repr does, in ``errors.clip``,
+    and a cut value's length counts the user's characters, not their escapes (40,000 times
+    U+202E was '(240002 characters)')."""
+    from sensorgap.errors import clip
+
+    bad = "\x1b\x07\x00\x7f\x9b\u200e\u200f\u202a\u202e\u2066\u2069\ufeff\udcff"
+    line = InputError(f"/t/{bad}.toml", f"devices.{bad}.type", f"got {bad!r}").line()
+    assert line.isprintable() and line.isascii()
+    escaped = r"\x1b\x07\x00\x7f\x9b\u200e\u200f\u202a\u202e\u2066\u2069\ufeff\udcff"
+    assert line == f"/t/{escaped}.toml: devices.{escaped}.type: got '{escaped}'"
+    assert clip("x\x1b[2Jy z: folder does not exist") == r"x\x1b[2Jy z: folder does not exist"
+    assert clip(clip(line)) == line  # escaping twice changes nothing
+    rlo = "\u202e" * 40_000
+    assert clip(f"got {rlo!r}").endswith("\\u202e... (40000 characters)")
+    assert clip(f"got {'5' * 100_000!r}").endswith("... (100000 characters)")
+    named = clip("/x/" + "\x1b" * 1000 + " rest")
+    assert named.endswith(r"\x1b (1003 characters) rest") and len(named) < 300

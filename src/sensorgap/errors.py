@@ -21,32 +21,69 @@ MAX_NAMED_CHARS = 200
 # inside a word ("the table's key")
 _QUOTED = re.compile(r"""(?<![\w'"\\])('(?:[^'\\\n]|\\.)*'|"(?:[^"\\\n]|\\.)*")(?!\w)""")
 _LONG_RUN = re.compile(rf"\S{{{MAX_NAMED_CHARS + 1},}}")
+# one character of an escaped text: an escape (repr's or ``escape_unprintable``'s) or a
+# plain character
+_CHAR = re.compile(r"\\(?:x[0-9a-fA-F]{2}|u[0-9a-fA-F]{4}|U[0-9a-fA-F]{8}|.)|.", re.DOTALL)
+
+
+def escape_unprintable(text: str) -> str:
+    """``text`` with every character ``str.isprintable`` refuses written as ``\\xNN``,
+    ``\\uNNNN`` or ``\\UNNNNNNNN`` (as ``repr`` does): control characters (ESC, which
+    lets a file name clear a terminal), bidirectional and other format characters (U+202E
+    turns the rest of a line around), separators and undecodable bytes (surrogates)."""
+    if text.isprintable():
+        return text
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
+
+
+def _chars(text: str) -> list[str]:
+    """``text`` (escaped) split into the characters it stands for: an escape is one."""
+    return _CHAR.findall(text)
+
+
+def _head(chars: list[str], width: int) -> list[str]:
+    """The first of ``chars`` that fit in ``width`` characters of text (an escape whole)."""
+    used = 0
+    for n, c in enumerate(chars):
+        used += len(c)
+        if used > width:
+            return chars[:n]
+    return chars
 
 
 def cut_quoted(text: str) -> str:
-    """``text`` (a quoted value) cut to ``MAX_QUOTED_CHARS`` characters, saying how long
-    it was."""
+    """``text`` (a quoted value) cut to ``MAX_QUOTED_CHARS`` characters, saying how many
+    characters the value has (an escape such as ``\\u202e`` is one, the quotes none)."""
     if len(text) <= MAX_QUOTED_CHARS:
         return text
-    return f"{text[: MAX_QUOTED_CHARS - 20]}... ({len(text)} characters)"
+    chars = _chars(text[1:-1])
+    head = "".join(_head(chars, MAX_QUOTED_CHARS - 21))
+    return f"{text[0]}{head}... ({len(chars)} characters)"
 
 
 def cut_name(text: str) -> str:
-    """``text`` (a path or another name) cut to about ``MAX_NAMED_CHARS`` characters: its
-    start and its end (a file's name) kept, saying how long it was."""
+    """``text`` (a path or another name) with unprintable characters escaped
+    (``escape_unprintable``), cut to about ``MAX_NAMED_CHARS`` characters: its start and
+    its end (a file's name) kept, saying how many characters it has (an escape is one)."""
+    text = escape_unprintable(text)
     if len(text) <= MAX_NAMED_CHARS:
         return text
     keep = (MAX_NAMED_CHARS - 30) // 2
-    return f"{text[:keep]}...{text[-keep:]} ({len(text)} characters)"
+    chars = _chars(text)
+    head = "".join(_head(chars, keep))
+    tail = "".join(_head(chars[::-1], keep)[::-1])
+    return f"{head}...{tail} ({len(chars)} characters)"
 
 
 def clip(text: str) -> str:
-    """One error line's text with every user value short: each quoted value cut to
-    ``MAX_QUOTED_CHARS`` (``cut_quoted``), then each run of more than ``MAX_NAMED_CHARS``
-    characters without a space (a path, an option's value) cut as ``cut_name`` does. The
-    one place that keeps a 100 kB option value out of an error line, whatever message
-    quoted it."""
-    text = _QUOTED.sub(lambda m: cut_quoted(m.group(0)), text)
+    """One error line's text made safe to print: every unprintable character escaped
+    (``escape_unprintable``: no terminal control or bidirectional override reaches the
+    terminal), each quoted value cut to ``MAX_QUOTED_CHARS`` (``cut_quoted``), then each
+    run of more than ``MAX_NAMED_CHARS`` characters without a space (a path, an option's
+    value) cut as ``cut_name`` does. The one place every error line passes: it keeps a
+    100 kB option value and a file name's escape sequences out of an error line, whatever
+    message quoted or named them."""
+    text = _QUOTED.sub(lambda m: cut_quoted(m.group(0)), escape_unprintable(text))
     return _LONG_RUN.sub(lambda m: cut_name(m.group(0)), text)
 
 
@@ -75,13 +112,14 @@ class InputError(Exception):
 
     def line(self) -> str:
         """The single line of this error (the first, when there are several)."""
-        parts = [cut_name(self.source)]
+        parts = [self.source]
         if self.field:
             parts.append(self.field)
         parts.append(self.message)
-        # every line break Python knows (\r, \u2028, ...), not only \n: one line; every
-        # value quoted or named cut short (``clip``)
-        return ": ".join(clip(" ".join(p.splitlines())) for p in parts)
+        # every line break Python knows (\r, \u2028, ...), not only \n: a space (one
+        # line); then every value quoted or named cut short and escaped (``clip``)
+        parts = [" ".join(p.splitlines()) for p in parts]
+        return ": ".join([cut_name(parts[0]), *(clip(p) for p in parts[1:])])
 
     def lines(self) -> list[str]:
         """Every error found: this one, then the others, one line each."""

@@ -47,7 +47,7 @@ from sensorgap.config.reaction import (
     load_reaction,
     reactions_path,
 )
-from sensorgap.errors import InputError
+from sensorgap.errors import InputError, clip
 from sensorgap.filesio import loads_json, write_json
 from sensorgap.models import System, load_system
 from sensorgap.provenance import sha256_of, versions
@@ -92,10 +92,10 @@ _SAID: set[str] = set()
 
 
 def say(text: str) -> None:
-    """One line on stderr, once per process."""
+    """One line on stderr, once per process (made safe and short by ``errors.clip``)."""
     if text not in _SAID:
         _SAID.add(text)
-        print(f"sensorgap: {text}", file=sys.stderr)
+        print(clip(f"sensorgap: {text}"), file=sys.stderr)
 
 
 # -- recording -------------------------------------------------------------------------
