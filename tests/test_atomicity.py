@@ -182,6 +182,43 @@ def test_a_report_failing_after_its_files_were_written_leaves_the_run_verifying(
     assert main(["verify", str(run)]) == 0
 
 
+def test_a_failed_restore_copy_names_the_file_being_kept(
+    reported_run: Path,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """Hostile round 11 (F10): the restore copy of a file (search.sqlite, or every file
+    where hard links fail) running out of room named the hidden copy,
+    ``run/.sensorgap-restore.rp2za8ih.tmp/37``. Now the line names the file being kept,
+    and the folder is as it was."""
+    import errno
+
+    import sensorgap.atomic as atomic
+
+    run = tmp_path / "run"
+    shutil.copytree(reported_run, run)
+    before = tree_state(run)
+
+    def no_link(*_: object) -> None:
+        raise OSError(errno.EXDEV, "Invalid cross-device link")
+
+    def full(src: str | Path, dst: str | Path) -> None:
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(src), str(dst))
+
+    monkeypatch.setattr(atomic.os, "link", no_link)
+    monkeypatch.setattr(atomic.shutil, "copy2", full)
+    capsys.readouterr()
+    assert main(["report", "--run", str(run)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    monkeypatch.undo()
+    assert len(err) == 1 and RESTORE_PREFIX not in err[0], err
+    named = err[0].removeprefix("sensorgap: error: ").split(": cannot write or read: ")[0]
+    assert named.startswith(str(run) + "/") and (Path(named)).is_file(), err
+    assert "No space left on device (keeping a copy to restore on failure)" in err[0]
+    assert tree_state(run) == before
+
+
 def test_an_export_that_changes_the_scenario_files_removes_the_stale_report(
     reported_run: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

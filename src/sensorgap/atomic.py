@@ -203,8 +203,8 @@ def _back_up(
     path or deletes it), a copy of those in ``copies`` (files changed in place, such as
     an SQLite store) and of any that cannot be linked (a file system without hard
     links). Returns (the folder, None when there was nothing to keep; path -> kept
-    file). A file that can be neither linked nor copied raises ``OSError`` (the caller
-    removes the folder: nothing was changed yet)."""
+    file). A file that can be neither linked nor copied raises ``OSError`` naming that
+    file, not its hidden copy (the folder is removed: nothing was changed yet)."""
     regular = sorted(rel for rel in files if stat.S_ISREG(os.lstat(root / rel).st_mode))
     if not regular:
         return None, {}
@@ -221,7 +221,14 @@ def _back_up(
                     continue
                 except OSError:
                     pass  # no hard links here: a copy instead
-            shutil.copy2(root / rel, dst)
+            try:
+                shutil.copy2(root / rel, dst)
+            except OSError as exc:  # it named the hidden copy (".sensorgap-restore.x.tmp/37")
+                raise OSError(
+                    exc.errno,
+                    f"{exc.strerror or type(exc).__name__} (keeping a copy to restore on failure)",
+                    str(root / rel),
+                ) from exc
             saved[rel] = dst
     except BaseException:
         _drop(keep)
