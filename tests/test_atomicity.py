@@ -23,6 +23,7 @@ import sensorgap
 from sensorgap.atomic import RESTORE_PREFIX, atomic_write_text, removed_on_error
 from sensorgap.cli import main
 from sensorgap.config.presets import templates_dir
+from sensorgap.errors import InputError
 from sensorgap.filesio import read_manifest, verify_manifest, write_manifest
 from sensorgap.search.run import exclusive_folder
 from tests.bad_inputs.harness import tree_state
@@ -370,3 +371,39 @@ def test_a_job_failing_over_an_earlier_run_leaves_it_as_it_was(
     assert proc.returncode == 2 and len(err) == 1 and "File too large" in err[0], err
     assert tree_state(out) == before
     assert main(["verify", str(out)]) == 0 and main(["verify", str(out / "system_b")]) == 0
+
+
+@pytest.mark.parametrize("entry", ["keep.tmp/x", f"{RESTORE_PREFIX}abcdefgh.tmp/data.txt"])
+def test_an_out_holding_a_users_temporary_looking_folder_is_refused_and_kept(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], entry: str
+) -> None:
+    """Hostile round 11 (F6): ``nearfield --out ud`` with a user's ``ud/keep.tmp/x``
+    exited 0 and its manifest failed verify ("a left-over temporary"); a user's
+    ``ud/.sensorgap-restore.abcdefgh.tmp/data.txt`` was silently deleted by
+    write_manifest. Both are refused up front and kept; write_manifest itself refuses
+    and deletes only a restore folder holding numbered files."""
+    out = tmp_path / "ud"
+    (out / entry).parent.mkdir(parents=True)
+    (out / entry).write_text("mine")
+    before = tree_state(out)
+    capsys.readouterr()
+    argv = ["nearfield", "--vehicle", "system_a", "--resolution", "1", "--out", str(out)]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"holds {entry}, named like a left-over temporary" in err[0], err
+    assert tree_state(out) == before
+    with pytest.raises(InputError, match="manifest.json: not written: the folder holds"):
+        write_manifest(out)
+    assert tree_state(out) == before
+
+
+def test_a_fifo_in_a_folder_is_never_certified(tmp_path: Path) -> None:
+    """Hostile round 11 (F6): write_manifest over a folder holding a named pipe wrote a
+    manifest that verify rejects; now it raises before writing anything."""
+    root = tmp_path / "run"
+    root.mkdir()
+    (root / "a.txt").write_text("a")
+    os.mkfifo(root / "zz")
+    with pytest.raises(InputError, match="zz, a named pipe, socket or device file"):
+        write_manifest(root)
+    assert not (root / "manifest.json").exists()

@@ -186,9 +186,14 @@ def test_write_manifest_removes_leftover_temporaries_but_keeps_journals(tmp_path
     run = _folder(tmp_path)
     (run / ".a.txt.abc12345.tmp.txt").write_text("half-written")
     (run / "s.sqlite-journal").write_text("j")
+    # a journal is never removed; since round 11 (F6) it is not certified either: verify
+    # would reject the new manifest
+    with pytest.raises(InputError, match="s.sqlite-journal, named like a left-over"):
+        write_manifest(run)
+    assert (run / "s.sqlite-journal").exists()
+    (run / "s.sqlite-journal").unlink()
     write_manifest(run)
     assert not (run / ".a.txt.abc12345.tmp.txt").exists()
-    assert (run / "s.sqlite-journal").exists()
 
 
 @pytest.mark.parametrize(
@@ -561,7 +566,8 @@ def test_environment_name_with_dollars_is_drawn_as_written_in_the_report(
 def test_a_users_tmp_files_survive_a_write_into_their_folder(tmp_path: Path) -> None:
     """Held-out review round four: writing into an existing folder removed every `*.tmp`
     below it. Only sensorgap's own temporaries (``.NAME.<8 random>.tmp.EXT``, left by an
-    interrupted command) are removed; a user's files stay."""
+    interrupted command) are removed; a user's files stay. Since round 11 (F6) a user's
+    temporary-looking file is refused up front (verify would reject the new manifest)."""
     from sensorgap.filesio import is_own_temporary
 
     out = tmp_path / "proj"
@@ -572,9 +578,13 @@ def test_a_users_tmp_files_survive_a_write_into_their_folder(tmp_path: Path) -> 
     ours = out / ".nearfield.png.abcd1234.tmp.png"
     ours.write_text("half")
     assert is_own_temporary(ours.name) and not any(is_own_temporary(p.name) for p in mine)
-    assert main(["nearfield", "--vehicle", "system_a", "--resolution", "1", "--out", str(out)]) == 0
-    assert all(p.read_text() == "user data" for p in mine)
-    assert not ours.exists()
+    argv = ["nearfield", "--vehicle", "system_a", "--resolution", "1", "--out", str(out)]
+    assert main(argv) == 2
+    assert all(p.read_text() == "user data" for p in mine) and ours.exists()
+    for p in mine:
+        p.rename(p.with_name(p.name.replace(".tmp", "")))
+    assert main(argv) == 0
+    assert not ours.exists() and main(["verify", str(out)]) == 0
 
 
 @pytest.mark.parametrize(

@@ -23,6 +23,7 @@ from sensorgap.filesio import (
     refuse_crowded_out,
     refuse_foreign_outputs,
     refuse_if_changed,
+    refuse_uncertifiable,
     remove_outputs,
     write_manifest,
 )
@@ -644,6 +645,7 @@ def cmd_export(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else None
     folder = out or Path(args.run)
     refuse_crowded_out(folder, "export")
+    refuse_uncertifiable(folder, "--out" if out else "--run")
     before = _catalog_digests(folder)
     # a failed export leaves no partial catalog: a folder it made removed, the scenario
     # files, maps, catalog.json and manifest.json of an earlier export back in place
@@ -794,6 +796,7 @@ def cmd_report(args: argparse.Namespace) -> int:
         # the report rewrites the manifest: it must not certify a file changed by hand
         writes = REPORT_WRITES
         refuse_if_changed(args.run, writes)
+        refuse_uncertifiable(args.run, "--run")
         # a failed report leaves the run as it was: no figure of it left behind, and the
         # earlier report.html, report.md and manifest.json back in place
         with removed_on_error(args.run):

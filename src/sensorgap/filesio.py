@@ -139,18 +139,84 @@ def _in_temporary_folder(rel: str) -> bool:
     return any(is_temporary(part) for part in rel.split("/")[:-1])
 
 
-def _is_leftover_restore(path: Path) -> bool:
-    """Whether ``path`` is a restore folder of ``atomic.removed_on_error`` that no
-    command of this process is using (a killed command left it)."""
+def _is_restore_folder(path: Path) -> bool:
+    """Whether ``path`` is named exactly as ``atomic.removed_on_error`` names its restore
+    folders (``RESTORE_PREFIX``, ``tempfile.mkdtemp``'s 8 random characters, ``.tmp``)
+    and holds only what it puts there: files named by numbers (``0``, ``1``, ...). A
+    user's folder that merely imitates the name (it holds ``data.txt``) is not one."""
     import os
 
-    from sensorgap.atomic import ACTIVE_RESTORE_FOLDERS, RESTORE_PREFIX
+    from sensorgap.atomic import RESTORE_PREFIX
 
-    return (
-        path.name.startswith(RESTORE_PREFIX)
-        and is_own_temporary(path.name)
-        and os.path.abspath(path) not in ACTIVE_RESTORE_FOLDERS
-    )
+    if not re.fullmatch(re.escape(RESTORE_PREFIX) + r"[a-z0-9_]{8}\.tmp", path.name):
+        return False
+    try:
+        with os.scandir(path) as it:
+            return all(e.name.isdigit() and e.is_file(follow_symlinks=False) for e in it)
+    except OSError:
+        return False
+
+
+def _is_active_restore(path: Path) -> bool:
+    """Whether ``path`` is the restore folder of a guarded command running in this
+    process (removed when its block ends)."""
+    import os
+
+    from sensorgap.atomic import ACTIVE_RESTORE_FOLDERS
+
+    return os.path.abspath(path) in ACTIVE_RESTORE_FOLDERS
+
+
+def _is_leftover_restore(path: Path) -> bool:
+    """Whether ``path`` is a restore folder of ``atomic.removed_on_error``
+    (``_is_restore_folder``) that no command of this process is using (a killed command
+    left it)."""
+    return _is_restore_folder(path) and not _is_active_restore(path)
+
+
+def _uncertifiable(root: Path, entries: list[tuple[str, str]]) -> str | None:
+    """The first of ``entries`` (``_walk``'s, below ``root``) that would make a manifest
+    written now fail ``verify``: a named pipe, socket or device file, or a file that
+    looks temporary (``*.tmp``, a journal, a file below a ``*.tmp`` folder) that
+    ``write_manifest`` would neither list nor remove (this process's restore folder, a
+    killed command's and sensorgap's own temporary files excepted): its relative path
+    and what it is; or None."""
+    skipped: list[str] = []  # restore folders write_manifest removes or its block does
+    for rel, kind in entries:
+        if any(rel.startswith(f"{s}/") for s in skipped):
+            continue
+        if kind == "dir" and (_is_active_restore(root / rel) or _is_leftover_restore(root / rel)):
+            skipped.append(rel)
+        elif kind == "other":
+            return f"{rel}, a named pipe, socket or device file"
+        elif kind == "file" and rel != MANIFEST_NAME:
+            name = rel.rsplit("/", 1)[-1]
+            if _in_temporary_folder(rel) or (is_temporary(name) and not is_own_temporary(name)):
+                return f"{rel}, named like a left-over temporary or journal file"
+    return None
+
+
+def refuse_uncertifiable(folder: str | Path, what: str = "--out") -> None:
+    """Before a command writes ``folder/manifest.json``: refused (``InputError`` naming
+    ``what``) when the folder holds an entry ``verify`` would reject in the new manifest
+    (``_uncertifiable``: a named pipe or socket, a ``*.tmp`` folder or file of the
+    user's; symbolic links are refused by each command's own checks), so no command
+    exits 0 with a folder that fails its own ``verify``. A folder that does not exist
+    passes."""
+    from sensorgap.errors import InputError
+
+    root = Path(folder)
+    if not root.is_dir():
+        return
+    why = _uncertifiable(root, _walk(root))
+    if why is not None:
+        raise InputError(
+            what,
+            "",
+            f"{root} holds {why}: a run folder holds only regular files and folders, and "
+            "verify would reject the manifest written over it; move it away or give "
+            "another folder",
+        )
 
 
 def _walk(root: Path, unreadable: dict[str, str] | None = None) -> list[tuple[str, str]]:
@@ -225,7 +291,9 @@ def write_manifest(folder: str | Path, rewrites: tuple[str, ...] | None = None) 
     journals, symbolic links and the manifest itself are left out (``verify`` reports
     all but the manifest). With ``rewrites`` (a command adding to a folder, see
     ``refuse_if_changed``) the entries of files lost since that the command does not
-    write stay as recorded."""
+    write stay as recorded. A folder holding what ``verify`` would reject whatever the
+    manifest says (``_uncertifiable``: a named pipe, a user's ``*.tmp``) raises
+    ``InputError`` before anything is written or removed."""
     root = Path(folder)
     files: dict[str, dict[str, Any]] = {}
     if rewrites is not None and (root / MANIFEST_NAME).is_file():
@@ -235,6 +303,16 @@ def write_manifest(folder: str | Path, rewrites: tuple[str, ...] | None = None) 
             if not _written_by(rel, rewrites) and not (root / rel).exists():
                 files[rel] = meta
     entries = _walk(root)
+    why = _uncertifiable(root, entries)  # a folder that its own verify would reject
+    if why is not None:
+        from sensorgap.errors import InputError
+
+        raise InputError(
+            root / MANIFEST_NAME,
+            "",
+            f"not written: the folder holds {why}, which verify rejects (a run folder "
+            "holds only regular files and folders); move it away and run the command again",
+        )
     for rel, kind in entries:  # a killed command's restore folder (atomic.removed_on_error)
         if kind == "dir" and _is_leftover_restore(root / rel):
             shutil.rmtree(root / rel, ignore_errors=True)
@@ -437,6 +515,7 @@ def refuse_foreign_outputs(
             raise refuse(f"holds a search run or catalog ({marker})")
     if crowded(root):
         raise refuse(f"holds more than {MAX_OUT_ENTRIES} files and folders")
+    refuse_uncertifiable(root)
     if writes is None:  # outputs named after the runs: any link could be renamed onto
         odd = _first_link(root)
         if odd is not None:

@@ -614,6 +614,20 @@ def _setup(
             (run / "loop").symlink_to(run / "loop")
         elif step == "journal_file":
             (run / "search.sqlite-journal").write_bytes(b"journal")
+        elif step == "run_fifo":  # {run}/zz is a named pipe
+            os.mkfifo(run / "zz")
+        elif step == "run_socket":  # {run}/report/zz.png is a unix socket (bound, closed)
+            import socket
+
+            (run / "report").mkdir(exist_ok=True)
+            with socket.socket(socket.AF_UNIX) as sock:
+                sock.bind(str(run / "report" / "zz.png"))
+        elif step == "run_user_tmp_folder":  # a user's keep.tmp/x in {run}
+            (run / "keep.tmp").mkdir()
+            (run / "keep.tmp" / "x").write_text("t")
+        elif step == "run_restore_lookalike":  # a user's folder named like a restore one
+            (run / ".sensorgap-restore.abcdefgh.tmp").mkdir()
+            (run / ".sensorgap-restore.abcdefgh.tmp" / "data.txt").write_text("mine")
         elif step == "hidden_tmp":
             (run / ".x.tmp.xosc").write_text("<half")
         elif step == "edit_first_scenario":
