@@ -333,3 +333,26 @@ def test_a_job_failing_over_an_earlier_run_leaves_it_as_it_was(
     assert proc.returncode == 2 and len(err) == 1 and "File too large" in err[0], err
     assert tree_state(out) == before
     assert main(["verify", str(out)]) == 0 and main(["verify", str(out / "system_b")]) == 0
+
+
+def test_run_again_with_a_smaller_budget_leaves_no_stale_report_figure(
+    job: tuple[Path, Path], tmp_path: Path
+) -> None:
+    """The same job with a smaller budget over an earlier run: its export writes fewer
+    scenarios, and the earlier report's figures of the others are removed (the job
+    called the search and the export directly and skipped the cleanup the commands do:
+    ``report/scenario_003.png`` .. stayed, listed in the manifest)."""
+    _, vehicle = job
+    out = tmp_path / "out"
+    folder = out / "system_b"
+    argv = _job_argv(vehicle, out)
+    argv[argv.index("60")] = "300"
+    assert main(argv) == 0
+    figures = sorted(p.name for p in (folder / "report").glob("scenario_*.png"))
+    argv[argv.index("300")] = "200"
+    assert main(argv) == 0
+    exported = len(list((folder / "scenarios").glob("*.xosc")))
+    now = sorted(p.name for p in (folder / "report").glob("scenario_*.png"))
+    assert len(figures) > exported, (figures, exported)  # the case is the one meant
+    assert now == [f"scenario_{i:03d}.png" for i in range(1, exported + 1)], now
+    assert main(["verify", str(out)]) == 0 and main(["verify", str(folder)]) == 0

@@ -23,7 +23,6 @@ from sensorgap.filesio import (
     refuse_crowded_out,
     refuse_foreign_outputs,
     refuse_if_changed,
-    remove_outputs,
     write_manifest,
 )
 from sensorgap.runtime import (
@@ -473,45 +472,41 @@ def cmd_paper(args: argparse.Namespace) -> int:
 def cmd_search(args: argparse.Namespace) -> int:
     """Search for critical scenarios into --out (SQLite store, ranking.csv/json)."""
     from sensorgap.search.run import SEARCH_WRITES, run_search
+    from sensorgap.stale import search_removing_stale, stale_after_search
 
     env_file = Path(args.environments_file) if args.environments_file else None
-    ranking = Path(args.out) / "ranking.json"
-    before = ranking.read_bytes() if args.resume and ranking.is_file() else None
     refuse_crowded_out(args.out, "search")
     if args.resume:  # the new manifest must not certify a file changed by hand
         refuse_if_changed(args.out, SEARCH_WRITES)
-    outcome = run_search(
-        args.vehicle,
-        _families(args.families),
-        _environments(args.environments, env_file),
-        args.budget,
-        args.seed,
-        args.top,
+    outcome, gone = search_removing_stale(
         Path(args.out),
-        strategy=args.strategy,
-        mode=args.pd,
-        sun_search=not args.no_sun,
-        environments_file=Path(args.environments_file) if args.environments_file else None,
-        detection=args.detection,
-        workers=args.workers,
-        resume=args.resume,
-        executor=args.executor,
-        scheduler=args.scheduler,
-        seeds=args.seeds,
+        lambda: run_search(
+            args.vehicle,
+            _families(args.families),
+            _environments(args.environments, env_file),
+            args.budget,
+            args.seed,
+            args.top,
+            Path(args.out),
+            strategy=args.strategy,
+            mode=args.pd,
+            sun_search=not args.no_sun,
+            environments_file=env_file,
+            detection=args.detection,
+            workers=args.workers,
+            resume=args.resume,
+            executor=args.executor,
+            scheduler=args.scheduler,
+            seeds=args.seeds,
+        ),
     )
-    stale: tuple[str, ...] = ()
-    if before is not None and ranking.read_bytes() != before:
-        # what export, simulate and report made of the previous ranking no longer matches
-        from sensorgap.export.catalog import EXPORT_WRITES
-        from sensorgap.report.build import REPORT_WRITES
-
-        stale = (*EXPORT_WRITES, *REPORT_WRITES)
-        gone = remove_outputs(args.out, stale)
-        if gone:
-            print(
-                f"the resumed search changed the ranking: removed {len(gone)} files of the "
-                "previous export and report (run export and report again)"
-            )
+    # what export, simulate and report made of the previous ranking no longer matches
+    stale: tuple[str, ...] = () if gone is None else stale_after_search()
+    if gone:
+        print(
+            f"the resumed search changed the ranking: removed {len(gone)} files of the "
+            "previous export and report (run export and report again)"
+        )
     write_manifest(args.out, (*SEARCH_WRITES, *stale) if args.resume else None)
     crit = sum(1 for r in outcome.ranking if r["class"] == "sensor-critical")
     d = outcome.summary["lookup_vs_exact"]
@@ -640,51 +635,36 @@ def cmd_compare(args: argparse.Namespace) -> int:
 def cmd_export(args: argparse.Namespace) -> int:
     """OpenSCENARIO + OpenDRIVE catalog of a search run's ranked scenarios."""
     from sensorgap.export import export_catalog
+    from sensorgap.stale import export_removing_stale_report
 
     out = Path(args.out) if args.out else None
     folder = out or Path(args.run)
     refuse_crowded_out(folder, "export")
-    before = _catalog_digests(folder)
     # a failed export leaves no partial catalog: a folder it made removed, the scenario
     # files, maps, catalog.json and manifest.json of an earlier export back in place
     with removed_on_error(folder):
-        index = export_catalog(
-            Path(args.run), out, osc_version=args.osc_version, top=args.top, style=args.style
+        # a report of the folder describes and links the previous export's files (their
+        # OpenSCENARIO version and style too), or says there was none: removed
+        index, gone = export_removing_stale_report(
+            folder,
+            lambda: export_catalog(
+                Path(args.run), out, osc_version=args.osc_version, top=args.top, style=args.style
+            ),
         )
-        if before != _catalog_digests(folder):
-            # a report of the folder describes and links the previous export's files
-            # (their OpenSCENARIO version and style too), or says there was none
+        if gone:
             from sensorgap.export.catalog import EXPORT_WRITES
             from sensorgap.report.build import REPORT_WRITES
 
-            gone = remove_outputs(folder, REPORT_WRITES)
-            if gone:
-                write_manifest(folder, (*EXPORT_WRITES, *REPORT_WRITES))
-                print(
-                    f"the export changed the scenario files: removed {len(gone)} files of "
-                    "the previous report (run report again)"
-                )
+            write_manifest(folder, (*EXPORT_WRITES, *REPORT_WRITES))
+            print(
+                f"the export changed the scenario files: removed {len(gone)} files of "
+                "the previous report (run report again)"
+            )
     print(
         f"{out or args.run}: {len(index['scenarios'])} scenarios, {args.style} style, "
         f"OpenSCENARIO {args.osc_version}, every file XSD-valid"
     )
     return 0
-
-
-def _catalog_digests(folder: Path) -> dict[str, str]:
-    """SHA-256 of each scenario file and of ``catalog.json`` in ``folder`` (relative
-    path -> digest; what a report of the folder describes and links): an export that
-    changes any of them makes the report stale."""
-    import hashlib
-
-    paths = sorted((folder / "scenarios").glob("*.xosc"))
-    if (folder / "catalog.json").is_file():
-        paths.append(folder / "catalog.json")
-    return {
-        p.relative_to(folder).as_posix(): hashlib.sha256(p.read_bytes()).hexdigest()
-        for p in paths
-        if p.is_file() and not p.is_symlink()
-    }
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:
