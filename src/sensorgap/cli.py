@@ -12,11 +12,11 @@ import signal
 import sys
 import traceback
 from collections.abc import Callable, Sequence
-from contextlib import suppress
+from contextlib import ExitStack, suppress
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn
 
-from sensorgap.atomic import removed_on_error
+from sensorgap.atomic import folder_lock, held_until_done, removed_on_error
 from sensorgap.config.common import parse_decimal, parse_integer
 from sensorgap.errors import InputError, clip, cut_name
 from sensorgap.filesio import (
@@ -168,7 +168,8 @@ def cmd_probe(args: argparse.Namespace) -> int:
     else:
         data = _probe_bodies(scene, pts, args.heading)
     if args.out:  # a failed write leaves no folder it made for the file
-        with removed_on_error(Path(args.out).parent, only=(Path(args.out).name,)):
+        # one file of a user's folder, renamed into place: the folder is not locked
+        with removed_on_error(Path(args.out).parent, only=(Path(args.out).name,), lock=False):
             atomic_write_bytes(args.out, data)
     else:
         sys.stdout.write(data.decode("utf-8"))
@@ -1264,6 +1265,25 @@ def _flag_sources(exc: InputError, parser: argparse.ArgumentParser) -> None:
             e.source = flags[e.source]
 
 
+def _written_folders(args: argparse.Namespace) -> list[Path]:
+    """The existing folders the command of ``args`` writes into (``--out``; ``export``
+    in place and ``report --run``: ``--run``; ``simulate``: ``--catalog``), locked for
+    its whole run before any work (``atomic.folder_lock``). None for the readers
+    (``verify``, ``schema``) and ``probe`` (one file renamed into a user's folder)."""
+    func = getattr(args, "func", None)
+    if func in (cmd_verify, cmd_schema, cmd_probe):
+        return []
+    if func is cmd_simulate:
+        paths = [args.catalog]
+    elif func is cmd_export:
+        paths = [args.out or args.run]
+    elif func is cmd_report:
+        paths = [args.out] if args.compare else [args.run]
+    else:
+        paths = [getattr(args, "out", None)]
+    return [Path(p) for p in paths if isinstance(p, str) and os.path.isdir(p)]
+
+
 def _remove_fresh(path: Path | None) -> str:
     """Remove ``path``, an ``--out`` that did not exist when the command started (its
     standard output failed after it wrote there: a failed command leaves nothing); the
@@ -1367,8 +1387,13 @@ def _main(argv: Sequence[str] | None) -> int:
                     "",
                     f"must not be empty: give a path (or a preset name), got {value!r}",
                 )
-        with guarded_stdout():
-            return func(args)
+        with held_until_done(), ExitStack() as locks:
+            # every folder the command writes, locked before any work and until it is
+            # done: a second command into it is refused (and readers need no lock)
+            for folder in _written_folders(args):
+                locks.enter_context(folder_lock(folder))
+            with guarded_stdout():
+                return func(args)
     except StdoutUnwritable as exc:
         if exc.closed:
             line = (

@@ -141,15 +141,18 @@ def _in_temporary_folder(rel: str) -> bool:
 
 def _is_leftover_restore(path: Path) -> bool:
     """Whether ``path`` is a restore folder of ``atomic.removed_on_error`` that no
-    command of this process is using (a killed command left it)."""
+    command of this process is using, in a folder whose lock this process holds
+    (``atomic.holds_lock``: no other command is writing there, so a killed one left
+    it; another process's restore folder is never removed)."""
     import os
 
-    from sensorgap.atomic import ACTIVE_RESTORE_FOLDERS, RESTORE_PREFIX
+    from sensorgap.atomic import ACTIVE_RESTORE_FOLDERS, RESTORE_PREFIX, holds_lock
 
     return (
         path.name.startswith(RESTORE_PREFIX)
         and is_own_temporary(path.name)
         and os.path.abspath(path) not in ACTIVE_RESTORE_FOLDERS
+        and holds_lock(path.parent)
     )
 
 
