@@ -470,3 +470,28 @@ def test_export_while_a_report_runs_in_another_process_is_refused(
         assert proc.wait(timeout=120) == 0, proc.stderr.read() if proc.stderr else ""
     assert main(["verify", str(run)]) == 0
     assert len(list((run / "scenarios").glob("*.xosc"))) == 2
+
+
+def test_report_into_a_jobs_vehicle_folder_keeps_the_job_certified(
+    job: tuple[Path, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``report --run OUT/<vehicle>`` certifies OUT again (its manifest lists the vehicle
+    folder's files): ``verify OUT`` passes and the job can run into OUT again (before,
+    OUT's manifest no longer matched and the rerun was refused). While another command
+    holds OUT, the report is refused (it would change what OUT's manifest certifies)."""
+    src, vehicle = job
+    out = tmp_path / "out"
+    shutil.copytree(src, out)
+    folder = out / "system_b"
+    before = tree_state(out)
+    capsys.readouterr()
+    with held_elsewhere(out):
+        assert main(["report", "--run", str(folder)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "another sensorgap command is writing" in err[0], err
+    assert tree_state(out) == before
+    assert main(["report", "--run", str(folder)]) == 0
+    assert main(["verify", str(folder)]) == 0 and main(["verify", str(out)]) == 0
+    assert not [p for p in out.iterdir() if p.name.startswith(RESTORE_PREFIX)]
+    assert main(_job_argv(vehicle, out)) == 0
+    assert main(["verify", str(out)]) == 0

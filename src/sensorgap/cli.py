@@ -1284,6 +1284,21 @@ def _written_folders(args: argparse.Namespace) -> list[Path]:
     return [Path(p) for p in paths if isinstance(p, str) and os.path.isdir(p)]
 
 
+def _lock_job_out(folder: Path, locks: ExitStack) -> None:
+    """When ``folder`` is a vehicle folder of a certified job (``filesio.job_out_of``),
+    hold the job's OUT too: locked (no ``run`` into it meanwhile), its other files
+    checked as certified (``refuse_if_changed``), and its ``manifest.json`` kept, put
+    back if the command fails; the command's ``write_manifest`` certifies OUT again."""
+    from sensorgap.filesio import MANIFEST_NAME, job_out_of
+
+    parent = job_out_of(folder)
+    if parent is None:
+        return
+    locks.enter_context(folder_lock(parent))
+    refuse_if_changed(parent, (f"{Path(os.path.abspath(folder)).name}/",))
+    locks.enter_context(removed_on_error(parent, only=(MANIFEST_NAME,), lock=False))
+
+
 def _remove_fresh(path: Path | None) -> str:
     """Remove ``path``, an ``--out`` that did not exist when the command started (its
     standard output failed after it wrote there: a failed command leaves nothing); the
@@ -1391,6 +1406,7 @@ def _main(argv: Sequence[str] | None) -> int:
             # every folder the command writes, locked before any work and until it is
             # done: a second command into it is refused (and readers need no lock)
             for folder in _written_folders(args):
+                _lock_job_out(folder, locks)
                 locks.enter_context(folder_lock(folder))
             with guarded_stdout():
                 return func(args)
