@@ -643,7 +643,7 @@ def cmd_export(args: argparse.Namespace) -> int:
     refuse_crowded_out(folder, "export")
     # a failed export leaves no partial catalog: a folder it made removed, the scenario
     # files, maps, catalog.json and manifest.json of an earlier export back in place
-    with removed_on_error(folder):
+    with removed_on_error(folder, lock=out is not None):  # --run: locked if it exists
         # a report of the folder describes and links the previous export's files (their
         # OpenSCENARIO version and style too), or says there was none: removed
         index, gone = export_removing_stale_report(
@@ -674,7 +674,8 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 
     refuse_if_changed(args.catalog, ("simulation.csv",))  # its manifest is rewritten
     # a failed run leaves the catalog as it was (simulation.csv and its manifest entry)
-    with removed_on_error(args.catalog, only=("simulation.csv", "manifest.json")):
+    # locked before any work when it exists (_written_folders); a missing one is refused
+    with removed_on_error(args.catalog, only=("simulation.csv", "manifest.json"), lock=False):
         rows = simulate_catalog(
             Path(args.catalog),
             args.esmini,
@@ -777,7 +778,8 @@ def cmd_report(args: argparse.Namespace) -> int:
         refuse_if_changed(args.run, writes)
         # a failed report leaves the run as it was: no figure of it left behind, and the
         # earlier report.html, report.md and manifest.json back in place
-        with removed_on_error(args.run):
+        # (locked before any work when it exists, _written_folders; a missing one refused)
+        with removed_on_error(args.run, lock=False):
             html_path, md_path = write_report(Path(args.run))
             write_manifest(args.run, writes)
     print(f"{html_path} and {md_path}")
