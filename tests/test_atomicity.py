@@ -10,22 +10,23 @@ are in the bad-input corpus, ``# round 10``.)"""
 
 from __future__ import annotations
 
+import fcntl
 import os
 import shutil
 import subprocess
 import sys
-from contextlib import nullcontext
+from collections.abc import Iterator
+from contextlib import contextmanager, nullcontext
 from pathlib import Path
 
 import pytest
 
 import sensorgap
-from sensorgap.atomic import RESTORE_PREFIX, atomic_write_text, removed_on_error
+from sensorgap.atomic import RESTORE_PREFIX, atomic_write_text, folder_lock, removed_on_error
 from sensorgap.cli import main
 from sensorgap.config.presets import templates_dir
 from sensorgap.errors import InputError
 from sensorgap.filesio import read_manifest, verify_manifest, write_manifest
-from sensorgap.search.run import exclusive_folder
 from tests.bad_inputs.harness import tree_state
 
 SRC = str(Path(sensorgap.__file__).resolve().parents[1])
@@ -110,7 +111,9 @@ def test_only_the_named_files_are_kept_and_removed(tmp_path: Path) -> None:
 
 def test_a_killed_commands_restore_folder_is_reported_then_removed(tmp_path: Path) -> None:
     """A restore folder left by a command killed with SIGKILL: verify names it as a
-    left-over temporary; the next manifest written removes it (not one in use)."""
+    left-over temporary; the next manifest written by a process holding the folder's
+    lock removes it (not one in use); one written without the lock leaves it (it may be
+    another running command's)."""
     root = tmp_path / "run"
     root.mkdir()
     (root / "a.txt").write_text("a")
@@ -121,7 +124,22 @@ def test_a_killed_commands_restore_folder_is_reported_then_removed(tmp_path: Pat
     problems = verify_manifest(root)
     assert len(problems) == 1 and "left-over temporary" in problems[0], problems
     write_manifest(root)
+    assert left.exists()
+    with folder_lock(root):
+        write_manifest(root)
     assert not left.exists() and verify_manifest(root) == []
+
+
+@contextmanager
+def held_elsewhere(folder: Path) -> Iterator[None]:
+    """``folder``'s lock held as another process holds it (an ``flock`` on a second
+    open file description conflicts with this process's own ``atomic.folder_lock``)."""
+    fd = os.open(folder, os.O_RDONLY)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        yield
+    finally:
+        os.close(fd)
 
 
 # -- report and export of a finished run -----------------------------------------------
@@ -309,9 +327,9 @@ def test_run_refuses_a_clash_with_the_earlier_search_before_any_work(
             vehicle.write_text(text + "\n# edited\n", encoding="utf-8")
             argv, why = _job_argv(vehicle, out), "holds results for other input files"
         else:
-            argv, why = _job_argv(vehicle, out), "another search is writing to"
+            argv, why = _job_argv(vehicle, out), "another sensorgap command is writing this folder"
         capsys.readouterr()
-        with exclusive_folder(out / "system_b") if clash == "search_running" else nullcontext():
+        with held_elsewhere(out / "system_b") if clash == "search_running" else nullcontext():
             assert main(argv) == 2
     finally:
         vehicle.write_text(text, encoding="utf-8")
@@ -407,3 +425,147 @@ def test_a_fifo_in_a_folder_is_never_certified(tmp_path: Path) -> None:
     with pytest.raises(InputError, match="zz, a named pipe, socket or device file"):
         write_manifest(root)
     assert not (root / "manifest.json").exists()
+
+
+def test_run_again_with_a_smaller_budget_leaves_no_stale_report_figure(
+    job: tuple[Path, Path], tmp_path: Path
+) -> None:
+    """The same job with a smaller budget over an earlier run: its export writes fewer
+    scenarios, and the earlier report's figures of the others are removed (the job
+    called the search and the export directly and skipped the cleanup the commands do:
+    ``report/scenario_003.png`` .. stayed, listed in the manifest)."""
+    _, vehicle = job
+    out = tmp_path / "out"
+    folder = out / "system_b"
+    argv = _job_argv(vehicle, out)
+    argv[argv.index("60")] = "300"
+    assert main(argv) == 0
+    figures = sorted(p.name for p in (folder / "report").glob("scenario_*.png"))
+    argv[argv.index("300")] = "200"
+    assert main(argv) == 0
+    exported = len(list((folder / "scenarios").glob("*.xosc")))
+    now = sorted(p.name for p in (folder / "report").glob("scenario_*.png"))
+    assert len(figures) > exported, (figures, exported)  # the case is the one meant
+    assert now == [f"scenario_{i:03d}.png" for i in range(1, exported + 1)], now
+    assert main(["verify", str(out)]) == 0 and main(["verify", str(folder)]) == 0
+
+
+# -- one command at a time per folder (round 11) -----------------------------------------
+
+
+@pytest.mark.parametrize(
+    "command",
+    [
+        ["export", "--run", "{run}", "--top", "1"],
+        ["report", "--run", "{run}"],
+        ["simulate", "--catalog", "{run}", "--esmini", "/nonexistent/esmini"],
+        [
+            "search",
+            "--vehicle",
+            "system_b",
+            "--families",
+            "slow_ahead_curve",
+            "--environments",
+            "snow",
+            "--budget",
+            "40",
+            "--top",
+            "2",
+            "--out",
+            "{run}",
+            "--resume",
+        ],
+        ["nearfield", "--vehicle", "system_a", "--out", "{run}"],
+    ],
+    ids=lambda c: c[0],
+)
+def test_a_command_into_a_folder_another_command_writes_is_refused_at_once(
+    reported_run: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], command: list[str]
+) -> None:
+    """Every command writing into a run folder holds the folder's lock for its whole run:
+    a second one is refused before any work (one line naming the folder, exit 2, nothing
+    changed). Without it a restore put its start snapshot back over the other command's
+    finished output, and a report linked files the folder no longer held."""
+    run = tmp_path / "run"
+    shutil.copytree(reported_run, run)
+    before = tree_state(run)
+    capsys.readouterr()
+    with held_elsewhere(run):
+        assert main([part.format(run=run) for part in command]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and str(run) in err[0], err
+    assert "another sensorgap command is writing this folder" in err[0], err
+    assert tree_state(run) == before
+
+
+def test_a_run_into_an_out_another_command_writes_is_refused(
+    job: tuple[Path, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A second ``run`` into the same OUT (another vehicle) is refused at once: one
+    run's restore deleted the other's finished vehicle folder."""
+    src, _ = job
+    out = tmp_path / "out"
+    shutil.copytree(src, out)
+    before = tree_state(out)
+    capsys.readouterr()
+    with held_elsewhere(out):
+        assert main(_job_argv("system_a", out)) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "another sensorgap command is writing" in err[0], err
+    assert tree_state(out) == before
+
+
+def test_export_while_a_report_runs_in_another_process_is_refused(
+    reported_run: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Two real processes: while ``report`` writes the run (its restore folder is
+    there), ``export --top 1`` is refused; the report finishes and the folder verifies
+    (the export used to remove the scenario files the report then linked)."""
+    import time
+
+    run = tmp_path / "run"
+    shutil.copytree(reported_run, run)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "sensorgap", "report", "--run", str(run)],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        env={**os.environ, "PYTHONPATH": SRC},
+    )
+    try:
+        deadline = time.monotonic() + 60
+        while not any(p.name.startswith(RESTORE_PREFIX) for p in run.iterdir()):
+            assert proc.poll() is None and time.monotonic() < deadline, "report ended early"
+            time.sleep(0.01)
+        capsys.readouterr()
+        assert main(["export", "--run", str(run), "--top", "1"]) == 2
+        err = capsys.readouterr().err
+        assert "another sensorgap command is writing this folder" in err, err
+    finally:
+        assert proc.wait(timeout=120) == 0, proc.stderr.read() if proc.stderr else ""
+    assert main(["verify", str(run)]) == 0
+    assert len(list((run / "scenarios").glob("*.xosc"))) == 2
+
+
+def test_report_into_a_jobs_vehicle_folder_keeps_the_job_certified(
+    job: tuple[Path, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``report --run OUT/<vehicle>`` certifies OUT again (its manifest lists the vehicle
+    folder's files): ``verify OUT`` passes and the job can run into OUT again (before,
+    OUT's manifest no longer matched and the rerun was refused). While another command
+    holds OUT, the report is refused (it would change what OUT's manifest certifies)."""
+    src, vehicle = job
+    out = tmp_path / "out"
+    shutil.copytree(src, out)
+    folder = out / "system_b"
+    before = tree_state(out)
+    capsys.readouterr()
+    with held_elsewhere(out):
+        assert main(["report", "--run", str(folder)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "another sensorgap command is writing" in err[0], err
+    assert tree_state(out) == before
+    assert main(["report", "--run", str(folder)]) == 0
+    assert main(["verify", str(folder)]) == 0 and main(["verify", str(out)]) == 0
+    assert not [p for p in out.iterdir() if p.name.startswith(RESTORE_PREFIX)]
+    assert main(_job_argv(vehicle, out)) == 0
+    assert main(["verify", str(out)]) == 0

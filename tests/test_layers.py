@@ -28,6 +28,7 @@ LAYERS = [
     "tradeoff",
     "export",
     "report",
+    "stale",
     "jobs",
     "api",
     "cli",

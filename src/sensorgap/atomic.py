@@ -5,6 +5,7 @@ A reader never sees a half-written file: either the old content or the new one.
 
 from __future__ import annotations
 
+import fcntl
 import os
 import secrets
 import shutil
@@ -13,7 +14,7 @@ import stat
 import tempfile
 import threading
 from collections.abc import Iterator
-from contextlib import contextmanager, suppress
+from contextlib import contextmanager, nullcontext, suppress
 from pathlib import Path
 
 from sensorgap.errors import InputError
@@ -130,6 +131,84 @@ def atomic_write_text(path: str | Path, text: str) -> Path:
     return atomic_write_bytes(path, utf8(text))
 
 
+#: The folder locks this process holds (``folder_lock``): (device, inode) of the folder
+#: -> [open descriptor holding the ``flock``, how many blocks hold it now].
+_HELD: dict[tuple[int, int], list[int]] = {}
+#: ``held_until_done`` blocks running: a lock whose blocks ended stays held until then.
+_UNTIL_DONE = [0]
+
+
+def _key(folder: str | Path) -> tuple[int, int] | None:
+    """(device, inode) of ``folder``, None when it is not there."""
+    try:
+        st = os.stat(folder)
+    except OSError:
+        return None
+    return st.st_dev, st.st_ino
+
+
+def holds_lock(folder: str | Path) -> bool:
+    """Whether this process holds ``folder``'s lock (``folder_lock``): then no other
+    sensorgap command writes it, and a restore folder there that no block of this process
+    uses is a left-over of a killed command (``filesio.write_manifest`` removes it)."""
+    key = _key(folder)
+    return key is not None and key in _HELD
+
+
+@contextmanager
+def folder_lock(folder: str | Path) -> Iterator[None]:
+    """Hold the exclusive lock of the existing folder ``folder`` while the block runs:
+    an ``flock`` on the folder itself (no lock file in the run folder; the system drops
+    it when the process ends, killed or not). Every sensorgap command that writes into a
+    run folder takes it before any work, so two commands never write one folder at once
+    (one's restore put its start snapshot back over the other's finished output). Taken
+    again by the same process it is shared (the job, then its search). Held by another
+    process -> ``InputError`` naming the folder, at once (no waiting)."""
+    fd = os.open(folder, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
+    st = os.fstat(fd)
+    key = (st.st_dev, st.st_ino)
+    if key in _HELD:
+        os.close(fd)
+        _HELD[key][1] += 1
+    else:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            os.close(fd)
+            raise InputError(
+                folder,
+                "",
+                "another sensorgap command is writing this folder now; wait for it to "
+                "finish, or write somewhere else",
+            ) from None
+        _HELD[key] = [fd, 1]
+    try:
+        yield
+    finally:
+        entry = _HELD[key]
+        entry[1] -= 1
+        if entry[1] == 0 and not _UNTIL_DONE[0]:
+            del _HELD[key]
+            os.close(entry[0])
+
+
+@contextmanager
+def held_until_done() -> Iterator[None]:
+    """Every folder lock taken while the block runs stays held until it ends (a command:
+    the search of ``sensorgap search`` locks its folder, and the command still writes
+    its manifest after)."""
+    _UNTIL_DONE[0] += 1
+    try:
+        yield
+    finally:
+        _UNTIL_DONE[0] -= 1
+        if not _UNTIL_DONE[0]:
+            for key, entry in list(_HELD.items()):
+                if entry[1] == 0:
+                    del _HELD[key]
+                    os.close(entry[0])
+
+
 #: Name prefix of the folder that holds, while a guarded command runs
 #: (``removed_on_error``), hard links to the files that were in its output folder before
 #: it started. The whole name (``.sensorgap-restore.<8 random>.tmp``) is a temporary
@@ -138,7 +217,8 @@ def atomic_write_text(path: str | Path, text: str) -> Path:
 RESTORE_PREFIX = ".sensorgap-restore."
 #: The ``RESTORE_PREFIX`` folders of the guarded commands running in this process
 #: (absolute paths): ``filesio.write_manifest`` removes only the others (left behind by
-#: a killed command).
+#: a killed command), and only in a folder whose lock it holds (``holds_lock``: no other
+#: command is writing there).
 ACTIVE_RESTORE_FOLDERS: set[str] = set()
 
 
@@ -295,7 +375,10 @@ def _drop(keep: Path | None) -> None:
 
 @contextmanager
 def removed_on_error(
-    folder: str | Path, copies: tuple[str, ...] = (), only: tuple[str, ...] | None = None
+    folder: str | Path,
+    copies: tuple[str, ...] = (),
+    only: tuple[str, ...] | None = None,
+    lock: bool = True,
 ) -> Iterator[None]:
     """On an exception or an interrupt (Ctrl-C, SIGTERM), put ``folder`` back as it was
     before the block: every file and folder that was not there removed, every file that
@@ -308,17 +391,43 @@ def removed_on_error(
     rewritten report.html beside a manifest that lists the previous one, no empty
     folder. On success the kept links are removed. ``only``: the block writes just these
     files of ``folder`` (relative paths; ``evaluate``, ``probe``): nothing else there is
-    listed, kept or removed (a user's folder of any size)."""
+    listed, kept or removed (a user's folder of any size). ``lock``: hold ``folder``'s
+    lock (``folder_lock``, made first when it is new) for the block; refused when
+    another command holds it, before anything is kept or changed."""
     root = Path(folder)
     created = created_folders(root)
-    files, dirs = _entries(root, only)
-    keep: Path | None = None
-    saved: dict[str, Path] = {}
-    try:
-        keep, saved = _back_up(root, files, tuple(copies))
+    with _locked(root, created) if lock else nullcontext():
+        files, dirs = _entries(root, only)
+        keep: Path | None = None
+        saved: dict[str, Path] = {}
+        try:
+            keep, saved = _back_up(root, files, tuple(copies))
+            yield
+        except BaseException:
+            _restore(root, files, dirs, keep, saved, only)
+            remove_created_folders(created)
+            raise
+        _drop(keep)
+
+
+@contextmanager
+def _locked(root: Path, created: list[Path]) -> Iterator[None]:
+    """``folder_lock(root)``, ``root`` made first when it is new (``created``): two
+    commands starting into one new folder, one is refused. A folder that cannot be made
+    is left to the command (its own write reports why)."""
+    if created:
+        with suppress(OSError):
+            root.mkdir(parents=True, exist_ok=True)
+    if not root.is_dir():
         yield
-    except BaseException:
-        _restore(root, files, dirs, keep, saved, only)
+        return
+    try:
+        lock = folder_lock(root)
+        lock.__enter__()  # refused: the folder is the other command's, left as it is
+    except OSError:
         remove_created_folders(created)
         raise
-    _drop(keep)
+    try:
+        yield
+    finally:
+        lock.__exit__(None, None, None)

@@ -12,11 +12,11 @@ import signal
 import sys
 import traceback
 from collections.abc import Callable, Sequence
-from contextlib import suppress
+from contextlib import ExitStack, suppress
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn
 
-from sensorgap.atomic import removed_on_error
+from sensorgap.atomic import folder_lock, held_until_done, removed_on_error
 from sensorgap.config.common import parse_decimal, parse_integer
 from sensorgap.errors import InputError, clip, cut_name
 from sensorgap.filesio import (
@@ -24,7 +24,6 @@ from sensorgap.filesio import (
     refuse_foreign_outputs,
     refuse_if_changed,
     refuse_uncertifiable,
-    remove_outputs,
     write_manifest,
 )
 from sensorgap.runtime import (
@@ -170,7 +169,8 @@ def cmd_probe(args: argparse.Namespace) -> int:
     else:
         data = _probe_bodies(scene, pts, args.heading)
     if args.out:  # a failed write leaves no folder it made for the file
-        with removed_on_error(Path(args.out).parent, only=(Path(args.out).name,)):
+        # one file of a user's folder, renamed into place: the folder is not locked
+        with removed_on_error(Path(args.out).parent, only=(Path(args.out).name,), lock=False):
             atomic_write_bytes(args.out, data)
     else:
         sys.stdout.write(data.decode("utf-8"))
@@ -474,45 +474,41 @@ def cmd_paper(args: argparse.Namespace) -> int:
 def cmd_search(args: argparse.Namespace) -> int:
     """Search for critical scenarios into --out (SQLite store, ranking.csv/json)."""
     from sensorgap.search.run import SEARCH_WRITES, run_search
+    from sensorgap.stale import search_removing_stale, stale_after_search
 
     env_file = Path(args.environments_file) if args.environments_file else None
-    ranking = Path(args.out) / "ranking.json"
-    before = ranking.read_bytes() if args.resume and ranking.is_file() else None
     refuse_crowded_out(args.out, "search")
     if args.resume:  # the new manifest must not certify a file changed by hand
         refuse_if_changed(args.out, SEARCH_WRITES)
-    outcome = run_search(
-        args.vehicle,
-        _families(args.families),
-        _environments(args.environments, env_file),
-        args.budget,
-        args.seed,
-        args.top,
+    outcome, gone = search_removing_stale(
         Path(args.out),
-        strategy=args.strategy,
-        mode=args.pd,
-        sun_search=not args.no_sun,
-        environments_file=Path(args.environments_file) if args.environments_file else None,
-        detection=args.detection,
-        workers=args.workers,
-        resume=args.resume,
-        executor=args.executor,
-        scheduler=args.scheduler,
-        seeds=args.seeds,
+        lambda: run_search(
+            args.vehicle,
+            _families(args.families),
+            _environments(args.environments, env_file),
+            args.budget,
+            args.seed,
+            args.top,
+            Path(args.out),
+            strategy=args.strategy,
+            mode=args.pd,
+            sun_search=not args.no_sun,
+            environments_file=env_file,
+            detection=args.detection,
+            workers=args.workers,
+            resume=args.resume,
+            executor=args.executor,
+            scheduler=args.scheduler,
+            seeds=args.seeds,
+        ),
     )
-    stale: tuple[str, ...] = ()
-    if before is not None and ranking.read_bytes() != before:
-        # what export, simulate and report made of the previous ranking no longer matches
-        from sensorgap.export.catalog import EXPORT_WRITES
-        from sensorgap.report.build import REPORT_WRITES
-
-        stale = (*EXPORT_WRITES, *REPORT_WRITES)
-        gone = remove_outputs(args.out, stale)
-        if gone:
-            print(
-                f"the resumed search changed the ranking: removed {len(gone)} files of the "
-                "previous export and report (run export and report again)"
-            )
+    # what export, simulate and report made of the previous ranking no longer matches
+    stale: tuple[str, ...] = () if gone is None else stale_after_search()
+    if gone:
+        print(
+            f"the resumed search changed the ranking: removed {len(gone)} files of the "
+            "previous export and report (run export and report again)"
+        )
     write_manifest(args.out, (*SEARCH_WRITES, *stale) if args.resume else None)
     crit = sum(1 for r in outcome.ranking if r["class"] == "sensor-critical")
     d = outcome.summary["lookup_vs_exact"]
@@ -641,52 +637,37 @@ def cmd_compare(args: argparse.Namespace) -> int:
 def cmd_export(args: argparse.Namespace) -> int:
     """OpenSCENARIO + OpenDRIVE catalog of a search run's ranked scenarios."""
     from sensorgap.export import export_catalog
+    from sensorgap.stale import export_removing_stale_report
 
     out = Path(args.out) if args.out else None
     folder = out or Path(args.run)
     refuse_crowded_out(folder, "export")
     refuse_uncertifiable(folder, "--out" if out else "--run")
-    before = _catalog_digests(folder)
     # a failed export leaves no partial catalog: a folder it made removed, the scenario
     # files, maps, catalog.json and manifest.json of an earlier export back in place
-    with removed_on_error(folder):
-        index = export_catalog(
-            Path(args.run), out, osc_version=args.osc_version, top=args.top, style=args.style
+    with removed_on_error(folder, lock=out is not None):  # --run: locked if it exists
+        # a report of the folder describes and links the previous export's files (their
+        # OpenSCENARIO version and style too), or says there was none: removed
+        index, gone = export_removing_stale_report(
+            folder,
+            lambda: export_catalog(
+                Path(args.run), out, osc_version=args.osc_version, top=args.top, style=args.style
+            ),
         )
-        if before != _catalog_digests(folder):
-            # a report of the folder describes and links the previous export's files
-            # (their OpenSCENARIO version and style too), or says there was none
+        if gone:
             from sensorgap.export.catalog import EXPORT_WRITES
             from sensorgap.report.build import REPORT_WRITES
 
-            gone = remove_outputs(folder, REPORT_WRITES)
-            if gone:
-                write_manifest(folder, (*EXPORT_WRITES, *REPORT_WRITES))
-                print(
-                    f"the export changed the scenario files: removed {len(gone)} files of "
-                    "the previous report (run report again)"
-                )
+            write_manifest(folder, (*EXPORT_WRITES, *REPORT_WRITES))
+            print(
+                f"the export changed the scenario files: removed {len(gone)} files of "
+                "the previous report (run report again)"
+            )
     print(
         f"{out or args.run}: {len(index['scenarios'])} scenarios, {args.style} style, "
         f"OpenSCENARIO {args.osc_version}, every file XSD-valid"
     )
     return 0
-
-
-def _catalog_digests(folder: Path) -> dict[str, str]:
-    """SHA-256 of each scenario file and of ``catalog.json`` in ``folder`` (relative
-    path -> digest; what a report of the folder describes and links): an export that
-    changes any of them makes the report stale."""
-    import hashlib
-
-    paths = sorted((folder / "scenarios").glob("*.xosc"))
-    if (folder / "catalog.json").is_file():
-        paths.append(folder / "catalog.json")
-    return {
-        p.relative_to(folder).as_posix(): hashlib.sha256(p.read_bytes()).hexdigest()
-        for p in paths
-        if p.is_file() and not p.is_symlink()
-    }
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:
@@ -695,7 +676,8 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 
     refuse_if_changed(args.catalog, ("simulation.csv",))  # its manifest is rewritten
     # a failed run leaves the catalog as it was (simulation.csv and its manifest entry)
-    with removed_on_error(args.catalog, only=("simulation.csv", "manifest.json")):
+    # locked before any work when it exists (_written_folders); a missing one is refused
+    with removed_on_error(args.catalog, only=("simulation.csv", "manifest.json"), lock=False):
         rows = simulate_catalog(
             Path(args.catalog),
             args.esmini,
@@ -799,7 +781,8 @@ def cmd_report(args: argparse.Namespace) -> int:
         refuse_uncertifiable(args.run, "--run")
         # a failed report leaves the run as it was: no figure of it left behind, and the
         # earlier report.html, report.md and manifest.json back in place
-        with removed_on_error(args.run):
+        # (locked before any work when it exists, _written_folders; a missing one refused)
+        with removed_on_error(args.run, lock=False):
             html_path, md_path = write_report(Path(args.run))
             write_manifest(args.run, writes)
     print(f"{html_path} and {md_path}")
@@ -1287,6 +1270,40 @@ def _flag_sources(exc: InputError, parser: argparse.ArgumentParser) -> None:
             e.source = flags[e.source]
 
 
+def _written_folders(args: argparse.Namespace) -> list[Path]:
+    """The existing folders the command of ``args`` writes into (``--out``; ``export``
+    in place and ``report --run``: ``--run``; ``simulate``: ``--catalog``), locked for
+    its whole run before any work (``atomic.folder_lock``). None for the readers
+    (``verify``, ``schema``) and ``probe`` (one file renamed into a user's folder)."""
+    func = getattr(args, "func", None)
+    if func in (cmd_verify, cmd_schema, cmd_probe):
+        return []
+    if func is cmd_simulate:
+        paths = [args.catalog]
+    elif func is cmd_export:
+        paths = [args.out or args.run]
+    elif func is cmd_report:
+        paths = [args.out] if args.compare else [args.run]
+    else:
+        paths = [getattr(args, "out", None)]
+    return [Path(p) for p in paths if isinstance(p, str) and os.path.isdir(p)]
+
+
+def _lock_job_out(folder: Path, locks: ExitStack) -> None:
+    """When ``folder`` is a vehicle folder of a certified job (``filesio.job_out_of``),
+    hold the job's OUT too: locked (no ``run`` into it meanwhile), its other files
+    checked as certified (``refuse_if_changed``), and its ``manifest.json`` kept, put
+    back if the command fails; the command's ``write_manifest`` certifies OUT again."""
+    from sensorgap.filesio import MANIFEST_NAME, job_out_of
+
+    parent = job_out_of(folder)
+    if parent is None:
+        return
+    locks.enter_context(folder_lock(parent))
+    refuse_if_changed(parent, (f"{Path(os.path.abspath(folder)).name}/",))
+    locks.enter_context(removed_on_error(parent, only=(MANIFEST_NAME,), lock=False))
+
+
 def _remove_fresh(path: Path | None) -> str:
     """Remove ``path``, an ``--out`` that did not exist when the command started (its
     standard output failed after it wrote there: a failed command leaves nothing); the
@@ -1390,8 +1407,14 @@ def _main(argv: Sequence[str] | None) -> int:
                     "",
                     f"must not be empty: give a path (or a preset name), got {value!r}",
                 )
-        with guarded_stdout():
-            return func(args)
+        with held_until_done(), ExitStack() as locks:
+            # every folder the command writes, locked before any work and until it is
+            # done: a second command into it is refused (and readers need no lock)
+            for folder in _written_folders(args):
+                _lock_job_out(folder, locks)
+                locks.enter_context(folder_lock(folder))
+            with guarded_stdout():
+                return func(args)
     except StdoutUnwritable as exc:
         if exc.closed:
             line = (

@@ -9,6 +9,7 @@ from __future__ import annotations
 import io
 import json
 import math
+import os
 import re
 import shutil
 import zipfile
@@ -19,7 +20,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from sensorgap.atomic import atomic_write_bytes, utf8
+from sensorgap.atomic import atomic_write_bytes, holds_lock, utf8
 
 _FIXED_ZIP_TIME = (1980, 1, 1, 0, 0, 0)
 
@@ -169,9 +170,10 @@ def _is_active_restore(path: Path) -> bool:
 
 def _is_leftover_restore(path: Path) -> bool:
     """Whether ``path`` is a restore folder of ``atomic.removed_on_error``
-    (``_is_restore_folder``) that no command of this process is using (a killed command
-    left it)."""
-    return _is_restore_folder(path) and not _is_active_restore(path)
+    (``_is_restore_folder``) that no command of this process is using, in a folder whose
+    lock this process holds (``atomic.holds_lock``: no other command is writing there, so
+    a killed command left it; another process's restore folder is never removed)."""
+    return _is_restore_folder(path) and not _is_active_restore(path) and holds_lock(path.parent)
 
 
 def _uncertifiable(root: Path, entries: list[tuple[str, str]]) -> str | None:
@@ -326,9 +328,34 @@ def write_manifest(folder: str | Path, rewrites: tuple[str, ...] | None = None) 
             continue
         size, sha = _sha256_file(p)
         files[rel] = {"bytes": size, "sha256": sha}
-    return write_json(
+    written = write_json(
         root / MANIFEST_NAME, {"algorithm": "sha256", "files": dict(sorted(files.items()))}
     )
+    parent = job_out_of(root)
+    if parent is not None and holds_lock(parent):
+        # a command into OUT/<vehicle> (holding OUT's lock): OUT certified again
+        write_manifest(parent, (f"{Path(os.path.abspath(root)).name}/",))
+    return written
+
+
+def job_out_of(folder: str | Path) -> Path | None:
+    """The folder holding ``folder`` when it is a vehicle folder of a certified job
+    (``sensorgap run``'s ``OUT/<vehicle>``: OUT's manifest lists
+    ``<vehicle>/manifest.json``), else None. OUT's manifest certifies every file below
+    OUT, the vehicle folders' too: a command writing into ``OUT/<vehicle>`` locks OUT as
+    well, checks OUT's other files, and certifies OUT again after its own manifest
+    (``write_manifest``), so ``verify OUT`` and a rerun of the job still accept it."""
+    from sensorgap.errors import InputError
+
+    root = Path(os.path.abspath(folder))
+    parent = root.parent
+    if parent == root or not (parent / MANIFEST_NAME).is_file():
+        return None
+    try:
+        listed = read_manifest(parent)
+    except (InputError, OSError, ValueError):
+        return None  # not a certified job (verify reports a damaged manifest)
+    return parent if f"{root.name}/{MANIFEST_NAME}" in listed else None
 
 
 def _bad_entry(rel: object) -> str | None:

@@ -51,6 +51,7 @@ from sensorgap.search.anchors import (
 from sensorgap.search.run import exclusive_folder, refuse_search_clash, run_search
 from sensorgap.search.runfolder import STORE_FILE
 from sensorgap.search.settings import Prepared, SearchSettings, prepare
+from sensorgap.stale import export_removing_stale_report, search_removing_stale
 
 DEFAULT_SYSTEM = "system_a"
 #: Coverage grid of the default job: x from, x to, y from, y to, cell size (m); target
@@ -288,6 +289,11 @@ def _run_job(
     print(f"{folder}: main job for {system.name} ({ref})")
 
     def search() -> Any:
+        # a ranking changed from the earlier run's makes its export and report stale:
+        # removed as `sensorgap search --resume` does (stale.search_removing_stale)
+        return search_removing_stale(folder, lambda: _search())[0]
+
+    def _search() -> Any:
         return run_search(
             ref,
             fams,
@@ -333,7 +339,11 @@ def _run_job(
                 folder / "anchors",
             ),
         )
-    clock.stage("export", lambda: export_catalog(folder))
+    # the export's new scenario files make the earlier report stale: its figures of
+    # scenarios no longer exported removed (as `sensorgap export` does)
+    clock.stage(
+        "export", lambda: export_removing_stale_report(folder, lambda: export_catalog(folder))
+    )
     settings = {
         "budget": budget,
         "top": top,

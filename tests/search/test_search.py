@@ -405,7 +405,7 @@ def test_a_second_search_into_a_folder_being_searched_is_refused(tmp_path: Path)
     fd = os.open(out, os.O_RDONLY)
     try:
         fcntl.flock(fd, fcntl.LOCK_EX)
-        with pytest.raises(InputError, match="another search is writing to"):
+        with pytest.raises(InputError, match="another sensorgap command is writing this folder"):
             run_search("system_a", ["slow_ahead_curve"], ["clear"], 10, 0, 1, out)
     finally:
         os.close(fd)

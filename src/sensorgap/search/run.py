@@ -13,20 +13,23 @@ from __future__ import annotations
 
 import contextlib
 import csv
-import fcntl
 import io
 import math
-import os
 import sqlite3
 import sys
-from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from tqdm import tqdm
 
-from sensorgap.atomic import atomic_write_bytes, created_folders, remove_created_folders, utf8
+from sensorgap.atomic import (
+    atomic_write_bytes,
+    created_folders,
+    folder_lock,
+    remove_created_folders,
+    utf8,
+)
 from sensorgap.errors import InputError
 from sensorgap.filesio import format_float, write_json
 from sensorgap.search.executors import make_executor
@@ -311,26 +314,12 @@ def write_ranking(out: Path, p: Prepared, ranked: Ranked, summary: dict[str, Any
     write_json(out / "summary.json", summary)
 
 
-@contextlib.contextmanager
-def exclusive_folder(out: Path) -> Iterator[None]:
-    """Hold an exclusive lock on the folder ``out`` (``flock`` on the folder itself: no
-    lock file is left in the run folder) while a search writes it; a second search into
+def exclusive_folder(out: Path) -> contextlib.AbstractContextManager[None]:
+    """Hold the lock of the folder ``out`` (``atomic.folder_lock``, the one every
+    command writing a run folder takes) while a search writes it; a second command into
     the same folder at the same time -> ``InputError`` (two searches storing into one
     database and writing one ranking left a folder whose manifest did not match it)."""
-    fd = os.open(out, os.O_RDONLY)
-    try:
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            raise InputError(
-                "out",
-                "",
-                f"another search is writing to {out} now; wait for it to finish, or use "
-                "another --out",
-            ) from None
-        yield
-    finally:
-        os.close(fd)
+    return folder_lock(out)
 
 
 def _stored_count(db: Path) -> int:
