@@ -183,11 +183,14 @@ def _uncertifiable(root: Path, entries: list[tuple[str, str]]) -> str | None:
     ``write_manifest`` would neither list nor remove (this process's restore folder, a
     killed command's and sensorgap's own temporary files excepted): its relative path
     and what it is; or None."""
-    skipped: list[str] = []  # restore folders write_manifest removes or its block does
+    # restore folders: this process's (its block removes it), a killed command's
+    # (write_manifest removes it under the folder's lock) or another running command's
+    # (never listed; its own command removes it)
+    skipped: list[str] = []
     for rel, kind in entries:
         if any(rel.startswith(f"{s}/") for s in skipped):
             continue
-        if kind == "dir" and (_is_active_restore(root / rel) or _is_leftover_restore(root / rel)):
+        if kind == "dir" and _is_restore_folder(root / rel):
             skipped.append(rel)
         elif kind == "other":
             return f"{rel}, a named pipe, socket or device file"
