@@ -311,8 +311,11 @@ def test_esmini_failures_are_per_scenario(catalog: Path, tmp_path: Path) -> None
         main(["simulate", "--catalog", str(work), "--esmini", str(ESMINI), "--timeout", "0.001"])
         == 0
     )
-    rows2 = list(csv.DictReader((work / "simulation.csv").open()))
-    assert {r["status"] for r in rows2 if r["scenario_id"] != sid[0]} == {"timeout"}
+    rows2 = {r["scenario_id"]: r for r in csv.DictReader((work / "simulation.csv").open())}
+    assert {rows2[s]["status"] for s in sid[2:]} == {"timeout"}
+    # the truncated file: esmini may fail on it by itself before the kill lands (seen
+    # under load: the waiting thread ran late)
+    assert rows2[sid[1]]["status"] in ("timeout", "crashed")
 
 
 @needs_esmini
