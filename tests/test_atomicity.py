@@ -110,8 +110,8 @@ def test_only_the_named_files_are_kept_and_removed(tmp_path: Path) -> None:
 
 
 def test_a_killed_commands_restore_folder_is_reported_then_removed(tmp_path: Path) -> None:
-    """A restore folder left by a command killed with SIGKILL: verify names it as a
-    left-over temporary; the next manifest written by a process holding the folder's
+    """A restore folder left by a command killed with SIGKILL: verify names it (one
+    line); the next manifest written by a process holding the folder's
     lock removes it (not one in use); one written without the lock leaves it (it may be
     another running command's)."""
     root = tmp_path / "run"
@@ -122,12 +122,82 @@ def test_a_killed_commands_restore_folder_is_reported_then_removed(tmp_path: Pat
     left.mkdir()
     os.link(root / "a.txt", left / "0")
     problems = verify_manifest(root)
-    assert len(problems) == 1 and "left-over temporary" in problems[0], problems
+    assert len(problems) == 1 and "left over from a killed command" in problems[0], problems
     write_manifest(root)
     assert left.exists()
     with folder_lock(root):
         write_manifest(root)
     assert not left.exists() and verify_manifest(root) == []
+
+
+def test_a_sigkilled_commands_restore_folder_can_be_put_back_by_hand(tmp_path: Path) -> None:
+    """Hostile round eleven (F11): a command killed with SIGKILL half-way left its restore
+    folder holding numbered copies and nothing saying which file each was. Now its
+    index.json names each number's path, verify says so in one line (not one line per
+    copy), and moving the copies back by that index gives a folder that verifies."""
+    import json
+    import signal
+
+    root = tmp_path / "run"
+    (root / "sub").mkdir(parents=True)
+    (root / "a.txt").write_text("a")
+    (root / "sub" / "b.txt").write_text("b")
+    write_manifest(root)
+    child = (
+        "import os, signal, sys\n"
+        "from pathlib import Path\n"
+        "from sensorgap.atomic import removed_on_error, atomic_write_text\n"
+        "root = Path(sys.argv[1])\n"
+        "with removed_on_error(root):\n"
+        "    atomic_write_text(root / 'a.txt', 'half')\n"
+        "    (root / 'sub' / 'b.txt').unlink()\n"
+        "    os.kill(os.getpid(), signal.SIGKILL)\n"
+    )
+    done = subprocess.run([sys.executable, "-c", child, str(root)], check=False)
+    assert done.returncode == -signal.SIGKILL
+    (left,) = [p for p in root.iterdir() if p.name.startswith(RESTORE_PREFIX)]
+    index = json.loads((left / "index.json").read_text(encoding="ascii"))
+    assert sorted(index.values()) == ["a.txt", "manifest.json", "sub/b.txt"]
+    problems = verify_manifest(root)
+    mine = [p for p in problems if p.startswith(left.name)]
+    assert len(mine) == 1 and "the 3 files" in mine[0] and "index.json" in mine[0], problems
+    assert any("a.txt was changed" in p for p in problems)
+    for number, rel in index.items():  # what the line tells the user to do (mv)
+        if (root / rel).exists() and os.path.samefile(left / number, root / rel):
+            (left / number).unlink()  # unchanged: the copy is a second link to it
+        else:
+            os.replace(left / number, root / rel)
+    (left / "index.json").unlink()
+    left.rmdir()
+    assert verify_manifest(root) == []
+    assert (root / "a.txt").read_text() == "a"
+
+
+def test_a_folder_moved_while_its_command_runs_is_not_made_again(tmp_path: Path) -> None:
+    """Hostile round eleven (F4): a run folder moved away (or deleted) while a command
+    ran; the command failed, and its restore made a skeleton of empty folders at the old
+    path. Now nothing is made or removed at a path whose folder is no longer the one the
+    command started in: the moved folder keeps what it holds and its restore folder,
+    which verify reports with its index."""
+    root = tmp_path / "run"
+    (root / "sub").mkdir(parents=True)
+    (root / "sub" / "b.txt").write_text("b")
+    moved = tmp_path / "moved"
+    with pytest.raises(OSError, match="No space"), removed_on_error(root):
+        atomic_write_text(root / "new.txt", "half")
+        os.rename(root, moved)
+        raise OSError(28, "No space left on device")
+    assert not root.exists()
+    assert (moved / "new.txt").read_text() == "half" and (moved / "sub" / "b.txt").is_file()
+    (left,) = [p for p in moved.iterdir() if p.name.startswith(RESTORE_PREFIX)]
+    assert (left / "index.json").is_file()
+    deleted = tmp_path / "gone"
+    deleted.mkdir()
+    (deleted / "a.txt").write_text("a")
+    with pytest.raises(OSError, match="No space"), removed_on_error(deleted):
+        shutil.rmtree(deleted)
+        raise OSError(28, "No space left on device")
+    assert not deleted.exists()
 
 
 @contextmanager

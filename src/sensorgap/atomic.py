@@ -6,6 +6,7 @@ A reader never sees a half-written file: either the old content or the new one.
 from __future__ import annotations
 
 import fcntl
+import json
 import os
 import secrets
 import shutil
@@ -215,6 +216,9 @@ def held_until_done() -> Iterator[None]:
 #: one (``filesio.is_temporary``): a manifest never lists what lies below it, and
 #: ``verify`` reports it if a killed command left it behind.
 RESTORE_PREFIX = ".sensorgap-restore."
+#: The file of a ``RESTORE_PREFIX`` folder naming each kept file's relative path by its
+#: number ({"0": "coverage/coverage.npz", ...}; JSON, ASCII).
+RESTORE_INDEX = "index.json"
 #: The ``RESTORE_PREFIX`` folders of the guarded commands running in this process
 #: (absolute paths): ``filesio.write_manifest`` removes only the others (left behind by
 #: a killed command), and only in a folder whose lock it holds (``holds_lock``: no other
@@ -282,9 +286,10 @@ def _back_up(
     copied: the link keeps the old content when the command renames a new file onto the
     path or deletes it), a copy of those in ``copies`` (files changed in place, such as
     an SQLite store) and of any that cannot be linked (a file system without hard
-    links). Returns (the folder, None when there was nothing to keep; path -> kept
-    file). A file that can be neither linked nor copied raises ``OSError`` naming that
-    file, not its hidden copy (the folder is removed: nothing was changed yet)."""
+    links), with ``RESTORE_INDEX`` naming each kept file's path. Returns (the folder,
+    None when there was nothing to keep; path -> kept file). A file that can be neither
+    linked nor copied raises ``OSError`` naming that file, not its hidden copy (the folder
+    is removed: nothing was changed yet)."""
     regular = sorted(rel for rel in files if stat.S_ISREG(os.lstat(root / rel).st_mode))
     if not regular:
         return None, {}
@@ -310,6 +315,12 @@ def _back_up(
                     str(root / rel),
                 ) from exc
             saved[rel] = dst
+        # a command killed by SIGKILL leaves this folder: its index names each number's
+        # path, so a user can put the earlier files back by hand (verify says so)
+        index = {str(i): rel for i, rel in enumerate(regular)}
+        (keep / RESTORE_INDEX).write_text(
+            json.dumps(index, indent=1, ensure_ascii=True) + "\n", encoding="ascii"
+        )
     except BaseException:
         _drop(keep)
         raise
@@ -400,14 +411,32 @@ def removed_on_error(
         files, dirs = _entries(root, only)
         keep: Path | None = None
         saved: dict[str, Path] = {}
+        start = _identity(root)
         try:
             keep, saved = _back_up(root, files, tuple(copies))
             yield
         except BaseException:
+            if start is not None and _identity(root) != start:
+                # moved, deleted or replaced while the command ran (hostile round eleven,
+                # F4: a restore made a skeleton of empty folders at the old path): nothing
+                # is made or removed there; a moved folder keeps its restore folder,
+                # which verify reports with its index
+                ACTIVE_RESTORE_FOLDERS.discard(os.path.abspath(keep or root))
+                raise
             _restore(root, files, dirs, keep, saved, only)
             remove_created_folders(created)
             raise
         _drop(keep)
+
+
+def _identity(root: Path) -> tuple[int, int] | None:
+    """(device, inode) of the folder ``root`` (symbolic links not followed), None when
+    there is none: whether the folder a command started in is still the one at its path."""
+    try:
+        st = os.lstat(root)
+    except OSError:
+        return None
+    return (st.st_dev, st.st_ino) if stat.S_ISDIR(st.st_mode) else None
 
 
 @contextmanager

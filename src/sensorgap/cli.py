@@ -34,6 +34,8 @@ from sensorgap.runtime import (
 )
 
 if TYPE_CHECKING:
+    from _typeshed import SupportsWrite
+
     from sensorgap.coverage import Scene
     from sensorgap.coverage.occluders import Occluder
 
@@ -964,6 +966,16 @@ class _Parser(argparse.ArgumentParser):
     def error(self, message: str) -> NoReturn:
         self.exit(EXIT_INPUT, f"{self.prog}: error: {clip(message)} (see --help)\n")
 
+    def print_help(self, file: SupportsWrite[str] | None = None) -> None:
+        """``--help`` onto standard output through ``guarded_stdout`` (hostile round
+        eleven, F9: with stdout closed argparse printed it on stderr, into a full device
+        it was lost; both exited 0): ``StdoutUnwritable`` when it cannot be written."""
+        if file is not None:
+            super().print_help(file)
+            return
+        with guarded_stdout():
+            super().print_help(sys.stdout)
+
 
 class _DefaultsFormatter(argparse.ArgumentDefaultsHelpFormatter):
     """Shows every default, except where the help already says what it is."""
@@ -1377,7 +1389,11 @@ def _main(argv: Sequence[str] | None) -> int:
     for i in range(len(argv) - 1, 0, -1):
         if argv[i - 1] in _GLUED_OPTIONS and argv[i].startswith("-"):
             argv[i - 1 : i + 1] = [f"{argv[i - 1]}={argv[i]}"]
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except StdoutUnwritable as exc:  # --help into a closed or full standard output
+        print(clip(f"sensorgap: error: stdout: cannot write: {exc.reason}"), file=sys.stderr)
+        return EXIT_INPUT
     func: Callable[[argparse.Namespace], int] = args.func
     if hasattr(signal, "SIGXFSZ"):  # a file-size limit: a clean OSError, not a core dump
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)

@@ -140,20 +140,28 @@ def _in_temporary_folder(rel: str) -> bool:
     return any(is_temporary(part) for part in rel.split("/")[:-1])
 
 
+#: How ``verify``'s line for a restore folder left by a killed command ends.
+_RESTORE_BY_HAND = "move them back by hand to restore the folder, or delete it"
+
+
 def _is_restore_folder(path: Path) -> bool:
     """Whether ``path`` is named exactly as ``atomic.removed_on_error`` names its restore
     folders (``RESTORE_PREFIX``, ``tempfile.mkdtemp``'s 8 random characters, ``.tmp``)
-    and holds only what it puts there: files named by numbers (``0``, ``1``, ...). A
-    user's folder that merely imitates the name (it holds ``data.txt``) is not one."""
+    and holds only what it puts there: files named by numbers (``0``, ``1``, ...) and its
+    index (``atomic.RESTORE_INDEX``). A user's folder that merely imitates the name (it
+    holds ``data.txt``) is not one."""
     import os
 
-    from sensorgap.atomic import RESTORE_PREFIX
+    from sensorgap.atomic import RESTORE_INDEX, RESTORE_PREFIX
 
     if not re.fullmatch(re.escape(RESTORE_PREFIX) + r"[a-z0-9_]{8}\.tmp", path.name):
         return False
     try:
         with os.scandir(path) as it:
-            return all(e.name.isdigit() and e.is_file(follow_symlinks=False) for e in it)
+            return all(
+                (e.name.isdigit() or e.name == RESTORE_INDEX) and e.is_file(follow_symlinks=False)
+                for e in it
+            )
     except OSError:
         return False
 
@@ -476,7 +484,11 @@ def refuse_if_changed(folder: str | Path, rewrites: tuple[str, ...], lost_ok: bo
         return (
             not _written_by(rel, rewrites)
             and not why.endswith(
-                ("(from an interrupted command; not in the manifest)", "is not in the manifest")
+                (
+                    "(from an interrupted command; not in the manifest)",
+                    "is not in the manifest",
+                    _RESTORE_BY_HAND,
+                )
             )
             and not (why.endswith(" is missing") and ("/" in rel or lost_ok))
         )
@@ -681,8 +693,23 @@ def _manifest_problems(root: Path) -> list[tuple[str, str]]:
             problems.append(
                 (folder, f"{folder} cannot be listed ({why}): what it holds cannot be checked")
             )
+    restores = [
+        rel for rel, kind in entries.items() if kind == "dir" and _is_restore_folder(root / rel)
+    ]
+    for rel in restores:  # one line each, not one per kept file
+        kept = sum(1 for r in entries if r.startswith(f"{rel}/")) - 1
+        problems.append(
+            (
+                rel,
+                f"{rel} is left over from a killed command: it holds the {kept} files the "
+                "folder had before that command started (its index.json names each "
+                f"number's path); {_RESTORE_BY_HAND}",
+            )
+        )
     for rel, kind in entries.items():
         if kind in ("dir", "link") or rel == MANIFEST_NAME or rel in listed:
+            continue
+        if any(rel.startswith(f"{r}/") for r in restores):
             continue
         if is_temporary(rel.rsplit("/", 1)[-1]) or _in_temporary_folder(rel):
             problems.append(

@@ -292,7 +292,7 @@ def test_run_deterministic_and_resumes(tmp_path: Path) -> None:
     again = run_search(out=tmp_path / "a", resume=True, **kw)  # type: ignore[arg-type]
     assert again.evaluated == 0 and again.reused == 60
     assert (tmp_path / "a" / "ranking.csv").read_bytes() == csv_a
-    with pytest.raises(InputError, match="different settings"):
+    with pytest.raises(InputError, match=r"different settings \(changed: seed\);"):
         run_search(out=tmp_path / "a", resume=True, **{**kw, "seed": 8})  # type: ignore[arg-type]
     assert all(r["reason"] for r in b.ranking)
 
@@ -329,7 +329,7 @@ def test_seeds_split_the_budget_into_independent_searches(tmp_path: Path) -> Non
     assert all(r["found_by_seeds"] is None for r in one.ranking)
     again = run_search(out=tmp_path / "a", resume=True, seeds=3, **kw)  # type: ignore[arg-type]
     assert again.evaluated == 0 and again.ranking == a.ranking
-    with pytest.raises(InputError, match="different settings"):
+    with pytest.raises(InputError, match=r"different settings \(changed: seeds\);"):
         run_search(out=tmp_path / "a", resume=True, seeds=2, **kw)  # type: ignore[arg-type]
 
 

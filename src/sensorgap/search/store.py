@@ -121,6 +121,20 @@ def _unusable(path: Path, exc: sqlite3.Error) -> InputError | None:
     return None
 
 
+def _changed_names(stored: str, settings: dict[str, Any]) -> str:
+    """`` (changed: a, b)``: the top-level setting names whose stored value (JSON text
+    ``stored``) differs from ``settings``, for a refusal line; empty when the stored text
+    is not a JSON object (the line then says only that the settings differ)."""
+    try:
+        old = json.loads(stored)
+    except (TypeError, ValueError, RecursionError):
+        return ""
+    if not isinstance(old, dict):
+        return ""
+    names = sorted(k for k in {*old, *settings} if old.get(k) != settings.get(k))
+    return f" (changed: {', '.join(names)})" if names else ""
+
+
 def _refuse_other_search(
     db: sqlite3.Connection, path: Path, settings: dict[str, Any], inputs: dict[str, str]
 ) -> int:
@@ -152,7 +166,8 @@ def _refuse_other_search(
         raise InputError(
             "out",
             "",
-            f"{path} holds a search with different settings; "
+            f"{path} holds a search with different settings"
+            f"{_changed_names(meta['settings'], settings)}; "
             "use another --out folder (or delete it) to start a new search",
         )
     old: Any = None
