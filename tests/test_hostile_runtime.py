@@ -521,6 +521,43 @@ def test_sigterm_unwinds_and_leaves_no_temporary_file(
     assert signal.getsignal(signal.SIGTERM) == previous  # restored after the command
 
 
+def test_a_sigterm_after_the_command_is_done_keeps_its_exit_code(tmp_path: Path) -> None:
+    """Hostile round eleven (F13): a SIGTERM in the interpreter's shutdown, after the
+    command had written its complete output, ended the process with 143 and no line. The
+    command's own process (``main()`` with ``sys.argv``) now ignores SIGTERM and Ctrl-C
+    once the command is done: the exit code is the command's, nothing on stderr. A caller
+    of ``main(argv)`` gets its own handler back (test above)."""
+    import signal
+    import subprocess
+    import sys
+
+    child = (
+        "import os, signal, sys, time\n"
+        "from sensorgap.cli import main\n"
+        "code = main()\n"
+        "os.kill(os.getpid(), signal.SIGTERM)\n"
+        "os.kill(os.getpid(), signal.SIGINT)\n"
+        "time.sleep(0.2)\n"
+        "sys.exit(code)\n"
+    )
+    out = tmp_path / "schema.json"
+    done = subprocess.run(
+        [sys.executable, "-c", child, "schema", "vehicle"],
+        stdout=out.open("wb"),
+        stderr=subprocess.PIPE,
+        check=False,
+    )
+    assert (done.returncode, done.stderr) == (0, b"")
+    assert out.read_bytes().startswith(b"{") and out.stat().st_size > 1000
+    bad = subprocess.run(
+        [sys.executable, "-c", child, "schema", "nothing"],
+        capture_output=True,
+        check=False,
+    )
+    assert bad.returncode == 2 and bad.stderr.count(b"\n") == 1, bad.stderr
+    assert signal.getsignal(signal.SIGTERM) is not signal.SIG_IGN  # this process untouched
+
+
 def test_environment_name_with_dollars_is_drawn_as_written_in_the_report(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

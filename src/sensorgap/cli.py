@@ -1383,6 +1383,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def _main(argv: Sequence[str] | None) -> int:
+    top = argv is None  # the command's own process (argv from sys.argv), not a caller's
     parser = build_parser()
     argv = list(sys.argv[1:] if argv is None else argv)
     # "--extent -20,100,-5,5": glue values that start with '-' to their option
@@ -1468,7 +1469,15 @@ def _main(argv: Sequence[str] | None) -> int:
         )
         return EXIT_INTERNAL
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        if top:
+            # the command is done (its output complete, or put back as it was): a SIGTERM
+            # or Ctrl-C in the interpreter's shutdown from here on ended the process with
+            # 143 and no line, or a traceback (hostile round eleven, F13); the exit code
+            # returned says what happened
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
+            signal.signal(signal.SIGTERM, signal.SIG_IGN)
+        else:
+            signal.signal(signal.SIGTERM, previous)
 
 
 if __name__ == "__main__":
