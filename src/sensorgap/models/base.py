@@ -11,7 +11,7 @@ from __future__ import annotations
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import ClassVar
+from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -20,6 +20,10 @@ from pydantic import BaseModel
 from sensorgap.config.target import TargetConfig
 from sensorgap.models.conditions import Band, Conditions
 from sensorgap.models.geometry import Mount, pattern_loss_db, separation_cos
+
+if TYPE_CHECKING:
+    from sensorgap.models.camera import CameraParams
+    from sensorgap.models.lidar import LidarParams
 
 F64 = NDArray[np.float64]
 SnrFunction = Callable[[F64, F64, F64], F64]
@@ -166,6 +170,17 @@ class SensorModel(ABC):
         the sensor is immune or its weight has another form (then ``glare_weights`` is
         called)."""
         return None
+
+
+class OpticalSensor(SensorModel):
+    """A sensor of the optical band (camera, lidar): its weather attenuation is the optical
+    band's at the parameters' ``wavelength_m``."""
+
+    params: CameraParams | LidarParams
+
+    def band(self) -> Band:
+        """Optical band at the sensor's (centre or laser) wavelength."""
+        return Band("optical", wavelength_m=self.params.wavelength_m)
 
 
 @dataclass(frozen=True)

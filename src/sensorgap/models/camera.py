@@ -41,8 +41,8 @@ from pydantic import Field
 
 from sensorgap.config.common import Strict
 from sensorgap.config.target import TargetConfig
-from sensorgap.models.base import F64, GlareCone, PreparedSensor, RangeLosses, SensorModel
-from sensorgap.models.conditions import Band, Conditions
+from sensorgap.models.base import F64, GlareCone, OpticalSensor, PreparedSensor, RangeLosses
+from sensorgap.models.conditions import Conditions
 from sensorgap.models.constants import BOLTZMANN_J_K, PLANCK_J_S, SPEED_OF_LIGHT_M_S
 from sensorgap.models.geometry import Mount, angle_outside_fov, angles_outside_fov
 from sensorgap.models.numerics import LN10_OVER_10
@@ -89,16 +89,12 @@ class CameraParams(Strict):
 
 
 @register
-class Camera(SensorModel):
+class Camera(OpticalSensor):
     """Passive camera, eq. 6-10 of Ponn et al. 2019."""
 
     type_name = "camera"
     Params = CameraParams
     params: CameraParams
-
-    def band(self) -> Band:
-        """Optical band at the centre wavelength."""
-        return Band("optical", wavelength_m=self.params.wavelength_m)
 
     def glare_weight(self, mount: Mount, conditions: Conditions) -> float:
         """Fraction (0..1) of the direct-sun term of eq. 9-10 applied to this camera."""

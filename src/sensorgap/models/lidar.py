@@ -22,8 +22,8 @@ from pydantic import Field
 
 from sensorgap.config.common import Strict
 from sensorgap.config.target import TargetConfig
-from sensorgap.models.base import F64, PreparedSensor, RangeLosses, SensorModel
-from sensorgap.models.conditions import Band, Conditions
+from sensorgap.models.base import F64, OpticalSensor, PreparedSensor, RangeLosses
+from sensorgap.models.conditions import Conditions
 from sensorgap.models.constants import BOLTZMANN_J_K, PLANCK_J_S, SPEED_OF_LIGHT_M_S
 from sensorgap.models.geometry import Mount
 from sensorgap.models.registry import register
@@ -48,16 +48,12 @@ class LidarParams(Strict):
 
 
 @register
-class Lidar(SensorModel):
+class Lidar(OpticalSensor):
     """Pulsed time-of-flight lidar, eq. 4-5 of Ponn et al. 2019."""
 
     type_name = "lidar"
     Params = LidarParams
     params: LidarParams
-
-    def band(self) -> Band:
-        """Optical band at the laser wavelength."""
-        return Band("optical", wavelength_m=self.params.wavelength_m)
 
     def prepare(self, mount: Mount, target: TargetConfig, conditions: Conditions) -> PreparedSensor:
         """Fold eq. 4-5 constants; the range law switches at the beam-fill range."""
