@@ -521,6 +521,81 @@ def test_sigterm_unwinds_and_leaves_no_temporary_file(
     assert signal.getsignal(signal.SIGTERM) == previous  # restored after the command
 
 
+@pytest.mark.parametrize("name", ["SIGTERM", "SIGHUP"])
+def test_sighup_stops_a_command_as_sigterm_does(
+    name: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Hostile round twelve: SIGHUP (the terminal closed) killed a command half-way with
+    exit 129, leaving its temporary files, a half-written export or report, and a fresh
+    nested --out. Now it unwinds as SIGTERM does: one line, exit 128 + the signal's
+    number, nothing left (the fresh --out and the parents it made removed)."""
+    import signal
+    import time
+
+    from matplotlib.figure import Figure
+
+    sig = getattr(signal, name)
+
+    def killed_while_saving(self: Figure, fname: object, **kwargs: object) -> None:
+        Path(str(fname)).write_bytes(b"half a png")
+        os.kill(os.getpid(), sig)
+        time.sleep(5)
+        raise AssertionError(f"{name} was not delivered")
+
+    monkeypatch.setattr(Figure, "savefig", killed_while_saving)
+    before = signal.getsignal(sig)
+    out = tmp_path / "a" / "b" / "out"
+    argv = ["coverage", "--vehicle", "system_a", "--environment", "clear", "--target", "car"]
+    argv += ["--resolution", "1", "--extent", "0,10,0,10", "--out", str(out)]
+    assert main(argv) == 128 + sig
+    assert capsys.readouterr().err.strip() == "sensorgap: interrupted"
+    assert list(tmp_path.iterdir()) == []
+    assert signal.getsignal(sig) == before
+
+
+def test_standard_error_that_cannot_be_written_keeps_the_exit_code(tmp_path: Path) -> None:
+    """Hostile round twelve: ``2>/dev/full`` turned a bad input (one line, exit 2) into an
+    internal error (exit 1): printing the line failed. Now the line is lost, the exit code
+    is the command's."""
+    import subprocess
+    import sys
+
+    argv = [sys.executable, "-m", "sensorgap", "verify", str(tmp_path / "missing")]
+    with open("/dev/full", "w") as full:
+        done = subprocess.run(argv, stderr=full, stdout=subprocess.DEVNULL, check=False)
+    assert done.returncode == 2
+
+
+@pytest.mark.parametrize(
+    ("variable", "why"),
+    [
+        ("NUMBA_NUM_THREADS=0", "numba refuses it"),  # was an internal error
+        ("NUMBA_OPT=99", "numba cannot parse it"),  # was numba's RuntimeWarning on stderr
+    ],
+)
+def test_a_numba_variable_numba_cannot_take_is_one_line(variable: str, why: str) -> None:
+    """Hostile round twelve: numba reads its ``NUMBA_*`` variables on import; one it
+    cannot take is now refused before the command starts, naming the variable."""
+    import subprocess
+    import sys
+
+    name, value = variable.split("=")
+    env = {**os.environ, name: value}
+    done = subprocess.run(
+        [sys.executable, "-m", "sensorgap", "schema", "vehicle"],
+        env=env,
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    assert done.returncode == 2 and done.stdout == ""
+    assert done.stderr == (
+        f"sensorgap: error: environment variable {name}: '{value}': {why}"
+        + (" (Number of threads specified must be > 0.)" if name == "NUMBA_NUM_THREADS" else "")
+        + "; unset it or correct it\n"
+    )
+
+
 def test_a_sigterm_after_the_command_is_done_keeps_its_exit_code(tmp_path: Path) -> None:
     """Hostile round eleven (F13): a SIGTERM in the interpreter's shutdown, after the
     command had written its complete output, ended the process with 143 and no line. The

@@ -363,9 +363,9 @@ def _restore(
 
 @contextmanager
 def _signals_held() -> Iterator[None]:
-    """Hold SIGINT and SIGTERM back while the block runs (in the main thread, where
+    """Hold SIGINT, SIGTERM and SIGHUP back while the block runs (in the main thread, where
     Python handles them), so a second Ctrl-C cannot stop a restore half-way."""
-    held = {signal.SIGINT, signal.SIGTERM}
+    held = {signal.SIGINT, signal.SIGTERM, *([signal.SIGHUP] if hasattr(signal, "SIGHUP") else [])}
     if threading.current_thread() is not threading.main_thread():
         yield
         return

@@ -28,6 +28,7 @@ from sensorgap.filesio import (
 )
 from sensorgap.runtime import (
     StdoutUnwritable,
+    check_numba_environment,
     guarded_stdout,
     standard_streams,
     tune_allocator,
@@ -81,12 +82,26 @@ _GLUED_OPTIONS = {
 
 
 class _Terminated(KeyboardInterrupt):
-    """SIGTERM (``kill``, ``timeout``) as an interrupt of the main thread: the command
-    unwinds, so a file being written leaves no temporary file (``atomic.atomic_path``)."""
+    """SIGTERM (``kill``, ``timeout``) or SIGHUP (the terminal closed) as an interrupt of
+    the main thread: the command unwinds, so a file being written leaves no temporary
+    file (``atomic.atomic_path``) and a folder is put back as it was
+    (``atomic.removed_on_error``); the exit code is 128 + the signal's number."""
+
+    def __init__(self, signum: int = signal.SIGTERM) -> None:
+        super().__init__()
+        self.signum = int(signum)
 
 
 def _terminate(signum: int, frame: Any) -> NoReturn:
-    raise _Terminated
+    raise _Terminated(signum)
+
+
+#: The signals that stop a command as Ctrl-C does (``_Terminated``): SIGTERM, and SIGHUP
+#: (hostile round twelve: a closed terminal killed the command half-way, exit 129, its
+#: temporary files and a half-written folder left).
+_STOP_SIGNALS = tuple(
+    getattr(signal, name) for name in ("SIGTERM", "SIGHUP") if hasattr(signal, name)
+)
 
 
 def _decimal(text: str) -> float:
@@ -1337,7 +1352,8 @@ def _check_environment() -> None:
     every computing command failed with "output: cannot write or read: No such file or
     directory"), ``SOURCE_DATE_EPOCH`` (``provenance.source_date_epoch``: numpy's f2py,
     imported by numba, read it with ``int()`` and ``time.gmtime``: internal errors) and
-    ``SENSORGAP_TEMPLATES`` (``config.presets.templates_dir``)."""
+    ``SENSORGAP_TEMPLATES`` (``config.presets.templates_dir``) and numba's ``NUMBA_*``
+    variables (``runtime.check_numba_environment``)."""
     from sensorgap.config.presets import templates_dir
     from sensorgap.provenance import source_date_epoch
 
@@ -1354,6 +1370,7 @@ def _check_environment() -> None:
         ) from None
     source_date_epoch()
     templates_dir()
+    check_numba_environment()
 
 
 def _os_error_line(exc: OSError, out: object) -> str:
@@ -1398,7 +1415,7 @@ def _main(argv: Sequence[str] | None) -> int:
     func: Callable[[argparse.Namespace], int] = args.func
     if hasattr(signal, "SIGXFSZ"):  # a file-size limit: a clean OSError, not a core dump
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
-    previous = signal.signal(signal.SIGTERM, _terminate)
+    previous = {sig: signal.signal(sig, _terminate) for sig in _STOP_SIGNALS}
     tune_allocator()
     out = getattr(args, "out", None)
     fresh: Path | None = None
@@ -1455,7 +1472,7 @@ def _main(argv: Sequence[str] | None) -> int:
         return EXIT_INPUT
     except KeyboardInterrupt as exc:
         print("sensorgap: interrupted", file=sys.stderr)
-        return 143 if isinstance(exc, _Terminated) else 130
+        return 128 + exc.signum if isinstance(exc, _Terminated) else 130
     except Exception as exc:  # noqa: BLE001 - the one place that turns bugs into exit 1
         if args.debug:
             traceback.print_exc()
@@ -1474,10 +1491,11 @@ def _main(argv: Sequence[str] | None) -> int:
             # or Ctrl-C in the interpreter's shutdown from here on ended the process with
             # 143 and no line, or a traceback (hostile round eleven, F13); the exit code
             # returned says what happened
-            signal.signal(signal.SIGINT, signal.SIG_IGN)
-            signal.signal(signal.SIGTERM, signal.SIG_IGN)
+            for sig in (signal.SIGINT, *_STOP_SIGNALS):
+                signal.signal(sig, signal.SIG_IGN)
         else:
-            signal.signal(signal.SIGTERM, previous)
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
 
 
 if __name__ == "__main__":

@@ -202,6 +202,43 @@ def configure_numba_cache() -> str | None:
         return None
 
 
+def check_numba_environment() -> None:
+    """numba reads its ``NUMBA_*`` environment variables when first imported: a value it
+    cannot parse was a ``RuntimeWarning`` printed on standard error (``NUMBA_OPT=99``),
+    ``NUMBA_NUM_THREADS=0`` an internal error (hostile round twelve). With any such
+    variable set (only then: numba is imported here, before the command), either
+    raises ``sensorgap.errors.InputError`` naming the variable, its value and why, or
+    returns with numba imported."""
+    names = sorted(k for k in os.environ if k.startswith("NUMBA_"))
+    if not names or "numba" in sys.modules:
+        return
+    import re
+    import warnings
+
+    from sensorgap.errors import InputError
+
+    def refuse(name: str, why: str) -> InputError:
+        value = os.environ.get(name, "")
+        return InputError(
+            f"environment variable {name}", "", f"{value!r}: {why}; unset it or correct it"
+        )
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            import numba  # noqa: F401 - reads the NUMBA_* variables
+        except Exception as exc:  # noqa: BLE001 - numba's own check of its variables
+            name = next(
+                (n for n in names if n.removeprefix("NUMBA_").lower() in str(exc).lower()),
+                "NUMBA_NUM_THREADS" if "threads" in str(exc).lower() else names[0],
+            )
+            raise refuse(name, f"numba refuses it ({str(exc).splitlines()[0]})") from None
+    for w in caught:
+        m = re.search(r"variable '(NUMBA_\w+)' is defined but its associated value", str(w.message))
+        if m:
+            raise refuse(m.group(1), "numba cannot parse it")
+
+
 def _usable_dir(path: Path, can_write: Callable[[Path], bool]) -> bool:
     """True if ``path`` is a writable folder, or could be made one: its nearest existing
     ancestor is a writable folder (not a file such as a HOME pointing at one)."""
@@ -397,6 +434,44 @@ class _Discard(io.TextIOBase):
         return len(text)
 
 
+class _QuietStderr:
+    """``sys.stderr`` while a command runs: a write or flush that fails (a full device, a
+    closed pipe or terminal) is dropped, and the rest goes nowhere (the process's own
+    descriptor 2 pointed at the null device, so Python's final flush cannot fail either).
+    Hostile round twelve: ``2>/dev/full`` turned a bad input's one line (exit 2) into an
+    internal error (exit 1). The exit code still says what happened."""
+
+    def __init__(self, inner: TextIO) -> None:
+        self._inner = inner
+        self._failed = False
+
+    def _drop(self) -> None:
+        self._failed = True
+        if self._inner is sys.__stderr__:
+            with suppress(OSError, ValueError):
+                null = os.open(os.devnull, os.O_WRONLY)
+                os.dup2(null, self._inner.fileno())
+                os.close(null)
+
+    def write(self, text: str) -> int:
+        if not self._failed:
+            try:
+                return self._inner.write(text)
+            except (OSError, ValueError):
+                self._drop()
+        return len(text)
+
+    def flush(self) -> None:
+        if not self._failed:
+            try:
+                self._inner.flush()
+            except (OSError, ValueError):
+                self._drop()
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._inner, name)
+
+
 @contextmanager
 def standard_streams() -> Iterator[None]:
     """The one place that makes a command safe without its standard streams: closed
@@ -405,20 +480,26 @@ def standard_streams() -> Iterator[None]:
     ``2>&-``) is a stream on the null device, so error lines go nowhere (exit codes stay)
     and progress bars are off (not a terminal); before, ``print(file=sys.stderr)`` wrote
     them to standard output instead and ``sys.stderr.isatty()`` was an internal error.
-    A missing ``sys.stdout`` is ``guarded_stdout``'s to refuse."""
+    Standard error that cannot be written (``_QuietStderr``) loses its lines, not the
+    exit code. A missing ``sys.stdout`` is ``guarded_stdout``'s to refuse."""
     _open_closed_descriptors()
     saved = sys.stderr
+    opened: TextIO | None = None
     if saved is None:
         try:
-            sys.stderr = open(  # noqa: SIM115 - closed below
+            opened = open(  # noqa: SIM115 - closed below
                 2, "w", encoding="utf-8", errors="backslashreplace", closefd=False
             )
         except OSError:
-            sys.stderr = _Discard()
+            opened = None
+    inner = opened or saved
+    sys.stderr = _QuietStderr(inner) if inner is not None else _Discard()
     try:
         yield
     finally:
-        if saved is None:
-            stream, sys.stderr = sys.stderr, saved
+        with suppress(OSError, ValueError):
+            sys.stderr.flush()
+        sys.stderr = saved
+        if opened is not None:
             with suppress(OSError, ValueError):
-                stream.close()
+                opened.close()
