@@ -383,6 +383,12 @@ def _bad_entry(rel: object) -> str | None:
     return None
 
 
+#: The largest ``manifest.json`` read, bytes (docs/limits.md): about 120 bytes a file, so
+#: room for the ``MAX_OUT_ENTRIES`` entries of a folder with long paths; larger is not
+#: one sensorgap wrote.
+MAX_MANIFEST_BYTES = 100_000_000
+
+
 def read_manifest(folder: str | Path) -> dict[str, dict[str, Any]]:
     """The ``files`` of ``folder/manifest.json``, checked: a JSON object whose ``files``
     maps relative paths inside the folder to ``{"bytes": int, "sha256": hex}``. Anything
@@ -391,8 +397,12 @@ def read_manifest(folder: str | Path) -> dict[str, dict[str, Any]]:
 
     path = Path(folder) / MANIFEST_NAME
     try:
-        if path.stat().st_size > 100_000_000:
-            raise InputError(path, "", "larger than 100 MB; not a sensorgap manifest")
+        if path.stat().st_size > MAX_MANIFEST_BYTES:
+            raise InputError(
+                path,
+                "",
+                f"larger than {MAX_MANIFEST_BYTES // 1_000_000} MB; not a sensorgap manifest",
+            )
         data = loads_json(path.read_bytes().decode("utf-8"))
     except (UnicodeDecodeError, ValueError) as exc:
         raise InputError(path, "", f"malformed manifest: not JSON ({exc})") from None
