@@ -1179,3 +1179,17 @@ def test_error_lines_escape_control_and_bidi_characters_and_count_the_users_char
     assert clip(f"got {'5' * 100_000!r}").endswith("... (100000 characters)")
     named = clip("/x/" + "\x1b" * 1000 + " rest")
     assert named.endswith(r"\x1b (1003 characters) rest") and len(named) < 300
+
+
+def test_a_manifest_over_its_documented_size_is_refused_unread(tmp_path: Path) -> None:
+    """docs/limits.md names the manifest's own limit (``filesio.MAX_MANIFEST_BYTES``,
+    100 MB; hostile round twelve found the docs saying 20 MB for it): one byte more is
+    refused in one line without being read (a sparse file: nothing is allocated)."""
+    from sensorgap.filesio import MAX_MANIFEST_BYTES
+
+    (tmp_path / "a.txt").write_text("a")
+    write_manifest(tmp_path)
+    os.truncate(tmp_path / "manifest.json", MAX_MANIFEST_BYTES + 1)
+    with pytest.raises(InputError, match=r"manifest\.json: larger than 100 MB; not a sensorgap"):
+        verify_manifest(tmp_path)
+    assert main(["verify", str(tmp_path)]) == 2
