@@ -27,6 +27,7 @@ sys.path.insert(0, str(ROOT / "src"))
 from benchmarks.common import table  # noqa: E402
 from sensorgap import cli  # noqa: E402
 from sensorgap.config.vehicle import MAX_SENSORS  # noqa: E402
+from sensorgap.coverage import limits  # noqa: E402
 from sensorgap.coverage.pointsio import MAX_POINT_SENSOR_VALUES, MAX_POINTS  # noqa: E402
 from sensorgap.roads.opendrive import MAX_GEOMETRIES  # noqa: E402
 from sensorgap.search.corridor import MAX_CORRIDOR_NODES  # noqa: E402
@@ -61,7 +62,7 @@ def _car_in_clear(command: str) -> list[str]:
 
 
 def _coverage(tmp: Path, scale: float) -> list[str]:
-    cells = cli.MAX_GRID_CELLS * scale
+    cells = limits.MAX_GRID_CELLS * scale
     ny = 1000
     nx = int(cells // ny)  # 0.1 m cells: nx * ny <= the limit
     return [
@@ -75,7 +76,7 @@ def _coverage(tmp: Path, scale: float) -> list[str]:
 
 
 def _coverage_bodies(tmp: Path, scale: float) -> list[str]:
-    side = int(math.sqrt(cli.MAX_BODY_CELLS * scale))
+    side = int(math.sqrt(limits.MAX_BODY_CELLS * scale))
     return [
         *_car_in_clear("coverage"),
         "--resolution",
@@ -89,7 +90,7 @@ def _coverage_bodies(tmp: Path, scale: float) -> list[str]:
 
 
 def _coverage_per_sensor(tmp: Path, scale: float) -> list[str]:
-    cells = cli.MAX_PER_SENSOR_CELLS * scale / SYSTEM_A_SENSORS
+    cells = limits.MAX_PER_SENSOR_CELLS * scale / SYSTEM_A_SENSORS
     nx = int(cells // 1000)
     return [
         *_car_in_clear("coverage"),
@@ -222,10 +223,12 @@ def _search(tmp: Path, scale: float) -> list[str]:
 
 
 CASES = [
-    Case("coverage, points", f"{cli.MAX_GRID_CELLS:.0e} cells", _coverage),
-    Case("coverage, bodies (--heading)", f"{cli.MAX_BODY_CELLS:.0e} cells", _coverage_bodies),
+    Case("coverage, points", f"{limits.MAX_GRID_CELLS:.0e} cells", _coverage),
+    Case("coverage, bodies (--heading)", f"{limits.MAX_BODY_CELLS:.0e} cells", _coverage_bodies),
     Case(
-        "coverage --per-sensor", f"{cli.MAX_PER_SENSOR_CELLS:.0e} map cells", _coverage_per_sensor
+        "coverage --per-sensor",
+        f"{limits.MAX_PER_SENSOR_CELLS:.0e} map cells",
+        _coverage_per_sensor,
     ),
     Case("nearfield", f"resolution {cli.NEARFIELD_RESOLUTION_M[0]:g} m", _nearfield),
     Case("probe", f"{MAX_POINT_SENSOR_VALUES:.0e} point x sensor values", _probe),

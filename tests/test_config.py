@@ -213,7 +213,22 @@ ENV_BAD = [
     # -7.6 dB SNR
     ("roc_shift_db = -10.5", r"environments\.wet\.roc_shift_db: .*greater than or equal to -10"),
     ("roc_shift_db = 30.5", r"environments\.wet\.roc_shift_db: .*less than or equal to 30"),
+    # a misspelt sources key was accepted (a vehicle's and a reaction model's are refused)
+    (
+        'sources = { visibilty_m = "typo" }',
+        r"environments\.wet\.sources\.visibilty_m: source for an unknown parameter$",
+    ),
 ]
+
+
+def test_environment_sources_name_its_fields_and_its_suns(tmp_path: Path) -> None:
+    p = tmp_path / "env.toml"
+    p.write_text(
+        "[environments.wet]\nvisibility_m = 900.0\n[environments.wet.sources]\n"
+        'visibility_m = "a"\nsun = "b"\ndirect_irradiance_w_m2 = "c"\n'
+    )
+    known = {"visibility_m", "sun", "direct_irradiance_w_m2"}
+    assert set(load_environments(p)["wet"].sources) == known
 
 
 @pytest.mark.parametrize("shift", [-10.0, 0.0, 30.0])

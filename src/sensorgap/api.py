@@ -10,6 +10,7 @@ Units: metres, seconds, degrees for angles given by the user (radians inside the
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -19,21 +20,89 @@ from numpy.typing import ArrayLike
 
 from sensorgap.apinames import API_NAMES
 from sensorgap.config import load_environment, load_environments, load_target
-from sensorgap.coverage import GridSpec, Scene
+from sensorgap.config.common import is_integer, is_number
+from sensorgap.coverage import Scene
 from sensorgap.coverage.grid import GridCoverage
+from sensorgap.coverage.limits import (
+    API_NAMES as GRID_NAMES,
+)
+from sensorgap.coverage.limits import (
+    check_heading,
+    check_occluders,
+    check_per_sensor,
+    check_resolution,
+    check_workers,
+    grid_cells,
+    grid_spec,
+)
 from sensorgap.coverage.occluders import Occluder
 from sensorgap.coverage.outputs import compute_coverage
 from sensorgap.coverage.points import PointCoverage
 from sensorgap.coverage.points import evaluate_points as _evaluate_points
+from sensorgap.coverage.pointsio import MAX_HEIGHT_M, MAX_POINT_COORD_M, check_point_count
+from sensorgap.errors import InputError
 from sensorgap.models import Conditions, System, load_system
 from sensorgap.scenarios import family_presets
 from sensorgap.search.run import SearchOutcome, run_search
 
 
+def _path(value: object, name: str) -> Path:
+    """A path parameter: a non-empty ``str`` or ``os.PathLike`` (``Path("")`` would be the
+    working directory), else ``InputError`` naming the parameter."""
+    if isinstance(value, os.PathLike):
+        value = os.fspath(value)
+    if not isinstance(value, str) or not value.strip():
+        raise InputError(name, "", f"must be a path (a non-empty str or Path), got {value!r}")
+    return Path(value)
+
+
+def _text(value: object, name: str, what: str) -> str:
+    """A name parameter: a ``str``, else ``InputError`` saying ``what`` it names."""
+    if not isinstance(value, str):
+        raise InputError(name, "", f"must be {what} (a str), got {value!r}")
+    return value
+
+
+def _vehicle(value: object) -> str | Path:
+    """``vehicle``: a preset name or a path to a vehicle ``.toml`` file."""
+    if isinstance(value, os.PathLike):
+        return _path(value, "vehicle")
+    return _text(value, "vehicle", "a vehicle preset name or a path to a .toml file")
+
+
+def _integer(value: object, name: str) -> int:
+    """An integer parameter (not a bool, not a str: ``'10'`` is refused); the range is
+    checked where the value is used."""
+    if not is_integer(value):
+        raise InputError(name, "", f"must be an integer, got {value!r}")
+    return int(value)
+
+
+def _names(value: object, name: str, paths: bool = False) -> list[str]:
+    """``"all"`` is the caller's; otherwise a list (or tuple) of names (``paths``: also
+    ``.toml`` paths). A bare string is refused: it would be read as its characters."""
+    if isinstance(value, str):
+        raise InputError(
+            name,
+            "",
+            f"must be 'all' or a list of names, got the string {value!r} (write [{value!r}])",
+        )
+    if not isinstance(value, Sequence):
+        raise InputError(name, "", f"must be 'all' or a list of names, got {value!r}")
+    out = []
+    for i, item in enumerate(value):
+        if paths and isinstance(item, os.PathLike):
+            item = os.fspath(item)
+        if not isinstance(item, str):
+            raise InputError(name, f"[{i}]", f"must be a name (a str), got {item!r}")
+        out.append(item)
+    return out
+
+
 def load_vehicle(vehicle: str | Path) -> System:
     """A vehicle preset (``system_a``, ``system_b``) or vehicle ``.toml`` file as its
     sensor system (every sensor model built, parameters with units and sources)."""
-    return load_system(vehicle)
+    return load_system(_vehicle(vehicle))
 
 
 def scene(
@@ -44,24 +113,60 @@ def scene(
     ego_heading_deg: float = 0.0,
 ) -> Scene:
     """The scene of a vehicle in an environment preset with a target class (sun directions
-    resolved for an ego heading, deg, counter-clockwise from east)."""
-    system = vehicle if isinstance(vehicle, System) else load_system(vehicle)
-    env = load_environment(
-        environment, None if environments_file is None else Path(environments_file)
-    )
-    return Scene(
-        system, load_target(target), Conditions.from_config(env, math.radians(ego_heading_deg))
-    )
+    resolved for an ego heading, deg, counter-clockwise from east, within +-360)."""
+    system = vehicle if isinstance(vehicle, System) else load_system(_vehicle(vehicle))
+    environment = _text(environment, "environment", "an environment preset name")
+    target = _text(target, "target", "a target class name")
+    env_file = None if environments_file is None else _path(environments_file, "environments_file")
+    heading = check_heading(ego_heading_deg, "ego_heading_deg")
+    env = load_environment(environment, env_file)
+    return Scene(system, load_target(target), Conditions.from_config(env, math.radians(heading)))
 
 
 def evaluate_points(
     vehicle: str | Path | System, points: ArrayLike, environment: str = "clear", target: str = "car"
 ) -> PointCoverage:
     """Per-sensor SNR (dB) and Pd and the fused Pd at (N, 3) vehicle-frame points (m):
-    point targets, the paper's setting."""
-    return _evaluate_points(
-        scene(vehicle, environment, target), np.asarray(points, dtype=np.float64)
-    )
+    point targets, the paper's setting. The limits of ``sensorgap probe`` apply
+    (docs/limits.md): at most 5e5 points and 1.2e7 points x sensors, x and y within
+    +-1e7 m, z within 0..50 m; (N, 2) points are taken at z = 0."""
+    # the count first, before the points are copied into an array of their own
+    shape = getattr(points, "shape", None)
+    if shape is not None and len(shape) >= 1:
+        count = int(shape[0])
+    elif isinstance(points, Sequence) and not isinstance(points, str | bytes):
+        count = len(points)
+    else:
+        raise InputError("points", "", f"must be an (N, 3) array of numbers, got {points!r}")
+    check_point_count(count, 0, "points")
+    try:
+        p = np.asarray(points, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise InputError("points", "", f"must be an (N, 3) array of numbers ({exc})") from None
+    if p.ndim != 2 or p.shape[1] not in (2, 3):
+        raise InputError("points", "", f"must have shape (N, 3) or (N, 2), got {p.shape}")
+    if not np.all(np.abs(p) <= MAX_POINT_COORD_M):  # also false for nan
+        raise InputError("points", "", "coordinates must be finite numbers within +-1e7 m")
+    if p.shape[1] == 3 and not np.all((p[:, 2] >= 0.0) & (p[:, 2] <= MAX_HEIGHT_M)):
+        raise InputError(
+            "points",
+            "z",
+            f"must be within 0..{MAX_HEIGHT_M:g} m (above the road plane the vehicle stands "
+            "on: the models know no terrain)",
+        )
+    sc = scene(vehicle, environment, target)
+    check_point_count(len(p), len(sc.sensors), "points", remedy="evaluate them in parts")
+    return _evaluate_points(sc, p)
+
+
+def _extent(extent: object) -> tuple[float, float, float, float]:
+    """``extent``: four finite numbers (xmin, xmax, ymin, ymax), m."""
+    vals = list(extent) if isinstance(extent, Sequence) and not isinstance(extent, str) else []
+    if len(vals) != 4 or not all(is_number(v) and math.isfinite(float(v)) for v in vals):
+        raise InputError(
+            "extent", "", f"must be 4 finite numbers (xmin, xmax, ymin, ymax), m, got {extent!r}"
+        )
+    return (float(vals[0]), float(vals[1]), float(vals[2]), float(vals[3]))
 
 
 def coverage_grid(
@@ -75,14 +180,27 @@ def coverage_grid(
     workers: int = 2,
 ) -> GridCoverage:
     """Fused (and per-sensor) Pd on a grid: ``extent`` = (xmin, xmax, ymin, ymax), m, in
-    the vehicle frame, cells of ``resolution`` m; target bodies centred at the cells at
+    the vehicle frame, cells of ``resolution`` m (whole cells only: an extent that is not a
+    multiple of it is clipped to the last whole cell); target bodies centred at the cells at
     ``heading_deg`` relative to the ego (``None``: points at the target's reference
-    height), hidden by ``occluders`` (bodies only)."""
+    height), hidden by ``occluders`` (bodies only). The limits of ``sensorgap coverage
+    --per-sensor`` apply (docs/limits.md), checked before any work."""
+    box = _extent(extent)
+    res = check_resolution(resolution, "resolution")
+    n_workers = check_workers(workers, GRID_NAMES)
+    heading = None if heading_deg is None else check_heading(heading_deg, "heading_deg")
+    nx, ny = grid_cells(box, res, heading is not None, GRID_NAMES)
+    if isinstance(occluders, str) or not isinstance(occluders, Sequence):
+        raise InputError("occluders", "", f"must be a list of Occluder, got {occluders!r}")
+    for i, occ in enumerate(occluders):
+        if not isinstance(occ, Occluder):
+            raise InputError("occluders", f"[{i}]", f"must be an Occluder, got {occ!r}")
     sc = scene(vehicle, environment, target)
-    xmin, xmax, ymin, ymax = (float(v) for v in extent)
-    grid = GridSpec(xmin, xmax, ymin, ymax, float(resolution), sc.target.reference_height_m)
+    check_per_sensor(nx * ny, len(sc.sensors), GRID_NAMES)
+    check_occluders(occluders, heading, sc.system.config.vehicle, GRID_NAMES)
+    grid = grid_spec(box, res, nx, ny, sc.target.reference_height_m)
     return compute_coverage(
-        sc, grid, per_sensor=True, workers=workers, heading_deg=heading_deg, occluders=occluders
+        sc, grid, per_sensor=True, workers=n_workers, heading_deg=heading, occluders=occluders
     )
 
 
@@ -98,11 +216,22 @@ def find_scenarios(
 ) -> SearchOutcome:
     """Search for sensor-critical scenarios into the run folder ``out`` (SQLite store,
     ranking.csv/json, summary.json): ``families`` and ``environments`` are ``"all"`` or
-    lists of names (families may be .toml paths); ``options`` as ``run_search`` (strategy,
+    lists of names (families may be .toml paths; environments those of the
+    ``environments_file`` option when given); ``options`` as ``run_search`` (strategy,
     mode, workers, resume, ...). Every reported number is an exact evaluation."""
-    fams = family_presets() if families == "all" else list(families)
-    envs = list(load_environments()) if environments == "all" else list(environments)
-    return run_search(vehicle, fams, envs, budget, seed, top, Path(out), **options)
+    veh = _vehicle(vehicle)
+    folder = _path(out, "out")
+    budget, seed, top = _integer(budget, "budget"), _integer(seed, "seed"), _integer(top, "top")
+    env_file = options.get("environments_file")
+    if env_file is not None:
+        options["environments_file"] = _path(env_file, "environments_file")
+    fams = family_presets() if families == "all" else _names(families, "families", paths=True)
+    envs = (
+        list(load_environments(options.get("environments_file")))
+        if environments == "all"
+        else _names(environments, "environments")
+    )
+    return run_search(veh, fams, envs, budget, seed, top, folder, **options)
 
 
 def export_catalog(
@@ -118,14 +247,19 @@ def export_catalog(
     (``catalog.json``)."""
     from sensorgap.export import export_catalog as _export
 
-    return _export(Path(run), None if out is None else Path(out), osc_version, top, style=style)
+    folder = _path(run, "run")
+    target = None if out is None else _path(out, "out")
+    osc_version = _text(osc_version, "osc_version", "an OpenSCENARIO version such as '1.2'")
+    style = _text(style, "style", "'maneuver' or 'replay'")
+    rows = None if top is None else _integer(top, "top")
+    return _export(folder, target, osc_version, rows, style=style)
 
 
 def write_report(run: str | Path) -> tuple[Path, Path]:
     """``report.html`` and ``report.md`` of a run folder; returns their paths."""
     from sensorgap.report import write_report as _write
 
-    return _write(Path(run))
+    return _write(_path(run, "run"))
 
 
 # the names live in ``sensorgap.apinames`` (the root package offers them lazily from there)

@@ -42,17 +42,8 @@ if TYPE_CHECKING:
 
 EXIT_INPUT = 2
 # Input limits (docs/limits.md): the worst accepted input stays within ~4 GiB (measured:
-# benchmarks/bench_limits.py; a point grid peaks at ~100 B per cell, a --per-sensor map
-# cell at ~31 B).
-#: coverage: cells of a grid (points; bodies with --heading), cells x sensors with
-#: --per-sensor, extent coordinates (m) and the finest resolution (m).
-MAX_GRID_CELLS = 30_000_000
-MAX_BODY_CELLS = 4_000_000
-MAX_PER_SENSOR_CELLS = 80_000_000
-MAX_EXTENT_M = 100_000.0
-MIN_RESOLUTION_M = 0.001
-#: probe --heading: a target body costs this many points' worth of memory.
-BODY_COST = 12
+# benchmarks/bench_limits.py). Those of coverage maps and probe points are the library's
+# too (``coverage.limits``, ``coverage.pointsio``).
 #: nearfield: resolution range, m.
 NEARFIELD_RESOLUTION_M = (0.02, 1.0)
 #: farfield: path length range, m.
@@ -159,7 +150,7 @@ def cmd_probe(args: argparse.Namespace) -> int:
     from sensorgap.atomic import atomic_write_bytes
     from sensorgap.coverage import evaluate_points
     from sensorgap.coverage.outputs import probe_csv
-    from sensorgap.coverage.pointsio import MAX_POINT_SENSOR_VALUES, read_points_csv
+    from sensorgap.coverage.pointsio import check_point_count, read_points_csv
 
     if args.out and _same_file(args.out, args.points):
         raise InputError(
@@ -171,16 +162,13 @@ def cmd_probe(args: argparse.Namespace) -> int:
         default_z=scene.target.reference_height_m,
         heights=args.heading is None,
     )
-    per_point = len(scene.sensors) * (1 if args.heading is None else BODY_COST)
-    if len(pts) * per_point > MAX_POINT_SENSOR_VALUES:
-        raise InputError(
-            args.points,
-            "",
-            f"{len(pts)} points x {len(scene.sensors)} sensors "
-            f"is too many (at most {MAX_POINT_SENSOR_VALUES // per_point} points "
-            f"for this vehicle{' with --heading' if args.heading is not None else ''}"
-            "); split the file",
-        )
+    check_point_count(
+        len(pts),
+        len(scene.sensors),
+        args.points,
+        bodies=" with --heading" if args.heading is not None else None,
+        remedy="split the file",
+    )
     if args.heading is None:
         data = probe_csv(evaluate_points(scene, pts))
     else:
@@ -196,10 +184,9 @@ def cmd_probe(args: argparse.Namespace) -> int:
 
 def _check_heading(heading_deg: float) -> None:
     """``--heading``: a finite angle within +-360 deg (as an ``--occluder`` heading)."""
-    if not (math.isfinite(heading_deg) and abs(heading_deg) <= 360.0):
-        raise InputError(
-            "--heading", "", f"must be an angle within +-360 degrees, got {heading_deg!r}"
-        )
+    from sensorgap.coverage.limits import check_heading
+
+    check_heading(heading_deg, "--heading")
 
 
 def _probe_bodies(scene: Scene, pts: Any, heading_deg: float) -> bytes:
@@ -227,51 +214,27 @@ def _probe_bodies(scene: Scene, pts: Any, heading_deg: float) -> bytes:
 
 def cmd_coverage(args: argparse.Namespace) -> int:
     """A coverage grid, heat map and summary into --out."""
-    from sensorgap.coverage import GridSpec
+    from sensorgap.coverage.limits import (
+        CLI_NAMES,
+        check_occluder_count,
+        check_occluders,
+        check_per_sensor,
+        check_resolution,
+        check_workers,
+        grid_cells,
+        grid_spec,
+    )
     from sensorgap.coverage.outputs import write_coverage
     from sensorgap.coverage.pointsio import MAX_HEIGHT_M
 
     refuse_foreign_outputs(args.out, ANALYSIS_WRITES["coverage"], "coverage")
-    if not 1 <= args.workers <= 64:
-        raise InputError("--workers", "", f"must be 1..64, got {args.workers}")
-    xmin, xmax, ymin, ymax = _float_list(args.extent, 4, "--extent")
-    if not (xmin < xmax and ymin < ymax):
-        raise InputError(
-            "--extent",
-            "",
-            f"must be XMIN,XMAX,YMIN,YMAX with XMIN < XMAX and YMIN < YMAX, got {args.extent!r}",
-        )
-    if max(abs(xmin), abs(xmax), abs(ymin), abs(ymax)) > MAX_EXTENT_M:
-        raise InputError(
-            "--extent", "", f"coordinates must be within +-{MAX_EXTENT_M:g} m, got {args.extent!r}"
-        )
-    res = _positive(args.resolution, "--resolution")
-    if res < MIN_RESOLUTION_M:
-        raise InputError(
-            "--resolution", "", f"must be at least {MIN_RESOLUTION_M:g} m, got {res!r}"
-        )
+    check_workers(args.workers, CLI_NAMES)
+    extent = _float_list(args.extent, 4, "--extent")
+    res = check_resolution(args.resolution, "--resolution")
     if args.heading is not None:
         _check_heading(args.heading)
-    # whole cells only: the grid never reaches beyond the extent (clipped, and said so)
-    nx, ny = math.floor((xmax - xmin) / res + 1e-9), math.floor((ymax - ymin) / res + 1e-9)
-    if nx < 1 or ny < 1:
-        raise InputError(
-            "--resolution",
-            "",
-            f"{res:g} m cells do not fit the extent "
-            f"{xmax - xmin:g} x {ymax - ymin:g} m; give a resolution at most "
-            f"{min(xmax - xmin, ymax - ymin):g} m",
-        )
+    nx, ny = grid_cells(extent, res, args.heading is not None, CLI_NAMES, shown=args.extent)
     cells = nx * ny
-    limit = MAX_BODY_CELLS if args.heading is not None else MAX_GRID_CELLS
-    if cells > limit:
-        raise InputError(
-            "--resolution",
-            "",
-            f"grid of {cells:.3g} cells is too large (at "
-            f"most {limit:.0e}{' with --heading' if args.heading is not None else ''}"
-            "); coarsen the resolution or shrink the extent",
-        )
     scene = _scene(args)
     height = scene.target.reference_height_m if args.height is None else args.height
     if not (math.isfinite(height) and 0.0 <= height <= MAX_HEIGHT_M):
@@ -281,26 +244,16 @@ def cmd_coverage(args: argparse.Namespace) -> int:
             f"must be within 0..{MAX_HEIGHT_M:g} m (above the road plane the "
             f"vehicle stands on: the models know no terrain), got {height!r}",
         )
-    if args.per_sensor and cells * len(scene.sensors) > MAX_PER_SENSOR_CELLS:
-        raise InputError(
-            "--per-sensor",
-            "",
-            f"{cells:.3g} cells x {len(scene.sensors)} "
-            f"sensors is too large (at most {MAX_PER_SENSOR_CELLS:.0e} maps "
-            "cells); coarsen the resolution or shrink the extent",
-        )
-    clipped = (xmin + nx * res, ymin + ny * res)
-    grid = GridSpec(xmin, clipped[0], ymin, clipped[1], res, height)
-    if len(args.occluder) > MAX_OCCLUDERS:
-        raise InputError(
-            "--occluder", "", f"{len(args.occluder)} occluders; at most {MAX_OCCLUDERS} allowed"
-        )
+    if args.per_sensor:
+        check_per_sensor(cells, len(scene.sensors), CLI_NAMES)
+    grid = grid_spec(extent, res, nx, ny, height)
+    check_occluder_count(len(args.occluder), CLI_NAMES)  # before any is parsed
     occluders = [_occluder(text) for text in args.occluder]
-    if occluders and args.heading is None:
-        raise InputError(
-            "--occluder", "", "occluders hide parts of target bodies: add --heading DEG"
-        )
-    _check_occluders_clear_of_ego(args.occluder, occluders, scene)
+    check_occluders(
+        occluders, args.heading, scene.system.config.vehicle, CLI_NAMES, shown=args.occluder
+    )
+    xmin, xmax, ymin, ymax = extent
+    clipped = (grid.xmax, grid.ymax)
     with removed_on_error(args.out):
         summary = write_coverage(
             scene,
@@ -326,18 +279,10 @@ def cmd_coverage(args: argparse.Namespace) -> int:
     return 0
 
 
-#: Largest occluder centre distance from the ego accepted by ``--occluder``, m.
-MAX_OCCLUDER_M = 1000.0
-#: Most ``--occluder`` of one map: the time grows with cells x occluders (~0.3 us a
-#: pair here: 1,000 occluders over 70,400 cells took 20 s, so over the 4e6 cells allowed
-#: with --heading ~19 min; 100 keep it near 2 min).
-MAX_OCCLUDERS = 100
-
-
 def _occluder(text: str) -> Occluder:
     """``KIND@X,Y,HEADING`` -> an occluder sized as the target class KIND."""
     from sensorgap.config import load_target
-    from sensorgap.coverage.occluders import Occluder
+    from sensorgap.coverage.occluders import MAX_OCCLUDER_M, Occluder
     from sensorgap.models.geometry import heading_rad
 
     kind, sep, rest = text.partition("@")
@@ -357,24 +302,6 @@ def _occluder(text: str) -> Occluder:
     except InputError as e:
         raise InputError("--occluder", "", f"unknown occluder kind {kind!r}: {e}") from None
     return Occluder.of_target(target, x, y, heading_rad(heading))
-
-
-def _check_occluders_clear_of_ego(
-    texts: Sequence[str], occluders: Sequence[Occluder], scene: Scene
-) -> None:
-    """``--occluder``: no occluder's footprint may overlap the ego body's (a box standing
-    on the ego would hide the sensors mounted in it and make every map meaningless)."""
-    body = scene.system.config.vehicle
-    footprint = body.footprint()
-    for text, occ in zip(texts, occluders, strict=True):
-        if occ.overlaps(footprint):
-            raise InputError(
-                "--occluder",
-                "",
-                f"{text!r} overlaps the ego body ({body.name}: x {body.x_rear_m:g}.."
-                f"{body.x_front_m:g} m, y within +-{0.5 * body.width_m:g} m, the rear axle "
-                "at the origin); place the occluder outside it",
-            )
 
 
 def cmd_nearfield(args: argparse.Namespace) -> int:

@@ -62,7 +62,24 @@ def test_parse_ok(text: str) -> None:
     assert DetectionRule.parse(text).label() == text
 
 
-@pytest.mark.parametrize("text", ["5/3", "0/2", "x/y", "3-5", "60/60", "３/5", "3/５", "²/5"])
+@pytest.mark.parametrize(
+    "text",
+    [
+        "5/3",
+        "0/2",
+        "x/y",
+        "3-5",
+        "60/60",
+        "３/5",
+        "3/５",
+        "²/5",
+        " 3/5",
+        "3 /5",
+        "3/5 ",
+        "+3/5",
+        "1" * 5000 + "/5",
+    ],
+)
 def test_parse_bad(text: str) -> None:
     with pytest.raises(InputError, match="^detection: "):
         DetectionRule.parse(text)

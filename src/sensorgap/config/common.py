@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
+import numbers
 import re
-from typing import Annotated
+from typing import Annotated, TypeGuard
 
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field
 
@@ -61,6 +62,17 @@ def _preset_chars(v: str) -> str:
 #: The name of a preset (an environment, a target class): a ``Name`` without the
 #: ``RESERVED_PRESET_CHARS``.
 PresetName = Annotated[Name, AfterValidator(_preset_chars)]
+
+
+def is_number(value: object) -> TypeGuard[numbers.Real]:
+    """A real number given to the library (an int, a float, a numpy scalar), not a boolean
+    (``True`` is an int to Python)."""
+    return isinstance(value, numbers.Real) and not isinstance(value, bool)
+
+
+def is_integer(value: object) -> TypeGuard[numbers.Integral]:
+    """An integer given to the library (an int or a numpy integer), not a boolean."""
+    return isinstance(value, numbers.Integral) and not isinstance(value, bool)
 
 
 class Strict(BaseModel):

@@ -7,12 +7,13 @@ import pickle
 import threading
 import tomllib
 from collections import OrderedDict
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any, TypeVar
 
 from pydantic import BaseModel, ValidationError
 
-from sensorgap.config.environment import EnvironmentConfig
+from sensorgap.config.environment import EnvironmentConfig, SunConfig
 from sensorgap.config.presets import templates_dir, vehicle_presets
 from sensorgap.config.target import TargetConfig
 from sensorgap.config.vehicle import VehicleConfig
@@ -146,6 +147,19 @@ def require_source(source: Path | str, field: str, text: object) -> None:
         )
 
 
+def no_stray_source(
+    source: Path | str, where: str, sources: Mapping[str, str], known: Iterable[str]
+) -> None:
+    """A ``sources`` entry names a parameter of its table (a misspelt parameter name is
+    refused), ``InputError`` naming the first stray one: a device's, the vehicle body's,
+    an environment's (a reaction model's likewise, ``config.reaction``)."""
+    stray = sorted(set(sources) - set(known))
+    if stray:
+        raise InputError(
+            source, f"{where}.sources.{stray[0][:80]}", "source for an unknown parameter"
+        )
+
+
 def parse_model(model: type[M], data: Any, source: Path | str, prefix: str = "") -> M:
     """Validate ``data`` as ``model``; errors become ``InputError``."""
     try:
@@ -257,8 +271,16 @@ def _named_tables(model: type[M], path: Path, key: str) -> dict[str, M]:
 
 
 def load_environments(path: Path | None = None) -> dict[str, EnvironmentConfig]:
-    """All environments of a file (default: the shipped presets), by name."""
-    return _named_tables(EnvironmentConfig, path or environments_path(), "environments")
+    """All environments of a file (default: the shipped presets), by name; a ``sources``
+    key must name a field of its environment or of its ``sun`` table (a misspelt one is
+    refused, as a vehicle file's)."""
+    path = path or environments_path()
+    envs = _named_tables(EnvironmentConfig, path, "environments")
+    known = {*EnvironmentConfig.model_fields, *SunConfig.model_fields}
+    for name, env in envs.items():
+        label = f"environments.{name if len(name) <= MAX_QUOTED_CHARS else short(name)}"
+        no_stray_source(path, label, env.sources, known)
+    return envs
 
 
 def load_environment(name: str, path: Path | None = None) -> EnvironmentConfig:

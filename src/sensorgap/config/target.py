@@ -6,6 +6,14 @@ from pydantic import Field, model_validator
 
 from sensorgap.config.common import PresetName, Strict
 
+#: A box's size, m (docs/limits.md): a target class's and an occluder's
+#: (``coverage.occluders.Occluder``): the smallest side, the longest length, width and
+#: height.
+MIN_SIZE_M = 0.01
+MAX_LENGTH_M = 50.0
+MAX_WIDTH_M = 10.0
+MAX_HEIGHT_M = 10.0
+
 
 class TargetConfig(Strict):
     """One target class.
@@ -25,9 +33,9 @@ class TargetConfig(Strict):
     camera_cross_section_m2: float = Field(
         ge=1.0e-6, le=1.0e3, description="Geometric cross-section, m2 (paper)"
     )
-    length_m: float = Field(ge=0.01, le=50.0)
-    width_m: float = Field(ge=0.01, le=10.0)
-    height_m: float = Field(ge=0.01, le=10.0)
+    length_m: float = Field(ge=MIN_SIZE_M, le=MAX_LENGTH_M)
+    width_m: float = Field(ge=MIN_SIZE_M, le=MAX_WIDTH_M)
+    height_m: float = Field(ge=MIN_SIZE_M, le=MAX_HEIGHT_M)
     reference_height_m: float = Field(
         ge=0.0,
         le=10.0,

@@ -23,13 +23,27 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-from sensorgap.config.target import TargetConfig
+from sensorgap.config.common import is_number, name_problem
+from sensorgap.config.target import (
+    MAX_HEIGHT_M,
+    MAX_LENGTH_M,
+    MAX_WIDTH_M,
+    MIN_SIZE_M,
+    TargetConfig,
+)
+from sensorgap.errors import InputError
 
 F64 = NDArray[np.float64]
 
 #: Columns of an occluder array: centre x, y (m, vehicle frame), cos and sin of the heading
 #: relative to the ego, half length, half width, height (m).
 COLUMNS = ("x", "y", "cos", "sin", "half_length", "half_width", "height")
+
+#: Farthest occluder centre from the ego, m, in x and in y (``Occluder``; ``coverage
+#: --occluder``; docs/limits.md).
+MAX_OCCLUDER_M = 1000.0
+#: Largest occluder heading, rad, either way (a full turn: ``--occluder`` takes +-360 deg).
+MAX_OCCLUDER_HEADING_RAD = 2.0 * math.pi
 
 
 @dataclass(frozen=True)
@@ -45,6 +59,33 @@ class Occluder:
     width: float
     height: float
     label: str = "occluder"
+
+    def __post_init__(self) -> None:
+        """Refuse a box no road user could be (``InputError`` naming the field): every
+        number finite, the centre within ``MAX_OCCLUDER_M`` of the ego in x and y, the
+        heading within +-``MAX_OCCLUDER_HEADING_RAD``, the sizes within the bounds of a
+        target class's (``config.target``), the label a name. A NaN centre made every
+        sample ray test miss its slab test the wrong way: the whole map came out Pd 0."""
+        bounds = {
+            "x": (-MAX_OCCLUDER_M, MAX_OCCLUDER_M, "m (vehicle frame)"),
+            "y": (-MAX_OCCLUDER_M, MAX_OCCLUDER_M, "m (vehicle frame)"),
+            "heading": (-MAX_OCCLUDER_HEADING_RAD, MAX_OCCLUDER_HEADING_RAD, "rad"),
+            "length": (MIN_SIZE_M, MAX_LENGTH_M, "m"),
+            "width": (MIN_SIZE_M, MAX_WIDTH_M, "m"),
+            "height": (MIN_SIZE_M, MAX_HEIGHT_M, "m"),
+        }
+        for name, (lo, hi, unit) in bounds.items():
+            v = getattr(self, name)
+            if not (is_number(v) and lo <= float(v) <= hi):
+                raise InputError(  # the comparison is also false for nan
+                    "Occluder",
+                    name,
+                    f"must be a finite number within {lo:g}..{hi:g} {unit}, got {v!r}",
+                )
+            object.__setattr__(self, name, float(v))  # numpy scalars as plain floats
+        why = name_problem(self.label) if isinstance(self.label, str) else "must be a string"
+        if why:
+            raise InputError("Occluder", "label", f"{why}, got {self.label!r}")
 
     @classmethod
     def of_target(cls, target: TargetConfig, x: float, y: float, heading_rad: float) -> Occluder:

@@ -115,7 +115,7 @@ def read_coverage_npz(
 
 
 #: Most cells of a coverage map read back (``read_coverage_npz``), as ``coverage`` writes
-#: at most (``cli.MAX_GRID_CELLS``): checked from the .npy headers before any array is
+#: at most (``coverage.limits.MAX_GRID_CELLS``): checked from the .npy headers before any array is
 #: read, so a map whose header claims 1e10 cells, or a zip bomb, is refused unread.
 MAX_MAP_CELLS = 30_000_000
 

@@ -20,12 +20,37 @@ from sensorgap.errors import InputError
 MAX_POINTS = 500_000
 MAX_BYTES = 100_000_000
 MAX_POINT_SENSOR_VALUES = 12_000_000
+#: A target body (``probe --heading``) costs this many points' worth of memory.
+BODY_COST = 12
+#: Largest coordinate of a query point, m, either way.
+MAX_POINT_COORD_M = 1.0e7  # written "1e7" in the error lines
 #: Longest CSV field accepted, characters (a number needs far fewer).
 MAX_FIELD_CHARS = 1_000
 #: Highest target point above the road plane, m (``probe`` z, ``coverage --height``): an
 #: estimate well above any road user (a truck is 4 m) and any sensor mount; the models know
 #: no terrain, so a point below the road (z < 0) is refused too.
 MAX_HEIGHT_M = 50.0
+
+
+def check_point_count(
+    points: int, sensors: int, source: str | Path, bodies: str | None = None, remedy: str = ""
+) -> None:
+    """At most ``MAX_POINTS`` query points, and at most ``MAX_POINT_SENSOR_VALUES`` points x
+    sensors (a target body counts ``BODY_COST`` points; ``bodies``: how the error says
+    they are bodies, e.g. `` with --heading``, None for points), else ``InputError``
+    naming ``source`` (with ``remedy`` after the limit)."""
+    tail = f"; {remedy}" if remedy else ""
+    if points > MAX_POINTS:
+        raise InputError(source, "", f"{points} points; at most {MAX_POINTS} allowed{tail}")
+    per_point = sensors * (1 if bodies is None else BODY_COST)
+    if points * per_point > MAX_POINT_SENSOR_VALUES:
+        raise InputError(
+            source,
+            "",
+            f"{points} points x {sensors} sensors "
+            f"is too many (at most {MAX_POINT_SENSOR_VALUES // per_point} points "
+            f"for this vehicle{bodies or ''}){tail}",
+        )
 
 
 def read_points_csv(path: Path, default_z: float, heights: bool = True) -> NDArray[np.float64]:
@@ -121,7 +146,7 @@ def _rows(
                 v = parse_decimal(cell)
             except ValueError:
                 v = math.nan
-            if not math.isfinite(v) or abs(v) > 1.0e7:
+            if not math.isfinite(v) or abs(v) > MAX_POINT_COORD_M:
                 raise InputError(
                     path,
                     f"line {lineno}, column {name}",

@@ -2,13 +2,17 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
 from pydantic import ValidationError
 
-from sensorgap.config.load import load_vehicle, require_source, validation_to_input_error
+from sensorgap.config.load import (
+    load_vehicle,
+    no_stray_source,
+    require_source,
+    validation_to_input_error,
+)
 from sensorgap.config.vehicle import MountConfig, RocConfig, VehicleConfig
 from sensorgap.errors import InputError
 from sensorgap.models import registry
@@ -84,23 +88,11 @@ def build_models(cfg: VehicleConfig, source: Path | str) -> dict[str, SensorMode
             raise validation_to_input_error(source, exc, prefix=f"devices.{name}") from None
         for key in params:
             require_source(source, f"devices.{name}.sources.{key}", dev.sources.get(key))
-        _no_stray_source(source, f"devices.{name}", dev.sources, params)
+        no_stray_source(source, f"devices.{name}", dev.sources, params)
         models[name] = cls(validated)
     body = cfg.vehicle
-    _no_stray_source(source, "vehicle", body.sources, type(body).model_fields)
+    no_stray_source(source, "vehicle", body.sources, type(body).model_fields)
     return models
-
-
-def _no_stray_source(
-    source: Path | str, where: str, sources: Mapping[str, str], known: Iterable[str]
-) -> None:
-    """A ``sources`` entry names a parameter of its table (a misspelt parameter name is
-    refused, as a reaction file's is), ``InputError`` naming the first stray one."""
-    stray = sorted(set(sources) - set(known))
-    if stray:
-        raise InputError(
-            source, f"{where}.sources.{stray[0][:80]}", "source for an unknown parameter"
-        )
 
 
 def build_system(cfg: VehicleConfig, source: Path | str) -> System:

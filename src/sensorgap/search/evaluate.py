@@ -116,14 +116,17 @@ class DetectionRule:
         if text == "cumulative":
             return cls()
         parts = text.split("/")
-        if len(parts) == 2 and all(p.strip().isascii() and p.strip().isdigit() for p in parts):
+        # ASCII digits only: no sign, space or other script's digit (int() takes all
+        # three); at most 9 (int() refuses more than 4,300)
+        if len(parts) == 2 and all(p.isascii() and p.isdigit() and len(p) <= 9 for p in parts):
             m, n = int(parts[0]), int(parts[1])
             if 1 <= m <= n <= 50:
                 return cls(kind="m_of_n", m=m, n=n)
         raise InputError(
             "detection",
             "",
-            f"expected 'cumulative' or M/N with 1 <= M <= N <= 50 (e.g. 3/5), got {text!r}",
+            "expected 'cumulative' or M/N in ASCII digits (no spaces) with 1 <= M <= N <= 50 "
+            f"(e.g. 3/5), got {text!r}",
         )
 
     def label(self) -> str:

@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from sensorgap.config import EnvironmentConfig, load_environments, load_targets
+from sensorgap.config.common import is_integer
 from sensorgap.config.presets import resolve_road
 from sensorgap.errors import InputError
 from sensorgap.models import System, load_system
@@ -33,7 +34,7 @@ MAX_BUDGET = 1_000_000
 #: int64 in the store).
 MAX_SEED = 2**63 - 1
 #: ``--detection`` as M/N: ASCII digits only (range checked by ``DetectionRule.parse``).
-_DETECTION_TEXT = re.compile(r"\s*[0-9]{1,9}\s*/\s*[0-9]{1,9}\s*")
+_DETECTION_TEXT = re.compile(r"[0-9]{1,9}/[0-9]{1,9}")
 #: Most independent searches one run's budget may be split into (``seeds``).
 MAX_SEEDS = 10
 #: Most environments one search covers: each costs its own coverage maps (``--pd
@@ -71,6 +72,18 @@ class SearchSettings:
 
     def check(self) -> None:
         """Refuse settings out of their ranges (``InputError`` naming the field)."""
+        for name in ("budget", "seed", "top", "workers", "seeds"):
+            value = getattr(self, name)
+            if not is_integer(value):  # '10' or True, given to the library
+                raise InputError(name, "", f"must be an integer, got {value!r}")
+        for name in ("strategy", "mode", "detection", "executor"):
+            value = getattr(self, name)
+            if not isinstance(value, str):
+                raise InputError(name, "", f"must be a str, got {value!r}")
+        for name in ("families", "environments"):
+            for value in getattr(self, name):
+                if not isinstance(value, str | Path):
+                    raise InputError(name, "", f"must be a list of names, got {value!r} in it")
         if not 1 <= self.budget <= MAX_BUDGET:
             raise InputError("budget", "", f"must be within 1..{MAX_BUDGET}, got {self.budget}")
         if not 1 <= self.workers <= 64:
@@ -106,7 +119,7 @@ class SearchSettings:
             raise InputError(
                 "detection",
                 "",
-                "expected 'cumulative' or M/N in ASCII digits with 1 <= M <= N <= 50 "
+                "expected 'cumulative' or M/N in ASCII digits (no spaces) with 1 <= M <= N <= 50 "
                 f"(e.g. 3/5), got {self.detection[:80]!r}",
             )
         if self.executor not in ("local", "dask"):

@@ -1,0 +1,203 @@
+"""The facade (``sensorgap.api``, docs/api.md) refuses bad input as the command line does:
+one ``InputError`` naming the parameter, before any work (hostile round twelve)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+import sensorgap
+from sensorgap.coverage import limits
+from sensorgap.coverage.occluders import MAX_OCCLUDER_M, Occluder
+from sensorgap.errors import InputError
+
+TRUCK = (15.0, -3.5, 0.0, 12.0, 2.5, 3.5, "truck")
+
+
+@pytest.mark.parametrize(
+    ("index", "value", "field"),
+    [
+        (0, math.nan, "x"),  # silently blanked the whole map (Pd 0 everywhere)
+        (1, math.inf, "y"),
+        (0, MAX_OCCLUDER_M + 1.0, "x"),
+        (2, math.nan, "heading"),
+        (2, 7.0, "heading"),  # rad: more than a full turn
+        (3, -12.0, "length"),  # a negative length was accepted
+        (3, 0.0, "length"),
+        (4, 11.0, "width"),
+        (5, math.nan, "height"),
+        (5, True, "height"),
+        (0, "15", "x"),
+        (6, "", "label"),
+        (6, None, "label"),
+    ],
+)
+def test_occluder_refuses_a_box_no_road_user_could_be(index: int, value: Any, field: str) -> None:
+    args: list[Any] = list(TRUCK)
+    args[index] = value
+    with pytest.raises(InputError, match=f"^Occluder: {field}: ") as exc:
+        Occluder(*args)
+    assert exc.value.field == field
+
+
+def test_occluder_takes_numpy_numbers_as_floats() -> None:
+    occ = Occluder(np.float32(15.0), np.int64(-3), 0, 12, 2.5, 3.5)
+    assert type(occ.x) is float and type(occ.y) is float and type(occ.length) is float
+
+
+def test_a_nan_occluder_never_reaches_a_map() -> None:
+    with pytest.raises(InputError, match="^Occluder: x: must be a finite number"):
+        sensorgap.coverage_grid(
+            "system_a",
+            extent=(0, 10, 0, 10),
+            resolution=1.0,
+            heading_deg=0.0,
+            occluders=[sensorgap.Occluder(math.nan, 0, 0, 12, 2.5, 3.5, "truck")],
+        )
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "line"),
+    [
+        # peaked at 4.9 GB, then numpy's "Unable to allocate 284. PiB"
+        (
+            {"extent": (-1e5, 1e5, -1e5, 1e5), "resolution": 0.001},
+            r"^resolution: grid of 4e\+16 cells is too large \(at most 4e\+06 with heading_deg\)",
+        ),
+        (
+            {"extent": (-1e5, 1e5, -1e5, 1e5), "resolution": 0.01, "heading_deg": None},
+            r"^resolution: grid of 4e\+14 cells is too large \(at most 3e\+07\)",
+        ),
+        (
+            {"extent": (0, 2000, 0, 2000), "resolution": 1.0, "heading_deg": None},
+            r"^resolution: 4e\+06 cells x 23 sensors is too large",
+        ),
+        ({"extent": (0, 2e5, 0, 10)}, r"^extent: coordinates must be within \+-100000 m"),
+        ({"extent": (10, 0, 0, 10)}, r"^extent: must be \(xmin, xmax, ymin, ymax\) with"),
+        ({"extent": (0, 1, 2)}, r"^extent: must be 4 finite numbers"),
+        ({"extent": (0, math.nan, 0, 1)}, r"^extent: must be 4 finite numbers"),
+        ({"extent": None}, r"^extent: must be 4 finite numbers"),
+        ({"resolution": "1"}, r"^resolution: must be a finite number > 0, got '1'"),
+        ({"resolution": 0.0001}, r"^resolution: must be at least 0\.001 m"),
+        ({"resolution": 100.0, "extent": (0, 10, 0, 10)}, r"^resolution: 100 m cells do not fit"),
+        ({"workers": 0}, r"^workers: must be 1\.\.64, got 0"),
+        ({"workers": True}, r"^workers: must be 1\.\.64, got True"),
+        ({"heading_deg": 1e308}, r"^heading_deg: must be an angle within \+-360 degrees"),
+        ({"heading_deg": math.nan}, r"^heading_deg: must be an angle within \+-360 degrees"),
+        (
+            {"heading_deg": None, "occluders": [Occluder(*TRUCK)]},
+            r"^occluders: occluders hide parts of target bodies: add heading_deg",
+        ),
+        (
+            {"occluders": [Occluder(0, 0, 0, 12, 2.5, 3.5, "truck")]},
+            r"^occluders: \[0\] \(truck at x 0, y 0 m\) overlaps the ego body \(System A",
+        ),
+        (
+            {"occluders": [Occluder(*TRUCK)] * (limits.MAX_OCCLUDERS + 1)},
+            r"^occluders: 101 occluders; at most 100 allowed$",
+        ),
+        ({"occluders": [TRUCK]}, r"^occluders: \[0\]: must be an Occluder"),
+    ],
+)
+def test_coverage_grid_applies_the_coverage_limits(kwargs: dict[str, Any], line: str) -> None:
+    kw: dict[str, Any] = {"extent": (0, 10, 0, 10), "resolution": 1.0, "heading_deg": 0.0}
+    with pytest.raises(InputError, match=line):
+        sensorgap.coverage_grid("system_a", "clear", "car", **{**kw, **kwargs})
+
+
+def test_coverage_grid_covers_whole_cells_only() -> None:
+    """As ``sensorgap coverage``: an extent that is not a multiple of the resolution is
+    clipped to the last whole cell."""
+    g = sensorgap.coverage_grid(
+        "system_a", extent=(0, 10.5, 0, 10), resolution=1.0, heading_deg=None
+    )
+    assert g.fused.shape == (10, 10)
+
+
+@pytest.mark.parametrize(
+    ("points", "line"),
+    [
+        # accepted: 3.1 GB and 27 s (a broadcast view: no memory of its own here)
+        (np.broadcast_to(np.zeros(3), (10**7, 3)), r"^points: 10000000 points; at most 500000"),
+        ([[0.0] * 3] * 500_001, r"^points: 500001 points; at most 500000"),
+        (None, r"^points: must be an \(N, 3\) array of numbers"),
+        ([1.0, 2.0, 3.0], r"^points: must have shape \(N, 3\) or \(N, 2\)"),
+        ([["a", 1, 2]], r"^points: must be an \(N, 3\) array of numbers"),
+        ([[1.0, 2.0, math.nan]], r"^points: coordinates must be finite numbers within \+-1e7 m"),
+        ([[2e7, 0.0, 1.0]], r"^points: coordinates must be finite numbers within \+-1e7 m"),
+        ([[10.0, 0.0, -1.0]], r"^points: z: must be within 0\.\.50 m"),
+    ],
+)
+def test_evaluate_points_applies_the_probe_limits(points: Any, line: str) -> None:
+    with pytest.raises(InputError, match=line):
+        sensorgap.evaluate_points("system_a", points)
+
+
+def test_evaluate_points_limits_points_times_sensors(monkeypatch: pytest.MonkeyPatch) -> None:
+    from sensorgap.coverage import pointsio
+
+    monkeypatch.setattr(pointsio, "MAX_POINT_SENSOR_VALUES", 23 * 10)
+    with pytest.raises(InputError, match=r"^points: 11 points x 23 sensors is too many"):
+        sensorgap.evaluate_points("system_a", np.full((11, 3), 1.0))
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "line"),
+    [
+        ({"budget": "10"}, r"^budget: must be an integer, got '10'$"),  # TypeError: '<='
+        ({"budget": True}, r"^budget: must be an integer, got True$"),
+        ({"seed": 1.5}, r"^seed: must be an integer, got 1\.5$"),
+        ({"top": "3"}, r"^top: must be an integer, got '3'$"),
+        # read as its letters: "unknown family 's'"
+        ({"families": "slow_ahead_curve"}, r"^families: must be 'all' or a list of names, got the"),
+        ({"environments": "clear"}, r"^environments: must be 'all' or a list of names, got the"),
+        ({"families": [3]}, r"^families: \[0\]: must be a name"),
+        ({"families": None}, r"^families: must be 'all' or a list of names, got None"),
+        ({"workers": "2"}, r"^workers: must be an integer, got '2'$"),
+        ({"detection": 3}, r"^detection: must be a str, got 3$"),
+        ({"detection": " 3/5"}, r"^detection: expected 'cumulative' or M/N in ASCII digits"),
+        ({"environments_file": ""}, r"^environments_file: must be a path"),
+    ],
+)
+def test_find_scenarios_checks_types_before_any_work(
+    tmp_path: Path, kwargs: dict[str, Any], line: str
+) -> None:
+    kw: dict[str, Any] = {"families": ["slow_ahead_curve"], "environments": ["clear"], "budget": 10}
+    with pytest.raises(InputError, match=line):
+        sensorgap.find_scenarios("system_b", tmp_path / "run", **{**kw, **kwargs})
+    assert not (tmp_path / "run").exists()
+
+
+@pytest.mark.parametrize(
+    ("call", "line"),
+    [
+        (lambda: sensorgap.write_report(None), r"^run: must be a path"),  # TypeError
+        (lambda: sensorgap.write_report(""), r"^run: must be a path"),
+        (lambda: sensorgap.export_catalog(None), r"^run: must be a path"),
+        (lambda: sensorgap.export_catalog("r", top="3"), r"^top: must be an integer, got '3'"),
+        (lambda: sensorgap.export_catalog("r", style=None), r"^style: must be 'maneuver' or"),
+        (lambda: sensorgap.find_scenarios("system_b", None), r"^out: must be a path"),
+        (lambda: sensorgap.load_vehicle(None), r"^vehicle: must be a vehicle preset name"),
+        (lambda: sensorgap.scene("system_a", None), r"^environment: must be an environment"),
+        (lambda: sensorgap.scene("system_a", "clear", 3), r"^target: must be a target class"),
+        (
+            lambda: sensorgap.scene("system_a", ego_heading_deg=math.nan),
+            r"^ego_heading_deg: must be an angle within \+-360 degrees",
+        ),
+        (
+            lambda: sensorgap.scene("system_a", ego_heading_deg="5"),
+            r"^ego_heading_deg: must be an angle within \+-360 degrees",
+        ),
+        (
+            lambda: sensorgap.scene("system_a", environments_file=""),
+            r"^environments_file: must be a path",
+        ),
+    ],
+)
+def test_facade_names_the_bad_parameter(call: Any, line: str) -> None:
+    with pytest.raises(InputError, match=line):
+        call()
