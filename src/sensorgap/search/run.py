@@ -366,9 +366,6 @@ def refuse_search_clash(p: Prepared, out: Path, resume: bool) -> None:
             )
     if not out.is_dir():
         return
-    # another command's certified output (a coverage folder, a catalog exported
-    # elsewhere: its manifest lists no search.sqlite) is not a search's to add to
-    refuse_certified_by_other(out, "search", lambda rel: rel == db.name, db.name)
     n_stored = 0 if resume else _stored_count(db)
     if n_stored:  # refused before the store is opened for writing (it would change)
         raise InputError(
@@ -386,6 +383,9 @@ def refuse_search_clash(p: Prepared, out: Path, resume: bool) -> None:
             "search; a new search would leave its scenarios and report beside the new "
             "ranking: use another --out",
         )
+    # another command's certified output (a coverage folder, a catalog exported
+    # elsewhere: its manifest lists no search.sqlite) is not a search's to add to
+    refuse_certified_by_other(out, "search", lambda rel: rel == db.name, db.name)
     check_store(db, p.record, p.inputs)
 
 
