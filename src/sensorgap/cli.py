@@ -20,6 +20,9 @@ from sensorgap.atomic import folder_lock, held_until_done, removed_on_error
 from sensorgap.config.common import parse_decimal, parse_integer
 from sensorgap.errors import InputError, clip, cut_name
 from sensorgap.filesio import (
+    MANIFEST_NAME,
+    refuse_certified_by_other,
+    refuse_certified_out,
     refuse_crowded_out,
     refuse_foreign_outputs,
     refuse_if_changed,
@@ -156,6 +159,8 @@ def cmd_probe(args: argparse.Namespace) -> int:
         raise InputError(
             "--out", "", f"is the --points file {args.points}: writing would overwrite the input"
         )
+    if args.out:  # a file no manifest lists: a certified folder would fail its verify
+        refuse_certified_out(Path(args.out).parent, "probe")
     scene = _scene(args)
     pts = read_points_csv(
         Path(args.points),
@@ -504,6 +509,8 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
             why = None  # not a number: parse_params names it
         if why:
             raise InputError("param", name, why)
+    # files no manifest lists: a certified folder (a search run) would fail its verify
+    refuse_certified_out(args.out, "evaluate")
     try:
         # a failed evaluation leaves neither of its files nor a folder it made
         with removed_on_error(args.out, only=("evaluation.json", "trace.csv")):
@@ -878,6 +885,14 @@ def cmd_run(args: argparse.Namespace) -> int:
     families = _families(args.families)
     load_families(families)  # every family (and its road) checked before any work
     _refuse_unsafe_out(args.out, "run")
+    # OUT of an earlier job (its manifest lists <vehicle>/manifest.json), not another
+    # command's certified output (a coverage folder)
+    refuse_certified_by_other(
+        args.out,
+        "run",
+        lambda rel: rel.count("/") == 1 and rel.endswith(f"/{MANIFEST_NAME}"),
+        f"<vehicle>/{MANIFEST_NAME} of a job",
+    )
     run_default(
         Path(args.out),
         workers=args.workers,
@@ -1248,7 +1263,7 @@ def _lock_job_out(folder: Path, locks: ExitStack) -> None:
     hold the job's OUT too: locked (no ``run`` into it meanwhile), its other files
     checked as certified (``refuse_if_changed``), and its ``manifest.json`` kept, put
     back if the command fails; the command's ``write_manifest`` certifies OUT again."""
-    from sensorgap.filesio import MANIFEST_NAME, job_out_of
+    from sensorgap.filesio import job_out_of
 
     parent = job_out_of(folder)
     if parent is None:

@@ -455,16 +455,26 @@ def _written_by(rel: str, rewrites: tuple[str, ...]) -> bool:
 
 def remove_outputs(folder: str | Path, patterns: tuple[str, ...]) -> list[str]:
     """Remove the regular files below ``folder`` that lie under ``patterns`` (as for
-    ``refuse_if_changed``) and the folders they leave empty; symbolic links are never
-    followed or removed. Returns the removed files' relative POSIX paths, sorted."""
+    ``refuse_if_changed``) and the folders they leave empty, the folder of a ``dir/*``
+    pattern included (a resumed search removing the export's maps left an empty
+    ``coverage/``); symbolic links are never followed or removed, nor a folder that held
+    no removed file and lies outside ``patterns``. Returns the removed files' relative
+    POSIX paths, sorted."""
     root = Path(folder)
     removed = []
+    emptied: set[str] = set()  # folders that held a removed file
     for rel, kind in _walk(root):
         if kind == "file" and _written_by(rel, patterns):
             (root / rel).unlink()
             removed.append(rel)
+            parts = rel.split("/")[:-1]
+            emptied.update("/".join(parts[:i]) for i in range(1, len(parts) + 1))
     for rel, kind in reversed(_walk(root)):  # deepest first
-        if kind == "dir" and _written_by(rel, patterns) and not any((root / rel).iterdir()):
+        if (
+            kind == "dir"
+            and (_written_by(rel, patterns) or rel in emptied)
+            and not any((root / rel).iterdir())
+        ):
             (root / rel).rmdir()
     return removed
 
@@ -572,6 +582,62 @@ def refuse_foreign_outputs(
         odd = _first_link(root)
         if odd is not None:
             raise refuse(f"holds {odd}, a symbolic link or not a regular file")
+
+
+def refuse_certified_by_other(
+    folder: str | Path, command: str, own: Callable[[str], bool], own_text: str
+) -> None:
+    """Before ``search`` or ``run`` (which add to their own earlier folder and certify it
+    again) writes into an existing ``folder`` with a ``manifest.json``: refused
+    (``InputError`` naming ``--out``) unless that manifest is one the command wrote,
+    i.e. lists an entry ``own`` accepts (``own_text`` says which: ``search.sqlite`` for a
+    search, ``<vehicle>/manifest.json`` for a job's OUT). Another command's certified
+    output (a ``coverage`` folder, a catalog exported elsewhere) was accepted, its files
+    overwritten (``summary.json``) or certified again beside the new ones, as the
+    analysis commands refuse (``refuse_foreign_outputs``). A folder without a manifest
+    passes (the command's other checks apply)."""
+    from sensorgap.errors import InputError
+
+    root = Path(folder)
+    if not root.is_dir() or not (root / MANIFEST_NAME).is_file():
+        return
+    listed = read_manifest(root)
+    if any(own(rel) for rel in listed):
+        return
+    first = next(iter(sorted(listed)), None)
+    lists = f"lists {first}" if first is not None else "lists no file"
+    raise InputError(
+        "--out",
+        "",
+        f"{root} holds the certified outputs of another command (its {MANIFEST_NAME} "
+        f"{lists} and no {own_text}); {command} writes only into a new folder, a folder of "
+        f"your own files or one it wrote before; give another --out",
+    )
+
+
+def refuse_certified_out(folder: str | Path, command: str) -> None:
+    """Before ``evaluate`` or ``probe --out`` writes its files (which no manifest lists)
+    into an existing ``folder``: refused (``InputError`` naming ``--out``) when the folder
+    is certified (it holds ``manifest.json``: a search run, a catalog, another command's
+    output) or is a search run or catalog without one (``RUN_FOLDER_FILES``). Before, the
+    command exited 0 and ``verify`` of the folder then failed ("evaluation.json is not
+    in the manifest"). A folder of a user's own files, or a new one, passes."""
+    from sensorgap.errors import InputError
+
+    root = Path(folder)
+    if not root.is_dir():
+        return
+    marker = next((n for n in (MANIFEST_NAME, *RUN_FOLDER_FILES) if (root / n).exists()), None)
+    if marker is None and (root / MANIFEST_NAME).is_symlink():
+        marker = MANIFEST_NAME
+    if marker is not None:
+        raise InputError(
+            "--out",
+            "",
+            f"{root} holds {marker}: a certified folder (a search run, a catalog or another "
+            f"command's output); {command} writes files no manifest lists, so its verify "
+            "would fail: give another --out (a new folder or one of your own files)",
+        )
 
 
 def crowded(folder: str | Path) -> bool:

@@ -657,5 +657,8 @@ def _setup(
             argv[argv.index(str(out))] = str(deep / "out")
         elif step == "manifest_symlink":
             (folder / "manifest.json").symlink_to("/etc/hostname")
+        elif step in ("store_wal", "run_store_wal"):  # {out}'s or {run}'s store in WAL mode
+            wal = db if step == "store_wal" else run / "search.sqlite"
+            _sql(wal, "PRAGMA journal_mode=wal;")  # closed: no -wal or -shm left
         else:
             raise CaseError(f"unknown setup step {step!r}")

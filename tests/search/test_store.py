@@ -38,3 +38,53 @@ def test_a_failed_background_write_is_raised(tmp_path: Path) -> None:
     store.put_async([(0, _result(0, metric=object()))])  # not JSON: the write fails
     with pytest.raises(TypeError):
         store.close()
+
+
+def test_a_store_in_wal_mode_is_refused_unopened(tmp_path: Path) -> None:
+    """Round 12 (folders): SQLite creates ``-wal`` and ``-shm`` beside a WAL database as
+    soon as it opens it, read-only too; sensorgap's store never uses WAL, so such a file
+    is refused from its header, by ``Store``, ``check_store`` and ``read_meta`` alike,
+    and nothing appears beside it."""
+    import sqlite3
+
+    from sensorgap.errors import InputError
+    from sensorgap.search.store import check_store, read_meta
+
+    db = tmp_path / "search.sqlite"
+    store = Store(db, SETTINGS)
+    store.put([(0, _result(0))])
+    store.close()
+    con = sqlite3.connect(db)
+    con.execute("PRAGMA journal_mode=wal")
+    con.close()
+    before = sorted(p.name for p in tmp_path.iterdir())
+    assert before == ["search.sqlite"]
+    for opener in (
+        lambda: Store(db, SETTINGS),
+        lambda: check_store(db, SETTINGS, {}),
+        lambda: read_meta(db),
+    ):
+        with pytest.raises(InputError, match="in WAL mode"):
+            opener()
+        assert sorted(p.name for p in tmp_path.iterdir()) == before
+
+
+def test_removing_stale_outputs_removes_the_folders_they_leave_empty(tmp_path: Path) -> None:
+    """Round 12 (folders): a resumed search that changed the ranking removed the export's
+    maps (``coverage/*``) and left an empty ``coverage/``; a folder that still holds
+    other files (an analysis' maps below it), or held nothing removed, stays."""
+    from sensorgap.filesio import remove_outputs
+
+    (tmp_path / "coverage").mkdir()
+    (tmp_path / "coverage" / "car_clear.png").write_text("map")
+    (tmp_path / "scenarios").mkdir()
+    (tmp_path / "scenarios" / "a.xosc").write_text("x")
+    (tmp_path / "mine").mkdir()  # a user's empty folder, not below a pattern
+    gone = remove_outputs(tmp_path, ("coverage/*", "scenarios/"))
+    assert gone == ["coverage/car_clear.png", "scenarios/a.xosc"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["mine"]
+    (tmp_path / "coverage" / "car_clear").mkdir(parents=True)
+    (tmp_path / "coverage" / "car_clear" / "coverage.npz").write_text("analysis")
+    (tmp_path / "coverage" / "car_fog.png").write_text("map")
+    assert remove_outputs(tmp_path, ("coverage/*",)) == ["coverage/car_fog.png"]
+    assert (tmp_path / "coverage" / "car_clear" / "coverage.npz").is_file()

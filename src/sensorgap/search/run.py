@@ -31,7 +31,7 @@ from sensorgap.atomic import (
     utf8,
 )
 from sensorgap.errors import InputError
-from sensorgap.filesio import format_float, write_json
+from sensorgap.filesio import format_float, refuse_certified_by_other, write_json
 from sensorgap.search.executors import make_executor
 from sensorgap.search.loop import LoopResult, search_loop
 from sensorgap.search.metrics import metric_names, output_value
@@ -57,7 +57,7 @@ from sensorgap.search.settings import (
     prepare,
     vehicle_ref,
 )
-from sensorgap.search.store import Store, check_store
+from sensorgap.search.store import Store, check_store, refuse_wal
 
 #: The ranking's leading metric columns (collision terms), in this order.
 HEAD_METRICS = (
@@ -327,6 +327,7 @@ def _stored_count(db: Path) -> int:
     store; a damaged one is reported when it is opened)."""
     if not db.is_file() or db.stat().st_size == 0:
         return 0
+    refuse_wal(db)  # opening a WAL database, even read-only, creates -wal and -shm
     try:
         con = sqlite3.connect(f"{db.resolve().as_uri()}?mode=ro", uri=True)
         try:
@@ -382,6 +383,9 @@ def refuse_search_clash(p: Prepared, out: Path, resume: bool) -> None:
             "search; a new search would leave its scenarios and report beside the new "
             "ranking: use another --out",
         )
+    # another command's certified output (a coverage folder, a catalog exported
+    # elsewhere: its manifest lists no search.sqlite) is not a search's to add to
+    refuse_certified_by_other(out, "search", lambda rel: rel == db.name, db.name)
     check_store(db, p.record, p.inputs)
 
 

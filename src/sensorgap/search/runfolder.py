@@ -550,6 +550,119 @@ class RunFolder:
                 + " (SHA-256 differs; using the recorded copy)"
             )
 
+    def check_store(self) -> None:
+        """In a folder the search wrote (``searched``: it holds ``STORE_FILE``), what
+        ``run.json`` and ``ranking.json`` say the search used must be what its store
+        recorded (``store.read_meta``: the settings and the digests of every input): the
+        recorded inputs (vehicle, families and their roads by SHA-256; environments,
+        target classes, reaction model and friction by the digests of what they load),
+        ``run.json``'s ``inputs.reaction.name`` and the settings export and report read
+        (detection, environments, families, ...). A mismatch is ``InputError`` naming the
+        file and field: ``run.json`` and ``manifest.json`` edited together (every entry
+        re-hashed) rebuilt the run with another reaction model, and the report explained
+        its scenarios by a model the search never used. The store is read without
+        writing anything (a WAL database refused first, ``store.refuse_wal``)."""
+        from sensorgap.search.store import configs_digest, reaction_digest, read_meta
+
+        meta = read_meta(self.folder / STORE_FILE)
+        stored: dict[str, Any] = meta.get("settings", {})
+        digests: dict[str, Any] = meta.get("inputs", {})
+        run_json = self.folder / RUN_JSON
+
+        def refuse(path: Path, field: str, what: str, want: str) -> InputError:
+            return InputError(
+                path,
+                field,
+                f"{what} does not match the run's {STORE_FILE} ({want}, as searched); "
+                f"restore {path.name} or search again",
+            )
+
+        if self.data:  # ranking.json's settings: what export and report read
+            for key, want in stored.items():
+                if self.settings.get(key) != want:
+                    raise refuse(
+                        self.folder / RANKING_JSON,
+                        f"settings.{key}",
+                        f"{str(self.settings.get(key))[:80]!r}",
+                        f"{str(want)[:80]!r}",
+                    )
+        given = self.info.get("settings", {})
+        for key, want in stored.items():  # run.json's (sensorgap run's: a part of them)
+            if key in given and _normal_setting(key, given[key]) != want:
+                raise refuse(
+                    run_json,
+                    f"settings.{key}",
+                    f"{str(given[key])[:80]!r}",
+                    f"{str(want)[:80]!r}",
+                )
+        inputs = self.info.get("inputs", {})
+        if "reaction" in stored and "reaction" in inputs:
+            label = self.reaction().label()
+            if label != stored["reaction"]:
+                raise refuse(
+                    run_json,
+                    "inputs.reaction.name",
+                    f"the reaction model {label.split(':')[0]!r}",
+                    f"{str(stored['reaction']).split(':')[0]!r}",
+                )
+        fams = inputs.get("families", {})
+        names = sorted(k[len("family ") :] for k in digests if k.startswith("family "))
+        if "families" in inputs and names and sorted(fams) != names:
+            raise refuse(
+                run_json,
+                "inputs.families",
+                f"{', '.join(sorted(fams)) or 'none'}",
+                ", ".join(names),
+            )
+        checks: list[tuple[str, str, Any]] = []  # (store key, run.json field, what it gives)
+        if "vehicle" in inputs:
+            checks.append(("vehicle", "inputs.vehicle", lambda: inputs["vehicle"]["sha256"]))
+        for n in names if "families" in inputs else []:
+            roads = inputs.get("roads", {})
+            road = roads.get(str(fams[n].get("road")), {})
+            checks.append((f"family {n}", f"inputs.families.{n}", lambda n=n: fams[n]["sha256"]))
+            checks.append(
+                (f"road of {n}", f"inputs.families.{n}.road", lambda r=road: r.get("sha256"))
+            )
+        if "environments" in inputs and isinstance(stored.get("environments"), list):
+            envs = self.environments()
+            chosen = [e for e in stored["environments"] if isinstance(e, str)]
+            checks.append(
+                (
+                    "environments",
+                    "inputs.environments",
+                    lambda: configs_digest({e: envs[e] for e in chosen if e in envs}),
+                )
+            )
+        if "targets" in inputs:
+            checks.append(("targets", "inputs.targets", lambda: configs_digest(self.targets())))
+        if "reaction" in inputs:
+            checks.append(
+                (
+                    "reaction",
+                    "inputs.friction" if "friction" in inputs else "inputs.reaction",
+                    lambda: reaction_digest(self.reaction(), self.friction()),
+                )
+            )
+        for key, label, given_digest in checks:
+            if key in digests and given_digest() != digests[key]:
+                whole = label.startswith(("inputs.vehicle", "inputs.families"))
+                what = "the recorded file" if whole else "what it loads"
+                raise refuse(run_json, label, what, "another SHA-256")
+
+
+def _normal_setting(key: str, value: Any) -> Any:
+    """A setting of ``run.json`` as the search records it (``sensorgap run`` writes its
+    own: environments as given, with repeats; families as given, a file by its path)."""
+    if key == "environments" and isinstance(value, list):
+        return list(dict.fromkeys(value))
+    if key == "families" and isinstance(value, list):
+        return [
+            Path(v).stem if isinstance(v, str) and (v.endswith(".toml") or "/" in v) else v
+            for v in value
+        ]
+    return value
+
 
 def _entries(inputs: dict[str, Any]) -> list[tuple[str, dict[str, Any]]]:
     """Every recorded input of ``run.json``'s ``inputs`` as (label, entry); an entry that
@@ -593,6 +706,8 @@ def open_run(folder: Path, ranking: bool = True) -> RunFolder:
     run = RunFolder(folder, rows, settings, info, vehicle, data)
     if run.recorded:
         run.check_inputs()
+        if run.searched:  # run.json and ranking.json as the search's store recorded them
+            run.check_store()
     elif rows:  # rebuilding from presets of the same names could silently differ
         raise InputError(
             folder / RUN_JSON,

@@ -8,7 +8,6 @@ writers (``search.run``) take a ``Prepared``.
 
 from __future__ import annotations
 
-import json
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -25,7 +24,7 @@ from sensorgap.search.executors import ProblemSpec, check_scheduler_address
 from sensorgap.search.problem import SearchProblem
 from sensorgap.search.ranking import MIN_DISTANCE
 from sensorgap.search.runfolder import MAX_RANKED_ROWS
-from sensorgap.search.store import digest, file_digest
+from sensorgap.search.store import configs_digest, file_digest, reaction_digest
 from sensorgap.search.strategies import get_strategy, strategy_names
 
 #: Largest budget of one search, candidates.
@@ -185,19 +184,9 @@ def input_digests(
     environments, the target classes and each family's file and road."""
     out = {
         "vehicle": file_digest(vehicle_file),
-        "reaction": digest(
-            json.dumps(
-                [evaluator.reaction.model_dump(mode="json"), evaluator.friction], sort_keys=True
-            )
-        ),
-        "environments": digest(
-            json.dumps({k: v.model_dump(mode="json") for k, v in envs.items()}, sort_keys=True)
-        ),
-        "targets": digest(
-            json.dumps(
-                {k: v.model_dump(mode="json") for k, v in load_targets().items()}, sort_keys=True
-            )
-        ),
+        "reaction": reaction_digest(evaluator.reaction, evaluator.friction),
+        "environments": configs_digest(envs),
+        "targets": configs_digest(load_targets()),
     }
     for f in fams:
         out[f"family {f.name}"] = file_digest(Path(f.source))

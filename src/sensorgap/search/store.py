@@ -76,6 +76,20 @@ def file_digest(path: Path) -> str:
         raise InputError(path, "", f"cannot read: {exc.strerror}") from None
 
 
+def reaction_digest(reaction: Any, friction: dict[str, float]) -> str:
+    """The store's digest of a reaction model (``ReactionConfig``) and its road friction
+    (``inputs["reaction"]``)."""
+    return digest(json.dumps([reaction.model_dump(mode="json"), friction], sort_keys=True))
+
+
+def configs_digest(configs: dict[str, Any]) -> str:
+    """The store's digest of named configs (environments, target classes: pydantic
+    models by name; ``inputs["environments"]``, ``inputs["targets"]``)."""
+    return digest(
+        json.dumps({k: v.model_dump(mode="json") for k, v in configs.items()}, sort_keys=True)
+    )
+
+
 def _damaged(path: Path, what: object) -> InputError:
     """A store that cannot be read as one (``what``: why), or one that is sound but cannot
     be used here (``_unusable``: read-only, locked, a full disk)."""
@@ -192,6 +206,65 @@ def _refuse_other_search(
     return count
 
 
+#: The first bytes of every SQLite database file (its header is 100 bytes).
+_SQLITE_MAGIC = b"SQLite format 3\x00"
+
+
+def refuse_wal(path: Path) -> None:
+    """Refuse (``InputError`` naming the file) an SQLite database at ``path`` in WAL mode,
+    read from its header (bytes 18 and 19, the file format's write and read versions: 2
+    is WAL) before SQLite opens it: opening one, even read-only (``mode=ro``), creates
+    ``-wal`` and ``-shm`` files beside it, which a refused command must not leave (and
+    ``verify`` rejects). sensorgap's store never uses WAL, so such a file is not its
+    store. Anything else (no file, not SQLite, too short) passes: SQLite reports it."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(20)
+    except OSError:
+        return
+    if len(head) == 20 and head.startswith(_SQLITE_MAGIC) and 2 in (head[18], head[19]):
+        raise InputError(
+            path,
+            "",
+            "an SQLite database in WAL mode (journal_mode=wal), not a sensorgap search "
+            "store (its store never uses WAL; opening it would create -wal and -shm files "
+            "beside it); delete it or use another --out folder",
+        )
+
+
+def read_meta(path: Path) -> dict[str, Any]:
+    """The ``settings`` and ``inputs`` a store at ``path`` recorded (each parsed JSON;
+    a key it lacks is absent), read without writing or creating anything (the header
+    checked first, ``refuse_wal``; the file opened read-only). A file that is not a
+    readable store -> ``InputError`` naming it."""
+    refuse_wal(path)
+    try:
+        db = sqlite3.connect(f"{path.resolve().as_uri()}?mode=ro", uri=True)
+    except sqlite3.Error as exc:
+        raise InputError(path, "", f"cannot open: {exc}") from None
+    try:
+        tables = {r[0] for r in db.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
+        rows = (
+            dict(db.execute("SELECT key, value FROM meta WHERE key IN ('settings', 'inputs')"))
+            if "meta" in tables
+            else {}
+        )
+    except sqlite3.DatabaseError as exc:
+        raise _damaged(path, exc) from None
+    finally:
+        db.close()
+    out: dict[str, Any] = {}
+    for key, text in rows.items():
+        try:
+            value = json.loads(text)
+        except (TypeError, ValueError, RecursionError):
+            raise _damaged(path, f"meta row {key!r} is not JSON") from None
+        if not isinstance(value, dict):
+            raise _damaged(path, f"meta row {key!r} is not a JSON object")
+        out[key] = value
+    return out
+
+
 def check_store(path: Path, settings: dict[str, Any], inputs: dict[str, str]) -> int:
     """Whether ``Store(path, settings, inputs)`` would open, checked without writing (the
     file opened read-only; nothing is created): the same refusals (``InputError`` naming
@@ -203,6 +276,7 @@ def check_store(path: Path, settings: dict[str, Any], inputs: dict[str, str]) ->
             return 0
     except OSError as exc:
         raise InputError(path, "", f"cannot read: {exc.strerror}") from None
+    refuse_wal(path)  # even a read-only open of a WAL database creates -wal and -shm
     try:
         db = sqlite3.connect(f"{path.resolve().as_uri()}?mode=ro", uri=True)
     except sqlite3.Error as exc:
@@ -233,6 +307,8 @@ class Store:
         self._pending: list[Future[None]] = []
         path.parent.mkdir(parents=True, exist_ok=True)
         existed = path.is_file() and path.stat().st_size > 0
+        if existed:  # not a WAL database: opening it would create -wal and -shm
+            refuse_wal(path)
         try:
             # one connection, shared with the writer thread under ``_lock``
             self.db = sqlite3.connect(path, check_same_thread=False)
