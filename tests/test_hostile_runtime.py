@@ -97,6 +97,35 @@ def test_matplotlib_dir_when_home_or_the_setting_is_a_file(
     assert matplotlib_config_dir(env) is None and env["MPLCONFIGDIR"] == str(tmp_path)
 
 
+def test_matplotlib_dir_when_home_may_not_be_searched(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Hostile round thirteen: a HOME inside another user's 0700 folder (``Path.exists``
+    raises PermissionError there on Python 3.11) left matplotlib's default, which warned
+    twice on every command; now the next candidate, a private folder, is chosen. (Tests
+    run as root, where the permission does not bite: ``exists`` raises as it would.)"""
+    from sensorgap.runtime import matplotlib_config_dir
+
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    monkeypatch.setattr("tempfile.tempdir", str(tmp))
+    locked = tmp_path / "locked"
+    real_exists = Path.exists
+
+    def exists(self: Path) -> bool:
+        if str(self).startswith(str(locked)):
+            raise PermissionError(13, "Permission denied", str(self))
+        return real_exists(self)
+
+    monkeypatch.setattr(Path, "exists", exists)
+    env = {"HOME": str(locked / "home")}
+    chosen = matplotlib_config_dir(env, writable=lambda p: True)
+    assert chosen is not None and env["MPLCONFIGDIR"] == chosen and Path(chosen).parent == tmp
+    env = {"MPLCONFIGDIR": str(locked / "mpl")}
+    assert matplotlib_config_dir(env, writable=lambda p: True) is not None
+    assert Path(env["MPLCONFIGDIR"]).parent == tmp
+
+
 def test_numba_cache_respects_an_explicit_setting(tmp_path: Path) -> None:
     env = {"NUMBA_CACHE_DIR": "/somewhere"}
     assert numba_cache_dir(_pkg(tmp_path), env, writable=lambda p: False) is None
@@ -426,6 +455,79 @@ def test_esmini_log_with_a_short_row_is_a_bad_log(tmp_path: Path) -> None:
         parse_esmini_csv(_esmini_log(tmp_path / "short.csv", [good, "1, 0.05, Ego, 0"]))
     with pytest.raises(ValueError, match="no data rows"):
         parse_esmini_csv(_esmini_log(tmp_path / "empty.csv", []))
+
+
+@pytest.mark.parametrize(
+    ("field", "value", "column"),
+    [
+        (5, "nan", "#1 World_Position_X"),
+        (6, "inf", "#1 World_Position_Y"),
+        (1, "nan", "TimeStamp"),
+        (4, "1e308", "#1 Current_Speed"),
+        (5, "-1000001", "#1 World_Position_X"),
+        (8, "-inf", "#1 World_Heading_Angle"),
+    ],
+)
+def test_esmini_log_with_a_non_finite_or_huge_number_is_a_bad_log(
+    tmp_path: Path, field: int, value: str, column: str
+) -> None:
+    """Hostile round thirteen: nan or inf in esmini's CSV log was an internal error
+    ("trajectory x is not finite"), 1e308 a numpy overflow warning and then one; every
+    number read must now be finite and within +-MAX_ESMINI_LOG_VALUE (a bad log)."""
+    from sensorgap.export.simulate import MAX_ESMINI_LOG_VALUE, parse_esmini_csv
+
+    assert MAX_ESMINI_LOG_VALUE == 1e6
+    good = "0, 0.00, Ego, 0, 10.0, 1.0, 2.0, 0.0, 0.1,"
+    bad = good.split(",")
+    bad[field] = f" {value}"
+    log = _esmini_log(tmp_path / "bad.csv", [good, ",".join(bad)])
+    with pytest.raises(ValueError, match=rf"line 3: {column} \S* is {value}; every number"):
+        parse_esmini_csv(log)
+    edge = good.replace(" 1.0,", " -1000000,")  # the bound itself is accepted
+    assert parse_esmini_csv(_esmini_log(tmp_path / "ok.csv", [edge])).states["Ego"][1][0] == -1e6
+
+
+def test_esmini_log_with_a_bad_box_number_is_a_bad_log(tmp_path: Path) -> None:
+    """The box and velocity columns are optional (an older esmini), but a bad number in
+    them is a bad log, never a silently missing box check."""
+    from sensorgap.export.simulate import parse_esmini_csv
+
+    head = (
+        "Index [-] , TimeStamp [sec] , #1 Entity_Name [-] , #1 Current_Speed [m/s] , "
+        "#1 World_Position_X [m] , #1 World_Position_Y [m] , #1 World_Heading_Angle [rad] , "
+        "#1 bb_x [m] , #1 bb_y [m] , #1 bb_length [m] , #1 bb_width [m] , "
+        "#1 Vel_X [m/s] , #1 Vel_Y [m/s] ,"
+    )
+    good = "0, 0.0, Ego, 10, 1, 2, 0.1, 1.4, 0, 4.5, 1.8, 10, 0,"
+    (tmp_path / "ok.csv").write_text(f"{head}\n{good}\n")
+    sim = parse_esmini_csv(tmp_path / "ok.csv")
+    assert sim.boxes["Ego"][2].tolist() == [4.5] and sim.velocity["Ego"][0].tolist() == [10.0]
+    for i, col in ((9, "bb_length"), (11, "Vel_X")):
+        fields = good.split(",")
+        fields[i] = " nan"
+        (tmp_path / "bad.csv").write_text(f"{head}\n{','.join(fields)}\n")
+        with pytest.raises(ValueError, match=rf"line 2: #1 {col} .* is nan"):
+            parse_esmini_csv(tmp_path / "bad.csv")
+
+
+def test_a_relative_esmini_path_is_made_absolute(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Hostile round thirteen: ``--esmini ./esmini`` passed the check but esmini runs in a
+    temporary folder, so every scenario failed ("No such file or directory") and a
+    certified all-error simulation.csv was written; the path is now resolved where it was
+    checked."""
+    from sensorgap.export.simulate import find_esmini
+
+    exe = tmp_path / "esmini"
+    exe.write_text("#!/bin/sh\n")
+    exe.chmod(0o755)
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.delenv("SENSORGAP_ESMINI", raising=False)
+    for given in ("./esmini", "esmini"):
+        assert find_esmini(given) == exe
+    monkeypatch.setenv("SENSORGAP_ESMINI", "esmini")
+    assert find_esmini(None) == exe
 
 
 def test_a_flooding_or_hanging_esmini_stays_bounded(tmp_path: Path) -> None:

@@ -243,9 +243,12 @@ def _usable_dir(path: Path, can_write: Callable[[Path], bool]) -> bool:
     """True if ``path`` is a writable folder, or could be made one: its nearest existing
     ancestor is a writable folder (not a file such as a HOME pointing at one)."""
     probe = path
-    while not probe.exists() and probe != probe.parent:
-        probe = probe.parent
-    return probe.is_dir() and can_write(probe)
+    try:
+        while not probe.exists() and probe != probe.parent:
+            probe = probe.parent
+        return probe.is_dir() and can_write(probe)
+    except OSError:  # an ancestor that may not be searched (HOME another user's 0700 folder)
+        return False
 
 
 def matplotlib_config_dir(

@@ -60,6 +60,10 @@ MAX_TRIGGER_REL_M = 0.5
 #: standard output and error only the last ``ESMINI_TAIL_BYTES`` are read (a program
 #: that floods them -- 700 MB peaked at 4.6 GB RSS when they were captured whole).
 MAX_ESMINI_LOG_BYTES = 200_000_000
+#: Largest magnitude of any number read from esmini's CSV log (times, s; positions and box
+#: sizes, m; headings, rad; speeds, m/s): a non-finite or larger value makes a bad log
+#: (a scenario spans a few hundred metres and seconds; 1e308 overflowed the metrics).
+MAX_ESMINI_LOG_VALUE = 1e6
 ESMINI_TAIL_BYTES = 4096
 COLUMNS = [
     "scenario_id",
@@ -105,7 +109,9 @@ def find_esmini(path: str | None) -> Path:
     p = Path(cand)
     if not (p.is_file() and os.access(p, os.X_OK)):
         raise InputError("esmini", "", f"{p} is not an executable file")
-    return p
+    # absolute, as checked here: esmini runs in a temporary folder (and a bare name would
+    # be looked up on PATH), so a relative path would name another file or none
+    return Path(os.path.abspath(p))
 
 
 @dataclass
@@ -153,7 +159,21 @@ def parse_esmini_csv(path: Path) -> SimPaths:
 
     def floats(idx: list[int]) -> F64:
         fields(idx)
-        return np.array([[float(r[i]) for i in idx] for r in rows]).reshape(-1, len(idx))
+        arr = np.array([[float(r[i]) for i in idx] for r in rows]).reshape(-1, len(idx))
+        bad = ~(np.abs(arr) <= MAX_ESMINI_LOG_VALUE)  # also true for nan
+        if bad.any():
+            k, j = (int(v) for v in np.argwhere(bad)[0])
+            raise ValueError(
+                f"{path}: line {body[k][0]}: {cols[idx[j]]} is {rows[k][idx[j]]}; every "
+                f"number must be finite and within +-{MAX_ESMINI_LOG_VALUE:g}"
+            )
+        return arr
+
+    def optional(k: int, names: list[str]) -> list[int] | None:
+        try:
+            return [col(k, n) for n in names]
+        except ValueError:
+            return None
 
     t = floats([1])[:, 0]
     out, boxes, vel = {}, {}, {}
@@ -169,13 +189,16 @@ def parse_esmini_csv(path: Path) -> SimPaths:
             ]
         )
         out[name] = (t, arr[:, 0], arr[:, 1], np.unwrap(arr[:, 2]), arr[:, 3])
-        try:
-            bb = floats([col(k, n) for n in ("bb_x", "bb_y", "bb_length", "bb_width")])
+        # an esmini without the box or velocity columns: the box and velocity checks say
+        # so; a bad value in them is a bad log, as anywhere
+        bb_cols = optional(k, [f"bb_{n}" for n in ("x", "y", "length", "width")])
+        if bb_cols is not None:
+            bb = floats(bb_cols)
             boxes[name] = (bb[:, 0], bb[:, 1], bb[:, 2], bb[:, 3])
-            v = floats([col(k, "Vel_X"), col(k, "Vel_Y")])
-            vel[name] = (v[:, 0], v[:, 1])
-        except ValueError:
-            pass  # an esmini without these columns: the box and velocity checks say so
+            vel_cols = optional(k, ["Vel_X", "Vel_Y"])
+            if vel_cols is not None:
+                v = floats(vel_cols)
+                vel[name] = (v[:, 0], v[:, 1])
     return SimPaths(out, boxes, vel)
 
 
