@@ -130,6 +130,11 @@ def test_coverage_grid_covers_whole_cells_only() -> None:
         ([[1.0, 2.0, math.nan]], r"^points: coordinates must be finite numbers within \+-1e7 m"),
         ([[2e7, 0.0, 1.0]], r"^points: coordinates must be finite numbers within \+-1e7 m"),
         ([[10.0, 0.0, -1.0]], r"^points: z: must be within 0\.\.50 m"),
+        ([[30, 0, -5]], r"^points: z: must be within 0\.\.50 m"),  # was Pd [1.]
+        ([["a", "b", "c"]], r"^points: must be an \(N, 3\) array of numbers"),
+        # was numpy's ComplexWarning on stderr, then the real parts evaluated
+        (np.array([[30 + 1j, 0, 0.75]]), r"^points: must be an \(N, 3\) array of numbers .*compl"),
+        ([[30 + 1j, 0, 0.75]], r"^points: must be an \(N, 3\) array of numbers .*complex"),
     ],
 )
 def test_evaluate_points_applies_the_probe_limits(points: Any, line: str) -> None:
@@ -161,6 +166,19 @@ def test_evaluate_points_limits_points_times_sensors(monkeypatch: pytest.MonkeyP
         ({"detection": 3}, r"^detection: must be a str, got 3$"),
         ({"detection": " 3/5"}, r"^detection: expected 'cumulative' or M/N in ASCII digits"),
         ({"environments_file": ""}, r"^environments_file: must be a path"),
+        # hostile round thirteen: a TypeError deep inside, after run.json, search.sqlite
+        # and inputs/ were written
+        ({"budget": 20.5}, r"^budget: must be an integer, got 20\.5$"),
+        ({"environments": None}, r"^environments: must be 'all' or a list of names, got None"),
+        ({"bogus": 1}, r"^bogus: unknown option; allowed: detection, "),  # a raw TypeError
+        # truthy strings were taken as True
+        ({"sun_search": "no"}, r"^sun_search: must be a bool, got 'no'$"),
+        ({"resume": "yes"}, r"^resume: must be a bool, got 'yes'$"),
+        ({"lock": "x"}, r"^lock: must be a bool, got 'x'$"),
+        ({"progress": 1}, r"^progress: must be a bool, got 1$"),
+        ({"min_distance": "x"}, r"^min_distance: must be a finite number >= 0, got 'x'$"),
+        ({"min_distance": math.nan}, r"^min_distance: must be a finite number >= 0, got nan$"),
+        ({"min_distance": -0.1}, r"^min_distance: must be a finite number >= 0, got -0\.1$"),
     ],
 )
 def test_find_scenarios_checks_types_before_any_work(
@@ -170,6 +188,22 @@ def test_find_scenarios_checks_types_before_any_work(
     with pytest.raises(InputError, match=line):
         sensorgap.find_scenarios("system_b", tmp_path / "run", **{**kw, **kwargs})
     assert not (tmp_path / "run").exists()
+
+
+@pytest.mark.parametrize("where", ["f", "f/run", "f/a/run"])
+def test_an_output_folder_that_is_a_file_is_refused(tmp_path: Path, where: str) -> None:
+    """Hostile round thirteen: ``out`` naming a file (or a path below one) was a raw
+    FileExistsError (find_scenarios) or NotADirectoryError (export_catalog)."""
+    (tmp_path / "f").write_text("x")
+    out = tmp_path / where
+    line = rf"^out: {tmp_path / 'f'} is a file, not a folder$"
+    kw: dict[str, Any] = {"families": ["slow_ahead_curve"], "environments": ["clear"], "budget": 10}
+    with pytest.raises(InputError, match=line):
+        sensorgap.find_scenarios("system_b", out, **kw)
+    with pytest.raises(InputError, match=line):
+        sensorgap.export_catalog(tmp_path / "run", out)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["f"]
+    assert (tmp_path / "f").read_text() == "x"
 
 
 @pytest.mark.parametrize(

@@ -9,8 +9,10 @@ Units: metres, seconds, degrees for angles given by the user (radians inside the
 
 from __future__ import annotations
 
+import inspect
 import math
 import os
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -54,6 +56,21 @@ def _path(value: object, name: str) -> Path:
     if not isinstance(value, str) or not value.strip():
         raise InputError(name, "", f"must be a path (a non-empty str or Path), got {value!r}")
     return Path(value)
+
+
+def _out_folder(value: object) -> Path:
+    """An output folder parameter (``out``): a path whose nearest existing part is a
+    folder (a file there was a raw FileExistsError once the work had started)."""
+    folder = _path(value, "out")
+    probe = folder
+    try:
+        while not probe.exists() and probe != probe.parent:
+            probe = probe.parent
+        if probe.exists() and not probe.is_dir():
+            raise InputError("out", "", f"{probe} is a file, not a folder")
+    except OSError as exc:
+        raise InputError("out", "", f"{folder}: cannot be read ({exc.strerror})") from None
+    return folder
 
 
 def _text(value: object, name: str, what: str) -> str:
@@ -140,8 +157,11 @@ def evaluate_points(
         raise InputError("points", "", f"must be an (N, 3) array of numbers, got {points!r}")
     check_point_count(count, 0, "points")
     try:
-        p = np.asarray(points, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
+        with warnings.catch_warnings():
+            # complex numbers: numpy drops the imaginary part with a warning on stderr
+            warnings.simplefilter("error", np.exceptions.ComplexWarning)
+            p = np.asarray(points, dtype=np.float64)
+    except (TypeError, ValueError, np.exceptions.ComplexWarning) as exc:
         raise InputError("points", "", f"must be an (N, 3) array of numbers ({exc})") from None
     if p.ndim != 2 or p.shape[1] not in (2, 3):
         raise InputError("points", "", f"must have shape (N, 3) or (N, 2), got {p.shape}")
@@ -204,6 +224,10 @@ def coverage_grid(
     )
 
 
+#: The options of ``find_scenarios``: ``run_search``'s keyword parameters.
+_SEARCH_OPTIONS = frozenset(list(inspect.signature(run_search).parameters)[7:])
+
+
 def find_scenarios(
     vehicle: str | Path,
     out: str | Path,
@@ -220,8 +244,17 @@ def find_scenarios(
     ``environments_file`` option when given); ``options`` as ``run_search`` (strategy,
     mode, workers, resume, ...). Every reported number is an exact evaluation."""
     veh = _vehicle(vehicle)
-    folder = _path(out, "out")
+    folder = _out_folder(out)
     budget, seed, top = _integer(budget, "budget"), _integer(seed, "seed"), _integer(top, "top")
+    unknown = sorted(set(options) - _SEARCH_OPTIONS)
+    if unknown:
+        raise InputError(
+            unknown[0], "", f"unknown option; allowed: {', '.join(sorted(_SEARCH_OPTIONS))}"
+        )
+    for name in ("resume", "progress", "lock"):  # 'no' would be true
+        value = options.get(name, False)
+        if not (isinstance(value, bool) or (name == "progress" and value is None)):
+            raise InputError(name, "", f"must be a bool, got {value!r}")
     env_file = options.get("environments_file")
     if env_file is not None:
         options["environments_file"] = _path(env_file, "environments_file")
@@ -248,7 +281,7 @@ def export_catalog(
     from sensorgap.export import export_catalog as _export
 
     folder = _path(run, "run")
-    target = None if out is None else _path(out, "out")
+    target = None if out is None else _out_folder(out)
     osc_version = _text(osc_version, "osc_version", "an OpenSCENARIO version such as '1.2'")
     style = _text(style, "style", "'maneuver' or 'replay'")
     rows = None if top is None else _integer(top, "top")

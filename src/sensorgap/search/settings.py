@@ -8,13 +8,14 @@ writers (``search.run``) take a ``Prepared``.
 
 from __future__ import annotations
 
+import math
 import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from sensorgap.config import EnvironmentConfig, load_environments, load_targets
-from sensorgap.config.common import is_integer
+from sensorgap.config.common import is_integer, is_number
 from sensorgap.config.presets import resolve_road
 from sensorgap.errors import InputError
 from sensorgap.models import System, load_system
@@ -79,6 +80,12 @@ class SearchSettings:
             value = getattr(self, name)
             if not isinstance(value, str):
                 raise InputError(name, "", f"must be a str, got {value!r}")
+        if not isinstance(self.sun_search, bool):  # 'no' would be true
+            raise InputError("sun_search", "", f"must be a bool, got {self.sun_search!r}")
+        if not (is_number(self.min_distance) and 0.0 <= float(self.min_distance) < math.inf):
+            raise InputError(
+                "min_distance", "", f"must be a finite number >= 0, got {self.min_distance!r}"
+            )
         for name in ("families", "environments"):
             for value in getattr(self, name):
                 if not isinstance(value, str | Path):
