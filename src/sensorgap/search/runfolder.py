@@ -651,6 +651,12 @@ class RunFolder:
                 what = "the recorded file" if whole else "what it loads"
                 raise refuse(run_json, label, what, "another SHA-256")
 
+    def stored_ids(self) -> frozenset[str] | None:
+        """The ``scenario_id`` values of the ranking's rows that are candidates of the
+        run's store (``check_store``; None before it ran or without a store)."""
+        ids: frozenset[str] | None = self._cache.get("stored_ids")
+        return ids
+
     def _check_ranked_numbers(self, ranked: dict[str, Any] | None) -> None:
         """Every number a ranked (or unavoidable) row of ``ranking.json`` states must be
         what the store recorded for that row's ``scenario_id``: the metrics (collision
@@ -661,6 +667,7 @@ class RunFolder:
         round-trip; times rounded as ``metrics.output_value`` writes them). A mismatch is
         ``InputError`` naming ``ranking.json`` and the row's field: a ranking edited
         with its manifest re-hashed was reported (and exported, compared) as exact."""
+        from sensorgap.export.spec import _check_metric
         from sensorgap.search.metrics import output_value
         from sensorgap.search.store import read_results
 
@@ -677,6 +684,7 @@ class RunFolder:
             if isinstance(row, dict)
         ]
         lookup = read_results(self.folder / STORE_FILE, ids)
+        self._cache["stored_ids"] = frozenset(lookup)
 
         def refuse(field: str, given: Any, want: Any) -> InputError:
             return InputError(
@@ -692,13 +700,8 @@ class RunFolder:
                     continue
                 sid = str(row.get("scenario_id"))
                 where = f"{name}[{i}]"
-                if sid not in lookup:
-                    raise InputError(
-                        path,
-                        f"{where}.scenario_id",
-                        f"{sid[:80]!r} is not a candidate of the run's {STORE_FILE} "
-                        f"(every ranked row is one); restore {path.name} or search again",
-                    )
+                if sid not in lookup:  # refused as its row is read (export.spec): the
+                    continue  # id its parameters give, or no stored candidate
                 given = row.get("lookup_collision_probability")
                 want = lookup[sid].get("collision_probability")
                 if given is not None and given != want:
@@ -715,6 +718,10 @@ class RunFolder:
                     )
                 for metric, value in exact.items():
                     if metric not in row or not isinstance(value, int | float):
+                        continue
+                    try:  # a value no search writes: refused as its row is read
+                        _check_metric(metric, row[metric])
+                    except ValueError:
                         continue
                     want = output_value(metric, float(value))
                     if row[metric] != want or isinstance(row[metric], bool):
