@@ -130,6 +130,40 @@ def test_a_killed_commands_restore_folder_is_reported_then_removed(tmp_path: Pat
     assert not left.exists() and verify_manifest(root) == []
 
 
+def test_verify_of_a_folder_another_command_writes_calls_nothing_left_over(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Hostile round thirteen: ``verify`` while a command wrote the folder (its lock held,
+    its restore folder there) called that restore folder "left over from a killed
+    command" and advised deleting it. Now: the folder's lock held elsewhere -> one line
+    saying a command is writing it, exit 2; a sub-folder's restore folder in use (that
+    sub-folder's lock held) is named as such; released, a left-over is reported again."""
+    root = tmp_path / "run"
+    (root / "sub").mkdir(parents=True)
+    (root / "a.txt").write_text("a")
+    (root / "sub" / "b.txt").write_text("b")
+    write_manifest(root)
+    for where in (root, root / "sub"):
+        (where / f"{RESTORE_PREFIX}abcd1234.tmp").mkdir()
+        os.link(
+            where / ("a.txt" if where == root else "b.txt"),
+            where / f"{RESTORE_PREFIX}abcd1234.tmp" / "0",
+        )
+    capsys.readouterr()
+    with held_elsewhere(root):
+        assert main(["verify", str(root)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "being written by another sensorgap command now" in err[0], err
+    assert "left over" not in err[0] and "delete" not in err[0], err
+    with held_elsewhere(root / "sub"):
+        problems = verify_manifest(root)
+    in_use = [p for p in problems if p.startswith(f"sub/{RESTORE_PREFIX}")]
+    assert len(in_use) == 1 and "writing sub now (its lock is held)" in in_use[0], problems
+    assert "left over" not in in_use[0]
+    problems = verify_manifest(root)
+    assert len(problems) == 2 and all("left over from a killed" in p for p in problems)
+
+
 def test_a_sigkilled_commands_restore_folder_can_be_put_back_by_hand(tmp_path: Path) -> None:
     """Hostile round eleven (F11): a command killed with SIGKILL half-way left its restore
     folder holding numbered copies and nothing saying which file each was. Now its

@@ -156,6 +156,28 @@ def holds_lock(folder: str | Path) -> bool:
     return key is not None and key in _HELD
 
 
+def locked_elsewhere(folder: str | Path) -> bool:
+    """Whether another process holds ``folder``'s lock (``folder_lock``: a sensorgap
+    command is writing it now), tested without waiting: a shared ``flock`` taken and
+    released at once (a reader such as ``verify``; it never conflicts with another
+    reader). False when this process holds the lock, or the folder cannot be opened."""
+    if holds_lock(folder):
+        return False
+    try:
+        fd = os.open(folder, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
+    except OSError:
+        return False
+    try:
+        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+    except BlockingIOError:
+        return True
+    except OSError:
+        return False
+    finally:
+        os.close(fd)  # closing the only descriptor releases a lock taken
+    return False
+
+
 @contextmanager
 def folder_lock(folder: str | Path) -> Iterator[None]:
     """Hold the exclusive lock of the existing folder ``folder`` while the block runs:

@@ -740,6 +740,21 @@ def cmd_report(args: argparse.Namespace) -> int:
     return 0
 
 
+def _refuse_locked(folder: Path) -> None:
+    """``verify`` of a folder another sensorgap command is writing now (it holds the
+    folder's lock, ``atomic.locked_elsewhere``): its files are half-written and its
+    restore folder is in use, not left over from a killed command. ``InputError``."""
+    from sensorgap.atomic import locked_elsewhere
+
+    if locked_elsewhere(folder):
+        raise InputError(
+            folder,
+            "",
+            "being written by another sensorgap command now (its lock is held); verify it "
+            "when that command ends",
+        )
+
+
 def cmd_verify(args: argparse.Namespace) -> int:
     """Check a run folder against its manifest (nothing lost or changed)."""
     from sensorgap.filesio import verify_manifest
@@ -750,8 +765,10 @@ def cmd_verify(args: argparse.Namespace) -> int:
         raise InputError(folder, "", "folder does not exist")
     if manifest.is_symlink() or not manifest.is_file():
         raise InputError(manifest, "", "no manifest in this folder (not a sensorgap run)")
+    _refuse_locked(folder)  # a command writing it: its restore folder is no left-over
     problems = verify_manifest(folder)
     if problems:
+        _refuse_locked(folder)  # a command that started while it was checked
         more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""
         raise InputError(manifest, "files", f"{problems[0]}{more}")
     print(f"{folder}: every file of the manifest is present and unchanged")

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from sensorgap.atomic import atomic_write_bytes, holds_lock, utf8
+from sensorgap.atomic import atomic_write_bytes, holds_lock, locked_elsewhere, utf8
 
 _FIXED_ZIP_TIME = (1980, 1, 1, 0, 0, 0)
 
@@ -142,6 +142,8 @@ def _in_temporary_folder(rel: str) -> bool:
 
 #: How ``verify``'s line for a restore folder left by a killed command ends.
 _RESTORE_BY_HAND = "move them back by hand to restore the folder, or delete it"
+#: How ``verify``'s line for the restore folder of a command running now ends.
+_RESTORE_IN_USE = "verify it when that command ends"
 
 
 def _is_restore_folder(path: Path) -> bool:
@@ -508,6 +510,7 @@ def refuse_if_changed(folder: str | Path, rewrites: tuple[str, ...], lost_ok: bo
                     "(from an interrupted command; not in the manifest)",
                     "is not in the manifest",
                     _RESTORE_BY_HAND,
+                    _RESTORE_IN_USE,
                 )
             )
             and not (why.endswith(" is missing") and ("/" in rel or lost_ok))
@@ -774,6 +777,18 @@ def _manifest_problems(root: Path) -> list[tuple[str, str]]:
     ]
     for rel in restores:  # one line each, not one per kept file
         kept = sum(1 for r in entries if r.startswith(f"{rel}/")) - 1
+        parent = (root / rel).parent
+        if locked_elsewhere(parent):  # a command writing that folder now uses it
+            where = parent.relative_to(root).as_posix()
+            problems.append(
+                (
+                    rel,
+                    f"{rel} is the restore folder of a sensorgap command writing "
+                    f"{where if where != '.' else root} now (its lock is held); "
+                    f"{_RESTORE_IN_USE}",
+                )
+            )
+            continue
         problems.append(
             (
                 rel,

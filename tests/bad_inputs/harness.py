@@ -82,7 +82,7 @@ def load_cases(path: Path = CASES_FILE) -> list[dict[str, Any]]:
 
 
 #: Setup steps that work on the finished run although the argv does not name ``{run}``.
-RUN_SETUP_STEPS = ("export_into_out", "job_folder_from_run")
+RUN_SETUP_STEPS = ("export_into_out", "job_folder_from_run", "nearfield_as_out")
 
 
 def needs_run(case: dict[str, Any]) -> bool:
@@ -648,6 +648,8 @@ def _setup(
             _coverage_map(run / "coverage" / "car_clear", step.removeprefix("coverage_map:"))
         elif step == "job_folder_from_run":  # {out}/system_b: a copy of {run}
             shutil.copytree(run, out / "system_b", symlinks=True)
+        elif step == "nearfield_as_out":  # {out}: a copy of {run}/nearfield (certified)
+            shutil.copytree(run / "nearfield", out, symlinks=True)
         elif step == "path_max_out":  # {out} in argv: a folder path of 4,070 bytes
             deep = out  # (PATH_MAX 4,096: its folders can be made, its files' names not)
             while len(str(deep)) < 4066 - 251:

@@ -36,6 +36,7 @@ from sensorgap.export.spec import ScenarioSpec, read_run, specs_of_run
 from sensorgap.export.validate import FOOTWAY_M, semantic_errors, xsd_errors
 from sensorgap.export.xosc import DEFAULT_VERSION, VERSIONS, build_scenario
 from sensorgap.filesio import (
+    refuse_certified_by_other,
     refuse_if_changed,
     refuse_if_source_changed,
     write_json,
@@ -195,6 +196,11 @@ def export_catalog(
                 f"{out} holds another search run ({other}); export into the run folder "
                 "itself, a new folder or a catalog",
             )
+        # another command's certified output (a compare, paper or tradeoff folder): its
+        # report would be removed as stale and the mix certified by the new manifest
+        refuse_certified_by_other(
+            out, "export", lambda rel: rel == "catalog.json", "catalog.json (a catalog)"
+        )
     writes = (
         EXPORT_WRITES
         if in_place

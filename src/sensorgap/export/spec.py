@@ -158,6 +158,15 @@ class ScenarioSpec:
                     f"{STORE_FILE} gives the row's family, environment, sun and parameters "
                     f"({cid!r}); restore the row or search again",
                 )
+            stored = run.stored_ids()
+            if stored is not None and cid not in stored:
+                # a row made up by hand (parameters and id edited together)
+                raise InputError(
+                    source,
+                    f"{at}.scenario_id",
+                    f"{cid!r} is not a candidate of the run's {STORE_FILE} (every ranked "
+                    "row is one); restore the row or search again",
+                )
         metrics = {k: float(row[k]) for k in metric_names() if isinstance(row.get(k), int | float)}
         targets = run.targets() if run is not None else None
         if run is not None and targets is not None and scenario.target_class not in targets:

@@ -57,7 +57,7 @@ from sensorgap.search.settings import (
     prepare,
     vehicle_ref,
 )
-from sensorgap.search.store import Store, check_store, refuse_wal
+from sensorgap.search.store import Store, check_store, record_ranked, refuse_wal
 
 #: The ranking's leading metric columns (collision terms), in this order.
 HEAD_METRICS = (
@@ -494,6 +494,17 @@ def run_search(
             store.close()
             runner.close()
         ranked = rank_results(p, loop)
+        # the exact results of the ranked rows, so every reader can check ranking.json's
+        # numbers against the store (runfolder.RunFolder.check_store)
+        shown = {row["scenario_id"] for row in (*ranked.rows, *ranked.unavoidable)}
+        record_ranked(
+            db,
+            {
+                e.candidate.scenario_id: e.metrics
+                for _, e in ranked.pairs
+                if e.candidate.scenario_id in shown
+            },
+        )
         summary = search_summary(p, loop, ranked)
         write_ranking(out, p, ranked, summary)
         return SearchOutcome(ranked.rows, loop.results, loop.evaluated, loop.reused, summary)

@@ -562,7 +562,7 @@ class RunFolder:
         re-hashed) rebuilt the run with another reaction model, and the report explained
         its scenarios by a model the search never used. The store is read without
         writing anything (a WAL database refused first, ``store.refuse_wal``)."""
-        from sensorgap.search.store import configs_digest, reaction_digest, read_meta
+        from sensorgap.search.store import RANKED_KEY, configs_digest, reaction_digest, read_meta
 
         meta = read_meta(self.folder / STORE_FILE)
         stored: dict[str, Any] = meta.get("settings", {})
@@ -586,6 +586,7 @@ class RunFolder:
                         f"{str(self.settings.get(key))[:80]!r}",
                         f"{str(want)[:80]!r}",
                     )
+        self._check_ranked_numbers(meta.get(RANKED_KEY))
         given = self.info.get("settings", {})
         for key, want in stored.items():  # run.json's (sensorgap run's: a part of them)
             if key in given and _normal_setting(key, given[key]) != want:
@@ -649,6 +650,82 @@ class RunFolder:
                 whole = label.startswith(("inputs.vehicle", "inputs.families"))
                 what = "the recorded file" if whole else "what it loads"
                 raise refuse(run_json, label, what, "another SHA-256")
+
+    def stored_ids(self) -> frozenset[str] | None:
+        """The ``scenario_id`` values of the ranking's rows that are candidates of the
+        run's store (``check_store``; None before it ran or without a store)."""
+        ids: frozenset[str] | None = self._cache.get("stored_ids")
+        return ids
+
+    def _check_ranked_numbers(self, ranked: dict[str, Any] | None) -> None:
+        """Every number a ranked (or unavoidable) row of ``ranking.json`` states must be
+        what the store recorded for that row's ``scenario_id``: the metrics (collision
+        probability, impact speed, Pd, confirmation and detection times, risk, ...) as
+        exact evaluation gave them (``store.record_ranked``; a store of an older search
+        without that record: not checked), and ``lookup_collision_probability`` as the
+        search's lookup gave it (its ``candidates`` row). Equal as written (JSON floats
+        round-trip; times rounded as ``metrics.output_value`` writes them). A mismatch is
+        ``InputError`` naming ``ranking.json`` and the row's field: a ranking edited
+        with its manifest re-hashed was reported (and exported, compared) as exact."""
+        from sensorgap.export.spec import _check_metric
+        from sensorgap.search.metrics import output_value
+        from sensorgap.search.store import read_results
+
+        path = self.folder / RANKING_JSON
+        groups = [
+            (name, rows)
+            for name in ("ranking", "unavoidable")
+            if isinstance(rows := self.data.get(name), list)
+        ]
+        ids = [
+            str(row.get("scenario_id"))
+            for _, rows in groups
+            for row in rows
+            if isinstance(row, dict)
+        ]
+        lookup = read_results(self.folder / STORE_FILE, ids)
+        self._cache["stored_ids"] = frozenset(lookup)
+
+        def refuse(field: str, given: Any, want: Any) -> InputError:
+            return InputError(
+                path,
+                field,
+                f"{str(given)[:80]} does not match the run's {STORE_FILE} "
+                f"({str(want)[:80]}, as searched); restore {path.name} or search again",
+            )
+
+        for name, rows in groups:
+            for i, row in enumerate(rows):
+                if not isinstance(row, dict):
+                    continue
+                sid = str(row.get("scenario_id"))
+                where = f"{name}[{i}]"
+                if sid not in lookup:  # refused as its row is read (export.spec): the
+                    continue  # id its parameters give, or no stored candidate
+                given = row.get("lookup_collision_probability")
+                want = lookup[sid].get("collision_probability")
+                if given is not None and given != want:
+                    raise refuse(f"{where}.lookup_collision_probability", given, want)
+                if not isinstance(ranked, dict):
+                    continue
+                exact = ranked.get(sid)
+                if not isinstance(exact, dict):
+                    raise InputError(
+                        path,
+                        f"{where}.scenario_id",
+                        f"{sid[:80]!r} is not a ranked candidate of the run's {STORE_FILE}; "
+                        f"restore {path.name} or search again",
+                    )
+                for metric, value in exact.items():
+                    if metric not in row or not isinstance(value, int | float):
+                        continue
+                    try:  # a value no search writes: refused as its row is read
+                        _check_metric(metric, row[metric])
+                    except ValueError:
+                        continue
+                    want = output_value(metric, float(value))
+                    if row[metric] != want or isinstance(row[metric], bool):
+                        raise refuse(f"{where}.{metric}", row[metric], want)
 
 
 def _normal_setting(key: str, value: Any) -> Any:

@@ -233,9 +233,10 @@ def refuse_wal(path: Path) -> None:
 
 
 def read_meta(path: Path) -> dict[str, Any]:
-    """The ``settings`` and ``inputs`` a store at ``path`` recorded (each parsed JSON;
-    a key it lacks is absent), read without writing or creating anything (the header
-    checked first, ``refuse_wal``; the file opened read-only). A file that is not a
+    """The ``settings``, ``inputs`` and ``ranked`` (``record_ranked``) a store at ``path``
+    recorded (each parsed JSON; a key it lacks is absent), read without writing or
+    creating anything (the header checked first, ``refuse_wal``; the file opened
+    read-only). A file that is not a
     readable store -> ``InputError`` naming it."""
     refuse_wal(path)
     try:
@@ -245,7 +246,12 @@ def read_meta(path: Path) -> dict[str, Any]:
     try:
         tables = {r[0] for r in db.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
         rows = (
-            dict(db.execute("SELECT key, value FROM meta WHERE key IN ('settings', 'inputs')"))
+            dict(
+                db.execute(
+                    "SELECT key, value FROM meta WHERE key IN ('settings', 'inputs', ?)",
+                    (RANKED_KEY,),
+                )
+            )
             if "meta" in tables
             else {}
         )
@@ -262,6 +268,67 @@ def read_meta(path: Path) -> dict[str, Any]:
         if not isinstance(value, dict):
             raise _damaged(path, f"meta row {key!r} is not a JSON object")
         out[key] = value
+    return out
+
+
+#: The ``meta`` row holding the exact results of the ranked candidates (``record_ranked``).
+RANKED_KEY = "ranked"
+
+
+def record_ranked(path: Path, results: dict[str, dict[str, float]]) -> None:
+    """Record in the store at ``path`` the metrics of every ranked (and unavoidable) row
+    of the search's ranking, by scenario id, as exact evaluation gave them (the
+    ``candidates`` rows hold what the search's lookup gave): ``meta`` row ``ranked``,
+    replaced by each search into the folder. Every reader of the run compares the
+    ranking's numbers with it (``runfolder.RunFolder.check_store``)."""
+    text = json.dumps({k: results[k] for k in sorted(results)}, sort_keys=True)
+    try:
+        db = sqlite3.connect(path)
+    except sqlite3.Error as exc:
+        raise InputError(path, "", f"cannot open: {exc}") from None
+    try:
+        db.execute("INSERT OR REPLACE INTO meta VALUES (?, ?)", (RANKED_KEY, text))
+        db.commit()
+    except sqlite3.DatabaseError as exc:
+        raise InputError(path, "", f"cannot store results: {exc}") from None
+    finally:
+        db.close()
+
+
+def read_results(path: Path, scenario_ids: list[str]) -> dict[str, dict[str, Any]]:
+    """The stored (lookup) metrics of the candidates ``scenario_ids`` names (by id; an
+    id stored twice: its first row), read without writing anything (the store opened
+    read-only, ``refuse_wal`` first). A row whose metrics are not a JSON object is
+    ``InputError`` naming the file."""
+    want = set(scenario_ids)
+    if not want:
+        return {}
+    refuse_wal(path)
+    try:
+        db = sqlite3.connect(f"{path.resolve().as_uri()}?mode=ro", uri=True)
+    except sqlite3.Error as exc:
+        raise InputError(path, "", f"cannot open: {exc}") from None
+    out: dict[str, dict[str, Any]] = {}
+    try:
+        tables = {r[0] for r in db.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
+        if "candidates" not in tables:
+            return {}
+        for sid, text in db.execute(
+            "SELECT scenario_id, metrics FROM candidates ORDER BY family, idx"
+        ):
+            if sid not in want or sid in out:
+                continue
+            try:
+                metrics = json.loads(text)
+            except (TypeError, ValueError, RecursionError):
+                raise _damaged(path, f"candidate {str(sid)[:64]!r}: metrics not JSON") from None
+            if not isinstance(metrics, dict):
+                raise _damaged(path, f"candidate {str(sid)[:64]!r}: metrics not an object")
+            out[sid] = metrics
+    except sqlite3.DatabaseError as exc:
+        raise _damaged(path, exc) from None
+    finally:
+        db.close()
     return out
 
 
