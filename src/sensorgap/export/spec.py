@@ -8,7 +8,6 @@ to one searched candidate.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -19,7 +18,7 @@ from sensorgap.errors import InputError
 from sensorgap.models import System
 from sensorgap.scenarios import InfeasibleScenario, Scenario, load_family
 from sensorgap.scenarios.family import Family, Param, ParamValue
-from sensorgap.search.metrics import metric_names
+from sensorgap.search.metrics import check_metric_value, metric_names
 from sensorgap.search.problem import Candidate
 from sensorgap.search.runfolder import STORE_FILE, RunFolder, read_run
 
@@ -137,7 +136,7 @@ class ScenarioSpec:
                 )
             for k in metric_names():  # printed by the report as they stand
                 field = k
-                _check_metric(k, row.get(k))
+                check_metric_value(k, row.get(k))
         except KeyError:
             raise InputError(source, f"{at}.{field}", "missing") from None
         except (TypeError, ValueError) as exc:
@@ -206,40 +205,6 @@ def _row_label(row: dict[str, Any], run: RunFolder | None) -> str:
             if r is row or r == row:
                 return f"ranking[{i}]"
     return f"ranking[id={str(row.get('scenario_id', '?'))[:64]}]"
-
-
-#: Metrics of a ranking row that are probabilities (0..1) and that are never negative.
-_PROBABILITY_METRICS = frozenset(
-    {
-        "risk",
-        "p_undetected_end",
-        "detected",
-        "mean_pd",
-        "collision_probability",
-        "collision_perfect",
-        "p_never_confirmed",
-        "lookup_collision_probability",
-    }
-)
-_NON_NEGATIVE_METRICS = frozenset(
-    {"impact_speed_kmh", "min_ttc_s", "distance_at_detect_m", "t_detect_s", "t_safe_s"}
-)
-
-
-def _check_metric(name: str, v: Any) -> None:
-    """A metric of a ranking row: null or a finite number (not text such as
-    "Infinity"), within 0..1 for a probability, >= 0 for a speed, distance or time of
-    ``_NON_NEGATIVE_METRICS``, <= 0 for ``log10_risk``; else ``ValueError``."""
-    if v is None:
-        return
-    if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
-        raise ValueError(f"expected a finite number or null, got {str(v)[:40]!r}")
-    if name in _PROBABILITY_METRICS and not 0.0 <= v <= 1.0:
-        raise ValueError(f"expected a probability within 0..1, got {v!r}")
-    if name in _NON_NEGATIVE_METRICS and v < 0.0:
-        raise ValueError(f"expected a number >= 0, got {v!r}")
-    if name == "log10_risk" and v > 0.0:
-        raise ValueError(f"expected a number <= 0 (a log10 probability), got {v!r}")
 
 
 def _finite(v: Any) -> float:

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import ClassVar, Literal, TypeVar
+from typing import Any, ClassVar, Literal, TypeVar
 
 import numpy as np
 
@@ -494,3 +494,37 @@ _outcome_metric(
     "(empty: no collision to avoid)",
     optional=True,
 )
+
+
+#: Metrics of a ranking row that are probabilities (0..1) and that are never negative.
+_PROBABILITY_METRICS = frozenset(
+    {
+        "risk",
+        "p_undetected_end",
+        "detected",
+        "mean_pd",
+        "collision_probability",
+        "collision_perfect",
+        "p_never_confirmed",
+        "lookup_collision_probability",
+    }
+)
+_NON_NEGATIVE_METRICS = frozenset(
+    {"impact_speed_kmh", "min_ttc_s", "distance_at_detect_m", "t_detect_s", "t_safe_s"}
+)
+
+
+def check_metric_value(name: str, v: Any) -> None:
+    """A metric of a ranking row: null or a finite number (not text such as
+    "Infinity"), within 0..1 for a probability, >= 0 for a speed, distance or time of
+    ``_NON_NEGATIVE_METRICS``, <= 0 for ``log10_risk``; else ``ValueError``."""
+    if v is None:
+        return
+    if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+        raise ValueError(f"expected a finite number or null, got {str(v)[:40]!r}")
+    if name in _PROBABILITY_METRICS and not 0.0 <= v <= 1.0:
+        raise ValueError(f"expected a probability within 0..1, got {v!r}")
+    if name in _NON_NEGATIVE_METRICS and v < 0.0:
+        raise ValueError(f"expected a number >= 0, got {v!r}")
+    if name == "log10_risk" and v > 0.0:
+        raise ValueError(f"expected a number <= 0 (a log10 probability), got {v!r}")

@@ -667,8 +667,7 @@ class RunFolder:
         round-trip; times rounded as ``metrics.output_value`` writes them). A mismatch is
         ``InputError`` naming ``ranking.json`` and the row's field: a ranking edited
         with its manifest re-hashed was reported (and exported, compared) as exact."""
-        from sensorgap.export.spec import _check_metric
-        from sensorgap.search.metrics import output_value
+        from sensorgap.search.metrics import check_metric_value, output_value
         from sensorgap.search.store import read_results
 
         path = self.folder / RANKING_JSON
@@ -720,7 +719,7 @@ class RunFolder:
                     if metric not in row or not isinstance(value, int | float):
                         continue
                     try:  # a value no search writes: refused as its row is read
-                        _check_metric(metric, row[metric])
+                        check_metric_value(metric, row[metric])
                     except ValueError:
                         continue
                     want = output_value(metric, float(value))
