@@ -259,16 +259,19 @@ def read_meta(path: Path) -> dict[str, Any]:
         raise _damaged(path, exc) from None
     finally:
         db.close()
-    out: dict[str, Any] = {}
-    for key, text in rows.items():
-        try:
-            value = json.loads(text)
-        except (TypeError, ValueError, RecursionError):
-            raise _damaged(path, f"meta row {key!r} is not JSON") from None
-        if not isinstance(value, dict):
-            raise _damaged(path, f"meta row {key!r} is not a JSON object")
-        out[key] = value
-    return out
+    return {key: _json_object(path, text, f"meta row {key!r}") for key, text in rows.items()}
+
+
+def _json_object(path: Path, text: Any, what: str) -> dict[str, Any]:
+    """``text`` (a stored column of the store at ``path``) as a JSON object, else the
+    store is damaged: ``InputError`` saying ``what`` is not JSON or not an object."""
+    try:
+        value = json.loads(text)
+    except (TypeError, ValueError, RecursionError):
+        raise _damaged(path, f"{what} is not JSON") from None
+    if not isinstance(value, dict):
+        raise _damaged(path, f"{what} is not a JSON object")
+    return value
 
 
 #: The ``meta`` row holding the exact results of the ranked candidates (``record_ranked``).
@@ -318,13 +321,7 @@ def read_results(path: Path, scenario_ids: list[str]) -> dict[str, dict[str, Any
         ):
             if sid not in want or sid in out:
                 continue
-            try:
-                metrics = json.loads(text)
-            except (TypeError, ValueError, RecursionError):
-                raise _damaged(path, f"candidate {str(sid)[:64]!r}: metrics not JSON") from None
-            if not isinstance(metrics, dict):
-                raise _damaged(path, f"candidate {str(sid)[:64]!r}: metrics not an object")
-            out[sid] = metrics
+            out[sid] = _json_object(path, text, f"candidate {str(sid)[:64]!r}: metrics")
     except sqlite3.DatabaseError as exc:
         raise _damaged(path, exc) from None
     finally:
