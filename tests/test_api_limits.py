@@ -135,6 +135,9 @@ def test_coverage_grid_covers_whole_cells_only() -> None:
         # was numpy's ComplexWarning on stderr, then the real parts evaluated
         (np.array([[30 + 1j, 0, 0.75]]), r"^points: must be an \(N, 3\) array of numbers .*compl"),
         ([[30 + 1j, 0, 0.75]], r"^points: must be an \(N, 3\) array of numbers .*complex"),
+        # round thirteen's rerun: a boolean array was read as 1 m coordinates
+        (np.ones((1, 3), bool), r"^points: must be an \(N, 3\) array of numbers, got booleans"),
+        ([[30.0, True, 0.75]], r"^points: must be an \(N, 3\) array of numbers, got booleans"),
     ],
 )
 def test_evaluate_points_applies_the_probe_limits(points: Any, line: str) -> None:

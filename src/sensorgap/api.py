@@ -140,6 +140,11 @@ def scene(
     return Scene(system, load_target(target), Conditions.from_config(env, math.radians(heading)))
 
 
+def _row(row: Any) -> list[Any]:
+    """The values of one row of a point list (a scalar: itself)."""
+    return list(row) if isinstance(row, Sequence) and not isinstance(row, str | bytes) else [row]
+
+
 def evaluate_points(
     vehicle: str | Path | System, points: ArrayLike, environment: str = "clear", target: str = "car"
 ) -> PointCoverage:
@@ -156,6 +161,12 @@ def evaluate_points(
     else:
         raise InputError("points", "", f"must be an (N, 3) array of numbers, got {points!r}")
     check_point_count(count, 0, "points")
+    rows: Any = points  # a sequence here (counted above)
+    if (shape is not None and np.asarray(points).dtype.kind == "b") or (
+        shape is None and any(isinstance(v, bool) for row in rows for v in _row(row))
+    ):
+        # booleans are not coordinates (numpy reads True as 1 m); the CLI reads numbers only
+        raise InputError("points", "", "must be an (N, 3) array of numbers, got booleans")
     try:
         with warnings.catch_warnings():
             # complex numbers: numpy drops the imaginary part with a warning on stderr
