@@ -21,6 +21,7 @@ from sensorgap.models import Conditions, load_system
 from sensorgap.report.summary import (
     KMH,
     MAX_WEAKNESSES,
+    _low_words,
     blind_areas,
     blind_extents,
     direction_words,
@@ -231,13 +232,33 @@ def test_pd_without_reads_the_rankings_reason() -> None:
         "weather: at t=2.85 s the target is at x=86.9 y=0.0 m (ego frame), Pd of the "
         "confirming sensors 0.00; P(collision) 1; missing: cam_windshield (weather: "
         "Pd 0.00, 0.87 in clear air), radar_front_center (occlusion: Pd 0.00, 0.92 "
-        "without the occluders), cam_main (glare: Pd 0.10, 0.93 without the sun)"
+        "without the occluders), cam_main (glare: Pd 0.10, 0.93 without the sun), "
+        "cam_narrow (glare: Pd 0.00, 0.94 without the sun, sun 7.9 deg from its line of sight)"
     )
     assert pd_without(reason) == {
         "cam_windshield": 0.87,
         "radar_front_center": 0.92,
         "cam_main": 0.93,
+        "cam_narrow": 0.94,
     }
+
+
+def test_glare_words_give_the_suns_angle_from_each_line_of_sight() -> None:
+    """The report says how far from each blinded camera's line of sight the sun stands
+    (rounded to a degree), and nothing when an angle is missing."""
+    env = load_environments()["glare_front_right"]
+    types = {"cam_a": "camera", "cam_b": "camera"}
+    two = _low_words(
+        "glare", ["cam_a", "cam_b"], 0.0, [0.9, 0.9], "", env, types, {"cam_a": 7.94, "cam_b": 12.5}
+    )
+    assert two == (
+        "the cameras cam_a and cam_b are blinded by the sun 8° and 12° from their lines of "
+        "sight (Pd 0.00; 0.90 without the sun)"
+    )
+    one = _low_words("glare", ["cam_a"], 0.1, [0.9], "", env, types, {"cam_a": 3.2})
+    assert "blinded by the sun 3° from its line of sight (Pd 0.10" in one
+    none = _low_words("glare", ["cam_a", "cam_b"], 0.0, [0.9, 0.9], "", env, types, {"cam_a": 3.2})
+    assert "line" not in none and "blinded by the sun (Pd 0.00" in none
 
 
 def test_blind_areas_by_direction(tmp_path: Path) -> None:

@@ -4,8 +4,10 @@ front-right glare weakness in collision terms with System A saving it."""
 
 from __future__ import annotations
 
+import csv
 import json
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -265,3 +267,37 @@ def test_evaluate_measures_detection_without_a_collision_too(
     assert m["mean_pd"] == pytest.approx(float(pd.mean()), abs=1e-9) and m["mean_pd"] > 0.5
     assert m["detected"] == 1.0 and m["p_undetected_end"] == pytest.approx(0.0, abs=1e-12)
     assert m["t_detect_s"] == pytest.approx(0.0, abs=1e-9) and pd[0] > 0.99
+
+
+def test_glare_reason_names_the_suns_angle_from_the_line_of_sight(tmp_path: Path) -> None:
+    """A glare row's reason gives, per blinded camera, the angle between the sun and the
+    camera's line of sight to the target at the named step: System B, the slow car in the
+    motorway curve with a low sun (a top row of session 16's glare search). Checked
+    against the angle computed here by hand from the trace (ego heading, target position
+    in the ego frame), the sun's compass azimuth/elevation, cam_narrow's mount
+    (1.95, 0, 1.30 m, system_b.toml) and the car's reference height (0.75 m,
+    targets.toml); tolerance 0.05 deg (the reason prints one decimal)."""
+    out = tmp_path / "ev"
+    args = ["evaluate", "--vehicle", "system_b", "--family", "slow_ahead_curve"]
+    args += ["--environment", "clear", "--sun", "59/5", "--out", str(out)]
+    for p in ("ego_s0_m=699.8396", "ego_speed_m_s=35.8211", "gap0_m=218.3403"):
+        args += ["--param", p]
+    assert main([*args, "--param", "target_speed_m_s=0.6687"]) == 0
+    ev = json.loads((out / "evaluation.json").read_text())
+    assert ev["dominant_effect"] == "glare"
+    said = re.search(
+        r"cam_narrow \(glare: Pd [\d.]+, [\d.]+ without the sun, sun ([\d.]+) deg from its "
+        r"line of sight\)",
+        ev["reason"],
+    )
+    assert said, ev["reason"]
+    rows = list(csv.DictReader((out / "trace.csv").open()))
+    row = min(rows, key=lambda r: abs(float(r["t_s"]) - ev["named_step_t_s"]))
+    h = float(row["ego_heading_rad"])
+    az = math.radians(90.0 - 59.0) - h  # compass -> counter-clockwise from the ego's x axis
+    el = math.radians(5.0)
+    sun = np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])
+    los = np.array([float(row["target_rel_x_m"]) - 1.95, float(row["target_rel_y_m"]), 0.75 - 1.30])
+    want = math.degrees(math.acos(float(sun @ los) / float(np.linalg.norm(los))))
+    assert float(said.group(1)) == pytest.approx(want, abs=0.05)
+    assert 0.5 < want < 20.0  # a low sun close to the line of sight: the glare is credible

@@ -84,7 +84,7 @@ def explain_spec(spec: ScenarioSpec, evaluator: Evaluator) -> Explanation:
 _MISSING = re.compile(
     r"(?P<sid>[\w.-]+) \((?P<eff>occlusion|glare|weather|partly in view|"
     r"range): Pd (?P<p>[\d.]+), (?P<b>[\d.]+) (?:without the occluders|"
-    r"without the sun|in clear air)\)"
+    r"without the sun|in clear air)(?:, sun [\d.]+ deg from its line of sight)?\)"
 )
 
 
@@ -207,6 +207,7 @@ def _low_words(
     occluder: str,
     env: EnvironmentConfig,
     types: dict[str, str],
+    sun_deg: dict[str, float] | None = None,
 ) -> str:
     who, one = _sensor_names(ids, types), len(ids) == 1
     known = [w for w in without if w is not None]
@@ -230,6 +231,11 @@ def _low_words(
         verb = f"{'is' if one else 'are'} blocked by the {occluder}"
     elif effect == "glare":
         verb = f"{'is' if one else 'are'} blinded by the sun"
+        # the sun's angle from the line of sight to the target: the angle the veiling glare falls with (models/camera.py), deg
+        angles = [a for i in ids if (a := (sun_deg or {}).get(i)) is not None]
+        if angles and len(angles) == len(ids):
+            degs = " and ".join(f"{a:.0f}°" for a in angles)
+            verb += f" {degs} from {'its line' if one else 'their lines'} of sight"
     elif effect == "weather":
         verb = f"{'loses' if one else 'lose'} it in the {_weather_noun(env)}"
     elif effect == "partly in view":
@@ -265,7 +271,7 @@ def sensors_words(r: RankedScenario, types: dict[str, str]) -> str:
         elif effect in LOW_EFFECTS:
             groups.setdefault((effect, round(pd.get(sid, 0.0), 2)), []).append(sid)
     parts = [
-        _low_words(e, ids, p, [without.get(i) for i in ids], occluder, env, types)
+        _low_words(e, ids, p, [without.get(i) for i in ids], occluder, env, types, ex.sun_deg)
         for (e, p), ids in groups.items()
     ]
     if seeing:

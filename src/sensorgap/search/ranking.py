@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from sensorgap.config import EnvironmentConfig
+from sensorgap.models.conditions import Conditions
 from sensorgap.models.geometry import rotate_offsets, sensor_range
 from sensorgap.scenarios.trajectory import DT_S
 from sensorgap.search.evaluate import Trace
@@ -109,6 +110,9 @@ class Explanation:
     step_t_s: float
     sensors: dict[str, str]
     pd: dict[str, float] | None = None
+    #: Per glared sensor, the angle (deg) between the sun and its line of sight to the
+    #: target's centre at the reference height: the angle the veiling glare falls with.
+    sun_deg: dict[str, float] | None = None
 
 
 def reference_environment() -> EnvironmentConfig:
@@ -166,6 +170,8 @@ def explain(problem: SearchProblem, cand: Candidate) -> Explanation:
     confirm = set(ev.confirming(float(sc.target.speed[k])))
     effects: dict[str, str] = {}
     low: list[tuple[str, str, float, float]] = []
+    sun_deg: dict[str, float] = {}
+    sun = Conditions.sun_directions(env, h)
     for i, s in enumerate(ev.system.sensors):
         m = s.mount
         if frac[i] <= 0.0 and pd_ref[i] <= 0.0:
@@ -190,6 +196,10 @@ def explain(problem: SearchProblem, cand: Candidate) -> Explanation:
         else:
             eff, better = "range", pd_ref[i]
         effects[s.id] = eff
+        if eff == "glare" and sun is not None:
+            sun_deg[s.id] = sight_angle_deg(
+                sun[0], float(x[0]) - m.x, float(y[0]) - m.y, target.reference_height_m - m.z
+            )
         if i in confirm:
             low.append((s.id, eff, float(pd_act[i]), float(better)))
     counts = Counter(e for _, e, _, _ in low)
@@ -220,7 +230,8 @@ def explain(problem: SearchProblem, cand: Candidate) -> Explanation:
         parts.append(
             "missing: "
             + ", ".join(
-                f"{sid} ({e}: Pd {p:.2f}, {b:.2f} {_WITHOUT[e]})" for sid, e, p, b in low[:4]
+                f"{sid} ({e}: Pd {p:.2f}, {b:.2f} {_WITHOUT[e]}{_sun_words(sun_deg, sid)})"
+                for sid, e, p, b in low[:4]
             )
         )
     if counts.get("occlusion") and tr.occluder_labels:
@@ -238,7 +249,23 @@ def explain(problem: SearchProblem, cand: Candidate) -> Explanation:
             f"{n_rng} by range"
         )
     pds = {s.id: float(pd_act[i]) for i, s in enumerate(ev.system.sensors)}
-    return Explanation("; ".join(parts), dominant, float(tr.t[k]), effects, pds)
+    return Explanation("; ".join(parts), dominant, float(tr.t[k]), effects, pds, sun_deg or None)
+
+
+def sight_angle_deg(sun: np.ndarray, dx_m: float, dy_m: float, dz_m: float) -> float:
+    """Angle (deg, 0..180) between a vehicle-frame unit vector to the sun and the line of
+    sight from a sensor to a point offset by (dx, dy, dz) m from it (vehicle-frame axes);
+    the ``theta`` of the camera's veiling glare (models/camera.py), 0 for a zero offset."""
+    r = math.sqrt(dx_m * dx_m + dy_m * dy_m + dz_m * dz_m)
+    if r == 0.0:
+        return 0.0
+    c = (float(sun[0]) * dx_m + float(sun[1]) * dy_m + float(sun[2]) * dz_m) / r
+    return math.degrees(math.acos(min(1.0, max(-1.0, c))))
+
+
+def _sun_words(sun_deg: dict[str, float], sid: str) -> str:
+    a = sun_deg.get(sid)
+    return "" if a is None else f", sun {a:.1f} deg from its line of sight"
 
 
 #: Candidates re-evaluated exactly before ranking: the best by the search objective in
