@@ -259,6 +259,14 @@ def test_glare_words_give_the_suns_angle_from_each_line_of_sight() -> None:
     assert "blinded by the sun 3° from its line of sight (Pd 0.10" in one
     none = _low_words("glare", ["cam_a", "cam_b"], 0.0, [0.9, 0.9], "", env, types, {"cam_a": 3.2})
     assert "line" not in none and "blinded by the sun (Pd 0.00" in none
+    same = _low_words(
+        "glare", ["a", "b", "c"], 0.0, [0.9] * 3, "", env, types, {"a": 3.2, "b": 3.4, "c": 2.6}
+    )
+    assert "blinded by the sun 3° from their lines of sight" in same
+    three = _low_words(
+        "glare", ["a", "b", "c"], 0.0, [0.9] * 3, "", env, types, {"a": 3.2, "b": 5.0, "c": 9.0}
+    )
+    assert "blinded by the sun 3°, 5° and 9° from their lines of sight" in three
 
 
 def test_blind_areas_by_direction(tmp_path: Path) -> None:

@@ -222,7 +222,8 @@ def _low_words(
     if known and len(known) == len(without) and len(set(known)) == 1:
         nums += f"; {known[0]:.2f} {cause}"
     elif len(known) == len(without):
-        nums += f"; {cause} " + " and ".join(f"{w:.2f}" for w in known)
+        said = [f"{w:.2f}" for w in known]
+        nums += f"; {cause} " + ", ".join(said[:-1]) + " and " + said[-1]
     elif known:  # the search itemised some of them only
         nums += f"; {cause}: " + ", ".join(
             f"{i} {w:.2f}" for i, w in zip(ids, without, strict=True) if w is not None
@@ -231,10 +232,12 @@ def _low_words(
         verb = f"{'is' if one else 'are'} blocked by the {occluder}"
     elif effect == "glare":
         verb = f"{'is' if one else 'are'} blinded by the sun"
-        # the sun's angle from the line of sight to the target: the angle the veiling glare falls with (models/camera.py), deg
+        # the sun's angle (deg) from each line of sight to the target: the angle the
+        # veiling glare falls with (models/camera.py)
         angles = [a for i in ids if (a := (sun_deg or {}).get(i)) is not None]
         if angles and len(angles) == len(ids):
-            degs = " and ".join(f"{a:.0f}°" for a in angles)
+            said = [f"{a:.0f}°" for a in angles]
+            degs = said[0] if len(set(said)) == 1 else ", ".join(said[:-1]) + " and " + said[-1]
             verb += f" {degs} from {'its line' if one else 'their lines'} of sight"
     elif effect == "weather":
         verb = f"{'loses' if one else 'lose'} it in the {_weather_noun(env)}"
