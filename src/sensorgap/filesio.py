@@ -590,15 +590,17 @@ def refuse_foreign_outputs(
 def refuse_certified_by_other(
     folder: str | Path, command: str, own: Callable[[str], bool], own_text: str
 ) -> None:
-    """Before ``search`` or ``run`` (which add to their own earlier folder and certify it
-    again) writes into an existing ``folder`` with a ``manifest.json``: refused
+    """Before ``search``, ``run``, ``export``, ``paper``, ``tradeoff``, ``compare`` or
+    ``report --compare`` (which add to their own earlier folder and certify it again)
+    writes into an existing ``folder`` with a ``manifest.json``: refused
     (``InputError`` naming ``--out``) unless that manifest is one the command wrote,
     i.e. lists an entry ``own`` accepts (``own_text`` says which: ``search.sqlite`` for a
-    search, ``<vehicle>/manifest.json`` for a job's OUT). Another command's certified
-    output (a ``coverage`` folder, a catalog exported elsewhere) was accepted, its files
-    overwritten (``summary.json``) or certified again beside the new ones, as the
-    analysis commands refuse (``refuse_foreign_outputs``). A folder without a manifest
-    passes (the command's other checks apply)."""
+    search, ``<vehicle>/manifest.json`` for a job's OUT, ``cli.OWN_OUTPUT``'s file for the
+    others). Another command's certified output (a ``coverage`` folder, a catalog
+    exported elsewhere) was accepted, its files overwritten (``summary.json``) or
+    certified again beside the new ones, as the analysis commands refuse
+    (``refuse_foreign_outputs``). A folder without a manifest passes (the command's other
+    checks apply)."""
     from sensorgap.errors import InputError
 
     root = Path(folder)
