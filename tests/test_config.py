@@ -216,7 +216,8 @@ ENV_BAD = [
     # a misspelt sources key was accepted (a vehicle's and a reaction model's are refused)
     (
         'sources = { visibilty_m = "typo" }',
-        r"environments\.wet\.sources\.visibilty_m: source for an unknown parameter$",
+        r"environments\.wet\.sources\.visibilty_m: source for an unknown parameter; "
+        r"allowed: azimuth_deg, .*, visibility_m, visible, water_vapour_g_m3$",
     ),
 ]
 
@@ -229,6 +230,25 @@ def test_environment_sources_name_its_fields_and_its_suns(tmp_path: Path) -> Non
     )
     known = {"visibility_m", "sun", "direct_irradiance_w_m2"}
     assert set(load_environments(p)["wet"].sources) == known
+
+
+def test_target_sources_name_its_fields(tmp_path: Path) -> None:
+    # a misspelt key of a target's sources was accepted (a vehicle's, an environment's
+    # are refused): now one line naming the file, the key and the fields allowed
+    text = (templates_dir() / "targets.toml").read_text(encoding="utf-8")
+    p = tmp_path / "targets.toml"
+    p.write_text(text)
+    assert "rcs_m2" in load_targets(p)["car"].sources
+    p.write_text(
+        text.replace("[targets.car.sources]\n", '[targets.car.sources]\nrcs_m3 = "typo"\n')
+    )
+    with pytest.raises(InputError) as exc:
+        load_targets(p)
+    assert exc.value.line() == (
+        f"{p}: targets.car.sources.rcs_m3: source for an unknown parameter; allowed: "
+        "camera_cross_section_m2, camera_reflectance, description, height_m, length_m, "
+        "lidar_reflectance, max_speed_m_s, name, rcs_m2, reference_height_m, width_m"
+    )
 
 
 @pytest.mark.parametrize("shift", [-10.0, 0.0, 30.0])

@@ -539,13 +539,31 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     return 0
 
 
+#: The file by which each command with many outputs knows its own earlier ``--out`` (its
+#: manifest lists it; ``_refuse_unsafe_out``): ``compare`` and ``report --compare`` write
+#: the same files (``report.compare.write_compare_report``), so each takes the other's.
+OWN_OUTPUT = {
+    "paper": "paper.md",
+    "tradeoff": "tradeoff.csv",
+    "compare": "comparison.json",
+    "report --compare": "comparison.json",
+}
+
+
 def _refuse_unsafe_out(out: str | Path, command: str) -> None:
     """``--out`` of a command with many outputs that then certifies the whole folder
-    (``paper``, ``tradeoff``, ``compare``, ``run``): not a search run or catalog (it would add to
-    and re-certify it, overwriting e.g. its report), and no certified file changed by
-    hand since (the new manifest would certify it)."""
+    (``paper``, ``tradeoff``, ``compare``, ``report --compare``, ``run``): not a search run
+    or catalog (it would add to and re-certify it, overwriting e.g. its report), no
+    certified file changed by hand since (the new manifest would certify it), and not
+    another command's certified output (``OWN_OUTPUT``: its manifest lists no file of this
+    command's; a near-field or coverage folder was accepted, the mix certified). Its own
+    earlier output is accepted (a rerun); ``run`` checks its own kind of folder
+    (``cmd_run``)."""
     refuse_foreign_outputs(out, None, command)
     refuse_if_changed(out, ())
+    own = OWN_OUTPUT.get(command)
+    if own is not None:
+        refuse_certified_by_other(out, command, lambda rel: rel == own, own)
 
 
 def _out_outside(out: Path, *runs: Path) -> None:

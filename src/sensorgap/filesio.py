@@ -590,15 +590,17 @@ def refuse_foreign_outputs(
 def refuse_certified_by_other(
     folder: str | Path, command: str, own: Callable[[str], bool], own_text: str
 ) -> None:
-    """Before ``search`` or ``run`` (which add to their own earlier folder and certify it
-    again) writes into an existing ``folder`` with a ``manifest.json``: refused
+    """Before ``search``, ``run``, ``export``, ``paper``, ``tradeoff``, ``compare`` or
+    ``report --compare`` (which add to their own earlier folder and certify it again)
+    writes into an existing ``folder`` with a ``manifest.json``: refused
     (``InputError`` naming ``--out``) unless that manifest is one the command wrote,
     i.e. lists an entry ``own`` accepts (``own_text`` says which: ``search.sqlite`` for a
-    search, ``<vehicle>/manifest.json`` for a job's OUT). Another command's certified
-    output (a ``coverage`` folder, a catalog exported elsewhere) was accepted, its files
-    overwritten (``summary.json``) or certified again beside the new ones, as the
-    analysis commands refuse (``refuse_foreign_outputs``). A folder without a manifest
-    passes (the command's other checks apply)."""
+    search, ``<vehicle>/manifest.json`` for a job's OUT, ``cli.OWN_OUTPUT``'s file for the
+    others). Another command's certified output (a ``coverage`` folder, a catalog
+    exported elsewhere) was accepted, its files overwritten (``summary.json``) or
+    certified again beside the new ones, as the analysis commands refuse
+    (``refuse_foreign_outputs``). A folder without a manifest passes (the command's other
+    checks apply)."""
     from sensorgap.errors import InputError
 
     root = Path(folder)
@@ -618,28 +620,63 @@ def refuse_certified_by_other(
     )
 
 
+def _certified_above(folder: Path) -> tuple[Path, str] | None:
+    """The nearest folder above ``folder`` (resolved: a symbolic link on the way is
+    followed, as the command's writes would be) that is certified, with the first file its
+    manifest lists (None: none is). Certified: it holds a ``manifest.json`` that
+    ``read_manifest`` accepts (a sensorgap manifest; another tool's ``manifest.json``, a
+    web app's, is not one, nor is a damaged one, which ``verify`` reports anyway)."""
+    from sensorgap.errors import InputError
+
+    try:
+        where = folder.resolve()
+    except (OSError, RuntimeError):  # a loop of links: the written path as given
+        where = Path(os.path.abspath(folder))
+    for parent in where.parents:
+        if not (parent / MANIFEST_NAME).is_file():
+            continue
+        try:
+            listed = read_manifest(parent)
+        except (InputError, OSError, ValueError):
+            continue
+        return parent, next(iter(sorted(listed)), "no file")
+    return None
+
+
 def refuse_certified_out(folder: str | Path, command: str) -> None:
     """Before ``evaluate`` or ``probe --out`` writes its files (which no manifest lists)
-    into an existing ``folder``: refused (``InputError`` naming ``--out``) when the folder
-    is certified (it holds ``manifest.json``: a search run, a catalog, another command's
-    output) or is a search run or catalog without one (``RUN_FOLDER_FILES``). Before, the
-    command exited 0 and ``verify`` of the folder then failed ("evaluation.json is not
-    in the manifest"). A folder of a user's own files, or a new one, passes."""
+    into ``folder``: refused (``InputError`` naming ``--out``) when the folder is certified
+    (it holds ``manifest.json``: a search run, a catalog, another command's output) or is
+    a search run or catalog without one (``RUN_FOLDER_FILES``), or lies anywhere inside a
+    certified folder (``_certified_above``: ``RUN/scenarios/x``, ``RUN/coverage/new``,
+    existing or not). Before, the command exited 0 and ``verify`` of the folder then
+    failed ("evaluation.json is not in the manifest"). A folder of a user's own files, or
+    a new one outside any certified folder, passes."""
     from sensorgap.errors import InputError
 
     root = Path(folder)
-    if not root.is_dir():
-        return
-    marker = next((n for n in (MANIFEST_NAME, *RUN_FOLDER_FILES) if (root / n).exists()), None)
-    if marker is None and (root / MANIFEST_NAME).is_symlink():
-        marker = MANIFEST_NAME
-    if marker is not None:
+    if root.is_dir():
+        marker = next((n for n in (MANIFEST_NAME, *RUN_FOLDER_FILES) if (root / n).exists()), None)
+        if marker is None and (root / MANIFEST_NAME).is_symlink():
+            marker = MANIFEST_NAME
+        if marker is not None:
+            raise InputError(
+                "--out",
+                "",
+                f"{root} holds {marker}: a certified folder (a search run, a catalog or "
+                f"another command's output); {command} writes files no manifest lists, so "
+                "its verify would fail: give another --out (a new folder or one of your own "
+                "files)",
+            )
+    above = _certified_above(root)
+    if above is not None:
+        parent, first = above
         raise InputError(
             "--out",
             "",
-            f"{root} holds {marker}: a certified folder (a search run, a catalog or another "
-            f"command's output); {command} writes files no manifest lists, so its verify "
-            "would fail: give another --out (a new folder or one of your own files)",
+            f"{root} lies inside {parent}, a certified folder (its {MANIFEST_NAME} lists "
+            f"{first}); {command} writes files no manifest lists, so verify {parent} would "
+            "fail: give another --out (a new folder or one of your own files, outside it)",
         )
 
 

@@ -91,6 +91,11 @@ def test_two_versions_of_one_vehicle_are_told_apart(
     md = (out / "report.md").read_text()
     assert f"# sensorgap: {la} vs {lb}" in md and f"| rank {la} | rank {lb} |" in md
     assert f"- **{la}:** run folder base;" in md
+    # a rerun into its own earlier folder goes on (report --compare writes the same files
+    # as compare; another command's certified folder is refused: tests/cli/test_out_folders)
+    capsys.readouterr()
+    assert main(["report", "--compare", str(runs["a"]), str(runs["b"]), "--out", str(out)]) == 0
+    assert main(["verify", str(out)]) == 0
 
 
 def test_side_labels() -> None:

@@ -151,12 +151,16 @@ def no_stray_source(
     source: Path | str, where: str, sources: Mapping[str, str], known: Iterable[str]
 ) -> None:
     """A ``sources`` entry names a parameter of its table (a misspelt parameter name is
-    refused), ``InputError`` naming the first stray one: a device's, the vehicle body's,
-    an environment's (a reaction model's likewise, ``config.reaction``)."""
-    stray = sorted(set(sources) - set(known))
+    refused), ``InputError`` naming the first stray one and the names allowed (``known``
+    but ``sources`` itself): a device's, the vehicle body's, an environment's, a target
+    class's (a reaction model's likewise, ``config.reaction``)."""
+    allowed = sorted(set(known) - {"sources"})
+    stray = sorted(set(sources) - set(allowed))
     if stray:
         raise InputError(
-            source, f"{where}.sources.{stray[0][:80]}", "source for an unknown parameter"
+            source,
+            f"{where}.sources.{stray[0][:80]}",
+            f"source for an unknown parameter; allowed: {', '.join(allowed)}",
         )
 
 
@@ -294,8 +298,15 @@ def load_environment(name: str, path: Path | None = None) -> EnvironmentConfig:
 
 
 def load_targets(path: Path | None = None) -> dict[str, TargetConfig]:
-    """All target classes (default: the shipped ``targets.toml``), by name."""
-    return _named_tables(TargetConfig, path or templates_dir() / "targets.toml", "targets")
+    """All target classes (default: the shipped ``targets.toml``), by name; a ``sources``
+    key must name a field of its target class (a misspelt one is refused, as a vehicle
+    file's and an environment's: it was accepted silently)."""
+    path = path or templates_dir() / "targets.toml"
+    targets = _named_tables(TargetConfig, path, "targets")
+    for name, target in targets.items():
+        label = f"targets.{name if len(name) <= MAX_QUOTED_CHARS else short(name)}"
+        no_stray_source(path, label, target.sources, TargetConfig.model_fields)
+    return targets
 
 
 def load_target(name: str, path: Path | None = None) -> TargetConfig:

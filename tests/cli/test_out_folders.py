@@ -1,0 +1,116 @@
+"""``--out`` against certified folders (hostile round fourteen): ``paper``, ``tradeoff``,
+``compare`` and ``report --compare`` refuse another command's certified output but accept
+their own earlier one; ``evaluate`` and ``probe`` refuse any folder at or inside a
+certified one, not a folder below a ``manifest.json`` of another tool. The corpus
+(tests/bad_inputs/cases.toml, round 14) has the refusals end to end."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from sensorgap.cli import _refuse_unsafe_out, main
+from sensorgap.errors import InputError
+from sensorgap.filesio import refuse_certified_out, write_manifest
+
+#: Each command's own marker file (what its manifest lists) and the command.
+OWN = [
+    ("paper", "paper.md"),
+    ("tradeoff", "tradeoff.csv"),
+    ("compare", "comparison.json"),
+    ("report --compare", "comparison.json"),
+]
+
+
+def _certified(folder: Path, *names: str) -> Path:
+    folder.mkdir(parents=True, exist_ok=True)
+    for name in names:
+        (folder / name).parent.mkdir(parents=True, exist_ok=True)
+        (folder / name).write_text(f"{name}\n")
+    write_manifest(folder)
+    return folder
+
+
+@pytest.mark.parametrize(("command", "own"), OWN)
+def test_own_earlier_output_is_accepted(tmp_path: Path, command: str, own: str) -> None:
+    # a rerun into the command's own folder (its manifest lists its marker) goes on
+    _refuse_unsafe_out(_certified(tmp_path / "o", own, "figure.png"), command)
+
+
+def test_compare_and_report_compare_share_their_folders(tmp_path: Path) -> None:
+    # both write the same files (report.compare.write_compare_report)
+    folder = _certified(tmp_path / "o", "comparison.json", "report.html")
+    _refuse_unsafe_out(folder, "compare")
+    _refuse_unsafe_out(folder, "report --compare")
+
+
+@pytest.mark.parametrize(("command", "own"), OWN)
+@pytest.mark.parametrize("other", ["paper.md", "tradeoff.csv", "comparison.json", "summary.json"])
+def test_another_commands_output_is_refused(
+    tmp_path: Path, command: str, own: str, other: str
+) -> None:
+    if other == own:
+        return
+    folder = _certified(tmp_path / "o", other)
+    with pytest.raises(
+        InputError, match=rf"holds the certified outputs of another command.*no {own}"
+    ):
+        _refuse_unsafe_out(folder, command)
+
+
+def test_a_folder_of_ones_own_files_without_a_manifest_is_accepted(tmp_path: Path) -> None:
+    (tmp_path / "o").mkdir()
+    (tmp_path / "o" / "notes.txt").write_text("mine\n")
+    for command, _ in OWN:
+        _refuse_unsafe_out(tmp_path / "o", command)
+
+
+def test_tradeoff_rerun_into_its_own_folder(tmp_path: Path) -> None:
+    out = tmp_path / "t"
+    assert main(["tradeoff", "--quick", "--out", str(out)]) == 0
+    assert main(["tradeoff", "--quick", "--out", str(out)]) == 0
+    assert main(["verify", str(out)]) == 0
+
+
+# -- evaluate, probe: at or inside a certified folder ---------------------------------------
+
+
+@pytest.mark.parametrize("below", ["", "scenarios", "scenarios/x", "a/b/c", "sub/new"])
+def test_inside_a_certified_folder_is_refused(tmp_path: Path, below: str) -> None:
+    run = _certified(tmp_path / "run", "ranking.json", "scenarios/s.xosc")
+    with pytest.raises(InputError, match="certified folder") as exc:
+        refuse_certified_out(run / below if below else run, "evaluate")
+    assert "\n" not in exc.value.line()
+
+
+def test_inside_a_nested_certified_folder_names_the_nearest(tmp_path: Path) -> None:
+    # sensorgap run's OUT/<vehicle>: both certified, the vehicle folder named
+    out = _certified(tmp_path / "OUT", "system_a/ranking.json")
+    write_manifest(out / "system_a")
+    write_manifest(out)
+    with pytest.raises(InputError, match=r"system_a/coverage/x lies inside \S+/OUT/system_a,"):
+        refuse_certified_out(out / "system_a" / "coverage" / "x", "probe")
+
+
+def test_inside_a_certified_folder_through_a_link_is_refused(tmp_path: Path) -> None:
+    run = _certified(tmp_path / "run", "ranking.json")
+    (tmp_path / "link").symlink_to(run / "sub", target_is_directory=True)
+    (run / "sub").mkdir()
+    with pytest.raises(InputError, match="certified folder"):
+        refuse_certified_out(tmp_path / "link" / "x", "evaluate")
+
+
+def test_below_another_tools_manifest_is_accepted(tmp_path: Path) -> None:
+    # a web app's or a browser extension's manifest.json is not a sensorgap manifest
+    (tmp_path / "manifest.json").write_text(json.dumps({"name": "my app", "version": "1"}))
+    refuse_certified_out(tmp_path / "results" / "eval", "evaluate")
+    refuse_certified_out(tmp_path / "results", "probe")
+
+
+def test_a_folder_of_ones_own_files_is_accepted(tmp_path: Path) -> None:
+    (tmp_path / "mine").mkdir()
+    (tmp_path / "mine" / "notes.txt").write_text("x\n")
+    refuse_certified_out(tmp_path / "mine", "evaluate")
+    refuse_certified_out(tmp_path / "mine" / "new", "evaluate")
