@@ -1295,3 +1295,97 @@ def test_a_manifest_over_its_documented_size_is_refused_unread(tmp_path: Path) -
     with pytest.raises(InputError, match=r"manifest\.json: larger than 100 MB; not a sensorgap"):
         verify_manifest(tmp_path)
     assert main(["verify", str(tmp_path)]) == 2
+
+
+# -- round fourteen: a umask without the owner's write, memory limits -------------------
+
+
+def test_a_kernel_whose_cache_numba_cannot_place_compiles_without_it(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """numba raises "no locator available" when no cache folder can be used for a kernel's
+    file (a cache folder a ``umask 277`` run left read-only to its owner): every compiling
+    command was an internal error. ``jit.njit`` compiles such a kernel without the cache;
+    any other numba error still surfaces."""
+    import numba
+
+    from sensorgap import jit
+
+    real = numba.njit
+    seen: list[bool] = []
+
+    def fake(*args: object, cache: bool = False, **kw: object) -> object:
+        seen.append(cache)
+        if cache:
+            raise RuntimeError("cannot cache function 'k': no locator available for file 'x'")
+        return real(*args, **kw)
+
+    monkeypatch.setattr(numba, "njit", fake)
+
+    @jit.njit(nogil=True)
+    def k(x: float) -> float:
+        return 2.0 * x
+
+    assert k(1.5) == 3.0 and seen == [True, False]
+
+    def broken(*args: object, **kw: object) -> object:
+        raise RuntimeError("some other numba failure")
+
+    monkeypatch.setattr(numba, "njit", broken)
+    with pytest.raises(RuntimeError, match="some other"):
+        jit.njit()(lambda x: x)
+
+
+def test_a_umask_without_the_owners_write_turns_the_kernel_cache_off(tmp_path: Path) -> None:
+    """Under ``umask 277`` numba's cache folders and files would be read-only to their
+    owner (hostile round fourteen: the first command failed, and every later one with any
+    umask): the kernels compile in memory and nothing is written to the cache folder."""
+    import subprocess
+    import sys
+
+    cache = tmp_path / "cache"
+    cache.mkdir()
+    (tmp_path / "kmod.py").write_text(
+        "from sensorgap.jit import njit\n\n@njit(nogil=True)\ndef k(x):\n    return x + 1.0\n"
+    )
+    code = (
+        "import kmod, sensorgap.jit as j; print(j.current_umask(), j.cache_usable(), kmod.k(1.0))"
+    )
+    env = {
+        **os.environ,
+        "NUMBA_CACHE_DIR": str(cache),
+        "PYTHONPATH": os.pathsep.join([str(tmp_path), *sys.path]),
+    }
+    for umask, usable in ((0o277, "False"), (0o022, "True")):
+        done = subprocess.run(
+            [sys.executable, "-c", code], env=env, umask=umask, capture_output=True, text=True
+        )
+        assert done.returncode == 0, done.stderr
+        assert done.stdout.split() == [str(umask), usable, "2.0"], done.stdout
+        cached = sorted(p.name for p in cache.rglob("*") if p.is_file())
+        assert bool(cached) == (usable == "True"), cached  # nothing cached under 277
+
+
+def test_out_of_memory_is_one_line(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A command that runs out of memory (``ulimit -v`` below its peak: numpy's
+    ``MemoryError``, or the loader failing to map a compiled module) says so in one line,
+    exit 2, and leaves no new folder (was: "internal error ... this is a bug")."""
+    import sensorgap.analysis.nearfield as nf
+
+    out = tmp_path / "nf"
+    for exc in (
+        MemoryError("Unable to allocate 84 MiB for an array with shape (2000, 5500)"),
+        ImportError("x.so: failed to map segment from shared object"),
+    ):
+
+        def fail(*args: object, exc: BaseException = exc, **kw: object) -> object:
+            raise exc
+
+        monkeypatch.setattr(nf, "write_nearfield", fail)
+        argv = ["nearfield", "--vehicle", "system_a", "--out", str(out)]
+        assert main(argv) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith("sensorgap: error: out of memory ("), err
+        assert not out.exists()

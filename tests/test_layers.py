@@ -16,6 +16,7 @@ LAYERS = [
     "plugins",
     "provenance",
     "runtime",
+    "jit",
     "version",
     "apinames",
     "config",

@@ -1368,6 +1368,24 @@ def _os_error_line(exc: OSError, out: object) -> str:
     )
 
 
+def _out_of_memory(message: str) -> bool:
+    """Whether an import failed for want of memory: the loader could not map a compiled
+    module (``failed to map segment from shared object``, under ``ulimit -v``)."""
+    return "failed to map segment" in message or "Cannot allocate memory" in message
+
+
+def _memory_line(message: str) -> str:
+    """The one line of a command that ran out of memory (``MemoryError``, or a compiled
+    module the loader could not map)."""
+    what = message.splitlines()[0] if message else "no details"
+    return (
+        f"sensorgap: error: out of memory ({what}): the process may not use as much memory "
+        "as the command needs (ulimit -v, a container's limit, or the machine's memory; "
+        "docs/limits.md gives the peaks); its files are as after any failed command: put "
+        "back, or for a search what it stored (--resume goes on)"
+    )
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point: returns the exit code (0 ok, 2 bad input, 1 internal error). Runs
     without standard streams too (``runtime.standard_streams``: started with ``>&-`` or
@@ -1447,10 +1465,16 @@ def _main(argv: Sequence[str] | None) -> int:
     except OSError as exc:  # disk full, file too large, permissions, a file as a folder
         print(_os_error_line(exc, out), file=sys.stderr)
         return EXIT_INPUT
+    except MemoryError as exc:  # a memory limit (ulimit -v, a cgroup) below what it needs
+        print(clip(_memory_line(str(exc))), file=sys.stderr)
+        return EXIT_INPUT
     except KeyboardInterrupt as exc:
         print("sensorgap: interrupted", file=sys.stderr)
         return 128 + exc.signum if isinstance(exc, _Terminated) else 130
     except Exception as exc:  # noqa: BLE001 - the one place that turns bugs into exit 1
+        if isinstance(exc, ImportError) and _out_of_memory(str(exc)):
+            print(clip(_memory_line(str(exc))), file=sys.stderr)
+            return EXIT_INPUT
         if args.debug:
             traceback.print_exc()
         msg = str(exc).splitlines()[0] if str(exc) else ""

@@ -144,13 +144,14 @@ SOURCES_STAMP = "numba-sources.sha256"
 
 def kernel_sources_digest(package_dir: Path) -> str:
     """SHA-256 (hex) of the relative paths and contents of the package's modules that
-    compile kernels (their text holds ``numba.njit``), in path order."""
+    compile kernels (their text holds ``numba.njit`` or imports ``sensorgap.jit.njit``), in
+    path order."""
     import hashlib
 
     h = hashlib.sha256()
     for path in sorted(package_dir.rglob("*.py")):
         data = path.read_bytes()
-        if b"numba.njit" in data:
+        if b"numba.njit" in data or b"from sensorgap.jit import njit" in data:
             h.update(path.relative_to(package_dir).as_posix().encode() + b"\0")
             h.update(data + b"\0")
     return h.hexdigest()

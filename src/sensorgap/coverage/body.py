@@ -35,7 +35,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import cache
 
-import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -46,6 +45,7 @@ from sensorgap.coverage.logmiss import log_miss_of, sensor_snr
 from sensorgap.coverage.occluders import COLUMNS as OCC_COLUMNS
 from sensorgap.coverage.occluders import hidden_by_boxes
 from sensorgap.coverage.scene import Scene
+from sensorgap.jit import njit
 from sensorgap.models.roc import detection_probability
 from sensorgap.models.system import Sensor
 
@@ -145,7 +145,7 @@ def _inside(sensor: Sensor, lo: F64, hi: F64) -> bool:
     return bool(np.all(p > lo) and np.all(p < hi))
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@njit(nogil=True, inline="always")
 def facing_offset(
     nx: float, ny: float, px: float, py: float, vx: float, vy: float
 ) -> float:  # pragma: no cover - compiled
@@ -155,7 +155,7 @@ def facing_offset(
     return (vx - px) * nx + (vy - py) * ny
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def _hidden_by_box(
     ox: float, oy: float, oz: float, px: float, py: float, pz: float, lo: F64, hi: F64
 ) -> bool:  # pragma: no cover - compiled
@@ -177,7 +177,7 @@ def _hidden_by_box(
     return t0 < t1
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@njit(nogil=True, inline="always")
 def _sample_in_view(
     x: float,
     y: float,
@@ -220,7 +220,7 @@ def _sample_in_view(
     return not (check_ego and _hidden_by_box(mx, my, mz, x, y, z, lo, hi))
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def _view_kernel(
     px: F64,
     py: F64,
@@ -273,7 +273,7 @@ def _view_kernel(
     return m
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@njit(nogil=True, inline="always")
 def _pose_near(
     cx: float, cy: float, rad: float, mount: F64, hfov: float, pitch: float, cull: bool
 ) -> bool:  # pragma: no cover - compiled
@@ -297,7 +297,7 @@ def _pose_near(
     return True
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def _changes_kernel(
     px: F64,
     py: F64,
@@ -345,7 +345,7 @@ def _changes_kernel(
 BodyPoints = tuple[F64, F64, F64, F64, F64]
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@njit(nogil=True, inline="always")
 def place_sample(
     x: float, y: float, c: float, s: float, bx: float, by: float, bnx: float, bny: float
 ) -> tuple[float, float, float, float]:  # pragma: no cover - compiled
@@ -356,7 +356,7 @@ def place_sample(
     return px, py, c * bnx - s * bny, s * bnx + c * bny
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def _points_kernel(
     x: F64,
     y: F64,

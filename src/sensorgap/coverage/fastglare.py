@@ -15,12 +15,12 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
 
 from sensorgap.coverage.fastkernel import ROC_SMOOTHSTEP, sensor_frame
 from sensorgap.coverage.fastlookup import bilinear_finite_at, place
+from sensorgap.jit import njit
 from sensorgap.models.numerics import LN10_OVER_10, SNR_CEIL_DB, SNR_FLOOR_DB
 
 F64 = NDArray[np.float64]
@@ -31,7 +31,7 @@ _ALMOST_ONE = float(np.nextafter(1.0, 0.0))
 _LN2 = math.log(2.0)
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@njit(nogil=True, inline="always")
 def _logaddexp(x: float, y: float) -> float:  # pragma: no cover - compiled
     """ln(e^x + e^y), as ``numpy.logaddexp``."""
     if x == y:
@@ -44,7 +44,7 @@ def _logaddexp(x: float, y: float) -> float:  # pragma: no cover - compiled
     return d  # NaN
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@njit(nogil=True, inline="always")
 def roc_log_miss(snr_db: float, code: int, c: F64) -> float:  # pragma: no cover - compiled
     """ln(1 - Pd) of an SNR (dB) under a closed-form ROC (``fastkernel.roc_constants``:
     ``c`` = its two constants and the weather shift, dB), Pd capped below 1 as in
@@ -64,7 +64,7 @@ def roc_log_miss(snr_db: float, code: int, c: F64) -> float:  # pragma: no cover
     return math.log1p(-min(pd, _ALMOST_ONE))
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@njit(nogil=True, inline="always")
 def camera_signal_db(r: float, az: float, el: float, s: F64) -> float:  # pragma: no cover
     """The built-in camera's received signal, dB (``models/camera.py`` ``signal_db``, with
     the constants of ``PreparedSensor.signal_constants`` ``s``: k, sigma, IFOV and pixel
@@ -83,7 +83,7 @@ def camera_signal_db(r: float, az: float, el: float, s: F64) -> float:  # pragma
     return ne
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def glared_pass(
     signal: F32,
     x0: float,

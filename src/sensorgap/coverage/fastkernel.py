@@ -12,11 +12,11 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
 
 from sensorgap.config.vehicle import RocConfig
+from sensorgap.jit import njit
 from sensorgap.models.geometry import Mount
 
 F64 = NDArray[np.float64]
@@ -55,7 +55,7 @@ def mount_constants(m: Mount) -> F64:
     )
 
 
-@numba.njit(cache=True, nogil=True, fastmath=False, inline="always")
+@njit(nogil=True, fastmath=False, inline="always")
 def sensor_frame(
     ddx: float, ddy: float, dz: float, c: F64
 ) -> tuple[bool, float, float, float, float, float]:  # pragma: no cover - compiled
@@ -85,7 +85,7 @@ def sensor_frame(
     return r > 0.0 and r <= c[10] and r >= c[9], r, u, v, w, rho2
 
 
-@numba.njit(cache=True, nogil=True, fastmath=False)
+@njit(nogil=True, fastmath=False)
 def subgrid_geometry(
     dx: F64, dy: F64, dz: float, c: F64, skip: NDArray[np.bool_], want_angles: bool
 ) -> tuple[NDArray[np.int64], F64, F64, F64]:
@@ -152,7 +152,7 @@ def roc_constants(roc: RocConfig, shift_db: float) -> tuple[int, F64] | None:
     return code, np.array([roc.snr50_db, roc.half_width_db, shift_db])
 
 
-@numba.njit(cache=True, nogil=True, fastmath=False)
+@njit(nogil=True, fastmath=False)
 def accumulate_log_miss(
     snr_db: F64,
     flat: NDArray[np.int64],

@@ -13,9 +13,10 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
+
+from sensorgap.jit import njit
 
 F64 = NDArray[np.float64]
 F32 = NDArray[np.float32]
@@ -28,7 +29,7 @@ SUN_NONE, SUN_WORLD, SUN_VEHICLE = 0, 1, 2
 GLARE_W_MIN = 1e-9
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@njit(nogil=True, inline="always")
 def bilerp(
     ax: float, ay: float, a: float, b: float, c: float, d: float
 ) -> float:  # pragma: no cover - compiled
@@ -38,7 +39,7 @@ def bilerp(
     return (1.0 - ay) * ((1.0 - ax) * a + ax * b) + ay * ((1.0 - ax) * c + ax * d)
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@njit(nogil=True, inline="always")
 def place(
     x: float, y: float, c: float, s: float, u: float, v: float
 ) -> tuple[float, float]:  # pragma: no cover - compiled
@@ -48,7 +49,7 @@ def place(
     return x + c * u - s * v, y + s * u + c * v
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@njit(nogil=True, inline="always")
 def map_cell(
     x0: float, y0: float, inv_res: float, nx: int, ny: int, x: float, y: float
 ) -> tuple[bool, int, int, float, float]:  # pragma: no cover - compiled
@@ -65,7 +66,7 @@ def map_cell(
     return True, i, j, fx - i, fy - j
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@njit(nogil=True, inline="always")
 def corners_in_view(
     img: F32, i: int, j: int
 ) -> tuple[int, float, float, float, float]:  # pragma: no cover - compiled
@@ -77,7 +78,7 @@ def corners_in_view(
     return n_in, a, b, c, d
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@njit(nogil=True, inline="always")
 def bilinear_finite_at(
     img: F32, x0: float, y0: float, inv_res: float, x: float, y: float
 ) -> tuple[float, int]:  # pragma: no cover - compiled
@@ -97,7 +98,7 @@ def bilinear_finite_at(
     return bilerp(ax, ay, a, b, c, d), 1
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@njit(nogil=True, inline="always")
 def heading_bin(psi: float, inv_bin: float, n_bins: int) -> int:  # pragma: no cover - compiled
     """The bin of a relative heading ``psi`` (rad) among ``n_bins`` over a half turn (a box
     is symmetric under it): ``round(psi / bin width) mod n_bins``, ``inv_bin`` = n_bins /
@@ -106,7 +107,7 @@ def heading_bin(psi: float, inv_bin: float, n_bins: int) -> int:  # pragma: no c
     return int(round(psi * inv_bin)) % n_bins
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def fade(o: float, margin: float) -> float:  # pragma: no cover - compiled
     """Glare weight at an angle ``o`` (rad) outside the field of view."""
     if o <= 0.0:
@@ -121,7 +122,7 @@ def fade(o: float, margin: float) -> float:  # pragma: no cover - compiled
 _INV_TWO_PI = 0.5 / math.pi
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def _azimuth_off(a: float, yaw: float) -> float:  # pragma: no cover - compiled
     """|a - yaw| wrapped to [0, pi], rad."""
     d = a - yaw
@@ -130,7 +131,7 @@ def _azimuth_off(a: float, yaw: float) -> float:  # pragma: no cover - compiled
     return abs(d - 2.0 * math.pi * math.floor((d + math.pi) * _INV_TWO_PI))
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def _cone_weight(
     dx: float,
     dy: float,
@@ -154,7 +155,7 @@ def _cone_weight(
     return fade(math.hypot(max(0.0, abs(az) - half_h), max(0.0, abs(el) - half_v)), margin)
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def _level_weight(
     a: float, el: float, yaw: float, half_h: float, half_v: float, margin: float
 ) -> float:  # pragma: no cover - compiled
@@ -165,7 +166,7 @@ def _level_weight(
     return fade(eh if ev == 0.0 else (ev if eh == 0.0 else math.hypot(eh, ev)), margin)
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def glare_cone_weight(
     dx: float,
     dy: float,
@@ -189,7 +190,7 @@ def cone_cos_bound(half_h: float, half_v: float, margin: float) -> float:
     return math.cos(a) * math.cos(b) if a < 0.5 * math.pi else -2.0
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def lookup_pass(
     total: F32,
     x0: float,
@@ -366,7 +367,7 @@ def lookup_pass(
                 counts[1 + c] = m + 1
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def body_layer_pass(
     values: F32,
     j0: int,
@@ -422,7 +423,7 @@ def near_view_mask(signal: F32, reach_cells: int) -> NDArray[np.bool_]:
     return np.asarray(box > 0)
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def _sun_directions(
     sun: F64, heading: F64, flat: I64, t: int, out: F64
 ) -> None:  # pragma: no cover - compiled

@@ -29,7 +29,6 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import NamedTuple
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
 
@@ -48,6 +47,7 @@ from sensorgap.coverage.fastlookup import (
 from sensorgap.coverage.grid import GridSpec, evaluate_grid
 from sensorgap.coverage.kernel import candidates, evaluate_offsets
 from sensorgap.coverage.scene import Scene
+from sensorgap.jit import njit
 from sensorgap.models.base import glare_factors
 from sensorgap.models.geometry import fov_mask, in_range, rotate_offsets, sensor_range, spherical
 from sensorgap.models.numerics import clip_snr_db
@@ -329,7 +329,7 @@ def per_sensor_pd(scene: Scene, x: F64, y: F64, z: F64, sun_dirs: F64 | None = N
     return out
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def _bilinear(
     img: F32,
     x0: float,

@@ -19,7 +19,6 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
 
@@ -32,6 +31,7 @@ from sensorgap.config.target import (
     TargetConfig,
 )
 from sensorgap.errors import InputError
+from sensorgap.jit import njit
 
 F64 = NDArray[np.float64]
 
@@ -147,7 +147,7 @@ def occluder_array(occluders: Sequence[Occluder] | None) -> F64:
     return np.asarray(np.vstack([o.row() for o in occluders]), dtype=np.float64)
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def hidden_by_boxes(
     ox: float, oy: float, oz: float, px: float, py: float, pz: float, boxes: F64
 ) -> bool:  # pragma: no cover - compiled

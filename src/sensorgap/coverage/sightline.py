@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
 
@@ -31,6 +30,7 @@ from sensorgap.config.target import TargetConfig
 from sensorgap.config.vehicle import BodyConfig
 from sensorgap.coverage.body import body_samples, facing_offset, place_sample
 from sensorgap.coverage.occluders import hidden_by_boxes
+from sensorgap.jit import njit
 
 F64 = NDArray[np.float64]
 I64 = NDArray[np.int64]
@@ -65,7 +65,7 @@ def viewpoints(body: BodyConfig) -> F64:
     return np.array([driver_eye(body)], dtype=np.float64)
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def _seen(
     x: float,
     y: float,
@@ -115,7 +115,7 @@ def _seen(
     return False
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def _first_seen_kernel(
     x: F64,
     y: F64,

@@ -12,9 +12,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
+
+from sensorgap.jit import njit
 
 F64 = NDArray[np.float64]
 
@@ -174,7 +175,7 @@ def angles_outside_fov(mount: Mount, directions: F64, limit: float = math.inf) -
     return out
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def _outside_kernel(
     d: F64, rot: F64, half_h: float, half_v: float, cos_bound: float, out: F64
 ) -> None:  # pragma: no cover - compiled

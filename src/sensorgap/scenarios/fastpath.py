@@ -11,9 +11,10 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
+
+from sensorgap.jit import njit
 
 F64 = NDArray[np.float64]
 
@@ -21,7 +22,7 @@ F64 = NDArray[np.float64]
 STILL_M_S = 1e-6
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@njit(nogil=True, inline="always")
 def _table_pose(
     s: float, step: float, last: int, tx: F64, ty: F64, th: F64
 ) -> tuple[float, float, float]:  # pragma: no cover - compiled
@@ -41,7 +42,7 @@ def _table_pose(
     )
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def table_poses(
     s: F64, step: float, n: int, tx: F64, ty: F64, th: F64, ox: F64, oy: F64, oh: F64
 ) -> None:  # pragma: no cover - compiled
@@ -51,7 +52,7 @@ def table_poses(
         ox[k], oy[k], oh[k] = _table_pose(s[k], step, n - 1, tx, ty, th)
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@njit(nogil=True, inline="always")
 def _velocity(
     x: F64, y: F64, i: int, k: int, inv_dt: float, inv_2dt: float
 ) -> tuple[float, float]:  # pragma: no cover
@@ -66,7 +67,7 @@ def _velocity(
     return (x[i, k + 1] - x[i, k - 1]) * inv_2dt, (y[i, k + 1] - y[i, k - 1]) * inv_2dt
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def path_states(
     x: F64, y: F64, fb: F64, dt: float, heading: F64, speed: F64
 ) -> None:  # pragma: no cover - compiled
@@ -94,7 +95,7 @@ def path_states(
             prev = h
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@njit(nogil=True, inline="always")
 def _row_extremes(
     heading: F64, speed: F64, i: int, inv_dt: float, inv_2dt: float
 ) -> tuple[float, float, float]:  # pragma: no cover - compiled
@@ -120,7 +121,7 @@ def _row_extremes(
     return vmax, amax, lmax
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def track_extremes(
     heading: F64, speed: F64, dt: float, out: F64
 ) -> None:  # pragma: no cover - compiled
@@ -131,7 +132,7 @@ def track_extremes(
         out[i, 0], out[i, 1], out[i, 2] = _row_extremes(heading, speed, i, inv_dt, inv_2dt)
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def lane_tracks(
     s: F64,
     step: float,
@@ -163,7 +164,7 @@ def lane_tracks(
         ext[i, 0], ext[i, 1], ext[i, 2] = _row_extremes(heading, speed, i, inv_dt, inv_2dt)
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def affine_progress(
     s0: F64, sign: float, offset: F64, speed: F64, t: F64, out: F64
 ) -> None:  # pragma: no cover - compiled
@@ -175,7 +176,7 @@ def affine_progress(
             out[i, k] = s0[i] + sign * (offset[i] + speed[i] * t[k])
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def row_bounds(s: F64, lo: F64, hi: F64) -> None:  # pragma: no cover - compiled
     """Each row's smallest and largest value, in one pass (as ``numpy.min`` and
     ``numpy.max`` along the last axis; a row with a NaN gets NaN for both, as there)."""

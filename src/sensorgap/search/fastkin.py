@@ -5,14 +5,15 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
+
+from sensorgap.jit import njit
 
 F64 = NDArray[np.float64]
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def cos_sin_near(
     h: float, h0: float, c0: float, s0: float
 ) -> tuple[float, float]:  # pragma: no cover - compiled
@@ -29,7 +30,7 @@ def cos_sin_near(
     return math.cos(h), math.sin(h)
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def kinematics_kernel(
     ex: F64,
     ey: F64,

@@ -6,9 +6,10 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
+
+from sensorgap.jit import njit
 
 F64 = NDArray[np.float64]
 I64 = NDArray[np.int64]
@@ -28,7 +29,7 @@ COLUMNS = (
 )
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def summarize(
     log_miss: F64,
     ttc: F64,

@@ -89,10 +89,10 @@ from dataclasses import dataclass
 from functools import lru_cache
 from typing import TYPE_CHECKING
 
-import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from sensorgap.jit import njit
 from sensorgap.search.fastkin import cos_sin_near
 
 if TYPE_CHECKING:
@@ -155,7 +155,7 @@ class Encounter:
 # --------------------------------------------------------------------------- geometry
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def _edge_band(
     ua: float, va: float, ub: float, vb: float, band: float, umin: float, umax: float
 ) -> tuple[float, float]:  # pragma: no cover - compiled
@@ -171,7 +171,7 @@ def _edge_band(
     return umin, umax
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def _band_u_range(
     uc: float, vc: float, cd: float, sd: float, hl: float, hw: float, band: float
 ) -> tuple[float, float]:  # pragma: no cover - compiled
@@ -209,7 +209,7 @@ def _band_u_range(
     return umin, umax
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def _frame_range(
     exi: float,
     eyi: float,
@@ -233,7 +233,7 @@ def _frame_range(
     )
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def _scan_interval(
     ex: F64,
     ey: F64,
@@ -282,7 +282,7 @@ def _scan_interval(
     return lo, hi
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@njit(nogil=True, inline="always")
 def _nearest_sample(
     ex: F64, ey: F64, r: int, i: int, px: float, py: float
 ) -> int:  # pragma: no cover - compiled
@@ -305,7 +305,7 @@ def _nearest_sample(
     return i
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@njit(nogil=True, inline="always")
 def _d2(ex: F64, ey: F64, r: int, i: int, px: float, py: float) -> float:  # pragma: no cover
     """Squared distance, m2, of ego path sample ``i`` of row ``r`` to (``px``, ``py``)."""
     dx = ex[r, i] - px
@@ -313,7 +313,7 @@ def _d2(ex: F64, ey: F64, r: int, i: int, px: float, py: float) -> float:  # pra
     return dx * dx + dy * dy
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def _nearest_guess(
     ex: F64,
     ey: F64,
@@ -353,7 +353,7 @@ def _nearest_guess(
         more[j] = (way != 0) & (_d2(ex, ey, r, kn, px, py) < best)
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def _geometry_kernel(
     ex: F64,
     ey: F64,
@@ -758,7 +758,7 @@ def _chain_tables(m: int, n: int) -> tuple[I64, I64, I64]:
     return np.array(states, dtype=np.int64), miss, hit
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def _first_confirmation_kernel(
     pd: F64, n_valid: I64, rows: I64, miss: I64, hit: I64, out: F64
 ) -> None:  # pragma: no cover - compiled
@@ -823,7 +823,7 @@ def first_confirmation(pd: ArrayLike, n_valid: ArrayLike, m: int, n: int) -> F64
 # --------------------------------------------------------------------------- braking
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def lost_distance(tau: float, v0: float, jerk: float, amax: float) -> float:  # pragma: no cover
     """Distance, m, the braking ego falls behind its planned constant-speed progress
     ``tau`` s after brake onset: ``v0 tau - d(tau)``, ``d`` the jerk-limited braking
@@ -849,7 +849,7 @@ def lost_distance(tau: float, v0: float, jerk: float, amax: float) -> float:  # 
     return v0 * tau - (d1 + v1 * v1 / (2.0 * amax))
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def braked_speed(tau: float, v0: float, jerk: float, amax: float) -> float:  # pragma: no cover
     """Speed, m/s, ``tau`` s after brake onset from ``v0`` m/s (jerk-limited at ``jerk``
     m/s3 up to ``amax`` m/s2, never below 0)."""
@@ -868,7 +868,7 @@ def stopping_distance(v0: float, latency_s: float, jerk: float, amax: float) -> 
     return v0 * big - float(lost_distance(big - latency_s, v0, jerk, amax))
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def _rel_speed(vb: float, h: float, th: float, tv: float) -> float:  # pragma: no cover
     """|ego velocity (speed ``vb`` along heading ``h``) - target velocity|, m/s."""
     dvx = vb * math.cos(h) - tv * math.cos(th)
@@ -876,7 +876,7 @@ def _rel_speed(vb: float, h: float, th: float, tv: float) -> float:  # pragma: n
     return math.sqrt(dvx * dvx + dvy * dvy)
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def after_horizon(
     gap: float,
     w: float,
@@ -923,7 +923,7 @@ def after_horizon(
     return max(braked_speed(b - t_brake, v0, jerk, amax) - w, 0.0), b
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def _reaction_kernel(
     lo: F64,
     hi: F64,
