@@ -1389,3 +1389,36 @@ def test_out_of_memory_is_one_line(
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and err[0].startswith("sensorgap: error: out of memory ("), err
         assert not out.exists()
+
+
+def test_figures_ignore_the_users_matplotlib_configuration(tmp_path: Path) -> None:
+    """A ``matplotlibrc`` in the working directory (LaTeX text without LaTeX, a font that
+    does not exist, 2000 dpi, an unknown backend) and ``MPLBACKEND=nosuchbackend``: the
+    command works, prints nothing on stderr, and its figure is byte-identical to the one
+    made without them (``runtime.pristine_matplotlib``; hostile round fourteen: internal
+    errors, and an rc ``savefig.dpi`` changed every figure)."""
+    import subprocess
+    import sys
+
+    ref = tmp_path / "ref"
+    assert (
+        main(["nearfield", "--vehicle", "system_a", "--resolution", "0.5", "--out", str(ref)]) == 0
+    )
+    work = tmp_path / "work"
+    work.mkdir()
+    (work / "matplotlibrc").write_text(
+        "figure.dpi: 2000\nsavefig.dpi: 2000\nfont.family: NoSuchFont\ntext.usetex: True\n"
+        "backend: nosuchbackend\naxes.formatter.use_locale: True\n"
+    )
+    env = {**os.environ, "MPLBACKEND": "nosuchbackend", "PYTHONPATH": os.pathsep.join(sys.path)}
+    argv = ["nearfield", "--vehicle", "system_a", "--resolution", "0.5", "--out", "nf"]
+    done = subprocess.run(
+        [sys.executable, "-m", "sensorgap", *argv],
+        cwd=work,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert done.returncode == 0 and done.stderr == "", done.stderr
+    assert (work / "nf" / "nearfield.png").read_bytes() == (ref / "nearfield.png").read_bytes()

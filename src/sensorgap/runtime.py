@@ -286,11 +286,48 @@ def matplotlib_config_dir(
 
 
 def configure_matplotlib_dir() -> str | None:
-    """``matplotlib_config_dir`` for this process; never raises."""
+    """``matplotlib_config_dir`` for this process, and the Agg backend whatever
+    ``MPLBACKEND`` says (``pristine_matplotlib``); never raises."""
+    os.environ["MPLBACKEND"] = "agg"
     try:
         return matplotlib_config_dir()
     except Exception:  # noqa: BLE001 - a config folder must never stop a command
         return None
+
+
+_matplotlib_ready = False
+
+
+def pristine_matplotlib() -> None:
+    """Import matplotlib for sensorgap's figures: the Agg backend and matplotlib's own
+    defaults, whatever the user's configuration says. The figures are files (PNG),
+    byte-identical for the same inputs, so they must not depend on a ``matplotlibrc`` in
+    the working directory, ``MATPLOTLIBRC``, ``MPLCONFIGDIR`` or ``~/.config/matplotlib``,
+    nor on ``MPLBACKEND``: hostile round fourteen found ``MPLBACKEND=nosuchbackend`` or
+    a Jupyter backend, and an rc file with ``text.usetex: True`` (no LaTeX installed) or
+    ``axes.formatter.use_locale``, each an internal error, and an rc ``savefig.dpi``
+    changing every figure. The rc files are still read by matplotlib's import (its
+    warnings about their bad lines are silenced: the values are dropped right after);
+    ``matplotlib.rcdefaults`` then restores the defaults (the style-exempt keys aside:
+    backend, timezone, date epoch, which the figures do not use). Call it before
+    importing ``matplotlib.pyplot``; idempotent."""
+    global _matplotlib_ready
+    if _matplotlib_ready:
+        return
+    import logging
+
+    os.environ["MPLBACKEND"] = "agg"
+    log = logging.getLogger("matplotlib")
+    level = log.level
+    log.setLevel(logging.CRITICAL)
+    try:
+        import matplotlib
+    finally:
+        log.setLevel(level)
+    matplotlib.rcdefaults()
+    matplotlib.use("Agg", force=True)
+    matplotlib.rcParams["svg.hashsalt"] = "sensorgap"
+    _matplotlib_ready = True
 
 
 class StdoutUnwritable(Exception):

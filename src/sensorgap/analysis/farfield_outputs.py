@@ -7,7 +7,6 @@ import math
 from pathlib import Path
 from typing import Any
 
-import matplotlib.pyplot as plt
 import numpy as np
 
 from sensorgap.analysis.farfield import LEVELS, FarField
@@ -64,6 +63,8 @@ def write_farfield(
         ff, scene.target.reference_height_m, MAX_BODY_PLOT_CELLS if bodies else MAX_PLOT_CELLS
     )
     cov = body_grid(scene, grid, 0.0) if bodies else evaluate_grid(scene, grid, workers=2)
+    import matplotlib.pyplot as plt  # after coverage.plot's pristine_matplotlib
+
     fig, (ax, ax2) = plt.subplots(
         2, 1, figsize=(11.0, 7.5), layout="constrained", height_ratios=(3.0, 1.6)
     )

@@ -736,6 +736,9 @@ def _r(v: float) -> float:
 
 
 def _path_patch(geom: BaseGeometry, **kw: Any) -> Any:
+    from sensorgap.runtime import pristine_matplotlib
+
+    pristine_matplotlib()
     from matplotlib.patches import PathPatch
     from matplotlib.path import Path as MplPath
 
@@ -768,6 +771,9 @@ def nearfield_figure(
     covered at height ``z`` green, and (hatched) the part of ``unseen`` (no sensor at any
     height, ``unseen_at_any_height``) open to the outside; axes in metres, equal aspect;
     the legend below the plot."""
+    from sensorgap.runtime import pristine_matplotlib
+
+    pristine_matplotlib()
     import matplotlib.pyplot as plt
     from matplotlib.lines import Line2D
     from matplotlib.patches import Patch

@@ -9,9 +9,9 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-import matplotlib
+from sensorgap.runtime import pristine_matplotlib
 
-matplotlib.use("Agg")
+pristine_matplotlib()  # Agg and matplotlib's defaults, whatever the user's rc files say
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.colors import Normalize  # noqa: E402

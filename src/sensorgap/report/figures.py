@@ -6,9 +6,9 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-import matplotlib
+from sensorgap.runtime import pristine_matplotlib
 
-matplotlib.use("Agg")
+pristine_matplotlib()  # Agg and matplotlib's defaults, whatever the user's rc files say
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.patches import Polygon  # noqa: E402
@@ -26,8 +26,6 @@ from sensorgap.report.summary import direction_words, sun_azimuth_deg  # noqa: E
 from sensorgap.search.evaluate import Evaluator, Trace  # noqa: E402
 from sensorgap.search.outcome import first_confirmation  # noqa: E402
 from sensorgap.search.ranking import named_step  # noqa: E402
-
-plt.rcParams["svg.hashsalt"] = "sensorgap"
 
 #: A scene longer than this many times its width is drawn with the map over the whole
 #: width above the curves (else side by side).

@@ -140,6 +140,9 @@ def search_rows(n: int) -> list[dict[str, Any]]:
 
 
 def _figure(rows: list[dict[str, Any]], out: Path) -> None:
+    from sensorgap.runtime import pristine_matplotlib
+
+    pristine_matplotlib()
     import matplotlib.pyplot as plt
 
     res = [r for r in rows if r["study"] == "grid resolution"]
