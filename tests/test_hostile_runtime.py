@@ -1422,3 +1422,86 @@ def test_figures_ignore_the_users_matplotlib_configuration(tmp_path: Path) -> No
     )
     assert done.returncode == 0 and done.stderr == "", done.stderr
     assert (work / "nf" / "nearfield.png").read_bytes() == (ref / "nearfield.png").read_bytes()
+
+
+@pytest.mark.parametrize(
+    ("body", "said"),
+    [
+        ("def register():\n    raise RuntimeError('boom')\n", "RuntimeError: boom"),
+        ("import sys\ndef register():\n    sys.exit(0)\n", "SystemExit: 0"),
+        ("def register(:\n", "SyntaxError"),
+    ],
+)
+def test_a_broken_plugin_is_one_line_before_any_work(
+    body: str,
+    said: str,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """A ``sensorgap.plugins`` entry point that raises, calls ``sys.exit(0)`` or does not
+    parse: one line naming it, exit 2, and no --out folder (hostile round fourteen: the
+    search made its folder, store and inputs first, then loaded the plugins at its first
+    family kind; ``sys.exit(0)`` ended it with exit 0 and nothing written)."""
+    from importlib.metadata import EntryPoint
+
+    import sensorgap.plugins as plugins
+
+    module = f"brokenplug_{abs(hash(body))}"  # a name of its own: not cached by an earlier case
+    (tmp_path / f"{module}.py").write_text(body)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    ep = EntryPoint("x", f"{module}:register", plugins.GROUP)
+    monkeypatch.setattr(
+        plugins, "entry_points", lambda group: [ep] if group == plugins.GROUP else []
+    )
+    monkeypatch.setattr(plugins, "_loaded", False)
+    out = tmp_path / "s"
+    argv = ["search", "--vehicle", "system_b", "--families", "slow_ahead_curve"]
+    assert main([*argv, "--environments", "clear", "--budget", "20", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"sensorgap: error: plugin x: {module}:register")
+    assert said in err[0] and not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("value", "said"),
+    [
+        ("nosuchmodule_xyz:Thermal", "failed to load: ModuleNotFoundError"),
+        ("sensorgap.models.radar:RADAR_NOPE", "failed to load: AttributeError"),
+        ("math:pi", "must name a SensorModel subclass, got float"),
+        ("clashplug:Radar2", "sensor type 'radar' is already registered"),
+    ],
+)
+def test_a_broken_sensor_plugin_is_one_line(
+    value: str,
+    said: str,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """A ``sensorgap.sensors`` entry point that cannot be imported, names no
+    ``SensorModel`` subclass or takes a built-in type's name, loaded for a vehicle with a
+    sensor type no built-in model has: one line naming the plugin, exit 2 (were internal
+    errors)."""
+    from importlib.metadata import EntryPoint
+
+    import sensorgap.models.registry as reg
+    from sensorgap.config.presets import templates_dir
+
+    (tmp_path / "clashplug.py").write_text(
+        "from sensorgap.models.radar import Radar\n\n"
+        "class Radar2(Radar):\n    type_name = 'radar'\n"
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    ep = EntryPoint("thermal", value, reg.ENTRY_POINT_GROUP)
+    monkeypatch.setattr(reg, "entry_points", lambda group: [ep])
+    monkeypatch.setattr(reg, "_entry_points_loaded", False)
+    text = (templates_dir() / "vehicles" / "system_b.toml").read_text()
+    assert 'type = "radar"' in text
+    vehicle = tmp_path / "v.toml"
+    vehicle.write_text(text.replace('type = "radar"', 'type = "thermal"'))
+    out = tmp_path / "nf"
+    assert main(["nearfield", "--vehicle", str(vehicle), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("sensorgap: error: sensor plugin thermal: ")
+    assert said in err[0] and not out.exists()

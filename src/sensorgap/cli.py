@@ -29,6 +29,7 @@ from sensorgap.filesio import (
     refuse_uncertifiable,
     write_manifest,
 )
+from sensorgap.plugins import load_plugins
 from sensorgap.runtime import (
     StdoutUnwritable,
     check_numba_environment,
@@ -1416,6 +1417,9 @@ def _main(argv: Sequence[str] | None) -> int:
     fresh: Path | None = None
     try:
         _check_environment()
+        if func is not cmd_verify:  # a broken plugin: one line before any work (a search
+            # loaded them at its first family kind, after making its --out folder)
+            load_plugins()
         # an --out the command creates: removed when its standard output fails afterwards
         if isinstance(out, str) and out.strip() and not os.path.lexists(out):
             fresh = Path(out)

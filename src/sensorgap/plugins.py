@@ -34,7 +34,8 @@ def load_plugins() -> list[str]:
             obj = ep.load()
             if callable(obj):
                 obj()
-        except Exception as exc:  # noqa: BLE001 - a broken plugin is bad input, one line
+        except (Exception, SystemExit) as exc:  # noqa: BLE001 - a broken plugin: one line
+            # (a plugin calling sys.exit(0) ended the command with exit 0 and no output)
             raise InputError(
                 f"plugin {ep.name}", ep.value, f"failed to load: {type(exc).__name__}: {exc}"
             ) from None

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from importlib.metadata import entry_points
 
+from sensorgap.errors import InputError
 from sensorgap.models.base import SensorModel
 from sensorgap.registry import Registry
 
@@ -25,10 +26,22 @@ def _load_entry_points() -> None:
     if _entry_points_loaded:
         return
     _entry_points_loaded = True
-    for ep in entry_points(group=ENTRY_POINT_GROUP):
-        cls = ep.load()
-        if isinstance(cls, type) and issubclass(cls, SensorModel):
+    for ep in sorted(entry_points(group=ENTRY_POINT_GROUP), key=lambda e: e.name):
+        where = f"sensor plugin {ep.name}"
+        try:
+            cls = ep.load()
+        except (Exception, SystemExit) as exc:  # noqa: BLE001 - a broken plugin: one line
+            raise InputError(
+                where, ep.value, f"failed to load: {type(exc).__name__}: {exc}"
+            ) from None
+        if not (isinstance(cls, type) and issubclass(cls, SensorModel)):
+            raise InputError(
+                where, ep.value, f"must name a SensorModel subclass, got {type(cls).__name__}"
+            )
+        try:
             _TYPES.register(cls)
+        except ValueError as exc:  # a name taken (by a built-in type or another plugin)
+            raise InputError(where, ep.value, str(exc)) from None
 
 
 _TYPES: Registry[type[SensorModel]] = Registry(
