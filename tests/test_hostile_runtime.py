@@ -1505,3 +1505,43 @@ def test_a_broken_sensor_plugin_is_one_line(
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("sensorgap: error: sensor plugin thermal: ")
     assert said in err[0] and not out.exists()
+
+
+def test_a_new_search_that_fails_before_storing_leaves_nothing(tmp_path: Path) -> None:
+    """A search into a new --out whose store was made but which failed before storing a
+    result (here the file-size limit stops the copy of its 46 kB vehicle file into
+    ``inputs/``; a full disk at ``run.json`` in hostile round fourteen) leaves no folder,
+    store or inputs: before, ``inputs/``, ``run.json`` and an empty ``search.sqlite``
+    stayed, and the next search there was told to use --resume."""
+    import resource
+    import subprocess
+    import sys
+
+    from sensorgap.config.presets import templates_dir
+
+    text = (templates_dir() / "vehicles" / "system_b.toml").read_text()
+    pad = "".join(
+        f"# padding line {i:05d} ..................................\n" for i in range(600)
+    )
+    vehicle = tmp_path / "v.toml"
+    vehicle.write_text(text + pad)
+    assert 40_000 < vehicle.stat().st_size < 60_000  # the store (20,480 bytes) fits, it not
+
+    def limit() -> None:
+        resource.setrlimit(resource.RLIMIT_FSIZE, (40_000, 40_000))
+
+    out = tmp_path / "a" / "b" / "run"
+    argv = ["search", "--vehicle", str(vehicle), "--families", "slow_ahead_curve"]
+    argv += ["--environments", "clear", "--budget", "20", "--out", str(out)]
+    done = subprocess.run(
+        [sys.executable, "-m", "sensorgap", *argv],
+        env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)},
+        preexec_fn=limit,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    lines = done.stderr.strip().splitlines()
+    assert done.returncode == 2 and len(lines) == 1, done.stderr
+    assert "inputs/vehicle/v.toml: cannot write or read: File too large" in lines[0]
+    assert not (tmp_path / "a").exists()

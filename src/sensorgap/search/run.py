@@ -15,6 +15,7 @@ import contextlib
 import csv
 import io
 import math
+import shutil
 import sqlite3
 import sys
 from dataclasses import dataclass, field
@@ -50,7 +51,7 @@ from sensorgap.search.ranking import (
     rank_exact,
     reevaluate,
 )
-from sensorgap.search.runfolder import INPUTS_DIR, record_inputs, write_search_record
+from sensorgap.search.runfolder import INPUTS_DIR, RUN_JSON, record_inputs, write_search_record
 from sensorgap.search.settings import (
     Prepared,
     SearchSettings,
@@ -389,6 +390,28 @@ def refuse_search_clash(p: Prepared, out: Path, resume: bool) -> None:
     check_store(db, p.record, p.inputs)
 
 
+def _count_or_none(store: Store) -> int | None:
+    """How many results ``store`` holds, None when that cannot be read (kept, then)."""
+    try:
+        return store.count()
+    except Exception:  # noqa: BLE001 - a failing store: its folder is kept as it is
+        return None
+
+
+def _remove_fresh_search(db: Path, fresh: list[Path], created: list[Path]) -> None:
+    """Remove what a new search that stored nothing wrote: its database (and journal),
+    ``fresh`` (``run.json`` and ``inputs/`` where they did not exist before) and the
+    folders it created (``created``, when empty then)."""
+    for leftover in (db, db.with_name(db.name + "-journal")):
+        leftover.unlink(missing_ok=True)
+    for path in fresh:
+        if path.is_dir() and not path.is_symlink():
+            shutil.rmtree(path, ignore_errors=True)
+        else:
+            path.unlink(missing_ok=True)
+    remove_created_folders(created)
+
+
 def run_search(
     vehicle: str | Path,
     families: list[str],
@@ -467,6 +490,8 @@ def run_search(
                 "stored); add --resume to continue it, or use another --out",
             )
         resuming = store.count() > 0
+        # what this search adds before it stores anything (removed again if it fails then)
+        fresh = [out / n for n in (RUN_JSON, INPUTS_DIR) if not (out / n).exists()]
         try:
             runner = make_executor(executor, scheduler, workers)
         except InputError:
@@ -475,24 +500,45 @@ def run_search(
                 db.unlink(missing_ok=True)
             remove_created_folders(created)  # nor a folder this search created
             raise
-        # the run folder keeps its inputs: copies under inputs/, paths and SHA-256 in run.json
-        write_search_record(
-            out,
-            vehicle_ref(vehicle),
-            p.record,
-            record_inputs(
-                out, p.system.source, environments_file, p.system.config.reaction, p.families
-            ),
-        )
-        disable = (not sys.stderr.isatty()) if progress is None else not progress
+        stored: int | None = None
+        closed = False
         try:
-            with tqdm(total=budget, disable=disable, desc="search", unit="cand") as bar:
-                loop = search_loop(
-                    p, runner, store.get if resuming else None, store.put_async, bar.update
-                )
-        finally:
-            store.close()
-            runner.close()
+            # the run folder keeps its inputs: copies under inputs/, paths and SHA-256 in
+            # run.json
+            write_search_record(
+                out,
+                vehicle_ref(vehicle),
+                p.record,
+                record_inputs(
+                    out, p.system.source, environments_file, p.system.config.reaction, p.families
+                ),
+            )
+            disable = (not sys.stderr.isatty()) if progress is None else not progress
+            try:
+                with tqdm(total=budget, disable=disable, desc="search", unit="cand") as bar:
+                    loop = search_loop(
+                        p, runner, store.get if resuming else None, store.put_async, bar.update
+                    )
+            finally:
+                stored = _count_or_none(store)
+                closed = True
+                store.close()
+                runner.close()
+        except BaseException:
+            # a new search that failed before storing anything (a full disk at run.json,
+            # out of memory, a thread limit, Ctrl-C): no folder, store or inputs of it stay
+            # (hostile round fourteen: inputs/, run.json and an empty store stayed, and the
+            # next search there was told to --resume); with results stored the folder stays,
+            # for --resume
+            if not closed:
+                stored = _count_or_none(store)
+                with contextlib.suppress(Exception):
+                    store.close()
+                with contextlib.suppress(Exception):
+                    runner.close()
+            if new_db and stored == 0:
+                _remove_fresh_search(db, fresh, created)
+            raise
         ranked = rank_results(p, loop)
         # the exact results of the ranked rows, so every reader can check ranking.json's
         # numbers against the store (runfolder.RunFolder.check_store)
