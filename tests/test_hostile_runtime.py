@@ -4,6 +4,7 @@ CLI lines are in the bad-input corpus)."""
 
 from __future__ import annotations
 
+import json
 import os
 import sqlite3
 import stat
@@ -1545,3 +1546,29 @@ def test_a_new_search_that_fails_before_storing_leaves_nothing(tmp_path: Path) -
     assert done.returncode == 2 and len(lines) == 1, done.stderr
     assert "inputs/vehicle/v.toml: cannot write or read: File too large" in lines[0]
     assert not (tmp_path / "a").exists()
+
+
+def test_a_near_field_and_a_map_added_to_a_run_keep_it_verifying(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``nearfield --out RUN/nearfield`` and ``coverage --out RUN/coverage/<name>`` add the
+    report's inputs to a search run and certify RUN again (``filesio.certified_parent``):
+    ``verify RUN`` passes at once (before, it named their files as unlisted until the next
+    report), and the report then reads them. Another folder inside RUN is refused."""
+    run = tmp_path / "run"
+    argv = ["search", "--vehicle", "system_b", "--families", "slow_ahead_curve"]
+    assert main([*argv, "--environments", "clear", "--budget", "20", "--out", str(run)]) == 0
+    nf = ["nearfield", "--vehicle", "system_b", "--resolution", "0.5"]
+    assert main([*nf, "--out", str(run / "nearfield")]) == 0
+    assert main(["verify", str(run)]) == 0
+    cov = ["coverage", "--vehicle", "system_b", "--environment", "clear", "--target", "car"]
+    assert main([*cov, "--resolution", "2", "--out", str(run / "coverage" / "car_clear")]) == 0
+    assert main(["verify", str(run)]) == 0
+    listed = json.loads((run / "manifest.json").read_text())["files"]
+    assert "nearfield/nearfield.json" in listed and "coverage/car_clear/coverage.npz" in listed
+    capsys.readouterr()
+    assert main([*nf, "--out", str(run / "elsewhere")]) == 2
+    assert "lies inside" in capsys.readouterr().err
+    assert main(["report", "--run", str(run)]) == 0 and main(["verify", str(run)]) == 0
+    md = (run / "report.md").read_text()
+    assert "Near-field blind spots" in md and "not run" not in md.split("Near-field")[1][:300]

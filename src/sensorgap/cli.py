@@ -26,6 +26,7 @@ from sensorgap.filesio import (
     refuse_crowded_out,
     refuse_foreign_outputs,
     refuse_if_changed,
+    refuse_inside_certified,
     refuse_uncertifiable,
     write_manifest,
 )
@@ -234,6 +235,7 @@ def cmd_coverage(args: argparse.Namespace) -> int:
     from sensorgap.coverage.pointsio import MAX_HEIGHT_M
 
     refuse_foreign_outputs(args.out, ANALYSIS_WRITES["coverage"], "coverage")
+    refuse_inside_certified(args.out, "coverage")
     check_workers(args.workers, CLI_NAMES)
     extent = _float_list(args.extent, 4, "--extent")
     res = check_resolution(args.resolution, "--resolution")
@@ -316,6 +318,7 @@ def cmd_nearfield(args: argparse.Namespace) -> int:
     from sensorgap.models import load_system
 
     refuse_foreign_outputs(args.out, ANALYSIS_WRITES["nearfield"], "nearfield")
+    refuse_inside_certified(args.out, "nearfield")
     res = _positive(args.resolution, "--resolution")
     lo, hi = NEARFIELD_RESOLUTION_M
     if not lo <= res <= hi:
@@ -342,6 +345,7 @@ def cmd_farfield(args: argparse.Namespace) -> int:
     from sensorgap.roads import read_opendrive
 
     refuse_foreign_outputs(args.out, ANALYSIS_WRITES["farfield"], "farfield")
+    refuse_inside_certified(args.out, "farfield")
     length = _positive(args.length, "--length")
     if length > MAX_FARFIELD_LENGTH_M:
         raise InputError(
@@ -428,6 +432,7 @@ def cmd_search(args: argparse.Namespace) -> int:
 
     env_file = Path(args.environments_file) if args.environments_file else None
     refuse_crowded_out(args.out, "search")
+    refuse_inside_certified(args.out, "search")
     if args.resume:  # the new manifest must not certify a file changed by hand
         refuse_if_changed(args.out, SEARCH_WRITES)
     outcome, gone = search_removing_stale(
@@ -565,6 +570,7 @@ def _refuse_unsafe_out(out: str | Path, command: str) -> None:
     own = OWN_OUTPUT.get(command)
     if own is not None:
         refuse_certified_by_other(out, command, lambda rel: rel == own, own)
+    refuse_inside_certified(out, command)
 
 
 def _out_outside(out: Path, *runs: Path) -> None:
@@ -613,6 +619,8 @@ def cmd_export(args: argparse.Namespace) -> int:
     folder = out or Path(args.run)
     refuse_crowded_out(folder, "export")
     refuse_uncertifiable(folder, "--out" if out else "--run")
+    if out is not None and Path(args.run).resolve() not in out.resolve().parents:
+        refuse_inside_certified(out, "export")  # (inside its own run: export says so)
     # a failed export leaves no partial catalog: a folder it made removed, the scenario
     # files, maps, catalog.json and manifest.json of an earlier export back in place
     with removed_on_error(folder, lock=out is not None):  # --run: locked if it exists
@@ -810,6 +818,7 @@ def cmd_corridor(args: argparse.Namespace) -> int:
     from sensorgap.search.corridor import corridor_search
 
     refuse_foreign_outputs(args.out, ANALYSIS_WRITES["corridor"], "corridor")
+    refuse_inside_certified(args.out, "corridor")
     lanes = []
     for part in args.lanes.split(","):
         lo_hi = _float_list(part.replace(":", ","), 2, "--lanes")
@@ -1294,19 +1303,32 @@ def _written_folders(args: argparse.Namespace) -> list[Path]:
     return [Path(p) for p in paths if isinstance(p, str) and os.path.isdir(p)]
 
 
-def _lock_job_out(folder: Path, locks: ExitStack) -> None:
-    """When ``folder`` is a vehicle folder of a certified job (``filesio.job_out_of``),
-    hold the job's OUT too: locked (no ``run`` into it meanwhile), its other files
-    checked as certified (``refuse_if_changed``), and its ``manifest.json`` kept, put
-    back if the command fails; the command's ``write_manifest`` certifies OUT again."""
-    from sensorgap.filesio import job_out_of
+def _new_report_inputs(args: argparse.Namespace) -> list[Path]:
+    """A new ``--out`` of ``nearfield`` or ``coverage`` that is a search run's report
+    input (``filesio.certified_parent``: ``RUN/nearfield``, ``RUN/coverage/<name>``): not
+    locked itself (it does not exist yet), but its run is (``_lock_job_out``)."""
+    out = getattr(args, "out", None)
+    if args.command not in ("nearfield", "coverage") or not isinstance(out, str):
+        return []
+    return [] if os.path.lexists(out) else [Path(out)]
 
-    parent = job_out_of(folder)
-    if parent is None:
-        return
-    locks.enter_context(folder_lock(parent))
-    refuse_if_changed(parent, (f"{Path(os.path.abspath(folder)).name}/",))
-    locks.enter_context(removed_on_error(parent, only=(MANIFEST_NAME,), lock=False))
+
+def _lock_job_out(folder: Path, locks: ExitStack, command: str | None) -> None:
+    """When ``folder`` lies in a certified folder the command certifies again
+    (``filesio.certified_parent``: ``OUT/<vehicle>`` of a job, ``RUN/nearfield``), hold
+    that folder too, and its own such parent (``OUT/<vehicle>/nearfield``: the vehicle
+    folder and OUT): locked (no ``run`` into it meanwhile), its other files checked as
+    certified (``refuse_if_changed``), and its ``manifest.json`` kept, put back if the
+    command fails; the command's ``write_manifest`` certifies each again."""
+    from sensorgap.filesio import certified_parent
+
+    found = certified_parent(folder, command)
+    while found is not None:
+        parent, rel = found
+        locks.enter_context(folder_lock(parent))
+        refuse_if_changed(parent, (f"{rel}/",))
+        locks.enter_context(removed_on_error(parent, only=(MANIFEST_NAME,), lock=False))
+        found = certified_parent(parent)
 
 
 def _remove_fresh(path: Path | None) -> str:
@@ -1444,8 +1466,10 @@ def _main(argv: Sequence[str] | None) -> int:
             # every folder the command writes, locked before any work and until it is
             # done: a second command into it is refused (and readers need no lock)
             for folder in _written_folders(args):
-                _lock_job_out(folder, locks)
+                _lock_job_out(folder, locks, args.command)
                 locks.enter_context(folder_lock(folder))
+            for folder in _new_report_inputs(args):  # RUN/nearfield, made by this command
+                _lock_job_out(folder, locks, args.command)
             with guarded_stdout():
                 return func(args)
     except StdoutUnwritable as exc:

@@ -344,31 +344,67 @@ def write_manifest(folder: str | Path, rewrites: tuple[str, ...] | None = None) 
     written = write_json(
         root / MANIFEST_NAME, {"algorithm": "sha256", "files": dict(sorted(files.items()))}
     )
-    parent = job_out_of(root)
-    if parent is not None and holds_lock(parent):
-        # a command into OUT/<vehicle> (holding OUT's lock): OUT certified again
-        write_manifest(parent, (f"{Path(os.path.abspath(root)).name}/",))
+    found = certified_parent(root)
+    if found is not None and holds_lock(found[0]):
+        # a command into OUT/<vehicle> or RUN/nearfield (holding the parent's lock): the
+        # parent certified again
+        write_manifest(found[0], (f"{found[1]}/",))
     return written
 
 
 def job_out_of(folder: str | Path) -> Path | None:
-    """The folder holding ``folder`` when it is a vehicle folder of a certified job
-    (``sensorgap run``'s ``OUT/<vehicle>``: OUT's manifest lists
-    ``<vehicle>/manifest.json``), else None. OUT's manifest certifies every file below
-    OUT, the vehicle folders' too: a command writing into ``OUT/<vehicle>`` locks OUT as
-    well, checks OUT's other files, and certifies OUT again after its own manifest
-    (``write_manifest``), so ``verify OUT`` and a rerun of the job still accept it."""
+    """The certified folder ``certified_parent`` finds for ``folder`` (its path only)."""
+    found = certified_parent(folder)
+    return None if found is None else found[0]
+
+
+#: Sub-folders of a search run that a command may add to it for its report, by command:
+#: ``nearfield --out RUN/nearfield``, ``coverage --out RUN/coverage/<name>``.
+REPORT_INPUTS = {"nearfield": ("nearfield",), "coverage": ("coverage", "*")}
+
+
+def _report_input(rel: str, command: str | None) -> bool:
+    parts = tuple(rel.split("/"))
+    shapes = REPORT_INPUTS.values() if command is None else [REPORT_INPUTS.get(command, ())]
+    return any(
+        len(parts) == len(shape) and all(w in ("*", p) for w, p in zip(shape, parts, strict=True))
+        for shape in shapes
+        if shape
+    )
+
+
+def certified_parent(folder: str | Path, command: str | None = None) -> tuple[Path, str] | None:
+    """The certified folder P that a command writing ``folder`` certifies again after its
+    own manifest, with ``folder``'s path relative to it, or None:
+
+    * a vehicle folder of a certified job (``sensorgap run``'s ``OUT/<vehicle>``: OUT's
+      manifest lists ``<vehicle>/manifest.json``), and any certified sub-folder P's
+      manifest lists the same way (``RUN/nearfield`` after a report);
+    * a new sub-folder of a search run (P holds ``search.sqlite``) that its report reads,
+      written by its own command (``REPORT_INPUTS``; ``command`` None: either):
+      ``nearfield --out RUN/nearfield``, ``coverage --out RUN/coverage/car_fog_50``.
+
+    P's manifest certifies every file below P: a command writing into such a folder locks
+    P as well, checks P's other files, and certifies P again after its own manifest
+    (``write_manifest``), so ``verify P`` still passes (a near field added to a run was
+    unlisted in its manifest until the next report)."""
     from sensorgap.errors import InputError
 
     root = Path(os.path.abspath(folder))
-    parent = root.parent
-    if parent == root or not (parent / MANIFEST_NAME).is_file():
-        return None
-    try:
-        listed = read_manifest(parent)
-    except (InputError, OSError, ValueError):
-        return None  # not a certified job (verify reports a damaged manifest)
-    return parent if f"{root.name}/{MANIFEST_NAME}" in listed else None
+    for parent in (root.parent, root.parent.parent):
+        if parent == root or not (parent / MANIFEST_NAME).is_file():
+            continue
+        try:
+            listed = read_manifest(parent)
+        except (InputError, OSError, ValueError):
+            return None  # not certified (verify reports a damaged manifest)
+        rel = root.relative_to(parent).as_posix()
+        if f"{rel}/{MANIFEST_NAME}" in listed:
+            return parent, rel
+        if (parent / "search.sqlite").is_file() and _report_input(rel, command):
+            return parent, rel
+        return None  # the nearest certified folder decides
+    return None
 
 
 def _bad_entry(rel: object) -> str | None:
@@ -668,6 +704,22 @@ def refuse_certified_out(folder: str | Path, command: str) -> None:
                 "its verify would fail: give another --out (a new folder or one of your own "
                 "files)",
             )
+    refuse_inside_certified(root, command)
+
+
+def refuse_inside_certified(folder: str | Path, command: str) -> None:
+    """An ``--out`` inside a certified folder (``_certified_above``: a search run, a
+    catalog, a job, another command's output; existing or new, a symbolic link on the way
+    followed) is refused (``InputError`` naming ``--out``) unless the command certifies
+    that folder again (``certified_parent``: a job's vehicle folder, a run's near field or
+    coverage map): its files would lie in a folder whose manifest does not list them, and
+    ``verify`` of that folder would fail (``paper --out RUN/p``, ``export --out
+    RUN/cat`` did, hostile round fourteen)."""
+    from sensorgap.errors import InputError
+
+    root = Path(folder)
+    if certified_parent(root, command) is not None:
+        return
     above = _certified_above(root)
     if above is not None:
         parent, first = above
@@ -675,8 +727,9 @@ def refuse_certified_out(folder: str | Path, command: str) -> None:
             "--out",
             "",
             f"{root} lies inside {parent}, a certified folder (its {MANIFEST_NAME} lists "
-            f"{first}); {command} writes files no manifest lists, so verify {parent} would "
-            "fail: give another --out (a new folder or one of your own files, outside it)",
+            f"{first}); {command} would write files there that its {MANIFEST_NAME} does not "
+            f"list, so verify {parent} would fail: give another --out (a new folder or one of "
+            "your own files, outside it)",
         )
 
 
