@@ -78,9 +78,9 @@ def test_a_nan_occluder_never_reaches_a_map() -> None:
         ),
         ({"extent": (0, 2e5, 0, 10)}, r"^extent: coordinates must be within \+-100000 m"),
         ({"extent": (10, 0, 0, 10)}, r"^extent: must be \(xmin, xmax, ymin, ymax\) with"),
-        ({"extent": (0, 1, 2)}, r"^extent: must be 4 finite numbers"),
-        ({"extent": (0, math.nan, 0, 1)}, r"^extent: must be 4 finite numbers"),
-        ({"extent": None}, r"^extent: must be 4 finite numbers"),
+        ({"extent": (0, 1, 2)}, r"^extent: must be 4 finite real numbers"),
+        ({"extent": (0, math.nan, 0, 1)}, r"^extent: must be 4 finite real numbers"),
+        ({"extent": None}, r"^extent: must be 4 finite real numbers"),
         ({"resolution": "1"}, r"^resolution: must be a finite number > 0, got '1'"),
         ({"resolution": 0.0001}, r"^resolution: must be at least 0\.001 m"),
         ({"resolution": 100.0, "extent": (0, 10, 0, 10)}, r"^resolution: 100 m cells do not fit"),
@@ -124,20 +124,32 @@ def test_coverage_grid_covers_whole_cells_only() -> None:
         # accepted: 3.1 GB and 27 s (a broadcast view: no memory of its own here)
         (np.broadcast_to(np.zeros(3), (10**7, 3)), r"^points: 10000000 points; at most 500000"),
         ([[0.0] * 3] * 500_001, r"^points: 500001 points; at most 500000"),
-        (None, r"^points: must be an \(N, 3\) array of numbers"),
+        (None, r"^points: must be an \(N, 3\) array of finite real numbers"),
         ([1.0, 2.0, 3.0], r"^points: must have shape \(N, 3\) or \(N, 2\)"),
-        ([["a", 1, 2]], r"^points: must be an \(N, 3\) array of numbers"),
+        ([["a", 1, 2]], r"^points: must be an \(N, 3\) array of finite real numbers"),
         ([[1.0, 2.0, math.nan]], r"^points: coordinates must be finite numbers within \+-1e7 m"),
         ([[2e7, 0.0, 1.0]], r"^points: coordinates must be finite numbers within \+-1e7 m"),
         ([[10.0, 0.0, -1.0]], r"^points: z: must be within 0\.\.50 m"),
         ([[30, 0, -5]], r"^points: z: must be within 0\.\.50 m"),  # was Pd [1.]
-        ([["a", "b", "c"]], r"^points: must be an \(N, 3\) array of numbers"),
+        ([["a", "b", "c"]], r"^points: must be an \(N, 3\) array of finite real numbers"),
         # was numpy's ComplexWarning on stderr, then the real parts evaluated
-        (np.array([[30 + 1j, 0, 0.75]]), r"^points: must be an \(N, 3\) array of numbers .*compl"),
-        ([[30 + 1j, 0, 0.75]], r"^points: must be an \(N, 3\) array of numbers .*complex"),
+        (
+            np.array([[30 + 1j, 0, 0.75]]),
+            r"^points: must be an \(N, 3\) array of finite real numbers, got compl",
+        ),
+        (
+            [[30 + 1j, 0, 0.75]],
+            r"^points: must be an \(N, 3\) array of finite real numbers, got complex",
+        ),
         # round thirteen's rerun: a boolean array was read as 1 m coordinates
-        (np.ones((1, 3), bool), r"^points: must be an \(N, 3\) array of numbers, got booleans"),
-        ([[30.0, True, 0.75]], r"^points: must be an \(N, 3\) array of numbers, got booleans"),
+        (
+            np.ones((1, 3), bool),
+            r"^points: must be an \(N, 3\) array of finite real numbers, got booleans",
+        ),
+        (
+            [[30.0, True, 0.75]],
+            r"^points: must be an \(N, 3\) array of finite real numbers, got booleans",
+        ),
     ],
 )
 def test_evaluate_points_applies_the_probe_limits(points: Any, line: str) -> None:
@@ -238,3 +250,145 @@ def test_an_output_folder_that_is_a_file_is_refused(tmp_path: Path, where: str) 
 def test_facade_names_the_bad_parameter(call: Any, line: str) -> None:
     with pytest.raises(InputError, match=line):
         call()
+
+
+HUGE = 10**400  # beyond a float: float(HUGE) is an OverflowError
+HUGER = 10**5000  # beyond Python's int -> str limit: repr(HUGER) is a ValueError
+
+
+@pytest.mark.parametrize(
+    ("call", "line"),
+    [
+        # hostile round fourteen (F10): each was a raw OverflowError
+        (
+            lambda: sensorgap.evaluate_points("system_b", [[HUGE, 0, 0.75]]),
+            r"^points: must be an \(N, 3\) array of finite real numbers, got an integer beyond",
+        ),
+        (
+            lambda: sensorgap.coverage_grid("system_b", extent=(-HUGE, 30, -10, 10)),
+            r"^extent: must be 4 finite real numbers \(xmin, xmax, ymin, ymax\), m, got \(-1000",
+        ),
+        (
+            lambda: sensorgap.coverage_grid("system_b", extent=(-HUGER, 30, -10, 10)),
+            r"^extent: must be 4 finite real numbers .* got a tuple holding an integer too long",
+        ),
+        (
+            lambda: sensorgap.coverage_grid("system_b", resolution=HUGE),
+            r"^resolution: must be a finite number > 0, got an integer of 401 digits$",
+        ),
+        (
+            lambda: sensorgap.coverage_grid("system_b", heading_deg=-HUGER),
+            r"^heading_deg: must be an angle within \+-360 degrees, got a negative integer of 5001",
+        ),
+        (
+            lambda: sensorgap.coverage_grid("system_b", workers=HUGER),
+            r"^workers: must be 1\.\.64, got an integer of 5001 digits$",
+        ),
+        (
+            lambda: sensorgap.scene("system_b", ego_heading_deg=HUGE),
+            r"^ego_heading_deg: must be an angle within \+-360 degrees, got an integer of 401 ",
+        ),
+        (
+            lambda: sensorgap.scene("system_b", HUGER),
+            r"^environment: must be an environment preset name \(a str\), got an integer of 5001",
+        ),
+        (
+            lambda: Occluder(HUGE, 0, 0, 12.0, 2.5, 3.5, "truck"),
+            r"^Occluder: x: must be a finite number within -1000\.\.1000 m .*, got an integer of",
+        ),
+        (
+            lambda: Occluder(0, 20, 0, 12.0, -HUGE, 3.5, "truck"),
+            r"^Occluder: width: must be a finite number .*, got a negative integer of 401 digits$",
+        ),
+    ],
+)
+def test_integers_beyond_a_float_are_refused_by_name(call: Any, line: str) -> None:
+    with pytest.raises(InputError, match=line):
+        call()
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "line"),
+    [
+        ({"min_distance": HUGE}, r"^min_distance: must be a finite number >= 0, got an integer "),
+        ({"budget": HUGER}, r"^budget: must be within 1\.\.1000000, got an integer of 5001 digits"),
+    ],
+)
+def test_find_scenarios_refuses_integers_beyond_a_float(
+    tmp_path: Path, kwargs: dict[str, Any], line: str
+) -> None:
+    kw: dict[str, Any] = {"families": ["slow_ahead_curve"], "environments": ["clear"], "budget": 10}
+    with pytest.raises(InputError, match=line):
+        sensorgap.find_scenarios("system_b", tmp_path / "run", **{**kw, **kwargs})
+    assert not (tmp_path / "run").exists()
+
+
+@pytest.mark.parametrize(
+    ("points", "got"),
+    [
+        # hostile round fourteen (F11): each was evaluated as coordinates
+        ([["30", "0", "0.75"]], r"text \(str\)"),
+        ([[b"30", b"0", b"0.75"]], "bytes"),
+        (np.array([["30", "0", "0.75"]]), r"text \(str\)"),
+        (np.array([[b"30", b"0", b"0.75"]]), "bytes"),
+        (np.array([[1, 2, 3]], dtype="datetime64[s]"), r"dates \(datetime64\)"),
+        (np.array([[1, 2, 3]], dtype="timedelta64[s]"), r"durations \(timedelta64\)"),
+        ([[np.timedelta64(30, "s"), 0, 0.5]], r"durations \(timedelta64\)"),
+        ([[np.True_, 0, 0.5]], "booleans"),  # numpy casts np.True_ to 1.0 beside numbers
+        (np.array([[True, 30, 0.5]], dtype=object), "booleans"),
+        (np.array([[np.True_, 30, 0.5]], dtype=object), "booleans"),
+        ([[None, 0, 0.5]], "None"),
+        ([[30.0, 0.0, 0.5], [1.0, 2.0]], "rows of unequal lengths"),
+    ],
+)
+def test_evaluate_points_refuses_what_is_not_a_real_number(points: Any, got: str) -> None:
+    line = rf"^points: must be an \(N, 3\) array of finite real numbers, got {got}$"
+    with pytest.raises(InputError, match=line):
+        sensorgap.evaluate_points("system_b", points)
+
+
+def test_evaluate_points_takes_every_kind_of_real_number() -> None:
+    from fractions import Fraction
+
+    plain = sensorgap.evaluate_points("system_b", [[30.0, 0.0, 0.75], [30.0, -8.0, 0.75]])
+    for points in (
+        [[30, 0, Fraction(3, 4)], [np.float32(30), np.int64(-8), 0.75]],
+        np.array([[30, 0, 0.75], [30, -8, 0.75]], dtype=object),
+        [np.array([30.0, 0.0, 0.75]), (30, -8, 0.75)],
+        np.array([[30, 0], [30, -8]], dtype=np.int16),  # (N, 2): z = 0
+    ):
+        cov = sensorgap.evaluate_points("system_b", points)
+        assert cov.fused.shape == (2,)
+        if len(np.asarray(points)[0]) == 3:
+            np.testing.assert_array_equal(cov.fused, plain.fused)
+
+
+@pytest.mark.parametrize(
+    "extent",
+    [
+        np.array([0.0, 10.0, 0.0, 10.0]),  # hostile round fourteen (F12): was refused
+        np.array([0, 10, 0, 10], dtype=np.int32),
+        [np.float64(0.0), 10, np.int64(0), 10.0],
+    ],
+)
+def test_coverage_grid_takes_an_extent_as_a_numpy_array(extent: Any) -> None:
+    kw: dict[str, Any] = {"resolution": 1.0, "heading_deg": None}
+    grid = sensorgap.coverage_grid("system_a", extent=extent, **kw)
+    plain = sensorgap.coverage_grid("system_a", extent=(0, 10, 0, 10), **kw)
+    np.testing.assert_array_equal(grid.fused, plain.fused)
+
+
+@pytest.mark.parametrize(
+    "extent",
+    [
+        np.array([[0.0, 10.0], [0.0, 10.0]]),
+        np.array([True, True, False, True]),
+        np.array(["0", "10", "0", "10"]),
+        ["0", "10", "0", "10"],
+        b"\x00\x0a\x00\x0a",
+        range(10**20),  # len() is an OverflowError
+    ],
+)
+def test_coverage_grid_refuses_an_extent_of_other_things(extent: Any) -> None:
+    with pytest.raises(InputError, match=r"^extent: must be 4 finite real numbers \(xmin"):
+        sensorgap.coverage_grid("system_a", extent=extent, resolution=1.0)

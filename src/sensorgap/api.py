@@ -12,7 +12,6 @@ from __future__ import annotations
 import inspect
 import math
 import os
-import warnings
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -22,7 +21,7 @@ from numpy.typing import ArrayLike
 
 from sensorgap.apinames import API_NAMES
 from sensorgap.config import load_environment, load_environments, load_target
-from sensorgap.config.common import is_integer, is_number
+from sensorgap.config.common import finite_real, is_integer, real_array, shown
 from sensorgap.coverage import Scene
 from sensorgap.coverage.grid import GridCoverage
 from sensorgap.coverage.limits import (
@@ -54,7 +53,7 @@ def _path(value: object, name: str) -> Path:
     if isinstance(value, os.PathLike):
         value = os.fspath(value)
     if not isinstance(value, str) or not value.strip():
-        raise InputError(name, "", f"must be a path (a non-empty str or Path), got {value!r}")
+        raise InputError(name, "", f"must be a path (a non-empty str or Path), got {shown(value)}")
     return Path(value)
 
 
@@ -76,7 +75,7 @@ def _out_folder(value: object) -> Path:
 def _text(value: object, name: str, what: str) -> str:
     """A name parameter: a ``str``, else ``InputError`` saying ``what`` it names."""
     if not isinstance(value, str):
-        raise InputError(name, "", f"must be {what} (a str), got {value!r}")
+        raise InputError(name, "", f"must be {what} (a str), got {shown(value)}")
     return value
 
 
@@ -91,7 +90,7 @@ def _integer(value: object, name: str) -> int:
     """An integer parameter (not a bool, not a str: ``'10'`` is refused); the range is
     checked where the value is used."""
     if not is_integer(value):
-        raise InputError(name, "", f"must be an integer, got {value!r}")
+        raise InputError(name, "", f"must be an integer, got {shown(value)}")
     return int(value)
 
 
@@ -105,13 +104,13 @@ def _names(value: object, name: str, paths: bool = False) -> list[str]:
             f"must be 'all' or a list of names, got the string {value!r} (write [{value!r}])",
         )
     if not isinstance(value, Sequence):
-        raise InputError(name, "", f"must be 'all' or a list of names, got {value!r}")
+        raise InputError(name, "", f"must be 'all' or a list of names, got {shown(value)}")
     out = []
     for i, item in enumerate(value):
         if paths and isinstance(item, os.PathLike):
             item = os.fspath(item)
         if not isinstance(item, str):
-            raise InputError(name, f"[{i}]", f"must be a name (a str), got {item!r}")
+            raise InputError(name, f"[{i}]", f"must be a name (a str), got {shown(item)}")
         out.append(item)
     return out
 
@@ -140,18 +139,14 @@ def scene(
     return Scene(system, load_target(target), Conditions.from_config(env, math.radians(heading)))
 
 
-def _row(row: Any) -> list[Any]:
-    """The values of one row of a point list (a scalar: itself)."""
-    return list(row) if isinstance(row, Sequence) and not isinstance(row, str | bytes) else [row]
-
-
 def evaluate_points(
     vehicle: str | Path | System, points: ArrayLike, environment: str = "clear", target: str = "car"
 ) -> PointCoverage:
-    """Per-sensor SNR (dB) and Pd and the fused Pd at (N, 3) vehicle-frame points (m):
-    point targets, the paper's setting. The limits of ``sensorgap probe`` apply
-    (docs/limits.md): at most 5e5 points and 1.2e7 points x sensors, x and y within
-    +-1e7 m, z within 0..50 m; (N, 2) points are taken at z = 0."""
+    """Per-sensor SNR (dB) and Pd and the fused Pd at (N, 3) vehicle-frame points (m; real
+    numbers only, ``config.common.real_array``): point targets, the paper's setting. The
+    limits of ``sensorgap probe`` apply (docs/limits.md): at most 5e5 points and 1.2e7
+    points x sensors, x and y within +-1e7 m, z within 0..50 m; (N, 2) points are taken
+    at z = 0."""
     # the count first, before the points are copied into an array of their own
     shape = getattr(points, "shape", None)
     if shape is not None and len(shape) >= 1:
@@ -159,21 +154,18 @@ def evaluate_points(
     elif isinstance(points, Sequence) and not isinstance(points, str | bytes):
         count = len(points)
     else:
-        raise InputError("points", "", f"must be an (N, 3) array of numbers, got {points!r}")
+        raise InputError(
+            "points", "", f"must be an (N, 3) array of finite real numbers, got {shown(points)}"
+        )
     check_point_count(count, 0, "points")
-    rows: Any = points  # a sequence here (counted above)
-    if (shape is not None and np.asarray(points).dtype.kind == "b") or (
-        shape is None and any(isinstance(v, bool) for row in rows for v in _row(row))
-    ):
-        # booleans are not coordinates (numpy reads True as 1 m); the CLI reads numbers only
-        raise InputError("points", "", "must be an (N, 3) array of numbers, got booleans")
     try:
-        with warnings.catch_warnings():
-            # complex numbers: numpy drops the imaginary part with a warning on stderr
-            warnings.simplefilter("error", np.exceptions.ComplexWarning)
-            p = np.asarray(points, dtype=np.float64)
-    except (TypeError, ValueError, np.exceptions.ComplexWarning) as exc:
-        raise InputError("points", "", f"must be an (N, 3) array of numbers ({exc})") from None
+        # numbers only, as the CLI reads: numpy would take True as 1 m, "30" as 30 m, a
+        # date as its count and a complex number's real part (with a warning on stderr)
+        p = real_array(points)
+    except ValueError as exc:
+        raise InputError(
+            "points", "", f"must be an (N, 3) array of finite real numbers, {exc}"
+        ) from None
     if p.ndim != 2 or p.shape[1] not in (2, 3):
         raise InputError("points", "", f"must have shape (N, 3) or (N, 2), got {p.shape}")
     if not np.all(np.abs(p) <= MAX_POINT_COORD_M):  # also false for nan
@@ -191,13 +183,24 @@ def evaluate_points(
 
 
 def _extent(extent: object) -> tuple[float, float, float, float]:
-    """``extent``: four finite numbers (xmin, xmax, ymin, ymax), m."""
-    vals = list(extent) if isinstance(extent, Sequence) and not isinstance(extent, str) else []
-    if len(vals) != 4 or not all(is_number(v) and math.isfinite(float(v)) for v in vals):
+    """``extent``: four finite real numbers (xmin, xmax, ymin, ymax), m: a list, tuple or
+    one-dimensional numpy array."""
+    vals: list[float | None] = []
+    if (isinstance(extent, Sequence) and not isinstance(extent, str | bytes)) or (
+        isinstance(extent, np.ndarray) and extent.ndim == 1
+    ):
+        try:
+            vals = [finite_real(v) for v in extent] if len(extent) == 4 else []
+        except OverflowError:  # len(range(10**20))
+            vals = []
+    box = [v for v in vals if v is not None]
+    if len(box) != 4:
         raise InputError(
-            "extent", "", f"must be 4 finite numbers (xmin, xmax, ymin, ymax), m, got {extent!r}"
+            "extent",
+            "",
+            f"must be 4 finite real numbers (xmin, xmax, ymin, ymax), m, got {shown(extent)}",
         )
-    return (float(vals[0]), float(vals[1]), float(vals[2]), float(vals[3]))
+    return (box[0], box[1], box[2], box[3])
 
 
 def coverage_grid(
@@ -211,21 +214,22 @@ def coverage_grid(
     workers: int = 2,
 ) -> GridCoverage:
     """Fused (and per-sensor) Pd on a grid: ``extent`` = (xmin, xmax, ymin, ymax), m, in
-    the vehicle frame, cells of ``resolution`` m (whole cells only: an extent that is not a
-    multiple of it is clipped to the last whole cell); target bodies centred at the cells at
-    ``heading_deg`` relative to the ego (``None``: points at the target's reference
-    height), hidden by ``occluders`` (bodies only). The limits of ``sensorgap coverage
-    --per-sensor`` apply (docs/limits.md), checked before any work."""
+    the vehicle frame (a list, tuple or numpy array), cells of ``resolution`` m (whole
+    cells only: an extent that is not a multiple of it is clipped to the last whole cell);
+    target bodies centred at the cells at ``heading_deg`` relative to the ego (``None``:
+    points at the target's reference height), hidden by ``occluders`` (bodies only). The
+    limits of ``sensorgap coverage --per-sensor`` apply (docs/limits.md), checked before
+    any work."""
     box = _extent(extent)
     res = check_resolution(resolution, "resolution")
     n_workers = check_workers(workers, GRID_NAMES)
     heading = None if heading_deg is None else check_heading(heading_deg, "heading_deg")
     nx, ny = grid_cells(box, res, heading is not None, GRID_NAMES)
     if isinstance(occluders, str) or not isinstance(occluders, Sequence):
-        raise InputError("occluders", "", f"must be a list of Occluder, got {occluders!r}")
+        raise InputError("occluders", "", f"must be a list of Occluder, got {shown(occluders)}")
     for i, occ in enumerate(occluders):
         if not isinstance(occ, Occluder):
-            raise InputError("occluders", f"[{i}]", f"must be an Occluder, got {occ!r}")
+            raise InputError("occluders", f"[{i}]", f"must be an Occluder, got {shown(occ)}")
     sc = scene(vehicle, environment, target)
     check_per_sensor(nx * ny, len(sc.sensors), GRID_NAMES)
     check_occluders(occluders, heading, sc.system.config.vehicle, GRID_NAMES)
@@ -265,7 +269,7 @@ def find_scenarios(
     for name in ("resume", "progress", "lock"):  # 'no' would be true
         value = options.get(name, False)
         if not (isinstance(value, bool) or (name == "progress" and value is None)):
-            raise InputError(name, "", f"must be a bool, got {value!r}")
+            raise InputError(name, "", f"must be a bool, got {shown(value)}")
     env_file = options.get("environments_file")
     if env_file is not None:
         options["environments_file"] = _path(env_file, "environments_file")

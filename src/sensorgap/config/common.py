@@ -2,10 +2,14 @@
 
 from __future__ import annotations
 
+import datetime
+import math
 import numbers
 import re
 from typing import Annotated, TypeGuard
 
+import numpy as np
+from numpy.typing import NDArray
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field
 
 #: A finite float (NaN and +-inf rejected on load).
@@ -66,13 +70,102 @@ PresetName = Annotated[Name, AfterValidator(_preset_chars)]
 
 def is_number(value: object) -> TypeGuard[numbers.Real]:
     """A real number given to the library (an int, a float, a numpy scalar), not a boolean
-    (``True`` is an int to Python)."""
-    return isinstance(value, numbers.Real) and not isinstance(value, bool)
+    (``True`` is an int to Python) nor a numpy ``timedelta64`` (a duration; numpy files it
+    under its integers)."""
+    return isinstance(value, numbers.Real) and not isinstance(value, bool | np.timedelta64)
 
 
 def is_integer(value: object) -> TypeGuard[numbers.Integral]:
-    """An integer given to the library (an int or a numpy integer), not a boolean."""
-    return isinstance(value, numbers.Integral) and not isinstance(value, bool)
+    """An integer given to the library (an int or a numpy integer), not a boolean nor a
+    numpy ``timedelta64``."""
+    return isinstance(value, numbers.Integral) and not isinstance(value, bool | np.timedelta64)
+
+
+def finite_real(value: object) -> float | None:
+    """A number parameter of the library as a float when it is a finite real number (an
+    int, a float, a numpy integer or floating scalar), else None: not a boolean, text
+    (``'30'``), bytes, a duration, NaN or an infinity, nor an int beyond a float's range
+    (``10**400`` was a raw ``OverflowError``). The one check of every number the library
+    takes (``real_array`` for arrays of them); the caller names the parameter."""
+    if not is_number(value):
+        return None
+    try:
+        number = float(value)
+    except (OverflowError, TypeError, ValueError):
+        return None
+    return number if math.isfinite(number) else None
+
+
+def _what(kind: type) -> str:
+    """What a value of ``kind`` is, for an error line ("got booleans")."""
+    for types, what in (
+        ((bool, np.bool_), "booleans"),
+        ((str, np.str_), "text (str)"),
+        ((bytes, np.bytes_), "bytes"),
+        ((datetime.date, np.datetime64), "dates (datetime64)"),
+        ((datetime.timedelta, np.timedelta64), "durations (timedelta64)"),
+        ((complex, np.complexfloating), "complex numbers"),
+        ((list, tuple, np.ndarray), "rows of unequal lengths"),
+        ((type(None),), "None"),
+    ):
+        if issubclass(kind, types):
+            return what
+    return f"{kind.__name__} values"
+
+
+#: What an array of each numpy dtype kind holds, when not real numbers.
+_KIND_WHAT = {
+    "b": "booleans",
+    "U": "text (str)",
+    "S": "bytes",
+    "M": "dates (datetime64)",
+    "m": "durations (timedelta64)",
+    "c": "complex numbers",
+    "V": "records (a structured array)",
+}
+
+
+def real_array(values: object) -> NDArray[np.float64]:
+    """An array parameter of real numbers (an ndarray of integers or floats, or nested
+    lists of ints, floats and numpy integer or floating scalars) as float64, else
+    ``ValueError`` saying what it holds instead ("got booleans", "got text (str)"), for
+    the caller's ``InputError`` naming the parameter. Refused, not cast as numpy would:
+    booleans (``True`` as 1), text and bytes (``"30"`` as 30), dates and durations (as
+    their counts), complex numbers, other objects, and ints beyond a float's range. NaN
+    and infinities pass: the caller's range check names them."""
+    try:
+        if isinstance(values, np.ndarray) or hasattr(values, "__array__"):
+            array = np.asarray(values)
+        else:  # lists: numpy would turn True, np.True_ and "30" into numbers
+            array = np.asarray(values, dtype=object)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"got {type(values).__name__} ({exc})") from None
+    if array.dtype.kind in "iuf":
+        return np.asarray(array, dtype=np.float64)
+    if array.dtype.kind != "O":
+        raise ValueError(f"got {_KIND_WHAT.get(array.dtype.kind, str(array.dtype))}")
+    for kind in {type(v) for v in array.flat}:  # the kinds only: fast over 1e6 elements
+        if not (issubclass(kind, numbers.Real) and not issubclass(kind, bool | np.timedelta64)):
+            raise ValueError(f"got {_what(kind)}")
+    try:
+        return np.asarray(array.astype(np.float64), dtype=np.float64)
+    except OverflowError:
+        raise ValueError("got an integer beyond a float's range (1.8e308)") from None
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"got values that are not real numbers ({exc})") from None
+
+
+def shown(value: object, limit: int = 80) -> str:
+    """``repr(value)`` for an error line, cut to ``limit`` characters; an int beyond 64
+    bits as its number of digits (``repr(10**5000)`` is itself a ``ValueError``)."""
+    if isinstance(value, int) and not isinstance(value, bool) and value.bit_length() > 64:
+        digits = math.floor(math.log10(abs(value))) + 1
+        return f"{'a negative' if value < 0 else 'an'} integer of {digits} digits"
+    try:
+        text = repr(value)
+    except ValueError:  # a container holding such an int
+        return f"a {type(value).__name__} holding an integer too long to print"
+    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 class Strict(BaseModel):

@@ -12,7 +12,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from sensorgap.config.common import is_integer, is_number
+from sensorgap.config.common import finite_real, is_integer, shown
 from sensorgap.config.vehicle import BodyConfig
 from sensorgap.coverage.grid import GridSpec
 from sensorgap.coverage.occluders import Occluder
@@ -76,24 +76,29 @@ API_NAMES = Names(
 def check_workers(workers: object, names: Names) -> int:
     """Threads of a map: an integer within 1..``MAX_WORKERS``."""
     if not (is_integer(workers) and 1 <= int(workers) <= MAX_WORKERS):
-        raise InputError(names.workers, "", f"must be 1..{MAX_WORKERS}, got {workers!r}")
+        raise InputError(names.workers, "", f"must be 1..{MAX_WORKERS}, got {shown(workers)}")
     return int(workers)
 
 
 def check_heading(heading_deg: object, name: str) -> float:
-    """A finite angle within +-``MAX_HEADING_DEG`` deg (as an occluder's heading)."""
-    if not (is_number(heading_deg) and abs(float(heading_deg)) <= MAX_HEADING_DEG):
+    """A finite angle within +-``MAX_HEADING_DEG`` deg (as an occluder's heading): a
+    finite real number (``config.common.finite_real``)."""
+    angle = finite_real(heading_deg)
+    if angle is None or abs(angle) > MAX_HEADING_DEG:
         raise InputError(
-            name, "", f"must be an angle within +-{MAX_HEADING_DEG:g} degrees, got {heading_deg!r}"
+            name,
+            "",
+            f"must be an angle within +-{MAX_HEADING_DEG:g} degrees, got {shown(heading_deg)}",
         )
-    return float(heading_deg)
+    return angle
 
 
 def check_resolution(resolution: object, name: str) -> float:
-    """A cell size: a finite number > 0, m."""
-    if not (is_number(resolution) and 0.0 < float(resolution) < math.inf):
-        raise InputError(name, "", f"must be a finite number > 0, got {resolution!r}")
-    return float(resolution)
+    """A cell size: a finite real number > 0, m (``config.common.finite_real``)."""
+    size = finite_real(resolution)
+    if size is None or size <= 0.0:
+        raise InputError(name, "", f"must be a finite number > 0, got {shown(resolution)}")
+    return size
 
 
 def grid_cells(

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from sensorgap.config.common import is_number, name_problem
+from sensorgap.config.common import finite_real, name_problem, shown
 from sensorgap.config.target import (
     MAX_HEIGHT_M,
     MAX_LENGTH_M,
@@ -76,16 +76,17 @@ class Occluder:
         }
         for name, (lo, hi, unit) in bounds.items():
             v = getattr(self, name)
-            if not (is_number(v) and lo <= float(v) <= hi):
-                raise InputError(  # the comparison is also false for nan
+            number = finite_real(v)
+            if number is None or not lo <= number <= hi:
+                raise InputError(
                     "Occluder",
                     name,
-                    f"must be a finite number within {lo:g}..{hi:g} {unit}, got {v!r}",
+                    f"must be a finite number within {lo:g}..{hi:g} {unit}, got {shown(v)}",
                 )
-            object.__setattr__(self, name, float(v))  # numpy scalars as plain floats
+            object.__setattr__(self, name, number)  # numpy scalars as plain floats
         why = name_problem(self.label) if isinstance(self.label, str) else "must be a string"
         if why:
-            raise InputError("Occluder", "label", f"{why}, got {self.label!r}")
+            raise InputError("Occluder", "label", f"{why}, got {shown(self.label)}")
 
     @classmethod
     def of_target(cls, target: TargetConfig, x: float, y: float, heading_rad: float) -> Occluder:

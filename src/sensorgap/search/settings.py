@@ -8,14 +8,13 @@ writers (``search.run``) take a ``Prepared``.
 
 from __future__ import annotations
 
-import math
 import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from sensorgap.config import EnvironmentConfig, load_environments, load_targets
-from sensorgap.config.common import is_integer, is_number
+from sensorgap.config.common import finite_real, is_integer, shown
 from sensorgap.config.presets import resolve_road
 from sensorgap.errors import InputError
 from sensorgap.models import System, load_system
@@ -75,25 +74,28 @@ class SearchSettings:
         for name in ("budget", "seed", "top", "workers", "seeds"):
             value = getattr(self, name)
             if not is_integer(value):  # '10' or True, given to the library
-                raise InputError(name, "", f"must be an integer, got {value!r}")
+                raise InputError(name, "", f"must be an integer, got {shown(value)}")
         for name in ("strategy", "mode", "detection", "executor"):
             value = getattr(self, name)
             if not isinstance(value, str):
-                raise InputError(name, "", f"must be a str, got {value!r}")
+                raise InputError(name, "", f"must be a str, got {shown(value)}")
         if not isinstance(self.sun_search, bool):  # 'no' would be true
-            raise InputError("sun_search", "", f"must be a bool, got {self.sun_search!r}")
-        if not (is_number(self.min_distance) and 0.0 <= float(self.min_distance) < math.inf):
+            raise InputError("sun_search", "", f"must be a bool, got {shown(self.sun_search)}")
+        distance = finite_real(self.min_distance)
+        if distance is None or distance < 0.0:
             raise InputError(
-                "min_distance", "", f"must be a finite number >= 0, got {self.min_distance!r}"
+                "min_distance", "", f"must be a finite number >= 0, got {shown(self.min_distance)}"
             )
         for name in ("families", "environments"):
             for value in getattr(self, name):
                 if not isinstance(value, str | Path):
-                    raise InputError(name, "", f"must be a list of names, got {value!r} in it")
+                    raise InputError(name, "", f"must be a list of names, got {shown(value)} in it")
         if not 1 <= self.budget <= MAX_BUDGET:
-            raise InputError("budget", "", f"must be within 1..{MAX_BUDGET}, got {self.budget}")
+            raise InputError(
+                "budget", "", f"must be within 1..{MAX_BUDGET}, got {shown(int(self.budget))}"
+            )
         if not 1 <= self.workers <= 64:
-            raise InputError("workers", "", f"must be 1..64, got {self.workers}")
+            raise InputError("workers", "", f"must be 1..64, got {shown(int(self.workers))}")
         n_env = len(set(self.environments))
         if n_env > MAX_ENVIRONMENTS:
             raise InputError(
@@ -102,7 +104,9 @@ class SearchSettings:
                 f"{n_env} environments; at most {MAX_ENVIRONMENTS} in one search (name fewer)",
             )
         if not 1 <= self.top <= MAX_RANKED_ROWS:
-            raise InputError("top", "", f"must be within 1..{MAX_RANKED_ROWS}, got {self.top}")
+            raise InputError(
+                "top", "", f"must be within 1..{MAX_RANKED_ROWS}, got {shown(int(self.top))}"
+            )
         if get_strategy(self.strategy) is None:
             raise InputError(
                 "strategy",
@@ -113,11 +117,13 @@ class SearchSettings:
             raise InputError("pd", "", f"must be lookup or exact, got {self.mode!r}")
         if isinstance(self.seed, bool) or not 0 <= self.seed <= MAX_SEED:
             raise InputError(
-                "seed", "", f"must be an integer within 0..{MAX_SEED}, got {self.seed}"
+                "seed", "", f"must be an integer within 0..{MAX_SEED}, got {shown(int(self.seed))}"
             )
         if isinstance(self.seeds, bool) or not 1 <= self.seeds <= MAX_SEEDS:
             raise InputError(
-                "seeds", "", f"must be an integer within 1..{MAX_SEEDS}, got {self.seeds}"
+                "seeds",
+                "",
+                f"must be an integer within 1..{MAX_SEEDS}, got {shown(int(self.seeds))}",
             )
         if self.detection != "cumulative" and not _DETECTION_TEXT.fullmatch(self.detection):
             # DetectionRule.parse takes str.isdigit, which also admits other scripts' digits
