@@ -1572,3 +1572,22 @@ def test_a_near_field_and_a_map_added_to_a_run_keep_it_verifying(
     assert main(["report", "--run", str(run)]) == 0 and main(["verify", str(run)]) == 0
     md = (run / "report.md").read_text()
     assert "Near-field blind spots" in md and "not run" not in md.split("Near-field")[1][:300]
+
+
+def test_a_restore_folder_is_usable_whatever_the_umask(tmp_path: Path) -> None:
+    """The folder keeping a run's files while a command rewrites them is 0700 whatever
+    the umask: under ``umask 777`` it was made 000, so (as its owner, not root) its links
+    could not be made nor the folder removed, and it stayed in the run (hostile round
+    fourteen, F16)."""
+    from sensorgap.atomic import _back_up, _drop
+
+    (tmp_path / "a.txt").write_text("a")
+    old = os.umask(0o777)
+    try:
+        keep, saved = _back_up(tmp_path, {"a.txt"}, ())
+    finally:
+        os.umask(old)
+    assert keep is not None and stat.S_IMODE(keep.stat().st_mode) == 0o700
+    assert saved["a.txt"].read_text() == "a"
+    _drop(keep)
+    assert not keep.exists()

@@ -316,6 +316,9 @@ def _back_up(
     if not regular:
         return None, {}
     keep = Path(tempfile.mkdtemp(prefix=RESTORE_PREFIX, suffix=".tmp", dir=root))
+    # 0700 whatever the umask: under umask 777 it was made 000, its links could not be made
+    # nor the folder removed (hostile round fourteen, F16)
+    os.chmod(keep, 0o700)
     ACTIVE_RESTORE_FOLDERS.add(os.path.abspath(keep))
     saved: dict[str, Path] = {}
     try:

@@ -866,7 +866,8 @@ def _manifest_problems(root: Path) -> list[tuple[str, str]]:
         rel for rel, kind in entries.items() if kind == "dir" and _is_restore_folder(root / rel)
     ]
     for rel in restores:  # one line each, not one per kept file
-        kept = sum(1 for r in entries if r.startswith(f"{rel}/")) - 1
+        # its kept files, the index aside (-1 when the folder cannot even be listed)
+        kept = max(0, sum(1 for r in entries if r.startswith(f"{rel}/")) - 1)
         parent = (root / rel).parent
         if locked_elsewhere(parent):  # a command writing that folder now uses it
             where = parent.relative_to(root).as_posix()
@@ -882,9 +883,9 @@ def _manifest_problems(root: Path) -> list[tuple[str, str]]:
         problems.append(
             (
                 rel,
-                f"{rel} is left over from a killed command: it holds the {kept} files the "
-                "folder had before that command started (its index.json names each "
-                f"number's path); {_RESTORE_BY_HAND}",
+                f"{rel} is left over from a killed command: it holds "
+                f"{f'the {kept} files' if kept else 'the files'} the folder had before that "
+                f"command started (its index.json names each number's path); {_RESTORE_BY_HAND}",
             )
         )
     for rel, kind in entries.items():
