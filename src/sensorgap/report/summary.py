@@ -81,8 +81,12 @@ def explain_spec(spec: ScenarioSpec, evaluator: Evaluator) -> Explanation:
 
 # --- the numbers of the ranking's reason (``search.ranking.explain``) ---------------------
 
+# A sensor id (at most 64 characters, config.vehicle.MountConfig) starts where no id
+# character precedes it: unanchored, ``[\w.-]+`` was tried from every position of a long
+# word run and rescanned it each time (quadratic: 5 rows with 200,000-character reasons
+# without spaces took minutes); now each run is tried once, at most 64 characters deep.
 _MISSING = re.compile(
-    r"(?P<sid>[\w.-]+) \((?P<eff>occlusion|glare|weather|partly in view|"
+    r"(?<![\w.-])(?P<sid>[\w.-]{1,64}) \((?P<eff>occlusion|glare|weather|partly in view|"
     r"range): Pd (?P<p>[\d.]+), (?P<b>[\d.]+) (?:without the occluders|"
     r"without the sun|in clear air)(?:, sun [\d.]+ deg from its line of sight)?\)"
 )
