@@ -471,10 +471,15 @@ def cmd_search(args: argparse.Namespace) -> int:
             f"{d['sensor_critical_lookup']} by lookup, {d['sensor_critical_exact']} "
             f"exactly, {d['sensor_critical_both']} both"
         )
+    found = (
+        outcome.summary["note"]  # none feasible: "best collision probability 0" read as safe
+        if "note" in outcome.summary
+        else f"best collision probability {outcome.summary['best_collision_probability']:.3g}"
+    )
     print(
         f"{args.out}: {outcome.evaluated} evaluated, {outcome.reused} reused, "
-        f"{len(outcome.ranking)} ranked ({crit} sensor-critical), best collision "
-        f"probability {outcome.summary['best_collision_probability']:.3g}"
+        f"{len(outcome.ranking)} ranked ({crit} sensor-critical)"
+        f"{'; ' if 'note' in outcome.summary else ', '}{found}"
     )
     return 0
 

@@ -35,6 +35,7 @@ from sensorgap.filesio import format_float, refuse_certified_by_other, write_jso
 from sensorgap.search.executors import make_executor
 from sensorgap.search.loop import LoopResult, search_loop
 from sensorgap.search.metrics import metric_names, output_value
+from sensorgap.search.possible import infeasible_reasons, no_feasible_note
 from sensorgap.search.problem import Result, SearchProblem
 from sensorgap.search.ranking import (
     MIN_DISTANCE,
@@ -258,7 +259,10 @@ def rank_results(p: Prepared, loop: LoopResult) -> Ranked:
 
 def search_summary(p: Prepared, loop: LoopResult, ranked: Ranked) -> dict[str, Any]:
     """``summary.json``: settings, counts per family, the best collision probability, the
-    lookup-vs-exact disagreement, the stability over seeds, the lawful speed bounds."""
+    lookup-vs-exact disagreement, the stability over seeds, the lawful speed bounds, how
+    many candidates were infeasible for which reason (``infeasible_reasons``) and, when
+    none was feasible, a ``note`` saying so (an empty ranking of a search without one
+    possible encounter read as "safe")."""
     s = p.settings
     results = loop.results
     n_ok = sum(r.feasible for r in results)
@@ -274,11 +278,15 @@ def search_summary(p: Prepared, loop: LoopResult, ranked: Ranked) -> dict[str, A
             "sensor_critical_by_lookup": sum(1 for r in rs if classify(r) == "sensor-critical"),
             "unavoidable_by_lookup": sum(1 for r in rs if classify(r) == "unavoidable"),
         }
+    reasons = infeasible_reasons(r.note for r in results if not r.feasible)
+    note = {"note": no_feasible_note(len(results), reasons)} if results and not n_ok else {}
     return {
         "settings": {**p.record, "budget": s.budget, "top": s.top, "min_distance": s.min_distance},
         "candidates": len(results),
         "feasible": n_ok,
         "infeasible": len(results) - n_ok,
+        "infeasible_reasons": reasons,
+        **note,
         "best_collision_probability": max(
             (
                 float(r.metrics.get("collision_probability", 0.0))
