@@ -156,6 +156,15 @@ def cmd_probe(args: argparse.Namespace) -> int:
     from sensorgap.coverage.outputs import probe_csv
     from sensorgap.coverage.pointsio import check_point_count, read_points_csv
 
+    if args.out and os.path.basename(args.out) in ("", ".", ".."):
+        # pathlib drops a trailing "/" (and "/."): newdir/ was written as the file newdir
+        raise InputError(
+            "--out",
+            "",
+            f"{args.out} names a folder (a path ending in '{os.sep}', '.' or '..'); probe writes "
+            "one CSV file: give its path, e.g. "
+            f"{os.path.join(args.out, 'probe.csv')}",
+        )
     if args.out and _same_file(args.out, args.points):
         raise InputError(
             "--out", "", f"is the --points file {args.points}: writing would overwrite the input"
