@@ -31,7 +31,12 @@ from sensorgap.atomic import (
     utf8,
 )
 from sensorgap.errors import InputError
-from sensorgap.filesio import format_float, refuse_certified_by_other, write_json
+from sensorgap.filesio import (
+    format_float,
+    refuse_certified_by_other,
+    refuse_links,
+    write_json,
+)
 from sensorgap.search.executors import make_executor
 from sensorgap.search.loop import LoopResult, search_loop
 from sensorgap.search.metrics import metric_names, output_value
@@ -354,7 +359,8 @@ def refuse_search_clash(p: Prepared, out: Path, resume: bool) -> None:
     a folder that already holds stored candidates, or a finished run or catalog
     (``EARLIER_RUN_FILES``); a ``search.sqlite`` that is damaged, holds a search with
     other settings, or results for other input files (``store.check_store``: the checks
-    ``Store`` makes when it opens). ``InputError`` naming ``out`` or the file. Used by
+    ``Store`` makes when it opens); a symbolic link anywhere else in ``out``
+    (``filesio.refuse_links``). ``InputError`` naming ``out`` or the file. Used by
     ``run_search`` and, before any of its stages writes, by the main job
     (``jobs.run_default``), so a job refused at its search has written nothing."""
     db = out / "search.sqlite"
@@ -395,6 +401,7 @@ def refuse_search_clash(p: Prepared, out: Path, resume: bool) -> None:
     # elsewhere: its manifest lists no search.sqlite) is not a search's to add to
     refuse_certified_by_other(out, "search", lambda rel: rel == db.name, db.name)
     check_store(db, p.record, p.inputs)
+    refuse_links(out, "out", "search")  # a link elsewhere in --out: verify rejects it
 
 
 def run_search(
