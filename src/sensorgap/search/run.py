@@ -15,6 +15,7 @@ import contextlib
 import csv
 import io
 import math
+import shutil
 import sqlite3
 import sys
 from dataclasses import dataclass, field
@@ -64,6 +65,10 @@ from sensorgap.search.settings import (
     vehicle_ref,
 )
 from sensorgap.search.store import Store, check_store, record_ranked, refuse_wal
+
+# no monitor thread (it only tunes the refresh of a slow bar): one more thread to start,
+# and under a process limit (ulimit -u) tqdm warned in three lines on stderr
+tqdm.monitor_interval = 0
 
 #: The ranking's leading metric columns (collision terms), in this order.
 HEAD_METRICS = (
@@ -490,6 +495,8 @@ def run_search(
                 db.unlink(missing_ok=True)
             remove_created_folders(created)  # nor a folder this search created
             raise
+        # what this search adds beside a new store: removed when it fails storing nothing
+        adds = [n for n in ("run.json", INPUTS_DIR) if new_db and not (out / n).exists()]
         # the run folder keeps its inputs: copies under inputs/, paths and SHA-256 in run.json
         write_search_record(
             out,
@@ -501,13 +508,26 @@ def run_search(
         )
         disable = (not sys.stderr.isatty()) if progress is None else not progress
         try:
-            with tqdm(total=budget, disable=disable, desc="search", unit="cand") as bar:
-                loop = search_loop(
-                    p, runner, store.get if resuming else None, store.put_async, bar.update
-                )
-        finally:
-            store.close()
-            runner.close()
+            try:
+                with tqdm(total=budget, disable=disable, desc="search", unit="cand") as bar:
+                    loop = search_loop(
+                        p, runner, store.get if resuming else None, store.put_async, bar.update
+                    )
+            finally:
+                store.close()
+                runner.close()
+        except BaseException:
+            # failed before its first batch was stored (a thread it could not start):
+            # nothing to resume, so nothing left (run.json alone refused the next search)
+            if new_db and _stored_count(db) == 0:
+                for name in (db.name, f"{db.name}-journal", *adds):
+                    path = out / name
+                    if path.is_dir() and not path.is_symlink():
+                        shutil.rmtree(path, ignore_errors=True)
+                    else:
+                        path.unlink(missing_ok=True)
+                remove_created_folders(created)
+            raise
         ranked = rank_results(p, loop)
         # the exact results of the ranked rows, so every reader can check ranking.json's
         # numbers against the store (runfolder.RunFolder.check_store)
