@@ -1591,3 +1591,72 @@ def test_a_restore_folder_is_usable_whatever_the_umask(tmp_path: Path) -> None:
     assert saved["a.txt"].read_text() == "a"
     _drop(keep)
     assert not keep.exists()
+THREAD_LINE = (
+    "sensorgap: error: cannot start a thread ({}): the process limit (ulimit -u, a "
+    "container's pids limit) is reached; raise it or use fewer --workers"
+)
+
+
+def test_a_thread_that_cannot_start_is_one_line_and_a_search_leaves_nothing(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Under a process limit (``ulimit -u`` for a non-root user) a thread or process that
+    cannot start was an internal error (exit 1; a search left run.json, inputs/ and an
+    empty store, which refused the next search). Now one line, exit 2, and a search that
+    stored nothing leaves nothing (hostile round fourteen, F15)."""
+    import sensorgap.search.run as search_run
+
+    def no_thread(*_: object, **__: object) -> None:
+        raise RuntimeError("can't start new thread")
+
+    monkeypatch.setattr(search_run, "search_loop", no_thread)
+    out = tmp_path / "s"
+    args = ["search", "--vehicle", "system_b", "--families", "slow_ahead_curve"]
+    args += ["--environments", "clear", "--budget", "10", "--strategy", "lhs"]
+    assert main([*args, "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(THREAD_LINE.format("can't start new thread")) and err.count("\n") == 1
+    assert not out.exists()
+    # a fork refused by the limit (EAGAIN, no file named) says the same, not "cannot write"
+    import sensorgap.coverage.grid as grid
+
+    def no_fork(*_: object, **__: object) -> None:
+        raise BlockingIOError(11, "Resource temporarily unavailable")
+
+    monkeypatch.setattr(grid, "ThreadPoolExecutor", no_fork)
+    cov = ["coverage", "--vehicle", "system_b", "--environment", "clear", "--target", "car"]
+    cov += ["--resolution", "0.5", "--extent", "-20,60,-20,20", "--workers", "2"]
+    assert main([*cov, "--out", str(tmp_path / "c")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(THREAD_LINE.format("[Errno 11] Resource temporarily unavailable"))
+    assert err.count("\n") == 1 and not (tmp_path / "c").exists()
+
+
+def test_the_command_line_keeps_openblas_to_one_thread() -> None:
+    """OpenBLAS started a thread per core at numpy's import and, under a process limit,
+    printed a line per thread from C and raised SIGINT ("interrupted", exit 130). The
+    command line sets ``OPENBLAS_NUM_THREADS=1`` before numpy is imported (sensorgap's
+    linear algebra is 3x3), unless the user set it."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys, os; import sensorgap.cli; "
+        "print(os.environ.get('OPENBLAS_NUM_THREADS'), 'numpy' in sys.modules)"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
+    done = subprocess.run(
+        [sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True
+    )
+    assert done.stdout.split() == ["1", "True"]
+    env["OPENBLAS_NUM_THREADS"] = "3"  # the user's choice is kept
+    done = subprocess.run(
+        [sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True
+    )
+    assert done.stdout.split() == ["3", "True"]
+    probe = "import sensorgap, os; print(os.environ.get('OPENBLAS_NUM_THREADS'))"
+    env.pop("OPENBLAS_NUM_THREADS")
+    done = subprocess.run(
+        [sys.executable, "-c", probe], env=env, capture_output=True, text=True, check=True
+    )
+    assert done.stdout.split() == ["None"]  # a library user's process is left alone

@@ -16,6 +16,10 @@ from contextlib import ExitStack, suppress
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn
 
+from sensorgap.runtime import single_blas_thread
+
+single_blas_thread()  # before numpy is imported (by filesio): see its docstring
+
 from sensorgap.atomic import folder_lock, held_until_done, removed_on_error
 from sensorgap.config.common import parse_decimal, parse_integer
 from sensorgap.errors import InputError, clip, cut_name
@@ -157,6 +161,15 @@ def cmd_probe(args: argparse.Namespace) -> int:
     from sensorgap.coverage.outputs import probe_csv
     from sensorgap.coverage.pointsio import check_point_count, read_points_csv
 
+    if args.out and os.path.basename(args.out) in ("", ".", ".."):
+        # pathlib drops a trailing "/" (and "/."): newdir/ was written as the file newdir
+        raise InputError(
+            "--out",
+            "",
+            f"{args.out} names a folder (a path ending in '{os.sep}', '.' or '..'); probe writes "
+            "one CSV file: give its path, e.g. "
+            f"{os.path.join(args.out, 'probe.csv')}",
+        )
     if args.out and _same_file(args.out, args.points):
         raise InputError(
             "--out", "", f"is the --points file {args.points}: writing would overwrite the input"
@@ -476,10 +489,15 @@ def cmd_search(args: argparse.Namespace) -> int:
             f"{d['sensor_critical_lookup']} by lookup, {d['sensor_critical_exact']} "
             f"exactly, {d['sensor_critical_both']} both"
         )
+    found = (
+        outcome.summary["note"]  # none feasible: "best collision probability 0" read as safe
+        if "note" in outcome.summary
+        else f"best collision probability {outcome.summary['best_collision_probability']:.3g}"
+    )
     print(
         f"{args.out}: {outcome.evaluated} evaluated, {outcome.reused} reused, "
-        f"{len(outcome.ranking)} ranked ({crit} sensor-critical), best collision "
-        f"probability {outcome.summary['best_collision_probability']:.3g}"
+        f"{len(outcome.ranking)} ranked ({crit} sensor-critical)"
+        f"{'; ' if 'note' in outcome.summary else ', '}{found}"
     )
     return 0
 
@@ -1409,6 +1427,25 @@ def _memory_line(message: str) -> str:
     )
 
 
+def _thread_limit(exc: BaseException) -> bool:
+    """Whether a thread or process could not be started: Python's ``RuntimeError("can't
+    start new thread")``, or ``fork``/``clone`` refused (``EAGAIN``, no file named)."""
+    if isinstance(exc, RuntimeError):
+        return "can't start new thread" in str(exc)
+    return isinstance(exc, OSError) and exc.errno == errno.EAGAIN and exc.filename is None
+
+
+def _thread_line(exc: BaseException) -> str:
+    """The one line of a command that could not start a thread or process."""
+    what = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+    return (
+        f"sensorgap: error: cannot start a thread ({what}): the process limit (ulimit -u, "
+        "a container's pids limit) is reached; raise it or use fewer --workers; its files "
+        "are as after any failed command: put back, or for a search what it stored "
+        "(--resume goes on)"
+    )
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point: returns the exit code (0 ok, 2 bad input, 1 internal error). Runs
     without standard streams too (``runtime.standard_streams``: started with ``>&-`` or
@@ -1491,7 +1528,8 @@ def _main(argv: Sequence[str] | None) -> int:
             print(f"sensorgap: error: {text}", file=sys.stderr)
         return EXIT_INPUT
     except OSError as exc:  # disk full, file too large, permissions, a file as a folder
-        print(_os_error_line(exc, out), file=sys.stderr)
+        line = _thread_line(exc) if _thread_limit(exc) else _os_error_line(exc, out)
+        print(clip(line), file=sys.stderr)
         return EXIT_INPUT
     except MemoryError as exc:  # a memory limit (ulimit -v, a cgroup) below what it needs
         print(clip(_memory_line(str(exc))), file=sys.stderr)
@@ -1502,6 +1540,9 @@ def _main(argv: Sequence[str] | None) -> int:
     except Exception as exc:  # noqa: BLE001 - the one place that turns bugs into exit 1
         if isinstance(exc, ImportError) and _out_of_memory(str(exc)):
             print(clip(_memory_line(str(exc))), file=sys.stderr)
+            return EXIT_INPUT
+        if _thread_limit(exc):  # ulimit -u: was an internal error
+            print(clip(_thread_line(exc)), file=sys.stderr)
             return EXIT_INPUT
         if args.debug:
             traceback.print_exc()

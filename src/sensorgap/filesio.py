@@ -583,7 +583,8 @@ def refuse_foreign_outputs(
     files is accepted (the manifest lists them), as is an earlier output of the same
     command. ``writes`` None (``paper``, ``tradeoff``, ``compare``: many outputs, named
     after the runs): only a search run or catalog is refused, with or without its
-    manifest (the caller checks the rest with ``refuse_if_changed``)."""
+    manifest (the caller checks the rest with ``refuse_if_changed``). A symbolic link
+    anywhere below ``folder`` is refused for every command (``verify`` rejects links)."""
 
     from sensorgap.errors import InputError
 
@@ -617,10 +618,11 @@ def refuse_foreign_outputs(
     if crowded(root):
         raise refuse(f"holds more than {MAX_OUT_ENTRIES} files and folders")
     refuse_uncertifiable(root)
-    if writes is None:  # outputs named after the runs: any link could be renamed onto
-        odd = _first_link(root)
-        if odd is not None:
-            raise refuse(f"holds {odd}, a symbolic link or not a regular file")
+    # a link anywhere: verify rejects the manifest written over it (the analysis commands
+    # exited 0 and their own verify failed), and a link could be renamed onto
+    odd = _first_link(root)
+    if odd is not None:
+        raise refuse(f"holds {odd}, a symbolic link or not a regular file")
 
 
 def refuse_certified_by_other(
@@ -757,6 +759,29 @@ def _first_link(folder: Path) -> str | None:
             if path.is_symlink() or not (path.is_dir() or path.is_file()):
                 return path.relative_to(folder).as_posix()
     return None
+
+
+def refuse_links(folder: str | Path, what: str, command: str) -> None:
+    """Before ``command`` certifies every file of ``folder`` (its manifest lists the whole
+    folder): refused (``InputError`` naming ``what``) when an entry below it is a symbolic
+    link or neither a file nor a folder (``_first_link``): ``verify`` rejects links and
+    never follows them, so the command exited 0 and its own ``verify`` failed. Call it
+    after ``crowded`` bounds the walk, and after the command's own checks of the files it
+    writes (whose lines say more). A folder that does not exist passes."""
+    from sensorgap.errors import InputError
+
+    root = Path(folder)
+    if not root.is_dir():
+        return
+    odd = _first_link(root)
+    if odd is not None:
+        raise InputError(
+            what,
+            "",
+            f"{root} holds {odd}, a symbolic link or not a regular file: {command} certifies "
+            "every file of the folder, and verify rejects links (never following them); "
+            "move it away or give another folder",
+        )
 
 
 def refuse_crowded_out(folder: str | Path, command: str) -> None:

@@ -406,5 +406,6 @@ def _run_job(
         f"{folder}: {outcome.summary['candidates']:,} candidates, "
         f"{len(outcome.ranking)} ranked; total {total:.1f} s (target {TARGET_TIME_S:.0f} s), "
         f"peak memory {peak:.0f} MiB{both} (target {TARGET_PEAK_MIB:.0f} MiB)"
+        + (f"; {outcome.summary['note']}" if "note" in outcome.summary else "")
     )
     return info

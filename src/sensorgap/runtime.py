@@ -184,6 +184,16 @@ def drop_stale_kernels(package_dir: Path, cache_root: Path) -> bool:
     return removed
 
 
+def single_blas_thread() -> None:
+    """``OPENBLAS_NUM_THREADS=1`` unless the user set it, for the command line only and
+    before numpy is imported (``cli``): sensorgap's linear algebra is 3x3 rotations and
+    short vectors, too small for BLAS threads, while OpenBLAS starts one per core at
+    import and, when it cannot (a process limit, ``ulimit -u``), printed a line per
+    thread from C and stopped the command with SIGINT ("interrupted", exit 130). A
+    library user's process is left alone."""
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+
 def configure_numba_cache() -> str | None:
     """``numba_cache_dir`` for this package, then ``drop_stale_kernels`` in the folder
     used (beside the source, or the one chosen; not a ``NUMBA_CACHE_DIR`` set by the user);

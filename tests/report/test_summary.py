@@ -243,6 +243,21 @@ def test_pd_without_reads_the_rankings_reason() -> None:
     }
 
 
+def test_pd_without_reads_a_long_reason_in_one_pass() -> None:
+    """A 200,000-character reason without spaces (a hand-edited ranking.json) is read in
+    one pass: the sensor id is tried only where an id may start, at most 64 characters
+    deep (before, every position of the run was tried and the rest of the run rescanned:
+    5 such rows kept `report --run` busy for minutes; now a few milliseconds each,
+    benchmark by hand: ``timeit pd_without("x" * 200_000)``)."""
+    item = "cam_main (glare: Pd 0.10, 0.93 without the sun)"
+    assert pd_without("x" * 200_000) == {}
+    assert pd_without("x" * 200_000 + " (glare: Pd 0.10, 0.93 without the sun)") == {}
+    assert pd_without("x" * 200_000 + " " + item) == {"cam_main": 0.93}
+    assert pd_without("missing: " + ", ".join([item] * 4_000)) == {"cam_main": 0.93}
+    assert pd_without("x" * 200_000 + "-" + item) == {}  # no id of 200,009 characters
+    assert pd_without("a" * 64 + " (range: Pd 0.00, 0.50 in clear air)") == {"a" * 64: 0.5}
+
+
 def test_glare_words_give_the_suns_angle_from_each_line_of_sight() -> None:
     """The report says how far from each blinded camera's line of sight the sun stands
     (rounded to a degree), and nothing when an angle is missing."""

@@ -143,3 +143,92 @@ def test_search_never_drives_above_the_vehicles_top_speed(tmp_path: Path) -> Non
         load_family("cut_in_right"), {"clear": ENVS["clear"]}, Evaluator(load_system("system_a"))
     )
     assert math.isinf(preset.speed_limits["clear"].speed_m_s)  # the lawful bound, unchanged
+
+
+FOG49 = """
+[environments.fog49]
+description = "fog, 49 m visibility"
+visibility_m = 49.0
+irradiance_w_m2 = 53.0
+roc_shift_db = 3.0
+[environments.fog49.sources]
+visibility_m = "estimate: test"
+irradiance_w_m2 = "estimate: test"
+roc_shift_db = "estimate: test"
+"""
+
+
+def test_infeasibility_notes_count_by_kind() -> None:
+    """Notes of one cause count together (the candidate's own numbers left out, the lawful
+    speed rule kept whole), the most frequent first, at most ``MAX_INFEASIBLE_KINDS``
+    kinds and ``other``."""
+    from sensorgap.search.possible import (
+        MAX_INFEASIBLE_KINDS,
+        infeasible_kind,
+        infeasible_reasons,
+        no_feasible_note,
+    )
+
+    rule = "fog49: StVO 3(1): visibility 49 m, below 50 m at most 50 km/h"
+    assert infeasible_kind(f"ego speed 54 km/h above the lawful speed in {rule}") == (
+        f"ego speed above the lawful speed in {rule}"
+    )
+    assert infeasible_kind("starts critical: TTC 3.25 s at t = 0 (at least 4 s)") == (
+        "starts critical: TTC # s at t = # (at least # s)"
+    )
+    assert infeasible_kind("ego leaves road r_1 (s from -3.1 to 90.0 m, road is 0..500 m)") == (
+        "ego leaves road r_1 (s from # to # m, road is #..# m)"
+    )
+    notes = [f"ego speed {v} km/h above the lawful speed in {rule}" for v in (54, 60, 70)]
+    notes += ["starts critical: TTC 1.00 s at t = 0 (at least 4 s)"] * 2
+    notes += [f"kind {chr(97 + i)}" for i in range(MAX_INFEASIBLE_KINDS + 2)]
+    reasons = infeasible_reasons(notes)
+    assert list(reasons.items())[:2] == [
+        (f"ego speed above the lawful speed in {rule}", 3),
+        ("starts critical: TTC # s at t = # (at least # s)", 2),
+    ]
+    assert len(reasons) == MAX_INFEASIBLE_KINDS + 1 and reasons["other"] == 4
+    assert infeasible_reasons([]) == {}
+    assert no_feasible_note(3, {"x": 3}).startswith(
+        "no feasible candidate: every one of the 3 candidates was infeasible (3 x); nothing "
+        "could be ranked, which says nothing about the sensors"
+    )
+
+
+def test_a_search_without_a_lawful_encounter_says_so(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """At 49 m visibility the 50 km/h rule bounds the ego below every speed of
+    slow_ahead_curve: every candidate is infeasible. The search exits 0 (a valid question
+    whose answer is "no lawful encounter"), but says so in its printed line, summary.json
+    and the report's summary, instead of "0 ranked, best collision probability 0" (which
+    read as safe)."""
+    import json
+
+    from sensorgap.cli import main
+
+    envs = tmp_path / "envs.toml"
+    envs.write_text(FOG49, encoding="utf-8")
+    out = tmp_path / "s"
+    args = ["search", "--vehicle", "system_b", "--environments-file", str(envs)]
+    args += ["--environments", "fog49", "--families", "slow_ahead_curve", "--budget", "40"]
+    assert main([*args, "--top", "2", "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    kind = (
+        "ego speed above the lawful speed in fog49: StVO 3(1): visibility 49 m, below 50 m "
+        "at most 50 km/h"
+    )
+    note = (
+        f"no feasible candidate: every one of the 40 candidates was infeasible (40 {kind}); "
+        "nothing could be ranked, which says nothing about the sensors"
+    )
+    assert f"0 ranked (0 sensor-critical); {note}" in printed
+    assert "best collision probability" not in printed
+    summary = json.loads((out / "summary.json").read_text(encoding="utf-8"))
+    assert summary["feasible"] == 0 and summary["infeasible_reasons"] == {kind: 40}
+    assert summary["note"].startswith(note)
+    assert main(["report", "--run", str(out)]) == 0
+    md = (out / "report.md").read_text(encoding="utf-8")
+    assert f"Found: N{note[1:]}" in md
+    assert "sensor-critical scenarios ranked" not in md
+    assert main(["verify", str(out)]) == 0

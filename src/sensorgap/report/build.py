@@ -48,7 +48,7 @@ from sensorgap.report.summary import (
 )
 from sensorgap.search.evaluate import MAP_RESOLUTION_M, DetectionRule
 from sensorgap.search.metrics import metric_names
-from sensorgap.search.possible import START_TTC_S
+from sensorgap.search.possible import MAX_INFEASIBLE_KINDS, MAX_KIND_CHARS, START_TTC_S
 from sensorgap.search.ranking import named_step
 from sensorgap.search.runfolder import RunFolder, open_run
 
@@ -147,6 +147,27 @@ def _check_search_summary(path: Path, search: dict[str, Any]) -> None:
                 )
 
     count(search, "", ("candidates", "feasible", "infeasible"))
+    if "infeasible_reasons" in search:  # (absent from runs made before it was written)
+        reasons = _object(path, search, key="infeasible_reasons")
+        if len(reasons) > MAX_INFEASIBLE_KINDS + 1:
+            raise InputError(
+                path,
+                "infeasible_reasons",
+                f"at most {MAX_INFEASIBLE_KINDS + 1} kinds, got {len(reasons):,}",
+            )
+        for kind, n in reasons.items():
+            if not (0 < len(kind) <= MAX_KIND_CHARS and kind.isprintable()):
+                raise InputError(
+                    path,
+                    "infeasible_reasons",
+                    f"a kind is 1-{MAX_KIND_CHARS} printable characters, got {kind!r:.40}",
+                )
+            if isinstance(n, bool) or not isinstance(n, int) or n < 0:
+                raise InputError(
+                    path,
+                    f"infeasible_reasons.{kind}",
+                    f"expected a non-negative integer, got {n!r:.40}",
+                )
     _numbers(path, search, "", ("best_collision_probability", "best_log10_risk"))
     p = search.get("best_collision_probability")
     if p is not None and not 0.0 <= p <= 1.0:

@@ -32,6 +32,7 @@ from sensorgap.export.spec import ScenarioSpec
 from sensorgap.models import System
 from sensorgap.report.document import Block, Bullets, Link, Para, Section, Table
 from sensorgap.search.evaluate import Evaluator, Trace
+from sensorgap.search.possible import no_feasible_note
 from sensorgap.search.problem import Candidate, SearchProblem
 from sensorgap.search.ranking import Explanation, explain, named_step, occluder_phrase
 
@@ -81,8 +82,12 @@ def explain_spec(spec: ScenarioSpec, evaluator: Evaluator) -> Explanation:
 
 # --- the numbers of the ranking's reason (``search.ranking.explain``) ---------------------
 
+# A sensor id (at most 64 characters, config.vehicle.MountConfig) starts where no id
+# character precedes it: unanchored, ``[\w.-]+`` was tried from every position of a long
+# word run and rescanned it each time (quadratic: 5 rows with 200,000-character reasons
+# without spaces took minutes); now each run is tried once, at most 64 characters deep.
 _MISSING = re.compile(
-    r"(?P<sid>[\w.-]+) \((?P<eff>occlusion|glare|weather|partly in view|"
+    r"(?<![\w.-])(?P<sid>[\w.-]{1,64}) \((?P<eff>occlusion|glare|weather|partly in view|"
     r"range): Pd (?P<p>[\d.]+), (?P<b>[\d.]+) (?:without the occluders|"
     r"without the sun|in clear air)(?:, sun [\d.]+ deg from its line of sight)?\)"
 )
@@ -680,6 +685,10 @@ def _searched_para(
     if settings.get("seed") is not None:
         run.append(f"seed {settings['seed']}")
     text = " ".join(parts) + ("; " + ", ".join(run) if run else "") + ". "
+    if (search or {}).get("feasible") == 0 and cand:  # an empty ranking is not "safe"
+        reasons = (search or {}).get("infeasible_reasons") or {}
+        note = no_feasible_note(int(cand), {str(k): int(v) for k, v in reasons.items()})
+        return Para(text + f"Found: {note[0].upper()}{note[1:]}.")
     text += (
         f"Found: {_count(n_ranked, 'sensor-critical scenario')} ranked (the vehicle "
         "collides where one with perfect perception and the same braking does not)"

@@ -7,6 +7,10 @@ t = 0 at least ``START_TTC_S``). The search stores the others as infeasible with
 
 from __future__ import annotations
 
+import re
+from collections import Counter
+from collections.abc import Iterable
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -149,3 +153,53 @@ def encounter_problems(
         if int(j) not in marked
     ]
     return out
+
+
+# --- why candidates were infeasible (summary.json, the printed line, the report) ---------
+
+#: summary.json's ``infeasible_reasons`` names at most this many kinds (the most frequent;
+#: the rest are counted as ``other``).
+MAX_INFEASIBLE_KINDS = 10
+#: A kind (a note with its numbers left out) is cut to this many characters.
+MAX_KIND_CHARS = 200
+
+#: A number standing alone in a note (not part of a name such as ``fog49`` or ``3(1)``).
+_NUMBER = re.compile(r"(?<![\w(])-?\d+(?:\.\d+)?(?![\w(])")
+_SPEED = " above the lawful speed in "
+
+
+def infeasible_kind(note: str) -> str:
+    """The kind of an infeasibility note: the note with the candidate's own numbers left
+    out (``#``), so notes of one cause count together; the lawful speed note keeps its
+    rule whole (its numbers are the environment's, not the candidate's)."""
+    head, sep, rule = note.partition(_SPEED)
+    if sep and head.startswith("ego speed "):
+        kind = "ego speed" + _SPEED + rule
+    else:
+        kind = _NUMBER.sub("#", note) or "no note"
+    return kind if len(kind) <= MAX_KIND_CHARS else kind[: MAX_KIND_CHARS - 3] + "..."
+
+
+def infeasible_reasons(notes: Iterable[str]) -> dict[str, int]:
+    """How many infeasible candidates each kind of note has (``infeasible_kind``), the
+    most frequent first (ties by name), at most ``MAX_INFEASIBLE_KINDS`` and ``other``."""
+    counts = Counter(infeasible_kind(n) for n in notes)
+    ranked = sorted(counts.items(), key=lambda kv: (-kv[1], kv[0]))
+    out = dict(ranked[:MAX_INFEASIBLE_KINDS])
+    rest = sum(n for _, n in ranked[MAX_INFEASIBLE_KINDS:])
+    if rest:
+        out["other"] = out.get("other", 0) + rest
+    return out
+
+
+def no_feasible_note(candidates: int, reasons: dict[str, int]) -> str:
+    """What a search none of whose ``candidates`` was feasible found, in words: nothing
+    could be ranked because no lawful, possible encounter exists in the searched conditions
+    (not because the sensors saw every target), with the counts of ``reasons``."""
+    why = "; ".join(f"{n:,} {kind}" for kind, n in reasons.items())
+    return (
+        f"no feasible candidate: every one of the {candidates:,} candidates was infeasible"
+        + (f" ({why})" if why else "")
+        + "; nothing could be ranked, which says nothing about the sensors (no lawful, "
+        "possible encounter of these families in these environments)"
+    )

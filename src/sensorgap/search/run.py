@@ -32,10 +32,16 @@ from sensorgap.atomic import (
     utf8,
 )
 from sensorgap.errors import InputError
-from sensorgap.filesio import format_float, refuse_certified_by_other, write_json
+from sensorgap.filesio import (
+    format_float,
+    refuse_certified_by_other,
+    refuse_links,
+    write_json,
+)
 from sensorgap.search.executors import make_executor
 from sensorgap.search.loop import LoopResult, search_loop
 from sensorgap.search.metrics import metric_names, output_value
+from sensorgap.search.possible import infeasible_reasons, no_feasible_note
 from sensorgap.search.problem import Result, SearchProblem
 from sensorgap.search.ranking import (
     MIN_DISTANCE,
@@ -59,6 +65,10 @@ from sensorgap.search.settings import (
     vehicle_ref,
 )
 from sensorgap.search.store import Store, check_store, record_ranked, refuse_wal
+
+# no monitor thread (it only tunes the refresh of a slow bar): one more thread to start,
+# and under a process limit (ulimit -u) tqdm warned in three lines on stderr
+tqdm.monitor_interval = 0
 
 #: The ranking's leading metric columns (collision terms), in this order.
 HEAD_METRICS = (
@@ -259,7 +269,10 @@ def rank_results(p: Prepared, loop: LoopResult) -> Ranked:
 
 def search_summary(p: Prepared, loop: LoopResult, ranked: Ranked) -> dict[str, Any]:
     """``summary.json``: settings, counts per family, the best collision probability, the
-    lookup-vs-exact disagreement, the stability over seeds, the lawful speed bounds."""
+    lookup-vs-exact disagreement, the stability over seeds, the lawful speed bounds, how
+    many candidates were infeasible for which reason (``infeasible_reasons``) and, when
+    none was feasible, a ``note`` saying so (an empty ranking of a search without one
+    possible encounter read as "safe")."""
     s = p.settings
     results = loop.results
     n_ok = sum(r.feasible for r in results)
@@ -275,11 +288,15 @@ def search_summary(p: Prepared, loop: LoopResult, ranked: Ranked) -> dict[str, A
             "sensor_critical_by_lookup": sum(1 for r in rs if classify(r) == "sensor-critical"),
             "unavoidable_by_lookup": sum(1 for r in rs if classify(r) == "unavoidable"),
         }
+    reasons = infeasible_reasons(r.note for r in results if not r.feasible)
+    note = {"note": no_feasible_note(len(results), reasons)} if results and not n_ok else {}
     return {
         "settings": {**p.record, "budget": s.budget, "top": s.top, "min_distance": s.min_distance},
         "candidates": len(results),
         "feasible": n_ok,
         "infeasible": len(results) - n_ok,
+        "infeasible_reasons": reasons,
+        **note,
         "best_collision_probability": max(
             (
                 float(r.metrics.get("collision_probability", 0.0))
@@ -347,7 +364,8 @@ def refuse_search_clash(p: Prepared, out: Path, resume: bool) -> None:
     a folder that already holds stored candidates, or a finished run or catalog
     (``EARLIER_RUN_FILES``); a ``search.sqlite`` that is damaged, holds a search with
     other settings, or results for other input files (``store.check_store``: the checks
-    ``Store`` makes when it opens). ``InputError`` naming ``out`` or the file. Used by
+    ``Store`` makes when it opens); a symbolic link anywhere else in ``out``
+    (``filesio.refuse_links``). ``InputError`` naming ``out`` or the file. Used by
     ``run_search`` and, before any of its stages writes, by the main job
     (``jobs.run_default``), so a job refused at its search has written nothing."""
     db = out / "search.sqlite"
@@ -388,6 +406,7 @@ def refuse_search_clash(p: Prepared, out: Path, resume: bool) -> None:
     # elsewhere: its manifest lists no search.sqlite) is not a search's to add to
     refuse_certified_by_other(out, "search", lambda rel: rel == db.name, db.name)
     check_store(db, p.record, p.inputs)
+    refuse_links(out, "out", "search")  # a link elsewhere in --out: verify rejects it
 
 
 def _count_or_none(store: Store) -> int | None:
