@@ -1591,6 +1591,8 @@ def test_a_restore_folder_is_usable_whatever_the_umask(tmp_path: Path) -> None:
     assert saved["a.txt"].read_text() == "a"
     _drop(keep)
     assert not keep.exists()
+
+
 THREAD_LINE = (
     "sensorgap: error: cannot start a thread ({}): the process limit (ulimit -u, a "
     "container's pids limit) is reached; raise it or use fewer --workers"

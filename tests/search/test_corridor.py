@@ -126,12 +126,12 @@ def test_corridor_cli(tmp_path: object, capsys: pytest.CaptureFixture[str]) -> N
                 "--lanes",
                 "3:1",
                 "--out",
-                str(out / "bad"),
+                str(tmp_path / "bad"),
             ]
         )
         == 2
     )
-    assert "--lanes" in capsys.readouterr().err and not (out / "bad").exists()
+    assert "--lanes" in capsys.readouterr().err and not (tmp_path / "bad").exists()
 
 
 def test_paths_never_enter_the_ego_body(system_a: System) -> None:
