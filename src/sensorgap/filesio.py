@@ -352,12 +352,6 @@ def write_manifest(folder: str | Path, rewrites: tuple[str, ...] | None = None) 
     return written
 
 
-def job_out_of(folder: str | Path) -> Path | None:
-    """The certified folder ``certified_parent`` finds for ``folder`` (its path only)."""
-    found = certified_parent(folder)
-    return None if found is None else found[0]
-
-
 #: Sub-folders of a search run that a command may add to it for its report, by command:
 #: ``nearfield --out RUN/nearfield``, ``coverage --out RUN/coverage/<name>``.
 REPORT_INPUTS = {"nearfield": ("nearfield",), "coverage": ("coverage", "*")}

@@ -326,7 +326,7 @@ def pristine_matplotlib() -> None:
         return
     import logging
 
-    os.environ["MPLBACKEND"] = "agg"
+    # MPLBACKEND is already "agg": configure_matplotlib_dir, on import of the package
     log = logging.getLogger("matplotlib")
     level = log.level
     log.setLevel(logging.CRITICAL)

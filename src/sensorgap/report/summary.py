@@ -190,14 +190,19 @@ def where_words(x_m: float, y_m: float) -> str:
     return " and ".join(parts) or "beside the vehicle"
 
 
+def _and(words: list[str]) -> str:
+    """Words joined as "a", "a and b", "a, b and c"."""
+    return words[0] if len(words) == 1 else ", ".join(words[:-1]) + " and " + words[-1]
+
+
 def _sensor_names(ids: list[str], types: dict[str, str]) -> str:
     kinds = {types.get(i, "sensor") for i in ids}
-    names = ids[0] if len(ids) == 1 else ", ".join(ids[:-1]) + " and " + ids[-1]
+    names = _and(ids)
     if len(kinds) == 1:
         kind = kinds.pop()
         return f"the {kind if len(ids) == 1 else _PLURAL.get(kind, kind + 's')} {names}"
     named = [f"{i} ({types.get(i, 'sensor')})" for i in ids]
-    return ", ".join(named[:-1]) + " and " + named[-1]
+    return _and(named)
 
 
 #: Effects of a confirming sensor in view with Pd < 0.5 (``search.ranking``).
@@ -228,7 +233,7 @@ def _low_words(
         nums += f"; {known[0]:.2f} {cause}"
     elif len(known) == len(without):
         said = [f"{w:.2f}" for w in known]
-        nums += f"; {cause} " + ", ".join(said[:-1]) + " and " + said[-1]
+        nums += f"; {cause} " + _and(said)
     elif known:  # the search itemised some of them only
         nums += f"; {cause}: " + ", ".join(
             f"{i} {w:.2f}" for i, w in zip(ids, without, strict=True) if w is not None
@@ -242,7 +247,7 @@ def _low_words(
         angles = [a for i in ids if (a := (sun_deg or {}).get(i)) is not None]
         if angles and len(angles) == len(ids):
             said = [f"{a:.0f}°" for a in angles]
-            degs = said[0] if len(set(said)) == 1 else ", ".join(said[:-1]) + " and " + said[-1]
+            degs = said[0] if len(set(said)) == 1 else _and(said)
             verb += f" {degs} from {'its line' if one else 'their lines'} of sight"
     elif effect == "weather":
         verb = f"{'loses' if one else 'lose'} it in the {_weather_noun(env)}"

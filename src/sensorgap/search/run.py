@@ -417,12 +417,14 @@ def _count_or_none(store: Store) -> int | None:
         return None
 
 
-def _remove_fresh_search(db: Path, fresh: list[Path], created: list[Path]) -> None:
-    """Remove what a new search that stored nothing wrote: its database (and journal),
-    ``fresh`` (``run.json`` and ``inputs/`` where they did not exist before) and the
-    folders it created (``created``, when empty then)."""
-    for leftover in (db, db.with_name(db.name + "-journal")):
-        leftover.unlink(missing_ok=True)
+def _remove_fresh_search(db: Path | None, fresh: list[Path], created: list[Path]) -> None:
+    """Remove what a new search that stored nothing wrote: its database (and journal;
+    None: the database was there before), ``fresh`` (``run.json`` and ``inputs/`` where
+    they did not exist before) and the folders it created (``created``, when empty
+    then)."""
+    if db is not None:
+        for leftover in (db, db.with_name(db.name + "-journal")):
+            leftover.unlink(missing_ok=True)
     for path in fresh:
         if path.is_dir() and not path.is_symlink():
             shutil.rmtree(path, ignore_errors=True)
@@ -494,10 +496,7 @@ def run_search(
         except InputError:
             # not opened (a full disk: "disk I/O error"): nothing was stored, so leave no
             # database and no folder this search created
-            if new_db:
-                for leftover in (db, db.with_name(db.name + "-journal")):
-                    leftover.unlink(missing_ok=True)
-            remove_created_folders(created)
+            _remove_fresh_search(db if new_db else None, [], created)
             raise
         if store.count() and not resume:
             n = store.count()
@@ -515,9 +514,8 @@ def run_search(
             runner = make_executor(executor, scheduler, workers)
         except InputError:
             store.close()
-            if new_db:  # nothing was stored: leave no empty database behind
-                db.unlink(missing_ok=True)
-            remove_created_folders(created)  # nor a folder this search created
+            # nothing was stored: no empty database behind, nor a folder this search created
+            _remove_fresh_search(db if new_db else None, [], created)
             raise
         stored: int | None = None
         closed = False
