@@ -47,7 +47,7 @@ FINISHED_RUN_COMMANDS: tuple[tuple[str, ...], ...] = (
         "--environments",
         "glare_front_right",
         "--budget",
-        "60",
+        "100",
         "--top",
         "2",
         "--strategy",

@@ -372,7 +372,7 @@ def test_found_by_counts_the_same_weakness_not_the_same_point() -> None:
 def test_systems_differ_with_reasons(tmp_path: Path) -> None:
     kw = {
         "families": ["slow_ahead_curve"],
-        "environments": ["fog_50", "clear"],
+        "environments": ["snow", "clear"],
         "budget": 20,
         "seed": 3,
         "top": 5,

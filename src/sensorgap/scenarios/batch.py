@@ -137,6 +137,9 @@ class ScenarioBatch:
     target_class: str
     offroad: Mask | None = None
     occluders: tuple[OccluderTracks, ...] = ()
+    #: the target must start beyond every confirming sensor's reach
+    #: (``FamilyKind.start_out_of_reach``)
+    start_out_of_reach: bool = False
 
     def __post_init__(self) -> None:
         if self.offroad is None:

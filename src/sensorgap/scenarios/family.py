@@ -94,6 +94,12 @@ class FamilyKind(ABC):
     description: ClassVar[str] = ""
     settings: ClassVar[dict[str, Any]] = {}
     parameters: ClassVar[tuple[Param, ...]] = ()
+    #: True for kinds whose history before t = 0 continues their start unchanged (a slower
+    #: car ahead, both at constant speed in one lane): the search then uses only
+    #: encounters whose target starts beyond every confirming sensor's reach, so no
+    #: chance to detect it falls before t = 0, where the simulation begins
+    #: (``search.possible``).
+    start_out_of_reach: ClassVar[bool] = False
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
@@ -192,6 +198,7 @@ class Family:
     def generate_batch(self, cols: Columns) -> ScenarioBatch:
         """Generate B scenarios (parameter columns) and check feasibility per row."""
         b = self.kind.generate_batch(self, cols, self.network)
+        b.start_out_of_reach = self.kind.start_out_of_reach
         for who, tracks, limits in (
             ("ego", b.ego, LIMITS["car"]),
             ("target", b.target, self.limits),

@@ -217,12 +217,15 @@ class SlowAhead(_LaneKind):
 
     name = "slow_ahead"
     description = "slower or stopped vehicle ahead in the ego lane"
-    settings = {**_ROAD_SETTINGS, "lane": None}
+    #: before t = 0 both kept their speeds, the target farther ahead: one within reach at
+    #: t = 0 had earlier chances to be detected that the encounter would leave out
+    start_out_of_reach = True
+    settings = {**_ROAD_SETTINGS, "lane": None, "duration_s": 18.0}
     parameters = (
-        Param("ego_s0_m", 450.0, 900.0, unit="m"),
+        Param("ego_s0_m", 100.0, 600.0, unit="m"),
         Param("ego_speed_m_s", 15.0, 36.0, unit="m/s"),
         Param("target_speed_m_s", 0.0, 15.0, unit="m/s"),
-        Param("gap0_m", 40.0, 220.0, unit="m"),
+        Param("gap0_m", 250.0, 420.0, unit="m"),
     )
 
     def generate_batch(self, family: Family, cols: Columns, net: RoadNetwork) -> ScenarioBatch:

@@ -82,7 +82,7 @@ from sensorgap.search.outcome import (
     encounter_geometry,
     reaction_outcome,
 )
-from sensorgap.search.possible import occluder_contact, possible
+from sensorgap.search.possible import StartReach, in_reach, occluder_contact, possible
 
 F64 = NDArray[np.float64]
 
@@ -339,6 +339,9 @@ class BatchTrace:
     #: ((B,) first step at which an occluder overlaps the ego's body, -1 for none; (B,)
     #: which occluder; the occluders' labels) (``search.possible.occluder_contact``)
     occluder_contact: tuple[NDArray[np.int64], NDArray[np.int64], tuple[str, ...]] | None = None
+    #: which confirming sensor has the target within reach at t = 0, for kinds that ask
+    #: it to start out of reach (``search.possible.in_reach``); None: not asked
+    start_reach: StartReach | None = None
 
     def __len__(self) -> int:
         return len(self.n)
@@ -812,6 +815,7 @@ class Evaluator:
         if occ is not None:
             step, which = occluder_contact(occ, n, body.x_front_m, body.x_rear_m, body.width_m)
             contact = (step, which, tuple(o.label for o in occ_tracks))
+        reach = self.start_reach(kin, target) if batch.start_out_of_reach else None
         usable: NDArray[np.bool_] | None = None
         if collisions_only:  # the search stores the others as infeasible (search.possible)
             usable = possible(
@@ -822,6 +826,7 @@ class Evaluator:
                 target.length_m,
                 target.width_m,
                 None if contact is None else contact[0],
+                None if reach is None else reach.sensor,
             )
             look &= usable
         valid = np.arange(t)[None, :] < n[:, None]
@@ -927,6 +932,29 @@ class Evaluator:
             perfect_step=perfect,
             outcome_rows=usable,
             occluder_contact=contact,
+            start_reach=reach,
+        )
+
+    def start_reach(self, kin: Kinematics, target: TargetConfig) -> StartReach:
+        """Which confirming sensor (``confirm_rows`` and ``moving_rows``) has the target
+        within reach at t = 0 (``search.possible.in_reach``; ``kin``: (B, T) ego-frame
+        kinematics, m and rad)."""
+        rows = sorted(set(self.confirm_rows) | set(self.moving_rows))
+        mounts = [self.system.sensors[i].mount for i in rows]
+        which, dist = in_reach(
+            kin.x[:, 0],
+            kin.y[:, 0],
+            kin.psi[:, 0],
+            target.length_m,
+            target.width_m,
+            [(m.x, m.y, m.max_range) for m in mounts],
+        )
+        return StartReach(
+            which,
+            dist,
+            tuple(self.sensor_ids[i] for i in rows),
+            tuple(m.max_range for m in mounts),
+            target.name,
         )
 
     def _moving_lookup(

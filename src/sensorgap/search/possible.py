@@ -1,15 +1,21 @@
 """Which encounters the search may use (issue #13, "only possible encounters"): the bodies
 do not overlap at t = 0, the first open-loop contact is with the ego's front (a target
 does not move into the ego's side or rear), no occluder (a parked car, a lead car)
-overlaps the ego's body at any step, and the encounter starts non-critical (TTC at
-t = 0 at least ``START_TTC_S``). The search stores the others as infeasible with a note
-(``problem.SearchProblem``) and does not look their detection up (``evaluate``)."""
+overlaps the ego's body at any step, the encounter starts non-critical (TTC at t = 0 at
+least ``START_TTC_S``), and, for kinds whose history before t = 0 continues their start
+(``FamilyKind.start_out_of_reach``: a slower car ahead, both at constant speed), the target
+starts beyond every confirming sensor's reach (``in_reach``): the detection history begins
+at t = 0, so a target already within reach there would have had chances to be confirmed
+that the encounter leaves out, and its collision probability would be overstated. The
+search stores the others as infeasible with a note (``problem.SearchProblem``) and does
+not look their detection up (``evaluate``)."""
 
 from __future__ import annotations
 
 import re
 from collections import Counter
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -17,6 +23,34 @@ from numpy.typing import NDArray
 from sensorgap.search.outcome import Encounter
 
 F64 = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class StartReach:
+    """Which confirming sensor has the target within reach at t = 0 (``in_reach``).
+
+    Attributes:
+        sensor: (B,) index into ``ids``, -1 for none.
+        distance_m: (B,) its horizontal distance to the target's body, m (inf for none).
+        ids: the confirming sensors' ids. reach_m: their ``max_range``, m.
+        target: the target class, for the note.
+    """
+
+    sensor: NDArray[np.int64]
+    distance_m: F64
+    ids: tuple[str, ...]
+    reach_m: tuple[float, ...]
+    target: str = "target"
+
+    def note(self, j: int) -> str:
+        """Why row ``j`` is not used, in words."""
+        i = int(self.sensor[j])
+        return (
+            f"starts within reach: the {self.target} is {self.distance_m[j]:.1f} m from "
+            f"{self.ids[i]} (reach {self.reach_m[i]:g} m) at t = 0, where the simulated "
+            "detection history begins"
+        )
+
 
 #: A candidate must start non-critical: TTC at t = 0 at least this, s (about twice the
 #: risk's time constant). An encounter that begins at a smaller TTC measures its initial
@@ -79,6 +113,40 @@ def occluder_contact(
     return step, np.where(step >= 0, which, -1)
 
 
+def in_reach(
+    x: F64,
+    y: F64,
+    psi: F64,
+    length: float,
+    width: float,
+    mounts: Sequence[tuple[float, float, float]],
+) -> tuple[NDArray[np.int64], F64]:
+    """(B,) which of ``mounts`` (sensor position x, y in the ego frame, m, and its
+    ``max_range``, m) has the target's body within reach at t = 0, -1 for none (the one
+    it is deepest within: largest reach minus distance), and (B,) that sensor's distance
+    to the body, m (inf for none). ``x``, ``y``, ``psi``: (B,) the target centre in the
+    ego frame, m, and its relative heading, rad; ``length``, ``width``: its body, m.
+
+    The distance is the horizontal one from the sensor to the nearest point of the body's
+    box: never more than the 3-D range, so a body beyond it is beyond every sensor's
+    ``max_range`` (Pd = 0 there, paper Sec. III) whatever the weather, sun or height."""
+    b = len(x)
+    which = np.full(b, -1, dtype=np.int64)
+    dist = np.full(b, np.inf)
+    best = np.zeros(b)  # how deep within reach, m
+    c, s = np.cos(psi), np.sin(psi)
+    for i, (mx, my, reach) in enumerate(mounts):
+        dx, dy = mx - x, my - y
+        u = np.abs(c * dx + s * dy) - 0.5 * length  # along the body, beyond its half length
+        v = np.abs(-s * dx + c * dy) - 0.5 * width
+        d = np.hypot(np.maximum(u, 0.0), np.maximum(v, 0.0))
+        deeper = (d <= reach) & ((which < 0) | (reach - d > best))
+        which[deeper] = i
+        dist[deeper] = d[deeper]
+        best[deeper] = reach - d[deeper]
+    return which, dist
+
+
 def possible(
     enc: Encounter,
     x: F64,
@@ -87,14 +155,18 @@ def possible(
     length: float,
     width: float,
     occluder_step: NDArray[np.int64] | None = None,
+    reach_sensor: NDArray[np.int64] | None = None,
 ) -> NDArray[np.bool_]:
     """(B,) whether each encounter is one the search may use (module docstring; arguments
-    as ``encounter_problems``)."""
+    as ``encounter_problems``; ``reach_sensor``: ``in_reach``'s first value, None where
+    the kind does not ask the target to start out of reach)."""
     ok = enc.ttc_path[:, 0] >= START_TTC_S
     rows, _, _, at_start, side = _contacts(enc, x, psi, x_front, length, width)
     ok[rows[at_start | side]] = False
     if occluder_step is not None:
         ok &= occluder_step < 0
+    if reach_sensor is not None:
+        ok &= reach_sensor < 0
     return np.asarray(ok)
 
 
@@ -107,13 +179,16 @@ def encounter_problems(
     length: float,
     width: float,
     occluders: tuple[NDArray[np.int64], NDArray[np.int64], tuple[str, ...]] | None = None,
+    reach: StartReach | None = None,
 ) -> list[tuple[int, str]]:
     """(row, note) of every encounter the search may not use: the impossible ones (an
     occluder overlapping the ego's body at some step, bodies overlapping at t = 0, a first
     contact not with the ego's front), then those that start critical. ``t``: the time
     axis, s; ``x``, ``psi``: (B, T) target centre ahead of the ego's rear axle, m, and
     relative heading, rad; ``x_front``: the ego's front bumper, m; target ``length`` and
-    ``width``, m; ``occluders``: ``occluder_contact``'s (step, occluder) and the labels."""
+    ``width``, m; ``occluders``: ``occluder_contact``'s (step, occluder) and the labels;
+    ``reach``: which confirming sensor has the target within reach at t = 0 (``in_reach``),
+    None where the kind does not ask the target to start out of reach."""
     out: list[tuple[int, str]] = []
     if occluders is not None:
         step, which, labels = occluders
@@ -152,6 +227,13 @@ def encounter_problems(
         for j in np.flatnonzero(ttc0 < START_TTC_S)
         if int(j) not in marked
     ]
+    if reach is not None:
+        marked = {j for j, _ in out}
+        out += [
+            (j, reach.note(j))
+            for j in np.flatnonzero(reach.sensor >= 0).tolist()
+            if j not in marked
+        ]
     return out
 
 

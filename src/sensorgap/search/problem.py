@@ -471,6 +471,7 @@ class SearchProblem:
                 target.length_m,
                 target.width_m,
                 bt.occluder_contact,
+                bt.start_reach,
             )
             for j, note in bad:
                 notes[ok[j]] = note
