@@ -28,6 +28,7 @@ from sensorgap.config.presets import templates_dir
 from sensorgap.errors import InputError
 from sensorgap.filesio import read_manifest, verify_manifest, write_manifest
 from tests.bad_inputs.harness import tree_state
+from tests.forked import run_forked
 
 SRC = str(Path(sensorgap.__file__).resolve().parents[1])
 
@@ -481,16 +482,9 @@ def test_a_job_failing_over_an_earlier_run_leaves_it_as_it_was(
     def cap() -> None:
         resource.setrlimit(resource.RLIMIT_FSIZE, (700_000, 700_000))
 
-    proc = subprocess.run(
-        [sys.executable, "-m", "sensorgap", *argv],
-        capture_output=True,
-        env={**os.environ, "PYTHONPATH": SRC},
-        preexec_fn=cap,
-        timeout=300,
-        check=False,
-    )
-    err = proc.stderr.decode("utf-8", "replace").strip().splitlines()
-    assert proc.returncode == 2 and len(err) == 1 and "File too large" in err[0], err
+    code, stderr = run_forked(argv, cap)  # a process of its own: the limit holds there only
+    err = stderr.strip().splitlines()
+    assert code == 2 and len(err) == 1 and "File too large" in err[0], err
     assert tree_state(out) == before
     assert main(["verify", str(out)]) == 0 and main(["verify", str(out / "system_b")]) == 0
 

@@ -8,16 +8,14 @@ from __future__ import annotations
 
 import os
 import shutil
-import sys
-from contextlib import nullcontext, redirect_stdout, suppress
+from contextlib import nullcontext, redirect_stdout
 from pathlib import Path
-from typing import Any, TextIO
+from typing import Any
 
 import pytest
 
 from sensorgap.cli import main
 from tests.bad_inputs.harness import (
-    Prepared,
     build_finished_run,
     case_cwd,
     case_stdout,
@@ -26,6 +24,7 @@ from tests.bad_inputs.harness import (
     outcome_problems,
     prepare_case,
 )
+from tests.forked import run_forked
 
 CASES: list[dict[str, Any]] = load_cases()
 
@@ -57,51 +56,6 @@ def finished_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return build_finished_run(tmp_path_factory.mktemp("run") / "run", main)
 
 
-#: Longest a forked case may run, s (the slowest, a whole job into a full disk, takes 5 s).
-FORK_TIMEOUT_S = 300
-
-
-def run_forked(prepared: Prepared, stdout: TextIO | None) -> tuple[int, str]:
-    """(exit code, stderr) of a case run by ``main`` in a forked child process: a copy of
-    this one with sensorgap imported and its kernels compiled (a fresh interpreter spent
-    1.5-2 s per case starting, importing and loading them), the case's ``child_preexec``
-    (the file size limit) applied in the child only. Python ignores SIGXFSZ, so a write
-    beyond the limit fails with EFBIG as in a fresh process. stderr goes to a pipe,
-    stdout to ``stdout`` (None: /dev/null); the child leaves by ``os._exit``, running none
-    of this process's exit handlers."""
-    read_end, write_end = os.pipe()
-    pid = os.fork()
-    if pid == 0:  # the child: never returns
-        code = 70
-        try:
-            os.close(read_end)
-            os.dup2(write_end, 2)
-            out = os.open(os.devnull, os.O_WRONLY) if stdout is None else stdout.fileno()
-            os.dup2(out, 1)
-            sys.stdout = open(1, "w", encoding="utf-8", closefd=False)  # noqa: SIM115
-            sys.stderr = open(2, "w", encoding="utf-8", closefd=False)  # noqa: SIM115
-            os.environ.update(prepared.env)
-            preexec = child_preexec(prepared)
-            if preexec is not None:
-                preexec()
-            try:
-                code = main(prepared.argv)
-            except SystemExit as exc:
-                code = int(exc.code or 0)
-            for stream in (sys.stdout, sys.stderr):
-                with suppress(OSError, ValueError):
-                    stream.flush()
-        finally:
-            os._exit(code)
-    os.close(write_end)
-    chunks = []
-    with open(read_end, "rb") as pipe:
-        while chunk := pipe.read(65536):
-            chunks.append(chunk)
-    _, status = os.waitpid(pid, 0)
-    return os.waitstatus_to_exitcode(status), b"".join(chunks).decode("utf-8", "replace")
-
-
 @pytest.mark.parametrize("case", CASES, ids=[c["name"] for c in CASES])
 def test_bad_input(
     case: dict[str, Any],
@@ -114,7 +68,7 @@ def test_bad_input(
     argv = prepared.argv
     with case_stdout(case) as stdout:
         if "rlimit_fsize" in case:  # a process of its own: the limit would hold for the tests
-            code, err = run_forked(prepared, stdout)
+            code, err = run_forked(prepared.argv, child_preexec(prepared), prepared.env, stdout)
         else:
             for name, value in prepared.env.items():
                 monkeypatch.setenv(name, value)
