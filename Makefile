@@ -24,9 +24,13 @@ STAMP  := $(VENV)/.installed
 # else every process would compile numpy, scipy, matplotlib again on import.
 unexport PYTHONDONTWRITEBYTECODE
 
+# The build backend goes in first and the project is built without an isolated build
+# environment (pip would make one and install hatchling into it again: 2 s).
 $(STAMP): pyproject.toml constraints.txt
 	$(PYTHON) -m venv $(VENV)
-	$(BIN)/python -m pip install -q --no-compile -c constraints.txt -e '.[test,distributed]'
+	$(BIN)/python -m pip install -q --no-compile -c constraints.txt hatchling editables
+	$(BIN)/python -m pip install -q --no-compile --no-build-isolation -c constraints.txt \
+		-e '.[test,distributed]'
 	touch $(STAMP)
 
 run: $(STAMP)
