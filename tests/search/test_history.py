@@ -106,3 +106,34 @@ def test_search_stores_starts_within_reach_as_infeasible(tmp_path: Path) -> None
     assert kinds and summary["infeasible_reasons"][kinds[0]] > 0
     assert res.ranking
     assert all(r["p_gap0_m"] > 250.0 for r in res.ranking)
+
+
+def test_a_radar_confirming_only_moving_targets_counts_only_for_a_moving_car(
+    tmp_path: Path,
+) -> None:
+    """Hostile round fifteen: System B's radar confirms a target only while it moves at 5
+    m/s or more (reactions.toml). With its reach raised from 160 to 1,000 m, a stopped car
+    300 m ahead (beyond the cameras' 250 m) is usable: the radar can never confirm it; the
+    same car at 10 m/s is within the radar's reach and refused, named by it."""
+    text = (templates_dir() / "vehicles" / "system_b.toml").read_text(encoding="utf-8")
+    old = 'id = "radar_front"'
+    head, tail = text.split(old)
+    assert "max_range_m = 160.0" in tail
+    vehicle = tmp_path / "long_radar.toml"
+    vehicle.write_text(head + old + tail.replace("max_range_m = 160.0", "max_range_m = 1000.0", 1))
+    prob = SearchProblem(
+        load_family("slow_ahead_curve"),
+        {"clear": load_environments()["clear"]},
+        Evaluator(load_system(str(vehicle)), "exact"),
+    )
+    params = {"ego_s0_m": 300.0, "ego_speed_m_s": 30.0, "gap0_m": 300.0}
+    stopped = prob.evaluate(
+        Candidate("slow_ahead_curve", "clear", None, {**params, "target_speed_m_s": 0.0})
+    )
+    assert stopped.feasible, stopped.note
+    moving = prob.evaluate(
+        Candidate("slow_ahead_curve", "clear", None, {**params, "target_speed_m_s": 10.0})
+    )
+    assert not moving.feasible
+    assert moving.note.startswith("starts within reach: the car is ")
+    assert "from radar_front (reach 1000 m)" in moving.note

@@ -815,7 +815,7 @@ class Evaluator:
         if occ is not None:
             step, which = occluder_contact(occ, n, body.x_front_m, body.x_rear_m, body.width_m)
             contact = (step, which, tuple(o.label for o in occ_tracks))
-        reach = self.start_reach(kin, target) if batch.start_out_of_reach else None
+        reach = self.start_reach(kin, tgt, target) if batch.start_out_of_reach else None
         usable: NDArray[np.bool_] | None = None
         if collisions_only:  # the search stores the others as infeasible (search.possible)
             usable = possible(
@@ -935,20 +935,27 @@ class Evaluator:
             start_reach=reach,
         )
 
-    def start_reach(self, kin: Kinematics, target: TargetConfig) -> StartReach:
-        """Which confirming sensor (``confirm_rows`` and ``moving_rows``) has the target
-        within reach at t = 0 (``search.possible.in_reach``; ``kin``: (B, T) ego-frame
-        kinematics, m and rad)."""
+    def start_reach(self, kin: Kinematics, tgt: Tracks, target: TargetConfig) -> StartReach:
+        """Which confirming sensor has the target within reach at t = 0
+        (``search.possible.in_reach``; ``kin``: (B, T) ego-frame kinematics, m and rad;
+        ``tgt``: the target's states): those of ``confirm_rows``, and of ``moving_rows``
+        where the target moves at ``moving_min_speed_m_s`` or more at t = 0 (a radar that
+        confirms only moving targets cannot confirm a stopped car, whatever its reach)."""
         rows = sorted(set(self.confirm_rows) | set(self.moving_rows))
         mounts = [self.system.sensors[i].mount for i in rows]
-        which, dist = in_reach(
-            kin.x[:, 0],
-            kin.y[:, 0],
-            kin.psi[:, 0],
-            target.length_m,
-            target.width_m,
-            [(m.x, m.y, m.max_range) for m in mounts],
-        )
+        reach = [(m.x, m.y, m.max_range) for m in mounts]
+        x0, y0, psi0 = kin.x[:, 0], kin.y[:, 0], kin.psi[:, 0]
+        which, dist = in_reach(x0, y0, psi0, target.length_m, target.width_m, reach)
+        if self.moving_rows:  # without the moving-only sensors where the target stands
+            still = tgt.speed[:, 0] < self.reaction.moving_min_speed_m_s
+            moving = set(self.moving_rows)
+            kept = [
+                (m if i not in moving else (m[0], m[1], -1.0))
+                for i, m in zip(rows, reach, strict=True)
+            ]
+            w2, d2 = in_reach(x0, y0, psi0, target.length_m, target.width_m, kept)
+            which = np.where(still, w2, which)
+            dist = np.where(still, d2, dist)
         return StartReach(
             which,
             dist,
