@@ -668,7 +668,7 @@ def cmd_export(args: argparse.Namespace) -> int:
 
 def cmd_simulate(args: argparse.Namespace) -> int:
     """Run a catalog's scenarios in esmini; simulation.csv."""
-    from sensorgap.export.simulate import simulate_catalog
+    from sensorgap.export.simulate import WALL_KEY, simulate_catalog
 
     refuse_if_changed(args.catalog, ("simulation.csv",))  # its manifest is rewritten
     # a failed run leaves the catalog as it was (simulation.csv and its manifest entry)
@@ -692,10 +692,11 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         if trig
         else ""
     )
+    wall = sum(float(r.get(WALL_KEY, 0.0)) for r in rows)
     print(
         f"{args.catalog}: {ok}/{len(rows)} ran cleanly to the end, {within} within 0.5 m "
         f"of the plan, {coll} with the plan's collision outcome (esmini --collision)"
-        f"{triggers}"
+        f"{triggers}; esmini ran {wall:.1f} s in all"
     )
     if args.ego_reaction:
         runs = [
