@@ -31,6 +31,7 @@ from sensorgap.filesio import (
     refuse_foreign_outputs,
     refuse_if_changed,
     refuse_inside_certified,
+    refuse_links,
     refuse_uncertifiable,
     write_manifest,
 )
@@ -631,12 +632,19 @@ def cmd_compare(args: argparse.Namespace) -> int:
 def cmd_export(args: argparse.Namespace) -> int:
     """OpenSCENARIO + OpenDRIVE catalog of a search run's ranked scenarios."""
     from sensorgap.export import export_catalog
+    from sensorgap.export.catalog import refuse_linked_paths
     from sensorgap.stale import export_removing_stale_report
 
     out = Path(args.out) if args.out else None
     folder = out or Path(args.run)
     refuse_crowded_out(folder, "export")
     refuse_uncertifiable(folder, "--out" if out else "--run")
+    # a link anywhere in the folder it certifies (hostile round fifteen: RUN/scenarios/x,
+    # a link, exited 0 and the run then failed its own verify); the paths it writes first,
+    # whose lines say more
+    if folder.is_dir():
+        refuse_linked_paths(folder)
+    refuse_links(folder, "--out" if out else "--run", "export")
     if out is not None and Path(args.run).resolve() not in out.resolve().parents:
         refuse_inside_certified(out, "export")  # (inside its own run: export says so)
     # a failed export leaves no partial catalog: a folder it made removed, the scenario

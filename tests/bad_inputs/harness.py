@@ -530,6 +530,13 @@ def _setup(
             out.mkdir(exist_ok=True)
             name = "search.sqlite" if step == "out_store_symlink" else "search.sqlite-journal"
             (out / name).symlink_to(folder / "elsewhere" / "store.sqlite")
+        elif step == "run_scenarios_extra_link":  # {run}/scenarios/extra -> ../ranking.json
+            (run / "scenarios").mkdir(exist_ok=True)
+            (run / "scenarios" / "extra").symlink_to(Path("..") / "ranking.json")
+        elif step == "out_holds_a_link":  # {out}/mylink -> {dir}/elsewhere.txt
+            (folder / "elsewhere.txt").write_text("not the export's")
+            out.mkdir()
+            (out / "mylink").symlink_to(folder / "elsewhere.txt")
         elif step == "run_report_symlink":  # {run}/report links to {dir}/elsewhere
             (folder / "elsewhere").mkdir()
             (folder / "elsewhere" / "keep.xodr").write_text("not the report's")

@@ -114,7 +114,7 @@ def _coverage_maps(specs: list[ScenarioSpec], out: Path) -> list[Path]:
     return written
 
 
-def _inside_only(out: Path) -> None:
+def refuse_linked_paths(out: Path) -> None:
     """Refuse a folder the export writes into (or deletes stale files from) that is a
     symbolic link: it would write outside ``out``."""
     subs = [out / s for s in ("scenarios", "roads", "coverage", INPUTS_DIR)]
@@ -176,7 +176,7 @@ def export_catalog(
                     f"{sp.family.kind.name}) has no maneuver form; use "
                     "--style replay",
                 )
-    _inside_only(out)
+    refuse_linked_paths(out)
     in_place = out.resolve() == run.folder.resolve()
     if not in_place and run.folder.resolve() in out.resolve().parents:
         # a catalog inside the run folder adds files its manifest does not list (verify
