@@ -3,7 +3,7 @@ data URIs, no network resources, no scripts, a print stylesheet) and Markdown wi
 PNGs, so both carry the same content (``report.html`` for assessors, ``report.md`` for
 review diffs).
 
-Figures are embedded in the HTML as 256-colour PNGs (median cut, no dithering; the maps use
+Figures are embedded in the HTML as 256-colour PNGs (fast octree, no dithering; the maps use
 256-entry colour maps), about a third of the bytes of matplotlib's RGBA files; the Markdown
 links the full files. Layout (tested in headless Chromium): tables wrap their text and sit
 in a box that scrolls sideways only if they cannot fit, so the page never overflows a
@@ -123,9 +123,12 @@ h2,h3{break-after:avoid}a{color:#000}}
 
 @lru_cache(maxsize=64)
 def compact_png(data: bytes) -> bytes:
-    """A PNG as at most 256 colours on white (median cut, no dithering, optimised), or the
-    original when that is not smaller. Deterministic (cached per process: a report written
-    again reuses the figures it already reduced)."""
+    """A PNG as at most 256 colours on white (fast octree, no dithering), or the original
+    when that is not smaller. Deterministic (cached per process: a report written again
+    reuses the figures it already reduced). Octree rather than median cut (session 18,
+    the default job's 21 figures): 0.55 s instead of 2.1 s, 0.82 MB instead of 0.95 MB,
+    and the figures' colours kept (median cut merged the legend's pink and cyan into grey
+    and banded the colour bar)."""
     from PIL import Image as PILImage
 
     with PILImage.open(io.BytesIO(data)) as im:
@@ -135,10 +138,10 @@ def compact_png(data: bytes) -> bytes:
             rgb = PILImage.new("RGB", im.size, "white")
             rgb.paste(rgba, mask=rgba.getchannel("A"))
         q = rgb.quantize(
-            colors=256, method=PILImage.Quantize.MEDIANCUT, dither=PILImage.Dither.NONE
+            colors=256, method=PILImage.Quantize.FASTOCTREE, dither=PILImage.Dither.NONE
         )
         buf = io.BytesIO()
-        q.save(buf, "PNG", optimize=True)
+        q.save(buf, "PNG")
     out = buf.getvalue()
     return out if len(out) < len(data) else data
 
