@@ -15,11 +15,12 @@ from sensorgap.search.run import run_search
 
 @pytest.fixture(scope="session")
 def job(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """System A's default job, small: 4,200 candidates (3 searches of 1,400), the top 5
-    ranked and exported (1,400 in all found only collisions the 10 s time axis cut off;
-    the fifth is the first with an occluder, a lead car cutting out)."""
+    """System A's default job, small: 2,100 candidates (3 searches of 700), the top 5
+    ranked and exported (the fourth has an occluder, a lead car cutting out); in one
+    process (the second one costs 3 s of CPU; tests/cli/test_run_vehicle.py runs the job
+    with it)."""
     out = tmp_path_factory.mktemp("job")
-    run_default(out, budget=4200, top=5, workers=1)  # no second process: 3 s less CPU
+    run_default(out, budget=2100, top=5, workers=1)
     return out / "system_a"
 
 

@@ -57,7 +57,7 @@ def test_summary_comes_first_and_says_what_was_searched(job: Path) -> None:
     fams, envs = settings["families"], settings["environments"]
     assert f"{len(fams)} scenario families ({', '.join(fams)})" in text
     assert f"{len(envs)} environments ({', '.join(envs)})" in text
-    assert "budget 4,200 candidates" in text and f"seed {settings['seed']}" in text
+    assert "budget 2,100 candidates" in text and f"seed {settings['seed']}" in text
     assert f"Found: {len(_ranking(job)['ranking'])} sensor-critical scenario" in text
 
 
