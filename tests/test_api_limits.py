@@ -200,6 +200,11 @@ def test_evaluate_points_limits_points_times_sensors(monkeypatch: pytest.MonkeyP
         # hostile round fourteen (F10): integers beyond a float were a raw OverflowError
         ({"min_distance": HUGE}, r"^min_distance: must be a finite number >= 0, got an integer "),
         ({"budget": HUGER}, r"^budget: must be within 1\.\.1000000, got an integer of 5001 digits"),
+        # hostile round fifteen (F5): a raw TypeError (re.match on an int)
+        ({"executor": "dask", "scheduler": 5}, r"^scheduler: must be a str or None, got 5$"),
+        ({"strategy": None}, r"^strategy: must be a str, got None$"),
+        ({"mode": 1}, r"^mode: must be a str, got 1$"),
+        ({"executor": ["local"]}, r"^executor: must be a str, got "),
     ],
 )
 def test_find_scenarios_checks_types_before_any_work(
@@ -256,6 +261,34 @@ def test_an_output_folder_that_is_a_file_is_refused(tmp_path: Path, where: str) 
 def test_facade_names_the_bad_parameter(call: Any, line: str) -> None:
     with pytest.raises(InputError, match=line):
         call()
+
+
+LONG = "a" * 300  # one path component beyond NAME_MAX (255 bytes)
+
+
+@pytest.mark.parametrize(
+    "call",
+    [
+        lambda out: sensorgap.load_vehicle(LONG),
+        lambda out: sensorgap.evaluate_points(LONG, np.array([[30.0, 0.0, 0.75]])),
+        lambda out: sensorgap.scene("system_b", environments_file=LONG + ".toml"),
+        lambda out: sensorgap.find_scenarios(
+            LONG, out, families=["slow_ahead_curve"], environments=["clear"], budget=50
+        ),
+        lambda out: sensorgap.export_catalog(LONG),
+        lambda out: sensorgap.write_report(LONG),
+    ],
+)
+def test_a_file_that_cannot_be_opened_is_an_input_error(tmp_path: Path, call: Any) -> None:
+    """Hostile round fifteen (F4): a path the system refuses (a name too long) raised a
+    raw OSError; now one InputError naming the file and the system's reason."""
+    with pytest.raises(
+        InputError,
+        match=r"aaaa(\.toml)? \(30[05] characters\): cannot read or write it \(File name",
+    ) as exc:
+        call(tmp_path / "run")
+    assert "\n" not in str(exc.value)
+    assert not (tmp_path / "run").exists()
 
 
 @pytest.mark.parametrize(

@@ -9,12 +9,13 @@ Units: metres, seconds, degrees for angles given by the user (radians inside the
 
 from __future__ import annotations
 
+import functools
 import inspect
 import math
 import os
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, ParamSpec, TypeVar
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -45,6 +46,33 @@ from sensorgap.errors import InputError
 from sensorgap.models import Conditions, System, load_system
 from sensorgap.scenarios import family_presets
 from sensorgap.search.run import SearchOutcome, run_search
+
+_P = ParamSpec("_P")
+_R = TypeVar("_R")
+
+
+def _file_errors_as_input(fn: Callable[_P, _R]) -> Callable[_P, _R]:
+    """A facade function whose file operations' failures (an ``OSError`` naming a file: a
+    name too long, a missing folder, no permission, a full disk) raise one ``InputError``
+    naming that file and the system's reason, as the command line's one line does
+    (hostile round fifteen: a 300-character vehicle name raised a raw ``OSError``)."""
+
+    @functools.wraps(fn)
+    def wrapper(*args: _P.args, **kwargs: _P.kwargs) -> _R:
+        try:
+            return fn(*args, **kwargs)
+        except OSError as exc:
+            if exc.filename is None:
+                raise
+            where = (
+                os.fsdecode(exc.filename)
+                if isinstance(exc.filename, str | bytes)
+                else str(exc.filename)
+            )
+            reason = exc.strerror or type(exc).__name__
+            raise InputError(where, "", f"cannot read or write it ({reason})") from None
+
+    return wrapper
 
 
 def _path(value: object, name: str) -> Path:
@@ -115,12 +143,14 @@ def _names(value: object, name: str, paths: bool = False) -> list[str]:
     return out
 
 
+@_file_errors_as_input
 def load_vehicle(vehicle: str | Path) -> System:
     """A vehicle preset (``system_a``, ``system_b``) or vehicle ``.toml`` file as its
     sensor system (every sensor model built, parameters with units and sources)."""
     return load_system(_vehicle(vehicle))
 
 
+@_file_errors_as_input
 def scene(
     vehicle: str | Path | System,
     environment: str = "clear",
@@ -139,6 +169,7 @@ def scene(
     return Scene(system, load_target(target), Conditions.from_config(env, math.radians(heading)))
 
 
+@_file_errors_as_input
 def evaluate_points(
     vehicle: str | Path | System, points: ArrayLike, environment: str = "clear", target: str = "car"
 ) -> PointCoverage:
@@ -203,6 +234,7 @@ def _extent(extent: object) -> tuple[float, float, float, float]:
     return (box[0], box[1], box[2], box[3])
 
 
+@_file_errors_as_input
 def coverage_grid(
     vehicle: str | Path | System,
     environment: str = "clear",
@@ -243,6 +275,7 @@ def coverage_grid(
 _SEARCH_OPTIONS = frozenset(list(inspect.signature(run_search).parameters)[7:])
 
 
+@_file_errors_as_input
 def find_scenarios(
     vehicle: str | Path,
     out: str | Path,
@@ -270,6 +303,11 @@ def find_scenarios(
         value = options.get(name, False)
         if not (isinstance(value, bool) or (name == "progress" and value is None)):
             raise InputError(name, "", f"must be a bool, got {shown(value)}")
+    for name in ("strategy", "mode", "executor", "scheduler"):  # a raw TypeError inside
+        value = options.get(name, "")
+        if not (isinstance(value, str) or (name == "scheduler" and value is None)):
+            none = " or None" if name == "scheduler" else ""
+            raise InputError(name, "", f"must be a str{none}, got {shown(value)}")
     env_file = options.get("environments_file")
     if env_file is not None:
         options["environments_file"] = _path(env_file, "environments_file")
@@ -282,6 +320,7 @@ def find_scenarios(
     return run_search(veh, fams, envs, budget, seed, top, folder, **options)
 
 
+@_file_errors_as_input
 def export_catalog(
     run: str | Path,
     out: str | Path | None = None,
@@ -303,6 +342,7 @@ def export_catalog(
     return _export(folder, target, osc_version, rows, style=style)
 
 
+@_file_errors_as_input
 def write_report(run: str | Path) -> tuple[Path, Path]:
     """``report.html`` and ``report.md`` of a run folder; returns their paths."""
     from sensorgap.report import write_report as _write

@@ -427,3 +427,25 @@ def test_output_times_carry_no_float_noise() -> None:
     assert output_value("impact_speed_kmh", 17.97601861207741) == 17.97601861207741
     assert output_value("t_detect_s", math.nan) is None
     assert output_value("t_detect_s", math.inf) is None
+
+
+def test_one_family_given_twice_counts_once(tmp_path: Path) -> None:
+    """Hostile round fifteen: a family given twice by name was merged, by name and by the
+    path of the same file refused as "two families named ...". Both count once now; two
+    different files of one stem are still refused."""
+    from sensorgap.config.presets import templates_dir
+    from sensorgap.errors import InputError
+    from sensorgap.scenarios.loader import load_families
+
+    shipped = templates_dir() / "scenarios" / "slow_ahead_curve.toml"
+    for names in (
+        ["slow_ahead_curve", "slow_ahead_curve"],
+        ["slow_ahead_curve", str(shipped)],
+        [str(shipped), "cut_in_left", "slow_ahead_curve"],
+    ):
+        fams = load_families(names)
+        assert [f.name for f in fams].count("slow_ahead_curve") == 1, names
+    other = tmp_path / "slow_ahead_curve.toml"
+    other.write_text(shipped.read_text(encoding="utf-8"), encoding="utf-8")
+    with pytest.raises(InputError, match="two families named 'slow_ahead_curve'"):
+        load_families(["slow_ahead_curve", str(other)])

@@ -351,15 +351,18 @@ def check_fits(family: Family, path: Path | str) -> None:
 
 
 def load_families(names: list[str]) -> list[Family]:
-    """Load several families (unique names, order kept)."""
+    """Load several families (order kept): one given twice, by name or by path to the same
+    file, counts once; two different files of one name (file stem) are refused."""
     if not names:
         raise InputError(
             "families", "", f"give at least one family; families: {', '.join(family_presets())}"
         )
-    families = [load_family(n) for n in dict.fromkeys(names)]
     seen: dict[str, str] = {}
-    for f in families:
+    families = []
+    for f in (load_family(n) for n in dict.fromkeys(names)):
         if f.name in seen:
+            if _same_file(seen[f.name], f.source):
+                continue
             raise InputError(
                 "families",
                 "",
@@ -367,4 +370,13 @@ def load_families(names: list[str]) -> list[Family]:
                 f"and {f.source}); family names (file stems) must be unique",
             )
         seen[f.name] = f.source
+        families.append(f)
     return families
+
+
+def _same_file(a: str, b: str) -> bool:
+    """Whether two family sources are one file (False when either cannot be read)."""
+    try:
+        return Path(a).samefile(b)
+    except OSError:
+        return False
