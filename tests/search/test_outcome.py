@@ -991,3 +991,17 @@ def test_moving_only_confirmation(tmp_path: Path) -> None:
         path.write_text(base + f"confirm_moving_with = {moving}\n[reactions.r.sources]\n" + sources)
         with pytest.raises(InputError, match=re.escape(msg)):
             load_reaction(path)
+
+
+def test_probabilities_stay_within_0_and_1_despite_rounding() -> None:
+    """Hostile round fifteen: the first-confirmation distribution sums to 1 only to
+    rounding, so P(never confirmed) came out as 1.0000000000000002 for a barely seen
+    target and a resumed search called its own store damaged. A constant Pd of 1.626e-8
+    over 50 cycles gives f_T = 1 + 4.9e-15 (checked here); the outcome keeps 1."""
+    from sensorgap.search.outcome import first_confirmation
+
+    c = 1.6257556664437936e-08
+    assert first_confirmation(np.full((1, 50), c), np.array([50]), 3, 5)[0, -1] > 1.0
+    o = _outcome(_straight(15.0, 20.0), c, n_valid=[50])
+    assert o.p_never_confirmed[0] == 1.0
+    assert 0.0 <= o.collision_probability[0] <= 1.0

@@ -1268,6 +1268,9 @@ def reaction_outcome(
         *out,
     )
     p, v, perfect, safe, vperf, med, never = out
+    # sums of probabilities that add up to 1 to rounding: kept within 0..1 (hostile round
+    # fifteen: a stored p_never_confirmed of 1.0000000000000002 made the store "damaged")
+    p, never = np.clip(p, 0.0, 1.0), np.minimum(never, 1.0)
     t_threat = np.where(enc.threat_step >= 0, enc.threat_step * enc.dt, np.nan)
     margin = np.where((perfect < 0.5) & (pstep >= 0), safe - pstep * enc.dt, np.nan)
     return Outcome(p, 3.6 * v, perfect, 3.6 * vperf, safe, med, safe - med, t_threat, never, margin)
