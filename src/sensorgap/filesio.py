@@ -406,8 +406,10 @@ def _bad_entry(rel: object) -> str | None:
     if not isinstance(rel, str) or not rel:
         return "must be a non-empty relative path"
     parts = rel.split("/")
-    if rel.startswith("/") or "\\" in rel or (len(rel) > 1 and rel[1] == ":"):
+    if rel.startswith("/") or (len(rel) > 1 and rel[1] == ":"):
         return "must be a relative POSIX path inside the folder, not an absolute path"
+    if "\\" in rel:
+        return "must be a relative POSIX path (a backslash is no part of a run folder's names)"
     if any(part in ("", ".", "..") for part in parts):
         return "must be a normalised relative path inside the folder (no '..', '.' or '//')"
     if "\x00" in rel:

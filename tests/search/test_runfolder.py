@@ -262,3 +262,28 @@ def test_a_run_without_recorded_inputs_is_refused(
     # without ranked rows there is nothing to rebuild: a folder of other outputs opens
     (folder / "ranking.json").unlink()
     assert open_run(folder, ranking=False).rows == []
+
+
+def test_an_input_file_named_with_a_backslash(tmp_path: Path) -> None:
+    """Hostile round fifteen: a family file ``back\\slash.toml`` (a legal POSIX name) was
+    copied to ``inputs/families`` as is, and the manifest then listed a name its own verify,
+    export and report refused. A family of that name is refused up front (its name is the
+    file stem, read back from the copy); a vehicle file of such a name is recorded with
+    ``_`` instead, and the run verifies and exports."""
+    shipped = templates_dir() / "scenarios" / "slow_ahead_curve.toml"
+    fam = tmp_path / "back\\slash.toml"
+    fam.write_text(shipped.read_text(encoding="utf-8"), encoding="utf-8")
+    out = tmp_path / "run"
+    common = ["--environments", "snow", "--budget", "30", "--strategy", "lhs", "--out", str(out)]
+    argv = ["search", "--vehicle", "system_b", "--families", str(fam), *common]
+    assert main(argv) == 2 and not out.exists()
+    vehicle = tmp_path / "my\\veh.toml"
+    vehicle.write_text(
+        (templates_dir() / "vehicles" / "system_b.toml").read_text(encoding="utf-8"),
+        encoding="utf-8",
+    )
+    argv = ["search", "--vehicle", str(vehicle), "--families", "slow_ahead_curve", *common]
+    assert main(argv) == 0
+    assert (out / "inputs" / "vehicle" / "my_veh.toml").is_file()
+    assert main(["verify", str(out)]) == 0
+    assert main(["export", "--run", str(out)]) == 0 and main(["verify", str(out)]) == 0

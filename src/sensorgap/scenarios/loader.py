@@ -170,6 +170,10 @@ def load_family(name_or_path: str, road: Path | None = None) -> Family:
     of the one the file's ``road`` setting names (a run folder's recorded copy)."""
     path = resolve_family_path(name_or_path)
     why = name_problem(path.stem)  # the family's name, drawn in figures
+    if why is None and ("\\" in path.stem or "," in path.stem):
+        # ',' separates --families; a run folder's manifest lists POSIX names (hostile
+        # round fifteen: 'back\slash.toml' made a run its own verify refused)
+        why = "a family name may not hold ',' (it separates names) or '\\' (no part of a path)"
     if why:
         raise InputError(path, "", f"family name (file stem) {short(path.stem)}: {why}")
     data = read_toml(path)

@@ -124,7 +124,10 @@ class _Recorder:
         if not src.is_file():
             raise InputError(src, "", "input file not found (cannot record it in the run folder)")
         data = src.read_bytes()
-        base = name or src.name
+        # a manifest lists POSIX paths, so a backslash (legal in a POSIX file name) is no
+        # part of a copy's name (hostile round fifteen: 'back\slash.toml' was recorded and
+        # the run's own verify refused it); run.json's ``copy`` names the copy
+        base = (name or src.name).replace("\\", "_")
         rel = f"{INPUTS_DIR}/{sub}/{base}"
         if rel in self.used:  # another file of the same name
             stem, dot, ext = base.rpartition(".")
