@@ -620,12 +620,15 @@ def cmd_compare(args: argparse.Namespace) -> int:
     with removed_on_error(args.out):
         html_path, _ = write_compare_report(Path(args.run_a), Path(args.run_b), Path(args.out))
         write_manifest(args.out)
-    rows = json.loads((Path(args.out) / "comparison.json").read_text(encoding="utf-8"))["rows"]
+    data = json.loads((Path(args.out) / "comparison.json").read_text(encoding="utf-8"))
+    rows = data["rows"]
     who = sorted({str(r["critical_for"]) for r in rows})
     print(
-        f"{args.out}: {len(rows)} scenarios compared; critical for: {', '.join(who)}; "
+        f"{args.out}: {len(rows)} scenarios compared; critical for: {', '.join(who) or 'none'}; "
         f"maps, difference maps and report: {html_path}"
     )
+    for note in data.get("run_notes", []):
+        print(f"note of run {note}")
     return 0
 
 

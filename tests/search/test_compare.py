@@ -109,3 +109,25 @@ def test_side_labels() -> None:
         "X (B: r_2)",
     )
     assert side_labels("V", "V", Path("/t/run"), Path("/u/run")) == ("V (A: run)", "V (B: run)")
+
+
+def test_run_notes_carry_a_searchs_own_note(tmp_path: Path) -> None:
+    """Hostile round fifteen: a comparison of two runs none of whose candidates was
+    feasible wrote empty tables that read as "no gap in either"; each run's search note
+    (summary.json) now goes with it (comparison.json ``run_notes``, comparison.md, the
+    report's "What is compared", the printed lines)."""
+    import json
+
+    from sensorgap.search.compare import run_notes
+    from sensorgap.search.possible import no_feasible_note
+
+    a, b, c = (tmp_path / n for n in ("a", "b", "c"))
+    for folder in (a, b, c):
+        folder.mkdir()
+    note = no_feasible_note(80, {"starts within reach: ...": 61})
+    (a / "summary.json").write_text(json.dumps({"note": note}))
+    (b / "summary.json").write_text(json.dumps({"candidates": 80}))  # a run with no note
+    assert run_notes(a, b) == [f"a: {note}"]
+    (c / "summary.json").write_text("{not json")
+    assert run_notes(c, a) == [f"a: {note}"]  # an unreadable summary adds nothing
+    assert "says nothing about the sensors" in run_notes(a, a)[1]

@@ -40,7 +40,7 @@ from sensorgap.report.document import (
     render_markdown,
 )
 from sensorgap.report.figures import farfield_pair_figure
-from sensorgap.search.compare import MARGIN_P, write_comparison
+from sensorgap.search.compare import MARGIN_P, run_notes, write_comparison
 from sensorgap.search.compare_maps import DETECTS_PD, Completed, SideMaps, complete_runs, slug
 
 __all__ = ["slug", "write_compare_report"]
@@ -121,6 +121,9 @@ def _compared(cm: Completed) -> Section:
         head = side.name if f"({tag}: " in side.name else f"{side.name} ({tag})"
         items.append((f"{head}:", text))
     items += [("Note:", n + ".") for n in cm.notes]
+    # a search's own note (no feasible candidate: its empty ranking says nothing of the
+    # sensors), so empty tables below are not read as "no gap in either"
+    items += [("Note of run", n) for n in run_notes(cm.a.run.folder, cm.b.run.folder)]
     return Section(
         "compared",
         "What is compared",

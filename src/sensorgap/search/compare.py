@@ -31,7 +31,7 @@ from sensorgap.models import System
 from sensorgap.search.problem import Candidate, SearchProblem
 from sensorgap.search.ranking import classify, explain
 from sensorgap.search.run import ranking_csv
-from sensorgap.search.runfolder import ROW_TEXT, RunFolder, read_run
+from sensorgap.search.runfolder import ROW_TEXT, RunFolder, read_json_file, read_run
 
 __all__ = [
     "ROW_TEXT",
@@ -296,15 +296,39 @@ def compare_runs(run_a: Path, run_b: Path, margin_p: float = MARGIN_P) -> list[d
     return out
 
 
+def run_notes(run_a: Path, run_b: Path) -> list[str]:
+    """The notes of the two runs' searches (``summary.json`` ``note``: e.g. that no
+    candidate was feasible, so nothing could be ranked and nothing is said about the
+    sensors), each prefixed with its run folder's name; none when a run has none or no
+    readable summary (hostile round fifteen: a comparison of two such runs read as "no
+    gap in either")."""
+    out = []
+    for run in (Path(run_a), Path(run_b)):
+        try:
+            data = read_json_file(run / "summary.json")
+        except (InputError, OSError):
+            continue
+        note = data.get("note") if isinstance(data, dict) else None
+        if isinstance(note, str) and note.strip():
+            out.append(f"{run.name}: {' '.join(note.split())}")
+    return out
+
+
 def write_comparison(run_a: Path, run_b: Path, out: Path) -> list[dict[str, Any]]:
     """``comparison.csv``, ``comparison.json`` and ``comparison.md`` into ``out``."""
     rows = compare_runs(run_a, run_b)
+    notes = run_notes(run_a, run_b)
     out.mkdir(parents=True, exist_ok=True)
     cols = list(rows[0]) if rows else ["scenario_id"]
     atomic_write_bytes(out / "comparison.csv", ranking_csv(rows, cols))
     write_json(
         out / "comparison.json",
-        {"columns": cols, "rows": rows, "margin_collision_probability": MARGIN_P},
+        {
+            "columns": cols,
+            "rows": rows,
+            "margin_collision_probability": MARGIN_P,
+            "run_notes": notes,
+        },
     )
     counts = Counter((r["critical_for"], r["dominant_effect"]) for r in rows)
     lines = [
@@ -314,6 +338,8 @@ def write_comparison(run_a: Path, run_b: Path, out: Path) -> list[dict[str, Any]
         f"{MARGIN_P:g}. Each scenario ranked for either vehicle is evaluated exactly "
         "for both, each vehicle with its own reaction model.",
         "",
+        *[f"Note of run {n}" for n in notes],
+        *([""] if notes else []),
         "| critical for | dominant effect | scenarios |",
         "|---|---|---|",
     ]
