@@ -441,6 +441,7 @@ def cmd_paper(args: argparse.Namespace) -> int:
 
 def cmd_search(args: argparse.Namespace) -> int:
     """Search for critical scenarios into --out (SQLite store, ranking.csv/json)."""
+    from sensorgap.search.ranking import RANK_MIN_P
     from sensorgap.search.run import SEARCH_WRITES, run_search
     from sensorgap.stale import search_removing_stale, stale_after_search
 
@@ -486,9 +487,10 @@ def cmd_search(args: argparse.Namespace) -> int:
             f"lookup vs exact over the {d['reevaluated']} best candidates (re-evaluated "
             f"exactly; every reported number is exact): mean |dP_collision| "
             f"{d['mean_abs_diff_collision_probability']:.3g}, max "
-            f"{d['max_abs_diff_collision_probability']:.3g}; sensor-critical "
-            f"{d['sensor_critical_lookup']} by lookup, {d['sensor_critical_exact']} "
-            f"exactly, {d['sensor_critical_both']} both"
+            f"{d['max_abs_diff_collision_probability']:.3g}; sensor-critical at any "
+            f"P(collision) > 0: {d['sensor_critical_lookup']} by lookup, "
+            f"{d['sensor_critical_exact']} exactly, {d['sensor_critical_both']} both (the "
+            f"ranking keeps those at {RANK_MIN_P:g} or more, near-duplicates merged)"
         )
     found = (
         outcome.summary["note"]  # none feasible: "best collision probability 0" read as safe
