@@ -403,8 +403,11 @@ class Store:
         # counted the rewrite and the run failed its verify)
         text = json.dumps(inputs, sort_keys=True)
         have = self.db.execute("SELECT value FROM meta WHERE key = 'inputs'").fetchone()
-        if have is None or have[0] != text:
-            self.db.execute("INSERT OR REPLACE INTO meta VALUES ('inputs', ?)", (text,))
+        self.db.execute("INSERT OR REPLACE INTO meta VALUES ('inputs', ?)", (text,))
+        if have is not None and have[0] == text:
+            # the same row: written only to learn that the store can be written (a
+            # read-only one fails here, before any work), then rolled back
+            self.db.rollback()
         self.db.commit()
 
     def close(self) -> None:
