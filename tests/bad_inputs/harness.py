@@ -582,8 +582,12 @@ def _setup(
             (run / "report.md").symlink_to(folder / "elsewhere" / "keep.xodr")
         elif step == "crowded_dir":  # {dir}/crowd/ holds 100,001 empty files
             (folder / "crowd").mkdir()
-            for i in range(100_001):
-                (folder / "crowd" / f"f{i}").touch()
+            crowd = os.open(folder / "crowd", os.O_RDONLY | os.O_DIRECTORY)
+            try:  # by the folder's descriptor: a fifth of pathlib's touch (5 s)
+                for i in range(100_001):
+                    os.close(os.open(f"f{i}", os.O_CREAT | os.O_WRONLY, 0o644, dir_fd=crowd))
+            finally:
+                os.close(crowd)
         elif step == "run_store_deleted":  # {run}/search.sqlite removed
             (run / "search.sqlite").unlink()
         elif step == "fifo_out":  # {dir}/out.csv is a named pipe
