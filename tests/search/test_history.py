@@ -137,3 +137,13 @@ def test_a_radar_confirming_only_moving_targets_counts_only_for_a_moving_car(
     assert not moving.feasible
     assert moving.note.startswith("starts within reach: the car is ")
     assert "from radar_front (reach 1000 m)" in moving.note
+
+
+def test_the_no_feasible_note_lists_the_most_frequent_reason_first() -> None:
+    """Hostile round fifteen: the printed line listed the kinds by count, the report
+    (from summary.json, whose keys are sorted) alphabetically; both by count now, the
+    rest ("other") last."""
+    from sensorgap.search.possible import no_feasible_note
+
+    note = no_feasible_note(100, {"a rare kind": 5, "other": 40, "starts within reach": 55})
+    assert "(55 starts within reach; 5 a rare kind; 40 other)" in note

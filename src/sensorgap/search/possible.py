@@ -278,7 +278,10 @@ def no_feasible_note(candidates: int, reasons: dict[str, int]) -> str:
     """What a search none of whose ``candidates`` was feasible found, in words: nothing
     could be ranked because no lawful, possible encounter exists in the searched conditions
     (not because the sensors saw every target), with the counts of ``reasons``."""
-    why = "; ".join(f"{n:,} {kind}" for kind, n in reasons.items())
+    # the most frequent first, "other" last, whatever order the dict came in (summary.json
+    # holds it with its keys sorted: the report listed the kinds alphabetically)
+    ordered = sorted(reasons.items(), key=lambda kv: (kv[0] == "other", -kv[1], kv[0]))
+    why = "; ".join(f"{n:,} {kind}" for kind, n in ordered)
     return (
         f"no feasible candidate: every one of the {candidates:,} candidates was infeasible"
         + (f" ({why})" if why else "")
