@@ -536,6 +536,16 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
             why = None  # not a number: parse_params names it
         if why:
             raise InputError("param", name, why)
+    # the ranking's environment label, NAME@sunAZ/EL, as NAME with --sun AZ/EL (a preset
+    # name holds no '@'); given both ways, they must agree
+    environment, at, sun = str(args.environment).partition("@sun")
+    if at and args.sun is not None and args.sun != sun:
+        raise InputError(
+            "--environment",
+            "",
+            f"{args.environment!r} gives the sun as {sun!r}, --sun as {args.sun!r}: give it once",
+        )
+    sun = sun if at else args.sun
     # files no manifest lists: a certified folder (a search run) would fail its verify
     refuse_certified_out(args.out, "evaluate")
     try:
@@ -544,8 +554,8 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
             ev = evaluate_candidate(
                 args.vehicle,
                 args.family,
-                args.environment,
-                parse_sun(args.sun),
+                environment,
+                parse_sun(sun),
                 args.param or [],
                 Path(args.out),
                 Path(args.environments_file) if args.environments_file else None,
@@ -1180,7 +1190,11 @@ def build_parser() -> argparse.ArgumentParser:
         "families, targets and reaction model it recorded",
     )
     p.add_argument("--family", required=True, help="family name or .toml path")
-    p.add_argument("--environment", required=True, help="environment preset")
+    p.add_argument(
+        "--environment",
+        required=True,
+        help="environment preset, or a ranking's label NAME@sunAZ/EL (NAME with --sun AZ/EL)",
+    )
     p.add_argument("--environments-file", help="environments file (default: shipped presets)")
     p.add_argument("--sun", help="AZ/EL: world-frame sun, deg (default: the preset's)")
     p.add_argument(

@@ -308,3 +308,20 @@ def test_glare_reason_names_the_suns_angle_from_the_line_of_sight(tmp_path: Path
     want = math.degrees(math.acos(float(sun @ los) / float(np.linalg.norm(los))))
     assert float(said.group(1)) == pytest.approx(want, abs=0.05)
     assert 0.5 < want < 20.0  # a low sun close to the line of sight: the glare is credible
+
+
+def test_evaluate_takes_the_rankings_environment_label(tmp_path: Path) -> None:
+    """Hostile round fifteen: ``evaluate --environment clear@sun78/4`` (the form of the
+    ranking's ``environment`` column) was refused; it is ``--environment clear --sun
+    78/4``, byte for byte. Given both ways and disagreeing, refused (exit 2)."""
+    params = ["--param", "ego_s0_m=441.0468", "--param", "ego_speed_m_s=34.0193"]
+    params += ["--param", "gap0_m=314.3204", "--param", "target_speed_m_s=0.2991"]
+    base = ["evaluate", "--vehicle", "system_b", "--family", "slow_ahead_curve", *params]
+    a, b = tmp_path / "a", tmp_path / "b"
+    assert main([*base, "--environment", "clear", "--sun", "78/4", "--out", str(a)]) == 0
+    assert main([*base, "--environment", "clear@sun78/4", "--out", str(b)]) == 0
+    for name in ("evaluation.json", "trace.csv"):
+        assert (a / name).read_bytes() == (b / name).read_bytes()
+    c = tmp_path / "c"
+    argv = [*base, "--environment", "clear@sun78/4", "--sun", "70/4", "--out", str(c)]
+    assert main(argv) == 2 and not c.exists()
