@@ -33,6 +33,7 @@ from sensorgap.filesio import (
     refuse_inside_certified,
     refuse_links,
     refuse_uncertifiable,
+    same_file,
     write_manifest,
 )
 from sensorgap.plugins import load_plugins
@@ -147,14 +148,6 @@ def _scene(args: argparse.Namespace, ego_heading_rad: float = 0.0) -> Scene:
     return Scene(system, target, Conditions.from_config(env, ego_heading_rad))
 
 
-def _same_file(a: str, b: str) -> bool:
-    """Whether two existing paths name the same file (also under two names)."""
-    try:
-        return os.path.samefile(a, b)
-    except OSError:  # one of them does not exist: not the same file
-        return False
-
-
 def cmd_probe(args: argparse.Namespace) -> int:
     """Per-sensor SNR/Pd and fused Pd at points read from a CSV."""
     from sensorgap.atomic import atomic_write_bytes
@@ -171,7 +164,7 @@ def cmd_probe(args: argparse.Namespace) -> int:
             "one CSV file: give its path, e.g. "
             f"{os.path.join(args.out, 'probe.csv')}",
         )
-    if args.out and _same_file(args.out, args.points):
+    if args.out and same_file(args.out, args.points):
         raise InputError(
             "--out", "", f"is the --points file {args.points}: writing would overwrite the input"
         )

@@ -757,6 +757,15 @@ def _first_link(folder: Path) -> str | None:
     return None
 
 
+def same_file(a: str | Path, b: str | Path) -> bool:
+    """Whether two existing paths name the same file (also under two names); False when
+    either cannot be found or read."""
+    try:
+        return os.path.samefile(a, b)
+    except OSError:  # one of them does not exist: not the same file
+        return False
+
+
 def refuse_links(folder: str | Path, what: str, command: str) -> None:
     """Before ``command`` certifies every file of ``folder`` (its manifest lists the whole
     folder): refused (``InputError`` naming ``what``) when an entry below it is a symbolic

@@ -36,6 +36,7 @@ from sensorgap.config.load import read_toml, short
 from sensorgap.config.parameters import bound_error
 from sensorgap.config.presets import resolve_road
 from sensorgap.errors import InputError
+from sensorgap.filesio import same_file
 from sensorgap.roads import RoadNetwork, read_opendrive
 from sensorgap.scenarios.family import Family, Param, get_kind, kind_names
 
@@ -365,7 +366,7 @@ def load_families(names: list[str]) -> list[Family]:
     families = []
     for f in (load_family(n) for n in dict.fromkeys(names)):
         if f.name in seen:
-            if _same_file(seen[f.name], f.source):
+            if same_file(seen[f.name], f.source):
                 continue
             raise InputError(
                 "families",
@@ -376,11 +377,3 @@ def load_families(names: list[str]) -> list[Family]:
         seen[f.name] = f.source
         families.append(f)
     return families
-
-
-def _same_file(a: str, b: str) -> bool:
-    """Whether two family sources are one file (False when either cannot be read)."""
-    try:
-        return Path(a).samefile(b)
-    except OSError:
-        return False

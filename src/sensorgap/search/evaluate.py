@@ -944,18 +944,14 @@ class Evaluator:
         rows = sorted(set(self.confirm_rows) | set(self.moving_rows))
         mounts = [self.system.sensors[i].mount for i in rows]
         reach = [(m.x, m.y, m.max_range) for m in mounts]
-        x0, y0, psi0 = kin.x[:, 0], kin.y[:, 0], kin.psi[:, 0]
-        which, dist = in_reach(x0, y0, psi0, target.length_m, target.width_m, reach)
-        if self.moving_rows:  # without the moving-only sensors where the target stands
-            still = tgt.speed[:, 0] < self.reaction.moving_min_speed_m_s
-            moving = set(self.moving_rows)
-            kept = [
-                (m if i not in moving else (m[0], m[1], -1.0))
-                for i, m in zip(rows, reach, strict=True)
-            ]
-            w2, d2 = in_reach(x0, y0, psi0, target.length_m, target.width_m, kept)
-            which = np.where(still, w2, which)
-            dist = np.where(still, d2, dist)
+        counts = None
+        if self.moving_rows:  # a moving-only sensor counts where the target moves at t = 0
+            moving = tgt.speed[:, 0] >= self.reaction.moving_min_speed_m_s
+            moving_only = np.array([i in self.moving_rows for i in rows])
+            counts = ~moving_only[None, :] | moving[:, None]
+        which, dist = in_reach(
+            kin.x[:, 0], kin.y[:, 0], kin.psi[:, 0], target.length_m, target.width_m, reach, counts
+        )
         return StartReach(
             which,
             dist,

@@ -120,12 +120,14 @@ def in_reach(
     length: float,
     width: float,
     mounts: Sequence[tuple[float, float, float]],
+    counts: NDArray[np.bool_] | None = None,
 ) -> tuple[NDArray[np.int64], F64]:
     """(B,) which of ``mounts`` (sensor position x, y in the ego frame, m, and its
     ``max_range``, m) has the target's body within reach at t = 0, -1 for none (the one
     it is deepest within: largest reach minus distance), and (B,) that sensor's distance
     to the body, m (inf for none). ``x``, ``y``, ``psi``: (B,) the target centre in the
-    ego frame, m, and its relative heading, rad; ``length``, ``width``: its body, m.
+    ego frame, m, and its relative heading, rad; ``length``, ``width``: its body, m;
+    ``counts``: (B, M) whether mount m counts for row b (None: every mount, every row).
 
     The distance is the horizontal one from the sensor to the nearest point of the body's
     box: never more than the 3-D range, so a body beyond it is beyond every sensor's
@@ -141,6 +143,8 @@ def in_reach(
         v = np.abs(-s * dx + c * dy) - 0.5 * width
         d = np.hypot(np.maximum(u, 0.0), np.maximum(v, 0.0))
         deeper = (d <= reach) & ((which < 0) | (reach - d > best))
+        if counts is not None:
+            deeper &= counts[:, i]
         which[deeper] = i
         dist[deeper] = d[deeper]
         best[deeper] = reach - d[deeper]
