@@ -746,7 +746,7 @@ def test_environment_name_with_dollars_is_drawn_as_written_in_the_report(
 
     text = (templates_dir() / "environments.toml").read_text()
     name = "a$x^{$ Ä"
-    text = text.replace("[environments.glare_front_right", f'[environments."{name}"')
+    text = text.replace("[environments.snow", f'[environments."{name}"')
     (tmp_path / "e.toml").write_text(text)
     run = tmp_path / "run"
     assert (

@@ -45,7 +45,7 @@ FINISHED_RUN_COMMANDS: tuple[tuple[str, ...], ...] = (
         "--families",
         "stopped_rural_curve",
         "--environments",
-        "glare_front_right",
+        "snow",
         "--budget",
         "100",
         "--top",

@@ -8,7 +8,13 @@ import numpy as np
 import pytest
 
 from sensorgap.analysis.farfield import EgoPose, farfield, level_lengths, path_ahead
-from sensorgap.analysis.paper import FarFieldSetup, ego_pose, run_farfield, target_path
+from sensorgap.analysis.paper import (
+    FarFieldSetup,
+    ego_pose,
+    paper_system,
+    run_farfield,
+    target_path,
+)
 from sensorgap.cli import main
 from sensorgap.config.presets import resolve_road
 from sensorgap.errors import InputError
@@ -76,10 +82,11 @@ def test_motorway_setup_matches_the_paper_geometry() -> None:
     setup = FarFieldSetup()
     path = target_path(net, setup)
     assert len(path) > 100
-    b = load_system("system_b")
+    b = paper_system(load_system("system_b"), "glare")
     _, ff = run_farfield(b, "glare_front_right", setup, net)
     assert ff.ds.sum() == pytest.approx(303.0)
-    assert ff.levels_m["pd=1.0"] == 0.0  # B under glare: radar only, never certain
+    # B under the paper's glare: cameras blind, radar only, never certain
+    assert ff.levels_m["pd=1.0"] == 0.0
 
 
 def test_farfield_cli_files(tmp_path: Path) -> None:

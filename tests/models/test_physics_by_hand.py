@@ -168,10 +168,14 @@ def camera_by_hand(
     e_dir: float,
     theta_deg: float = 1.0,
     k_veil: float = 10.0,
+    c_v: float = 0.25,
+    n_sum: float = 2500.0,
 ) -> float:
     """Eq. 6-9 by hand; with ``sun_w`` > 0 the direct sun as veiling glare on the target's
-    image: ``N_e,sun = w (k E_dir / theta^2) / (rho E_sun / pi) N_e 10^(gamma R / 10)``
-    (Stiles-Holladay, theta >= 1 deg; docs/models.md)."""
+    image (Stiles-Holladay, theta >= 1 deg; docs/models.md): the veil over the object's
+    image ``N_veil = w (k E_dir / theta^2) / (rho E_sun / pi) N_e 10^(gamma R / 10)``, its
+    shot noise over the pixels the object's light falls on (``n_c = max(N_pix,o, 1)``) and
+    its contrast noise ``c_v N_veil (n_c / N_pix,o) / sqrt(min(n_c, n_sum))``."""
     ifov = hfov / 1920
     f = 3e-6 / ifov
     d = f / 1.8
@@ -181,11 +185,14 @@ def camera_by_hand(
     pr = 0.15 / math.pi * e_sun * 2.7 * d**2 * n_pix_o / (16 * r**2 * l_oa * n_pix)  # eq. 6
     h_nu = H * C / 550e-9
     ne = pr * 1e-3 * 0.6 / h_nu  # eq. 7
-    nen = math.sqrt(ne) + K * 1e3 * 300.0 * 1e-3 * 0.6 / h_nu  # eq. 8
+    thermal = K * 1e3 * 300.0 * 1e-3 * 0.6 / h_nu
     l_veil = k_veil * e_dir / max(theta_deg, 1.0) ** 2  # per lux of the sun: cd/m2
     l_obj = 0.15 * e_sun / math.pi
-    ne_sun = sun_w * l_veil / l_obj * ne * 10 ** (gamma * r / 1000 / 10)
-    return db(ne / (nen + ne_sun))  # eq. 9
+    n_veil = sun_w * l_veil / l_obj * ne * 10 ** (gamma * r / 1000 / 10)
+    n_c = max(n_pix_o, 1.0)
+    shot = math.sqrt(ne + n_veil * n_c / n_pix_o)  # eq. 8 with the veil's photons
+    contrast = c_v * n_veil * (n_c / n_pix_o) / math.sqrt(min(n_c, n_sum))
+    return db(ne / (shot + thermal + contrast))  # eq. 9
 
 
 @pytest.mark.parametrize("r", [0.3, 10.0, 100.0, 400.0])
@@ -199,14 +206,16 @@ def test_camera_eq6_to_9(r: float) -> None:
     assert got == pytest.approx(want, abs=TOL_DB)
 
 
-@pytest.mark.parametrize("r", [10.0, 50.0, 400.0])
+@pytest.mark.parametrize("r", [10.0, 50.0, 400.0, 6000.0])
 @pytest.mark.parametrize(
     ("tgt_az", "tgt_el"), [(0.0, 0.0), (-10.0, 5.0), (-10.5, 5.2), (15.0, -3.0)]
 )
 def test_camera_veiling_glare_by_hand(r: float, tgt_az: float, tgt_el: float) -> None:
     """Sun at azimuth -10 deg, elevation 5 deg, inside a level 50 x 28 deg camera's view;
-    the angle between sun and target from the spherical law of cosines (by hand)."""
-    mount = Mount(0.0, 0.0, 1.3, 0.0, 0.0, math.radians(50.0), math.radians(28.0), 0.0, 1000.0)
+    the angle between sun and target from the spherical law of cosines (by hand). The
+    object covers 130,000 pixels at 10 m (beyond the summation limit), 82 at 400 m and 0.6
+    at 6 km (sub-pixel: its light falls on one pixel)."""
+    mount = Mount(0.0, 0.0, 1.3, 0.0, 0.0, math.radians(50.0), math.radians(28.0), 0.0, 1e4)
     model = Camera(camera_params())
     sun_front = SunConfig(azimuth_deg=-10.0, elevation_deg=5.0, direct_irradiance_w_m2=480.0)
     c = cond(irradiance_w_m2=534.0, sun=sun_front)
@@ -226,26 +235,58 @@ def test_camera_veiling_glare_by_hand(r: float, tgt_az: float, tgt_el: float) ->
 
 
 def test_camera_glare_falls_with_angle_from_the_sun() -> None:
-    """A target next to the sun is blind (SNR bounded by the object-to-veil contrast); 30
-    deg from it the veil is 900 times weaker (1/theta^2) and the camera sees; with the sun
+    """A target next to the sun is bounded by its contrast against the veil, averaged over
+    its pixels: SNR <= sqrt(N_pix,o) / (c_v V(1 deg)); 30 deg from the sun the veil is 900
+    times weaker (1/theta^2) and the SNR within 1 dB of the sunless one (the veil is still
+    a fifth of the object's light: its shot and contrast noise cost 0.6 dB); with the sun
     behind the camera (outside its view and margin) there is no glare term at all."""
     mount = Mount(0.0, 0.0, 1.3, 0.0, 0.0, math.radians(90.0), math.radians(28.0), 0.0, 1000.0)
     model = Camera(camera_params())
     sun_front = SunConfig(azimuth_deg=-10.0, elevation_deg=5.0, direct_irradiance_w_m2=480.0)
     c = cond(irradiance_w_m2=534.0, sun=sun_front)
     prep = model.prepare(mount, TARGET, c)
-    near = snr_at(prep.snr_db, 50.0, math.radians(-10.0), math.radians(5.0))
-    far = snr_at(prep.snr_db, 50.0, math.radians(20.0), math.radians(5.0))
-    # at the sun (theta held at 1 deg): SNR <= -10 log10(10 * 480 / (0.15 * 534 / pi))
-    assert near < -10.0 * math.log10(10.0 * 480.0 / (0.15 * 534.0 / math.pi))
-    assert far > near + 25.0
+    gamma = c.attenuation_db_km(model.band())
+    sunless = camera_by_hand(150.0, gamma, 534.0, math.radians(90.0), 0.0, 0.0)
+    near = snr_at(prep.snr_db, 150.0, math.radians(-10.0), math.radians(5.0))
+    far = snr_at(prep.snr_db, 150.0, math.radians(20.0), math.radians(5.0))
+    # at the sun (theta held at 1 deg); 179 pixels at 150 m behind a 90-deg lens
+    n_pix_o = 2.7 / (150.0 * math.radians(90.0) / 1920) ** 2
+    v_1deg = 10.0 * 480.0 / (0.15 * 534.0 / math.pi)
+    assert near < db(math.sqrt(n_pix_o) / (0.25 * v_1deg)) < 10.0  # below the ROC's 50 %
+    assert far == pytest.approx(sunless, abs=1.0) and far > near + 10.0
     sun_behind = SunConfig(azimuth_deg=170.0, elevation_deg=5.0)
     prep = model.prepare(mount, TARGET, cond(irradiance_w_m2=534.0, sun=sun_behind))
     assert "glare" not in prep.effects
-    gamma = c.attenuation_db_km(model.band())
     assert snr_at(prep.snr_db, 50.0) == pytest.approx(
         camera_by_hand(50.0, gamma, 534.0, math.radians(90.0), 0.0, 0.0), abs=TOL_DB
     )
+
+
+def test_a_large_image_sees_through_a_veil_as_bright_as_the_object() -> None:
+    """The veil costs contrast, not the object: a car at 40 m (about 2,600 pixels behind a
+    50-deg lens) keeps an SNR above 20 dB where the veil's radiance equals the object's,
+    while the same car at 1 km (4 pixels) drops below the ROC's 50 % (10 dB) there. With
+    contrast noise 1 and no averaging (``veil_contrast_noise`` 1, ``veil_summation_px``
+    1: the veil counted as a copy of the object's signal) the bound is 1 / V at any size."""
+    mount = Mount(0.0, 0.0, 1.3, 0.0, 0.0, math.radians(50.0), math.radians(28.0), 0.0, 2000.0)
+    sun_front = SunConfig(azimuth_deg=-10.0, elevation_deg=5.0, direct_irradiance_w_m2=480.0)
+    c = cond(irradiance_w_m2=534.0, sun=sun_front)
+    # V(theta) = 1 where 10 E_dir / theta^2 = rho E_sun / pi
+    theta = math.sqrt(10.0 * 480.0 / (0.15 * 534.0 / math.pi))
+    az = math.radians(-10.0 + theta)  # along the horizon of the sun's elevation: ~theta
+    el = math.radians(5.0)
+    sep = math.degrees(
+        math.acos(math.sin(el) ** 2 + math.cos(el) ** 2 * math.cos(math.radians(theta)))
+    )
+    v = 10.0 * 480.0 / sep**2 / (0.15 * 534.0 / math.pi)
+    assert v == pytest.approx(1.0, abs=0.01)
+    prep = Camera(camera_params()).prepare(mount, TARGET, c)
+    assert snr_at(prep.snr_db, 40.0, az, el) > 20.0
+    assert snr_at(prep.snr_db, 1000.0, az, el) < 10.0
+    copy = Camera(camera_params(veil_contrast_noise=1.0, veil_summation_px=1.0))
+    prep = copy.prepare(mount, TARGET, c)
+    for r in (40.0, 1000.0):
+        assert snr_at(prep.snr_db, r, az, el) < db(1.0 / v)
 
 
 def test_camera_glare_weight_fades_outside_fov() -> None:

@@ -11,6 +11,7 @@ from pathlib import Path
 
 from sensorgap.models import load_system
 from sensorgap.search.compare import MARGIN_P, SEES_PD
+from sensorgap.search.ranking import RANK_MIN_P
 
 
 def test_top_lists_differ(job: Path, compared: Path) -> None:
@@ -35,17 +36,21 @@ def test_every_difference_names_the_sensors_of_both_setups(compared: Path) -> No
     assert one_sided, "the two setups differ, so some scenario must be critical for one only"
     for r in rows:
         pa, pb = r["collision_probability_System A"], r["collision_probability_System B"]
-        if r["critical_for"] in ("both", "neither"):
-            assert abs(pa - pb) < MARGIN_P
+        if r["critical_for"] == "both":
+            assert abs(pa - pb) < MARGIN_P and min(pa, pb) >= RANK_MIN_P
+            continue
+        if r["critical_for"] == "neither":
+            assert max(pa, pb) < RANK_MIN_P
             continue
         worse, better = (
             ("System A", "System B")
             if r["critical_for"] == "System A"
             else ("System B", "System A")
         )
-        assert (
-            r[f"collision_probability_{worse}"] - r[f"collision_probability_{better}"]
-        ) >= MARGIN_P
+        p_worse = r[f"collision_probability_{worse}"]
+        p_better = r[f"collision_probability_{better}"]
+        assert p_worse >= RANK_MIN_P
+        assert p_worse - p_better >= MARGIN_P or p_better < RANK_MIN_P
         # the reason starts with the worse vehicle's missing sensors and their effect ...
         assert r["why"].startswith(f"{worse}: {r['dominant_effect']}:")
         # ... and names the better vehicle's sensors that see the target, with a type, or

@@ -89,10 +89,10 @@ def test_two_versions_of_one_vehicle_are_told_apart(
         if r["critical_for"] in (la, lb):
             other = lb if r["critical_for"] == la else la
             assert r["why"].startswith(f"{r['critical_for']}: ")
-            assert (
-                r[f"collision_probability_{r['critical_for']}"]
-                - r[f"collision_probability_{other}"]
-            ) >= 0.1
+            mine = r[f"collision_probability_{r['critical_for']}"]
+            theirs = r[f"collision_probability_{other}"]
+            # higher by 0.1, or the other below what a ranking keeps (1e-6)
+            assert mine >= 1e-6 and (mine - theirs >= 0.1 or theirs < 1e-6)
     md = (out / "report.md").read_text()
     assert f"# sensorgap: {la} vs {lb}" in md and f"| rank {la} | rank {lb} |" in md
     assert f"- **{la}:** run folder base;" in md
@@ -136,3 +136,17 @@ def test_run_notes_carry_a_searchs_own_note(tmp_path: Path) -> None:
     (c / "summary.json").write_text("{not json")
     assert run_notes(c, a) == [f"a: {note}"]  # an unreadable summary adds nothing
     assert "says nothing about the sensors" in run_notes(a, a)[1]
+
+
+def test_critical_for_counts_a_side_from_what_a_ranking_keeps() -> None:
+    """A side counts from P(collision) 1e-6 (``RANK_MIN_P``): B's glare row at 0.0097
+    against A's 1.4e-36 (System B's glare search of 2026-11-27) is B's alone, where it
+    read ``both`` when any P > 0 counted; two counting sides within 0.1 are ``both``."""
+    from sensorgap.search.compare import critical_for
+
+    assert critical_for(0.0097, 1.4e-36, "A", "B", 0.1) == "A"
+    assert critical_for(1.4e-36, 0.0097, "A", "B", 0.1) == "B"
+    assert critical_for(0.05, 0.02, "A", "B", 0.1) == "both"
+    assert critical_for(5e-7, 0.0, "A", "B", 0.1) == "neither"
+    assert critical_for(0.9, 0.5, "A", "B", 0.1) == "A"
+    assert critical_for(0.5, 0.9, "A", "B", 0.1) == "B"

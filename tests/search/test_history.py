@@ -1,6 +1,6 @@
 """The detection history starts at t = 0: a slower car ahead must start beyond every
 confirming sensor's reach (``search.possible.in_reach``; session 17's review found rows
-whose collision probability the cut-off history overstated, 1.00 instead of 0.44)."""
+whose collision probability the cut-off history overstated: here 1.00 instead of 0.03)."""
 
 from __future__ import annotations
 
@@ -44,14 +44,15 @@ def test_in_reach_measures_to_the_nearest_point_of_the_body() -> None:
 def _problem() -> SearchProblem:
     return SearchProblem(
         load_family("slow_ahead_curve"),
-        {"clear": load_environments()["clear"]},
+        {"snow": load_environments()["snow"]},
         Evaluator(load_system("system_b"), "exact"),
     )
 
 
-#: Session 17's row: System B, the motorway curve, the sun at azimuth 64 deg, elevation 7
-#: deg; the ego at 20.84 m/s, the car at 4.84 m/s 101.2 m ahead of it at s = 734.79 m.
-EGO_S0, EGO_V, GAP0, CAR_V = 734.79, 20.84, 101.2, 4.84
+#: System B on the motorway curve in snow: the ego at 25 m/s, the car at 5 m/s 100 m ahead
+#: of it at s = 734.79 m (session 17's example was a glare row that the veil model of
+#: 2026-11-27 no longer makes critical).
+EGO_S0, EGO_V, GAP0, CAR_V = 734.79, 25.0, 100.0, 5.0
 
 
 def _started_earlier(dt: float) -> dict[str, float]:
@@ -66,24 +67,24 @@ def _started_earlier(dt: float) -> dict[str, float]:
 
 
 def test_a_start_within_reach_overstates_and_is_refused(monkeypatch: pytest.MonkeyPatch) -> None:
-    """Started 101 m apart (within cam_narrow's 250 m), the encounter's P(collision) is
-    1.00; started 9.7 s earlier (256 m apart, beyond every confirming sensor's reach) it
-    is 0.44, and started 10.5 s earlier the same to 1e-12 (nothing before the reach adds
-    a chance to detect). The rule refuses the first with a note naming the sensor and the
-    distance (97.1 m by the geometry: 101.2 m less the car's half length and the
-    camera's 1.95 m, along the curve's chord) and uses the others."""
+    """Started 100 m apart in snow (within cam_narrow's 250 m), the encounter's
+    P(collision) is 1.00; started 8.3 s earlier (266 m apart, beyond every confirming
+    sensor's reach) it is 0.031, and started 9.3 s earlier the same to 1e-12 (nothing
+    before the reach adds a chance to detect). The rule refuses the first with a note
+    naming the sensor and the distance (95.9 m by the geometry: 100 m less the car's half
+    length and the camera's 1.95 m, along the curve's chord) and uses the others."""
     prob = _problem()
 
     def run(dt: float) -> tuple[bool, str, float]:
-        r = prob.evaluate(Candidate("slow_ahead_curve", "clear", (64.0, 7.0), _started_earlier(dt)))
+        r = prob.evaluate(Candidate("slow_ahead_curve", "snow", None, _started_earlier(dt)))
         return r.feasible, r.note, r.metrics.get("collision_probability", -1.0)
 
     feasible, note, _ = run(0.0)
     assert not feasible
-    assert note.startswith("starts within reach: the car is 97.1 m from cam_narrow (reach 250 m)")
-    far, farther = run(9.7), run(10.5)
+    assert note.startswith("starts within reach: the car is 95.9 m from cam_narrow (reach 250 m)")
+    far, farther = run(8.3), run(9.3)
     assert far[0] and farther[0]
-    assert far[2] == pytest.approx(0.4419, abs=1e-4)
+    assert far[2] == pytest.approx(0.03095, abs=1e-5)
     assert abs(far[2] - farther[2]) < 1e-12
     monkeypatch.setattr(SlowAhead, "start_out_of_reach", False)
     cut_off = run(0.0)

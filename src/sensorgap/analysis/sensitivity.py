@@ -113,13 +113,14 @@ def varied_system(system: System, knob: Knob, value: float) -> System | None:
     return None if not changed else build_system(cfg, system.source)
 
 
-def with_camera_field(system: System, field: str, value: float) -> System:
-    """The system rebuilt with ``field`` set to ``value`` on every camera device (e.g. the
-    paper's whole-image glare: ``veiling_glare_k`` at its largest value)."""
+def with_camera_fields(system: System, fields: dict[str, float]) -> System:
+    """The system rebuilt with ``fields`` (name -> value) set on every camera device (e.g.
+    the paper's whole-image glare, ``analysis.paper.WHOLE_IMAGE_GLARE``)."""
     cfg = system.config
+    values = {k: float(v) for k, v in fields.items()}
     devices = {
         name: (
-            DeviceConfig.model_validate({**dev.model_dump(), field: float(value)})
+            DeviceConfig.model_validate({**dev.model_dump(), **values})
             if dev.type == "camera"
             else dev
         )

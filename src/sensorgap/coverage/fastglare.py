@@ -3,12 +3,13 @@ outline points of target bodies (or at their centres) from its received-signal m
 each point's veiling glare and the camera's ROC.
 
 It is the built-in camera's ``snr_from_signal`` (models/camera.py: the veil
-``k E_dir / theta^2`` as noise beside shot and thermal noise) with the constants that
-``Camera.prepare`` folds (``PreparedSensor.veil_constants``), the glare factor of
-``models.base.glare_factors`` (glare weight times ``min(1, (theta_min / theta)^2)``), and the
-closed-form ROC kinds of ``fastkernel.roc_constants``. The numpy path
-(``logmiss._glared_values_numpy``) stays the reference and the fallback for other sensor
-types and ROC kinds; tests/coverage/test_fastglare.py holds the two equal to 1e-12.
+``k E_dir / theta^2`` as shot and contrast noise beside the object's shot and thermal
+noise) with the constants that ``Camera.prepare`` folds
+(``PreparedSensor.veil_constants``), the glare factor of ``models.base.glare_factors``
+(glare weight times ``min(1, (theta_min / theta)^2)``), and the closed-form ROC kinds of
+``fastkernel.roc_constants``. The numpy path (``logmiss._glared_values_numpy``) stays the
+reference and the fallback for other sensor types and ROC kinds;
+tests/coverage/test_fastglare.py holds the two equal to 1e-12.
 """
 
 from __future__ import annotations
@@ -114,7 +115,8 @@ def glared_pass(
     m; ``inv_res`` cells per m) around the point are in view (``state`` 1); else 0 with
     state 0 (out of view) or 2 (the edge of the view or off the map: the caller evaluates
     it exactly). ``mount``: the camera's position (m); ``veil``: (ln veil-to-object ratio
-    at theta_min, ln thermal noise, one-way weather loss dB/m, theta_min deg). With the
+    at theta_min, ln thermal noise, one-way weather loss dB/m, theta_min deg, sigma dBsm,
+    IFOV dB, pixel count dB, ln contrast noise, summation pixels dB). With the
     camera's ``signal_constants`` ``sig_c`` (non-empty) and ``view``
     (``fastkernel.mount_constants``), those points are evaluated exactly here instead: the
     field of view and range at the point and ``camera_signal_db`` there (state 3, or 0 out
@@ -123,6 +125,11 @@ def glared_pass(
     ln_thermal = veil[1]
     one_way = veil[2]
     t_min = veil[3]
+    sigma_db = veil[4]
+    ifov_db = veil[5]
+    n_pix_db = veil[6]
+    ln_cv = veil[7]
+    sum_db = veil[8]
     k_out = outline.shape[0]
     for m in range(xs.size):
         cp = math.cos(psi[m])
@@ -162,6 +169,15 @@ def glared_pass(
                 theta = math.degrees(math.acos(cs))
                 g = w[m] * (t_min * t_min / max(theta, t_min) ** 2)
             ln_ne = sig * LN10_OVER_10
-            ln_veil = math.log(max(g, 1e-300)) + ln_veil0 + ln_ne + one_way * r * LN10_OVER_10
-            ln_noise = _logaddexp(0.5 * ln_ne, _logaddexp(ln_thermal, ln_veil))
+            npo_db = min(sigma_db - 20.0 * math.log10(max(r, 1e-300)) - ifov_db, n_pix_db)
+            cov_db = max(npo_db, 0.0)
+            ln_veil = (
+                math.log(max(g, 1e-300))
+                + ln_veil0
+                + ln_ne
+                + (one_way * r + cov_db - npo_db) * LN10_OVER_10
+            )
+            ln_shot = 0.5 * _logaddexp(ln_ne, ln_veil)
+            ln_contrast = ln_cv + ln_veil - 0.5 * min(cov_db, sum_db) * LN10_OVER_10
+            ln_noise = _logaddexp(ln_shot, _logaddexp(ln_thermal, ln_contrast))
             out[m, k] = roc_log_miss((ln_ne - ln_noise) / LN10_OVER_10, code, c)

@@ -54,7 +54,9 @@ class PreparedSensor:
             ``snr_db_glare(r, az, el, g) == snr_from_signal(signal_db(r, az, el), g, r)``.
         veil_constants: the constants of the built-in camera's ``snr_from_signal`` (ln of
             the veil-to-object radiance ratio at ``theta_min``, ln of the thermal noise in
-            electrons, the one-way weather loss in dB/m, ``theta_min`` in deg) for the
+            electrons, the one-way weather loss in dB/m, ``theta_min`` in deg, sigma in dBsm,
+            the IFOV in dB, the pixel count in dB, ln of the veil's contrast noise, the
+            summation pixel count in dB) for the
             compiled glare lookup (``coverage.fastglare``); ``None``: the lookup calls
             ``snr_from_signal``.
         signal_constants: the constants of the built-in camera's ``signal_db`` (k in dB,
@@ -69,7 +71,7 @@ class PreparedSensor:
     snr_db_glare: GlareSnrFunction | None = None
     signal_db: SnrFunction | None = None
     snr_from_signal: Callable[[F64, F64, F64], F64] | None = None
-    veil_constants: tuple[float, float, float, float] | None = None
+    veil_constants: tuple[float, ...] | None = None
     signal_constants: tuple[float, ...] | None = None
     terms_db: dict[str, float] = field(default_factory=dict)
     effects: dict[str, str] = field(default_factory=dict)

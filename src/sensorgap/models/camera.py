@@ -19,17 +19,30 @@ still sees. The sun's effect on the *target's* image is the veiling glare that l
 windscreen scatter from the sun's image, falling with the angle ``theta`` between the sun and
 the line of sight to the target (Stiles-Holladay, CIE 146:2002 disability glare):
 ``L_veil = k E_dir / theta^2`` (theta in deg, ``k`` = ``veiling_glare_k``, held at its
-``veiling_glare_min_deg`` value below that angle). In the units of ``N_e`` it is the
-object's signal before the weather times the veil-to-object radiance ratio
-``V(theta) = L_veil / (rho E_sun / pi)``:
+``veiling_glare_min_deg`` value below that angle). In the units of ``N_e`` the veil over the
+object's image is the object's signal before the weather times the veil-to-object radiance
+ratio ``V(theta) = L_veil / (rho E_sun / pi)``:
 
-``N_e,sun = w V(theta) N_e 10^(gamma R / 10)``
+``N_veil = w V(theta) N_e 10^(gamma R / 10)``
 
 with ``w`` the share of the lens the sun reaches: 1 while the sun is inside the field of
 view, falling as ``cos^2`` to 0 at ``glare_margin_deg`` outside it (lens hood and housing;
-estimate), 0 beyond, at night and under overcast skies. With glare the SNR cannot exceed
-``1 / (w V(theta))``: the object-to-veil contrast. Aperture ``D = f / N`` with focal length
-``f = pixel_pitch / IFOV``.
+estimate), 0 beyond, at night and under overcast skies.
+
+The veil is a background luminance on the object's pixels and around them, not a copy of
+the object: it costs the object contrast, and a larger image averages its fluctuations out.
+Two noise terms (eq. 9's form, electrons counted as noise):
+
+* shot noise: ``sqrt(N_e + N_veil n_c / N_pix,o)`` in place of ``sqrt(N_e)`` (eq. 8), with
+  ``n_c = max(N_pix,o, 1)`` the pixels the object's light falls on;
+* contrast noise: ``c_v N_veil (n_c / N_pix,o) / sqrt(n_s)``, the veil's pixel-to-pixel
+  fluctuation ``c_v`` (``veil_contrast_noise``: flare structure, pixel response
+  non-uniformity, tone mapping; estimate) averaged over ``n_s = min(n_c, n_sum)`` pixels
+  (``veil_summation_px``: spatial summation ends at a critical area; estimate).
+
+With glare the SNR cannot exceed ``sqrt(n_s) / (c_v w V(theta))``: a car filling thousands of
+pixels stays visible under a veil as bright as itself, a distant one a few degrees from the
+sun does not. Aperture ``D = f / N`` with focal length ``f = pixel_pitch / IFOV``.
 """
 
 from __future__ import annotations
@@ -85,6 +98,18 @@ class CameraParams(Strict):
         gt=0.0,
         le=30.0,
         description="Sun-target angle below which the veil is held constant, deg",
+    )
+    veil_contrast_noise: float = Field(
+        default=0.25,
+        ge=0.0,
+        le=10.0,
+        description="Pixel-to-pixel fluctuation of the veil relative to its mean (c_v)",
+    )
+    veil_summation_px: float = Field(
+        default=2500.0,
+        ge=1.0,
+        le=1.0e8,
+        description="Pixels over which the veil's fluctuation averages out at most (n_sum)",
     )
 
 
@@ -199,7 +224,9 @@ class Camera(OpticalSensor):
                 f"sun {off:.1f} deg outside the view (weight {w:.3f}); "
                 f"veiling glare {10.0 * ln_veil0 / math.log(10.0):.1f} dB of "
                 f"the object's radiance at {t_min:g} deg from the sun, "
-                "falling as 1/theta^2"
+                "falling as 1/theta^2; its contrast noise "
+                f"{p.veil_contrast_noise:g} of the veil, averaged over up to "
+                f"{p.veil_summation_px:g} pixels"
             )
 
         def signal_db(r: F64, az: F64, el: F64) -> F64:
@@ -207,12 +234,25 @@ class Camera(OpticalSensor):
             npo_db = np.minimum(sigma_db - lr20 - ifov_db, n_pix_db)
             return np.asarray(losses.apply(k_db + npo_db, lr20, r, az, el), dtype=np.float64)
 
+        ln_cv = math.log(max(p.veil_contrast_noise, 1e-300))
+        sum_db = 10.0 * math.log10(p.veil_summation_px)
+
         def snr_from_signal(ne_db: F64, g: F64, r: F64) -> F64:
             ln_ne = ne_db * LN10_OVER_10
-            ln_veil = (
-                np.log(np.maximum(g, 1e-300)) + ln_veil0 + ln_ne + one_way_db_m * r * LN10_OVER_10
+            # N_veil over the object's image, then per covered pixel n_c / N_pix,o
+            npo_db = np.minimum(
+                sigma_db - 20.0 * np.log10(np.maximum(r, 1e-300)) - ifov_db, n_pix_db
             )
-            ln_noise = np.logaddexp(0.5 * ln_ne, np.logaddexp(ln_thermal, ln_veil))
+            cov_db = np.maximum(npo_db, 0.0)
+            ln_veil = (
+                np.log(np.maximum(g, 1e-300))
+                + ln_veil0
+                + ln_ne
+                + (one_way_db_m * r + cov_db - npo_db) * LN10_OVER_10
+            )
+            ln_shot = 0.5 * np.logaddexp(ln_ne, ln_veil)
+            ln_contrast = ln_cv + ln_veil - 0.5 * np.minimum(cov_db, sum_db) * LN10_OVER_10
+            ln_noise = np.logaddexp(ln_shot, np.logaddexp(ln_thermal, ln_contrast))
             return np.asarray((ln_ne - ln_noise) / LN10_OVER_10, dtype=np.float64)
 
         def snr_db_glare(r: F64, az: F64, el: F64, g: F64) -> F64:
@@ -233,6 +273,8 @@ class Camera(OpticalSensor):
         terms["N_thermal [dB e-]"] = 10.0 * math.log10(thermal)
         if glare:
             terms[f"veil/object at {t_min:g} deg [dB]"] = 10.0 * ln_veil0 / math.log(10.0)
+            terms["veil contrast noise c_v [dB]"] = 10.0 * ln_cv / math.log(10.0)
+            terms["veil summation n_sum [dB px]"] = sum_db
         terms["weather one-way [dB/km]"] = gamma
         terms["focal length [mm]"] = focal * 1e3
         return PreparedSensor(
@@ -243,7 +285,12 @@ class Camera(OpticalSensor):
             snr_db_glare=snr_db_glare if glare else None,
             signal_db=signal_db if glare else None,
             snr_from_signal=snr_from_signal if glare else None,
-            veil_constants=(ln_veil0, ln_thermal, one_way_db_m, t_min) if glare else None,
+            veil_constants=(
+                (ln_veil0, ln_thermal, one_way_db_m, t_min, sigma_db, ifov_db, n_pix_db)
+                + (ln_cv, sum_db)
+                if glare
+                else None
+            ),
             signal_constants=(
                 (k_db, sigma_db, ifov_db, n_pix_db, one_way_db_m, edge, hfov, vfov)
                 if glare

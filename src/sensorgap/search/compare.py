@@ -2,9 +2,10 @@
 
 Every scenario ranked for either vehicle is evaluated exactly for both (same trajectories,
 same environment and sun), each with its own reaction model. A scenario is *critical for X
-only* when X's collision probability exceeds the other vehicle's by at least
-``MARGIN_P``; the explanation then names, at X's named step (same time, so the same target
-position in the ego frame), the sensors of X that miss the target and why
+only* when X's collision probability is at least ``RANK_MIN_P`` (what a ranking keeps) and
+exceeds the other vehicle's by at least ``MARGIN_P``, or the other's is below
+``RANK_MIN_P`` (``critical_for``); the explanation then names, at X's named step (same
+time, so the same target position in the ego frame), the sensors of X that miss the target and why
 (``ranking.explain``: glare, weather, range, FOV, partly in view) and the sensors of the
 other vehicle that see it (Pd >= 0.5) and may confirm it for braking, with their type, so
 every difference is traced back to the two sensor setups.
@@ -29,7 +30,7 @@ from sensorgap.errors import InputError
 from sensorgap.filesio import write_json
 from sensorgap.models import System
 from sensorgap.search.problem import Candidate, SearchProblem
-from sensorgap.search.ranking import classify, explain
+from sensorgap.search.ranking import RANK_MIN_P, classify, explain
 from sensorgap.search.run import ranking_csv
 from sensorgap.search.runfolder import ROW_TEXT, RunFolder, read_json_file, read_run
 
@@ -194,6 +195,19 @@ def check_rankings(*runs: Path) -> None:
             candidate_of(row, side.problem(run, str(row["family"])), run.folder / "ranking.json")
 
 
+def critical_for(p_a: float, p_b: float, name_a: str, name_b: str, margin_p: float) -> str:
+    """Who a scenario is critical for from the two collision probabilities: a side counts
+    from ``RANK_MIN_P`` (what a ranking keeps; below it a collision is as good as never);
+    when both count, one only if its probability is higher by ``margin_p`` or more, else
+    ``both``; ``neither`` when none counts."""
+    a, b = p_a >= RANK_MIN_P, p_b >= RANK_MIN_P
+    if a and b:
+        if abs(p_a - p_b) < margin_p:
+            return "both"
+        return name_a if p_a > p_b else name_b
+    return name_a if a else name_b if b else "neither"
+
+
 def compare_runs(run_a: Path, run_b: Path, margin_p: float = MARGIN_P) -> list[dict[str, Any]]:
     """Cross-evaluate the ranked scenarios of two runs (see the module docstring)."""
     ra, rb = read_run(run_a), read_run(run_b)
@@ -230,15 +244,7 @@ def compare_runs(run_a: Path, run_b: Path, margin_p: float = MARGIN_P) -> list[d
             speeds.append(float(res.metrics.get("impact_speed_kmh", 0.0)) if res.feasible else 0.0)
             classes.append(classify(res))
         diff = probs[0] - probs[1]
-        critical = (
-            "both"
-            if abs(diff) < margin_p and min(probs) > 0.0
-            else "neither"
-            if abs(diff) < margin_p
-            else sides[0].name
-            if diff > 0
-            else sides[1].name
-        )
+        critical = critical_for(probs[0], probs[1], sides[0].name, sides[1].name, margin_p)
         worse = 0 if diff >= 0 else 1
         better = 1 - worse
         prob_w, cand_w, res_w = results[worse]
