@@ -23,6 +23,7 @@ SECTIONS = [
     "coverage",
     "table-iv",
     "scenarios",
+    "robustness",
     "anchors",
     "assumptions",
     "accuracy",

@@ -162,6 +162,22 @@ def test_confidence_states_what_was_and_was_not_measured(job: Path) -> None:
     assert f"near-duplicate distance {stab['near_distance']:g}" in text
     first = doc.get_element_by_id("test-first").text_content()
     assert "found by searches" in first and f"{rows[0]['found_by_seeds']} of 3" in first
+    # the top 10 under the model's uncertain values (search/robustness.py): the line says
+    # how many survive every variant, the table (its own section, so that the summary
+    # prints on one page) has one row per checked finding with its exact P(collision)
+    m = re.search(
+        r"Uncertain model values \(\d+ variants, .*?\): (\d+) of the top (\d+) stay", text
+    )
+    assert m, text
+    ok, n = int(m.group(1)), int(m.group(2))
+    assert n == min(10, len(rows)) and 0 <= ok <= n
+    assert not doc.get_element_by_id("confidence").findall(".//table")  # summary: 1 page
+    table = doc.get_element_by_id("robustness").findall(".//table")[-1]
+    body = [[c.text_content().strip() for c in tr.findall("td")] for tr in table.iter("tr")]
+    body = [b for b in body if b]
+    assert [b[0] for b in body] == [str(r["rank"]) for r in rows[:n]]
+    assert [b[3] for b in body] == [fmt_p(r["collision_probability"]) for r in rows[:n]]
+    assert sum(b[6] == "yes" for b in body) == ok
 
 
 def test_confidence_of_a_single_search_says_stability_was_not_measured(search_only: Path) -> None:

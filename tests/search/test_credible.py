@@ -9,12 +9,14 @@ import json
 import math
 import re
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
 
 from sensorgap.cli import main
 from sensorgap.config import load_environments, load_target
+from sensorgap.config.presets import templates_dir
 from sensorgap.models import load_system
 from sensorgap.scenarios import family_presets, load_family
 from sensorgap.search.compare import compare_runs
@@ -162,6 +164,7 @@ def test_ranked_rows_reproduce_with_evaluate_and_glare_headline(tmp_path: Path) 
     run_a = tmp_path / "a"
     run_search("system_a", fams, ["glare_front_right"], 700, 1, 3, run_a, progress=False)
     cmp = {r["scenario_id"]: r for r in compare_runs(run_a, run_b)}
+    _top_glare_row_under_the_uncertain_values(run_b, glare[0], tmp_path)
     for k, row in enumerate(glare):
         c = cmp[row["scenario_id"]]
         assert c["critical_for"] == "System B"
@@ -171,6 +174,44 @@ def test_ranked_rows_reproduce_with_evaluate_and_glare_headline(tmp_path: Path) 
             assert "radar" in c["other_sees"] or "lidar" in c["other_sees"], c["why"]
         else:
             assert re.search(r"; it confirms it at \d+\.\d\d s \(median\)", c["why"]), c["why"]
+
+
+def _top_glare_row_under_the_uncertain_values(
+    run: Path, row: dict[str, Any], tmp_path: Path
+) -> None:
+    """``search.robustness`` on the top glare row: only the knobs System B uses (no lidar:
+    its two are left out), each at both ends; the veiling glare constant at 3 (the low end
+    of 3..30) is evaluated as the same scenario with a vehicle file whose cameras say
+    ``veiling_glare_k = 3.0``, through ``sensorgap evaluate`` (an independent path: file,
+    loader, CLI), to 1e-9; with a veil a third as bright the row is a finding no more."""
+    from sensorgap.analysis.sensitivity import GLARE_ESTIMATES, KNOBS
+    from sensorgap.search.robustness import finding_robustness
+    from sensorgap.search.runfolder import open_run
+
+    folder = open_run(run)
+    (res,) = finding_robustness(folder, folder.system(), [row])
+    labels = {v.parameter for v in res.variants}
+    assert "lidar receiver aperture" not in labels  # no lidar on System B
+    assert len(res.variants) == 2 * (len(KNOBS) - 2 + len(GLARE_ESTIMATES))
+    k3 = next(v for v in res.variants if v.parameter == "veiling glare constant" and v.value == 3)
+    text = (templates_dir() / "vehicles" / "system_b.toml").read_text(encoding="utf-8")
+    assert text.count("veiling_glare_k = 10.0") == 1
+    vehicle = tmp_path / "k3" / "system_b.toml"
+    vehicle.parent.mkdir()
+    vehicle.write_text(text.replace("veiling_glare_k = 10.0", "veiling_glare_k = 3.0"))
+    az, el = row["sun_azimuth_deg"], row["sun_elevation_deg"]
+    args = ["evaluate", "--vehicle", str(vehicle), "--family", row["family"]]
+    args += ["--environment", row["environment"], "--out", str(tmp_path / "k3" / "ev")]
+    for par in load_family(row["family"]).space:
+        args += ["--param", f"{par.name}={row[f'p_{par.name}']!r}"]
+    assert az is not None and el is not None
+    assert main(args) == 0
+    ev = json.loads((tmp_path / "k3" / "ev" / "evaluation.json").read_text())
+    assert k3.collision_probability == pytest.approx(
+        ev["metrics"]["collision_probability"], rel=1e-9, abs=1e-12
+    )
+    assert k3.collision_probability < 1e-6 < row["collision_probability"]
+    assert not k3.holds and not res.survives
 
 
 @pytest.mark.slow

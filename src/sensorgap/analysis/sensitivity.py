@@ -34,6 +34,8 @@ class Knob:
         their own smoothstep ROC: camera and lidar). device_type: devices of this type
         (device fields). low, high: the plausible range, in ``unit``. shipped: the
         calibrated value. coupled: other fields set from the value (name -> function).
+        estimate: an uncalibrated estimate of the built-in model (the glare constants),
+        varied on every device of ``device_type`` whatever its source note says.
     """
 
     label: str
@@ -44,6 +46,7 @@ class Knob:
     high: float
     unit: str
     coupled: tuple[tuple[str, Callable[[float], float]], ...] = ()
+    estimate: bool = False
 
 
 #: The calibrated values and their plausible ranges (docs/models.md, source notes).
@@ -66,6 +69,18 @@ KNOBS: tuple[Knob, ...] = (
     Knob(
         "System B radar antenna gains", "tx_gain_dbi+rx_gain_dbi", "radar", 22.0, 20.0, 30.0, "dBi"
     ),
+)
+
+
+#: The camera's veiling-glare estimates (docs/models.md "Direct sun") and their plausible
+#: ranges: not calibrated, so not in the paper's sensitivity table (its glare columns use
+#: the paper's glare), but a finding should survive them (the report's confidence section).
+GLARE_ESTIMATES: tuple[Knob, ...] = (
+    Knob("veiling glare constant", "veiling_glare_k", "camera", 10.0, 3.0, 30.0, "", estimate=True),
+    Knob(
+        "veil contrast noise", "veil_contrast_noise", "camera", 0.25, 0.05, 0.5, "", estimate=True
+    ),
+    Knob("veil summation", "veil_summation_px", "camera", 2500.0, 100.0, 1e4, "px", estimate=True),
 )
 
 
@@ -95,9 +110,14 @@ def vary(cfg: VehicleConfig, knob: Knob, value: float) -> tuple[VehicleConfig, i
                 changed += 1
         elif dev.type == knob.device_type:
             fields = knob.field.split("+")
-            if all(_calibrated(dev, f) for f in fields):
+            if knob.estimate or all(_calibrated(dev, f) for f in fields):
                 for f in fields:
                     data[f] = float(value)
+                    if knob.estimate and not str(dev.sources.get(f, "")).strip():
+                        data["sources"] = {
+                            **data.get("sources", {}),
+                            f: f"estimate: varied over its plausible range ({knob.label})",
+                        }
                 for f, fn in knob.coupled:
                     data[f] = float(fn(value))
                 changed += 1

@@ -43,6 +43,7 @@ from sensorgap.report.summary import (
     KMH,
     RankedScenario,
     explain_spec,
+    robustness_section,
     summary_section,
     weakness_sentence,
 )
@@ -50,6 +51,7 @@ from sensorgap.search.evaluate import MAP_RESOLUTION_M, DetectionRule
 from sensorgap.search.metrics import metric_names
 from sensorgap.search.possible import MAX_INFEASIBLE_KINDS, MAX_KIND_CHARS, START_TTC_S
 from sensorgap.search.ranking import named_step
+from sensorgap.search.robustness import ROBUSTNESS_TOP, finding_robustness
 from sensorgap.search.runfolder import RunFolder, open_run
 
 REPORT_DIR = "report"
@@ -850,15 +852,20 @@ ASSUMPTIONS = [
     "Fusion of sensors by eq. 11 (independent sensors); a target counts as confirmed for "
     "braking after M of N cycles detected by the sensor types of the vehicle's reaction "
     "model (templates/reactions.toml).",
-    "No occlusion by other objects; the ego's own body (its box) hides what lies behind "
-    "it from sensors mounted outside it.",
+    "Occlusion: other road users of a scene (the families' lead cars, parked cars) are "
+    "opaque boxes; the ego's own body (its box) hides what lies behind it from sensors "
+    "mounted outside it; nothing else occludes (no buildings, terrain or vegetation).",
     "A target is its box (targets.toml) at its heading: per sensor the visible part of its "
     "facing outline decides (a camera needs half of it, a lidar a tenth, radar and "
     "ultrasonic any reflecting part), with the SNR of the visible part (docs/models.md).",
     "Collision outcome: the vehicle brakes along its own path (latency, jerk-limited "
     "deceleration bounded by road friction) once the target is confirmed and a threat; "
     "the target keeps its planned path.",
-    "Glare: direct sun within a camera's field of view (+10 deg margin, cos^2 fade).",
+    "Glare: direct sun within a camera's field of view (+10 deg margin, cos^2 fade) adds "
+    "a veil on the target's image (Stiles-Holladay, falling with the target's angle from "
+    "the sun) that costs contrast, averaged over the target's pixels: it hides a large "
+    "target within a few degrees of the sun, a small or distant one over a wider angle "
+    "(veiling glare constants are estimates, docs/models.md).",
     "Lidar has no solar background term (keeps A unchanged under glare, as in the paper).",
     "Open loop but for braking: the ego keeps its lane and speed unless it brakes for the "
     "target; no evasive steering.",
@@ -936,6 +943,11 @@ def build(folder: Path) -> tuple[str, list[str], Section, list[Section]]:
         data = run.data
         lve = data.get("lookup_vs_exact") if isinstance(data, dict) else None
         n_unavoidable = len(data.get("unavoidable") or []) if isinstance(data, dict) else 0
+    robust = (
+        finding_robustness(run, system, [r.row for r in ranked[:ROBUSTNESS_TOP]])
+        if ranked
+        else None
+    )
     front = summary_section(
         folder,
         system,
@@ -944,6 +956,7 @@ def build(folder: Path) -> tuple[str, list[str], Section, list[Section]]:
         search,
         lve if isinstance(lve, dict) else None,
         n_unavoidable,
+        robust,
     )
     now = versions()
     ver = info.get("versions") or now
@@ -955,6 +968,7 @@ def build(folder: Path) -> tuple[str, list[str], Section, list[Section]]:
         _coverage_section(folder),
         _farfield_section(folder),
         scen,
+        robustness_section(robust),
         anchors_section(folder),
         Section("assumptions", "Model assumptions and limitations", _paras(ASSUMPTIONS)),
         _accuracy_section(folder, errors),

@@ -34,7 +34,14 @@ from sensorgap.report.document import Block, Bullets, Link, Para, Section, Table
 from sensorgap.search.evaluate import Evaluator, Trace
 from sensorgap.search.possible import no_feasible_note
 from sensorgap.search.problem import Candidate, SearchProblem
-from sensorgap.search.ranking import Explanation, explain, named_step, occluder_phrase
+from sensorgap.search.ranking import (
+    RANK_MIN_P,
+    Explanation,
+    explain,
+    named_step,
+    occluder_phrase,
+)
+from sensorgap.search.robustness import RowRobustness
 
 #: Weaknesses (and "test these first" rows) on the summary page.
 MAX_WEAKNESSES = 3
@@ -754,6 +761,7 @@ def _confidence(
     search: dict[str, Any] | None,
     lve: dict[str, Any] | None,
     ranked: list[RankedScenario],
+    robust: list[RowRobustness] | None = None,
 ) -> list[str]:
     items = []
     per = (search or {}).get("per_family", {})
@@ -813,7 +821,86 @@ def _confidence(
     else:
         items.append("Lookup vs exact evaluation: not measured in this run.")
     items.append(_stability(settings, (search or {}).get("stability")))
+    if robust:
+        items.append(_robustness_line(robust))
     return items
+
+
+def _variant_text(v: Any) -> str:
+    """'camera exposure 0.01 s' of a ``search.robustness.Variant``."""
+    unit = f" {v.unit}" if v.unit else ""
+    return f"{v.parameter} {v.value:g}{unit}"
+
+
+def _robustness_line(robust: list[RowRobustness]) -> str:
+    """The confidence line on the model's uncertain values (``search.robustness``): short,
+    so that the summary prints on one page; the rows are in ``robustness_section``."""
+    counts = sorted({len(r.variants) for r in robust})
+    if not counts or counts[-1] == 0:
+        return "Uncertain model values: none applies to this vehicle's sensors."
+    spread = f"{counts[0]}" if len(counts) == 1 else f"{counts[0]}-{counts[-1]}"
+    ok = sum(r.survives for r in robust)
+    return (
+        f"Uncertain model values ({spread} variants, each value at either end of its "
+        f"range): {ok} of the top {len(robust)} stay sensor-critical under every one "
+        "(section 'Robustness of the top findings')."
+    )
+
+
+def robustness_section(robust: list[RowRobustness] | None) -> Section:
+    """The top findings under the model's uncertain values, one row each."""
+    if not robust:
+        return Section(
+            "robustness",
+            "Robustness of the top findings",
+            [Para("Not part of this run (no ranked scenario).")],
+        )
+    return Section(
+        "robustness",
+        "Robustness of the top findings",
+        [
+            Para(
+                "Each finding re-evaluated exactly with one uncertain value at a time at "
+                "either end of its plausible range, the rest as the run recorded it: the "
+                "presets' calibrated values (docs/models.md, 'Calibrated values') and the "
+                "camera's veiling-glare estimates (docs/models.md, 'Direct sun'). It "
+                "survives when it stays sensor-critical at P(collision) "
+                f"{fmt_p(RANK_MIN_P)} or more under every one."
+            ),
+            _robustness_table(robust),
+        ],
+    )
+
+
+def _robustness_table(robust: list[RowRobustness]) -> Table:
+    """Per checked row: its P(collision), the lowest under the variants and with which."""
+    rows = []
+    for r in robust:
+        lo = r.lowest
+        rows.append(
+            [
+                str(r.rank),
+                r.family,
+                r.environment,
+                fmt_p(r.collision_probability),
+                "-" if lo is None else fmt_p(lo.collision_probability),
+                "-" if lo is None else _variant_text(lo),
+                "yes" if r.survives else f"no ({len(r.broken_by)} of {len(r.variants)})",
+            ]
+        )
+    return Table(
+        [
+            "rank",
+            "family",
+            "environment",
+            "P(collision)",
+            "lowest over the ranges",
+            "with",
+            "survives every variant",
+        ],
+        rows,
+        "The top findings under the model's uncertain values (search/robustness.py)",
+    )
 
 
 def _stability(settings: dict[str, Any], stab: dict[str, Any] | None) -> str:
@@ -878,8 +965,10 @@ def summary_section(
     search: dict[str, Any] | None,
     lookup_vs_exact: dict[str, Any] | None,
     n_unavoidable: int,
+    robust: list[RowRobustness] | None = None,
 ) -> Section:
-    """The summary page (``ranked`` None: no search in this run)."""
+    """The summary page (``ranked`` None: no search in this run; ``robust``: the top rows
+    under the model's uncertain values, ``search.robustness``)."""
     blocks: list[Block] = [_vehicle_para(system, settings)]
     cover = _coverage_para(folder, system)
     if cover is not None:
@@ -911,7 +1000,7 @@ def summary_section(
         Section(
             "confidence",
             "Confidence",
-            [Bullets(_confidence(settings, search, lookup_vs_exact, ranked))],
+            [Bullets(_confidence(settings, search, lookup_vs_exact, ranked, robust))],
         )
     )
     return Section("summary", "Summary", blocks, subs)

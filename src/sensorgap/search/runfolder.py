@@ -492,11 +492,17 @@ class RunFolder:
         copy = self.folder / str(e["copy"])
         return self._cached(f"family {name_or_path}", lambda: load_family(str(copy), road=road))
 
-    def evaluator(self, mode: str = "exact", rule: DetectionRule | None = None) -> Evaluator:
-        """An evaluator of the run's vehicle with its recorded reaction model, friction
-        and target classes."""
+    def evaluator(
+        self, mode: str = "exact", rule: DetectionRule | None = None, system: System | None = None
+    ) -> Evaluator:
+        """An evaluator of the run's vehicle (or ``system``: a variant of it) with its
+        recorded reaction model, friction and target classes."""
         ev = Evaluator(
-            self.system(), mode=mode, rule=rule, reaction=self.reaction(), friction=self.friction()
+            system if system is not None else self.system(),
+            mode=mode,
+            rule=rule,
+            reaction=self.reaction(),
+            friction=self.friction(),
         )
         ev._targets.update(self.targets())  # the cache Evaluator.target fills from presets
         recorded = self.input_path("targets")
