@@ -88,3 +88,39 @@ def test_removing_stale_outputs_removes_the_folders_they_leave_empty(tmp_path: P
     (tmp_path / "coverage" / "car_fog.png").write_text("map")
     assert remove_outputs(tmp_path, ("coverage/*",)) == ["coverage/car_fog.png"]
     assert (tmp_path / "coverage" / "car_clear" / "coverage.npz").is_file()
+
+
+def test_non_finite_metrics_are_stored_as_standard_json(tmp_path: Path) -> None:
+    """Hostile round fifteen noted ``NaN`` in search.sqlite's metrics JSON (not standard
+    JSON; other readers refuse it): an unevaluated metric (NaN) and a time never reached
+    (inf) are stored as the texts "nan" / "inf" / "-inf" and read back as floats; the
+    exact results of the ranked rows (``record_ranked``) likewise."""
+    import json
+    import math
+    import sqlite3
+
+    from sensorgap.search.store import RANKED_KEY, read_meta, read_results, record_ranked
+
+    db = tmp_path / "s.sqlite"
+    r = _result(0)
+    r.metrics["t_detect_s"] = math.nan
+    r.metrics["t_threat_s"] = math.inf
+    r.metrics["detection_margin_s"] = -math.inf
+    store = Store(db, SETTINGS)
+    store.put([(0, r)])
+    store.close()
+    record_ranked(db, {r.candidate.scenario_id: dict(r.metrics)})
+    con = sqlite3.connect(db)
+    texts = [t for (t,) in con.execute("SELECT metrics FROM candidates")]
+    texts += [t for (t,) in con.execute("SELECT value FROM meta WHERE key = ?", (RANKED_KEY,))]
+    con.close()
+    for t in texts:
+        assert "NaN" not in t and "Infinity" not in t
+        json.loads(t, parse_constant=lambda c: pytest.fail(f"non-standard JSON {c}"))
+    for got in (
+        read_results(db, [r.candidate.scenario_id])[r.candidate.scenario_id],
+        read_meta(db)[RANKED_KEY][r.candidate.scenario_id],
+    ):
+        assert math.isnan(got["t_detect_s"])
+        assert got["t_threat_s"] == math.inf and got["detection_margin_s"] == -math.inf
+        assert got["collision_probability"] == 0.5

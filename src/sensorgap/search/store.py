@@ -259,7 +259,38 @@ def read_meta(path: Path) -> dict[str, Any]:
         raise _damaged(path, exc) from None
     finally:
         db.close()
-    return {key: _json_object(path, text, f"meta row {key!r}") for key, text in rows.items()}
+    out = {key: _json_object(path, text, f"meta row {key!r}") for key, text in rows.items()}
+    if RANKED_KEY in out:
+        out[RANKED_KEY] = {
+            k: metrics_from_json(v) if isinstance(v, dict) else v
+            for k, v in out[RANKED_KEY].items()
+        }
+    return out
+
+
+#: How a metric that is not a finite number is stored: standard JSON has no NaN or
+#: infinity (``json.dumps`` would write the non-standard ``NaN``, ``Infinity``).
+_NON_FINITE = {"nan": math.nan, "inf": math.inf, "-inf": -math.inf}
+
+
+def metrics_json(metrics: dict[str, Any]) -> str:
+    """Metrics as sorted, standard JSON: a value that is not a finite number (an
+    unevaluated metric: NaN; a time never reached: inf) as the text ``"nan"``, ``"inf"``
+    or ``"-inf"`` (``metrics_from_json`` reads it back)."""
+
+    def enc(v: Any) -> Any:
+        if isinstance(v, float) and not math.isfinite(v):
+            return "nan" if v != v else ("inf" if v > 0 else "-inf")
+        return v
+
+    return json.dumps({k: enc(v) for k, v in metrics.items()}, sort_keys=True, allow_nan=False)
+
+
+def metrics_from_json(metrics: dict[str, Any]) -> dict[str, Any]:
+    """``metrics_json``'s object with its non-finite texts as floats again (a store of an
+    older search wrote them as ``NaN`` / ``Infinity``, which ``json.loads`` reads as
+    floats already)."""
+    return {k: _NON_FINITE.get(v, v) if isinstance(v, str) else v for k, v in metrics.items()}
 
 
 def _json_object(path: Path, text: Any, what: str) -> dict[str, Any]:
@@ -284,7 +315,11 @@ def record_ranked(path: Path, results: dict[str, dict[str, float]]) -> None:
     ``candidates`` rows hold what the search's lookup gave): ``meta`` row ``ranked``,
     replaced by each search into the folder. Every reader of the run compares the
     ranking's numbers with it (``runfolder.RunFolder.check_store``)."""
-    text = json.dumps({k: results[k] for k in sorted(results)}, sort_keys=True)
+    text = (
+        "{"
+        + ", ".join(f"{json.dumps(k)}: {metrics_json(results[k])}" for k in sorted(results))
+        + "}"
+    )
     try:
         db = sqlite3.connect(path)
     except sqlite3.Error as exc:
@@ -321,7 +356,9 @@ def read_results(path: Path, scenario_ids: list[str]) -> dict[str, dict[str, Any
         ):
             if sid not in want or sid in out:
                 continue
-            out[sid] = _json_object(path, text, f"candidate {str(sid)[:64]!r}: metrics")
+            out[sid] = metrics_from_json(
+                _json_object(path, text, f"candidate {str(sid)[:64]!r}: metrics")
+            )
     except sqlite3.DatabaseError as exc:
         raise _damaged(path, exc) from None
     finally:
@@ -453,6 +490,8 @@ class Store:
         try:
             sun = None if row[2] is None else (float(row[2]), float(row[3]))
             params, metrics = json.loads(row[4]), json.loads(row[5])
+            if isinstance(metrics, dict):
+                metrics = metrics_from_json(metrics)
             if not (
                 isinstance(params, dict)
                 and isinstance(metrics, dict)
@@ -525,7 +564,7 @@ class Store:
                     None if c.sun is None else c.sun[0],
                     None if c.sun is None else c.sun[1],
                     json.dumps(c.params, sort_keys=True),
-                    json.dumps(r.metrics, sort_keys=True),
+                    metrics_json(r.metrics),
                     r.risk,
                     int(r.feasible),
                     r.note,
