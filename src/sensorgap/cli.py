@@ -856,7 +856,18 @@ def cmd_corridor(args: argparse.Namespace) -> int:
     refuse_inside_certified(args.out, "corridor")
     lanes = []
     for part in args.lanes.split(","):
-        lo_hi = _float_list(part.replace(":", ","), 2, "--lanes")
+        bits = part.split(":")
+        try:
+            lo_hi = [parse_decimal(b) for b in bits]
+        except ValueError:
+            lo_hi = []
+        if len(lo_hi) != 2 or not all(math.isfinite(v) for v in lo_hi):
+            raise InputError(
+                "--lanes",
+                "",
+                "expected bands LO:HI of finite numbers (m), comma-separated, e.g. "
+                f"-7.5:-3.75,-3.75:0; got {part!r} in {args.lanes!r}",
+            )
         lanes.append((lo_hi[0], lo_hi[1]))
     res = _positive(args.lateral_res, "--lateral-res")
     for opt, v in (("--start", args.start), ("--goal", args.goal), ("--speed", args.speed)):

@@ -55,7 +55,7 @@ FINISHED_RUN_COMMANDS: tuple[tuple[str, ...], ...] = (
         "--out",
         "{out}",
     ),
-    ("nearfield", "--vehicle", "system_a", "--resolution", "0.2", "--out", "{out}/nearfield"),
+    ("nearfield", "--vehicle", "system_b", "--resolution", "0.2", "--out", "{out}/nearfield"),
     ("export", "--run", "{out}"),
 )
 
@@ -418,7 +418,8 @@ def _many_geometries(path: Path, n: int) -> None:
 def _coverage_map(folder: Path, damage: str) -> None:
     """A small coverage map (coverage.npz, summary.json) in ``folder`` with one damage:
     ``pd_nan``, ``x_reversed``, ``huge_header`` (pd's .npy header claims 1e10 cells),
-    ``summary_nan`` (an area of summary.json is NaN)."""
+    ``summary_nan`` (an area of summary.json is NaN), ``other_vehicle`` (its summary
+    names System A; the finished run is System B's)."""
     import io
     import zipfile
 
@@ -453,9 +454,13 @@ def _coverage_map(folder: Path, damage: str) -> None:
     summary = (
         '{"area_m2_by_level": {"pd=1.0": AREA, "pd>=0.8": 0.0, "pd>=0.5": 0.0, "pd>0": 0.0, '
         '"pd=0": 17600.0}, "environment": "clear", "grid": {"resolution_m": 2.0}, '
-        '"target": "car"}'
+        '"target": "car", "vehicle": "VEHICLE"}'
     )
-    (folder / "summary.json").write_text(summary.replace("AREA", area))
+    if damage == "other_vehicle":  # another vehicle's map in this run's folder
+        summary = summary.replace("VEHICLE", "System A")
+    (folder / "summary.json").write_text(
+        summary.replace("AREA", area).replace("VEHICLE", "System B")
+    )
 
 
 # -- setup steps -----------------------------------------------------------------------
@@ -590,6 +595,9 @@ def _setup(
                 os.close(crowd)
         elif step == "run_store_deleted":  # {run}/search.sqlite removed
             (run / "search.sqlite").unlink()
+        elif step == "run_search_killed":  # as SIGKILL leaves a search before its ranking
+            for name in ("ranking.json", "ranking.csv", "summary.json", "unavoidable.csv"):
+                (run / name).unlink(missing_ok=True)
         elif step == "fifo_out":  # {dir}/out.csv is a named pipe
             os.mkfifo(folder / "out.csv")
         elif step == "out_holds_link":  # {out}/figures/a.png links to {dir}/elsewhere/keep.xodr
@@ -657,6 +665,8 @@ def _setup(
             (run / "ranking.json").write_text(json.dumps(data))
         elif step.startswith("coverage_map:"):  # {run}/coverage/car_clear, damaged
             _coverage_map(run / "coverage" / "car_clear", step.removeprefix("coverage_map:"))
+        elif step == "rename_coverage_map":  # {run}/coverage/car_clear -> truck_fog_50
+            (run / "coverage" / "car_clear").rename(run / "coverage" / "truck_fog_50")
         elif step == "job_folder_from_run":  # {out}/system_b: a copy of {run}
             shutil.copytree(run, out / "system_b", symlinks=True)
         elif step == "nearfield_as_out":  # {out}: a copy of {run}/nearfield (certified)

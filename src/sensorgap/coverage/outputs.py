@@ -14,6 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sensorgap.coverage.grid import GridCoverage, GridSpec, evaluate_grid
+from sensorgap.coverage.limits import MAX_EXTENT_M
 from sensorgap.coverage.occluders import Occluder, occluder_array
 from sensorgap.coverage.plot import coverage_figure, pd_levels_area, save_figure
 from sensorgap.coverage.points import PointCoverage
@@ -107,8 +108,16 @@ def read_coverage_npz(
     for name, c in (("x", x), ("y", y)):
         if not (np.all(np.isfinite(c)) and np.all(np.diff(c) > 0.0)):
             raise InputError(path, name, "cell centres must be finite and increasing")
-    if not (math.isfinite(res) and res > 0.0):
-        raise InputError(path, "resolution", f"must be a finite number > 0, got {res!r}")
+    if not (math.isfinite(res) and 0.0 < res <= 2.0 * MAX_EXTENT_M):
+        raise InputError(
+            path,
+            "resolution",
+            f"must be a number > 0 and at most {2.0 * MAX_EXTENT_M:g} m (the extent limit), "
+            f"got {res!r}",
+        )
+    for name, c in (("x", x), ("y", y)):  # the cells the map's resolution says
+        if c.size > 1 and not np.allclose(np.diff(c), res, rtol=1e-6, atol=1e-9):
+            raise InputError(path, name, f"cell centres must be the resolution ({res:g} m) apart")
     if not np.all((pd >= 0.0) & (pd <= 1.0)):  # also false for nan
         raise InputError(path, "pd", "every cell must be a probability within 0..1")
     return pd, x, y, res

@@ -95,9 +95,10 @@ class CameraParams(Strict):
     )
     veiling_glare_min_deg: float = Field(
         default=1.0,
-        gt=0.0,
+        ge=0.1,
         le=30.0,
-        description="Sun-target angle below which the veil is held constant, deg",
+        description="Sun-target angle below which the veil is held constant, deg "
+        "(CIE 146:2002: the glare formula holds from 0.1 deg)",
     )
     veil_contrast_noise: float = Field(
         default=0.25,

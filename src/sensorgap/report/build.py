@@ -52,7 +52,7 @@ from sensorgap.search.metrics import metric_names
 from sensorgap.search.possible import MAX_INFEASIBLE_KINDS, MAX_KIND_CHARS, START_TTC_S
 from sensorgap.search.ranking import named_step
 from sensorgap.search.robustness import ROBUSTNESS_TOP, finding_robustness
-from sensorgap.search.runfolder import RunFolder, open_run
+from sensorgap.search.runfolder import STORE_FILE, RunFolder, open_run
 
 REPORT_DIR = "report"
 #: What a report writes into a run folder (``filesio.refuse_if_changed``).
@@ -891,6 +891,16 @@ def build(folder: Path) -> tuple[str, list[str], Section, list[Section]]:
                 "",
                 "is a symbolic link; report writes only inside the run folder (remove the link)",
             )
+    if (folder / STORE_FILE).is_file() and not (folder / "ranking.json").is_file():
+        # a search killed before its ranking: a report would say "no search in this run"
+        # and stay behind, certified, after the resumed search (hostile round sixteen)
+        raise InputError(
+            folder / "ranking.json",
+            "",
+            f"missing: the search in this folder did not finish ({STORE_FILE} holds its "
+            "candidates); finish it with `sensorgap search ... --resume` (same options) "
+            "and report then",
+        )
     run = open_run(folder, ranking=False)
     info = run.info
     settings = {**run.settings, **info.get("settings", {})}
@@ -901,11 +911,21 @@ def build(folder: Path) -> tuple[str, list[str], Section, list[Section]]:
         )
     system = run.system()
     if (folder / "nearfield" / "nearfield.json").is_file():  # checked before any work
-        read_nearfield(folder / "nearfield" / "nearfield.json")
+        nf = folder / "nearfield" / "nearfield.json"
+        got = read_nearfield(nf).get("system")
+        if got != system.name:  # another vehicle's near field presented as this one's
+            raise InputError(
+                nf,
+                "system",
+                f"{str(got)[:64]!r} is not this run's vehicle ({system.name!r}); compute it "
+                f"with `sensorgap nearfield --vehicle <the run's vehicle> --out "
+                f"{folder.name}/nearfield`",
+            )
     if (folder / "catalog.json").is_file():
         read_catalog(folder / "catalog.json")
     for s in sorted((folder / "coverage").glob("*/summary.json")):
         cs = _object(s, read_json(s))
+        _check_map_identity(s, cs, system.name)
         # the areas and the cell size the report's table prints (text or NaN was printed)
         _numbers(
             s,
@@ -1023,6 +1043,29 @@ def build(folder: Path) -> tuple[str, list[str], Section, list[Section]]:
         f"Generated (UTC): {utc_now()}"
     ]
     return f"sensorgap audit report: {system.name}", meta, front, sections
+
+
+def _check_map_identity(path: Path, summary: dict[str, Any], vehicle: str) -> None:
+    """A run's coverage map (``path``: its ``summary.json``) is this run's vehicle's and is
+    named ``<target>_<environment>`` after what it was computed for (hostile round
+    sixteen: another vehicle's map, or a car/clear map named ``truck_fog_50``, was
+    reported as this one's), else ``InputError``."""
+    got = summary.get("vehicle")
+    if got != vehicle:
+        raise InputError(
+            path,
+            "vehicle",
+            f"{str(got)[:64]!r} is not this run's vehicle ({vehicle!r}); compute the map with "
+            "`sensorgap coverage --vehicle <the run's vehicle>`",
+        )
+    want = f"{summary.get('target')}_{summary.get('environment')}"
+    if path.parent.name != want:
+        raise InputError(
+            path,
+            "",
+            f"the map of {want[:80]!r} is in the folder {path.parent.name[:80]!r}; a run's "
+            "maps are named <target>_<environment> (move it to coverage/" + want[:80] + ")",
+        )
 
 
 def write_report(folder: Path) -> tuple[Path, Path]:

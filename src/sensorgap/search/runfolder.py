@@ -521,6 +521,17 @@ class RunFolder:
             entries = _entries(inputs)
         except ValueError as exc:
             raise InputError(self.folder / RUN_JSON, "inputs", str(exc)) from None
+        # a search records every single-file input it used: without its entry a reader
+        # would take today's preset of that name instead (hostile round sixteen)
+        lost = [k for k in SINGLE if k not in inputs]
+        if lost:
+            raise InputError(
+                self.folder / RUN_JSON,
+                f"inputs.{lost[0]}",
+                f"missing: the run recorded its inputs ({', '.join(SINGLE)}), and without "
+                "this entry today's preset would stand in for the copy it used; restore "
+                f"{RUN_JSON} or search again",
+            )
         for label, e in entries:
             if not all(isinstance(e.get(k), str) for k in ("path", "sha256", "copy")):
                 raise InputError(
