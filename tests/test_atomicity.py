@@ -536,10 +536,10 @@ def test_run_again_with_a_smaller_budget_leaves_no_stale_report_figure(
     out = tmp_path / "out"
     folder = out / "system_b"
     argv = _job_argv(vehicle, out, env="snow")
-    argv[argv.index("60")] = "200"  # 10 ranked and exported
+    argv[argv.index("60")] = "30"  # 3 ranked and exported
     assert main(argv) == 0
     figures = sorted(p.name for p in (folder / "report").glob("scenario_*.png"))
-    argv[argv.index("200")] = "60"  # 4 ranked
+    argv[argv.index("30")] = "20"  # 1 ranked
     assert main(argv) == 0
     exported = len(list((folder / "scenarios").glob("*.xosc")))
     now = sorted(p.name for p in (folder / "report").glob("scenario_*.png"))
