@@ -498,13 +498,27 @@ def cmd_search(args: argparse.Namespace) -> int:
     return 0
 
 
+def _name_list(text: str, option: str) -> list[str]:
+    """A comma-separated list of names, each stripped; an empty item (a trailing comma,
+    two commas together) is refused, not skipped: it is a name the user meant to type."""
+    names = [n.strip() for n in text.split(",")]
+    if len(names) > 1 and not all(names):
+        raise InputError(
+            option,
+            "",
+            f"an empty name in {text!r} (a comma with no name after it); "
+            "give names separated by single commas",
+        )
+    return [n for n in names if n]
+
+
 def _families(text: str) -> list[str]:
     """``all`` or a comma-separated list of family names / .toml paths."""
     from sensorgap.scenarios import family_presets
 
     if text.strip() == "all":
         return family_presets()
-    return [f.strip() for f in text.split(",") if f.strip()]
+    return _name_list(text, "--families")
 
 
 def _environments(text: str, env_file: Path | None) -> list[str]:
@@ -513,7 +527,7 @@ def _environments(text: str, env_file: Path | None) -> list[str]:
 
     if text.strip() == "all":
         return list(load_environments(env_file))
-    return [e.strip() for e in text.split(",") if e.strip()]
+    return _name_list(text, "--environments")
 
 
 def cmd_evaluate(args: argparse.Namespace) -> int:

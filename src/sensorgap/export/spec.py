@@ -107,6 +107,13 @@ class ScenarioSpec:
                 raise ValueError(f"unknown environment {env_name[:64]!r}")
             env = presets[env_name]
             sun = None
+            if env.sun is None:  # searched without a sun: the row's sun columns are empty
+                for field in ("sun_azimuth_deg", "sun_elevation_deg"):
+                    if row.get(field) is not None:
+                        raise ValueError(
+                            f"must be null: environment {env_name[:64]!r} has no sun "
+                            f"(got {str(row.get(field))[:40]!r})"
+                        )
             if row.get("sun_azimuth_deg") is not None and env.sun is not None:
                 field = "sun_azimuth_deg"
                 az = _finite(row["sun_azimuth_deg"])
