@@ -226,6 +226,37 @@ def _probe_bodies(scene: Scene, pts: Any, heading_deg: float) -> bytes:
     return csv_bytes([*cols, "pd"], [*data, fused + 0.0])
 
 
+def _check_run_input(out: str, command: str, vehicle: str, name: str | None) -> None:
+    """``--out`` of ``coverage`` / ``nearfield`` inside a search run (``RUN/coverage/<name>``,
+    ``RUN/nearfield``: what its report reads) must be for the run's vehicle, and a map's
+    folder named ``<target>_<environment>`` after what is computed (hostile round sixteen:
+    another vehicle's map was certified into a run); refused before any work."""
+    from sensorgap.filesio import certified_parent
+    from sensorgap.search.runfolder import STORE_FILE, open_run
+
+    found = certified_parent(out, command)
+    if found is None or not (found[0] / STORE_FILE).is_file():
+        return
+    run = open_run(found[0], ranking=False)
+    if not run.vehicle_ref:
+        return
+    theirs = run.system().name
+    if theirs != vehicle:
+        raise InputError(
+            "--out",
+            "",
+            f"{found[0].name}/{found[1]} is a report input of a run of {theirs!r}, not of "
+            f"{vehicle!r}: give --vehicle the run's vehicle, or another --out",
+        )
+    if name is not None and Path(out).name != name:
+        raise InputError(
+            "--out",
+            "",
+            f"a run's coverage maps are named <target>_<environment>: this one is "
+            f"{found[0].name}/coverage/{name}, not {found[1]}",
+        )
+
+
 def cmd_coverage(args: argparse.Namespace) -> int:
     """A coverage grid, heat map and summary into --out."""
     from sensorgap.coverage.limits import (
@@ -251,6 +282,7 @@ def cmd_coverage(args: argparse.Namespace) -> int:
     nx, ny = grid_cells(extent, res, args.heading is not None, CLI_NAMES, shown=args.extent)
     cells = nx * ny
     scene = _scene(args)
+    _check_run_input(args.out, "coverage", scene.system.name, f"{args.target}_{args.environment}")
     height = scene.target.reference_height_m if args.height is None else args.height
     if not (math.isfinite(height) and 0.0 <= height <= MAX_HEIGHT_M):
         raise InputError(
@@ -331,6 +363,7 @@ def cmd_nearfield(args: argparse.Namespace) -> int:
     if not lo <= res <= hi:
         raise InputError("--resolution", "", f"must be within {lo:g}..{hi:g} m, got {res!r}")
     system = load_system(args.vehicle)
+    _check_run_input(args.out, "nearfield", system.name, None)
     with removed_on_error(args.out):
         summary = write_nearfield(system, Path(args.out), res)
         write_manifest(args.out)

@@ -595,6 +595,8 @@ def _setup(
                 os.close(crowd)
         elif step == "run_store_deleted":  # {run}/search.sqlite removed
             (run / "search.sqlite").unlink()
+        elif step == "run_nearfield_deleted":  # {run}/nearfield removed
+            shutil.rmtree(run / "nearfield")
         elif step == "run_search_killed":  # as SIGKILL leaves a search before its ranking
             for name in ("ranking.json", "ranking.csv", "summary.json", "unavoidable.csv"):
                 (run / name).unlink(missing_ok=True)
