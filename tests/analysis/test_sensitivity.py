@@ -45,6 +45,18 @@ def test_vary_touches_only_calibrated_devices() -> None:
     # the vehicle's ROC floor (radar, ultrasonic); the camera/lidar smoothstep half width
     cfg, _ = vary(a.config, _knob("radar/ultrasonic detection floor"), 0.0)
     assert cfg.roc.floor_db == 0.0 and a.config.roc.floor_db == 7.5
+    # ... used only by devices without their own [roc]: when every device has one, the
+    # knob does not apply (hostile round seventeen: it was counted as two variants that
+    # changed nothing)
+    own = a.config.model_copy(
+        update={
+            "devices": {
+                n: d.model_copy(update={"roc": d.roc or a.config.roc})
+                for n, d in a.config.devices.items()
+            }
+        }
+    )
+    assert vary(own, _knob("radar/ultrasonic detection floor"), 0.0)[1] == 0
     cfg, n = vary(a.config, _knob("camera/lidar ROC half width"), 6.0)
     assert n >= 1 and all(
         d.roc is None or d.roc.half_width_db == 6.0

@@ -92,7 +92,8 @@ def vary(cfg: VehicleConfig, knob: Knob, value: float) -> tuple[VehicleConfig, i
     """``cfg`` with ``knob`` set to ``value`` where the presets calibrated it; returns the
     new config and how many places changed (0: this vehicle does not use the knob)."""
     if knob.field == "roc.floor_db":
-        if cfg.roc.kind != "paper":
+        # the vehicle's default ROC, used by every device without its own [roc]
+        if cfg.roc.kind != "paper" or all(d.roc is not None for d in cfg.devices.values()):
             return cfg, 0
         roc = RocConfig.model_validate({**cfg.roc.model_dump(), "floor_db": value})
         return cfg.model_copy(update={"roc": roc}), 1

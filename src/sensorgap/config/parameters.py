@@ -119,5 +119,5 @@ def bound_error(name: str, value: float) -> str | None:
     if b is None:
         return None
     if not (math.isfinite(value) and b.low <= value <= b.high):
-        return f"must be within {b.low:g}..{b.high:g} {b.unit} ({b.source}), got {value:g}"
+        return f"must be within {b.low:g}..{b.high:g} {b.unit} ({b.source}), got {float(value)!r}"
     return None

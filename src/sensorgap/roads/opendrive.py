@@ -185,10 +185,12 @@ class _Reader:
         ``MAX_ROAD_LENGTH_M``, m."""
         value = self.num(el, "length", where)
         if value <= 0.0:
-            self.fail(f"{where}@length", f"must be > 0, got {value:g}", el)
+            self.fail(f"{where}@length", f"must be > 0, got {float(value)!r}", el)
         if value > MAX_ROAD_LENGTH_M:
             self.fail(
-                f"{where}@length", f"must be at most {MAX_ROAD_LENGTH_M:g} m, got {value:g}", el
+                f"{where}@length",
+                f"must be at most {MAX_ROAD_LENGTH_M:g} m, got {float(value)!r}",
+                el,
             )
         return value
 
@@ -453,7 +455,7 @@ class _Reader:
             self.fail(
                 f"{w}@{attr}",
                 f"must be within +-{MAX_CURVATURE:g} 1/m (radius >= "
-                f"{1.0 / MAX_CURVATURE:g} m), got {value:g}",
+                f"{1.0 / MAX_CURVATURE:g} m), got {float(value)!r}",
                 k,
             )
         return value
@@ -640,7 +642,7 @@ class _Reader:
                 if abs(value) > MAX_LANE_HEIGHT_M:
                     self.fail(
                         f"{wh}@{attr}",
-                        f"must be within +-{MAX_LANE_HEIGHT_M:g} m, got {value:g}",
+                        f"must be within +-{MAX_LANE_HEIGHT_M:g} m, got {float(value)!r}",
                         hel,
                     )
         if lid == 0:

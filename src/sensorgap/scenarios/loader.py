@@ -154,7 +154,7 @@ def _param(path: Path, default: Param, value: Any) -> Param:
     low, high = float(value[0]), float(value[1])
     if max(abs(low), abs(high)) > MAX_PARAM_ABS:
         raise InputError(
-            path, field, f"range bounds must be within +-{MAX_PARAM_ABS:g}, got [{low:g}, {high:g}]"
+            path, field, f"range bounds must be within +-{MAX_PARAM_ABS:g}, got [{low!r}, {high!r}]"
         )
     if not low < high:
         raise InputError(
