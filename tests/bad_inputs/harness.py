@@ -595,6 +595,12 @@ def _setup(
                 os.close(crowd)
         elif step == "run_store_deleted":  # {run}/search.sqlite removed
             (run / "search.sqlite").unlink()
+        elif step == "templates_with_a_folder_for_system_a":  # {dir}/tpl: a folder there
+            from sensorgap.config.presets import templates_dir
+
+            shutil.copytree(templates_dir(), folder / "tpl")
+            (folder / "tpl" / "vehicles" / "system_a.toml").unlink()
+            (folder / "tpl" / "vehicles" / "system_a.toml").mkdir()
         elif step == "run_nearfield_deleted":  # {run}/nearfield removed
             shutil.rmtree(run / "nearfield")
         elif step == "run_search_killed":  # as SIGKILL leaves a search before its ranking

@@ -55,9 +55,15 @@ def templates_dir() -> Path:
     return here.parents[1] / "_templates"
 
 
+#: Why a preset name's path is refused when something other than a file stands there.
+NOT_A_PRESET_FILE = (
+    "is not a regular file (a folder, a device or a broken link): a preset is a .toml file"
+)
+
+
 def vehicle_presets() -> list[str]:
     """Names of the shipped vehicle presets (file stems under ``templates/vehicles``)."""
-    return sorted(p.stem for p in (templates_dir() / "vehicles").glob("*.toml"))
+    return sorted(p.stem for p in (templates_dir() / "vehicles").glob("*.toml") if p.is_file())
 
 
 def roads_dir() -> Path:

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import os
 from functools import lru_cache
 from pathlib import Path
 from typing import Any
@@ -34,7 +35,7 @@ from sensorgap.config import load_targets, templates_dir
 from sensorgap.config.common import name_problem
 from sensorgap.config.load import read_toml, short
 from sensorgap.config.parameters import bound_error
-from sensorgap.config.presets import resolve_road
+from sensorgap.config.presets import NOT_A_PRESET_FILE, resolve_road
 from sensorgap.errors import InputError
 from sensorgap.filesio import same_file
 from sensorgap.roads import RoadNetwork, read_opendrive
@@ -106,7 +107,7 @@ def scenarios_dir() -> Path:
 
 def family_presets() -> list[str]:
     """Names of the shipped families (file stems), sorted."""
-    return sorted(p.stem for p in scenarios_dir().glob("*.toml"))
+    return sorted(p.stem for p in scenarios_dir().glob("*.toml") if p.is_file())
 
 
 @lru_cache(maxsize=16)
@@ -119,6 +120,8 @@ def resolve_family_path(name_or_path: str) -> Path:
     if name_or_path.endswith(".toml") or "/" in name_or_path:
         return Path(name_or_path)
     path = scenarios_dir() / f"{name_or_path}.toml"
+    if os.path.lexists(path) and not path.is_file():
+        raise InputError(path, "", NOT_A_PRESET_FILE)
     if not path.is_file():
         raise InputError(
             "families",
