@@ -93,3 +93,58 @@ def test_sigkill_then_resume_gives_the_uninterrupted_ranking(
     assert {"ranking.csv", "ranking.json", "search.sqlite", "summary.json"} <= set(
         manifest["files"]
     )
+
+
+def test_a_stop_signal_inside_numbas_compiler_is_sent_again_not_lost(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Hostile round seventeen: SIGTERM landing in numba's ctypes callback (llvmlite) was
+    raised there, swallowed with a traceback on stderr, and the export ran to its end.
+    Under llvmlite the handler sends the signal again 0.1 s later instead of raising; an
+    ordinary frame raises at once."""
+    import signal
+    import types
+
+    from sensorgap import cli
+
+    sent: list[tuple[int, int]] = []
+    monkeypatch.setattr(cli.os, "kill", lambda pid, sig: sent.append((pid, sig)))
+    code = compile("pass", "/x/site-packages/llvmlite/binding/executionengine.py", "exec")
+    frame = types.SimpleNamespace(f_code=code, f_back=None)
+    cli._RECEIVED.clear()
+    assert cli._terminate(signal.SIGTERM, frame) is None
+    import time
+
+    deadline = time.monotonic() + 5.0
+    while not sent and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert sent == [(cli.os.getpid(), signal.SIGTERM)] and not cli._RECEIVED
+    plain = types.SimpleNamespace(
+        f_code=compile("pass", "/x/sensorgap/cli.py", "exec"), f_back=None
+    )
+    with pytest.raises(KeyboardInterrupt):
+        cli._terminate(signal.SIGTERM, plain)
+    assert cli._RECEIVED == [signal.SIGTERM]
+    cli._RECEIVED.clear()
+
+
+def test_an_error_raised_by_a_stop_signal_in_a_c_library_is_an_interruption(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Hostile round seventeen: SIGTERM while matplotlib's renderer ran came out as
+    "internal error: ValueError: Invalid bounding box" (exit 1). Once a stop signal was
+    received, whatever exception unwinds the command is its interruption: one line,
+    128 + the signal's number."""
+    import signal
+
+    from sensorgap import cli
+
+    def command(args: object) -> int:
+        cli._RECEIVED.append(int(signal.SIGTERM))  # as _terminate records it
+        raise ValueError("Invalid bounding box")
+
+    monkeypatch.setattr(cli, "cmd_verify", command)
+    parser_args = ["verify", "."]
+    code = cli.main(parser_args)
+    err = capsys.readouterr().err
+    assert code == 128 + signal.SIGTERM and err == "sensorgap: interrupted\n"

@@ -19,6 +19,7 @@ LAYERS = [
     "jit",
     "version",
     "apinames",
+    "markdown",
     "config",
     "models",
     "coverage",

@@ -94,7 +94,35 @@ class _Terminated(KeyboardInterrupt):
         self.signum = int(signum)
 
 
-def _terminate(signum: int, frame: Any) -> NoReturn:
+#: The stop signals received by this process (``_terminate``): an exception that unwinds
+#: the command after one arrived is its interruption, whatever its type.
+_RECEIVED: list[int] = []
+
+
+def _in_compiler_callback(frame: Any) -> bool:
+    """True when the main thread runs Python code under llvmlite (numba's compiler), where
+    a C library may have called back into Python: an exception raised there is printed
+    as "Exception ignored on calling ctypes callback function" and lost."""
+    f = frame
+    while f is not None:
+        if "llvmlite" in f.f_code.co_filename:
+            return True
+        f = f.f_back
+    return False
+
+
+def _terminate(signum: int, frame: Any) -> None:
+    """Stop the command (``_Terminated``). Inside numba's compiler the signal is sent
+    again 0.1 s later instead (hostile round seventeen: raised in a ctypes callback, it
+    was swallowed with a traceback on stderr and the command ran to its end)."""
+    if _in_compiler_callback(frame):
+        import threading
+
+        timer = threading.Timer(0.1, os.kill, (os.getpid(), signum))
+        timer.daemon = True
+        timer.start()
+        return
+    _RECEIVED.append(int(signum))
     raise _Terminated(signum)
 
 
@@ -1549,6 +1577,7 @@ def _main(argv: Sequence[str] | None) -> int:
     func: Callable[[argparse.Namespace], int] = args.func
     if hasattr(signal, "SIGXFSZ"):  # a file-size limit: a clean OSError, not a core dump
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+    _RECEIVED.clear()  # an earlier command of this process (in-process callers)
     previous = {sig: signal.signal(sig, _terminate) for sig in _STOP_SIGNALS}
     tune_allocator()
     out = getattr(args, "out", None)
@@ -1617,6 +1646,10 @@ def _main(argv: Sequence[str] | None) -> int:
         print("sensorgap: interrupted", file=sys.stderr)
         return 128 + exc.signum if isinstance(exc, _Terminated) else 130
     except Exception as exc:  # noqa: BLE001 - the one place that turns bugs into exit 1
+        if _RECEIVED:  # the stop signal raised inside a C library (matplotlib's renderer
+            # turned it into "ValueError: Invalid bounding box"): an interruption all the same
+            print("sensorgap: interrupted", file=sys.stderr)
+            return 128 + _RECEIVED[-1]
         if isinstance(exc, ImportError) and _out_of_memory(str(exc)):
             print(clip(_memory_line(str(exc))), file=sys.stderr)
             return EXIT_INPUT

@@ -22,6 +22,8 @@ from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
 
+from sensorgap.markdown import md_cell, md_text
+
 #: What a section says when its part of the pipeline was not run (one line).
 NOT_RUN = "Not part of this run."
 
@@ -236,21 +238,15 @@ def render_html(
     )
 
 
-#: What a Markdown renderer would take for HTML in text: a tag's or comment's opening
-#: ``<`` and an entity's ``&`` (a family file named ``st op&<x>.toml`` printed raw; the
-#: report's own ``difference/<map>/`` vanished as a tag).
-_MD_HTML = re.compile(r"<(?=[A-Za-z/!?])|&(?=#?[A-Za-z0-9]+;)")
-
-
 def _md(text: str) -> str:
-    """Text for Markdown: HTML-like ``<`` and ``&`` as entities (shown as themselves)."""
-    return _MD_HTML.sub(lambda m: "&lt;" if m.group(0) == "<" else "&amp;", text)
+    """Text for Markdown (``markdown.md_text``)."""
+    return md_text(text)
 
 
 def _md_cell(c: Cell) -> str:
     if isinstance(c, Link):
         return f"[{_md_cell(c.text)}]({c.href})"
-    return _md(c).replace("|", "\\|").replace("\n", " ")
+    return md_cell(c)
 
 
 def _md_block(b: Block) -> str:

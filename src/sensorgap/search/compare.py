@@ -28,6 +28,7 @@ import numpy as np
 from sensorgap.atomic import atomic_write_bytes, atomic_write_text
 from sensorgap.errors import InputError
 from sensorgap.filesio import write_json
+from sensorgap.markdown import md_cell, md_text
 from sensorgap.models import System
 from sensorgap.search.problem import Candidate, SearchProblem
 from sensorgap.search.ranking import RANK_MIN_P, classify, explain
@@ -340,27 +341,27 @@ def write_comparison(run_a: Path, run_b: Path, out: Path) -> list[dict[str, Any]
     lines = [
         "# Critical scenarios: cross-evaluation of two vehicles",
         "",
-        f"Critical for one vehicle only: collision probability higher by >= "
-        f"{MARGIN_P:g}. Each scenario ranked for either vehicle is evaluated exactly "
-        "for both, each vehicle with its own reaction model.",
+        f"Critical for one vehicle only: its collision probability is at least "
+        f"{RANK_MIN_P:g} (what a ranking keeps) and higher by >= {MARGIN_P:g}, or the "
+        f"other's is below {RANK_MIN_P:g}. Each scenario ranked for either vehicle is "
+        "evaluated exactly for both, each vehicle with its own reaction model.",
         "",
-        *[f"Note of run {n}" for n in notes],
+        *[md_text(f"Note of run {n}") for n in notes],
         *([""] if notes else []),
         "| critical for | dominant effect | scenarios |",
         "|---|---|---|",
     ]
-    lines += [f"| {who} | {eff} | {n} |" for (who, eff), n in sorted(counts.items())]
-    lines += ["", "| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
+    lines += [
+        f"| {md_cell(str(who))} | {md_cell(str(eff))} | {n} |"
+        for (who, eff), n in sorted(counts.items())
+    ]
+    lines += ["", "| " + " | ".join(md_cell(c) for c in cols) + " |", "|" + "---|" * len(cols)]
     for r in rows:
         cells = []
         for c in cols:
             v = r[c]
             cells.append(
-                ""
-                if v is None
-                else f"{v:.2f}"
-                if isinstance(v, float)
-                else str(v).replace("|", "/")
+                "" if v is None else f"{v:.2f}" if isinstance(v, float) else md_cell(str(v))
             )
         lines.append("| " + " | ".join(cells) + " |")
     atomic_write_text(out / "comparison.md", "\n".join(lines) + "\n")
