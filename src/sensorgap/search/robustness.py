@@ -93,17 +93,21 @@ def finding_robustness(
             if varied is None:
                 continue
             ev = run.evaluator("exact", system=varied)
-            problems: dict[str, SearchProblem] = {}
+            by_family: dict[str, list[dict[str, Any]]] = {}
             for row in rows:
-                fam = str(row["family"])
-                if fam not in problems:
-                    problems[fam] = SearchProblem(run.family(fam), envs, ev)
-                prob = problems[fam]
-                res = prob.evaluate(candidate_of(row, prob, run.folder / "ranking.json"))
-                p = float(res.metrics.get("collision_probability", 0.0)) if res.feasible else 0.0
-                variants[str(row["scenario_id"])].append(
-                    Variant(knob.label, float(value), knob.unit, p, classify(res))
-                )
+                by_family.setdefault(str(row["family"]), []).append(row)
+            for fam, fam_rows in by_family.items():  # one batch per family (as evaluate)
+                prob = SearchProblem(run.family(fam), envs, ev)
+                cands = [candidate_of(r, prob, run.folder / "ranking.json") for r in fam_rows]
+                for row, res in zip(fam_rows, prob.evaluate_many(cands, threads=1), strict=True):
+                    p = (
+                        float(res.metrics.get("collision_probability", 0.0))
+                        if res.feasible
+                        else 0.0
+                    )
+                    variants[str(row["scenario_id"])].append(
+                        Variant(knob.label, float(value), knob.unit, p, classify(res))
+                    )
     return [
         RowRobustness(
             int(r["rank"]),
