@@ -141,12 +141,12 @@ class _Side:
         key = (source.folder, family)
         if key not in self.problems:
             self.problems[key] = SearchProblem(
-                source.family(family), _environments(source), self.evaluator
+                source.family(family), searched_environments(source), self.evaluator
             )
         return self.problems[key]
 
 
-def _environments(run: RunFolder) -> dict[str, Any]:
+def searched_environments(run: RunFolder) -> dict[str, Any]:
     """The environments a run searched (as it recorded them; all of its file when the
     settings do not list them)."""
     envs = run.environments()

@@ -17,7 +17,7 @@ from typing import Any
 
 from sensorgap.analysis.sensitivity import GLARE_ESTIMATES, KNOBS, Knob, varied_system
 from sensorgap.models import System
-from sensorgap.search.compare import _environments, candidate_of
+from sensorgap.search.compare import candidate_of, searched_environments
 from sensorgap.search.problem import SearchProblem
 from sensorgap.search.ranking import RANK_MIN_P, classify
 from sensorgap.search.runfolder import RunFolder
@@ -85,7 +85,7 @@ def finding_robustness(
     """Each of ``rows`` (ranking rows of ``run``, whose vehicle is ``system``) evaluated
     exactly under each knob of ``knobs`` at its low and high end (P(collision) 0..1 and the
     class), with the run's recorded environments, reaction model, friction and targets."""
-    envs = _environments(run)
+    envs = searched_environments(run)
     variants: dict[str, list[Variant]] = {str(r["scenario_id"]): [] for r in rows}
     for knob in knobs:
         for value in (knob.low, knob.high):
