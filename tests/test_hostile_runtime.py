@@ -911,7 +911,9 @@ def test_report_and_export_do_not_certify_a_tampered_run(
     for argv in (["report", "--run", str(run)], ["export", "--run", str(run)]):
         assert main(argv) == 2
         err = capsys.readouterr().err.strip().splitlines()
-        assert len(err) == 1 and "ranking.csv was changed" in err[0], err
+        # the manifest, or the store's record of the ranking files (round eighteen, F5)
+        assert len(err) == 1 and "ranking.csv" in err[0], err
+        assert "ranking.csv was changed" in err[0] or "is not the file the search" in err[0]
     assert {p: p.read_bytes() for p in run.rglob("*") if p.is_file()} == before
     assert main(["verify", str(run)]) != 0
     # a lost part (in a sub-folder) is not refused: the report degrades, and verify still
@@ -1662,3 +1664,59 @@ def test_the_command_line_keeps_openblas_to_one_thread() -> None:
         [sys.executable, "-c", probe], env=env, capture_output=True, text=True, check=True
     )
     assert done.stdout.split() == ["None"]  # a library user's process is left alone
+
+
+# -- hostile round eighteen: stop signals at the start and in a search's last writes -----
+
+
+@pytest.mark.parametrize(("name", "code"), [("SIGINT", 130), ("SIGTERM", 143), ("SIGHUP", 129)])
+def test_a_stop_signal_while_the_command_line_is_imported_is_one_line(name: str, code: int) -> None:
+    """Round eighteen, F8: Ctrl-C while the console script imported ``sensorgap.cli``
+    printed a KeyboardInterrupt traceback; SIGTERM there ended the process with 143 and no
+    line. The signal arrives here exactly while that import runs (an import hook sends
+    it): one line, exit 128 + signal number."""
+    import subprocess
+    import sys
+
+    script = (
+        "import builtins, os, signal, sys, time\n"
+        "import sensorgap.entry as entry\n"
+        "real = builtins.__import__\n"
+        "def hook(name, *a, **k):\n"
+        "    if name == 'sensorgap.cli':\n"
+        f"        os.kill(os.getpid(), signal.{name}); time.sleep(2)\n"
+        "    return real(name, *a, **k)\n"
+        "builtins.__import__ = hook\n"
+        "sys.argv = ['sensorgap', '--version']\n"
+        "sys.exit(entry.main())\n"
+    )
+    proc = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, timeout=60, check=False
+    )
+    assert proc.returncode == code, proc.stderr
+    assert proc.stderr == "sensorgap: interrupted\n", proc.stderr
+
+
+def test_a_stop_in_the_last_writes_of_a_search_is_delivered_after_them() -> None:
+    """Round eighteen, F7: Ctrl-C after a resumed search rewrote its ranking files and
+    before its manifest left a folder failing verify. ``DeferredStop`` holds the signal
+    from ``begin()`` to the end of the block, then delivers it to the handler in place
+    before: nothing is raised inside, KeyboardInterrupt right after; the handlers are
+    put back."""
+    import signal
+
+    from sensorgap.runtime import DeferredStop
+
+    before = signal.getsignal(signal.SIGINT)
+    reached = []
+    with pytest.raises(KeyboardInterrupt):
+        with DeferredStop() as stop:
+            stop.begin()
+            os.kill(os.getpid(), signal.SIGINT)
+            for _ in range(1000):  # the handler would have run by now
+                reached.append(1)
+            assert signal.getsignal(signal.SIGINT) is not before
+        for _ in range(1000):  # delivered at the end of the block
+            pass
+    assert len(reached) == 1000
+    assert signal.getsignal(signal.SIGINT) is before

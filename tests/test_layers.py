@@ -34,6 +34,7 @@ LAYERS = [
     "jobs",
     "api",
     "cli",
+    "entry",
 ]
 #: Shared base modules count as one layer (they may import each other): those listed
 #: before ``config``.

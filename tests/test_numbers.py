@@ -21,6 +21,9 @@ from sensorgap.config.common import parse_decimal, parse_integer
         ("+3E-2", 0.03),
         ("1e400", math.inf),
         ("-inf", -math.inf),
+        # 1,000 characters (MAX_NUMBER_CHARS, a probe CSV field's limit): a 400-character
+        # cap of its own refused a 503-character 10 m (hostile round eighteen, F13)
+        ("10." + "0" * 997, 10.0),
     ],
 )
 def test_plain_decimals(text: str, want: float) -> None:
@@ -32,7 +35,7 @@ def test_nan_is_read_for_the_options_own_check() -> None:
 
 
 @pytest.mark.parametrize(
-    "text", ["1_000", "0x10", "1e", "", "e5", "1 0", "nan1", "\uff11", "1" * 401]
+    "text", ["1_000", "0x10", "1e", "", "e5", "1 0", "nan1", "\uff11", "1" * 1001]
 )
 def test_not_plain_decimals(text: str) -> None:
     with pytest.raises(ValueError, match="not a plain decimal number"):

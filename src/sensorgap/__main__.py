@@ -1,5 +1,5 @@
 import sys
 
-from sensorgap.cli import main
+from sensorgap.entry import main
 
 sys.exit(main())

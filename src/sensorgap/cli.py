@@ -38,6 +38,7 @@ from sensorgap.filesio import (
 )
 from sensorgap.plugins import load_plugins
 from sensorgap.runtime import (
+    DeferredStop,
     StdoutUnwritable,
     check_numba_environment,
     guarded_stdout,
@@ -59,6 +60,9 @@ EXIT_INPUT = 2
 NEARFIELD_RESOLUTION_M = (0.02, 1.0)
 #: farfield: path length range, m.
 MAX_FARFIELD_LENGTH_M = 10_000.0
+#: The shortest far-field path, m: a few sample steps (a subnormal length drew a figure of
+#: zero width, with matplotlib's warning on standard error: hostile round eighteen, F4).
+MIN_FARFIELD_LENGTH_M = 1.0
 EXIT_INTERNAL = 1
 #: What each analysis command writes into its --out folder (besides manifest.json): an
 #: existing --out must hold nothing else (``filesio.refuse_foreign_outputs``).
@@ -415,9 +419,11 @@ def cmd_farfield(args: argparse.Namespace) -> int:
     refuse_foreign_outputs(args.out, ANALYSIS_WRITES["farfield"], "farfield")
     refuse_inside_certified(args.out, "farfield")
     length = _positive(args.length, "--length")
-    if length > MAX_FARFIELD_LENGTH_M:
+    if not MIN_FARFIELD_LENGTH_M <= length <= MAX_FARFIELD_LENGTH_M:
         raise InputError(
-            "--length", "", f"must be at most {MAX_FARFIELD_LENGTH_M:g} m, got {length!r}"
+            "--length",
+            "",
+            f"must be {MIN_FARFIELD_LENGTH_M:g} .. {MAX_FARFIELD_LENGTH_M:g} m, got {length!r}",
         )
     setup = FarFieldSetup(
         road=args.road,
@@ -504,36 +510,40 @@ def cmd_search(args: argparse.Namespace) -> int:
     refuse_inside_certified(args.out, "search")
     if args.resume:  # the new manifest must not certify a file changed by hand
         refuse_if_changed(args.out, SEARCH_WRITES)
-    outcome, gone = search_removing_stale(
-        Path(args.out),
-        lambda: run_search(
-            args.vehicle,
-            _families(args.families),
-            _environments(args.environments, env_file),
-            args.budget,
-            args.seed,
-            args.top,
+    # the ranking files, their record in the store, the removal of the stale export and
+    # report and the manifest: all written, or (stopped before them) none
+    with DeferredStop() as stop:
+        outcome, gone = search_removing_stale(
             Path(args.out),
-            strategy=args.strategy,
-            mode=args.pd,
-            sun_search=not args.no_sun,
-            environments_file=env_file,
-            detection=args.detection,
-            workers=args.workers,
-            resume=args.resume,
-            executor=args.executor,
-            scheduler=args.scheduler,
-            seeds=args.seeds,
-        ),
-    )
-    # what export, simulate and report made of the previous ranking no longer matches
-    stale: tuple[str, ...] = () if gone is None else stale_after_search()
-    if gone:
-        print(
-            f"the resumed search changed the ranking: removed {len(gone)} files of the "
-            "previous export and report (run export and report again)"
+            lambda: run_search(
+                args.vehicle,
+                _families(args.families),
+                _environments(args.environments, env_file),
+                args.budget,
+                args.seed,
+                args.top,
+                Path(args.out),
+                strategy=args.strategy,
+                mode=args.pd,
+                sun_search=not args.no_sun,
+                environments_file=env_file,
+                detection=args.detection,
+                workers=args.workers,
+                resume=args.resume,
+                executor=args.executor,
+                scheduler=args.scheduler,
+                seeds=args.seeds,
+                stop=stop,
+            ),
         )
-    write_manifest(args.out, (*SEARCH_WRITES, *stale) if args.resume else None)
+        # what export, simulate and report made of the previous ranking no longer matches
+        stale: tuple[str, ...] = () if gone is None else stale_after_search()
+        if gone:
+            print(
+                f"the resumed search changed the ranking: removed {len(gone)} files of the "
+                "previous export and report (run export and report again)"
+            )
+        write_manifest(args.out, (*SEARCH_WRITES, *stale) if args.resume else None)
     crit = sum(1 for r in outcome.ranking if r["class"] == "sensor-critical")
     d = outcome.summary["lookup_vs_exact"]
     if args.pd == "lookup" and d.get("reevaluated"):

@@ -554,3 +554,52 @@ def standard_streams() -> Iterator[None]:
         if opened is not None:
             with suppress(OSError, ValueError):
                 opened.close()
+
+
+class DeferredStop:
+    """Stop signals (Ctrl-C, SIGTERM, SIGHUP) held back from ``begin()`` to the end of the
+    ``with`` block, then delivered: the last writes of a command that must happen together
+    (a search's ranking files, the exact results its store records for them and the
+    folder's manifest) all happen, or, stopped before ``begin()``, none of them.
+
+    Hostile round eighteen (F7): Ctrl-C during ``search --resume`` after it rewrote
+    ``ranking.json`` and the other ranking files but before its ``manifest.json`` left a
+    folder that failed its own ``verify``. A signal received in the block is recorded and
+    sent again, to the handler in place before ``begin()``, when the block ends (the
+    command then stops as interrupted, its folder complete). The window is the writing of
+    a few files (about a second for a large store's manifest). Only in the main thread
+    (where Python runs signal handlers); elsewhere ``begin()`` does nothing."""
+
+    _SIGNALS = ("SIGINT", "SIGTERM", "SIGHUP")
+
+    def __init__(self) -> None:
+        self._previous: dict[int, Any] = {}
+        self._pending: list[int] = []
+
+    def __enter__(self) -> DeferredStop:
+        return self
+
+    def begin(self) -> None:
+        """Hold stop signals from now until the block ends (idempotent)."""
+        import signal
+        import threading
+
+        if self._previous or threading.current_thread() is not threading.main_thread():
+            return
+        for name in self._SIGNALS:
+            sig = getattr(signal, name, None)
+            if sig is not None:
+                self._previous[int(sig)] = signal.signal(sig, self._hold)
+
+    def _hold(self, signum: int, frame: Any) -> None:
+        self._pending.append(int(signum))
+
+    def __exit__(self, *exc: object) -> None:
+        import signal
+
+        for sig, handler in self._previous.items():  # None: not set from Python
+            signal.signal(sig, signal.SIG_DFL if handler is None else handler)
+        self._previous.clear()
+        if self._pending:  # delivered now, to the handlers put back above
+            os.kill(os.getpid(), self._pending[0])
+            self._pending.clear()

@@ -140,8 +140,12 @@ def prepare_case(
     _write_files(case, folder)
     if run.is_dir():
         _edit_run(case, run)
-        if case.get("drop_manifest"):  # test a file's own check, not the folder's integrity
+        if case.get("drop_manifest"):  # a file's own check, not the folder's integrity
             (run / "manifest.json").unlink()
+        if case.get("drop_manifest") or case.get("older_records"):
+            _older_records(run)
+        if case.get("rehash_manifest"):
+            _rehash_manifest(run)
     subs = {
         "{dir}": str(folder),
         "{out}": str(out),
@@ -393,6 +397,30 @@ def _edit_run(case: dict[str, Any], run: Path) -> None:
         (run / "run.json").write_text(json.dumps(info))
 
 
+def _rehash_manifest(run: Path) -> None:
+    """Every entry of ``{run}``'s manifest re-hashed to its file as it is now (an edit
+    made to look certified: only the run's own records can tell)."""
+    manifest = json.loads((run / "manifest.json").read_text(encoding="utf-8"))
+    for rel in manifest["files"]:
+        data = (run / rel).read_bytes()
+        manifest["files"][rel] = {"bytes": len(data), "sha256": hashlib.sha256(data).hexdigest()}
+    (run / "manifest.json").write_text(json.dumps(manifest, indent=2), encoding="utf-8")
+
+
+def _older_records(run: Path) -> None:
+    """``run`` as an older search and export left it: its store without the SHA-256 of
+    the ranking files (meta row ``ranking_files``), its ``catalog.json`` without the
+    SHA-256 of the files it lists (``files``), so an edited ranking meets the checks of
+    its rows, not those of the records."""
+    if (run / "search.sqlite").is_file():
+        _sql(run / "search.sqlite", "DELETE FROM meta WHERE key = 'ranking_files';")
+    if (run / "catalog.json").is_file():
+        index = json.loads((run / "catalog.json").read_text(encoding="utf-8"))
+        if isinstance(index, dict):  # a case's own catalog.json may be anything
+            index.pop("files", None)
+            (run / "catalog.json").write_text(json.dumps(index, indent=2), encoding="utf-8")
+
+
 def _sql(db: Path, script: str) -> None:
     con = sqlite3.connect(db)
     con.executescript(script)
@@ -601,6 +629,11 @@ def _setup(
             shutil.copytree(templates_dir(), folder / "tpl")
             (folder / "tpl" / "vehicles" / "system_a.toml").unlink()
             (folder / "tpl" / "vehicles" / "system_a.toml").mkdir()
+        elif step == "templates_with_a_broken_family_link":  # {dir}/tpl/scenarios/zz.toml
+            from sensorgap.config.presets import templates_dir
+
+            shutil.copytree(templates_dir(), folder / "tpl")
+            (folder / "tpl" / "scenarios" / "zz.toml").symlink_to(folder / "nonexistent")
         elif step == "run_nearfield_deleted":  # {run}/nearfield removed
             shutil.rmtree(run / "nearfield")
         elif step == "run_search_killed":  # as SIGKILL leaves a search before its ranking

@@ -92,14 +92,22 @@ def test_removing_stale_outputs_removes_the_folders_they_leave_empty(tmp_path: P
 
 def test_non_finite_metrics_are_stored_as_standard_json(tmp_path: Path) -> None:
     """Hostile round fifteen noted ``NaN`` in search.sqlite's metrics JSON (not standard
-    JSON; other readers refuse it): an unevaluated metric (NaN) and a time never reached
-    (inf) are stored as the texts "nan" / "inf" / "-inf" and read back as floats; the
-    exact results of the ranked rows (``record_ranked``) likewise."""
+    JSON; other readers refuse it), round eighteen the texts "nan" / "inf" that replaced
+    it: an undefined metric (NaN) and a time never reached (inf) are stored as ``null``
+    (the output files' empty cell) and read back as NaN; the exact results of the ranked
+    rows (``record_ranked``) likewise. Older stores' texts still read as the floats."""
     import json
     import math
+    import re
     import sqlite3
 
-    from sensorgap.search.store import RANKED_KEY, read_meta, read_results, record_ranked
+    from sensorgap.search.store import (
+        RANKED_KEY,
+        metrics_from_json,
+        read_meta,
+        read_results,
+        record_ranked,
+    )
 
     db = tmp_path / "s.sqlite"
     r = _result(0)
@@ -115,12 +123,18 @@ def test_non_finite_metrics_are_stored_as_standard_json(tmp_path: Path) -> None:
     texts += [t for (t,) in con.execute("SELECT value FROM meta WHERE key = ?", (RANKED_KEY,))]
     con.close()
     for t in texts:
-        assert "NaN" not in t and "Infinity" not in t
+        assert not re.search(r"(?i)nan|inf", t), t
         json.loads(t, parse_constant=lambda c: pytest.fail(f"non-standard JSON {c}"))
+    stored = json.loads(texts[0])
+    assert stored["t_detect_s"] is None and stored["t_threat_s"] is None
+    assert stored["detection_margin_s"] is None
     for got in (
         read_results(db, [r.candidate.scenario_id])[r.candidate.scenario_id],
         read_meta(db)[RANKED_KEY][r.candidate.scenario_id],
     ):
-        assert math.isnan(got["t_detect_s"])
-        assert got["t_threat_s"] == math.inf and got["detection_margin_s"] == -math.inf
+        assert math.isnan(got["t_detect_s"]) and math.isnan(got["t_threat_s"])
+        assert math.isnan(got["detection_margin_s"])
         assert got["collision_probability"] == 0.5
+    old = metrics_from_json({"a": "nan", "b": "inf", "c": "-inf", "d": 1.5})
+    assert math.isnan(old["a"]) and old["b"] == math.inf and old["c"] == -math.inf
+    assert old["d"] == 1.5

@@ -187,12 +187,19 @@ _DECIMAL = re.compile(
 _INTEGER = re.compile(r"[+-]?[0-9]+")
 
 
+#: The longest number text read (an option's value, a CSV field, an OpenDRIVE attribute),
+#: characters: a probe CSV's field limit (``coverage.pointsio.MAX_FIELD_CHARS``) is this
+#: one (a 400-character cap of its own refused a valid 503-character "10.000...0" as "not a
+#: number": hostile round eighteen, F13).
+MAX_NUMBER_CHARS = 1_000
+
+
 def parse_decimal(text: str) -> float:
     """A plain decimal number (``_DECIMAL``; surrounding spaces allowed) as a float;
     anything else -> ``ValueError``. Values beyond the float range are ``inf``; callers
     check finiteness and range."""
     t = text.strip()
-    if len(t) > 400 or not _DECIMAL.fullmatch(t):
+    if len(t) > MAX_NUMBER_CHARS or not _DECIMAL.fullmatch(t):
         raise ValueError(f"not a plain decimal number: {text[:80]!r}")
     return float(t)
 
@@ -200,6 +207,6 @@ def parse_decimal(text: str) -> float:
 def parse_integer(text: str) -> int:
     """A plain integer (optional sign and digits; no '_' separators) -> ``ValueError``."""
     t = text.strip()
-    if len(t) > 400 or not _INTEGER.fullmatch(t):
+    if len(t) > MAX_NUMBER_CHARS or not _INTEGER.fullmatch(t):
         raise ValueError(f"not a plain integer: {text[:80]!r}")
     return int(t)

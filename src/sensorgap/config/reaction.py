@@ -138,8 +138,20 @@ def reactions_path() -> Path:
     return templates_dir() / "reactions.toml"
 
 
+#: The top-level tables of a reaction file.
+REACTION_FILE_TABLES = ("reactions", "friction")
+
+
 def _tables(path: Path) -> dict[str, Any]:
-    data = read_toml(path).get("reactions")
+    doc = read_toml(path)
+    unknown = sorted(set(doc) - set(REACTION_FILE_TABLES))
+    if unknown:  # a misspelt [friction] was ignored: the shipped friction silently applied
+        raise InputError(
+            path,
+            unknown[0],
+            f"unknown table or key; a reaction file holds {', '.join(REACTION_FILE_TABLES)}",
+        )
+    data = doc.get("reactions")
     if not isinstance(data, dict) or not data:
         raise InputError(path, "reactions", "expected a non-empty table [reactions.<name>]")
     return data
@@ -292,6 +304,13 @@ def load_friction(path: Path | None = None) -> dict[str, float]:
             path,
             f"friction.{unknown[0]}",
             f"unknown road condition; allowed: {', '.join(ROAD_CONDITIONS)}",
+        )
+    stray = sorted(set(sources) - set(ROAD_CONDITIONS))
+    if stray:
+        raise InputError(
+            path,
+            f"friction.sources.{stray[0]}",
+            f"source for an unknown road condition; allowed: {', '.join(ROAD_CONDITIONS)}",
         )
     out: dict[str, float] = {}
     for cond in ROAD_CONDITIONS:

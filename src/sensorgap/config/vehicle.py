@@ -198,7 +198,9 @@ class BodyConfig(Strict):
 class VehicleConfig(Strict):
     """A whole vehicle file."""
 
-    schema_version: Literal[1] = 1
+    #: the file format's version: an integer, 1 (``Literal[1]`` took ``true`` and ``1.0``
+    #: as 1 even in strict mode: hostile round eighteen, F1)
+    schema_version: int = Field(default=1, ge=1, le=1, strict=True)
     vehicle: BodyConfig
     reaction: str = Field(
         default="ads_default",

@@ -146,8 +146,8 @@ def grid_cells(
         raise InputError(
             names.resolution,
             "",
-            f"grid of {cells:.3g} cells is too large (at "
-            f"most {limit:.0e}{f' with {names.heading}' if bodies else ''}"
+            f"grid of {cells:,} cells is too large (at "
+            f"most {int(limit):,}{f' with {names.heading}' if bodies else ''}"
             "); coarsen the resolution or shrink the extent",
         )
     return nx, ny
@@ -159,8 +159,8 @@ def check_per_sensor(cells: int, sensors: int, names: Names) -> None:
         raise InputError(
             names.per_sensor,
             "",
-            f"{cells:.3g} cells x {sensors} "
-            f"sensors is too large (at most {MAX_PER_SENSOR_CELLS:.0e} map "
+            f"{cells:,} cells x {sensors:,} "
+            f"sensors is too large (at most {int(MAX_PER_SENSOR_CELLS):,} map "
             "cells); coarsen the resolution or shrink the extent",
         )
 

@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from sensorgap.config.common import parse_decimal
+from sensorgap.config.common import MAX_NUMBER_CHARS, parse_decimal
 from sensorgap.errors import InputError
 
 #: Input limits (docs/limits.md): points per file, file size, and points x sensors (the
@@ -24,8 +24,9 @@ MAX_POINT_SENSOR_VALUES = 12_000_000
 BODY_COST = 12
 #: Largest coordinate of a query point, m, either way.
 MAX_POINT_COORD_M = 1.0e7  # written "1e7" in the error lines
-#: Longest CSV field accepted, characters (a number needs far fewer).
-MAX_FIELD_CHARS = 1_000
+#: Longest CSV field accepted, characters (a number needs far fewer): the longest number
+#: text read anywhere (``config.common.MAX_NUMBER_CHARS``).
+MAX_FIELD_CHARS = MAX_NUMBER_CHARS
 #: Highest target point above the road plane, m (``probe`` z, ``coverage --height``): an
 #: estimate well above any road user (a truck is 4 m) and any sensor mount; the models know
 #: no terrain, so a point below the road (z < 0) is refused too.

@@ -34,7 +34,7 @@ from numpy.typing import NDArray
 
 from sensorgap.atomic import atomic_write_bytes
 from sensorgap.config import load_target
-from sensorgap.errors import InputError
+from sensorgap.errors import InputError, escape_unprintable
 from sensorgap.export.bodies import MAX_BODY_DEV_M, box_deviation, planned_boxes
 from sensorgap.export.maneuver import maneuver_triggers, occluder_name, planned_origins
 from sensorgap.export.spec import ScenarioSpec, read_run
@@ -391,7 +391,9 @@ def run_esmini(
         return f"error: cannot run esmini: {exc}"
     if proc.returncode != 0 or not log.is_file():
         tail = _tail(outputs[1]) or _tail(outputs[0])
-        last = tail.splitlines()[-1] if tail else ""
+        # its last line, control characters escaped (a terminal's escape sequences were
+        # printed and written to simulation.csv raw: hostile round eighteen, F12)
+        last = escape_unprintable(tail.splitlines()[-1]) if tail else ""
         return f"crashed: esmini exit code {proc.returncode}: {last}"[:300]
     if text_log.is_file() and text_log.stat().st_size > MAX_ESMINI_LOG_BYTES:
         return f"bad log: {text_log}: larger than {MAX_ESMINI_LOG_BYTES} bytes"
@@ -403,7 +405,8 @@ def _tail(path: Path) -> str:
     """The last ``ESMINI_TAIL_BYTES`` of a file as text, stripped."""
     with path.open("rb") as f:
         f.seek(max(0, path.stat().st_size - ESMINI_TAIL_BYTES))
-        return f.read().decode("utf-8", "replace").strip()
+        # undecodable bytes as \\xNN (the caller escapes control characters)
+        return f.read().decode("utf-8", "backslashreplace").strip()
 
 
 def run_one(
@@ -552,7 +555,50 @@ def read_catalog_index(path: Path) -> tuple[dict[str, Any], list[dict[str, Any]]
     for key in ("style", "osc_version"):
         if not isinstance(index.get(key, ""), str):
             raise InputError(path, key, "malformed catalog index: expected a string")
+    _check_catalog_files(path, index.get("files"))
     return index, entries
+
+
+def _check_catalog_files(path: Path, files: Any) -> None:
+    """Every file ``catalog.json`` lists under ``files`` (scenarios, roads, coverage maps,
+    the ranking) is, byte for byte, what the export wrote (its ``sha256``); else
+    ``InputError`` naming the file. A scenario file swapped for another's, a road or map
+    replaced, or ranking.csv edited, with the manifest re-hashed, was reported (the
+    report linked rank 2's scenario under rank 1's id) and simulated (hostile round
+    eighteen, F6). A listed file that is gone is left to the reader (the report shows
+    the loss, ``verify`` names it). A catalog without ``files`` (an older export):
+    nothing checked."""
+    import hashlib
+
+    if files is None:
+        return
+    if not isinstance(files, dict):
+        raise InputError(path, "files", "malformed catalog index: expected an object")
+    root = path.parent
+    for rel, meta in sorted(files.items()):
+        digest = meta.get("sha256") if isinstance(meta, dict) else None
+        if (
+            not isinstance(digest, str)
+            or not rel
+            or Path(rel).is_absolute()
+            or ".." in Path(rel).parts
+        ):
+            raise InputError(
+                path,
+                f"files.{str(rel)[:80]}",
+                "malformed catalog index: expected a relative path inside the catalog "
+                "with its sha256",
+            )
+        file = root / rel
+        if file.is_symlink() or not file.is_file():
+            continue  # lost: the report says so where it shows it, verify names it
+        if hashlib.sha256(file.read_bytes()).hexdigest() != digest:
+            raise InputError(
+                file,
+                "",
+                "is not the file the export wrote (its SHA-256 is not the one catalog.json "
+                "records): changed after the export; restore it or export again",
+            )
 
 
 #: Shortest fixed simulation step, s: 1 kHz (a 1e-9 s step made esmini take 1e10 steps
@@ -622,6 +668,8 @@ def simulate_catalog(
             row.update(cols)
             row["message"] = "; ".join(m for m in [row.get("message", ""), *msgs] if m)
         rows.append(row)
+    for row in rows:  # esmini's words (its output's tail, a file name) as text, escaped
+        row["message"] = escape_unprintable(str(row.get("message", "")))
     columns = COLUMNS
     if ego_reaction:
         from sensorgap.export.reaction import COLUMNS as REACTION_COLUMNS

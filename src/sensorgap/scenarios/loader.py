@@ -106,8 +106,11 @@ def scenarios_dir() -> Path:
 
 
 def family_presets() -> list[str]:
-    """Names of the shipped families (file stems), sorted."""
-    return sorted(p.stem for p in scenarios_dir().glob("*.toml") if p.is_file())
+    """Names of the shipped families (file stems), sorted: every ``*.toml`` entry, also one
+    that is not a regular file (a broken link, a folder), which ``resolve_family_path``
+    then refuses by name (hostile round eighteen, F11: ``--families all`` left it out
+    silently)."""
+    return sorted(p.stem for p in scenarios_dir().glob("*.toml"))
 
 
 @lru_cache(maxsize=16)

@@ -71,6 +71,12 @@ class Corridor:
     speed_rel: float
 
 
+def _count(n: float) -> str:
+    """A lattice dimension as the whole number of nodes it needs (rounded up), written in
+    full: rounded to 3 digits a count just beyond the limit read as the limit itself."""
+    return f"{math.ceil(n):,}" if math.isfinite(n) else "infinitely many"
+
+
 def corridor_search(
     scene: Scene,
     x_start: float,
@@ -119,22 +125,23 @@ def corridor_search(
     step = speed_rel * dt
     y_lo, y_hi = min(lo for lo, _ in lanes), max(hi for _, hi in lanes)
     # the lattice size before anything is allocated (a graph node costs ~1 kB)
-    cols_est = (x_goal - x_start) / step + 1.0
+    # a subnormal speed makes the step 0 (hostile round eighteen, F3: ZeroDivisionError)
+    cols_est = (x_goal - x_start) / step + 1.0 if step > 0.0 else math.inf
     rows_est = (y_hi - y_lo) / lateral_res + 1.0
     if cols_est > MAX_CORRIDOR_NODES:  # too many columns even for a single row
         raise InputError(
             "corridor",
             "speed_rel",
-            f"{cols_est:.3g} columns of the lattice (one per {dt:g} s over "
-            f"{abs(x_goal - x_start):g} m at {speed_rel:g} m/s) are too many (at most "
-            f"{MAX_CORRIDOR_NODES:.0e} nodes); raise the speed or shorten the approach",
+            f"{_count(cols_est)} columns of the lattice (one per {dt:g} s over "
+            f"{abs(x_goal - x_start):g} m at {speed_rel!r} m/s) are too many (at most "
+            f"{MAX_CORRIDOR_NODES:,} nodes); raise the speed or shorten the approach",
         )
     if cols_est * rows_est > MAX_CORRIDOR_NODES:
         raise InputError(
             "corridor",
             "lateral_res",
-            f"a lattice of {cols_est:.3g} columns x "
-            f"{rows_est:.3g} rows is too large (at most {MAX_CORRIDOR_NODES:.0e} "
+            f"a lattice of {_count(cols_est)} columns x "
+            f"{_count(rows_est)} rows is too large (at most {MAX_CORRIDOR_NODES:,} "
             "nodes); coarsen the lateral resolution, shorten the approach or "
             "raise the speed",
         )

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import contextlib
 import csv
+import hashlib
 import io
 import math
 import shutil
@@ -34,10 +35,11 @@ from sensorgap.atomic import (
 from sensorgap.errors import InputError
 from sensorgap.filesio import (
     format_float,
+    json_bytes,
     refuse_certified_by_other,
     refuse_links,
-    write_json,
 )
+from sensorgap.runtime import DeferredStop
 from sensorgap.search.executors import make_executor
 from sensorgap.search.loop import LoopResult, search_loop
 from sensorgap.search.metrics import metric_names, output_value
@@ -313,23 +315,30 @@ def search_summary(p: Prepared, loop: LoopResult, ranked: Ranked) -> dict[str, A
     }
 
 
-def write_ranking(out: Path, p: Prepared, ranked: Ranked, summary: dict[str, Any]) -> None:
-    """``ranking.csv``, ``unavoidable.csv``, ``ranking.json`` and ``summary.json`` (each
-    written to a temporary file and renamed)."""
-    atomic_write_bytes(out / "ranking.csv", ranking_csv(ranked.rows, ranked.columns))
-    atomic_write_bytes(out / "unavoidable.csv", ranking_csv(ranked.unavoidable, ranked.columns))
-    write_json(
-        out / "ranking.json",
-        {
-            "columns": ranked.columns,
-            "ranking": ranked.rows,
-            "unavoidable": ranked.unavoidable,
-            "settings": p.record,
-            "lookup_vs_exact": ranked.lookup_vs_exact,
-            "stability": ranked.stability,
-        },
-    )
-    write_json(out / "summary.json", summary)
+def ranking_files(p: Prepared, ranked: Ranked, summary: dict[str, Any]) -> dict[str, bytes]:
+    """The bytes of ``ranking.csv``, ``unavoidable.csv``, ``ranking.json`` and
+    ``summary.json``, by file name (``RANKING_FILES``)."""
+    return {
+        "ranking.csv": ranking_csv(ranked.rows, ranked.columns),
+        "unavoidable.csv": ranking_csv(ranked.unavoidable, ranked.columns),
+        "ranking.json": json_bytes(
+            {
+                "columns": ranked.columns,
+                "ranking": ranked.rows,
+                "unavoidable": ranked.unavoidable,
+                "settings": p.record,
+                "lookup_vs_exact": ranked.lookup_vs_exact,
+                "stability": ranked.stability,
+            }
+        ),
+        "summary.json": json_bytes(summary),
+    }
+
+
+def write_ranking(out: Path, files: dict[str, bytes]) -> None:
+    """``ranking_files`` into ``out`` (each written to a temporary file and renamed)."""
+    for name, data in files.items():
+        atomic_write_bytes(out / name, data)
 
 
 def exclusive_folder(out: Path) -> contextlib.AbstractContextManager[None]:
@@ -454,6 +463,7 @@ def run_search(
     scheduler: str | None = None,
     seeds: int = 1,
     lock: bool = True,
+    stop: DeferredStop | None = None,
 ) -> SearchOutcome:
     """Search, store every candidate, write the ranking; see the module docstring and
     ``SearchSettings`` for the arguments. ``workers``: threads per batch
@@ -463,7 +473,9 @@ def run_search(
     and each ranked row says how many of the searches found it on their own
     (``found_by_seeds``; ``summary.json`` ``stability``): the confidence a rerun with
     another seed would find it too, at no extra cost. ``lock=False``: the caller holds
-    ``exclusive_folder(out)`` already (the main job, for all its stages).
+    ``exclusive_folder(out)`` already (the main job, for all its stages). ``stop``: stop
+    signals are held from the recording of the ranked results on, until the caller's
+    block ends (``runtime.DeferredStop``: the CLI writes the manifest in it).
     """
     p = prepare(
         SearchSettings(
@@ -557,8 +569,14 @@ def run_search(
                 _remove_fresh_search(db, fresh, created)
             raise
         ranked = rank_results(p, loop)
+        if stop is not None:  # from here the ranking files, their record and the
+            stop.begin()  # caller's manifest are written together
         # the exact results of the ranked rows, so every reader can check ranking.json's
-        # numbers against the store (runfolder.RunFolder.check_store)
+        # numbers against the store, and the SHA-256 of the ranking files, so none can be
+        # edited (rows removed or re-ranked: hostile round eighteen, F5) without the
+        # store saying so (runfolder.RunFolder.check_store)
+        summary = search_summary(p, loop, ranked)
+        files = ranking_files(p, ranked, summary)
         shown = {row["scenario_id"] for row in (*ranked.rows, *ranked.unavoidable)}
         record_ranked(
             db,
@@ -567,7 +585,7 @@ def run_search(
                 for _, e in ranked.pairs
                 if e.candidate.scenario_id in shown
             },
+            {name: hashlib.sha256(data).hexdigest() for name, data in files.items()},
         )
-        summary = search_summary(p, loop, ranked)
-        write_ranking(out, p, ranked, summary)
+        write_ranking(out, files)
         return SearchOutcome(ranked.rows, loop.results, loop.evaluated, loop.reused, summary)

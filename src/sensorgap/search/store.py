@@ -233,11 +233,11 @@ def refuse_wal(path: Path) -> None:
 
 
 def read_meta(path: Path) -> dict[str, Any]:
-    """The ``settings``, ``inputs`` and ``ranked`` (``record_ranked``) a store at ``path``
-    recorded (each parsed JSON; a key it lacks is absent), read without writing or
-    creating anything (the header checked first, ``refuse_wal``; the file opened
-    read-only). A file that is not a
-    readable store -> ``InputError`` naming it."""
+    """The ``settings``, ``inputs``, ``ranked`` and ``ranking_files`` (``record_ranked``)
+    a store at ``path`` recorded (each parsed JSON; a key it lacks is absent), read
+    without writing or creating anything (the header checked first, ``refuse_wal``; the
+    file opened read-only). A file that is not a readable store -> ``InputError`` naming
+    it."""
     refuse_wal(path)
     try:
         db = sqlite3.connect(f"{path.resolve().as_uri()}?mode=ro", uri=True)
@@ -248,8 +248,8 @@ def read_meta(path: Path) -> dict[str, Any]:
         rows = (
             dict(
                 db.execute(
-                    "SELECT key, value FROM meta WHERE key IN ('settings', 'inputs', ?)",
-                    (RANKED_KEY,),
+                    "SELECT key, value FROM meta WHERE key IN ('settings', 'inputs', ?, ?)",
+                    (RANKED_KEY, OUTPUTS_KEY),
                 )
             )
             if "meta" in tables
@@ -268,29 +268,35 @@ def read_meta(path: Path) -> dict[str, Any]:
     return out
 
 
-#: How a metric that is not a finite number is stored: standard JSON has no NaN or
-#: infinity (``json.dumps`` would write the non-standard ``NaN``, ``Infinity``).
+#: How older stores wrote a metric that is not a finite number (texts; before them the
+#: non-standard ``NaN`` / ``Infinity``): read back as floats.
 _NON_FINITE = {"nan": math.nan, "inf": math.inf, "-inf": -math.inf}
 
 
 def metrics_json(metrics: dict[str, Any]) -> str:
-    """Metrics as sorted, standard JSON: a value that is not a finite number (an
-    unevaluated metric: NaN; a time never reached: inf) as the text ``"nan"``, ``"inf"``
-    or ``"-inf"`` (``metrics_from_json`` reads it back)."""
+    """Metrics as sorted, standard JSON; a value that is not a finite number (an undefined
+    metric: NaN, e.g. no threat onset; a time never reached: inf, which no built-in metric
+    produces, TTC and headway being capped) as ``null``, as the output files write it (an
+    empty cell: ``metrics.output_value``). No NaN or infinity in the store, not even as
+    text (hostile round eighteen, F9: 404 of 600 candidates held ``"nan"``);
+    ``metrics_from_json`` reads ``null`` back as NaN."""
 
     def enc(v: Any) -> Any:
         if isinstance(v, float) and not math.isfinite(v):
-            return "nan" if v != v else ("inf" if v > 0 else "-inf")
+            return None
         return v
 
     return json.dumps({k: enc(v) for k, v in metrics.items()}, sort_keys=True, allow_nan=False)
 
 
 def metrics_from_json(metrics: dict[str, Any]) -> dict[str, Any]:
-    """``metrics_json``'s object with its non-finite texts as floats again (a store of an
-    older search wrote them as ``NaN`` / ``Infinity``, which ``json.loads`` reads as
-    floats already)."""
-    return {k: _NON_FINITE.get(v, v) if isinstance(v, str) else v for k, v in metrics.items()}
+    """``metrics_json``'s object with its ``null`` values as NaN again (and the texts
+    ``"nan"``, ``"inf"``, ``"-inf"`` of older stores as those floats; older still, ``NaN``
+    and ``Infinity``, which ``json.loads`` reads as floats already)."""
+    return {
+        k: math.nan if v is None else (_NON_FINITE.get(v, v) if isinstance(v, str) else v)
+        for k, v in metrics.items()
+    }
 
 
 def _json_object(path: Path, text: Any, what: str) -> dict[str, Any]:
@@ -309,12 +315,20 @@ def _json_object(path: Path, text: Any, what: str) -> dict[str, Any]:
 RANKED_KEY = "ranked"
 
 
-def record_ranked(path: Path, results: dict[str, dict[str, float]]) -> None:
+#: The ``meta`` row holding the SHA-256 of the ranking files the search wrote (by name).
+OUTPUTS_KEY = "ranking_files"
+
+
+def record_ranked(
+    path: Path, results: dict[str, dict[str, float]], outputs: dict[str, str] | None = None
+) -> None:
     """Record in the store at ``path`` the metrics of every ranked (and unavoidable) row
     of the search's ranking, by scenario id, as exact evaluation gave them (the
     ``candidates`` rows hold what the search's lookup gave): ``meta`` row ``ranked``,
-    replaced by each search into the folder. Every reader of the run compares the
-    ranking's numbers with it (``runfolder.RunFolder.check_store``)."""
+    replaced by each search into the folder; and ``outputs``, the SHA-256 of each
+    ranking file it writes by file name (``meta`` row ``ranking_files``). Every reader of
+    the run compares the ranking's numbers and files with them
+    (``runfolder.RunFolder.check_store``)."""
     text = (
         "{"
         + ", ".join(f"{json.dumps(k)}: {metrics_json(results[k])}" for k in sorted(results))
@@ -326,6 +340,11 @@ def record_ranked(path: Path, results: dict[str, dict[str, float]]) -> None:
         raise InputError(path, "", f"cannot open: {exc}") from None
     try:
         db.execute("INSERT OR REPLACE INTO meta VALUES (?, ?)", (RANKED_KEY, text))
+        if outputs is not None:
+            db.execute(
+                "INSERT OR REPLACE INTO meta VALUES (?, ?)",
+                (OUTPUTS_KEY, json.dumps(outputs, sort_keys=True)),
+            )
         db.commit()
     except sqlite3.DatabaseError as exc:
         raise InputError(path, "", f"cannot store results: {exc}") from None
