@@ -68,6 +68,32 @@ def draw_map(
     )
 
 
+def draw_map_window(
+    ax: plt.Axes,
+    data: NDArray[np.float64],
+    g: GridSpec,
+    window: tuple[float, float, float, float],
+    cmap: Any = PD_CMAP,
+    norm: Any = PD_NORM,
+) -> AxesImage:
+    """``draw_map`` of only the cells of the grid ``g`` that ``window`` (x0, x1, y0, y1,
+    m) shows, whole cells (the renderer resamples every cell of an image, also those out
+    of view: a close-up drew the whole map, about half the time of a comparison figure)."""
+    x0, x1, y0, y1 = window
+    r = g.resolution
+    i0 = min(max(int(np.floor((x0 - g.xmin) / r)), 0), data.shape[1] - 1)
+    i1 = max(min(int(np.ceil((x1 - g.xmin) / r)), data.shape[1]), i0 + 1)
+    j0 = min(max(int(np.floor((y0 - g.ymin) / r)), 0), data.shape[0] - 1)
+    j1 = max(min(int(np.ceil((y1 - g.ymin) / r)), data.shape[0]), j0 + 1)
+    return draw_map(
+        ax,
+        data[j0:j1, i0:i1],
+        (g.xmin + i0 * r, g.xmin + i1 * r, g.ymin + j0 * r, g.ymin + j1 * r),
+        cmap,
+        norm,
+    )
+
+
 def plain_text(text: str) -> str:
     """User-given text (vehicle, family, environment names) for a matplotlib label: every
     ``$`` escaped, so a name like ``A $x^{$`` is drawn as written, not parsed as math."""
@@ -332,7 +358,7 @@ def _closeup(
 ) -> None:
     """The near field of ``pd`` on ``zx`` (limits ``lim``), its frame marked on ``ax``."""
     x0, x1, y0, y1 = lim
-    draw_map(zx, pd, (g.xmin, g.xmax, g.ymin, g.ymax), cmap, norm)
+    draw_map_window(zx, pd, g, lim, cmap, norm)
     draw_vehicle(zx, system, fov=False)
     for s in system.sensors:
         zx.plot(

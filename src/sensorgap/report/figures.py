@@ -16,7 +16,7 @@ from matplotlib.patches import Polygon  # noqa: E402
 from sensorgap.coverage.plot import (  # noqa: E402
     PD_CMAP,
     PD_NORM,
-    draw_map,
+    draw_map_window,
     draw_vehicle,
     plain_text,
     save_figure,
@@ -84,20 +84,7 @@ def scenario_figure(spec: ScenarioSpec, evaluator: Evaluator, tr: Trace, path: P
         fig = plt.figure(figsize=(12.0, 5.4), layout="constrained")
         ax, bx = fig.subplots(1, 2, width_ratios=[1.6, 1.0])
     # only the cells in view (the whole map would be resampled by the renderer)
-    i0 = max(int(np.floor((x0 - g.xmin) / g.resolution)), 0)
-    i1 = min(int(np.ceil((x1 - g.xmin) / g.resolution)), pd_map.shape[1])
-    j0 = max(int(np.floor((y0 - g.ymin) / g.resolution)), 0)
-    j1 = min(int(np.ceil((y1 - g.ymin) / g.resolution)), pd_map.shape[0])
-    im = draw_map(
-        ax,
-        pd_map[j0:j1, i0:i1],
-        (
-            g.xmin + i0 * g.resolution,
-            g.xmin + i1 * g.resolution,
-            g.ymin + j0 * g.resolution,
-            g.ymin + j1 * g.resolution,
-        ),
-    )
+    im = draw_map_window(ax, pd_map, g, (x0, x1, y0, y1))
     draw_vehicle(ax, spec.system)
     k = named_step(tr)
     pdc = tr.pd if tr.pd_confirm is None else tr.pd_confirm
