@@ -1697,6 +1697,29 @@ def test_a_stop_signal_while_the_command_line_is_imported_is_one_line(name: str,
     assert proc.stderr == "sensorgap: interrupted\n", proc.stderr
 
 
+def test_a_program_importing_the_package_keeps_its_signal_handlers() -> None:
+    """The early stop handlers (``earlystop``) are the command's only: ``import
+    sensorgap`` in a program of its own leaves SIGINT, SIGTERM and SIGHUP as they were;
+    ``python -m sensorgap`` (the command) gets them from the package's first line."""
+    import subprocess
+    import sys
+
+    show = "import signal; print([signal.getsignal(s) for s in (2, 15, 1)])"
+    lib = subprocess.run(
+        [sys.executable, "-c", f"import sensorgap; {show}"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=True,
+    )
+    assert "stop_before_work" not in lib.stdout, lib.stdout
+    assert "default_int_handler" in lib.stdout and lib.stdout.count("SIG_DFL") == 2
+
+    from sensorgap import earlystop
+
+    assert not earlystop.is_the_command_line()  # pytest's process
+
+
 def test_a_stop_in_the_last_writes_of_a_search_is_delivered_after_them() -> None:
     """Round eighteen, F7: Ctrl-C after a resumed search rewrote its ranking files and
     before its manifest left a folder failing verify. ``DeferredStop`` holds the signal

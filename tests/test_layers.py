@@ -9,6 +9,7 @@ import sensorgap
 
 #: Pipeline order; a module may import its own layer and the layers before it.
 LAYERS = [
+    "earlystop",
     "errors",
     "atomic",
     "filesio",

@@ -13,10 +13,16 @@ The facade's names (``sensorgap.api``) are imported on first use, so ``import se
 stays light.
 """
 
-from sensorgap.apinames import API_NAMES as _API  # the facade's names (sensorgap.api)
-from sensorgap.runtime import configure_matplotlib_dir as _configure_matplotlib_dir
-from sensorgap.runtime import configure_numba_cache as _configure_numba_cache
-from sensorgap.version import __version__
+from sensorgap.earlystop import install as _install_early_stop
+
+# the ``sensorgap`` command (console script, ``python -m sensorgap``): stop signals are one
+# line from here on, before this package's own start below (hostile round nineteen)
+_install_early_stop()
+
+from sensorgap.apinames import API_NAMES as _API  # noqa: E402 - the facade's names
+from sensorgap.runtime import configure_matplotlib_dir as _configure_matplotlib_dir  # noqa: E402
+from sensorgap.runtime import configure_numba_cache as _configure_numba_cache  # noqa: E402
+from sensorgap.version import __version__  # noqa: E402
 
 _configure_numba_cache()  # a writable numba cache folder even when installed read-only
 _configure_matplotlib_dir()  # and matplotlib's, without its warning when HOME is read-only
