@@ -36,7 +36,13 @@ from pydantic import Field, ValidationError
 
 from sensorgap.config.common import Name, Strict, name_problem
 from sensorgap.config.environment import EnvironmentConfig
-from sensorgap.config.load import read_toml, require_source, short, validation_to_input_error
+from sensorgap.config.load import (
+    no_stray_source,
+    read_toml,
+    require_source,
+    short,
+    validation_to_input_error,
+)
 from sensorgap.config.presets import templates_dir
 from sensorgap.errors import InputError
 
@@ -305,13 +311,7 @@ def load_friction(path: Path | None = None) -> dict[str, float]:
             f"friction.{unknown[0]}",
             f"unknown road condition; allowed: {', '.join(ROAD_CONDITIONS)}",
         )
-    stray = sorted(set(sources) - set(ROAD_CONDITIONS))
-    if stray:
-        raise InputError(
-            path,
-            f"friction.sources.{stray[0]}",
-            f"source for an unknown road condition; allowed: {', '.join(ROAD_CONDITIONS)}",
-        )
+    no_stray_source(path, "friction", sources, ROAD_CONDITIONS)
     out: dict[str, float] = {}
     for cond in ROAD_CONDITIONS:
         v = data.get(cond)
