@@ -909,7 +909,13 @@ def cmd_verify(args: argparse.Namespace) -> int:
     folder = Path(args.folder)
     manifest = folder / "manifest.json"
     if not folder.is_dir():
-        raise InputError(folder, "", "folder does not exist")
+        raise InputError(
+            folder,
+            "",
+            "is not a folder: give a run folder"
+            if os.path.lexists(folder)
+            else "folder does not exist",
+        )
     if manifest.is_symlink() or not manifest.is_file():
         raise InputError(manifest, "", "no manifest in this folder (not a sensorgap run)")
     _refuse_locked(folder)  # a command writing it: its restore folder is no left-over
@@ -1520,9 +1526,12 @@ def _os_error_line(exc: OSError, out: object) -> str:
     # a path holding a line break stays on the one line (as InputError.line does)
     text = os.fsdecode(where) if isinstance(where, str | bytes) else str(where)
     where = " ".join(text.splitlines())
+    why = exc.strerror or type(exc).__name__
+    if exc.errno in (errno.EEXIST, errno.ENOTDIR):  # "File exists" for a file as --out
+        why += " (a file stands where a folder is needed)"
     return clip(
-        f"sensorgap: error: {cut_name(where)}: cannot write or read: "
-        f"{exc.strerror or type(exc).__name__} (no partial file was left)"
+        f"sensorgap: error: {cut_name(where)}: cannot write or read: {why} "
+        "(no partial file was left)"
     )
 
 
