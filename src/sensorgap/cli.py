@@ -88,9 +88,9 @@ _GLUED_OPTIONS = {
 
 
 class _Terminated(KeyboardInterrupt):
-    """SIGTERM (``kill``, ``timeout``) or SIGHUP (the terminal closed) as an interrupt of
-    the main thread: the command unwinds, so a file being written leaves no temporary
-    file (``atomic.atomic_path``) and a folder is put back as it was
+    """Ctrl-C, SIGTERM (``kill``, ``timeout``) or SIGHUP (the terminal closed) as an
+    interrupt of the main thread: the command unwinds, so a file being written leaves no
+    temporary file (``atomic.atomic_path``) and a folder is put back as it was
     (``atomic.removed_on_error``); the exit code is 128 + the signal's number."""
 
     def __init__(self, signum: int = signal.SIGTERM) -> None:
@@ -1597,7 +1597,9 @@ def _main(argv: Sequence[str] | None) -> int:
     if hasattr(signal, "SIGXFSZ"):  # a file-size limit: a clean OSError, not a core dump
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
     _RECEIVED.clear()  # an earlier command of this process (in-process callers)
-    previous = {sig: signal.signal(sig, _terminate) for sig in _STOP_SIGNALS}
+    # Ctrl-C too (hostile round nineteen, F4: a KeyboardInterrupt raised by Python's own
+    # handler inside numba's compiler callback was swallowed, and the command ran on)
+    previous = {sig: signal.signal(sig, _terminate) for sig in (signal.SIGINT, *_STOP_SIGNALS)}
     tune_allocator()
     out = getattr(args, "out", None)
     fresh: Path | None = None

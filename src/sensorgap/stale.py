@@ -7,12 +7,12 @@ listed in the manifest)."""
 
 from __future__ import annotations
 
-import hashlib
 from collections.abc import Callable
 from pathlib import Path
 from typing import TypeVar
 
 from sensorgap.filesio import remove_outputs
+from sensorgap.provenance import sha256_of
 
 T = TypeVar("T")
 
@@ -25,7 +25,7 @@ def catalog_digests(folder: Path) -> dict[str, str]:
     if (folder / "catalog.json").is_file():
         paths.append(folder / "catalog.json")
     return {
-        p.relative_to(folder).as_posix(): hashlib.sha256(p.read_bytes()).hexdigest()
+        p.relative_to(folder).as_posix(): sha256_of(p)
         for p in paths
         if p.is_file() and not p.is_symlink()
     }

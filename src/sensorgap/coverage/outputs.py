@@ -3,7 +3,6 @@ the per-point CSV of ``sensorgap probe``."""
 
 from __future__ import annotations
 
-import hashlib
 import math
 import zipfile
 from collections.abc import Sequence
@@ -22,12 +21,8 @@ from sensorgap.coverage.scene import Scene
 from sensorgap.errors import InputError
 from sensorgap.filesio import csv_bytes, write_json, write_npz
 from sensorgap.models.geometry import heading_rad
+from sensorgap.provenance import sha256_of
 from sensorgap.version import __version__
-
-
-def file_sha256(path: Path) -> str:
-    """SHA-256 (hex) of a file's bytes."""
-    return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
 def scene_provenance(scene: Scene) -> dict[str, Any]:
@@ -36,7 +31,7 @@ def scene_provenance(scene: Scene) -> dict[str, Any]:
         "sensorgap_version": __version__,
         "vehicle": scene.system.name,
         "vehicle_file": scene.system.source.name,
-        "vehicle_sha256": file_sha256(scene.system.source),
+        "vehicle_sha256": sha256_of(scene.system.source),
         "environment": scene.conditions.env.name,
         "target": scene.target.name,
     }

@@ -19,7 +19,6 @@ before the index is written; a failure is an error, not a warning.
 
 from __future__ import annotations
 
-import hashlib
 import shutil
 from pathlib import Path
 from typing import Any
@@ -44,6 +43,7 @@ from sensorgap.filesio import (
     write_npz,
 )
 from sensorgap.models import Conditions
+from sensorgap.provenance import sha256_of
 from sensorgap.roads import read_opendrive
 from sensorgap.search.runfolder import INPUTS_DIR, copy_record
 
@@ -57,10 +57,6 @@ CATALOG_GRID = (-120.0, 260.0, -40.0, 40.0, 0.5)
 
 class ExportError(RuntimeError):
     """An exported file failed validation (a bug, never bad input)."""
-
-
-def _sha(path: Path) -> str:
-    return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
 def _lanes(spec: ScenarioSpec) -> dict[str, list[int]]:
@@ -291,7 +287,7 @@ def export_catalog(
             files[name] = {"role": "ranking"}
     for rel, meta in files.items():
         p = out / rel
-        meta.update({"bytes": p.stat().st_size, "sha256": _sha(p)})
+        meta.update({"bytes": p.stat().st_size, "sha256": sha256_of(p)})
     index = {
         "vehicle": specs[0].system.name if specs else run.vehicle_ref,
         "vehicle_ref": run.vehicle_ref,

@@ -568,7 +568,7 @@ def _check_catalog_files(path: Path, files: Any) -> None:
     eighteen, F6). A listed file that is gone is left to the reader (the report shows
     the loss, ``verify`` names it). A catalog without ``files`` (an older export):
     nothing checked."""
-    import hashlib
+    from sensorgap.provenance import sha256_of
 
     if files is None:
         return
@@ -592,7 +592,7 @@ def _check_catalog_files(path: Path, files: Any) -> None:
         file = root / rel
         if file.is_symlink() or not file.is_file():
             continue  # lost: the report says so where it shows it, verify names it
-        if hashlib.sha256(file.read_bytes()).hexdigest() != digest:
+        if sha256_of(file) != digest:
             raise InputError(
                 file,
                 "",
