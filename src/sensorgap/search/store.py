@@ -352,6 +352,53 @@ def record_ranked(
         db.close()
 
 
+def ranking_record(path: Path) -> dict[str, str | None]:
+    """The texts of the ``meta`` rows a search's ranking phase writes (``ranked``,
+    ``ranking_files``: ``record_ranked``), None for a row the store lacks; {} when there is
+    no readable store. ``restore_ranking_record`` puts them back."""
+    if not path.is_file():
+        return {}
+    try:
+        refuse_wal(path)  # opening a WAL database, even read-only, creates -wal and -shm
+    except InputError:
+        return {}  # refused by the search itself
+    try:
+        db = sqlite3.connect(f"{path.resolve().as_uri()}?mode=ro", uri=True)
+        try:
+            rows = dict(
+                db.execute(
+                    "SELECT key, value FROM meta WHERE key IN (?, ?)", (RANKED_KEY, OUTPUTS_KEY)
+                )
+            )
+        finally:
+            db.close()
+    except sqlite3.Error:
+        return {}
+    return {key: rows.get(key) for key in (RANKED_KEY, OUTPUTS_KEY)}
+
+
+def restore_ranking_record(path: Path, record: dict[str, str | None]) -> None:
+    """Put back the ``meta`` rows ``ranking_record`` read (a row it did not find is
+    deleted): a resumed search that failed while writing its ranking leaves the store's
+    record of the ranking it had (hostile round nineteen, F5). Best effort: never raises
+    (the failure being reported is the search's)."""
+    if not record or ranking_record(path) == record:
+        return  # unchanged: not written (a write changes the file's bytes)
+    try:
+        db = sqlite3.connect(path)
+        try:
+            for key, text in record.items():
+                if text is None:
+                    db.execute("DELETE FROM meta WHERE key = ?", (key,))
+                else:
+                    db.execute("INSERT OR REPLACE INTO meta VALUES (?, ?)", (key, text))
+            db.commit()
+        finally:
+            db.close()
+    except sqlite3.Error:
+        pass
+
+
 def read_results(path: Path, scenario_ids: list[str]) -> dict[str, dict[str, Any]]:
     """The stored (lookup) metrics of the candidates ``scenario_ids`` names (by id; an
     id stored twice: its first row), read without writing anything (the store opened
