@@ -1743,3 +1743,32 @@ def test_a_stop_in_the_last_writes_of_a_search_is_delivered_after_them() -> None
             pass
     assert len(reached) == 1000
     assert signal.getsignal(signal.SIGINT) is before
+
+
+@pytest.mark.parametrize("record", ["{}", '{"ranking.json": null}', None])
+def test_a_partial_record_of_the_ranking_files_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], record: str | None
+) -> None:
+    """Round nineteen, F2: the store's record of the ranking files was checked only for
+    the names it held: emptied (or a null digest), it let an edited ranking.json through.
+    A search records all four, so a partial record is refused, naming the store; a store
+    without the record (an older search's) is not checked by it."""
+    from sensorgap.search.run import run_search
+
+    run = tmp_path / "run"
+    run_search("system_b", ["stopped_rural_curve"], ["snow"], 30, 1, 2, run, strategy="lhs")
+    con = sqlite3.connect(run / "search.sqlite")
+    if record is None:
+        con.execute("DELETE FROM meta WHERE key = 'ranking_files'")
+    else:
+        con.execute("UPDATE meta SET value = ? WHERE key = 'ranking_files'", (record,))
+    con.commit()
+    con.close()
+    capsys.readouterr()
+    code = main(["report", "--run", str(run)])
+    err = capsys.readouterr().err.strip().splitlines()
+    if record is None:
+        assert code == 0, err
+    else:
+        assert code == 2 and len(err) == 1, err
+        assert "search.sqlite: meta.ranking_files: the record of the ranking files lacks" in err[0]

@@ -266,6 +266,25 @@ def refuse_job_clash(prepared: Prepared, folder: Path) -> None:
         refuse_search_clash(prepared, folder, resume=True)
 
 
+def _start_resource_tracker() -> None:
+    """Start multiprocessing's resource tracker (a process the spawned second process
+    needs) with SIGHUP blocked, which it inherits: a closed terminal (SIGHUP to the whole
+    process group) killed it, and multiprocessing printed a warning and tracebacks on
+    standard error while relaunching it (hostile round nineteen, F7). It ignores Ctrl-C
+    and SIGTERM itself; it ends when the job's process does."""
+    import signal
+    from multiprocessing import resource_tracker
+
+    if not hasattr(signal, "SIGHUP") or not hasattr(signal, "pthread_sigmask"):
+        resource_tracker.ensure_running()
+        return
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGHUP})
+    try:
+        resource_tracker.ensure_running()
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
 def _run_job(
     out: Path,
     folder: Path,
@@ -316,6 +335,7 @@ def _run_job(
         # leaves a core idle between its batches (ask/tell, decoding, the store), and
         # neither needs the other's files. 'spawn': no fork of a threaded process.
         ctx = multiprocessing.get_context("spawn")
+        _start_resource_tracker()
         with ProcessPoolExecutor(1, mp_context=ctx) as pool:
             side = pool.submit(_analysis, ref, folder, 1, envs)
             outcome = clock.stage("search", search)

@@ -695,12 +695,26 @@ class RunFolder:
         ``ranking.json``, or ``summary.json``'s best P(collision) edited, with the
         manifest re-hashed, were reported, exported and compared as the search's
         (hostile round eighteen, F5: the report's top weakness was the second one)."""
-        if not isinstance(recorded, dict):
+        if recorded is None:
             return
+        missing = [
+            n
+            for n in RANKING_FILES
+            if not (isinstance(recorded, dict) and isinstance(recorded.get(n), str))
+        ]
+        if missing:  # the search writes all four: a partial record is not an older one
+            raise InputError(
+                self.folder / STORE_FILE,
+                "meta.ranking_files",
+                f"the record of the ranking files lacks {missing[0]}'s SHA-256 (a search "
+                f"records all of {', '.join(RANKING_FILES)}); restore the store or search "
+                "again",
+            )
+        assert isinstance(recorded, dict)
         for name in RANKING_FILES:  # only these names (a store's own are not followed)
-            digest = recorded.get(name)
+            digest = recorded[name]
             path = self.folder / name
-            if digest is not None and path.is_file() and sha256_of(path) != digest:
+            if path.is_file() and sha256_of(path) != digest:
                 raise InputError(
                     path,
                     "",
