@@ -1772,3 +1772,22 @@ def test_a_partial_record_of_the_ranking_files_is_refused(
     else:
         assert code == 2 and len(err) == 1, err
         assert "search.sqlite: meta.ranking_files: the record of the ranking files lacks" in err[0]
+
+
+def test_a_second_stop_signal_does_not_stop_the_put_back() -> None:
+    """Round nineteen, F6: ``timeout`` (and a terminal) signal the process group too, so a
+    job got SIGTERM twice; the second, raised inside the put-back of the folder, left its
+    restore folder and a folder failing verify. Once one stop signal was taken, the next
+    ones are ignored (the command is stopping already)."""
+    import signal
+
+    from sensorgap import cli
+
+    cli._RECEIVED.clear()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            cli._terminate(signal.SIGTERM, None)
+        assert cli._terminate(signal.SIGTERM, None) is None
+        assert cli._terminate(signal.SIGINT, None) is None
+    finally:
+        cli._RECEIVED.clear()

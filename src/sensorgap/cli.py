@@ -119,6 +119,12 @@ def _terminate(signum: int, frame: Any) -> None:
     """Stop the command (``_Terminated``). Inside numba's compiler the signal is sent
     again 0.1 s later instead (hostile round seventeen: raised in a ctypes callback, it
     was swallowed with a traceback on stderr and the command ran to its end)."""
+    if _RECEIVED:
+        # the command is stopping already: a second signal must not stop its restore
+        # half-way (hostile round nineteen, F6: ``timeout`` and a terminal signal the
+        # process group too, so the process got SIGTERM twice; raised again in the put
+        # back, it left the restore folder and a folder failing verify)
+        return
     if _in_compiler_callback(frame):
         import threading
 
