@@ -555,7 +555,8 @@ def read_catalog_index(path: Path) -> tuple[dict[str, Any], list[dict[str, Any]]
     for key in ("style", "osc_version"):
         if not isinstance(index.get(key, ""), str):
             raise InputError(path, key, "malformed catalog index: expected a string")
-    _check_catalog_files(path, index.get("files"))
+    if "files" in index:  # an older export wrote none: nothing to check
+        _check_catalog_files(path, index["files"])
     return index, entries
 
 
@@ -566,13 +567,11 @@ def _check_catalog_files(path: Path, files: Any) -> None:
     replaced, or ranking.csv edited, with the manifest re-hashed, was reported (the
     report linked rank 2's scenario under rank 1's id) and simulated (hostile round
     eighteen, F6). A listed file that is gone is left to the reader (the report shows
-    the loss, ``verify`` names it). A catalog without ``files`` (an older export):
-    nothing checked."""
+    the loss, ``verify`` names it). A catalog without ``files`` (an older export) is not
+    checked; ``"files": null`` is malformed (it switched the check off: round nineteen)."""
     from sensorgap.provenance import sha256_of
 
-    if files is None:
-        return
-    if not isinstance(files, dict):
+    if not isinstance(files, dict):  # null too: an export always writes the object
         raise InputError(path, "files", "malformed catalog index: expected an object")
     root = path.parent
     for rel, meta in sorted(files.items()):
