@@ -401,8 +401,9 @@ def certified_parent(folder: str | Path, command: str | None = None) -> tuple[Pa
     return None
 
 
-def _bad_entry(rel: object) -> str | None:
-    """Why a manifest entry name is not a relative path inside the folder (None: fine)."""
+def bad_entry_name(rel: object) -> str | None:
+    """Why an entry name of a folder's index (a manifest's, catalog.json's ``files``) is
+    not a relative path inside the folder (None: fine)."""
     if not isinstance(rel, str) or not rel:
         return "must be a non-empty relative path"
     parts = rel.split("/")
@@ -453,7 +454,7 @@ def read_manifest(folder: str | Path) -> dict[str, dict[str, Any]]:
         raise InputError(path, "algorithm", f"must be sha256, got {data.get('algorithm')!r}")
     files: dict[str, dict[str, Any]] = data["files"]
     for rel, meta in files.items():
-        why = _bad_entry(rel)
+        why = bad_entry_name(rel)
         if why:
             raise InputError(path, f"files[{rel!r}]", why)
         ok = (

@@ -39,7 +39,7 @@ from sensorgap.export.bodies import MAX_BODY_DEV_M, box_deviation, planned_boxes
 from sensorgap.export.maneuver import maneuver_triggers, occluder_name, planned_origins
 from sensorgap.export.spec import ScenarioSpec, read_run
 from sensorgap.export.xosc import EGO, TARGET, origin_path, target_origin_offset
-from sensorgap.filesio import loads_json
+from sensorgap.filesio import bad_entry_name, loads_json
 from sensorgap.scenarios import Scenario, Trajectory
 from sensorgap.search.evaluate import Evaluator
 from sensorgap.search.metrics import compute_all
@@ -576,12 +576,7 @@ def _check_catalog_files(path: Path, files: Any) -> None:
     root = path.parent
     for rel, meta in sorted(files.items()):
         digest = meta.get("sha256") if isinstance(meta, dict) else None
-        if (
-            not isinstance(digest, str)
-            or not rel
-            or Path(rel).is_absolute()
-            or ".." in Path(rel).parts
-        ):
+        if not isinstance(digest, str) or bad_entry_name(rel) is not None:
             raise InputError(
                 path,
                 f"files.{str(rel)[:80]}",
