@@ -297,27 +297,19 @@ def _check_run_input(out: str, command: str, vehicle: str, name: str | None) -> 
 
 def cmd_coverage(args: argparse.Namespace) -> int:
     """A coverage grid, heat map and summary into --out."""
-    from sensorgap.coverage.limits import (
-        CLI_NAMES,
-        check_occluder_count,
-        check_occluders,
-        check_per_sensor,
-        check_resolution,
-        check_workers,
-        grid_cells,
-        grid_spec,
-    )
+    from sensorgap.coverage import limits
+    from sensorgap.coverage.limits import CLI_NAMES
     from sensorgap.coverage.outputs import write_coverage
     from sensorgap.coverage.pointsio import MAX_HEIGHT_M
 
     refuse_foreign_outputs(args.out, ANALYSIS_WRITES["coverage"], "coverage")
     refuse_inside_certified(args.out, "coverage")
-    check_workers(args.workers, CLI_NAMES)
+    limits.check_workers(args.workers, CLI_NAMES)
     extent = _float_list(args.extent, 4, "--extent")
-    res = check_resolution(args.resolution, "--resolution")
+    res = limits.check_resolution(args.resolution, "--resolution")
     if args.heading is not None:
         _check_heading(args.heading)
-    nx, ny = grid_cells(extent, res, args.heading is not None, CLI_NAMES, shown=args.extent)
+    nx, ny = limits.grid_cells(extent, res, args.heading is not None, CLI_NAMES, shown=args.extent)
     cells = nx * ny
     scene = _scene(args)
     _check_run_input(args.out, "coverage", scene.system.name, f"{args.target}_{args.environment}")
@@ -330,11 +322,11 @@ def cmd_coverage(args: argparse.Namespace) -> int:
             f"vehicle stands on: the models know no terrain), got {height!r}",
         )
     if args.per_sensor:
-        check_per_sensor(cells, len(scene.sensors), CLI_NAMES)
-    grid = grid_spec(extent, res, nx, ny, height)
-    check_occluder_count(len(args.occluder), CLI_NAMES)  # before any is parsed
+        limits.check_per_sensor(cells, len(scene.sensors), CLI_NAMES)
+    grid = limits.grid_spec(extent, res, nx, ny, height)
+    limits.check_occluder_count(len(args.occluder), CLI_NAMES)  # before any is parsed
     occluders = [_occluder(text) for text in args.occluder]
-    check_occluders(
+    limits.check_occluders(
         occluders, args.heading, scene.system.config.vehicle, CLI_NAMES, shown=args.occluder
     )
     xmin, xmax, ymin, ymax = extent

@@ -14,7 +14,7 @@ from typing import Any, TypeVar
 from pydantic import BaseModel, ValidationError
 
 from sensorgap.config.environment import EnvironmentConfig, SunConfig
-from sensorgap.config.presets import NOT_A_PRESET_FILE, templates_dir, vehicle_presets
+from sensorgap.config.presets import preset_file, templates_dir, vehicle_presets
 from sensorgap.config.target import TargetConfig
 from sensorgap.config.vehicle import VehicleConfig
 from sensorgap.errors import MAX_QUOTED_CHARS, InputError, cut_quoted
@@ -182,17 +182,9 @@ def resolve_vehicle_path(name_or_path: str | Path) -> Path:
     candidate = Path(text)
     if text.endswith(".toml") or "/" in text or candidate.exists():
         return candidate
-    preset = templates_dir() / "vehicles" / f"{text}.toml"
-    if os.path.lexists(preset) and not preset.is_file():
-        raise InputError(preset, "", NOT_A_PRESET_FILE)
-    if not preset.is_file():
-        raise InputError(
-            "vehicle",
-            "",
-            f"unknown preset {text!r}; presets: {', '.join(vehicle_presets())} "
-            "(or give a path to a .toml file)",
-        )
-    return preset
+    return preset_file(
+        templates_dir() / "vehicles", text, "vehicle", ("preset", "presets"), vehicle_presets()
+    )
 
 
 def load_vehicle(

@@ -61,6 +61,26 @@ NOT_A_PRESET_FILE = (
 )
 
 
+def preset_file(
+    folder: Path, name: str, field: str, kind: tuple[str, str], names: list[str]
+) -> Path:
+    """The shipped preset ``name`` of one kind: ``folder/<name>.toml``. ``InputError``
+    when something other than a regular file stands there (``NOT_A_PRESET_FILE``, naming
+    the path) or nothing does (naming ``field`` and listing the ``names`` there are;
+    ``kind``: the singular and plural word for them)."""
+    path = folder / f"{name}.toml"
+    if os.path.lexists(path) and not path.is_file():
+        raise InputError(path, "", NOT_A_PRESET_FILE)
+    if not path.is_file():
+        raise InputError(
+            field,
+            "",
+            f"unknown {kind[0]} {name!r}; {kind[1]}: {', '.join(names)} "
+            "(or a path to a .toml file)",
+        )
+    return path
+
+
 def vehicle_presets() -> list[str]:
     """Names of the shipped vehicle presets (file stems under ``templates/vehicles``)."""
     return sorted(p.stem for p in (templates_dir() / "vehicles").glob("*.toml") if p.is_file())

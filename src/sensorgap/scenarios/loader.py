@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import itertools
 import math
-import os
 from functools import lru_cache
 from pathlib import Path
 from typing import Any
@@ -35,7 +34,7 @@ from sensorgap.config import load_targets, templates_dir
 from sensorgap.config.common import name_problem
 from sensorgap.config.load import read_toml, short
 from sensorgap.config.parameters import bound_error
-from sensorgap.config.presets import NOT_A_PRESET_FILE, resolve_road
+from sensorgap.config.presets import preset_file, resolve_road
 from sensorgap.errors import InputError
 from sensorgap.filesio import same_file
 from sensorgap.roads import RoadNetwork, read_opendrive
@@ -122,17 +121,9 @@ def resolve_family_path(name_or_path: str) -> Path:
     """A family preset name or a path to a family .toml file."""
     if name_or_path.endswith(".toml") or "/" in name_or_path:
         return Path(name_or_path)
-    path = scenarios_dir() / f"{name_or_path}.toml"
-    if os.path.lexists(path) and not path.is_file():
-        raise InputError(path, "", NOT_A_PRESET_FILE)
-    if not path.is_file():
-        raise InputError(
-            "families",
-            "",
-            f"unknown family {name_or_path!r}; families: "
-            f"{', '.join(family_presets())} (or a path to a .toml file)",
-        )
-    return path
+    return preset_file(
+        scenarios_dir(), name_or_path, "families", ("family", "families"), family_presets()
+    )
 
 
 def _param(path: Path, default: Param, value: Any) -> Param:
