@@ -1,6 +1,6 @@
 """A vs B: the top lists differ and every difference is traced to the sensor setups. On the
-report tests' shared comparison (tests/report/conftest.py ``compared``: System A's small
-default job against a System B run), built once per session; moved here from
+report tests' shared comparison (tests/report/conftest.py ``compared``: a System A run
+against a System B run), built once per session; moved here from
 tests/search/test_compare.py, which built two search runs and their comparison of its own."""
 
 from __future__ import annotations
@@ -14,8 +14,8 @@ from sensorgap.search.compare import MARGIN_P, SEES_PD
 from sensorgap.search.ranking import RANK_MIN_P
 
 
-def test_top_lists_differ(job: Path, compared: Path) -> None:
-    run_a, run_b = job, compared.parent / "system_b"
+def test_top_lists_differ(compared: Path) -> None:
+    run_a, run_b = compared.parent / "system_a", compared.parent / "system_b"
     a = (run_a / "ranking.csv").read_bytes()
     b = (run_b / "ranking.csv").read_bytes()
     assert a != b

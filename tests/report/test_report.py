@@ -178,16 +178,22 @@ def test_compare_a_vs_b(compared: Path) -> None:
     doc = _doc(compared / "report.html")
     near = doc.get_element_by_id("nearfield").text_content()
     assert "System A" in near and "System B" in near
-    # issue #14 item 4: complete, although B's run holds a search and a near field only:
-    # its coverage maps and far field are computed, a difference map for every map
+    # issue #14 item 4: complete, although A's run holds a search only and B's a search
+    # and a near field: their near field, coverage maps and far field are computed, a
+    # difference map for every map
     assert "Not part of this run" not in doc.text_content()
     what = " ".join(doc.get_element_by_id("compared").text_content().split())
+    assert "System A (A): run folder system_a; computed for this comparison" in what
     assert "System B (B): run folder system_b; computed for this comparison" in what
-    maps = sorted(p.name for p in (compared.parent / "system_b").glob("*"))
-    assert "coverage" not in maps and "farfield" not in maps  # B's run folder untouched
+    for side in ("system_a", "system_b"):
+        maps = sorted(p.name for p in (compared.parent / side).glob("*"))
+        assert "coverage" not in maps and "farfield" not in maps  # run folders untouched
+    assert (compared / "a_system_a" / "nearfield" / "nearfield.json").is_file()
+    assert not (compared / "b_system_b" / "nearfield").exists()  # B's own is taken
     cov = doc.get_element_by_id("coverage")
     diff_dirs = sorted(p.name for p in (compared / "difference").iterdir())
-    assert len(diff_dirs) >= 7 and "car_clear" in diff_dirs
+    made = sorted(p.name for p in (compared / "a_system_a" / "coverage").iterdir())
+    assert diff_dirs == made and "car_clear" in diff_dirs and "car_fog_50" in diff_dirs
     for d in diff_dirs:
         assert f"coverage {d}" in what  # computed for B
         assert cov.get_element_by_id(f"coverage-{d}") is not None
