@@ -8,6 +8,7 @@ import json
 import os
 import sqlite3
 import stat
+import sys
 from pathlib import Path
 
 import pytest
@@ -1718,6 +1719,36 @@ def test_a_program_importing_the_package_keeps_its_signal_handlers() -> None:
     from sensorgap import earlystop
 
     assert not earlystop.is_the_command_line()  # pytest's process
+
+
+@pytest.mark.parametrize(
+    ("argv", "module"),
+    [
+        (["python", "-m", "sensorgap", "run"], "sensorgap"),
+        (["python", "-u", "-m", "sensorgap"], "sensorgap"),
+        (["python", "-I", "-X", "dev", "-m", "sensorgap"], "sensorgap"),
+        (["python", "-Xdev", "-W", "error", "-msensorgap"], "sensorgap"),
+        (["python", "-OO", "-um", "sensorgap"], "sensorgap"),
+        (["python", "--check-hash-based-pycs", "always", "-m", "sensorgap"], "sensorgap"),
+        (["python", "-c", "import sensorgap", "-m", "sensorgap"], None),
+        (["python", "prog.py", "-m", "sensorgap"], None),
+        (["python", "-m", "pytest", "-m", "sensorgap"], "pytest"),
+        (["python", "-"], None),
+        (["python", "-m"], None),
+    ],
+)
+def test_the_command_is_recognised_after_interpreter_options(
+    monkeypatch: pytest.MonkeyPatch, argv: list[str], module: str | None
+) -> None:
+    """Hostile round twenty, F1: ``python -u -m sensorgap`` (any interpreter option before
+    ``-m``) was not taken for the command, so a stop signal while the package was imported
+    gave a traceback (SIGINT) or no line (SIGTERM). The module ``-m`` runs is read after
+    the interpreter's options, their values skipped."""
+    from sensorgap import earlystop
+
+    assert earlystop.module_run(argv) == module
+    monkeypatch.setattr(sys, "orig_argv", argv)
+    assert earlystop.is_the_command_line() == (module == "sensorgap")
 
 
 def test_a_stop_in_the_last_writes_of_a_search_is_delivered_after_them() -> None:

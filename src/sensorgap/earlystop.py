@@ -29,13 +29,42 @@ def stop_before_work(signum: int, frame: object) -> None:
     os._exit(128 + signum)
 
 
+def module_run(argv: list[str]) -> str | None:
+    """The module an interpreter command line ``argv`` (``sys.orig_argv``) runs with
+    ``-m``, after any interpreter options (``python -u -I -X dev -m sensorgap``, ``-um``,
+    ``-msensorgap``), or None (a script, ``-c``, standard input)."""
+    i = 1
+    while i < len(argv):
+        arg = argv[i]
+        if arg == "-" or not arg.startswith("-"):
+            return None  # a script file or standard input
+        if arg.startswith("--"):  # --check-hash-based-pycs takes a value; the rest none
+            i += 2 if arg == "--check-hash-based-pycs" else 1
+            continue
+        for k, letter in enumerate(arg[1:], start=1):
+            rest = arg[k + 1 :]
+            if letter == "c":
+                return None
+            if letter == "m":
+                return rest or (argv[i + 1] if i + 1 < len(argv) else None)
+            if letter in "WX":  # their value: the rest of the cluster or the next argument
+                i += 0 if rest else 1
+                break
+        i += 1
+    return None
+
+
 def is_the_command_line() -> bool:
     """Whether this process is the ``sensorgap`` command: the console script (the main
-    module's file is named ``sensorgap``) or ``python -m sensorgap``. A program that
-    imports the package as a library keeps its own signal handlers."""
+    module's file is named ``sensorgap``) or ``python [options] -m sensorgap`` (hostile
+    round twenty: with an interpreter option before ``-m`` it was not recognised). A
+    program that imports the package as a library keeps its own signal handlers."""
     script = getattr(sys.modules.get("__main__"), "__file__", None) or ""
     orig = list(getattr(sys, "orig_argv", []))
-    return os.path.basename(str(script)) == "sensorgap" or orig[1:3] == ["-m", "sensorgap"]
+    return os.path.basename(str(script)) == "sensorgap" or module_run(orig) in (
+        "sensorgap",
+        "sensorgap.__main__",
+    )
 
 
 def install(always: bool = False) -> None:
