@@ -142,8 +142,8 @@ def prepare_case(
         _edit_run(case, run)
         if case.get("drop_manifest"):  # a file's own check, not the folder's integrity
             (run / "manifest.json").unlink()
-        if case.get("drop_manifest") or case.get("older_records"):
-            _older_records(run)
+        if case.get("drop_manifest") or case.get("forge_records"):
+            _forge_records(run)
         if case.get("rehash_manifest"):
             _rehash_manifest(run)
     subs = {
@@ -407,17 +407,41 @@ def _rehash_manifest(run: Path) -> None:
     (run / "manifest.json").write_text(json.dumps(manifest, indent=2), encoding="utf-8")
 
 
-def _older_records(run: Path) -> None:
-    """``run`` as an older search and export left it: its store without the SHA-256 of
-    the ranking files (meta row ``ranking_files``), its ``catalog.json`` without the
-    SHA-256 of the files it lists (``files``), so an edited ranking meets the checks of
-    its rows, not those of the records."""
-    if (run / "search.sqlite").is_file():
-        _sql(run / "search.sqlite", "DELETE FROM meta WHERE key = 'ranking_files';")
+def _forge_records(run: Path) -> None:
+    """``run`` as a forger leaves it after editing files: the SHA-256 records of its
+    ranking files (the store's meta row ``ranking_files``) and of its catalog's files
+    (``catalog.json``'s ``files``) recomputed for the files as they are now, so an
+    edited ranking or scenario meets the checks of its rows, not those of the records.
+    (The records are required: a store or catalog without them is refused, hostile round
+    twenty, F2; these cases removed them before.)"""
+    store = run / "search.sqlite"
+    if store.is_file():
+        con = sqlite3.connect(store)
+        try:
+            row = con.execute("SELECT value FROM meta WHERE key = 'ranking_files'").fetchone()
+            if row is not None:
+                record = json.loads(row[0])
+                for name in list(record):
+                    if (run / name).is_file():
+                        record[name] = hashlib.sha256((run / name).read_bytes()).hexdigest()
+                con.execute(
+                    "UPDATE meta SET value = ? WHERE key = 'ranking_files'",
+                    (json.dumps(record, sort_keys=True),),
+                )
+                con.commit()
+        finally:
+            con.close()
     if (run / "catalog.json").is_file():
-        index = json.loads((run / "catalog.json").read_text(encoding="utf-8"))
-        if isinstance(index, dict):  # a case's own catalog.json may be anything
-            index.pop("files", None)
+        try:
+            index = json.loads((run / "catalog.json").read_text(encoding="utf-8"))
+        except ValueError:  # a case's own catalog.json may be anything
+            return
+        files = index.get("files") if isinstance(index, dict) else None
+        if isinstance(files, dict):
+            for rel, meta in files.items():
+                if isinstance(meta, dict) and (run / rel).is_file():
+                    data = (run / rel).read_bytes()
+                    meta.update(bytes=len(data), sha256=hashlib.sha256(data).hexdigest())
             (run / "catalog.json").write_text(json.dumps(index, indent=2), encoding="utf-8")
 
 
@@ -621,6 +645,9 @@ def _setup(
                     os.close(os.open(f"f{i}", os.O_CREAT | os.O_WRONLY, 0o644, dir_fd=crowd))
             finally:
                 os.close(crowd)
+        elif step.startswith("run_store_meta_deleted:"):  # a meta row of {run}'s store
+            key = step.removeprefix("run_store_meta_deleted:")
+            _sql(run / "search.sqlite", f"DELETE FROM meta WHERE key = '{key}';")
         elif step == "run_store_deleted":  # {run}/search.sqlite removed
             (run / "search.sqlite").unlink()
         elif step == "templates_with_a_folder_for_system_a":  # {dir}/tpl: a folder there

@@ -555,8 +555,23 @@ def read_catalog_index(path: Path) -> tuple[dict[str, Any], list[dict[str, Any]]
     for key in ("style", "osc_version"):
         if not isinstance(index.get(key, ""), str):
             raise InputError(path, key, "malformed catalog index: expected a string")
-    if "files" in index:  # an older export wrote none: nothing to check
-        _check_catalog_files(path, index["files"])
+    if "files" not in index:  # every export lists its files (hostile round twenty, F2)
+        raise InputError(
+            path,
+            "files",
+            "malformed catalog index: missing (an export lists every file it wrote with its "
+            "sha256); export again",
+        )
+    _check_catalog_files(path, index["files"])
+    for i, entry in enumerate(entries):  # a scenario the record leaves out is unchecked
+        for key in ("file", "road"):
+            if entry.get(key) is not None and entry[key] not in index["files"]:
+                raise InputError(
+                    path,
+                    f"scenarios[{i}].{key}",
+                    "malformed catalog index: not listed under files with its sha256 (an "
+                    "export lists every file it wrote); export again",
+                )
     return index, entries
 
 
@@ -567,8 +582,9 @@ def _check_catalog_files(path: Path, files: Any) -> None:
     replaced, or ranking.csv edited, with the manifest re-hashed, was reported (the
     report linked rank 2's scenario under rank 1's id) and simulated (hostile round
     eighteen, F6). A listed file that is gone is left to the reader (the report shows
-    the loss, ``verify`` names it). A catalog without ``files`` (an older export) is not
-    checked; ``"files": null`` is malformed (it switched the check off: round nineteen)."""
+    the loss, ``verify`` names it). ``"files": null`` is malformed (it switched the check
+    off: round nineteen), so is a catalog without ``files`` or one whose scenario file or
+    road is not listed there (``read_catalog_index``: round twenty)."""
     from sensorgap.provenance import sha256_of
 
     if not isinstance(files, dict):  # null too: an export always writes the object

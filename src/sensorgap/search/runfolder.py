@@ -615,6 +615,16 @@ class RunFolder:
                         f"{str(self.settings.get(key))[:80]!r}",
                         f"{str(want)[:80]!r}",
                     )
+        if self.data:  # a search that ranked recorded all of these with its ranking
+            for key in ("settings", "inputs", RANKED_KEY, OUTPUTS_KEY):
+                if key not in meta:
+                    raise InputError(
+                        self.folder / STORE_FILE,
+                        f"meta.{key}",
+                        "missing: a search records it with its ranking (the store was "
+                        "changed after the search, or another tool wrote it); restore the "
+                        "store or search again",
+                    )
         self._check_ranked_files(meta.get(OUTPUTS_KEY))
         self._check_ranked_numbers(meta.get(RANKED_KEY))
         given = self.info.get("settings", {})
@@ -690,8 +700,9 @@ class RunFolder:
     def _check_ranked_files(self, recorded: dict[str, Any] | None) -> None:
         """Each ranking file the search wrote (``ranking.json``, ``ranking.csv``,
         ``unavoidable.csv``, ``summary.json``) is, byte for byte, what the store recorded
-        (``store.record_ranked``; a store of an older search without that record: not
-        checked). Else ``InputError`` naming the file: rows removed or re-ranked in
+        (``store.record_ranked``; a store of a ranked search without the record is refused
+        by ``check_store``: hostile round twenty, F2). Else ``InputError`` naming the
+        file: rows removed or re-ranked in
         ``ranking.json``, or ``summary.json``'s best P(collision) edited, with the
         manifest re-hashed, were reported, exported and compared as the search's
         (hostile round eighteen, F5: the report's top weakness was the second one)."""
@@ -727,8 +738,9 @@ class RunFolder:
         """Every number a ranked (or unavoidable) row of ``ranking.json`` states must be
         what the store recorded for that row's ``scenario_id``: the metrics (collision
         probability, impact speed, Pd, confirmation and detection times, risk, ...) as
-        exact evaluation gave them (``store.record_ranked``; a store of an older search
-        without that record: not checked), and ``lookup_collision_probability`` as the
+        exact evaluation gave them (``store.record_ranked``; a ranked search's store
+        without the record is refused by ``check_store``), and
+        ``lookup_collision_probability`` as the
         search's lookup gave it (its ``candidates`` row). Equal as written (JSON floats
         round-trip; times rounded as ``metrics.output_value`` writes them). A mismatch is
         ``InputError`` naming ``ranking.json`` and the row's field: a ranking edited
