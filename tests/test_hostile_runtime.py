@@ -1751,6 +1751,36 @@ def test_the_command_is_recognised_after_interpreter_options(
     assert earlystop.is_the_command_line() == (module == "sensorgap")
 
 
+@pytest.mark.parametrize("when", ["starting", "working"])
+def test_the_jobs_second_process_ends_quietly_on_ctrl_c(
+    capfd: pytest.CaptureFixture[str], when: str
+) -> None:
+    """Hostile round twenty, F4: Ctrl-C in a terminal reaches the whole process group, and
+    the job's second process (``jobs._run_job``) printed "Process SpawnProcess-1:" and a
+    KeyboardInterrupt traceback before the command's line. It now ends as on SIGTERM,
+    silently: while it starts (SIGINT blocked from its spawn until its initializer) and
+    while it works."""
+    import multiprocessing
+    import signal
+    import time
+    from concurrent.futures import ProcessPoolExecutor
+    from concurrent.futures.process import BrokenProcessPool
+
+    from sensorgap import jobs
+
+    ctx = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(1, mp_context=ctx, initializer=jobs._quiet_on_ctrl_c) as pool:
+        if when == "working":
+            assert pool.submit(abs, -1).result(timeout=60) == 1  # started, initialised
+        job = jobs._spawn_blocking_ctrl_c(pool, time.sleep, 60)
+        (pid,) = list(pool._processes)
+        os.kill(pid, signal.SIGINT)
+        with pytest.raises(BrokenProcessPool):
+            job.result(timeout=60)
+    err = capfd.readouterr().err
+    assert "Traceback" not in err and "KeyboardInterrupt" not in err, err
+
+
 def test_a_stop_in_the_last_writes_of_a_search_is_delivered_after_them() -> None:
     """Round eighteen, F7: Ctrl-C after a resumed search rewrote its ranking files and
     before its manifest left a folder failing verify. ``DeferredStop`` holds the signal

@@ -285,6 +285,34 @@ def _start_resource_tracker() -> None:
         signal.pthread_sigmask(signal.SIG_SETMASK, old)
 
 
+def _quiet_on_ctrl_c() -> None:
+    """Initializer of the job's second process: Ctrl-C ends it as SIGTERM does, without a
+    KeyboardInterrupt traceback ("Process SpawnProcess-1:" and 30-70 lines on standard
+    error: a terminal sends Ctrl-C to the whole process group; hostile round twenty, F4).
+    The process starts with SIGINT blocked (``_spawn_blocking_ctrl_c``): a Ctrl-C during
+    its start-up is pending until here, then ends it."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    if hasattr(signal, "pthread_sigmask"):
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+
+
+def _spawn_blocking_ctrl_c(pool: ProcessPoolExecutor, fn: Callable[..., Any], *args: Any) -> Any:
+    """``pool.submit(fn, *args)`` with SIGINT blocked in this thread while the pool starts
+    its process, which inherits the blocked signal (``_quiet_on_ctrl_c`` unblocks it); a
+    Ctrl-C to this process meanwhile is delivered after."""
+    import signal
+
+    if not hasattr(signal, "pthread_sigmask"):
+        return pool.submit(fn, *args)
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        return pool.submit(fn, *args)
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
 def _run_job(
     out: Path,
     folder: Path,
@@ -336,8 +364,8 @@ def _run_job(
         # neither needs the other's files. 'spawn': no fork of a threaded process.
         ctx = multiprocessing.get_context("spawn")
         _start_resource_tracker()
-        with ProcessPoolExecutor(1, mp_context=ctx) as pool:
-            side = pool.submit(_analysis, ref, folder, 1, envs)
+        with ProcessPoolExecutor(1, mp_context=ctx, initializer=_quiet_on_ctrl_c) as pool:
+            side = _spawn_blocking_ctrl_c(pool, _analysis, ref, folder, 1, envs)
             outcome = clock.stage("search", search)
             times, side_peak = clock.stage(
                 "coverage, near and far field (beside the search, waiting for them)", side.result
