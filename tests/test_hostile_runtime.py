@@ -1781,6 +1781,80 @@ def test_the_jobs_second_process_ends_quietly_on_ctrl_c(
     assert "Traceback" not in err and "KeyboardInterrupt" not in err, err
 
 
+@pytest.mark.parametrize("sig", ["SIGINT", "SIGHUP"])
+def test_a_dask_search_stopped_through_its_process_group_says_one_line(
+    tmp_path: Path, sig: str
+) -> None:
+    """Hostile round twenty, F3: Ctrl-C (or a closed terminal's SIGHUP) reaches the whole
+    process group, the local Dask cluster's workers and multiprocessing's resource
+    tracker too: they died, were restarted, and 8-80 lines of warnings and tracebacks
+    came before the command's line. They are now spared the group's signals
+    (``runtime.children_spared_stop_signals``, ``search.daskworker``), the command closes
+    them, and Dask's log of the abandoned work is not printed: one line, and no worker
+    left behind."""
+    import signal
+    import subprocess
+    import time
+
+    out = tmp_path / "run"
+    argv = ["search", "--vehicle", "system_b", "--families", "cut_in_left"]
+    argv += ["--environments", "clear", "--budget", "3000", "--executor", "dask"]
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "sensorgap", *argv, "--workers", "2", "--out", str(out)],
+        env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)},
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
+    try:
+        deadline = time.monotonic() + 120
+        while not (out / "search.sqlite").exists():  # the cluster is up, batches run
+            assert proc.poll() is None and time.monotonic() < deadline
+            time.sleep(0.05)
+        time.sleep(0.5)
+        os.killpg(proc.pid, getattr(signal, sig))
+        _, err = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert proc.returncode == 128 + getattr(signal, sig), err
+    assert err == "sensorgap: interrupted\n", err
+    with pytest.raises(ProcessLookupError):  # the group is empty: no worker left
+        for _ in range(100):
+            os.killpg(proc.pid, 0)
+            time.sleep(0.1)
+
+
+def test_a_dask_worker_leaves_the_group_and_drops_its_pending_stop_signals() -> None:
+    """``daskworker.dask_setup`` in a process started with the stop signals blocked and a
+    Ctrl-C pending (the group's, sent while it started): the process is then a group of
+    its own, the signal dropped (it was the command's), the signals unblocked."""
+    import subprocess
+
+    script = (
+        "import os, signal\n"
+        "from sensorgap.runtime import children_spared_stop_signals\n"
+        "from sensorgap.search.daskworker import dask_setup\n"
+        "with children_spared_stop_signals():\n"
+        "    os.kill(os.getpid(), signal.SIGINT)\n"
+        "    assert signal.SIGINT in signal.sigpending()\n"
+        "    dask_setup(None)\n"
+        "    assert os.getpgid(0) == os.getpid()\n"
+        "    assert not signal.sigpending()\n"
+        "    assert signal.SIGINT not in signal.pthread_sigmask(signal.SIG_BLOCK, [])\n"
+        "print('ok')\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", script],
+        env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)},
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert done.returncode == 0 and done.stdout == "ok\n", done.stderr
+
+
 def test_a_stop_in_the_last_writes_of_a_search_is_delivered_after_them() -> None:
     """Round eighteen, F7: Ctrl-C after a resumed search rewrote its ranking files and
     before its manifest left a folder failing verify. ``DeferredStop`` holds the signal

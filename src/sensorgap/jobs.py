@@ -41,6 +41,7 @@ from sensorgap.models import Conditions, System, load_system
 from sensorgap.provenance import write_run_info
 from sensorgap.report import write_report
 from sensorgap.roads import read_opendrive
+from sensorgap.runtime import start_resource_tracker
 from sensorgap.scenarios import family_presets
 from sensorgap.search.anchors import (
     NCAP_FAMILY,
@@ -266,25 +267,6 @@ def refuse_job_clash(prepared: Prepared, folder: Path) -> None:
         refuse_search_clash(prepared, folder, resume=True)
 
 
-def _start_resource_tracker() -> None:
-    """Start multiprocessing's resource tracker (a process the spawned second process
-    needs) with SIGHUP blocked, which it inherits: a closed terminal (SIGHUP to the whole
-    process group) killed it, and multiprocessing printed a warning and tracebacks on
-    standard error while relaunching it (hostile round nineteen, F7). It ignores Ctrl-C
-    and SIGTERM itself; it ends when the job's process does."""
-    import signal
-    from multiprocessing import resource_tracker
-
-    if not hasattr(signal, "SIGHUP") or not hasattr(signal, "pthread_sigmask"):
-        resource_tracker.ensure_running()
-        return
-    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGHUP})
-    try:
-        resource_tracker.ensure_running()
-    finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, old)
-
-
 def _quiet_on_ctrl_c() -> None:
     """Initializer of the job's second process: Ctrl-C ends it as SIGTERM does, without a
     KeyboardInterrupt traceback ("Process SpawnProcess-1:" and 30-70 lines on standard
@@ -363,7 +345,7 @@ def _run_job(
         # leaves a core idle between its batches (ask/tell, decoding, the store), and
         # neither needs the other's files. 'spawn': no fork of a threaded process.
         ctx = multiprocessing.get_context("spawn")
-        _start_resource_tracker()
+        start_resource_tracker()
         with ProcessPoolExecutor(1, mp_context=ctx, initializer=_quiet_on_ctrl_c) as pool:
             side = _spawn_blocking_ctrl_c(pool, _analysis, ref, folder, 1, envs)
             outcome = clock.stage("search", search)

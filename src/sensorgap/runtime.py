@@ -603,3 +603,44 @@ class DeferredStop:
         if self._pending:  # delivered now, to the handlers put back above
             os.kill(os.getpid(), self._pending[0])
             self._pending.clear()
+
+
+def _stop_signals() -> set[int]:
+    """Ctrl-C, SIGTERM and SIGHUP, those this platform has."""
+    import signal
+
+    return {int(getattr(signal, n)) for n in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, n)}
+
+
+@contextmanager
+def children_spared_stop_signals() -> Iterator[None]:
+    """Stop signals (Ctrl-C, SIGTERM, SIGHUP) blocked in this thread for the block: the
+    processes and threads started in it inherit them blocked, so a signal to the whole
+    process group (a terminal's Ctrl-C, a closed terminal's SIGHUP, ``timeout``) does not
+    reach them; this process, stopping, ends them itself (hostile round twenty, F3: a
+    local Dask cluster's workers and its multiprocessing resource tracker died of the
+    group's signal and printed warnings and tracebacks). A signal to this process during
+    the block is delivered after it. A child that must react to signals unblocks them
+    itself (``search.daskworker``)."""
+    import signal
+
+    if not hasattr(signal, "pthread_sigmask"):
+        yield
+        return
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, _stop_signals())
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
+def start_resource_tracker() -> None:
+    """Start multiprocessing's resource tracker (a process every spawned child needs)
+    with the stop signals blocked, which it inherits (``children_spared_stop_signals``):
+    a closed terminal (SIGHUP to the whole process group) killed it, and multiprocessing
+    printed a warning and tracebacks on standard error while relaunching it (hostile
+    round nineteen, F7). It ends when this process does."""
+    from multiprocessing import resource_tracker
+
+    with children_spared_stop_signals():
+        resource_tracker.ensure_running()

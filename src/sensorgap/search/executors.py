@@ -10,6 +10,7 @@ or the number of workers (same seed -> same ranking; tested).
 
 from __future__ import annotations
 
+import logging
 import re
 import threading
 from collections.abc import Sequence
@@ -22,7 +23,11 @@ import numpy as np
 from sensorgap.config import load_environments
 from sensorgap.errors import InputError
 from sensorgap.models import load_system
-from sensorgap.runtime import tune_allocator
+from sensorgap.runtime import (
+    children_spared_stop_signals,
+    start_resource_tracker,
+    tune_allocator,
+)
 from sensorgap.scenarios import load_families
 from sensorgap.search.evaluate import DetectionRule, Evaluator
 from sensorgap.search.problem import BatchOutcome, Decoded, SearchProblem
@@ -109,6 +114,15 @@ class Executor:
         self.close()
 
 
+def _quiet_dask_logs() -> None:
+    """No more log lines of Dask (``distributed``), ``asyncio`` and ``tornado`` in this
+    process: once its work is abandoned (a stop signal, an error), their loop thread logs
+    what it was doing ("Task exception was never retrieved" with a traceback, workers
+    closed or killed); the command says it stopped, in one line."""
+    for name in ("distributed", "asyncio", "tornado"):
+        logging.getLogger(name).setLevel(logging.CRITICAL + 1)
+
+
 class DaskExecutor(Executor):
     """Evaluates batches on Dask distributed: a scheduler at ``address``, or a local
     cluster of ``workers`` processes (one thread each) when no address is given."""
@@ -130,10 +144,25 @@ class DaskExecutor(Executor):
             if address:
                 self.client = Client(address, timeout=timeout_s)
             else:
-                self._cluster = LocalCluster(
-                    n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None
-                )
-                self.client = Client(self._cluster)
+                # its processes (and its event loop's thread) spared the stop signals of
+                # the process group; each worker leaves the group (search.daskworker)
+                start_resource_tracker()
+                try:
+                    with children_spared_stop_signals():
+                        self._cluster = LocalCluster(
+                            n_workers=workers,
+                            threads_per_worker=1,
+                            processes=True,
+                            dashboard_address=None,
+                            preload=["sensorgap.search.daskworker"],
+                            # the workers' own warnings (a task cancelled as the
+                            # command stops) are not the command's to print
+                            silence_logs=logging.ERROR,
+                        )
+                        self.client = Client(self._cluster)
+                except BaseException:  # a stop signal delivered at the block's end too
+                    self._close(quiet=True)
+                    raise
         except (OSError, TimeoutError, ValueError) as exc:
             raise InputError(
                 "scheduler", "", f"cannot reach the Dask scheduler {address!r}: {exc}"
@@ -156,12 +185,28 @@ class DaskExecutor(Executor):
             parts,
             pure=False,
         )
-        return _concat(self.client.gather(futures))
+        try:
+            return _concat(self.client.gather(futures))
+        except BaseException:  # a stop signal, an error: the work is abandoned
+            _quiet_dask_logs()
+            raise
 
     def close(self) -> None:
-        self.client.close()
+        self._close(quiet=False)
+
+    def _close(self, quiet: bool) -> None:
+        """Close the client and the local cluster (what of them was made). ``quiet``: the
+        command is stopping (a stop signal, an error): ``_quiet_dask_logs`` first."""
+        if quiet:
+            _quiet_dask_logs()
+        client = getattr(self, "client", None)
+        if client is not None:
+            client.close()
         if self._cluster is not None:
             self._cluster.close()
+
+    def __exit__(self, *exc: object) -> None:
+        self._close(quiet=exc[0] is not None)
 
 
 _ADDRESS = re.compile(
