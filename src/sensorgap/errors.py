@@ -116,9 +116,12 @@ class InputError(Exception):
         if self.field:
             parts.append(self.field)
         parts.append(self.message)
-        # every line break Python knows (\r, \u2028, ...), not only \n: a space (one
-        # line); then every value quoted or named cut short and escaped (``clip``)
-        parts = [" ".join(p.splitlines()) for p in parts]
+        # in the message, every line break Python knows (\r, \u2028, ...), not only \n:
+        # a space (a library's text over several lines reads on); then every value quoted
+        # or named cut short and escaped (``clip``, ``cut_name``): a line break in a
+        # file's name or a field is written as ``\n`` (hostile round twenty: a path
+        # ``a<newline>b`` was shown as ``a b``, another file's name)
+        parts[-1] = " ".join(parts[-1].splitlines())
         return ": ".join([cut_name(parts[0]), *(clip(p) for p in parts[1:])])
 
     def lines(self) -> list[str]:
