@@ -938,6 +938,12 @@ def cmd_verify(args: argparse.Namespace) -> int:
     """Check a run folder against its manifest (nothing lost or changed)."""
     from sensorgap.filesio import verify_manifest
 
+    if not str(args.folder).strip():  # '' would verify the working directory
+        raise InputError(
+            "verify",
+            "FOLDER",
+            f"must name a run folder (an empty path is the working directory), got {args.folder!r}",
+        )
     folder = Path(args.folder)
     manifest = folder / "manifest.json"
     if not folder.is_dir():
