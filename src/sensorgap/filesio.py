@@ -450,7 +450,7 @@ def read_manifest(folder: str | Path) -> dict[str, dict[str, Any]]:
             "malformed manifest: expected an object with "
             "'files' mapping each relative path to its bytes and sha256",
         )
-    if data.get("algorithm", "sha256") != "sha256":
+    if data.get("algorithm") != "sha256":
         raise InputError(path, "algorithm", f"must be sha256, got {data.get('algorithm')!r}")
     files: dict[str, dict[str, Any]] = data["files"]
     for rel, meta in files.items():
