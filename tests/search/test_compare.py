@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from sensorgap.cli import main
@@ -93,6 +94,20 @@ def test_two_versions_of_one_vehicle_are_told_apart(
             theirs = r[f"collision_probability_{other}"]
             # higher by 0.1, or the other below what a ranking keeps (1e-6)
             assert mine >= 1e-6 and (mine - theirs >= 0.1 or theirs < 1e-6)
+    # the same vehicle but for its reaction model: the maps and far field are computed
+    # once and written for both sides (compare_maps._sensing), each with its own
+    # vehicle file's digest, which an assessor traces them to
+    from sensorgap.provenance import sha256_of
+
+    vehicles = {"a": templates_dir() / "vehicles" / "system_b.toml", "b": v2}
+    for tag, vehicle in vehicles.items():
+        for piece in ("coverage/car_fog_50", "farfield/fog_50"):
+            summary = json.loads((out / f"{tag}_system_b" / piece / "summary.json").read_text())
+            assert summary["vehicle_sha256"] == sha256_of(vehicle), (tag, piece)
+    a_map, b_map = (
+        np.load(out / f"{t}_system_b" / "coverage" / "car_fog_50" / "coverage.npz") for t in "ab"
+    )
+    assert np.array_equal(a_map["pd"], b_map["pd"])
     md = (out / "report.md").read_text()
     assert f"# sensorgap: {la} vs {lb}" in md and f"| rank {la} | rank {lb} |" in md
     assert f"- **{la}:** run folder base;" in md

@@ -22,6 +22,10 @@ What is compared:
   difference on a diverging scale, both vehicles' sensors) and ``summary.json`` with the
   areas where only A, only B, both or neither detect (Pd >= ``DETECTS_PD``).
 
+Two versions of one vehicle that differ only in their reaction model (``_sensing``) have
+the same near field, maps and far field: each is computed once and written for both sides,
+each side's files naming its own vehicle file and digest.
+
 An environment or target class is taken from the run that computes the map; when that run
 does not define it, from the other run (said in ``notes``); when both define it differently,
 each vehicle is evaluated in its own run's definition and ``notes`` says so.
@@ -41,6 +45,7 @@ from sensorgap.analysis.farfield import farfield
 from sensorgap.analysis.farfield_outputs import write_farfield
 from sensorgap.analysis.nearfield import write_nearfield
 from sensorgap.analysis.paper import FarFieldSetup, ego_pose, target_path
+from sensorgap.atomic import atomic_write_bytes
 from sensorgap.config import EnvironmentConfig, TargetConfig
 from sensorgap.config.presets import resolve_road
 from sensorgap.coverage import GridSpec, Scene
@@ -204,16 +209,48 @@ def _lookup(side: SideMaps, other: SideMaps, kind: str, name: str, notes: list[s
     return found
 
 
+def _sensing(system: System | None) -> str | None:
+    """What a vehicle's near field, coverage maps and far field depend on: its
+    configuration but for the reaction model (None: not recorded). Two versions of one
+    vehicle that differ only in how they react (the usual comparison of a reaction
+    model) have the same pieces: each computed once, written for both (a map's and a
+    far field's files with each side's own vehicle file and digest; the near field
+    names none and is copied)."""
+    if system is None:
+        return None
+    return system.config.model_dump_json(exclude={"reaction"})
+
+
+def _copy_piece(src: Path, dst: Path) -> None:
+    """A piece computed for one side (a folder of files), copied for the other: each file
+    written atomically, over the one an earlier comparison into the same folder left."""
+    for file in sorted(src.rglob("*")):
+        if file.is_file():
+            target = dst / file.relative_to(src)
+            target.parent.mkdir(parents=True, exist_ok=True)
+            atomic_write_bytes(target, file.read_bytes())
+
+
 def _farfield_one(
-    system: System, env: EnvironmentConfig, target: TargetConfig, out_dir: Path
-) -> None:
+    system: System,
+    env: EnvironmentConfig,
+    target: TargetConfig,
+    out_dir: Path,
+    computed: Any = None,
+) -> Any:
     """The default job's far field of a car body (``jobs._farfield``) for one
-    environment, from given (recorded) definitions."""
+    environment, from given (recorded) definitions; returns the profile. ``computed``: the
+    profile of a twin vehicle (``_sensing``) in the same environment, written for this
+    one instead of computed again."""
     setup = FarFieldSetup()
     net = read_opendrive(resolve_road(setup.road))
     pose = ego_pose(net, setup)
     scene = Scene(system, target, Conditions.from_config(env, pose.heading))
-    ff = farfield(scene, target_path(net, setup), pose, setup.length_m, bodies=True)
+    ff = (
+        computed
+        if computed is not None
+        else farfield(scene, target_path(net, setup), pose, setup.length_m, bodies=True)
+    )
     write_farfield(
         scene,
         ff,
@@ -225,6 +262,7 @@ def _farfield_one(
         },
         bodies=True,
     )
+    return ff
 
 
 def _label(side: SideMaps, folder: Path, out: Path) -> str:
@@ -321,15 +359,23 @@ def complete_runs(run_a: Path, run_b: Path, out: Path, workers: int = 2) -> Comp
             )
 
     existing = {s.tag: _existing_maps(s.run) for s in sides}
+    # the same vehicle but for its reaction model: what is computed for one side serves
+    # the other (``_sensing``)
+    twins = _sensing(systems["a"]) is not None and _sensing(systems["a"]) == _sensing(systems["b"])
 
     # near field
+    made_nearfield: Path | None = None
     for s in sides:
         own = s.run.folder / "nearfield"
         sysm = systems[s.tag]
         if (own / "nearfield.json").is_file():
             s.nearfield = own
         elif sysm is not None:
-            write_nearfield(sysm, s.made / "nearfield")
+            if twins and made_nearfield is not None:
+                _copy_piece(made_nearfield, s.made / "nearfield")
+            else:
+                write_nearfield(sysm, s.made / "nearfield")
+                made_nearfield = s.made / "nearfield"
             s.nearfield = s.made / "nearfield"
             s.computed.append("near field")
 
@@ -342,6 +388,8 @@ def complete_runs(run_a: Path, run_b: Path, out: Path, workers: int = 2) -> Comp
         for env in s.run.settings.get("environments", []) or []:
             keys.setdefault(f"{DEFAULT_TARGET}_{env}", (DEFAULT_TARGET, str(env)))
     todo: list[tuple[SideMaps, str, Scene, MapModel]] = []
+    #: per job of ``todo``, what its map depends on beyond the vehicle (twins: one map)
+    inputs: list[tuple[str, str, str, MapModel]] = []
     for key in sorted(keys, key=lambda k: (k not in existing["a"], k not in existing["b"], k)):
         target_name, env_name = keys[key]
         models = [_map_model(existing[s.tag][key][1]) for s in sides if key in existing[s.tag]]
@@ -363,6 +411,11 @@ def complete_runs(run_a: Path, run_b: Path, out: Path, workers: int = 2) -> Comp
                     notes.append(note)
                 continue
             todo.append((s, key, Scene(sysm, target, Conditions.from_config(env)), model))
+            inputs.append((key, env.model_dump_json(), target.model_dump_json(), model))
+
+    # a twin's map of the same inputs: the first one's computed map (index into todo)
+    first = {inp: i for i, inp in reversed(list(enumerate(inputs)))} if twins else {}
+    copy_of = [first.get(inp, i) for i, inp in enumerate(inputs)]
 
     def one(job: tuple[SideMaps, str, Scene, MapModel]) -> Any:
         _, _, scene, model = job
@@ -370,16 +423,17 @@ def complete_runs(run_a: Path, run_b: Path, out: Path, workers: int = 2) -> Comp
             scene, model.spec(scene.target.reference_height_m), heading_deg=model.heading_deg
         )
 
+    own_jobs = [i for i in range(len(todo)) if copy_of[i] == i]
     with ThreadPoolExecutor(max_workers=max(1, workers)) as pool:
-        covs = list(pool.map(one, todo))
-    for (s, key, scene, model), cov in zip(todo, covs, strict=True):  # figures: this thread
+        covs = dict(zip(own_jobs, pool.map(one, [todo[i] for i in own_jobs]), strict=True))
+    for i, (s, key, scene, model) in enumerate(todo):  # figures: this thread
         folder = s.made / "coverage" / slug(key)
-        write_coverage(
+        write_coverage(  # a twin's map written with this side's vehicle (provenance)
             scene,
             model.spec(scene.target.reference_height_m),
             folder,
             heading_deg=model.heading_deg,
-            cov=cov,
+            cov=covs[copy_of[i]],
         )
         s.coverage[key] = folder
         s.computed.append(f"coverage {key}")
@@ -387,6 +441,7 @@ def complete_runs(run_a: Path, run_b: Path, out: Path, workers: int = 2) -> Comp
 
     # far field: every environment of the maps
     envs = sorted({keys[k][1] for k in keys}, key=lambda e: (e != "clear", e))
+    made_farfield: dict[tuple[str, str], Any] = {}  # (environment, target) -> profile
     for s, other in ((a, b), (b, a)):
         for env_name in envs:
             own = s.run.folder / "farfield" / env_name
@@ -398,7 +453,14 @@ def complete_runs(run_a: Path, run_b: Path, out: Path, workers: int = 2) -> Comp
             target = _lookup(s, other, "target", DEFAULT_TARGET, notes)
             if sysm is None or env is None or target is None:
                 continue
-            _farfield_one(sysm, env, target, s.made / "farfield" / slug(env_name))
+            same = (env.model_dump_json(), target.model_dump_json())
+            made_farfield[same] = _farfield_one(
+                sysm,
+                env,
+                target,
+                s.made / "farfield" / slug(env_name),
+                made_farfield.get(same) if twins else None,
+            )
             s.farfield[env_name] = s.made / "farfield" / slug(env_name)
             s.computed.append(f"far field {env_name}")
 
