@@ -592,17 +592,24 @@ def _check_catalog_files(path: Path, files: Any) -> None:
     root = path.parent
     for rel, meta in sorted(files.items()):
         digest = meta.get("sha256") if isinstance(meta, dict) else None
-        if not isinstance(digest, str) or bad_entry_name(rel) is not None:
+        size = meta.get("bytes") if isinstance(meta, dict) else None
+        if (
+            not isinstance(digest, str)
+            or not isinstance(size, int)
+            or isinstance(size, bool)
+            or size < 0
+            or bad_entry_name(rel) is not None
+        ):
             raise InputError(
                 path,
                 f"files.{str(rel)[:80]}",
                 "malformed catalog index: expected a relative path inside the catalog "
-                "with its sha256",
+                "with its bytes and sha256",
             )
         file = root / rel
         if file.is_symlink() or not file.is_file():
             continue  # lost: the report says so where it shows it, verify names it
-        if sha256_of(file) != digest:
+        if file.stat().st_size != size or sha256_of(file) != digest:
             raise InputError(
                 file,
                 "",
