@@ -13,14 +13,20 @@ standard error)."""
 
 from __future__ import annotations
 
+import logging
 import os
 import signal
 
 
 def dask_setup(worker: object) -> None:
     """Dask's preload hook: this worker process into a process group of its own, then
-    its stop signals unblocked (see the module docstring). ``worker``: the Dask worker
+    its stop signals unblocked (see the module docstring), and its log silenced: a task
+    that fails reaches the command as an error of its own, and a worker outliving the
+    stopped command by a moment logged its lost scheduler with two tracebacks on the
+    command's standard error (hostile round twenty-one). ``worker``: the Dask worker
     (unused)."""
+    for name in ("distributed", "tornado", "asyncio"):
+        logging.getLogger(name).setLevel(logging.CRITICAL + 1)
     try:
         os.setpgid(0, 0)
     except OSError:  # already a group leader, or not permitted: signals stay as they are

@@ -155,9 +155,10 @@ class DaskExecutor(Executor):
                             processes=True,
                             dashboard_address=None,
                             preload=["sensorgap.search.daskworker"],
-                            # the workers' own warnings (a task cancelled as the
-                            # command stops) are not the command's to print
-                            silence_logs=logging.ERROR,
+                            # the workers' own log (a task cancelled as the command
+                            # stops, a lost scheduler) is not the command's to print:
+                            # their errors reach it through the tasks
+                            silence_logs=logging.CRITICAL,
                         )
                         self.client = Client(self._cluster)
                 except BaseException:  # a stop signal delivered at the block's end too
