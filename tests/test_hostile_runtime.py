@@ -10,6 +10,7 @@ import sqlite3
 import stat
 import sys
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -1853,6 +1854,39 @@ def test_a_dask_worker_leaves_the_group_and_drops_its_pending_stop_signals() -> 
         timeout=60,
     )
     assert done.returncode == 0 and done.stdout == "ok\n", done.stderr
+
+
+def test_a_stop_signal_inside_a_weakref_callback_or_finalizer_is_sent_again() -> None:
+    """Hostile round twenty-one, F2: a Ctrl-C that arrived while the interpreter ran a
+    ``WeakKeyDictionary`` callback was raised there, printed as "Exception ignored in"
+    with a traceback, and lost: the command ran to its end, exit 0. The frames where an
+    exception is swallowed (weak-reference callbacks, ``__del__``, numba's compiler) are
+    recognised, and the signal is sent again 0.1 s later instead."""
+    import weakref
+
+    from sensorgap import cli
+
+    seen: dict[str, bool] = {}  # where the handler would run -> recognised there
+
+    def trace(frame: Any, event: str, arg: Any) -> None:
+        if event == "call" and frame.f_code.co_name == "remove":
+            seen["remove"] = cli._in_compiler_callback(frame)
+
+    class Key:
+        def __del__(self) -> None:
+            seen["__del__"] = cli._in_compiler_callback(sys._getframe())
+
+    table: weakref.WeakKeyDictionary[Key, int] = weakref.WeakKeyDictionary()
+    key = Key()
+    table[key] = 1
+    sys.setprofile(trace)
+    try:
+        del key  # its finalizer, then the dictionary's callback
+    finally:
+        sys.setprofile(None)
+    assert seen == {"__del__": True, "remove": True}, seen
+    assert not table
+    assert not cli._in_compiler_callback(sys._getframe())
 
 
 def test_a_stop_in_the_last_writes_of_a_search_is_delivered_after_them() -> None:

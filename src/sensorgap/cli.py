@@ -103,13 +103,32 @@ class _Terminated(KeyboardInterrupt):
 _RECEIVED: list[int] = []
 
 
+#: Functions the interpreter calls from C, where an exception raised is printed as
+#: "Exception ignored in ..." and lost: weak-reference callbacks (the ``remove`` closures
+#: of ``weakref``'s dictionaries and sets) and finalizers (``__del__``).
+_SWALLOWING = {
+    ("weakref.py", "remove"),
+    ("_weakrefset.py", "_remove"),
+    ("weakref.py", "__call__"),  # weakref.finalize
+}
+
+
 def _in_compiler_callback(frame: Any) -> bool:
-    """True when the main thread runs Python code under llvmlite (numba's compiler), where
-    a C library may have called back into Python: an exception raised there is printed
-    as "Exception ignored on calling ctypes callback function" and lost."""
+    """True when the main thread runs Python code where an exception raised is printed
+    and lost instead of stopping the command: under llvmlite (numba's compiler), where a
+    C library may have called back into Python ("Exception ignored on calling ctypes
+    callback function"), and in a weak-reference callback or a finalizer the interpreter
+    called (``_SWALLOWING``, ``__del__``: hostile round twenty-one, a Ctrl-C during a
+    ``WeakKeyDictionary`` callback was lost and the command ran to its end)."""
     f = frame
     while f is not None:
-        if "llvmlite" in f.f_code.co_filename:
+        code = f.f_code
+        name = os.path.basename(code.co_filename)
+        if (
+            "llvmlite" in code.co_filename
+            or code.co_name == "__del__"
+            or (name, code.co_name) in _SWALLOWING
+        ):
             return True
         f = f.f_back
     return False
