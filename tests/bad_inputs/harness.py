@@ -648,6 +648,9 @@ def _setup(
         elif step.startswith("run_store_meta_deleted:"):  # a meta row of {run}'s store
             key = step.removeprefix("run_store_meta_deleted:")
             _sql(run / "search.sqlite", f"DELETE FROM meta WHERE key = '{key}';")
+        elif step.startswith("run_store_meta_emptied:"):  # a meta row set to '{}'
+            key = step.removeprefix("run_store_meta_emptied:")
+            _sql(run / "search.sqlite", f"UPDATE meta SET value = '{{}}' WHERE key = '{key}';")
         elif step == "run_store_deleted":  # {run}/search.sqlite removed
             (run / "search.sqlite").unlink()
         elif step == "templates_with_a_folder_for_system_a":  # {dir}/tpl: a folder there

@@ -625,6 +625,27 @@ class RunFolder:
                         "changed after the search, or another tool wrote it); restore the "
                         "store or search again",
                     )
+            # and each holds what every search records in it: an emptied row ('{}')
+            # switched the input checks off (hostile round twenty-one, F3)
+            wanted = [("settings", k) for k in sorted(self.settings)]
+            wanted += [("inputs", k) for k in ("vehicle", "reaction", "environments", "targets")]
+            for row, key in wanted:
+                if key not in meta[row]:
+                    raise InputError(
+                        self.folder / STORE_FILE,
+                        f"meta.{row}.{key}",
+                        "missing: a search records it (the store was changed after the "
+                        "search, or another tool wrote it); restore the store or search "
+                        "again",
+                    )
+            if not any(str(k).startswith("family ") for k in meta["inputs"]):
+                raise InputError(
+                    self.folder / STORE_FILE,
+                    "meta.inputs",
+                    "records no family file: a search records each (the store was changed "
+                    "after the search, or another tool wrote it); restore the store or "
+                    "search again",
+                )
         self._check_ranked_files(meta.get(OUTPUTS_KEY))
         self._check_ranked_numbers(meta.get(RANKED_KEY))
         given = self.info.get("settings", {})
