@@ -21,6 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sensorgap.atomic import atomic_write_bytes, holds_lock, locked_elsewhere, utf8
+from sensorgap.errors import cut_name
 
 _FIXED_ZIP_TIME = (1980, 1, 1, 0, 0, 0)
 
@@ -861,33 +862,35 @@ def _manifest_problems(root: Path) -> list[tuple[str, str]]:
     problems: list[tuple[str, str]] = []
     for rel, kind in entries.items():
         if kind == "link":
-            problems.append((rel, f"{rel} is a symbolic link (not allowed in a run folder)"))
+            problems.append(
+                (rel, f"{cut_name(rel)} is a symbolic link (not allowed in a run folder)")
+            )
     for rel, meta in sorted(listed.items()):
         found = entries.get(rel)
         if found is None:
             folder = _unreadable_folder(rel, unreadable)
             if folder is None:
-                problems.append((rel, f"{rel} is missing"))
+                problems.append((rel, f"{cut_name(rel)} is missing"))
             else:
                 problems.append(
                     (
                         rel,
-                        f"{rel} cannot be read: its folder {folder} cannot be listed "
+                        f"{cut_name(rel)} cannot be read: its folder {folder} cannot be listed "
                         f"({unreadable[folder]})",
                     )
                 )
             continue
         if found != "file":
-            problems.append((rel, f"{rel} is not a regular file"))
+            problems.append((rel, f"{cut_name(rel)} is not a regular file"))
             continue
         try:
             size = (root / rel).lstat().st_size
             same = meta["bytes"] == size and _sha256_file(root / rel) == (size, meta["sha256"])
         except OSError as exc:
-            problems.append((rel, f"{rel} cannot be read ({exc.strerror})"))
+            problems.append((rel, f"{cut_name(rel)} cannot be read ({exc.strerror})"))
             continue
         if not same:
-            problems.append((rel, f"{rel} was changed (size or SHA-256 differs)"))
+            problems.append((rel, f"{cut_name(rel)} was changed (size or SHA-256 differs)"))
     for folder, why in sorted(unreadable.items()):
         if not any(_unreadable_folder(rel, unreadable) == folder for rel in listed):
             problems.append(
@@ -905,7 +908,7 @@ def _manifest_problems(root: Path) -> list[tuple[str, str]]:
             problems.append(
                 (
                     rel,
-                    f"{rel} is the restore folder of a sensorgap command writing "
+                    f"{cut_name(rel)} is the restore folder of a sensorgap command writing "
                     f"{where if where != '.' else root} now (its lock is held); "
                     f"{_RESTORE_IN_USE}",
                 )
@@ -914,7 +917,7 @@ def _manifest_problems(root: Path) -> list[tuple[str, str]]:
         problems.append(
             (
                 rel,
-                f"{rel} is left over from a killed command: it holds "
+                f"{cut_name(rel)} is left over from a killed command: it holds "
                 f"{f'the {kept} files' if kept else 'the files'} the folder had before that "
                 f"command started (its index.json names each number's path); {_RESTORE_BY_HAND}",
             )
@@ -928,10 +931,10 @@ def _manifest_problems(root: Path) -> list[tuple[str, str]]:
             problems.append(
                 (
                     rel,
-                    f"{rel} is a left-over temporary or journal file (from an "
+                    f"{cut_name(rel)} is a left-over temporary or journal file (from an "
                     "interrupted command; not in the manifest)",
                 )
             )
         else:
-            problems.append((rel, f"{rel} is not in the manifest"))
+            problems.append((rel, f"{cut_name(rel)} is not in the manifest"))
     return problems
