@@ -41,7 +41,7 @@ from sensorgap.models import Conditions, System, load_system
 from sensorgap.provenance import write_run_info
 from sensorgap.report import write_report
 from sensorgap.roads import read_opendrive
-from sensorgap.runtime import start_resource_tracker
+from sensorgap.runtime import children_spared_stop_signals, start_resource_tracker
 from sensorgap.scenarios import family_presets
 from sensorgap.search.anchors import (
     NCAP_FAMILY,
@@ -271,28 +271,23 @@ def _quiet_on_ctrl_c() -> None:
     """Initializer of the job's second process: Ctrl-C ends it as SIGTERM does, without a
     KeyboardInterrupt traceback ("Process SpawnProcess-1:" and 30-70 lines on standard
     error: a terminal sends Ctrl-C to the whole process group; hostile round twenty, F4).
-    The process starts with SIGINT blocked (``_spawn_blocking_ctrl_c``): a Ctrl-C during
-    its start-up is pending until here, then ends it."""
+    The process starts with the stop signals blocked (``_spawn_blocking_ctrl_c``): one
+    sent during its start-up is pending until here, then ends it."""
     import signal
 
     signal.signal(signal.SIGINT, signal.SIG_DFL)
     if hasattr(signal, "pthread_sigmask"):
-        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+        stops = [getattr(signal, n) for n in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, n)]
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, stops)
 
 
 def _spawn_blocking_ctrl_c(pool: ProcessPoolExecutor, fn: Callable[..., Any], *args: Any) -> Any:
-    """``pool.submit(fn, *args)`` with SIGINT blocked in this thread while the pool starts
-    its process, which inherits the blocked signal (``_quiet_on_ctrl_c`` unblocks it); a
-    Ctrl-C to this process meanwhile is delivered after."""
-    import signal
-
-    if not hasattr(signal, "pthread_sigmask"):
+    """``pool.submit(fn, *args)`` with the stop signals blocked in this thread while the
+    pool starts its process, which inherits them blocked (``_quiet_on_ctrl_c`` unblocks
+    them; ``runtime.children_spared_stop_signals``); one sent to this process meanwhile
+    is delivered after."""
+    with children_spared_stop_signals():
         return pool.submit(fn, *args)
-    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
-    try:
-        return pool.submit(fn, *args)
-    finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, old)
 
 
 def _run_job(
