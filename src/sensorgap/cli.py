@@ -72,6 +72,19 @@ ANALYSIS_WRITES = {
     "farfield": ("farfield.csv", "farfield.png", "levels.csv", "summary.json"),
     "corridor": ("corridor.csv", "corridor.png", "summary.json"),
 }
+#: Every file an analysis command or a command with one named output writes at the top of
+#: its folder: a manifest listing one of them beside an analysis command's own files is
+#: not a folder of the user's files (``filesio.refuse_foreign_outputs``).
+_COMMAND_FILES = frozenset(
+    {
+        *(name for names in ANALYSIS_WRITES.values() for name in names),
+        "paper.md",
+        "tradeoff.csv",
+        "comparison.json",
+        "report.html",
+        "report.md",
+    }
+)
 _GLUED_OPTIONS = {
     "--extent",
     "--height",
@@ -321,7 +334,7 @@ def cmd_coverage(args: argparse.Namespace) -> int:
     from sensorgap.coverage.outputs import write_coverage
     from sensorgap.coverage.pointsio import MAX_HEIGHT_M
 
-    refuse_foreign_outputs(args.out, ANALYSIS_WRITES["coverage"], "coverage")
+    refuse_foreign_outputs(args.out, ANALYSIS_WRITES["coverage"], "coverage", _COMMAND_FILES)
     refuse_inside_certified(args.out, "coverage")
     limits.check_workers(args.workers, CLI_NAMES)
     extent = _float_list(args.extent, 4, "--extent")
@@ -405,7 +418,7 @@ def cmd_nearfield(args: argparse.Namespace) -> int:
     from sensorgap.analysis.nearfield import write_nearfield
     from sensorgap.models import load_system
 
-    refuse_foreign_outputs(args.out, ANALYSIS_WRITES["nearfield"], "nearfield")
+    refuse_foreign_outputs(args.out, ANALYSIS_WRITES["nearfield"], "nearfield", _COMMAND_FILES)
     refuse_inside_certified(args.out, "nearfield")
     res = _positive(args.resolution, "--resolution")
     lo, hi = NEARFIELD_RESOLUTION_M
@@ -433,7 +446,7 @@ def cmd_farfield(args: argparse.Namespace) -> int:
     from sensorgap.models import load_system
     from sensorgap.roads import read_opendrive
 
-    refuse_foreign_outputs(args.out, ANALYSIS_WRITES["farfield"], "farfield")
+    refuse_foreign_outputs(args.out, ANALYSIS_WRITES["farfield"], "farfield", _COMMAND_FILES)
     refuse_inside_certified(args.out, "farfield")
     length = _positive(args.length, "--length")
     if not MIN_FARFIELD_LENGTH_M <= length <= MAX_FARFIELD_LENGTH_M:
@@ -1000,7 +1013,7 @@ def cmd_corridor(args: argparse.Namespace) -> int:
     """The least-detectable approach path into a critical zone (corridor search)."""
     from sensorgap.search.corridor import corridor_search
 
-    refuse_foreign_outputs(args.out, ANALYSIS_WRITES["corridor"], "corridor")
+    refuse_foreign_outputs(args.out, ANALYSIS_WRITES["corridor"], "corridor", _COMMAND_FILES)
     refuse_inside_certified(args.out, "corridor")
     lanes = []
     for part in args.lanes.split(","):

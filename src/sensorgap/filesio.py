@@ -13,7 +13,7 @@ import os
 import re
 import shutil
 import zipfile
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -107,10 +107,25 @@ def _unique_keys(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
     return out
 
 
+def _json_int(text: str) -> int | float:
+    """A JSON integer: exact (an ``int``) within 64 bits, which is all sensorgap writes
+    (counts, sizes, seeds); beyond, the nearest float (``inf`` past 1.8e308), as JSON
+    readers that hold numbers as IEEE doubles do (RFC 8259, section 6). The readers'
+    checks then name the field ("expected a finite number, got inf", "expected a
+    positive integer"): a 400-digit rank or probability was an internal error further on
+    (a float conversion), and one of more than 4,300 digits Python's ``int(str)`` limit
+    (hostile round 22)."""
+    digits = text.lstrip("-")
+    if len(digits) <= 18 or (len(digits) <= 19 and -(2**63) <= int(text) < 2**63):
+        return int(text)
+    return float(text)
+
+
 def loads_json(text: str | bytes) -> Any:
     """Parse JSON as sensorgap's readers of run folders do: an object naming a key twice
-    is ``ValueError`` (Python's ``json`` would keep the last one silently)."""
-    return json.loads(text, object_pairs_hook=_unique_keys)
+    is ``ValueError`` (Python's ``json`` would keep the last one silently); an integer
+    beyond 64 bits is read as a float (``_json_int``)."""
+    return json.loads(text, object_pairs_hook=_unique_keys, parse_int=_json_int)
 
 
 #: The names ``sensorgap.atomic`` gives its temporary files: ``.NAME.<8 random>.tmp.EXT``
@@ -568,7 +583,10 @@ RUN_FOLDER_FILES = ("ranking.json", "run.json", "search.sqlite", "catalog.json")
 
 
 def refuse_foreign_outputs(
-    folder: str | Path, writes: tuple[str, ...] | None, command: str
+    folder: str | Path,
+    writes: tuple[str, ...] | None,
+    command: str,
+    others: Collection[str] = (),
 ) -> None:
     """Before an analysis command (``coverage``, ``nearfield``, ``farfield``,
     ``corridor``) writes its files (``writes``, at the top of ``folder``) and a new
@@ -582,7 +600,13 @@ def refuse_foreign_outputs(
     command. ``writes`` None (``paper``, ``tradeoff``, ``compare``: many outputs, named
     after the runs): only a search run or catalog is refused, with or without its
     manifest (the caller checks the rest with ``refuse_if_changed``). A symbolic link
-    anywhere below ``folder`` is refused for every command (``verify`` rejects links)."""
+    anywhere below ``folder`` is refused for every command (``verify`` rejects links).
+
+    The same command run again into a folder of the user's own files that it certified
+    the first time (its manifest lists every file of ``writes`` and files none of which
+    is a file of another command's, ``others``, or of a run folder) goes on when those
+    files are still as certified (``refuse_if_changed``): it was refused as "another
+    command's outputs" (hostile round 22)."""
 
     from sensorgap.errors import InputError
 
@@ -603,12 +627,18 @@ def refuse_foreign_outputs(
         if own.is_symlink() or (own.exists() and not own.is_file()):
             raise refuse(f"holds {name}, a symbolic link or not a regular file")
     if writes is not None and (root / MANIFEST_NAME).is_file():
-        foreign = [rel for rel in read_manifest(root) if rel not in writes]
-        if foreign:
+        listed = read_manifest(root)
+        foreign = [rel for rel in listed if rel not in writes]
+        users = all(w in listed for w in writes) and not any(
+            rel in others or rel in RUN_FOLDER_FILES for rel in foreign
+        )
+        if foreign and not users:
             raise refuse(
                 f"holds the certified outputs of another command (its {MANIFEST_NAME} "
                 f"lists {foreign[0]}, which {command} does not write)"
             )
+        if foreign:  # its own earlier output beside the user's files: as certified?
+            refuse_if_changed(root, writes)
     else:
         marker = next((n for n in RUN_FOLDER_FILES if (root / n).exists()), None)
         if marker is not None:

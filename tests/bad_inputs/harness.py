@@ -364,7 +364,18 @@ def _write_files(case: dict[str, Any], folder: Path, key: str = "files") -> None
                     raise CaseError(f"{case['name']}: {old!r} not in {spec['from']}")
                 text = text.replace(old, new)
         (folder / name).parent.mkdir(parents=True, exist_ok=True)
-        (folder / name).write_text(text, encoding="utf-8")
+        (folder / name).write_text(_big_numbers(text), encoding="utf-8")
+
+
+#: Placeholders of integers too large to write in a case: 400 digits (beyond a float) and
+#: 5,000 (beyond Python's 4,300-digit ``int(str)`` limit), in ``files`` and ``run_edit``.
+BIG_NUMBERS = {"{ones400}": "1" * 400, "{ones5000}": "1" * 5000}
+
+
+def _big_numbers(text: str) -> str:
+    for key, digits in BIG_NUMBERS.items():
+        text = text.replace(key, digits)
+    return text
 
 
 def _edit_manifest(run: Path, entry: str) -> None:
@@ -380,6 +391,7 @@ def _edit_run(case: dict[str, Any], run: Path) -> None:
     for name, text in case.get("run_files", {}).items():
         (run / name).write_text(text, encoding="utf-8")
     for name, pattern, repl in case.get("run_edit", []):
+        repl = _big_numbers(repl)
         text, n = re.subn(pattern, repl, (run / name).read_text(encoding="utf-8"), count=1)
         if n != 1:
             raise CaseError(f"{case['name']}: {pattern!r} not in {name}")

@@ -114,3 +114,48 @@ def test_a_folder_of_ones_own_files_is_accepted(tmp_path: Path) -> None:
     (tmp_path / "mine" / "notes.txt").write_text("x\n")
     refuse_certified_out(tmp_path / "mine", "evaluate")
     refuse_certified_out(tmp_path / "mine" / "new", "evaluate")
+
+
+@pytest.mark.parametrize("command", ["coverage", "nearfield", "farfield", "corridor"])
+def test_an_analysis_rerun_into_a_folder_of_ones_own_files(tmp_path: Path, command: str) -> None:
+    """An analysis command certifies a folder of the user's files with its own outputs;
+    the same command run again there goes on while the user's files are as certified,
+    and is refused when one was edited (the new manifest would certify the edit). Another
+    command's outputs beside the user's are still refused (hostile round 22: the rerun
+    was refused as "another command's outputs")."""
+    from sensorgap.cli import _COMMAND_FILES, ANALYSIS_WRITES
+    from sensorgap.filesio import refuse_foreign_outputs
+
+    writes = ANALYSIS_WRITES[command]
+    mine = _certified(tmp_path / "mine", "notes.txt", "data/raw.csv", *writes)
+    refuse_foreign_outputs(mine, writes, command, _COMMAND_FILES)
+    (mine / "notes.txt").write_text("edited\n")
+    with pytest.raises(InputError, match="notes.txt was changed"):
+        refuse_foreign_outputs(mine, writes, command, _COMMAND_FILES)
+    for other, files in ANALYSIS_WRITES.items():
+        if other == command:
+            continue
+        folder = _certified(tmp_path / f"with_{other}", "notes.txt", *files, *writes)
+        if set(files) <= set(writes):
+            continue  # nothing of the other's that this command does not write itself
+        with pytest.raises(InputError, match="holds the certified outputs of another command"):
+            refuse_foreign_outputs(folder, writes, command, _COMMAND_FILES)
+    # a folder without this command's own files is another command's, not its rerun
+    partial = _certified(tmp_path / "partial", "notes.txt", writes[0])
+    with pytest.raises(InputError, match="holds the certified outputs of another command"):
+        refuse_foreign_outputs(partial, writes, command, _COMMAND_FILES)
+
+
+def test_coverage_runs_again_into_the_folder_of_ones_own_files_it_certified(
+    tmp_path: Path,
+) -> None:
+    """End to end: the same coverage twice into a folder holding the user's notes."""
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "notes.txt").write_text("my notes\n")
+    argv = ["coverage", "--vehicle", "system_b", "--environment", "clear", "--target", "car"]
+    argv += ["--extent", "-10,10,-10,10", "--resolution", "2", "--out", str(mine)]
+    assert main(argv) == 0
+    assert main(argv) == 0
+    assert main(["verify", str(mine)]) == 0
+    assert (mine / "notes.txt").read_text() == "my notes\n"

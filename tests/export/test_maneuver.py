@@ -492,3 +492,53 @@ def test_semantic_checks_see_a_crossing_path_off_the_road(
         tmp_path / "off.xosc", net, {}, tolerance_by_path={"Target_crossing": 5.5}
     )
     assert any("Target_crossing leaves the road" in e for e in errs)
+
+
+def test_an_event_esmini_never_started_is_named_not_a_number(
+    family_catalogs: dict[tuple[str, str], Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A stand-in for esmini (a script; CI has no esmini) logs both cars driving straight
+    and, in its text log, no event start at all, or one at a time of 400 digits: each
+    maneuver row with a relative trigger names the event as ``never`` started, in
+    ``triggers`` and the message, with no trigger numbers; the command exits 0 and no
+    ``inf`` is written (hostile round 22: an internal error writing ``inf``)."""
+    import sys
+
+    fake = tmp_path / "esmini"
+    fake.write_text(
+        f"#!{sys.executable}\n"
+        "import os, sys\n"
+        "a = sys.argv\n"
+        "csv, log = a[a.index('--csv_logger') + 1], a[a.index('--logfile_path') + 1]\n"
+        "dt = float(a[a.index('--fixed_timestep') + 1])\n"
+        "head = 'Index, Time'\n"
+        "for i, n in ((1, 'Ego'), (2, 'Target')):\n"
+        "    head += ''.join(f', #{i} {c}' for c in ('Entity_Name', 'Entity_ID',\n"
+        "        'Current_Speed', 'World_Position_X', 'World_Position_Y',\n"
+        "        'World_Position_Z', 'World_Heading_Angle'))\n"
+        "with open(csv, 'w') as f:\n"
+        "    f.write(head + '\\n')\n"
+        "    for i in range(int(30 / dt) + 1):\n"
+        "        t = i * dt\n"
+        "        f.write(f'{i}, {t}, Ego, 0, 20, {20 * t}, 0, 0, 0, Target, 1, 20, "
+        "{20 * t + 50}, 0, 0, 0\\n')\n"
+        "with open(log, 'w') as f:\n"
+        "    if os.environ.get('FAKE_BIG'):\n"
+        "        f.write('[' + '1' * 400 + '] [info] cut_in standbyState -> startTransition"
+        " -> runningState\\n')\n"
+    )
+    fake.chmod(0o755)
+    for big in ("", "1"):
+        work = tmp_path / f"cat{big}"
+        shutil.copytree(family_catalogs[("maneuver", "1.2")], work)
+        monkeypatch.setenv("FAKE_BIG", big)
+        assert main(["simulate", "--catalog", str(work), "--esmini", str(fake)]) == 0
+        text = (work / "simulation.csv").read_text()
+        assert not re.search(r"\binf\b|\bnan\b", text, re.IGNORECASE)
+        rows = list(csv.DictReader(text.splitlines()))
+        triggered = [r for r in rows if r["triggers"]]
+        assert triggered, "the catalog has rows with relative triggers"
+        for r in triggered:
+            assert all(part.endswith(":never") for part in r["triggers"].split()), r
+            assert r["trigger_max_dt_s"] == "" and r["trigger_agrees"] == "no", r
+            assert "esmini never started" in r["message"], r

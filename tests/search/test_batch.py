@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -510,3 +511,47 @@ def test_an_overtake_that_cannot_happen_is_infeasible(which: str, note: str) -> 
     params[which] = np.array([0.0, params[which][1]])
     batch = fam.generate_batch(params)
     assert not batch.ok[0] and batch.notes[0] == note
+
+
+@pytest.mark.parametrize("which", ["speed_delta_m_s", "decel_m_s2"])
+@pytest.mark.parametrize("tiny", [5e-324, 1e-310])
+def test_an_overtake_with_a_subnormal_speed_difference_or_braking(which: str, tiny: float) -> None:
+    """A speed difference or deceleration of 5e-324 (the smallest float) passes the > 0
+    guard and made the merge or braking time overflow (numpy's warning, an error here;
+    hostile round 22). The merge, or the braking's end, then never comes; every position
+    stays finite."""
+    fam = load_family("overtake_left")
+    prob = _problem("overtake_left")
+    d = prob.decode_batch(np.random.default_rng(5).random((2, prob.dim)))
+    params = {k: np.asarray(v).copy() for k, v in d.params.items()}
+    params[which] = np.array([tiny, tiny])
+    batch = fam.generate_batch(params)
+    for track in (batch.ego, batch.target):
+        assert all(np.all(np.isfinite(a)) for a in (track.x, track.y, track.speed))
+
+
+def test_a_target_classes_largest_speed_comes_from_its_targets_file(tmp_path: Path) -> None:
+    """``max_speed_m_s`` of the targets file bounds a family's target (hostile round 22:
+    the search used a fixed table, so a car of 0.1 m/s top speed was ranked cutting in at
+    20 m/s, and a pedestrian of 150 m/s was refused at 4 m/s)."""
+    import re
+
+    from sensorgap.config.presets import templates_dir
+    from sensorgap.errors import InputError
+
+    text = (templates_dir() / "targets.toml").read_text()
+    car = tmp_path / "slow_car.toml"
+    car.write_text(text.replace("max_speed_m_s = 70.0", "max_speed_m_s = 0.1", 1))
+    with pytest.raises(InputError, match=r"above the largest speed of a car \(0\.1 m/s"):
+        load_family("cut_in_left", targets=car)
+    fast = tmp_path / "fast_walker.toml"
+    fast.write_text(re.sub(r"(?m)^max_speed_m_s = 3\.0$", "max_speed_m_s = 150.0", text))
+    family = (templates_dir() / "scenarios" / "crossing_pedestrian.toml").read_text()
+    fam_path = tmp_path / "fast_ped.toml"
+    fam_path.write_text(
+        re.sub(r"(?m)^target_speed_m_s = .*$", "target_speed_m_s = [4.0, 10.0]", family)
+    )
+    with pytest.raises(InputError, match="above the largest speed of a pedestrian"):
+        load_family(str(fam_path))
+    assert load_family(str(fam_path), targets=fast).limits.max_speed == 150.0
+    assert load_family("cut_in_left").limits.max_speed == 70.0  # the shipped file's

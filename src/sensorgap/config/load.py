@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import pickle
+import re
 import threading
 import tomllib
 from collections import OrderedDict
@@ -50,6 +51,31 @@ _PARSED_MAX_TEXTS = 64
 _PARSED_MAX_CHARS = 65_536
 
 
+#: TOML's integers: "Arbitrary 64-bit signed integers (from -2^63 to 2^63-1) should be
+#: accepted and handled losslessly. If an integer cannot be represented losslessly, an
+#: error must be thrown" (TOML 1.0.0, "Integer"). Python's ``tomllib`` reads any size; a
+#: 400-digit integer then overflowed a float field's conversion (hostile round 22).
+TOML_INT_MIN, TOML_INT_MAX = -(2**63), 2**63 - 1
+_INT_RANGE = (
+    "an integer beyond 64 bits; TOML integers are -9223372036854775808 .. 9223372036854775807 "
+    "(write a large number as a float, e.g. 1e30)"
+)
+
+
+def _oversized_integer(data: Any) -> str | None:
+    """The dotted key of the first integer outside TOML's 64-bit range, else None."""
+    todo: list[tuple[str, Any]] = [("", data)]
+    while todo:
+        key, node = todo.pop()
+        if isinstance(node, dict):
+            todo += [(f"{key}.{k}" if key else str(k), v) for k, v in node.items()]
+        elif isinstance(node, list):
+            todo += [(f"{key}[{i}]", v) for i, v in enumerate(node)]
+        elif isinstance(node, int) and not TOML_INT_MIN <= node <= TOML_INT_MAX:
+            return key
+    return None
+
+
 def read_toml(path: Path) -> dict[str, Any]:
     """Parse a TOML file; missing, unreadable, oversized or malformed -> ``InputError``."""
     if not path.exists():
@@ -80,6 +106,10 @@ def read_toml(path: Path) -> dict[str, Any]:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise InputError(path, "", f"TOML syntax error: {exc}") from None
+    except ValueError:  # int() of more than sys.get_int_max_str_digits() (4,300) digits
+        long = re.search(r"[0-9_]{4300,}", text)
+        where = "" if long is None else f"line {text.count(chr(10), 0, long.start()) + 1}"
+        raise InputError(path, where, _INT_RANGE) from None
     except RecursionError:
         data = None
     if data is None or toml_depth(data) > MAX_TOML_DEPTH:
@@ -88,6 +118,9 @@ def read_toml(path: Path) -> dict[str, Any]:
             "",
             f"tables and arrays nested too deeply; at most {MAX_TOML_DEPTH} levels allowed",
         )
+    wide = _oversized_integer(data)
+    if wide is not None:
+        raise InputError(path, cut_quoted(wide), _INT_RANGE)
     if len(text) <= _PARSED_MAX_CHARS:
         with _PARSED_LOCK:
             _PARSED[text] = pickle.dumps(data, protocol=pickle.HIGHEST_PROTOCOL)

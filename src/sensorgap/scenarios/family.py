@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 from abc import ABC
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, ClassVar, TypeVar
 
 import numpy as np
@@ -164,6 +164,9 @@ class Family:
     network: RoadNetwork
     source: str = ""
     description: str = ""
+    #: the target class's largest speed, m/s (``max_speed_m_s`` of the targets file the
+    #: family was loaded with); None: the class's default in ``trajectory.LIMITS``
+    max_speed_m_s: float | None = None
     _names: tuple[str, ...] = field(default=(), repr=False)
     _tables: dict[tuple[str, int], LaneTable] = field(default_factory=dict, repr=False)
 
@@ -179,8 +182,13 @@ class Family:
 
     @property
     def limits(self) -> Limits:
-        """Feasibility bounds for the target class."""
-        return LIMITS.get(self.target_class, LIMITS["car"])
+        """Feasibility bounds for the target class: its accelerations from
+        ``trajectory.LIMITS`` (a class it does not name: a car's), its largest speed from
+        the targets file (``max_speed_m_s``: it was ignored, hostile round 22)."""
+        base = LIMITS.get(self.target_class, LIMITS["car"])
+        if self.max_speed_m_s is None:
+            return base
+        return replace(base, max_speed=float(self.max_speed_m_s))
 
     def decode(self, u: F64) -> dict[str, ParamValue]:
         """Unit-cube vector (one entry per parameter) -> parameters."""

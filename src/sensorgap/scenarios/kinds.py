@@ -188,13 +188,19 @@ class Overtake(_LaneKind):
         a_in = _col(cols, "decel_m_s2")
         slow, no_brake = dv[:, 0] <= 0.0, a_in[:, 0] <= 0.0
         dv = np.where(dv > 0.0, dv, 1.0)
-        t_m = (_col(cols, "merge_gap_m") - dx0) / dv
         md = _col(cols, "merge_duration_s")
-        t_b = t_m + md + _col(cols, "brake_delay_s")
         v0 = ve + dv
         vf = np.maximum(ve - _col(cols, "final_delta_m_s"), 0.0)
         a = np.where(a_in > 0.0, a_in, 1.0)
-        td = (v0 - vf) / a
+        # a speed difference or deceleration of a few 1e-300 (5e-324 is a valid float)
+        # makes the merge time or the braking time +inf: the merge, or the braking's end,
+        # never comes, which the formulas below then compute (np.minimum, np.clip, the
+        # blend's clip; no inf or NaN reaches a position). Hostile round 22: numpy's
+        # overflow warning was printed.
+        with np.errstate(over="ignore"):
+            t_m = (_col(cols, "merge_gap_m") - dx0) / dv
+            td = (v0 - vf) / a
+        t_b = t_m + md + _col(cols, "brake_delay_s")
         u = np.clip(t - t_b, 0.0, td)
         travelled = (
             v0 * np.minimum(t, t_b) + v0 * u - 0.5 * a * u * u + vf * np.maximum(t - t_b - td, 0.0)

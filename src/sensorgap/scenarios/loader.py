@@ -30,7 +30,7 @@ from typing import Any
 
 import numpy as np
 
-from sensorgap.config import load_targets, templates_dir
+from sensorgap.config import TargetConfig, load_targets, templates_dir
 from sensorgap.config.common import name_problem
 from sensorgap.config.load import read_toml, short
 from sensorgap.config.parameters import bound_error
@@ -163,9 +163,12 @@ def _param(path: Path, default: Param, value: Any) -> Param:
     return Param(default.name, low, high, unit=default.unit)
 
 
-def load_family(name_or_path: str, road: Path | None = None) -> Family:
+def load_family(name_or_path: str, road: Path | None = None, targets: Path | None = None) -> Family:
     """Load, validate and fit-check one family. ``road``: the OpenDRIVE file to use instead
-    of the one the file's ``road`` setting names (a run folder's recorded copy)."""
+    of the one the file's ``road`` setting names (a run folder's recorded copy);
+    ``targets``: the target classes' file (default: the shipped ``targets.toml``; a run
+    folder's recorded copy), whose ``max_speed_m_s`` of the family's target class bounds
+    its target's speed."""
     path = resolve_family_path(name_or_path)
     why = name_problem(path.stem)  # the family's name, drawn in figures
     if why is None and ("\\" in path.stem or "," in path.stem):
@@ -206,18 +209,18 @@ def load_family(name_or_path: str, road: Path | None = None) -> Family:
             f"must be a string of at most {MAX_DESCRIPTION_CHARS} characters, "
             f"got {short(description)}",
         )
-    targets = load_targets()
-    if settings["target"] not in targets:
+    classes = load_targets()
+    if settings["target"] not in classes:
         raise InputError(
             path,
             "family.target",
-            f"unknown target {settings['target']!r}; allowed: {', '.join(targets)}",
+            f"unknown target {settings['target']!r}; allowed: {', '.join(classes)}",
         )
-    if "occluder" in settings and settings["occluder"] not in targets:
+    if "occluder" in settings and settings["occluder"] not in classes:
         raise InputError(
             path,
             "family.occluder",
-            f"unknown occluder class {settings['occluder']!r}; known: {', '.join(sorted(targets))}",
+            f"unknown occluder class {settings['occluder']!r}; known: {', '.join(sorted(classes))}",
         )
     road_text = str(settings["road"])
     road_path = resolve_road(road_text)
@@ -311,9 +314,25 @@ def load_family(name_or_path: str, road: Path | None = None) -> Family:
         network=net,
         source=str(path),
         description=str(fam.get("description", "")),
+        max_speed_m_s=_max_speed(str(settings["target"]), classes, targets),
     )
     check_fits(family, path)
     return family
+
+
+def _max_speed(name: str, shipped: dict[str, TargetConfig], targets: Path | None) -> float:
+    """The largest speed, m/s, of target class ``name``: from the targets file ``targets``
+    (a run's recorded copy) where it defines the class, else the shipped one's. A recorded
+    copy that is damaged or lacks the class is refused where the run's target classes are
+    loaded (``RunFolder.targets``, ``Evaluator.target``), naming that file."""
+    if targets is not None:
+        try:
+            recorded = load_targets(targets)
+        except InputError:
+            recorded = {}
+        if name in recorded:
+            return recorded[name].max_speed_m_s
+    return shipped[name].max_speed_m_s
 
 
 def check_fits(family: Family, path: Path | str) -> None:
@@ -321,7 +340,8 @@ def check_fits(family: Family, path: Path | str) -> None:
 
     (Feasibility bounds are not checked here: single candidates may be infeasible and are
     recorded as such; only a family that cannot fit on its road, or whose target speed
-    range lies wholly above its target class's largest speed, is bad input.)
+    range lies wholly above its target class's largest speed, ``max_speed_m_s`` of the
+    targets file, is bad input.)
     """
     speed = next((p for p in family.space if p.name == "target_speed_m_s"), None)
     top = family.limits.max_speed
@@ -330,7 +350,8 @@ def check_fits(family: Family, path: Path | str) -> None:
             path,
             "parameters.target_speed_m_s",
             f"the range starts at {speed.low:g} m/s, above the largest speed of a "
-            f"{family.target_class} ({top:g} m/s): every candidate would be infeasible",
+            f"{family.target_class} ({top:g} m/s, its max_speed_m_s): every candidate would "
+            "be infeasible",
         )
     corners = list(
         itertools.islice(itertools.product(*(p.corners() for p in family.space)), MAX_FIT_CORNERS)

@@ -489,11 +489,16 @@ class RunFolder:
                 f"no family {name_or_path[:64]!r} in this run; it searched "
                 f"{', '.join(sorted(recorded)) or 'none'}",
             )
+        targets = self.input_path("targets")
         if e is None:
-            return self._cached(f"family {name_or_path}", lambda: load_family(name_or_path))
+            return self._cached(
+                f"family {name_or_path}", lambda: load_family(name_or_path, targets=targets)
+            )
         road = self.input_path("roads", str(e.get("road")))
         copy = self.folder / str(e["copy"])
-        return self._cached(f"family {name_or_path}", lambda: load_family(str(copy), road=road))
+        return self._cached(
+            f"family {name_or_path}", lambda: load_family(str(copy), road=road, targets=targets)
+        )
 
     def evaluator(
         self, mode: str = "exact", rule: DetectionRule | None = None, system: System | None = None

@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from sensorgap.errors import InputError
+from sensorgap.filesio import loads_json
 from sensorgap.search.metrics import metric_names
 from sensorgap.search.problem import OBJECTIVE_KEY, Candidate, Result
 
@@ -140,7 +141,7 @@ def _changed_names(stored: str, settings: dict[str, Any]) -> str:
     ``stored``) differs from ``settings``, for a refusal line; empty when the stored text
     is not a JSON object (the line then says only that the settings differ)."""
     try:
-        old = json.loads(stored)
+        old = loads_json(stored)
     except (TypeError, ValueError, RecursionError):
         return ""
     if not isinstance(old, dict):
@@ -187,7 +188,7 @@ def _refuse_other_search(
     old: Any = None
     if "inputs" in meta:
         try:
-            old = json.loads(meta["inputs"])
+            old = loads_json(meta["inputs"])
         except (TypeError, ValueError, RecursionError):
             raise _damaged(path, "meta row 'inputs' is not JSON") from None
     if old != inputs and count:
@@ -303,7 +304,7 @@ def _json_object(path: Path, text: Any, what: str) -> dict[str, Any]:
     """``text`` (a stored column of the store at ``path``) as a JSON object, else the
     store is damaged: ``InputError`` saying ``what`` is not JSON or not an object."""
     try:
-        value = json.loads(text)
+        value = loads_json(text)
     except (TypeError, ValueError, RecursionError):
         raise _damaged(path, f"{what} is not JSON") from None
     if not isinstance(value, dict):
@@ -555,7 +556,7 @@ class Store:
             return None
         try:
             sun = None if row[2] is None else (float(row[2]), float(row[3]))
-            params, metrics = json.loads(row[4]), json.loads(row[5])
+            params, metrics = loads_json(row[4]), loads_json(row[5])
             if isinstance(metrics, dict):
                 metrics = metrics_from_json(metrics)
             if not (
