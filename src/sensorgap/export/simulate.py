@@ -34,16 +34,18 @@ from numpy.typing import NDArray
 
 from sensorgap.atomic import atomic_write_bytes
 from sensorgap.config import load_target
-from sensorgap.errors import InputError, escape_unprintable
+from sensorgap.errors import InputError, cut_quoted, escape_unprintable
 from sensorgap.export.bodies import MAX_BODY_DEV_M, box_deviation, planned_boxes
+from sensorgap.export.catalog import STYLES
 from sensorgap.export.maneuver import maneuver_triggers, occluder_name, planned_origins
 from sensorgap.export.spec import ScenarioSpec, read_run
-from sensorgap.export.xosc import EGO, TARGET, origin_path, target_origin_offset
+from sensorgap.export.xosc import EGO, TARGET, VERSIONS, origin_path, target_origin_offset
 from sensorgap.filesio import bad_entry_name, loads_json
 from sensorgap.scenarios import Scenario, Trajectory
 from sensorgap.search.evaluate import Evaluator
 from sensorgap.search.metrics import compute_all
 from sensorgap.search.run import ranking_csv
+from sensorgap.search.runfolder import MAX_RANKED_ROWS
 
 F64 = NDArray[np.float64]
 
@@ -552,19 +554,42 @@ def read_catalog_index(path: Path) -> tuple[dict[str, Any], list[dict[str, Any]]
                 or not v
                 or Path(v).is_absolute()
                 or (key != "scenario_id" and ".." in Path(v).parts)
+                or (key == "road" and not v.endswith(".xodr"))
             ):
+                # a road is an OpenDRIVE file (hostile round 23: the scenario's own .xosc
+                # or ranking.json was taken as the braking ego's road)
+                want = {
+                    "scenario_id": "a string",
+                    "file": "a relative path inside the catalog",
+                    "road": "a relative path of an .xodr file inside the catalog",
+                }[key]
                 raise InputError(
-                    path,
-                    f"scenarios[{i}].{key}",
-                    "malformed catalog index: "
-                    "expected "
-                    + (
-                        "a string" if key == "scenario_id" else "a relative path inside the catalog"
-                    ),
+                    path, f"scenarios[{i}].{key}", f"malformed catalog index: expected {want}"
                 )
     for key in ("style", "osc_version"):
         if not isinstance(index.get(key, ""), str):
             raise InputError(path, key, "malformed catalog index: expected a string")
+    # what export writes, nothing else: an unknown version reached the writer of the
+    # braking ego (simulate --ego-reaction) as a KeyError (hostile round 23)
+    for key, allowed in (("style", STYLES), ("osc_version", tuple(VERSIONS))):
+        if key in index and index[key] not in allowed:
+            raise InputError(
+                path,
+                key,
+                f"malformed catalog index: expected one of {', '.join(allowed)}, "
+                f"got {cut_quoted(repr(index[key]))}",
+            )
+    for i, entry in enumerate(entries):  # copied into simulation.csv: a finite rank
+        rank = entry.get("rank")
+        if rank is not None and (
+            not isinstance(rank, int) or isinstance(rank, bool) or not 1 <= rank <= MAX_RANKED_ROWS
+        ):
+            raise InputError(
+                path,
+                f"scenarios[{i}].rank",
+                f"malformed catalog index: expected a positive integer (1..{MAX_RANKED_ROWS}), "
+                f"got {cut_quoted(repr(rank))}",
+            )
     if "files" not in index:  # every export lists its files (hostile round twenty, F2)
         raise InputError(
             path,
@@ -660,6 +685,15 @@ def simulate_catalog(
     if not (MIN_STEP_S <= step_s <= 1.0):
         raise InputError("step", "", f"must be within {MIN_STEP_S:g}..1 s, got {step_s!r}")
     index, entries = read_catalog_index(index_path)
+    if ego_reaction:  # the braking ego is written on the scenario's road: named by each
+        for i, entry in enumerate(entries):
+            if entry.get("road") is None:
+                raise InputError(
+                    index_path,
+                    f"scenarios[{i}].road",
+                    "malformed catalog index: missing; simulate --ego-reaction writes the "
+                    "braking ego's scenario on the scenario's road (every export names it)",
+                )
     exe = find_esmini(esmini)
     run = read_run(catalog)
     system = run.system()  # the recorded inputs of the run, never a preset of that name
