@@ -1960,3 +1960,63 @@ def test_a_second_stop_signal_does_not_stop_the_put_back() -> None:
         assert cli._terminate(signal.SIGINT, None) is None
     finally:
         cli._RECEIVED.clear()
+
+
+def test_run_files_the_report_and_compare_read_are_checked(tmp_path: Path) -> None:
+    """Hostile round 24: farfield/table_iv.csv with a column missing, a short row or a
+    path as environment; a far field's levels_m as a list or NaN; an anchor's
+    probability NaN, -7 or text: each one line naming the file (were internal errors, a
+    figure embedded from outside the run, "nan" printed)."""
+    import json as _json
+    import re
+
+    from sensorgap.report.anchors import anchors_section
+    from sensorgap.report.build import read_table_iv
+    from sensorgap.report.compare import _farfield_levels
+
+    tab = tmp_path / "table_iv.csv"
+    good = "environment,level,metres\nclear,pd=1.0,78.2\n"
+    tab.write_text(good)
+    assert read_table_iv(tab)[0]["metres"] == "78.2"
+    for text, said in (
+        ("a,b\n1,2\n", "row 2: no environment"),
+        ("environment,level,metres\nclear,pd=1.0\n", "row 2: no metres"),
+        ("environment,level,metres\n/etc,pd=1.0,1\n", "row 2.environment: a name, not a path"),
+        ("environment,level,metres\n..,pd=1.0,1\n", "row 2.environment: a name, not a path"),
+        ("environment,level,metres\nclear,pd=1.0,nan\n", "row 2.metres: expected a length"),
+    ):
+        tab.write_text(text)
+        with pytest.raises(InputError, match=re.escape(said)):
+            read_table_iv(tab)
+    ff = tmp_path / "ff"
+    ff.mkdir()
+    (ff / "summary.json").write_text(_json.dumps({"levels_m": {"pd=1.0": 12.5}}))
+    assert _farfield_levels(ff) == {"pd=1.0": 12.5}
+    for body, said in (
+        ("[1]", "levels_m: expected a JSON object"),
+        ('{"levels_m": [1]}', "levels_m: expected a JSON object"),
+        ('{"levels_m": {"pd=1.0": NaN}}', "levels_m.pd=1.0: expected a length >= 0"),
+    ):
+        (ff / "summary.json").write_text(body)
+        with pytest.raises(InputError, match=re.escape(said)):
+            _farfield_levels(ff)
+    (tmp_path / "anchors").mkdir()
+    row = {
+        "vut_kmh": 20.0,
+        "pedestrian_kmh": 5.0,
+        "class": "not critical",
+        "collision_probability": 0.25,
+        "impact_speed_kmh": 10.0,
+        "t_confirm_median_s": 1.0,
+        "t_safe_s": 2.0,
+        "command": "sensorgap evaluate ...",
+    }
+    for value, ok in ((0.25, True), (float("nan"), False), (-7, False), ("1e99999", False)):
+        (tmp_path / "anchors" / "anchors.json").write_text(
+            _json.dumps({"anchors": [{**row, "collision_probability": value}]})
+        )
+        if ok:
+            anchors_section(tmp_path)
+        else:
+            with pytest.raises(InputError, match="collision_probability: expected a number"):
+                anchors_section(tmp_path)

@@ -483,7 +483,8 @@ def _coverage_map(folder: Path, damage: str) -> None:
     """A small coverage map (coverage.npz, summary.json) in ``folder`` with one damage:
     ``pd_nan``, ``x_reversed``, ``huge_header`` (pd's .npy header claims 1e10 cells),
     ``summary_nan`` (an area of summary.json is NaN), ``other_vehicle`` (its summary
-    names System A; the finished run is System B's)."""
+    names System A; the finished run is System B's), ``resolution_complex``,
+    ``resolution_many`` (3 values), ``empty`` (no cell), ``no_summary``."""
     import io
     import zipfile
 
@@ -502,6 +503,12 @@ def _coverage_map(folder: Path, damage: str) -> None:
         arrays["pd"][0, 0] = np.nan
     if damage == "x_reversed":
         arrays["x"] = x[::-1].copy()
+    if damage == "resolution_complex":  # round 24: a numpy warning
+        arrays["resolution"] = np.array([2.0 + 0.0j])
+    if damage == "resolution_many":  # round 24: read whole (5 GB at 6e8 values)
+        arrays["resolution"] = np.full(3, 2.0)
+    if damage == "empty":  # round 24: an internal error in the report's summary
+        arrays["x"], arrays["y"], arrays["pd"] = np.zeros(0), np.zeros(0), np.zeros((0, 0))
     buf = io.BytesIO()
     with zipfile.ZipFile(buf, "w") as zf:
         for k, v in arrays.items():
@@ -525,6 +532,8 @@ def _coverage_map(folder: Path, damage: str) -> None:
     (folder / "summary.json").write_text(
         summary.replace("AREA", area).replace("VEHICLE", "System B")
     )
+    if damage == "no_summary":  # round 24: whose map it is could not be checked
+        (folder / "summary.json").unlink()
 
 
 # -- setup steps -----------------------------------------------------------------------

@@ -100,6 +100,8 @@ def read_coverage_npz(
         raise InputError(
             path, "pd", f"expected shape (len(y), len(x)) = ({len(y)}, {len(x)}), got {pd.shape}"
         )
+    if pd.size == 0:  # the readers take its extent (hostile round 24: an internal error)
+        raise InputError(path, "pd", "an empty map (no cell); coverage writes at least one")
     for name, c in (("x", x), ("y", y)):
         if not (np.all(np.isfinite(c)) and np.all(np.diff(c) > 0.0)):
             raise InputError(path, name, "cell centres must be finite and increasing")
@@ -125,11 +127,18 @@ MAX_MAP_CELLS = 30_000_000
 
 
 def _check_npz_members(path: Path) -> None:
-    """``InputError`` unless ``pd``, ``x``, ``y`` of the .npz at ``path`` are numeric arrays
-    of at most ``MAX_MAP_CELLS`` values (read from their headers, nothing allocated)."""
+    """``InputError`` unless ``pd``, ``x``, ``y`` of the .npz at ``path`` are real numeric
+    arrays of at most ``MAX_MAP_CELLS`` values and ``resolution`` one real number (read
+    from their headers, nothing allocated: hostile round 24 found a complex, a datetime and
+    a 6e8-value resolution, a warning, an internal error and 5 GB)."""
     try:
         with zipfile.ZipFile(path) as zf:
-            for name in ("pd", "x", "y"):
+            for name, most in (
+                ("pd", MAX_MAP_CELLS),
+                ("x", MAX_MAP_CELLS),
+                ("y", MAX_MAP_CELLS),
+                ("resolution", 1),
+            ):
                 try:
                     info = zf.getinfo(f"{name}.npy")
                 except KeyError:
@@ -141,14 +150,10 @@ def _check_npz_members(path: Path) -> None:
                     else:
                         shape, _, dtype = np.lib.format.read_array_header_2_0(fp)
                 cells = math.prod(shape)
-                if dtype.kind not in "fiub" or cells > MAX_MAP_CELLS:
-                    raise InputError(
-                        path,
-                        name,
-                        f"expected a numeric array of at most {MAX_MAP_CELLS:.0e} values, "
-                        f"got {dtype} of shape {shape}",
-                    )
-                if info.file_size > 16 * MAX_MAP_CELLS + 4096:
+                if dtype.kind not in "fiu" or cells > most:
+                    what = "one real number" if most == 1 else f"at most {most:.0e} real values"
+                    raise InputError(path, name, f"expected {what}, got {dtype} of shape {shape}")
+                if info.file_size > 16 * most + 4096:
                     raise InputError(path, name, f"{info.file_size} bytes uncompressed")
     except InputError:
         raise

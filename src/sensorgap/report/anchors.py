@@ -4,18 +4,37 @@ near-side pedestrian crossing evaluated exactly for the vehicle, from the run fo
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any
 
 from sensorgap.errors import InputError
+from sensorgap.filesio import loads_json
 from sensorgap.report.document import NOT_RUN, Para, Section, Table
 
 TITLE = "Anchor cases: Euro NCAP obstructed near-side crossing"
 
 
-def _num(v: Any, fmt: str) -> str:
-    return "" if v is None else format(float(v), fmt)
+#: The numbers of an anchor row the table prints, with their allowed range: a
+#: probability, speeds (km/h) and times (s); None (JSON null) prints blank. NaN, inf, text
+#: or -7 were printed as they were (hostile round 24).
+_RANGES = {
+    "vut_kmh": (0.0, 360.0),
+    "pedestrian_kmh": (0.0, 360.0),
+    "collision_probability": (0.0, 1.0),
+    "impact_speed_kmh": (0.0, 720.0),
+    "t_confirm_median_s": (0.0, 3600.0),
+    "t_safe_s": (0.0, 3600.0),
+}
+
+
+def _num(r: dict[str, Any], key: str, fmt: str) -> str:
+    v = r[key]
+    if v is None:
+        return ""
+    lo, hi = _RANGES[key]
+    if isinstance(v, bool) or not isinstance(v, int | float) or not lo <= v <= hi:
+        raise ValueError(f"{key}: expected a number within {lo:g}..{hi:g}, got {str(v)[:40]!r}")
+    return format(float(v), fmt)
 
 
 def anchors_section(folder: Path) -> Section:
@@ -26,16 +45,16 @@ def anchors_section(folder: Path) -> Section:
     if not path.is_file():
         return Section("anchors", TITLE, [Para(NOT_RUN)])
     try:
-        rows = json.loads(path.read_text(encoding="utf-8"))["anchors"]
+        rows = loads_json(path.read_text(encoding="utf-8"))["anchors"]
         table = [
             [
-                _num(r["vut_kmh"], ".0f"),
-                _num(r["pedestrian_kmh"], ".0f"),
+                _num(r, "vut_kmh", ".0f"),
+                _num(r, "pedestrian_kmh", ".0f"),
                 str(r["class"]),
-                _num(r["collision_probability"], ".2g"),
-                _num(r["impact_speed_kmh"], ".1f"),
-                _num(r["t_confirm_median_s"], ".2f"),
-                _num(r["t_safe_s"], ".2f"),
+                _num(r, "collision_probability", ".2g"),
+                _num(r, "impact_speed_kmh", ".1f"),
+                _num(r, "t_confirm_median_s", ".2f"),
+                _num(r, "t_safe_s", ".2f"),
                 str(r.get("dominant_effect", "")),
             ]
             for r in rows

@@ -20,7 +20,7 @@ from typing import Any
 
 from sensorgap.atomic import atomic_write_text
 from sensorgap.config.presets import templates_dir
-from sensorgap.errors import InputError
+from sensorgap.errors import InputError, cut_quoted
 from sensorgap.export.simulate import read_catalog_index
 from sensorgap.export.spec import ScenarioSpec
 from sensorgap.filesio import loads_json
@@ -248,6 +248,44 @@ def read_csv(path: Path) -> list[dict[str, str]]:
             return list(csv.DictReader(f))
     except (OSError, csv.Error, UnicodeDecodeError) as exc:
         raise InputError(path, "", f"unreadable CSV: {exc}") from None
+
+
+#: The columns of ``farfield/table_iv.csv`` (``analysis.paper``, written by the job).
+TABLE_IV_COLUMNS = ("environment", "level", "metres")
+
+
+def read_table_iv(path: Path) -> list[dict[str, str]]:
+    """``farfield/table_iv.csv`` checked: its three columns in every row, each environment
+    a name (a folder of ``farfield/`` whose figure the report embeds: no path), each
+    length a finite number >= 0 (m); else ``InputError`` naming the file and the row
+    (hostile round 24: a missing column or a short row was an internal error, an
+    absolute path as environment embedded a figure from outside the run)."""
+    from sensorgap.config.common import name_problem
+
+    rows = read_csv(path)
+    for i, row in enumerate(rows):
+        where = f"row {i + 2}"
+        missing = [c for c in TABLE_IV_COLUMNS if not isinstance(row.get(c), str)]
+        if missing:
+            raise InputError(
+                path, where, f"no {missing[0]} (columns: {', '.join(TABLE_IV_COLUMNS)})"
+            )
+        why = name_problem(row["environment"])
+        if why is None and ("/" in row["environment"] or row["environment"].startswith(".")):
+            why = "a name, not a path"
+        if why is not None:
+            raise InputError(path, f"{where}.environment", why)
+        try:
+            metres = float(row["metres"])
+        except ValueError:
+            metres = math.nan
+        if not (math.isfinite(metres) and metres >= 0.0):
+            raise InputError(
+                path,
+                f"{where}.metres",
+                f"expected a length >= 0 (m), got {cut_quoted(repr(row['metres']))}",
+            )
+    return rows
 
 
 def fmt(v: Any, digits: int = 4) -> str:
@@ -545,7 +583,7 @@ def _farfield_section(folder: Path) -> Section:
     tab = folder / "farfield" / "table_iv.csv"
     if not tab.is_file():
         return Section("table-iv", "Table IV: Pd along the lane ahead", [Para(NOT_RUN)])
-    rows = read_csv(tab)
+    rows = read_table_iv(tab)
     envs = list(dict.fromkeys(r["environment"] for r in rows))
     levels = list(dict.fromkeys(r["level"] for r in rows))
     val = {(r["environment"], r["level"]): r["metres"] for r in rows}
@@ -923,6 +961,15 @@ def build(folder: Path) -> tuple[str, list[str], Section, list[Section]]:
             )
     if (folder / "catalog.json").is_file():
         read_catalog(folder / "catalog.json")
+    for npz in sorted((folder / "coverage").glob("*/coverage.npz")):
+        if not (npz.parent / "summary.json").is_file():  # whose map it is, unknown
+            raise InputError(
+                npz,
+                "",
+                "a coverage map without its summary.json: whose vehicle and inputs it "
+                "shows cannot be checked (hostile round 24: another vehicle's map was "
+                "reported as this one's); compute it with `sensorgap coverage`",
+            )
     for s in sorted((folder / "coverage").glob("*/summary.json")):
         cs = _object(s, read_json(s))
         _check_map_identity(s, cs, system.name)

@@ -20,6 +20,7 @@ for the comparison are linked where they were written (``difference/<map>/``,
 
 from __future__ import annotations
 
+import math
 from collections import Counter
 from pathlib import Path
 
@@ -284,12 +285,22 @@ def _coverage(cm: Completed, out: Path) -> Section:
 
 
 def _farfield_levels(folder: Path) -> dict[str, float]:
-    d = read_json(folder / "summary.json").get("levels_m", {})
-    return {
-        str(k): float(v)
-        for k, v in d.items()
-        if isinstance(v, int | float) and not isinstance(v, bool)
-    }
+    """The lengths (m) per detection level of a far field's ``summary.json``: an object of
+    finite numbers >= 0, else ``InputError`` naming the file (hostile round 24: a list was
+    an internal error, NaN printed as "nan")."""
+    path = folder / "summary.json"
+    d = read_json(path)
+    levels = d.get("levels_m", {}) if isinstance(d, dict) else None
+    if not isinstance(levels, dict):
+        raise InputError(path, "levels_m", "expected a JSON object of lengths (m) per level")
+    out = {}
+    for k, v in levels.items():
+        if isinstance(v, bool) or not isinstance(v, int | float) or not (0.0 <= v < math.inf):
+            raise InputError(
+                path, f"levels_m.{str(k)[:40]}", f"expected a length >= 0 (m), got {str(v)[:40]!r}"
+            )
+        out[str(k)] = float(v)
+    return out
 
 
 def _profile(path: Path) -> tuple[np.ndarray, np.ndarray]:

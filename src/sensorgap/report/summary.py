@@ -29,6 +29,7 @@ from sensorgap.config import EnvironmentConfig
 from sensorgap.coverage.outputs import read_coverage_npz
 from sensorgap.errors import InputError
 from sensorgap.export.spec import ScenarioSpec
+from sensorgap.filesio import loads_json
 from sensorgap.models import System
 from sensorgap.report.document import Block, Bullets, Link, Para, Section, Table
 from sensorgap.search.evaluate import Evaluator, Trace
@@ -565,16 +566,23 @@ def mirrored_pairs(items: list[tuple[str, str]]) -> list[tuple[str, str]]:
 def _nearfield_words(nf: Path, system: System) -> str:
     """The near-field blind spots of ``nearfield.json`` in words, by direction."""
     try:
-        d = json.loads(nf.read_text(encoding="utf-8"))
+        d = loads_json(nf.read_text(encoding="utf-8"))
         exact = float(d["blind_spot_m2"]["exact"])
         radius = float(d.get("window", {}).get("radius_m", 5.0))
         holes = [
             (float(h["area_m2"]), list(h["bounds_m"]), list(h["centroid_m"]))
             for h in d["blind_spot_m2"].get("holes", [])
         ]
-        for _, b, c in holes:
+        for a, b, c in holes:
+            # finite numbers (m, m²), not text or lists: they are placed and named by
+            # direction below (hostile round 24: an internal error, outside this check)
             if len(b) != 4 or len(c) != 2:
                 raise ValueError("bounds_m: 4 numbers, centroid_m: 2 numbers expected")
+            if not all(
+                isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+                for v in (a, *b, *c)
+            ):
+                raise ValueError("a hole's area_m2, bounds_m and centroid_m are finite numbers")
         unseen = d.get("unseen_any_height_m2")
         total = None if unseen is None else float(unseen["exact"])
     except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:

@@ -160,6 +160,28 @@ def _existing_maps(run: RunFolder) -> dict[str, tuple[Path, dict[str, Any]]]:
     return out
 
 
+def _check_farfield_identity(path: Path, system: System | None, env_name: str) -> None:
+    """A run's far field (``path``: its ``summary.json``) is of this run's vehicle and of
+    the environment its folder names, else ``InputError`` (hostile round 24: another
+    vehicle's far field, put into a run, was compared as this one's)."""
+    d = read_json_file(path)
+    if not isinstance(d, dict):
+        raise InputError(path, "", "expected a JSON object")
+    if system is not None and d.get("vehicle") != system.name:
+        raise InputError(
+            path,
+            "vehicle",
+            f"{str(d.get('vehicle'))[:64]!r} is not this run's vehicle ({system.name!r}); "
+            "compute the far field with `sensorgap farfield --vehicle <the run's vehicle>`",
+        )
+    if d.get("environment") != env_name:
+        raise InputError(
+            path,
+            "environment",
+            f"{str(d.get('environment'))[:64]!r}, in the folder farfield/{env_name[:64]}",
+        )
+
+
 def _key_parts(key: str, summary: dict[str, Any] | None) -> tuple[str, str]:
     """(target, environment) of a coverage map key (its summary.json when given)."""
     if (
@@ -445,10 +467,11 @@ def complete_runs(run_a: Path, run_b: Path, out: Path, workers: int = 2) -> Comp
     for s, other in ((a, b), (b, a)):
         for env_name in envs:
             own = s.run.folder / "farfield" / env_name
+            sysm = systems[s.tag]
             if (own / "summary.json").is_file() and (own / "farfield.csv").is_file():
+                _check_farfield_identity(own / "summary.json", sysm, env_name)
                 s.farfield[env_name] = own
                 continue
-            sysm = systems[s.tag]
             env = _lookup(s, other, "environment", env_name, notes)
             target = _lookup(s, other, "target", DEFAULT_TARGET, notes)
             if sysm is None or env is None or target is None:

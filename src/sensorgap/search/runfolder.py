@@ -495,6 +495,14 @@ class RunFolder:
                 f"family {name_or_path}", lambda: load_family(name_or_path, targets=targets)
             )
         road = self.input_path("roads", str(e.get("road")))
+        if road is None:  # never the shipped road its file names (hostile round 24)
+            roads = self._entry("roads")
+            raise InputError(
+                self.folder / RUN_JSON,
+                f"inputs.families.{name_or_path[:64]}.road",
+                f"{str(e.get('road'))[:64]!r} names no road the run recorded "
+                f"({', '.join(sorted(roads)) if isinstance(roads, dict) and roads else 'none'})",
+            )
         copy = self.folder / str(e["copy"])
         return self._cached(
             f"family {name_or_path}", lambda: load_family(str(copy), road=road, targets=targets)
