@@ -176,6 +176,20 @@ def _check_search_summary(path: Path, search: dict[str, Any]) -> None:
         raise InputError(path, "best_collision_probability", f"expected 0..1, got {p!r:.40}")
     settings = _object(path, search, key="settings")
     count(settings, "settings", ("budget", "seed", "seeds", "top"))
+    if "speed_limits" in search:  # printed per environment (a NaN speed printed "nan")
+        for env, lim in _object(path, search, key="speed_limits").items():
+            field = f"speed_limits.{str(env)[:40]}"
+            lim = _object(path, lim, field)
+            for key, hi in (("speed_kmh", 360.0), ("visibility_m", math.inf)):
+                v = lim.get(key)
+                if v is not None and (
+                    isinstance(v, bool) or not isinstance(v, int | float) or not 0.0 <= v < hi
+                ):
+                    raise InputError(
+                        path, f"{field}.{key}", f"expected a finite number >= 0, got {v!r:.40}"
+                    )
+            if not isinstance(lim.get("rule", ""), str):
+                raise InputError(path, f"{field}.rule", "expected a string")
     lve = _object(path, search, key="lookup_vs_exact")
     count(
         lve,
