@@ -566,6 +566,16 @@ def read_catalog_index(path: Path) -> tuple[dict[str, Any], list[dict[str, Any]]
                 raise InputError(
                     path, f"scenarios[{i}].{key}", f"malformed catalog index: expected {want}"
                 )
+        rank = entry.get("rank")  # copied into simulation.csv: a finite rank
+        if rank is not None and (
+            not isinstance(rank, int) or isinstance(rank, bool) or not 1 <= rank <= MAX_RANKED_ROWS
+        ):
+            raise InputError(
+                path,
+                f"scenarios[{i}].rank",
+                f"malformed catalog index: expected a positive integer (1..{MAX_RANKED_ROWS}), "
+                f"got {cut_quoted(repr(rank))}",
+            )
     for key in ("style", "osc_version"):
         if not isinstance(index.get(key, ""), str):
             raise InputError(path, key, "malformed catalog index: expected a string")
@@ -578,17 +588,6 @@ def read_catalog_index(path: Path) -> tuple[dict[str, Any], list[dict[str, Any]]
                 key,
                 f"malformed catalog index: expected one of {', '.join(allowed)}, "
                 f"got {cut_quoted(repr(index[key]))}",
-            )
-    for i, entry in enumerate(entries):  # copied into simulation.csv: a finite rank
-        rank = entry.get("rank")
-        if rank is not None and (
-            not isinstance(rank, int) or isinstance(rank, bool) or not 1 <= rank <= MAX_RANKED_ROWS
-        ):
-            raise InputError(
-                path,
-                f"scenarios[{i}].rank",
-                f"malformed catalog index: expected a positive integer (1..{MAX_RANKED_ROWS}), "
-                f"got {cut_quoted(repr(rank))}",
             )
     if "files" not in index:  # every export lists its files (hostile round twenty, F2)
         raise InputError(
