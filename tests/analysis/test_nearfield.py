@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -88,6 +89,37 @@ def test_camera_sees_the_0p1m_plane_only_beyond_the_vfov_limit() -> None:
     assert fp_mount.exterior.distance(shapely.Point(cam.x, cam.y)) == pytest.approx(0.5)
     # and above its reach nothing
     assert nf.sensor_footprint_at_height(cam, 130.0).is_empty
+
+
+def test_footprints_are_computed_once_per_exact_mount(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The footprint memo: the same mount, kind and step give the same (immutable) area
+    without computing it again; any other height, step, or a mount differing only by the
+    sign of a zero is computed; the memo keeps at most ``FOOTPRINT_MEMO`` areas."""
+    calls: list[Mount] = []
+    polar = nf._polar_region
+
+    def counted(m: Mount, fn: nf.PolarFn, dphi: float) -> nf.Area:
+        calls.append(m)
+        return polar(m, fn, dphi)
+
+    monkeypatch.setattr(nf, "_polar_region", counted)
+    monkeypatch.setattr(nf, "_memo", nf._Memo(lambda: nf.FOOTPRINT_MEMO))
+    m = mount(yaw=0.0, x=0.0)
+    a = nf.sensor_footprint_any_height(m)
+    assert nf.sensor_footprint_any_height(m) is a and len(calls) == 1
+    b = nf.sensor_footprint_at_height(m, 0.1)
+    assert nf.sensor_footprint_at_height(m, 0.1) is b and len(calls) == 2
+    assert b.area < a.area  # at one height it sees less than at any
+    nf.sensor_footprint_any_height(m, (0.0, 3.0))
+    nf.sensor_footprint_any_height(m, dphi_deg=0.2)
+    nf.sensor_footprint_any_height(mount(yaw=-0.0, x=-0.0))
+    assert len(calls) == 5
+    monkeypatch.setattr(nf, "FOOTPRINT_MEMO", 3)
+    for k in range(4):
+        nf.sensor_footprint_at_height(m, 0.2 + 0.1 * k)
+    assert len(nf._memo) == 3
+    nf.sensor_footprint_at_height(m, 0.2)  # the oldest was dropped: computed again
+    assert len(calls) == 10
 
 
 def test_mount_outside_the_height_range_is_refused() -> None:
@@ -275,6 +307,7 @@ def test_grid_converges_to_exact(key: str, exact: dict[str, dict[str, float]]) -
 def test_write_nearfield_is_deterministic(tmp_path: Path, system_b: System) -> None:
     runs = []
     for name in ("one", "two"):
+        nf.clear_memo()  # two computations
         summary = nf.write_nearfield(system_b, tmp_path / name, resolution=0.2, dphi_deg=0.5)
         runs.append(
             {f: (tmp_path / name / f).read_bytes() for f in ("nearfield.json", "nearfield.png")}
@@ -299,6 +332,39 @@ def test_write_nearfield_is_deterministic(tmp_path: Path, system_b: System) -> N
     )
     w = data["window"]
     assert (w["xmin"], w["xmax"]) == pytest.approx((-1.05 - 5.0, 3.93 + 5.0))
+
+
+def test_a_near_field_is_computed_once_per_vehicle_and_settings(
+    tmp_path: Path, system_b: System, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The near-field memo: the same vehicle and settings again give the same files
+    without computing them again, and a summary the caller changes does not change the
+    next one; another setting or a vehicle with one sensor moved is computed."""
+    calls: list[str] = []
+    blind = nf.grid_blind_spots
+
+    def counted(system: System, *args: object, **kw: object) -> object:
+        calls.append(system.name)
+        return blind(system, *args, **kw)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(nf, "grid_blind_spots", counted)
+    nf.clear_memo()
+    first = nf.write_nearfield(system_b, tmp_path / "a", resolution=0.2, dphi_deg=0.5)
+    first["blind_spot_m2"]["exact"] = -1.0  # the caller's copy
+    again = nf.write_nearfield(system_b, tmp_path / "b", resolution=0.2, dphi_deg=0.5)
+    assert len(calls) == 1 and again["blind_spot_m2"]["exact"] >= 0.0
+    for f in ("nearfield.json", "nearfield.png"):
+        assert (tmp_path / "a" / f).read_bytes() == (tmp_path / "b" / f).read_bytes()
+    nf.write_nearfield(system_b, tmp_path / "c", resolution=0.25, dphi_deg=0.5)
+    assert len(calls) == 2
+    s0 = system_b.sensors[0]
+    moved = replace(
+        system_b,
+        sensors=(replace(s0, mount=replace(s0.mount, x=s0.mount.x + 0.1)),) + system_b.sensors[1:],
+    )
+    nf.write_nearfield(moved, tmp_path / "d", resolution=0.2, dphi_deg=0.5)
+    assert len(calls) == 3
+    nf.clear_memo()
 
 
 def test_nearfield_legend_covers_nothing(system_b: System) -> None:

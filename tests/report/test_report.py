@@ -279,6 +279,18 @@ def test_scenario_figure_shows_the_named_step(
     assert any(lab.startswith("P(confirmed") for lab in labels)
     assert "path TTC [s] (cut at 10 s)" in labels
     assert {"threat onset", "t_safe"} <= set(labels)
+    # the fixed layout: every axes with its labels, ticks, title (and the colour bar) and
+    # both legends inside the figure, the legends clear of every axes' labels
+    r = fig.canvas.get_renderer()
+    whole = fig.bbox
+    boxes = [a.get_tightbbox(r) for a in fig.axes]
+    legends = [leg.get_window_extent(r) for leg in fig.legends]
+    for b in boxes + legends:
+        assert whole.x0 - 0.5 <= b.x0 and b.x1 <= whole.x1 + 0.5, (b, whole)
+        assert whole.y0 - 0.5 <= b.y0 and b.y1 <= whole.y1 + 0.5, (b, whole)
+    for leg in legends:
+        for b in boxes:
+            assert not leg.overlaps(b), (leg, b)
 
 
 def test_markdown_shows_names_as_written_not_as_html() -> None:

@@ -31,13 +31,15 @@ Not modelled (as in the paper): occlusion by the vehicle body or by other object
 
 from __future__ import annotations
 
+import copy
 import math
+from collections import OrderedDict
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import astuple, dataclass
 from itertools import islice, repeat
 from operator import itemgetter
 from pathlib import Path
-from typing import Any, TypeAlias
+from typing import Any, NamedTuple, TypeAlias
 
 import numpy as np
 import shapely
@@ -449,7 +451,7 @@ def sensor_footprint_any_height(
     """
     m = _mount(sensor)
     lo, hi = _check_heights(m, height_range)
-    return _polar_region(m, _any_height_fn(m, lo, hi), dphi_deg)
+    return _footprint(m, ("any", lo, hi), float(dphi_deg))
 
 
 def sensor_footprint_at_height(
@@ -464,7 +466,55 @@ def sensor_footprint_at_height(
     if not math.isfinite(z):
         raise ValueError(f"height must be finite, got {z!r}")
     m = _mount(sensor)
-    return _polar_region(m, _at_height_fn(m, float(z)), dphi_deg)
+    return _footprint(m, ("at", float(z)), float(dphi_deg))
+
+
+#: Footprints kept for a later call with the same mount (a job and a comparison draw the
+#: near field of one vehicle again): at most this many, least recently used dropped first.
+#: One has up to ~3,800 vertices (System A and B), about 0.1 MB: at most ~25 MB in all.
+FOOTPRINT_MEMO = 256
+
+
+class _Memo(OrderedDict[tuple[str, ...], Any]):
+    """Results by key, at most ``limit()`` (read at each store: a module constant that
+    can be changed), least recently used dropped first."""
+
+    def __init__(self, limit: Callable[[], int]) -> None:
+        super().__init__()
+        self.limit = limit
+
+    def recall(self, key: tuple[str, ...]) -> Any:
+        """The result stored for ``key`` (now the most recently used), else None."""
+        hit = self.get(key)
+        if hit is not None:
+            self.move_to_end(key)
+        return hit
+
+    def keep(self, key: tuple[str, ...], value: Any) -> Any:
+        """Store ``value`` for ``key``; return it."""
+        self[key] = value
+        while len(self) > self.limit():
+            self.popitem(last=False)
+        return value
+
+
+_memo = _Memo(lambda: FOOTPRINT_MEMO)
+
+
+def _footprint(m: Mount, kind: tuple[str | float, ...], dphi_deg: float) -> Area:
+    """``_polar_region`` of mount ``m`` for ``kind`` (("any", lo, hi) or ("at", z), m),
+    computed once per exact mount, kind and step (keyed by every float's hex form: 0.0
+    and -0.0 are different keys). Shapely geometries are immutable, so sharing is safe."""
+    key = tuple(v.hex() if isinstance(v, float) else str(v) for v in (*astuple(m), *kind, dphi_deg))
+    hit: Area | None = _memo.recall(key)
+    if hit is not None:
+        return hit
+    if kind[0] == "any":
+        fn = _any_height_fn(m, float(kind[1]), float(kind[2]))
+    else:
+        fn = _at_height_fn(m, float(kind[1]))
+    area: Area = _memo.keep(key, _polar_region(m, fn, dphi_deg))
+    return area
 
 
 # --------------------------------------------------------------------------- system level
@@ -872,34 +922,51 @@ def nearfield_figure(
     return fig
 
 
-def write_nearfield(
+class _NearField(NamedTuple):
+    """What ``write_nearfield`` writes, computed (immutable shapely areas; ``summary`` is
+    copied before it is handed out)."""
+
+    window: Polygon
+    fp_any: dict[str, Area]
+    spots: list[Polygon]
+    uncovered: Area
+    unseen: Area
+    summary: dict[str, Any]
+
+
+#: Near fields kept for a later call for the same vehicle and settings (a job's and a
+#: comparison's near field of one vehicle): at most this many, least recently used dropped.
+NEARFIELD_MEMO = 8
+_nearfield_memo = _Memo(lambda: NEARFIELD_MEMO)
+
+
+def clear_memo() -> None:
+    """Forget every memoised footprint and near field (the next call computes them again;
+    the determinism tests compare two computations, not a computation and its copy)."""
+    _memo.clear()
+    _nearfield_memo.clear()
+
+
+def _nearfield_result(
     system: System,
-    out_dir: Path,
-    resolution: float = 0.05,
-    radius: float = NEAR_FIELD_RADIUS_M,
-    height_range: tuple[float, float] = HEIGHT_RANGE_M,
-    z: float = MIN_OBJECT_HEIGHT_M,
-    dphi_deg: float = DPHI_DEG,
-) -> dict[str, Any]:
-    """Write ``nearfield.json`` and ``nearfield.png`` into ``out_dir``; return the summary.
-
-    Summary keys: ``system``, ``window``, ``height_range_m``, ``blind_spot_m2`` (exact,
-    per-hole, grid, resolution, difference), ``unseen_any_height_m2`` (exact: enclosed and
-    open to the outside), ``uncovered_0p1m_m2`` (same as the blind spots, at ``z``),
-    ``method``. Same inputs -> byte-identical files.
-    """
-    from sensorgap.coverage.plot import save_figure
-
-    out_dir = Path(out_dir)
-    lo, hi = height_range
-    for sensor in system.sensors:
-        if not (lo <= sensor.mount.z <= hi):
-            raise InputError(
-                system.source,
-                f"sensors[id={sensor.id}].position_m",
-                f"mount height {sensor.mount.z:g} m is outside the near-field "
-                f"object heights {lo:g}..{hi:g} m",
-            )
+    resolution: float,
+    radius: float,
+    height_range: tuple[float, float],
+    z: float,
+    dphi_deg: float,
+) -> _NearField:
+    """The near field of ``system`` (exact and grid; see ``write_nearfield``), computed
+    once per vehicle and settings: its name, body, each sensor's id and mount, and the
+    settings, every float by its hex form (what the near field depends on)."""
+    key = (
+        system.name,
+        system.config.vehicle.model_dump_json(),
+        *(s.id + ":" + ",".join(float(v).hex() for v in astuple(s.mount)) for s in system.sensors),
+        *(float(v).hex() for v in (resolution, radius, *height_range, z, dphi_deg)),
+    )
+    hit: _NearField | None = _nearfield_memo.recall(key)
+    if hit is not None:
+        return hit
     win = near_field_window(system, radius)
     fp_any = any_height_footprints(system, height_range, dphi_deg)
     fp_z = at_height_footprints(system, z, dphi_deg)
@@ -962,7 +1029,43 @@ def write_nearfield(
             "self_occlusion": False,
         },
     }
+    result: _NearField = _nearfield_memo.keep(
+        key, _NearField(win, fp_any, spots, unc, unseen, summary)
+    )
+    return result
+
+
+def write_nearfield(
+    system: System,
+    out_dir: Path,
+    resolution: float = 0.05,
+    radius: float = NEAR_FIELD_RADIUS_M,
+    height_range: tuple[float, float] = HEIGHT_RANGE_M,
+    z: float = MIN_OBJECT_HEIGHT_M,
+    dphi_deg: float = DPHI_DEG,
+) -> dict[str, Any]:
+    """Write ``nearfield.json`` and ``nearfield.png`` into ``out_dir``; return the summary.
+
+    Summary keys: ``system``, ``window``, ``height_range_m``, ``blind_spot_m2`` (exact,
+    per-hole, grid, resolution, difference), ``unseen_any_height_m2`` (exact: enclosed and
+    open to the outside), ``uncovered_0p1m_m2`` (same as the blind spots, at ``z``),
+    ``method``. Same inputs -> byte-identical files.
+    """
+    from sensorgap.coverage.plot import save_figure
+
+    out_dir = Path(out_dir)
+    lo, hi = height_range
+    for sensor in system.sensors:
+        if not (lo <= sensor.mount.z <= hi):
+            raise InputError(
+                system.source,
+                f"sensors[id={sensor.id}].position_m",
+                f"mount height {sensor.mount.z:g} m is outside the near-field "
+                f"object heights {lo:g}..{hi:g} m",
+            )
+    r = _nearfield_result(system, resolution, radius, height_range, z, dphi_deg)
+    summary = copy.deepcopy(r.summary)
     write_json(out_dir / "nearfield.json", summary)
-    fig = nearfield_figure(system, win, fp_any, spots, unc, z, unseen)
+    fig = nearfield_figure(system, r.window, r.fp_any, r.spots, r.uncovered, z, r.unseen)
     save_figure(fig, out_dir / "nearfield.png")
     return summary

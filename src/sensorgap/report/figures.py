@@ -32,6 +32,28 @@ from sensorgap.search.ranking import named_step  # noqa: E402
 WIDE_SCENE = 2.5
 
 
+#: Margins of a scenario figure (inches): left of the axes (tick labels and the y label),
+#: below them (tick labels, x label and the legends under the axes).
+_LEFT, _BOTTOM = 0.8, 1.05
+
+
+def _fixed_axes(
+    size: tuple[float, float],
+    map_box: tuple[float, float, float, float],
+    time_box: tuple[float, float, float, float],
+) -> tuple[plt.Figure, plt.Axes, plt.Axes]:
+    """A figure of ``size`` (w, h, inches) with the map and the time axes at fixed places
+    (left, bottom, width, height, inches): a fixed layout, not matplotlib's constrained
+    one, which measures every text of the figure in an extra draw at each save (a report
+    of 8 scenario figures: 8.9 s -> 7.2 s, 2-core machine, 2026-11-27). The margins fit
+    the widest tick labels and three legend rows (tests/report/test_report.py checks that
+    nothing leaves the figure or overlaps)."""
+    w, h = size
+    fig = plt.figure(figsize=size)
+    ax, bx = (fig.add_axes((b[0] / w, b[1] / h, b[2] / w, b[3] / h)) for b in (map_box, time_box))
+    return fig, ax, bx
+
+
 def scenario_trace(spec: ScenarioSpec, evaluator: Evaluator) -> Trace:
     """The scenario evaluated exactly (the report's curves)."""
     return evaluator.trace(spec.scenario, spec.environment, spec.family.duration_s)
@@ -78,11 +100,13 @@ def scenario_figure(spec: ScenarioSpec, evaluator: Evaluator, tr: Trace, path: P
             c = 0.5 * (y0 + y1)
             y0, y1 = max(c - 0.5 * need, g.ymin), min(c + 0.5 * need, g.ymax)
         map_h = max(1.8, 10.4 * (y1 - y0) / (x1 - x0))
-        fig = plt.figure(figsize=(12.0, map_h + 4.4), layout="constrained")
-        ax, bx = fig.subplots(2, 1, height_ratios=[map_h, 2.8])
+        fig, ax, bx = _fixed_axes(
+            (12.0, map_h + 4.4), (_LEFT, 4.1, 10.1, map_h), (_LEFT, _BOTTOM, 10.5, 2.35)
+        )
     else:
-        fig = plt.figure(figsize=(12.0, 5.4), layout="constrained")
-        ax, bx = fig.subplots(1, 2, width_ratios=[1.6, 1.0])
+        fig, ax, bx = _fixed_axes(
+            (12.0, 5.4), (_LEFT, _BOTTOM, 5.5, 4.0), (7.75, _BOTTOM, 3.55, 4.0)
+        )
     # only the cells in view (the whole map would be resampled by the renderer)
     im = draw_map_window(ax, pd_map, g, (x0, x1, y0, y1))
     draw_vehicle(ax, spec.system)
@@ -152,7 +176,12 @@ def scenario_figure(spec: ScenarioSpec, evaluator: Evaluator, tr: Trace, path: P
     ax.set_xlabel("x (ego vehicle frame) [m]")
     ax.set_ylabel("y (ego vehicle frame) [m]")
     fig.legend(
-        *ax.get_legend_handles_labels(), loc="outside lower left", ncol=2, fontsize=7, frameon=False
+        *ax.get_legend_handles_labels(),
+        loc="lower left",
+        bbox_to_anchor=(0.0, 0.0),
+        ncol=2,
+        fontsize=7,
+        frameon=False,
     )
     # the colour bar as tall as the map itself (an inset beside it)
     fig.colorbar(im, cax=ax.inset_axes((1.015, 0.0, 0.018, 1.0)), label="$p_d$")
@@ -198,7 +227,8 @@ def scenario_figure(spec: ScenarioSpec, evaluator: Evaluator, tr: Trace, path: P
     fig.legend(
         lines,
         [str(ln.get_label()) for ln in lines],
-        loc="outside lower right",
+        loc="lower right",
+        bbox_to_anchor=(1.0, 0.0),
         ncol=2,
         fontsize=7,
         frameon=False,
