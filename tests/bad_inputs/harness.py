@@ -479,6 +479,28 @@ def _many_geometries(path: Path, n: int) -> None:
     )
 
 
+def _png_bomb(path: Path) -> None:
+    """A valid PNG of 10,000 x 10,000 1-bit pixels (12 kB; 1.6 GB to embed: round 25)."""
+    import struct
+    import zlib
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        crc = zlib.crc32(kind + data) & 0xFFFFFFFF
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", crc)
+
+    w = h = 10_000
+    z = zlib.compressobj(9)
+    row = b"\x00" * (1 + (w + 7) // 8)
+    data = b"".join(z.compress(row) for _ in range(h)) + z.flush()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_bytes(
+        b"\x89PNG\r\n\x1a\n"
+        + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 1, 0, 0, 0, 0))
+        + chunk(b"IDAT", data)
+        + chunk(b"IEND", b"")
+    )
+
+
 def _coverage_map(folder: Path, damage: str) -> None:
     """A small coverage map (coverage.npz, summary.json) in ``folder`` with one damage:
     ``pd_nan``, ``x_reversed``, ``huge_header`` (pd's .npy header claims 1e10 cells),
@@ -775,6 +797,14 @@ def _setup(
             (run / "ranking.json").write_text(json.dumps(data))
         elif step.startswith("coverage_map:"):  # {run}/coverage/car_clear, damaged
             _coverage_map(run / "coverage" / "car_clear", step.removeprefix("coverage_map:"))
+        elif step.startswith("png_bomb:"):  # {run}/<file>: 10,000 x 10,000 1-bit, 12 kB
+            _png_bomb(run / step.removeprefix("png_bomb:"))
+        elif step.startswith("huge_file:"):  # {run}/<file>: 20,000,001 bytes (sparse)
+            huge = run / step.removeprefix("huge_file:")
+            huge.parent.mkdir(parents=True, exist_ok=True)
+            with huge.open("wb") as f:
+                f.write(b"s,pd\n")
+                f.truncate(20_000_001)
         elif step == "rename_coverage_map":  # {run}/coverage/car_clear -> truck_fog_50
             (run / "coverage" / "car_clear").rename(run / "coverage" / "truck_fog_50")
         elif step == "job_folder_from_run":  # {out}/system_b: a copy of {run}

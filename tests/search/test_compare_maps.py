@@ -135,7 +135,9 @@ def test_unreadable_coverage_map_is_one_line_exit_2(
     shutil.copytree(cmp / "std", run)
     bad = run / "coverage" / "car_clear"
     bad.mkdir(parents=True)
-    (bad / "summary.json").write_text(json.dumps({"environment": "clear", "target": "car"}))
+    (bad / "summary.json").write_text(
+        json.dumps({"vehicle": "System A", "environment": "clear", "target": "car"})
+    )
     (bad / "coverage.npz").write_bytes(b"PK\x03\x04 not a zip")
     out = tmp_path / "cmp"
     assert main(["compare", str(cmp / "fog"), str(run), "--out", str(out)]) == 2

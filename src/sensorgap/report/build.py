@@ -23,7 +23,6 @@ from sensorgap.config.presets import templates_dir
 from sensorgap.errors import InputError, cut_quoted
 from sensorgap.export.simulate import read_catalog_index
 from sensorgap.export.spec import ScenarioSpec
-from sensorgap.filesio import loads_json
 from sensorgap.models import System
 from sensorgap.provenance import utc_now, versions
 from sensorgap.report.anchors import anchors_section
@@ -35,6 +34,7 @@ from sensorgap.report.document import (
     Para,
     Section,
     Table,
+    embedded_png,
     render_html,
     render_markdown,
 )
@@ -52,7 +52,7 @@ from sensorgap.search.metrics import metric_names
 from sensorgap.search.possible import MAX_INFEASIBLE_KINDS, MAX_KIND_CHARS, START_TTC_S
 from sensorgap.search.ranking import named_step
 from sensorgap.search.robustness import ROBUSTNESS_TOP, finding_robustness
-from sensorgap.search.runfolder import STORE_FILE, RunFolder, open_run
+from sensorgap.search.runfolder import STORE_FILE, RunFolder, open_run, read_json_file
 
 REPORT_DIR = "report"
 #: What a report writes into a run folder (``filesio.refuse_if_changed``).
@@ -60,13 +60,9 @@ REPORT_WRITES = ("report.html", "report.md", f"{REPORT_DIR}/")
 
 
 def read_json(path: Path) -> Any:
-    """A JSON file of the run folder (``InputError`` naming it when unreadable)."""
-    try:
-        return loads_json(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as exc:
-        raise InputError(path, "", f"unreadable JSON: {exc}") from None
-    except RecursionError:
-        raise InputError(path, "", "unreadable JSON: nested too deeply") from None
+    """A JSON file of the run folder (``InputError`` naming it when unreadable or larger
+    than ``search.runfolder.MAX_JSON_BYTES``)."""
+    return read_json_file(path)
 
 
 def _object(path: Path, data: Any, field: str = "", key: str | None = None) -> dict[str, Any]:
@@ -114,9 +110,11 @@ def _numbers(
     field: str,
     keys: tuple[str, ...],
     required: tuple[str, ...] = (),
+    at_least: float | None = None,
 ) -> None:
-    """Each of ``keys`` in ``data`` a finite number (or null); ``required`` ones present
-    (a NaN area was printed as "nan m2")."""
+    """Each of ``keys`` in ``data`` a finite number (or null), ``>= at_least`` when given
+    (an area, a length: a negative one was printed); ``required`` ones present (a NaN area
+    was printed as "nan m2")."""
     for k in keys:
         v = data.get(k)
         if (v is None and k in required) or (
@@ -128,6 +126,12 @@ def _numbers(
         if v is not None and not math.isfinite(v):
             raise InputError(
                 path, f"{field}.{k}" if field else k, f"expected a number, got {v!r} (not finite)"
+            )
+        if v is not None and at_least is not None and v < at_least:
+            raise InputError(
+                path,
+                f"{field}.{k}" if field else k,
+                f"expected a number >= {at_least:g}, got {v!r}",
             )
 
 
@@ -220,14 +224,12 @@ def read_nearfield(path: Path) -> dict[str, Any]:
     """``nearfield.json`` of a run, its fields as the report reads them checked."""
     d = _object(path, read_json(path))
     bs = _object(path, d, key="blind_spot_m2")
-    _numbers(path, bs, "blind_spot_m2", ("exact", "grid", "difference"), ("exact",))
-    _numbers(
-        path,
-        _object(path, d, key="uncovered_0p1m_m2"),
-        "uncovered_0p1m_m2",
-        ("exact", "grid", "difference"),
-    )
-    _numbers(path, _object(path, d, key="window"), "window", ("radius_m",))
+    _numbers(path, bs, "blind_spot_m2", ("difference",))
+    _numbers(path, bs, "blind_spot_m2", ("exact", "grid"), ("exact",), at_least=0.0)
+    unc = _object(path, d, key="uncovered_0p1m_m2")
+    _numbers(path, unc, "uncovered_0p1m_m2", ("difference",))
+    _numbers(path, unc, "uncovered_0p1m_m2", ("exact", "grid"), at_least=0.0)
+    _numbers(path, _object(path, d, key="window"), "window", ("radius_m",), at_least=0.0)
     if "unseen_any_height_m2" in d:  # (absent from runs made before it was written)
         _numbers(
             path,
@@ -235,10 +237,68 @@ def read_nearfield(path: Path) -> dict[str, Any]:
             "unseen_any_height_m2",
             ("exact", "enclosed", "open_to_outside"),
             ("exact",),
+            at_least=0.0,
         )
     if not isinstance(d.get("method", ""), str | dict):
         raise InputError(path, "method", "expected a string or an object")
     return d
+
+
+def check_pieces(folder: Path, vehicle: str | None) -> None:
+    """The near field, coverage maps and figures of a run (or job) folder that a report or
+    a comparison shows, checked before any work: ``nearfield.json`` (``read_nearfield``)
+    and each map's ``summary.json`` are ``vehicle``'s (None: not recorded, not checked),
+    their printed numbers finite, no map without its summary, and every figure shown
+    (``nearfield.png``, ``coverage/*/coverage.png``, ``farfield/*/farfield.png``) a PNG
+    within ``document.MAX_FIGURE_BYTES`` and ``MAX_FIGURE_PIXELS``, the far field's CSV
+    files within ``MAX_CSV_BYTES`` (hostile round 25:
+    ``compare`` showed another vehicle's near field and maps, printed "nan", and a PNG
+    claiming 10,000 x 10,000 pixels took 1.6 GB); else ``InputError``."""
+    if (folder / "nearfield" / "nearfield.json").is_file():  # checked before any work
+        nf = folder / "nearfield" / "nearfield.json"
+        got = read_nearfield(nf).get("system")
+        # another vehicle's near field presented as this one's
+        if vehicle is not None and got != vehicle:
+            raise InputError(
+                nf,
+                "system",
+                f"{str(got)[:64]!r} is not this run's vehicle ({vehicle!r}); compute it "
+                f"with `sensorgap nearfield --vehicle <the run's vehicle> --out "
+                f"{folder.name}/nearfield`",
+            )
+    for npz in sorted((folder / "coverage").glob("*/coverage.npz")):
+        if not (npz.parent / "summary.json").is_file():  # whose map it is, unknown
+            raise InputError(
+                npz,
+                "",
+                "a coverage map without its summary.json: whose vehicle and inputs it "
+                "shows cannot be checked (hostile round 24: another vehicle's map was "
+                "reported as this one's); compute it with `sensorgap coverage`",
+            )
+    for s in sorted((folder / "coverage").glob("*/summary.json")):
+        cs = _object(s, read_json(s))
+        if vehicle is not None:
+            _check_map_identity(s, cs, vehicle)
+        # the areas and the cell size the report's table prints (text or NaN was printed)
+        _numbers(
+            s,
+            _object(s, cs, key="area_m2_by_level"),
+            "area_m2_by_level",
+            ("pd=1.0", "pd>=0.8", "pd>=0.5", "pd>0", "pd=0"),
+            at_least=0.0,
+        )
+        _numbers(s, _object(s, cs, key="grid"), "grid", ("resolution_m",), at_least=0.0)
+    for png in (
+        *sorted((folder / "nearfield").glob("nearfield.png")),
+        *sorted((folder / "coverage").glob("*/coverage.png")),
+        *sorted((folder / "farfield").glob("*/farfield.png")),
+    ):
+        embedded_png(png)
+    for table in (
+        *sorted((folder / "farfield").glob("table_iv.csv")),
+        *sorted((folder / "farfield").glob("*/farfield.csv")),
+    ):
+        _check_csv_size(table)
 
 
 def read_catalog(path: Path) -> dict[str, Any]:
@@ -255,8 +315,24 @@ def read_catalog(path: Path) -> dict[str, Any]:
     return index
 
 
+#: A CSV file of a run or job folder that a report or comparison reads (``table_iv.csv``,
+#: a far field's ``farfield.csv``: 0.63 MB for the job's 200 m): at most this many bytes.
+#: A 283 MB table_iv.csv of valid rows took report to 5.4 GB (hostile round 25).
+MAX_CSV_BYTES = 20_000_000
+
+
+def _check_csv_size(path: Path) -> None:
+    try:
+        size = path.stat().st_size
+    except OSError as exc:
+        raise InputError(path, "", f"unreadable CSV: {exc}") from None
+    if size > MAX_CSV_BYTES:
+        raise InputError(path, "", f"file is {size} bytes; at most {MAX_CSV_BYTES} allowed")
+
+
 def read_csv(path: Path) -> list[dict[str, str]]:
-    """A CSV file of the run folder as rows."""
+    """A CSV file of the run folder as rows (at most ``MAX_CSV_BYTES``)."""
+    _check_csv_size(path)
     try:
         with path.open(encoding="utf-8", newline="") as f:
             return list(csv.DictReader(f))
@@ -962,39 +1038,9 @@ def build(folder: Path) -> tuple[str, list[str], Section, list[Section]]:
             folder, "", "neither run.json nor ranking.json says which vehicle this run is for"
         )
     system = run.system()
-    if (folder / "nearfield" / "nearfield.json").is_file():  # checked before any work
-        nf = folder / "nearfield" / "nearfield.json"
-        got = read_nearfield(nf).get("system")
-        if got != system.name:  # another vehicle's near field presented as this one's
-            raise InputError(
-                nf,
-                "system",
-                f"{str(got)[:64]!r} is not this run's vehicle ({system.name!r}); compute it "
-                f"with `sensorgap nearfield --vehicle <the run's vehicle> --out "
-                f"{folder.name}/nearfield`",
-            )
+    check_pieces(folder, system.name)  # near field, coverage maps, figures: before any work
     if (folder / "catalog.json").is_file():
         read_catalog(folder / "catalog.json")
-    for npz in sorted((folder / "coverage").glob("*/coverage.npz")):
-        if not (npz.parent / "summary.json").is_file():  # whose map it is, unknown
-            raise InputError(
-                npz,
-                "",
-                "a coverage map without its summary.json: whose vehicle and inputs it "
-                "shows cannot be checked (hostile round 24: another vehicle's map was "
-                "reported as this one's); compute it with `sensorgap coverage`",
-            )
-    for s in sorted((folder / "coverage").glob("*/summary.json")):
-        cs = _object(s, read_json(s))
-        _check_map_identity(s, cs, system.name)
-        # the areas and the cell size the report's table prints (text or NaN was printed)
-        _numbers(
-            s,
-            _object(s, cs, key="area_m2_by_level"),
-            "area_m2_by_level",
-            ("pd=1.0", "pd>=0.8", "pd>=0.5", "pd>0", "pd=0"),
-        )
-        _numbers(s, _object(s, cs, key="grid"), "grid", ("resolution_m",))
     if (folder / "anchors" / "anchors.json").is_file():
         a = folder / "anchors" / "anchors.json"
         rows = _object(a, read_json(a)).get("anchors")

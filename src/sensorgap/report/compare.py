@@ -29,7 +29,7 @@ import numpy as np
 from sensorgap.atomic import atomic_write_bytes, atomic_write_text
 from sensorgap.errors import InputError
 from sensorgap.provenance import utc_now
-from sensorgap.report.build import fmt, read_csv, read_json
+from sensorgap.report.build import check_pieces, fmt, read_csv, read_json
 from sensorgap.report.document import (
     Block,
     Bullets,
@@ -43,6 +43,7 @@ from sensorgap.report.document import (
 from sensorgap.report.figures import farfield_pair_figure
 from sensorgap.search.compare import MARGIN_P, run_notes, write_comparison
 from sensorgap.search.compare_maps import DETECTS_PD, Completed, SideMaps, complete_runs, slug
+from sensorgap.search.runfolder import open_run
 
 __all__ = ["slug", "write_compare_report"]
 
@@ -436,6 +437,12 @@ def write_compare_report(
     for f in (run_a, run_b):
         if not f.is_dir():
             raise InputError(f, "", "run folder does not exist")
+    for f in (run_a, run_b):  # what the comparison shows of each run, before any work
+        try:
+            vehicle: str | None = open_run(f, ranking=False).system().name
+        except InputError:
+            vehicle = None  # not recorded: nothing is computed for it (complete_runs)
+        check_pieces(f, vehicle)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     cm = complete_runs(run_a, run_b, out, workers=workers)

@@ -17,11 +17,14 @@ import base64
 import html
 import io
 import re
+import struct
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
 
+from sensorgap.errors import InputError
 from sensorgap.markdown import md_cell, md_text
 
 #: What a section says when its part of the pipeline was not run (one line).
@@ -148,6 +151,53 @@ def compact_png(data: bytes) -> bytes:
     return out if len(out) < len(data) else data
 
 
+#: A figure a report embeds or links (a PNG of a run folder): at most this many bytes and
+#: pixels. sensorgap's largest is a comparison figure of at most 1,440 x 2,532 pixels (3.6 Mpx)
+#: and 0.5 MB; a PNG of 10,000 x 10,000 1-bit pixels is 12 kB but took 1.6 GB to embed
+#: (hostile round 25).
+MAX_FIGURE_BYTES = 20_000_000
+MAX_FIGURE_PIXELS = 25_000_000
+_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+def embedded_png(path: Path) -> bytes:
+    """The PNG figure ``path`` as a report embeds it (``compact_png``), after checking that
+    it is a PNG of at most ``MAX_FIGURE_BYTES`` and ``MAX_FIGURE_PIXELS`` that decodes
+    without a warning; anything else -> ``InputError`` naming the file."""
+    try:
+        size = path.stat().st_size
+        with path.open("rb") as f:
+            head = f.read(24)
+    except OSError as exc:
+        raise InputError(path, "", f"unreadable figure: {exc.strerror or exc}") from None
+    if size > MAX_FIGURE_BYTES:
+        raise InputError(
+            path, "", f"figure is {size} bytes; at most {MAX_FIGURE_BYTES} allowed (a PNG)"
+        )
+    if len(head) < 24 or head[:8] != _PNG_SIGNATURE or head[12:16] != b"IHDR":
+        raise InputError(path, "", "not a PNG image; draw it again with the command that made it")
+    w, h = struct.unpack(">II", head[16:24])
+    if not (w >= 1 and h >= 1 and w * h <= MAX_FIGURE_PIXELS):
+        raise InputError(
+            path, "", f"a PNG of {w} x {h} pixels; at most {MAX_FIGURE_PIXELS} pixels allowed"
+        )
+    from PIL import Image as PILImage
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            return compact_png(path.read_bytes())
+    except (
+        OSError,
+        ValueError,
+        SyntaxError,
+        EOFError,
+        Warning,
+        PILImage.DecompressionBombError,
+    ) as exc:
+        raise InputError(path, "", f"unreadable PNG image: {str(exc)[:120]}") from None
+
+
 _UNIT = re.compile(r"(\d) (?=(?:s|m|m²|km|km/h|mm/h|m/s2|dB|deg|°)(?![\w/²]))")
 
 
@@ -192,7 +242,7 @@ def _html_block(b: Block) -> str:
             f"<tbody>{body}</tbody></table></div>"
         )
     if isinstance(b, Image):
-        data = base64.b64encode(compact_png(b.path.read_bytes())).decode("ascii")
+        data = base64.b64encode(embedded_png(b.path)).decode("ascii")
         cap = html.escape(b.caption)
         return (
             f'<figure><img src="data:image/png;base64,{data}" alt="{cap}">'
