@@ -1563,9 +1563,10 @@ def _check_environment() -> None:
     every computing command failed with "output: cannot write or read: No such file or
     directory"), ``SOURCE_DATE_EPOCH`` (``provenance.source_date_epoch``: numpy's f2py,
     imported by numba, read it with ``int()`` and ``time.gmtime``: internal errors) and
-    ``SENSORGAP_TEMPLATES`` (``config.presets.templates_dir``) and numba's ``NUMBA_*``
-    variables (``runtime.check_numba_environment``)."""
-    from sensorgap.config.presets import templates_dir
+    ``SENSORGAP_TEMPLATES`` (``config.presets.templates_dir``), ``SENSORGAP_ROADS``
+    (``roads_dir``) and numba's ``NUMBA_*`` variables
+    (``runtime.check_numba_environment``)."""
+    from sensorgap.config.presets import roads_dir, templates_dir
     from sensorgap.provenance import source_date_epoch
 
     try:
@@ -1581,6 +1582,7 @@ def _check_environment() -> None:
         ) from None
     source_date_epoch()
     templates_dir()
+    roads_dir()
     check_numba_environment()
 
 

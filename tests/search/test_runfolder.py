@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 
 from sensorgap.cli import main
-from sensorgap.config.presets import templates_dir
+from sensorgap.config.presets import roads_dir, templates_dir
 from sensorgap.errors import InputError
 from sensorgap.search.compare import write_comparison
 from sensorgap.search.run import run_search
@@ -189,7 +189,11 @@ def test_a_copied_run_rebuilds_identically_after_the_templates_changed(
     veh = tdir / "vehicles" / "system_b.toml"
     veh.write_text(veh.read_text(encoding="utf-8") + "\n# changed\n", encoding="utf-8")
     monkeypatch.setenv("SENSORGAP_TEMPLATES", str(tdir))
-    monkeypatch.setenv("SENSORGAP_ROADS", str(tmp_path / "no_roads"))  # none shipped
+    # the shipped roads without the run's (motorway_r500): only another road is shipped
+    other = tmp_path / "other_roads"
+    other.mkdir()
+    shutil.copyfile(roads_dir() / "rural_two_lane.xodr", other / "rural_two_lane.xodr")
+    monkeypatch.setenv("SENSORGAP_ROADS", str(other))
     assert main(["export", "--run", str(copy)]) == 0
     assert main(["report", "--run", str(copy)]) == 0
     xosc = sorted(p.name for p in (exported / "scenarios").glob("*.xosc"))

@@ -88,10 +88,23 @@ def vehicle_presets() -> list[str]:
 
 def roads_dir() -> Path:
     """The shipped OpenDRIVE roads: ``$SENSORGAP_ROADS``, the checkout's ``roads/`` or the
-    copy packed into the wheel (``sensorgap/_roads``)."""
+    copy packed into the wheel (``sensorgap/_roads``). A set variable must name a folder
+    holding at least one ``.xodr`` file, else ``InputError`` naming the variable."""
     env = os.environ.get("SENSORGAP_ROADS")
     if env:
-        return Path(env)
+        path = Path(env)
+        if not path.is_dir() or not any(p.is_file() for p in path.glob("*.xodr")):
+            # checked like SENSORGAP_TEMPLATES (hostile round 25: a bad value showed only
+            # where a road was opened, after minutes of work, naming a derived path)
+            shown = env if env.strip() == env else repr(env)
+            what = "is not a folder" if not path.is_dir() else "holds no .xodr road"
+            raise InputError(
+                "SENSORGAP_ROADS",
+                "",
+                f"{shown} {what}; it must name a folder of OpenDRIVE roads (.xodr) like the "
+                "shipped roads/, or not be set",
+            )
+        return path
     here = Path(__file__).resolve()
     checkout = here.parents[3] / "roads"
     if checkout.is_dir():
