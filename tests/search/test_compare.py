@@ -165,3 +165,31 @@ def test_critical_for_counts_a_side_from_what_a_ranking_keeps() -> None:
     assert critical_for(5e-7, 0.0, "A", "B", 0.1) == "neither"
     assert critical_for(0.9, 0.5, "A", "B", 0.1) == "A"
     assert critical_for(0.5, 0.9, "A", "B", 0.1) == "B"
+
+
+@pytest.mark.parametrize(
+    ("rows", "field", "why"),
+    [
+        ("nan,0.5\n", "row 2.s", "expected a length >= 0 \\(m\\), got 'nan'"),
+        ("1,0.5\n-5,0.5\n", "row 3.s", "expected a length >= 0 \\(m\\), got '-5'"),
+        ("1,5\n", "row 2.pd", "expected a probability 0..1, got '5'"),
+        ("1,0.5\n1,0.6\n", "row 3.s", "distances must increase row by row"),
+        ("1\n", "row 2.pd", "expected a probability 0..1, got 'None'"),
+    ],
+)
+def test_a_far_field_profile_is_checked_before_it_is_plotted(
+    tmp_path: Path, rows: str, field: str, why: str
+) -> None:
+    """Hostile round 25: compare plotted a run's farfield.csv as it was (NaN distances,
+    negative ones, a Pd of 5); each row's s is a finite length >= 0, increasing, and its
+    pd a probability, else one line naming the row and column."""
+    from sensorgap.errors import InputError
+    from sensorgap.report.compare import _profile
+
+    path = tmp_path / "farfield.csv"
+    path.write_text("s,pd\n" + rows, encoding="utf-8")
+    with pytest.raises(InputError, match=f"{field}: {why}"):
+        _profile(path)
+    path.write_text("s,pd\n0.5,0\n1.0,1\n", encoding="utf-8")
+    s, pd = _profile(path)
+    assert s.tolist() == [0.5, 1.0] and pd.tolist() == [0.0, 1.0]

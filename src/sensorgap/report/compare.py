@@ -305,12 +305,29 @@ def _farfield_levels(folder: Path) -> dict[str, float]:
 
 
 def _profile(path: Path) -> tuple[np.ndarray, np.ndarray]:
-    """(distance s, fused Pd) of a far-field ``farfield.csv``."""
+    """(distance s, fused Pd) of a far-field ``farfield.csv``: each s a finite length
+    >= 0 (m), increasing row by row, each pd within 0..1; else ``InputError`` naming the
+    row and column (hostile round 25: NaN, negative distances and a Pd of 5 were
+    plotted)."""
     rows = read_csv(path)
-    try:
-        return (np.array([float(r["s"]) for r in rows]), np.array([float(r["pd"]) for r in rows]))
-    except (KeyError, TypeError, ValueError) as exc:
-        raise InputError(path, "s, pd", f"unreadable far-field profile: {exc}") from None
+    s_m, pd = np.zeros(len(rows)), np.zeros(len(rows))
+    last = -math.inf
+    for i, r in enumerate(rows):
+        for col, out, lo, hi in (("s", s_m, 0.0, math.inf), ("pd", pd, 0.0, 1.0)):
+            try:
+                v = float(r[col])
+            except (KeyError, TypeError, ValueError):
+                v = math.nan
+            if not (lo <= v <= hi and math.isfinite(v)):
+                want = "a length >= 0 (m)" if col == "s" else "a probability 0..1"
+                raise InputError(
+                    path, f"row {i + 2}.{col}", f"expected {want}, got {str(r.get(col))[:40]!r}"
+                )
+            out[i] = v
+        if s_m[i] <= last:
+            raise InputError(path, f"row {i + 2}.s", "distances must increase row by row")
+        last = s_m[i]
+    return s_m, pd
 
 
 def _table_iv(cm: Completed, out: Path) -> Section:

@@ -436,8 +436,17 @@ class RunFolder:
         return self._cache[key]
 
     def system(self) -> System:
-        """The vehicle: the recorded copy, else the vehicle as given."""
+        """The vehicle: the recorded copy, else the vehicle as given; a folder recording
+        neither (a job's top folder, any other folder) -> ``InputError`` naming it (it was
+        taken for an empty ``--vehicle``: hostile round 25)."""
         p = self.input_path("vehicle")
+        if p is None and not self.vehicle_ref:
+            raise InputError(
+                self.folder,
+                "",
+                "neither run.json nor ranking.json says which vehicle this run is for "
+                "(a job's folder holds one run folder per vehicle: name that one)",
+            )
         # a recorded copy's reaction model is recorded apart (its path may be relative)
         check = self._entry("reaction") is None
         return self._cached(
