@@ -152,10 +152,11 @@ def compact_png(data: bytes) -> bytes:
 
 
 #: A figure a report embeds or links (a PNG of a run folder): at most this many bytes and
-#: pixels. sensorgap's largest is a comparison figure of at most 1,440 x 2,532 pixels (3.6 Mpx)
-#: and 0.5 MB; a PNG of 10,000 x 10,000 1-bit pixels is 12 kB but took 1.6 GB to embed
-#: (hostile round 25).
-MAX_FIGURE_BYTES = 20_000_000
+#: pixels. sensorgap's largest is a comparison figure of at most 1,440 x 2,532 pixels
+#: (3.6 Mpx), its largest files about 0.33 MB; a PNG of 10,000 x 10,000 1-bit pixels is
+#: 12 kB but took 1.6 GB to embed, figures padded to 1.5 GB after their end 5 GB
+#: (hostile round 25). ``compact_png`` keeps at most 64 figures: <= 0.7 GB at the limits.
+MAX_FIGURE_BYTES = 5_000_000
 MAX_FIGURE_PIXELS = 25_000_000
 _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
