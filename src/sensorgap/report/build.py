@@ -20,6 +20,7 @@ from typing import Any
 
 from sensorgap.atomic import atomic_write_text
 from sensorgap.config.presets import templates_dir
+from sensorgap.coverage.outputs import read_coverage_npz
 from sensorgap.errors import InputError, cut_quoted
 from sensorgap.export.simulate import read_catalog_index
 from sensorgap.export.spec import ScenarioSpec
@@ -225,6 +226,26 @@ def read_nearfield(path: Path) -> dict[str, Any]:
     d = _object(path, read_json(path))
     bs = _object(path, d, key="blind_spot_m2")
     _numbers(path, bs, "blind_spot_m2", ("difference",))
+    holes = bs.get("holes", [])
+    # each hole's numbers, as the summary places and names them (checked there after the
+    # scenario figures were drawn: hostile round 24)
+    if not isinstance(holes, list) or not all(
+        isinstance(h, dict)
+        and isinstance(h.get("bounds_m"), list)
+        and len(h["bounds_m"]) == 4
+        and isinstance(h.get("centroid_m"), list)
+        and len(h["centroid_m"]) == 2
+        and all(
+            isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+            for v in (h.get("area_m2"), *h["bounds_m"], *h["centroid_m"])
+        )
+        for h in holes
+    ):
+        raise InputError(
+            path,
+            "blind_spot_m2",
+            "unreadable: a hole's area_m2, bounds_m and centroid_m are finite numbers",
+        )
     _numbers(path, bs, "blind_spot_m2", ("exact", "grid"), ("exact",), at_least=0.0)
     unc = _object(path, d, key="uncovered_0p1m_m2")
     _numbers(path, unc, "uncovered_0p1m_m2", ("difference",))
@@ -253,7 +274,9 @@ def check_pieces(folder: Path, vehicle: str | None) -> None:
     within ``document.MAX_FIGURE_BYTES`` and ``MAX_FIGURE_PIXELS``, the far field's CSV
     files within ``MAX_CSV_BYTES`` (hostile round 25:
     ``compare`` showed another vehicle's near field and maps, printed "nan", and a PNG
-    claiming 10,000 x 10,000 pixels took 1.6 GB); else ``InputError``."""
+    claiming 10,000 x 10,000 pixels took 1.6 GB), each map's ``coverage.npz`` readable
+    (``coverage.outputs.read_coverage_npz``: a damaged map was found after the scenario
+    figures were drawn); else ``InputError``."""
     if (folder / "nearfield" / "nearfield.json").is_file():  # checked before any work
         nf = folder / "nearfield" / "nearfield.json"
         got = read_nearfield(nf).get("system")
@@ -267,6 +290,7 @@ def check_pieces(folder: Path, vehicle: str | None) -> None:
                 f"{folder.name}/nearfield`",
             )
     for npz in sorted((folder / "coverage").glob("*/coverage.npz")):
+        read_coverage_npz(npz)  # its cells and axes (the summary reads it after the figures)
         if not (npz.parent / "summary.json").is_file():  # whose map it is, unknown
             raise InputError(
                 npz,
