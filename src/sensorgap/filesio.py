@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sensorgap.atomic import atomic_write_bytes, holds_lock, locked_elsewhere, utf8
-from sensorgap.errors import cut_name
+from sensorgap.errors import InputError, cut_name
 
 _FIXED_ZIP_TIME = (1980, 1, 1, 0, 0, 0)
 
@@ -131,6 +131,21 @@ def loads_json(text: str | bytes) -> Any:
 #: The names ``sensorgap.atomic`` gives its temporary files: ``.NAME.<8 random>.tmp.EXT``
 #: (``tempfile.mkstemp``'s random part: 8 of ``a-z0-9_``).
 _OWN_TEMPORARY = re.compile(r"\..+\.[a-z0-9_]{8}\.tmp(\.[^/]*)?")
+
+
+def regular_file_size(path: Path) -> int:
+    """The size (bytes) of the file a command is about to read, which must be a regular
+    file (a link to one is fine): a named pipe blocked the reader forever, a device
+    never ends (hostile round 26), so anything else is an ``InputError`` naming it. A
+    missing file raises ``FileNotFoundError`` as the read would."""
+    import stat
+
+    st = path.stat()
+    if not stat.S_ISREG(st.st_mode):
+        raise InputError(
+            path, "", "not a regular file (a folder, named pipe, socket or device): expected a file"
+        )
+    return st.st_size
 
 
 def is_own_temporary(name: str) -> bool:

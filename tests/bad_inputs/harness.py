@@ -799,6 +799,10 @@ def _setup(
             _coverage_map(run / "coverage" / "car_clear", step.removeprefix("coverage_map:"))
         elif step.startswith("png_bomb:"):  # {run}/<file>: 10,000 x 10,000 1-bit, 12 kB
             _png_bomb(run / step.removeprefix("png_bomb:"))
+        elif step.startswith("fifo:"):  # {run}/<file> replaced by a named pipe
+            pipe = run / step.removeprefix("fifo:")
+            pipe.unlink(missing_ok=True)
+            os.mkfifo(pipe)
         elif step.startswith("huge_file:"):  # {run}/<file>: 20,000,001 bytes (sparse)
             huge = run / step.removeprefix("huge_file:")
             huge.parent.mkdir(parents=True, exist_ok=True)

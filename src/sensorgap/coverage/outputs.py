@@ -19,7 +19,7 @@ from sensorgap.coverage.plot import coverage_figure, pd_levels_area, save_figure
 from sensorgap.coverage.points import PointCoverage
 from sensorgap.coverage.scene import Scene
 from sensorgap.errors import InputError
-from sensorgap.filesio import csv_bytes, write_json, write_npz
+from sensorgap.filesio import csv_bytes, regular_file_size, write_json, write_npz
 from sensorgap.models.geometry import heading_rad
 from sensorgap.provenance import sha256_of
 from sensorgap.version import __version__
@@ -88,6 +88,10 @@ def read_coverage_npz(
     """The map of a ``coverage.npz`` (``write_coverage``): fused Pd at the cell centres
     (shape (len(y), len(x))), the centres' x and y (m, vehicle frame) and the cell size
     (m); unreadable or inconsistent -> ``InputError`` naming the file."""
+    try:
+        regular_file_size(path)  # a named pipe would block the reader
+    except OSError as exc:
+        raise _unreadable(path, exc) from None
     _check_npz_members(path)
     try:
         with np.load(path) as z:

@@ -15,6 +15,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+import os
 from pathlib import Path
 from typing import Any
 
@@ -24,6 +25,7 @@ from sensorgap.coverage.outputs import read_coverage_npz
 from sensorgap.errors import InputError, cut_quoted
 from sensorgap.export.simulate import read_catalog_index
 from sensorgap.export.spec import ScenarioSpec
+from sensorgap.filesio import regular_file_size
 from sensorgap.models import System
 from sensorgap.provenance import utc_now, versions
 from sensorgap.report.anchors import anchors_section
@@ -277,8 +279,8 @@ def check_pieces(folder: Path, vehicle: str | None) -> None:
     claiming 10,000 x 10,000 pixels took 1.6 GB), each map's ``coverage.npz`` readable
     (``coverage.outputs.read_coverage_npz``: a damaged map was found after the scenario
     figures were drawn); else ``InputError``."""
-    if (folder / "nearfield" / "nearfield.json").is_file():  # checked before any work
-        nf = folder / "nearfield" / "nearfield.json"
+    nf = folder / "nearfield" / "nearfield.json"
+    if os.path.lexists(nf):  # a pipe or folder there is refused, not taken for none
         got = read_nearfield(nf).get("system")
         # another vehicle's near field presented as this one's
         if vehicle is not None and got != vehicle:
@@ -347,7 +349,7 @@ MAX_CSV_BYTES = 20_000_000
 
 def _check_csv_size(path: Path) -> None:
     try:
-        size = path.stat().st_size
+        size = regular_file_size(path)
     except OSError as exc:
         raise InputError(path, "", f"unreadable CSV: {exc}") from None
     if size > MAX_CSV_BYTES:

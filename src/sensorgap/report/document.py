@@ -25,6 +25,7 @@ from functools import lru_cache
 from pathlib import Path
 
 from sensorgap.errors import InputError
+from sensorgap.filesio import regular_file_size
 from sensorgap.markdown import md_cell, md_text
 
 #: What a section says when its part of the pipeline was not run (one line).
@@ -166,7 +167,7 @@ def embedded_png(path: Path) -> bytes:
     it is a PNG of at most ``MAX_FIGURE_BYTES`` and ``MAX_FIGURE_PIXELS`` that decodes
     without a warning; anything else -> ``InputError`` naming the file."""
     try:
-        size = path.stat().st_size
+        size = regular_file_size(path)
         with path.open("rb") as f:
             head = f.read(24)
     except OSError as exc:

@@ -48,7 +48,7 @@ from sensorgap.config.reaction import (
     reactions_path,
 )
 from sensorgap.errors import InputError, clip
-from sensorgap.filesio import loads_json, write_json
+from sensorgap.filesio import loads_json, regular_file_size, write_json
 from sensorgap.models import System, load_system
 from sensorgap.provenance import sha256_of, versions
 from sensorgap.scenarios import load_family
@@ -223,7 +223,7 @@ def copy_record(src: Path, dst: Path) -> set[str]:
 
 def _check_size(path: Path) -> None:
     try:
-        size = path.stat().st_size
+        size = regular_file_size(path)
     except OSError:
         return  # reported by the read itself
     if size > MAX_JSON_BYTES:
