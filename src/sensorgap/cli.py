@@ -1564,7 +1564,7 @@ def _check_environment() -> None:
     directory"), ``SOURCE_DATE_EPOCH`` (``provenance.source_date_epoch``: numpy's f2py,
     imported by numba, read it with ``int()`` and ``time.gmtime``: internal errors) and
     ``SENSORGAP_TEMPLATES`` (``config.presets.templates_dir``), ``SENSORGAP_ROADS``
-    (``roads_dir``) and numba's ``NUMBA_*`` variables
+    (``roads_dir``), ``SENSORGAP_ESMINI`` (an executable file) and numba's ``NUMBA_*`` variables
     (``runtime.check_numba_environment``)."""
     from sensorgap.config.presets import roads_dir, templates_dir
     from sensorgap.provenance import source_date_epoch
@@ -1583,6 +1583,14 @@ def _check_environment() -> None:
     source_date_epoch()
     templates_dir()
     roads_dir()
+    esmini = os.environ.get("SENSORGAP_ESMINI")
+    if esmini and not (os.path.isfile(esmini) and os.access(esmini, os.X_OK)):
+        shown = esmini if esmini.strip() == esmini else repr(esmini)
+        raise InputError(
+            "SENSORGAP_ESMINI",
+            "",
+            f"{shown} is not an executable file; it must name the esmini program, or not be set",
+        )
     check_numba_environment()
 
 

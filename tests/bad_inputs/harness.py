@@ -799,6 +799,10 @@ def _setup(
             _coverage_map(run / "coverage" / "car_clear", step.removeprefix("coverage_map:"))
         elif step.startswith("png_bomb:"):  # {run}/<file>: 10,000 x 10,000 1-bit, 12 kB
             _png_bomb(run / step.removeprefix("png_bomb:"))
+        elif step == "many_figures":  # {run}/farfield/eNNN/farfield.png: 501 of them
+            for k in range(501):
+                (run / "farfield" / f"e{k:03d}").mkdir(parents=True)
+                (run / "farfield" / f"e{k:03d}" / "farfield.png").write_bytes(b"\x89PNG")
         elif step.startswith("fifo:"):  # {run}/<file> replaced by a named pipe
             pipe = run / step.removeprefix("fifo:")
             pipe.unlink(missing_ok=True)

@@ -336,3 +336,39 @@ def test_a_run_made_with_other_software_says_so(
     assert "The run was made with other software than this report (sensorgap)" in text
     own = _doc(search_only / "report.html").get_element_by_id("reproduce").text_content()
     assert "other software" not in own
+
+
+def test_what_a_report_shows_of_a_run_is_bounded_and_checked_where_it_is_used(
+    job: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Hostile round 26: 64 valid figures of 19 MB each took a report to 5.4 GB (the
+    figures a run shows are bounded in all: ``MAX_RUN_FIGURE_BYTES``), and a near field
+    replaced after ``check_pieces`` was printed unchecked by the comparison (the values
+    printed are read through the same checks where they are used)."""
+    import shutil
+
+    from sensorgap.errors import InputError
+    from sensorgap.report import build
+
+    sizes = [
+        p.stat().st_size
+        for p in (
+            *job.glob("nearfield/nearfield.png"),
+            *job.glob("coverage/*/coverage.png"),
+            *job.glob("farfield/*/farfield.png"),
+        )
+    ]
+    build.check_pieces(job, "System A")  # within the bounds as shipped
+    monkeypatch.setattr(build, "MAX_RUN_FIGURE_BYTES", sum(sizes) - 1)
+    with pytest.raises(InputError, match=r"its figures to show exceed \d+ bytes in all \(at "):
+        build.check_pieces(job, "System A")
+    monkeypatch.undo()
+    nf = tmp_path / "nearfield" / "nearfield.json"
+    nf.parent.mkdir()
+    shutil.copyfile(job / "nearfield" / "nearfield.json", nf)
+    assert build.checked_nearfield(nf, "System A")["system"] == "System A"
+    with pytest.raises(InputError, match="'System A' is not this run's vehicle"):
+        build.checked_nearfield(nf, "System B")
+    nf.write_text(nf.read_text().replace('"exact": ', '"exact": NaN, "x": ', 1))
+    with pytest.raises(InputError, match="blind_spot_m2.exact: expected a number, got nan"):
+        build.checked_nearfield(nf, "System A")

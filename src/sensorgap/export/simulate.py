@@ -102,7 +102,8 @@ WALL_KEY = "esmini_wall_s"
 def find_esmini(path: str | None) -> Path:
     """The esmini executable: ``path``, else ``$SENSORGAP_ESMINI``, else ``esmini`` on PATH;
     ``InputError`` (one line) when there is none."""
-    cand = path or os.environ.get("SENSORGAP_ESMINI") or shutil.which("esmini")
+    env = os.environ.get("SENSORGAP_ESMINI")
+    cand = path or env or shutil.which("esmini")
     if not cand:
         raise InputError(
             "esmini",
@@ -110,9 +111,13 @@ def find_esmini(path: str | None) -> Path:
             "esmini is not installed: give --esmini PATH (or put "
             "esmini on PATH); it is not on any package registry",
         )
+    # named by where it came from (hostile round 26: a bad SENSORGAP_ESMINI was blamed
+    # on --esmini, which was not given)
+    source = "esmini" if path else "SENSORGAP_ESMINI" if env else "PATH"
     p = Path(cand)
     if not (p.is_file() and os.access(p, os.X_OK)):
-        raise InputError("esmini", "", f"{p} is not an executable file")
+        shown = cand if cand.strip() == cand else repr(cand)
+        raise InputError(source, "", f"{shown} is not an executable file")
     # absolute, as checked here: esmini runs in a temporary folder (and a bare name would
     # be looked up on PATH), so a relative path would name another file or none
     return Path(os.path.abspath(p))

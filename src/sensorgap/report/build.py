@@ -267,6 +267,51 @@ def read_nearfield(path: Path) -> dict[str, Any]:
     return d
 
 
+#: What a report or comparison shows of one run: at most this many figures and bytes of
+#: them in all (hostile round 26: 64 figures of 19 MB each took a report to 5.4 GB and a
+#: 0.94 GB report.html). The default job shows 15 figures of 2.1 MB in all; a job over
+#: 100 environments about 200 of 14 MB.
+MAX_RUN_FIGURES = 500
+MAX_RUN_FIGURE_BYTES = 100_000_000
+
+
+def checked_nearfield(path: Path, vehicle: str | None) -> dict[str, Any]:
+    """``nearfield.json`` read and checked (``read_nearfield``) and ``vehicle``'s (None:
+    not recorded, not checked): what a report or comparison prints, read where it is
+    used (hostile round 26: a file replaced after the check was printed unchecked)."""
+    d = read_nearfield(path)
+    got = d.get("system")
+    if vehicle is not None and got != vehicle:  # another vehicle's near field as this one's
+        raise InputError(
+            path,
+            "system",
+            f"{str(got)[:64]!r} is not this run's vehicle ({vehicle!r}); compute it "
+            f"with `sensorgap nearfield --vehicle <the run's vehicle> --out "
+            f"{path.parent.parent.name}/nearfield`",
+        )
+    return d
+
+
+def checked_map_summary(path: Path, vehicle: str | None, named: bool = True) -> dict[str, Any]:
+    """A coverage map's ``summary.json`` read and checked: ``vehicle``'s (None: not
+    checked) and (``named``: a run's own map, not one a comparison computed into a folder
+    named by ``compare_maps.slug``) named after its target and environment
+    (``_check_map_identity``), the areas and the cell size it prints finite numbers >= 0
+    (text or NaN was printed)."""
+    cs = _object(path, read_json(path))
+    if vehicle is not None:
+        _check_map_identity(path, cs, vehicle, named)
+    _numbers(
+        path,
+        _object(path, cs, key="area_m2_by_level"),
+        "area_m2_by_level",
+        ("pd=1.0", "pd>=0.8", "pd>=0.5", "pd>0", "pd=0"),
+        at_least=0.0,
+    )
+    _numbers(path, _object(path, cs, key="grid"), "grid", ("resolution_m",), at_least=0.0)
+    return cs
+
+
 def check_pieces(folder: Path, vehicle: str | None) -> None:
     """The near field, coverage maps and figures of a run (or job) folder that a report or
     a comparison shows, checked before any work: ``nearfield.json`` (``read_nearfield``)
@@ -278,19 +323,11 @@ def check_pieces(folder: Path, vehicle: str | None) -> None:
     ``compare`` showed another vehicle's near field and maps, printed "nan", and a PNG
     claiming 10,000 x 10,000 pixels took 1.6 GB), each map's ``coverage.npz`` readable
     (``coverage.outputs.read_coverage_npz``: a damaged map was found after the scenario
-    figures were drawn); else ``InputError``."""
+    figures were drawn), at most ``MAX_RUN_FIGURES`` figures and ``MAX_RUN_FIGURE_BYTES``
+    of them in all; else ``InputError``."""
     nf = folder / "nearfield" / "nearfield.json"
     if os.path.lexists(nf):  # a pipe or folder there is refused, not taken for none
-        got = read_nearfield(nf).get("system")
-        # another vehicle's near field presented as this one's
-        if vehicle is not None and got != vehicle:
-            raise InputError(
-                nf,
-                "system",
-                f"{str(got)[:64]!r} is not this run's vehicle ({vehicle!r}); compute it "
-                f"with `sensorgap nearfield --vehicle <the run's vehicle> --out "
-                f"{folder.name}/nearfield`",
-            )
+        checked_nearfield(nf, vehicle)
     for npz in sorted((folder / "coverage").glob("*/coverage.npz")):
         read_coverage_npz(npz)  # its cells and axes (the summary reads it after the figures)
         if not (npz.parent / "summary.json").is_file():  # whose map it is, unknown
@@ -302,23 +339,26 @@ def check_pieces(folder: Path, vehicle: str | None) -> None:
                 "reported as this one's); compute it with `sensorgap coverage`",
             )
     for s in sorted((folder / "coverage").glob("*/summary.json")):
-        cs = _object(s, read_json(s))
-        if vehicle is not None:
-            _check_map_identity(s, cs, vehicle)
-        # the areas and the cell size the report's table prints (text or NaN was printed)
-        _numbers(
-            s,
-            _object(s, cs, key="area_m2_by_level"),
-            "area_m2_by_level",
-            ("pd=1.0", "pd>=0.8", "pd>=0.5", "pd>0", "pd=0"),
-            at_least=0.0,
-        )
-        _numbers(s, _object(s, cs, key="grid"), "grid", ("resolution_m",), at_least=0.0)
-    for png in (
+        checked_map_summary(s, vehicle)
+    figures = [
         *sorted((folder / "nearfield").glob("nearfield.png")),
         *sorted((folder / "coverage").glob("*/coverage.png")),
         *sorted((folder / "farfield").glob("*/farfield.png")),
-    ):
+    ]
+    if len(figures) > MAX_RUN_FIGURES:
+        raise InputError(
+            folder, "", f"holds {len(figures)} figures to show; at most {MAX_RUN_FIGURES}"
+        )
+    total = 0
+    for png in figures:
+        total += regular_file_size(png)
+        if total > MAX_RUN_FIGURE_BYTES:
+            raise InputError(
+                folder,
+                "",
+                f"its figures to show exceed {MAX_RUN_FIGURE_BYTES} bytes in all (at "
+                f"{png.relative_to(folder).as_posix()[:80]}); a report embeds every one",
+            )
         embedded_png(png)
     for table in (
         *sorted((folder / "farfield").glob("table_iv.csv")),
@@ -1178,11 +1218,13 @@ def build(folder: Path) -> tuple[str, list[str], Section, list[Section]]:
     return f"sensorgap audit report: {system.name}", meta, front, sections
 
 
-def _check_map_identity(path: Path, summary: dict[str, Any], vehicle: str) -> None:
-    """A run's coverage map (``path``: its ``summary.json``) is this run's vehicle's and is
-    named ``<target>_<environment>`` after what it was computed for (hostile round
-    sixteen: another vehicle's map, or a car/clear map named ``truck_fog_50``, was
-    reported as this one's), else ``InputError``."""
+def _check_map_identity(
+    path: Path, summary: dict[str, Any], vehicle: str, named: bool = True
+) -> None:
+    """A run's coverage map (``path``: its ``summary.json``) is this run's vehicle's and
+    (``named``) is named ``<target>_<environment>`` after what it was computed for
+    (hostile round sixteen: another vehicle's map, or a car/clear map named
+    ``truck_fog_50``, was reported as this one's), else ``InputError``."""
     got = summary.get("vehicle")
     if got != vehicle:
         raise InputError(
@@ -1192,7 +1234,7 @@ def _check_map_identity(path: Path, summary: dict[str, Any], vehicle: str) -> No
             "`sensorgap coverage --vehicle <the run's vehicle>`",
         )
     want = f"{summary.get('target')}_{summary.get('environment')}"
-    if path.parent.name != want:
+    if named and path.parent.name != want:
         raise InputError(
             path,
             "",

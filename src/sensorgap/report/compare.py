@@ -29,7 +29,14 @@ import numpy as np
 from sensorgap.atomic import atomic_write_bytes, atomic_write_text
 from sensorgap.errors import InputError
 from sensorgap.provenance import utc_now
-from sensorgap.report.build import check_pieces, fmt, read_csv, read_json
+from sensorgap.report.build import (
+    check_pieces,
+    checked_map_summary,
+    checked_nearfield,
+    fmt,
+    read_csv,
+    read_json,
+)
 from sensorgap.report.document import (
     Block,
     Bullets,
@@ -140,6 +147,14 @@ def _compared(cm: Completed) -> Section:
     )
 
 
+def _vehicle(side: SideMaps) -> str | None:
+    """The vehicle a side's pieces must be of (None: its run records none)."""
+    try:
+        return side.run.system().name
+    except InputError:
+        return None
+
+
 def _nearfield(cm: Completed, out: Path) -> Section:
     a, b = cm.a, cm.b
     title = "Near-field blind spots"
@@ -155,7 +170,7 @@ def _nearfield(cm: Completed, out: Path) -> Section:
     for side in (a, b):
         folder = side.nearfield
         assert folder is not None
-        d = read_json(folder / "nearfield.json")
+        d = checked_nearfield(folder / "nearfield.json", _vehicle(side))  # as it is used
         try:
             vals[side.tag] = (
                 float(d["blind_spot_m2"]["exact"]),
@@ -217,8 +232,12 @@ def _coverage(cm: Completed, out: Path) -> Section:
     na, nb = a.name, b.name
     rows = []
     for k in cm.keys:
-        sa = read_json(a.coverage[k] / "summary.json").get("area_m2_by_level", {})
-        sb = read_json(b.coverage[k] / "summary.json").get("area_m2_by_level", {})
+        sa, sb = (
+            checked_map_summary(
+                s.coverage[k] / "summary.json", _vehicle(s), s.made not in s.coverage[k].parents
+            ).get("area_m2_by_level", {})
+            for s in (a, b)
+        )
         for lv in LEVELS:
             va, vb = sa.get(lv), sb.get(lv)
             rows.append(
