@@ -442,7 +442,7 @@ def cmd_farfield(args: argparse.Namespace) -> int:
     """Pd along a target lane ahead of the ego (Table IV levels) into --out."""
     from sensorgap.analysis.farfield_outputs import write_farfield
     from sensorgap.analysis.paper import FarFieldSetup, run_farfield
-    from sensorgap.config.presets import resolve_road
+    from sensorgap.config.presets import resolve_road, shipped_road
     from sensorgap.models import load_system
     from sensorgap.roads import read_opendrive
 
@@ -464,7 +464,9 @@ def cmd_farfield(args: argparse.Namespace) -> int:
         length_m=length,
         target=args.target,
     )
-    net = read_opendrive(resolve_road(args.road))
+    text = str(args.road)
+    shipped = not (text.endswith(".xodr") or "/" in text)  # a name: one of the shipped roads
+    net = read_opendrive(shipped_road(text) if shipped else resolve_road(text))
     road = net.road(args.road_id)
     if not (0.0 <= args.ego_s <= road.length):
         raise InputError(

@@ -30,7 +30,7 @@ from sensorgap.atomic import removed_on_error
 from sensorgap.config import load_environment, load_environments, load_target
 from sensorgap.config.common import name_problem
 from sensorgap.config.load import short
-from sensorgap.config.presets import resolve_road, roads_dir, templates_dir
+from sensorgap.config.presets import roads_dir, shipped_road, templates_dir
 from sensorgap.coverage import GridSpec, Scene
 from sensorgap.coverage.grid import GridCoverage
 from sensorgap.coverage.outputs import compute_coverage, write_coverage
@@ -128,7 +128,7 @@ def _coverage(system_name: str, out: Path, workers: int, environments: list[str]
 
 def _farfield(system_name: str, out: Path, environments: list[str]) -> None:
     setup = FarFieldSetup()
-    net = read_opendrive(resolve_road(setup.road))
+    net = read_opendrive(shipped_road(setup.road))
     system = load_system(system_name)
     envs, levels, metres = [], [], []
     for env_name in environments:

@@ -193,3 +193,30 @@ def test_a_far_field_profile_is_checked_before_it_is_plotted(
     path.write_text("s,pd\n0.5,0\n1.0,1\n", encoding="utf-8")
     s, pd = _profile(path)
     assert s.tolist() == [0.5, 1.0] and pd.tolist() == [0.0, 1.0]
+
+
+def test_a_rerun_into_its_own_comparison_removes_the_earlier_ones_files(tmp_path: Path) -> None:
+    """Hostile round 26: a comparison written again into its own earlier --out kept the
+    earlier one's pieces (a near field computed before the run had its own, the folders
+    of two runs given the other way round) beside the new ones, and certified them. The
+    files the earlier manifest lists go first; a file of the user's stays."""
+    from sensorgap.filesio import write_manifest
+    from sensorgap.report.compare import clear_earlier_comparison
+
+    out = tmp_path / "cmp"
+    (out / "a_system_b" / "nearfield").mkdir(parents=True)
+    (out / "a_system_b" / "nearfield" / "nearfield.json").write_text("{}")
+    (out / "comparison.json").write_text("{}")
+    (out / "report.md").write_text("earlier")
+    write_manifest(out)
+    (out / "my_notes.txt").write_text("the user's")
+    removed = clear_earlier_comparison(out)
+    assert removed == ["a_system_b/nearfield/nearfield.json", "comparison.json", "report.md"]
+    left = sorted(p.relative_to(out).as_posix() for p in out.rglob("*"))
+    assert left == ["manifest.json", "my_notes.txt"]
+    # a folder certified by another command is left alone (the CLI refuses it before)
+    other = tmp_path / "nf"
+    other.mkdir()
+    (other / "nearfield.json").write_text("{}")
+    write_manifest(other)
+    assert clear_earlier_comparison(other) == [] and (other / "nearfield.json").is_file()

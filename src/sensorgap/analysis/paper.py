@@ -18,7 +18,7 @@ from sensorgap.analysis.farfield import LEVELS, EgoPose, FarField, farfield
 from sensorgap.analysis.farfield_outputs import write_farfield
 from sensorgap.atomic import atomic_write_text
 from sensorgap.config import load_environment, load_target
-from sensorgap.config.presets import resolve_road
+from sensorgap.config.presets import shipped_road
 from sensorgap.coverage.scene import Scene
 from sensorgap.filesio import write_csv
 from sensorgap.models import Conditions, System, load_system
@@ -113,7 +113,7 @@ def run_paper(
     from sensorgap.analysis.nearfield import write_nearfield
 
     setup = setup or FarFieldSetup()
-    net = read_opendrive(resolve_road(setup.road))
+    net = read_opendrive(shipped_road(setup.road))
     out.mkdir(parents=True, exist_ok=True)
     systems = {k: load_system(v) for k, v in SYSTEMS.items()}
 

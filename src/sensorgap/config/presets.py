@@ -112,6 +112,24 @@ def roads_dir() -> Path:
     return here.parents[1] / "_roads"
 
 
+def shipped_road(name: str) -> Path:
+    """The shipped road ``name`` (``roads_dir()/<name>.xodr``), which must exist: else
+    ``InputError`` naming ``SENSORGAP_ROADS`` when it is set (hostile round 26: a folder
+    lacking the far field's road failed after the work, naming only a derived path)."""
+    path = resolve_road(name)
+    if not path.is_file():
+        env = os.environ.get("SENSORGAP_ROADS")
+        if env:
+            raise InputError(
+                "SENSORGAP_ROADS",
+                "",
+                f"{env} holds no {path.name} (a shipped road this command needs); name a "
+                "folder holding the shipped roads, or do not set it",
+            )
+        raise InputError(path, "", "the shipped road is missing (a broken installation)")
+    return path
+
+
 def resolve_road(name_or_path: str | Path) -> Path:
     """A road name (``motorway_r500``) from the shipped roads, or a path to an .xodr file."""
     text = str(name_or_path)

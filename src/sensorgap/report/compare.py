@@ -21,13 +21,17 @@ for the comparison are linked where they were written (``difference/<map>/``,
 from __future__ import annotations
 
 import math
+import os
 from collections import Counter
 from pathlib import Path
 
 import numpy as np
 
+from sensorgap.analysis.paper import FarFieldSetup
 from sensorgap.atomic import atomic_write_bytes, atomic_write_text
+from sensorgap.config.presets import shipped_road
 from sensorgap.errors import InputError
+from sensorgap.filesio import MANIFEST_NAME, read_manifest, remove_outputs
 from sensorgap.provenance import utc_now
 from sensorgap.report.build import (
     check_pieces,
@@ -464,6 +468,21 @@ def _scenarios(a: Path, b: Path, out: Path) -> Section:
     )
 
 
+def clear_earlier_comparison(out: Path) -> list[str]:
+    """A rerun into its own earlier comparison (the CLI refuses any other certified
+    folder): the files the earlier one's manifest lists are removed first, so the folder
+    then holds only this comparison's (hostile round 26: the earlier pieces, such as a
+    near field computed before the run had its own, stayed beside the new ones,
+    certified); a file of the user's, which the manifest does not list, is kept. Returns
+    the removed files' relative paths."""
+    if not (out / MANIFEST_NAME).is_file():
+        return []
+    earlier = read_manifest(out)
+    if "comparison.json" not in earlier:
+        return []
+    return remove_outputs(out, tuple(rel for rel in earlier if rel != MANIFEST_NAME))
+
+
 def write_compare_report(
     run_a: Path, run_b: Path, out: Path, workers: int = 2
 ) -> tuple[Path, Path]:
@@ -479,7 +498,10 @@ def write_compare_report(
         except InputError:
             vehicle = None  # not recorded: nothing is computed for it (complete_runs)
         check_pieces(f, vehicle)
+    if os.environ.get("SENSORGAP_ROADS"):  # the far field's road, before any work
+        shipped_road(FarFieldSetup().road)
     out = Path(out)
+    clear_earlier_comparison(out)
     out.mkdir(parents=True, exist_ok=True)
     cm = complete_runs(run_a, run_b, out, workers=workers)
     sections = [

@@ -47,7 +47,7 @@ from sensorgap.analysis.nearfield import write_nearfield
 from sensorgap.analysis.paper import FarFieldSetup, ego_pose, target_path
 from sensorgap.atomic import atomic_write_bytes
 from sensorgap.config import EnvironmentConfig, TargetConfig
-from sensorgap.config.presets import resolve_road
+from sensorgap.config.presets import shipped_road
 from sensorgap.coverage import GridSpec, Scene
 from sensorgap.coverage.outputs import compute_coverage, read_coverage_npz, write_coverage
 from sensorgap.coverage.plot import comparison_figure, save_figure
@@ -265,7 +265,7 @@ def _farfield_one(
     profile of a twin vehicle (``_sensing``) in the same environment, written for this
     one instead of computed again."""
     setup = FarFieldSetup()
-    net = read_opendrive(resolve_road(setup.road))
+    net = read_opendrive(shipped_road(setup.road))
     pose = ego_pose(net, setup)
     scene = Scene(system, target, Conditions.from_config(env, pose.heading))
     ff = (
