@@ -330,7 +330,7 @@ def check_pieces(folder: Path, vehicle: str | None) -> None:
         checked_nearfield(nf, vehicle)
     for npz in sorted((folder / "coverage").glob("*/coverage.npz")):
         read_coverage_npz(npz)  # its cells and axes (the summary reads it after the figures)
-        if not (npz.parent / "summary.json").is_file():  # whose map it is, unknown
+        if not os.path.lexists(npz.parent / "summary.json"):  # whose map it is, unknown
             raise InputError(
                 npz,
                 "",
