@@ -12,6 +12,7 @@ import math
 import os
 import re
 import shutil
+import stat
 import zipfile
 from collections.abc import Callable, Collection, Mapping, Sequence
 from pathlib import Path
@@ -138,8 +139,6 @@ def regular_file_size(path: Path) -> int:
     file (a link to one is fine): a named pipe blocked the reader forever, a device
     never ends (hostile round 26), so anything else is an ``InputError`` naming it. A
     missing file raises ``FileNotFoundError`` as the read would."""
-    import stat
-
     st = path.stat()
     if not stat.S_ISREG(st.st_mode):
         raise InputError(
@@ -272,7 +271,6 @@ def _walk(root: Path, unreadable: dict[str, str] | None = None) -> list[tuple[st
     (relative path, ``.`` for ``root``, -> the system's reason) and skipped: its files
     were silently absent (``verify`` called them missing)."""
     import os
-    import stat
 
     def failed(exc: OSError) -> None:
         if unreadable is None:
