@@ -120,7 +120,11 @@ def _rows(
     rows: list[tuple[float, float, float]],
 ) -> NDArray[np.float64]:
     ix, iy, iz, width = columns
-    for lineno, row in enumerate(reader, start=2):
+    last = reader.line_num  # the header's last line
+    for row in reader:
+        # the row's first line in the file (a quoted field may hold line breaks, so rows
+        # and lines differ: hostile round 27 was told line 3 for a value on line 5)
+        lineno, last = last + 1, reader.line_num
         if not row or all(not c.strip() for c in row):
             continue
         if len(row) != width:  # a shifted row: its x, y, z would be other columns
