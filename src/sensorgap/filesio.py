@@ -134,16 +134,22 @@ def loads_json(text: str | bytes) -> Any:
 _OWN_TEMPORARY = re.compile(r"\..+\.[a-z0-9_]{8}\.tmp(\.[^/]*)?")
 
 
-def regular_file_size(path: Path) -> int:
+def regular_file_size(
+    path: Path, at_most: int | None = None, noun: str = "file", hint: str = ""
+) -> int:
     """The size (bytes) of the file a command is about to read, which must be a regular
     file (a link to one is fine): a named pipe blocked the reader forever, a device
     never ends (hostile round 26), so anything else is an ``InputError`` naming it. A
-    missing file raises ``FileNotFoundError`` as the read would."""
+    missing file raises ``FileNotFoundError`` as the read would. ``at_most``: the
+    largest size the reader accepts (bytes), checked before it reads: "<noun> is N bytes;
+    at most M allowed<hint>"."""
     st = path.stat()
     if not stat.S_ISREG(st.st_mode):
         raise InputError(
             path, "", "not a regular file (a folder, named pipe, socket or device): expected a file"
         )
+    if at_most is not None and st.st_size > at_most:
+        raise InputError(path, "", f"{noun} is {st.st_size} bytes; at most {at_most} allowed{hint}")
     return st.st_size
 
 

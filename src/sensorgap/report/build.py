@@ -389,11 +389,9 @@ MAX_CSV_BYTES = 20_000_000
 
 def _check_csv_size(path: Path) -> None:
     try:
-        size = regular_file_size(path)
+        regular_file_size(path, MAX_CSV_BYTES)
     except OSError as exc:
         raise InputError(path, "", f"unreadable CSV: {exc}") from None
-    if size > MAX_CSV_BYTES:
-        raise InputError(path, "", f"file is {size} bytes; at most {MAX_CSV_BYTES} allowed")
 
 
 def read_csv(path: Path) -> list[dict[str, str]]:

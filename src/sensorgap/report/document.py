@@ -167,15 +167,11 @@ def embedded_png(path: Path) -> bytes:
     it is a PNG of at most ``MAX_FIGURE_BYTES`` and ``MAX_FIGURE_PIXELS`` that decodes
     without a warning; anything else -> ``InputError`` naming the file."""
     try:
-        size = regular_file_size(path)
+        regular_file_size(path, MAX_FIGURE_BYTES, "figure", " (a PNG)")
         with path.open("rb") as f:
             head = f.read(24)
     except OSError as exc:
         raise InputError(path, "", f"unreadable figure: {exc.strerror or exc}") from None
-    if size > MAX_FIGURE_BYTES:
-        raise InputError(
-            path, "", f"figure is {size} bytes; at most {MAX_FIGURE_BYTES} allowed (a PNG)"
-        )
     if len(head) < 24 or head[:8] != _PNG_SIGNATURE or head[12:16] != b"IHDR":
         raise InputError(path, "", "not a PNG image; draw it again with the command that made it")
     w, h = struct.unpack(">II", head[16:24])
