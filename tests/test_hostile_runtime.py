@@ -15,6 +15,7 @@ from typing import Any
 import pytest
 
 from sensorgap.cli import main
+from sensorgap.coverage.figurememo import clear_memo
 from sensorgap.errors import InputError
 from sensorgap.filesio import verify_manifest, write_manifest
 from sensorgap.runtime import numba_cache_dir
@@ -589,13 +590,14 @@ def test_sigterm_unwinds_and_leaves_no_temporary_file(
 
     from sensorgap.cli import main
 
-    def killed_while_saving(self: Figure, fname: object, **kwargs: object) -> None:
-        Path(str(fname)).write_bytes(b"half a png")
+    def killed_while_saving(self: Figure, fname: Any, **kwargs: object) -> None:
+        fname.write(b"half a png")  # the figure is drawn into memory, then written
         os.kill(os.getpid(), signal.SIGTERM)
         time.sleep(5)  # the handler runs before this returns
         raise AssertionError("SIGTERM was not delivered")
 
     monkeypatch.setattr(Figure, "savefig", killed_while_saving)
+    clear_memo()  # drawn (and killed) here, not written from an earlier test's figure
     previous = signal.getsignal(signal.SIGTERM)
     out = tmp_path / "out"
     assert (
@@ -641,13 +643,14 @@ def test_sighup_stops_a_command_as_sigterm_does(
 
     sig = getattr(signal, name)
 
-    def killed_while_saving(self: Figure, fname: object, **kwargs: object) -> None:
-        Path(str(fname)).write_bytes(b"half a png")
+    def killed_while_saving(self: Figure, fname: Any, **kwargs: object) -> None:
+        fname.write(b"half a png")
         os.kill(os.getpid(), sig)
         time.sleep(5)
         raise AssertionError(f"{name} was not delivered")
 
     monkeypatch.setattr(Figure, "savefig", killed_while_saving)
+    clear_memo()
     before = signal.getsignal(sig)
     out = tmp_path / "a" / "b" / "out"
     argv = ["coverage", "--vehicle", "system_a", "--environment", "clear", "--target", "car"]

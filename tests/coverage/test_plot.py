@@ -96,7 +96,7 @@ def test_comparison_figure(cov: GridCoverage) -> None:
 
 
 def test_coverage_of_a_scene_draws_its_sun(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    from sensorgap.coverage import outputs
+    from sensorgap.coverage import figurememo, outputs
 
     seen: list[list[str]] = []
 
@@ -106,6 +106,7 @@ def test_coverage_of_a_scene_draws_its_sun(tmp_path: Path, monkeypatch: pytest.M
         return fig
 
     monkeypatch.setattr(outputs, "coverage_figure", spy)
+    figurememo.clear_memo()  # drawn here, not written again from an earlier test's figure
     scene = Scene(
         load_system("system_b"),
         load_target("car"),

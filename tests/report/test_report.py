@@ -256,14 +256,9 @@ def test_scenario_figure_shows_the_named_step(
     spec = next(s for s in specs_of_run(run) if s.scenario.occluders)
     ev = Evaluator(spec.system, mode="exact")
     tr = figures.scenario_trace(spec, ev)
-    captured = {}
-    monkeypatch.setattr(
-        figures, "save_figure", lambda fig, path, dpi: captured.setdefault("fig", fig) and path
-    )
     # both layouts: the map above the curves (a long scene) and beside them
     monkeypatch.setattr(figures, "WIDE_SCENE", wide)
-    figures.scenario_figure(spec, ev, tr, tmp_path / "f.png")
-    fig = captured["fig"]
+    fig = figures.draw_scenario_figure(spec, ev, tr)
     fig.canvas.draw()
     ax, bx = fig.axes[:2]
     pa, pb = ax.get_position(), bx.get_position()

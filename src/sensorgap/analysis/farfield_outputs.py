@@ -10,11 +10,13 @@ from typing import Any
 import numpy as np
 
 from sensorgap.analysis.farfield import LEVELS, FarField
-from sensorgap.coverage.grid import GridSpec, evaluate_grid
+from sensorgap.coverage.figurememo import drawn_system, save_drawn
+from sensorgap.coverage.grid import GridCoverage, GridSpec, evaluate_grid
 from sensorgap.coverage.outputs import scene_provenance
-from sensorgap.coverage.plot import draw_map, draw_vehicle, plain_text, save_figure
+from sensorgap.coverage.plot import draw_map, draw_vehicle, plain_text
 from sensorgap.coverage.scene import Scene
 from sensorgap.filesio import write_csv, write_json
+from sensorgap.models.system import System
 
 MAX_PLOT_CELLS = 1_500_000
 #: Background cells when the map shows target bodies (each cell a body: ~1 s per 1e5).
@@ -63,6 +65,40 @@ def write_farfield(
         ff, scene.target.reference_height_m, MAX_BODY_PLOT_CELLS if bodies else MAX_PLOT_CELLS
     )
     cov = body_grid(scene, grid, 0.0) if bodies else evaluate_grid(scene, grid, workers=2)
+    kind = "car bodies heading as the ego" if bodies else "points"
+    save_drawn(
+        (
+            "farfield_figure",
+            cov.fused,
+            cov.grid,
+            drawn_system(scene.system),
+            ff.vehicle,
+            ff.s,
+            ff.pd,
+            ff.ds,
+            title,
+            kind,
+        ),
+        lambda: _farfield_figure(scene.system, cov, ff, title, kind),
+        out_dir / "farfield.png",
+    )
+    summary = {
+        **scene_provenance(scene),
+        **(extra or {}),
+        "path_length_m": float(ff.ds.sum()),
+        "step_m": float(ff.ds[0]),
+        "levels_m": ff.levels_m,
+        "figure_grid_resolution_m": grid.resolution,
+        "files": ["farfield.csv", "levels.csv", "farfield.png", "summary.json"],
+    }
+    write_json(out_dir / "summary.json", summary)
+    return summary
+
+
+def _farfield_figure(system: System, cov: GridCoverage, ff: FarField, title: str, kind: str) -> Any:
+    """The far-field figure: the Pd map behind the target path (``kind`` of target on
+    ``cov``'s grid) with the path, and the fused Pd along it against the distance from the
+    ego's front bumper (m)."""
     import matplotlib.pyplot as plt  # after coverage.plot's pristine_matplotlib
 
     fig, (ax, ax2) = plt.subplots(
@@ -70,7 +106,7 @@ def write_farfield(
     )
     g = cov.grid
     im = draw_map(ax, cov.fused, (g.xmin, g.xmax, g.ymin, g.ymax))
-    draw_vehicle(ax, scene.system, fov=False)
+    draw_vehicle(ax, system, fov=False)
     ax.plot(
         ff.vehicle[:, 0],
         ff.vehicle[:, 1],
@@ -82,7 +118,6 @@ def write_farfield(
     ax.set_ylim(g.ymin, g.ymax)
     ax.set_xlabel("x (vehicle frame) [m]")
     ax.set_ylabel("y (vehicle frame) [m]")
-    kind = "car bodies heading as the ego" if bodies else "points"
     ax.set_title(f"{plain_text(title)}\nmap: {kind}, {g.resolution:g} m cells", fontsize=10)
     ax.legend(loc="upper left", fontsize=8, framealpha=0.9)
     fig.colorbar(im, ax=ax, label="detection probability $p_d$", shrink=0.8)
@@ -95,15 +130,4 @@ def write_farfield(
     ax2.set_ylabel("Pd")
     ax2.grid(True, linewidth=0.3)
     ax2.legend(loc="upper right", fontsize=8)
-    save_figure(fig, out_dir / "farfield.png")
-    summary = {
-        **scene_provenance(scene),
-        **(extra or {}),
-        "path_length_m": float(ff.ds.sum()),
-        "step_m": float(ff.ds[0]),
-        "levels_m": ff.levels_m,
-        "figure_grid_resolution_m": grid.resolution,
-        "files": ["farfield.csv", "levels.csv", "farfield.png", "summary.json"],
-    }
-    write_json(out_dir / "summary.json", summary)
-    return summary
+    return fig

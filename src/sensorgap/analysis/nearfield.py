@@ -941,10 +941,32 @@ _nearfield_memo = _Memo(lambda: NEARFIELD_MEMO)
 
 
 def clear_memo() -> None:
-    """Forget every memoised footprint and near field (the next call computes them again;
-    the determinism tests compare two computations, not a computation and its copy)."""
+    """Forget every memoised footprint, near field and figure (``coverage.figurememo``;
+    the next call computes them again: the determinism tests compare two computations,
+    not a computation and its copy)."""
     _memo.clear()
     _nearfield_memo.clear()
+    from sensorgap.coverage.figurememo import clear_memo as clear_figures
+
+    clear_figures()
+
+
+def _nearfield_key(
+    system: System,
+    resolution: float,
+    radius: float,
+    height_range: tuple[float, float],
+    z: float,
+    dphi_deg: float,
+) -> tuple[str, ...]:
+    """What a near field depends on: the vehicle's name, body, each sensor's id and mount,
+    and the settings, every float by its hex form."""
+    return (
+        system.name,
+        system.config.vehicle.model_dump_json(),
+        *(s.id + ":" + ",".join(float(v).hex() for v in astuple(s.mount)) for s in system.sensors),
+        *(float(v).hex() for v in (resolution, radius, *height_range, z, dphi_deg)),
+    )
 
 
 def _nearfield_result(
@@ -958,12 +980,7 @@ def _nearfield_result(
     """The near field of ``system`` (exact and grid; see ``write_nearfield``), computed
     once per vehicle and settings: its name, body, each sensor's id and mount, and the
     settings, every float by its hex form (what the near field depends on)."""
-    key = (
-        system.name,
-        system.config.vehicle.model_dump_json(),
-        *(s.id + ":" + ",".join(float(v).hex() for v in astuple(s.mount)) for s in system.sensors),
-        *(float(v).hex() for v in (resolution, radius, *height_range, z, dphi_deg)),
-    )
+    key = _nearfield_key(system, resolution, radius, height_range, z, dphi_deg)
     hit: _NearField | None = _nearfield_memo.recall(key)
     if hit is not None:
         return hit
@@ -1051,7 +1068,7 @@ def write_nearfield(
     open to the outside), ``uncovered_0p1m_m2`` (same as the blind spots, at ``z``),
     ``method``. Same inputs -> byte-identical files.
     """
-    from sensorgap.coverage.plot import save_figure
+    from sensorgap.coverage.figurememo import save_drawn
 
     out_dir = Path(out_dir)
     lo, hi = height_range
@@ -1066,6 +1083,14 @@ def write_nearfield(
     r = _nearfield_result(system, resolution, radius, height_range, z, dphi_deg)
     summary = copy.deepcopy(r.summary)
     write_json(out_dir / "nearfield.json", summary)
-    fig = nearfield_figure(system, r.window, r.fp_any, r.spots, r.uncovered, z, r.unseen)
-    save_figure(fig, out_dir / "nearfield.png")
+    # the figure reads the near field (its key) and each sensor's type (its colour)
+    save_drawn(
+        (
+            "nearfield_figure",
+            _nearfield_key(system, resolution, radius, height_range, z, dphi_deg),
+            tuple(s.type_name for s in system.sensors),
+        ),
+        lambda: nearfield_figure(system, r.window, r.fp_any, r.spots, r.uncovered, z, r.unseen),
+        out_dir / "nearfield.png",
+    )
     return summary

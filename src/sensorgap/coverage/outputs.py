@@ -12,10 +12,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from sensorgap.coverage.figurememo import drawn_system, save_drawn
 from sensorgap.coverage.grid import GridCoverage, GridSpec, evaluate_grid
 from sensorgap.coverage.limits import MAX_EXTENT_M
 from sensorgap.coverage.occluders import Occluder, occluder_array
-from sensorgap.coverage.plot import coverage_figure, pd_levels_area, save_figure
+from sensorgap.coverage.plot import coverage_figure, pd_levels_area
 from sensorgap.coverage.points import PointCoverage
 from sensorgap.coverage.scene import Scene
 from sensorgap.errors import InputError
@@ -208,8 +209,17 @@ def write_coverage(
     )
     if occluders:
         title += f", {len(occluders)} occluder{'s' if len(occluders) > 1 else ''}"
-    save_figure(
-        coverage_figure(cov, scene.system, title, occluders, scene.conditions),
+    save_drawn(
+        (
+            "coverage_figure",
+            cov.fused,
+            cov.grid,
+            drawn_system(scene.system),
+            title,
+            tuple(occluders),
+            scene.conditions,
+        ),
+        lambda: coverage_figure(cov, scene.system, title, occluders, scene.conditions),
         out_dir / "coverage.png",
     )
     summary = {

@@ -21,7 +21,8 @@ from matplotlib.lines import Line2D  # noqa: E402
 from matplotlib.patches import Polygon, Rectangle, Wedge  # noqa: E402
 from numpy.typing import NDArray  # noqa: E402
 
-from sensorgap.atomic import atomic_path  # noqa: E402
+from sensorgap.atomic import atomic_write_bytes  # noqa: E402
+from sensorgap.coverage.figurememo import png_bytes  # noqa: E402
 from sensorgap.coverage.grid import GridCoverage, GridSpec  # noqa: E402
 from sensorgap.coverage.occluders import Occluder  # noqa: E402
 from sensorgap.models.conditions import Conditions  # noqa: E402
@@ -512,11 +513,9 @@ def _both_vehicles(
 
 
 def save_figure(fig: Figure, path: str | Path, dpi: int = 120) -> Path:
-    """Save a figure as PNG atomically, without a timestamp in its metadata."""
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", dpi=dpi, metadata={"Software": None})
-    plt.close(fig)
-    return Path(path)
+    """Save a figure as PNG atomically, without a timestamp in its metadata; closes it
+    (``figurememo.save_drawn``: the same, drawn once per process for the same inputs)."""
+    return atomic_write_bytes(path, png_bytes(fig, dpi))
 
 
 def pd_levels_area(cov: GridCoverage) -> dict[str, float]:

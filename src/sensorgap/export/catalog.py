@@ -20,6 +20,7 @@ before the index is written; a failure is an error, not a warning.
 from __future__ import annotations
 
 import shutil
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -28,7 +29,8 @@ import numpy as np
 from sensorgap.atomic import atomic_path, atomic_write_bytes
 from sensorgap.config import load_target
 from sensorgap.coverage import GridSpec, Scene, evaluate_grid
-from sensorgap.coverage.plot import coverage_figure, save_figure
+from sensorgap.coverage.figurememo import drawn_system, save_drawn
+from sensorgap.coverage.plot import coverage_figure
 from sensorgap.errors import InputError
 from sensorgap.export.maneuver import build_maneuver_scenario, supported
 from sensorgap.export.spec import ScenarioSpec, read_run, specs_of_run
@@ -99,13 +101,16 @@ def _coverage_maps(specs: list[ScenarioSpec], out: Path) -> list[Path]:
             out / f"{stem}.npz",
             {"pd": cov.fused.astype(np.float32), "xs": grid.xs(), "ys": grid.ys()},
         )
-        fig = coverage_figure(
-            cov,
-            sp.system,
+        title = (
             f"{sp.system.name}: {target.name}, "
-            f"{sp.environment_name} (no sun), Pd used by the search lookup",
+            f"{sp.environment_name} (no sun), Pd used by the search lookup"
         )
-        save_figure(fig, out / f"{stem}.png", dpi=80)
+        save_drawn(
+            ("coverage_figure", cov.fused, grid, drawn_system(sp.system), title),
+            partial(coverage_figure, cov, sp.system, title),
+            out / f"{stem}.png",
+            dpi=80,
+        )
         written += [out / f"{stem}.npz", out / f"{stem}.png"]
     return written
 

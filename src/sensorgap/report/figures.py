@@ -13,6 +13,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.patches import Polygon  # noqa: E402
 
+from sensorgap.coverage.figurememo import drawn_system, save_drawn  # noqa: E402
 from sensorgap.coverage.plot import (  # noqa: E402
     PD_CMAP,
     PD_NORM,
@@ -77,6 +78,27 @@ def _box(
 
 
 def scenario_figure(spec: ScenarioSpec, evaluator: Evaluator, tr: Trace, path: Path) -> Path:
+    """Write ``draw_scenario_figure`` as PNG to ``path`` (drawn once per process for the
+    same inputs: ``coverage.figurememo``)."""
+    maps = evaluator.maps(spec.environment, spec.target)
+    key = (
+        "scenario_figure",
+        maps.total,
+        maps.grid,
+        tr,
+        drawn_system(spec.system),
+        spec.target,
+        spec.environment,
+        spec.environment_name,
+        spec.rank,
+        spec.family.name,
+        evaluator.reaction,
+        WIDE_SCENE,
+    )
+    return save_drawn(key, lambda: draw_scenario_figure(spec, evaluator, tr), path, dpi=100)
+
+
+def draw_scenario_figure(spec: ScenarioSpec, evaluator: Evaluator, tr: Trace) -> plt.Figure:
     """Left: the target's path in the ego frame over the fused Pd map of a car body in the
     scenario's weather (the search's lookup map: no sun, no occluders), the vehicle and its
     sensors' fields of view; at the step the reason names, the target's body coloured by
@@ -234,7 +256,7 @@ def scenario_figure(spec: ScenarioSpec, evaluator: Evaluator, tr: Trace, path: P
         frameon=False,
     )
     bx.set_title("detection and confirmation over time (exact)", fontsize=9)
-    return save_figure(fig, path, dpi=100)
+    return fig
 
 
 def farfield_pair_figure(
