@@ -73,3 +73,27 @@ def test_unreachable_scheduler_is_one_line(
     assert code == 2 and "cannot reach the Dask scheduler" in err
     assert len(err.splitlines()) == 1
     assert not (tmp_path / "o").exists()  # no empty folder left behind (review round four)
+
+
+def test_a_second_local_cluster_warns_of_no_busy_port() -> None:
+    """A local cluster while another one holds Dask's HTTP port 8787 (two searches at
+    once): the scheduler's HTTP server (no dashboard) takes a free local port without a
+    word (found while a hostile round ran a Dask search beside the suite: "UserWarning:
+    Port 8787 is already in use" on stderr)."""
+    import socket
+    import warnings
+
+    holder = socket.socket()
+    try:
+        holder.bind(("127.0.0.1", 8787))
+        holder.listen()
+    except OSError:
+        pass  # held by someone else: busy all the same
+    try:
+        with warnings.catch_warnings(record=True) as seen:
+            warnings.simplefilter("always")
+            ex = DaskExecutor(workers=1)
+            ex.close()
+    finally:
+        holder.close()
+    assert [str(w.message) for w in seen if "Port" in str(w.message)] == []

@@ -159,6 +159,13 @@ class DaskExecutor(Executor):
                             # stops, a lost scheduler) is not the command's to print:
                             # their errors reach it through the tasks
                             silence_logs=logging.CRITICAL,
+                            # no dashboard; the scheduler's HTTP server (health routes)
+                            # on a free local port: its default, 8787, held by another
+                            # cluster (a second search) printed a UserWarning
+                            scheduler_kwargs={
+                                "dashboard": False,
+                                "dashboard_address": "127.0.0.1:0",
+                            },
                         )
                         self.client = Client(self._cluster)
                 except BaseException:  # a stop signal delivered at the block's end too
