@@ -97,3 +97,42 @@ def test_a_second_local_cluster_warns_of_no_busy_port() -> None:
     finally:
         holder.close()
     assert [str(w.message) for w in seen if "Port" in str(w.message)] == []
+
+
+def test_an_address_where_no_scheduler_answers_is_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Hostile round 28, F3: a --scheduler address where something else answers (bytes
+    that Dask decodes as a frame of EiB): it was "out of memory" and left an empty
+    search.sqlite. Now one line naming --scheduler, exit 2, no --out folder."""
+    import contextlib
+    import socket
+    import threading
+
+    server = socket.socket()
+    server.bind(("127.0.0.1", 0))
+    server.listen()
+    port = server.getsockname()[1]
+
+    def answer() -> None:
+        while True:
+            try:
+                conn, _ = server.accept()
+            except OSError:
+                return
+            with contextlib.suppress(OSError):
+                conn.sendall(b"HTTP/1.0 200 OK\r\n\r\n" + b"\xff" * 100_000)
+            conn.close()
+
+    threading.Thread(target=answer, daemon=True).start()
+    out = tmp_path / "out"
+    argv = ["search", "--vehicle", "system_b", "--families", "cut_out_reveal"]
+    argv += ["--environments", "fog_50", "--budget", "10", "--executor", "dask"]
+    try:
+        code = main([*argv, "--scheduler", f"tcp://127.0.0.1:{port}", "--out", str(out)])
+    finally:
+        server.close()
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1, err
+    assert f"--scheduler: 'tcp://127.0.0.1:{port}' did not answer as a Dask scheduler" in err
+    assert not out.exists()

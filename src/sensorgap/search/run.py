@@ -524,7 +524,7 @@ def run_search(
         fresh = [out / n for n in (RUN_JSON, INPUTS_DIR) if not (out / n).exists()]
         try:
             runner = make_executor(executor, scheduler, workers)
-        except InputError:
+        except BaseException:  # any failure (a stop signal, memory) before anything stored
             store.close()
             # nothing was stored: no empty database behind, nor a folder this search created
             _remove_fresh_search(db if new_db else None, [], created)

@@ -40,6 +40,11 @@ MAX_SEEDS = 10
 #: lookup``; 2,000 environments of a 5 MB file took 120 s at 1.5 GB under load, and the
 #: time grows with their number).
 MAX_ENVIRONMENTS = 1000
+#: Worker processes of a local Dask cluster (``executor="dask"`` without a scheduler):
+#: each holds its own interpreter, numpy and kernels, ~0.2 GiB (hostile round 28: 16
+#: workers 3.3 GiB PSS, 5.0 GiB RSS, budget 2,000 in 3 min; 2-core machine, 2026-11-27);
+#: 8 stays within the ~2 GiB a command may use beside its own.
+MAX_DASK_PROCESSES = 8
 
 
 @dataclass(frozen=True)
@@ -96,6 +101,14 @@ class SearchSettings:
             )
         if not 1 <= self.workers <= 64:
             raise InputError("workers", "", f"must be 1..64, got {shown(int(self.workers))}")
+        if self.executor == "dask" and not self.scheduler and self.workers > MAX_DASK_PROCESSES:
+            raise InputError(
+                "workers",
+                "",
+                f"at most {MAX_DASK_PROCESSES} with the dask executor and no scheduler (each "
+                f"is a local worker process of ~0.2 GiB), got {int(self.workers)}; name a "
+                "scheduler to use a cluster's workers",
+            )
         n_env = len(set(self.environments))
         if n_env > MAX_ENVIRONMENTS:
             raise InputError(
