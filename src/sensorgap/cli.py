@@ -1481,17 +1481,18 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _flag_sources(exc: InputError, parser: argparse.ArgumentParser) -> None:
+def _flag_sources(exc: InputError, parser: argparse.ArgumentParser, command: str) -> None:
     """Name CLI options where the library names arguments: an error whose source is an
     option's destination (``environments_file``) is reported as the option
-    (``--environments-file``); files and fields stay as they are."""
+    (``--environments-file``) when ``command`` has that option; files, fields and the
+    arguments of a command without such an option stay as they are (hostile round 28:
+    ``tradeoff`` named ``--environment``, another command's option)."""
     flags: dict[str, str] = {}
     for action in parser._actions:
-        if isinstance(action, argparse._SubParsersAction):
-            for sub in action.choices.values():
-                for a in sub._actions:
-                    if a.option_strings and a.dest not in flags:
-                        flags[a.dest] = max(a.option_strings, key=len)
+        if isinstance(action, argparse._SubParsersAction) and command in action.choices:
+            for a in action.choices[command]._actions:
+                if a.option_strings and a.dest not in flags:
+                    flags[a.dest] = max(a.option_strings, key=len)
     for e in (exc, *exc.more):
         if e.source in flags:
             e.source = flags[e.source]
@@ -1734,7 +1735,7 @@ def _main(argv: Sequence[str] | None) -> int:
         print(clip(f"sensorgap: error: {line}"), file=sys.stderr)
         return EXIT_INPUT
     except InputError as exc:
-        _flag_sources(exc, parser)
+        _flag_sources(exc, parser, args.command)
         for text in exc.lines():  # every error found, one line each
             print(f"sensorgap: error: {text}", file=sys.stderr)
         return EXIT_INPUT

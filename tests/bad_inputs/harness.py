@@ -720,6 +720,25 @@ def _setup(
             shutil.copytree(templates_dir(), folder / "tpl")
             (folder / "tpl" / "vehicles" / "system_a.toml").unlink()
             (folder / "tpl" / "vehicles" / "system_a.toml").mkdir()
+        elif step.startswith("templates_without:"):  # {dir}/tpl lacking one file
+            from sensorgap.config.presets import templates_dir
+
+            shutil.copytree(templates_dir(), folder / "tpl")
+            (folder / "tpl" / step.removeprefix("templates_without:")).unlink()
+        elif step.startswith("templates_renamed_environment:"):  # {dir}/tpl: env renamed
+            from sensorgap.config.presets import templates_dir
+
+            name = step.removeprefix("templates_renamed_environment:")
+            shutil.copytree(templates_dir(), folder / "tpl")
+            envs = folder / "tpl" / "environments.toml"
+            text = envs.read_text(encoding="utf-8")
+            envs.write_text(text.replace(f"[environments.{name}", f"[environments.{name}_x"))
+        elif step.startswith("roads_only:"):  # {dir}/rd holding one shipped road
+            from sensorgap.config.presets import roads_dir
+
+            (folder / "rd").mkdir()
+            name = step.removeprefix("roads_only:")
+            shutil.copyfile(roads_dir() / f"{name}.xodr", folder / "rd" / f"{name}.xodr")
         elif step == "templates_with_a_broken_family_link":  # {dir}/tpl/scenarios/zz.toml
             from sensorgap.config.presets import templates_dir
 
@@ -732,6 +751,8 @@ def _setup(
                 (run / name).unlink(missing_ok=True)
         elif step == "fifo_out":  # {dir}/out.csv is a named pipe
             os.mkfifo(folder / "out.csv")
+        elif step.startswith("dir_fifo:"):  # {dir}/<name> is a named pipe
+            os.mkfifo(folder / step.removeprefix("dir_fifo:"))
         elif step == "out_holds_link":  # {out}/figures/a.png links to {dir}/elsewhere/keep.xodr
             (folder / "elsewhere").mkdir()
             (folder / "elsewhere" / "keep.xodr").write_text("not the command's")

@@ -18,6 +18,7 @@ from sensorgap.analysis.farfield import LEVELS, EgoPose, FarField, farfield
 from sensorgap.analysis.farfield_outputs import write_farfield
 from sensorgap.atomic import atomic_write_text
 from sensorgap.config import load_environment, load_target
+from sensorgap.config.load import require_shipped
 from sensorgap.config.presets import shipped_road
 from sensorgap.coverage.scene import Scene
 from sensorgap.filesio import write_csv
@@ -113,6 +114,11 @@ def run_paper(
     from sensorgap.analysis.nearfield import write_nearfield
 
     setup = setup or FarFieldSetup()
+    # the shipped presets and road it uses by name, before any work (SENSORGAP_TEMPLATES
+    # lacking System B was "--vehicle: unknown preset", an option paper does not have)
+    require_shipped(
+        vehicles=SYSTEMS.values(), environments=CONDITIONS.values(), targets=(setup.target,)
+    )
     net = read_opendrive(shipped_road(setup.road))
     out.mkdir(parents=True, exist_ok=True)
     systems = {k: load_system(v) for k, v in SYSTEMS.items()}

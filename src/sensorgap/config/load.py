@@ -342,3 +342,41 @@ def load_target(name: str, path: Path | None = None) -> TargetConfig:
     if name not in targets:
         raise InputError("target", "", f"unknown target {name!r}; allowed: {', '.join(targets)}")
     return targets[name]
+
+
+def require_shipped(
+    vehicles: Iterable[str] = (),
+    environments: Iterable[str] = (),
+    targets: Iterable[str] = (),
+    families: Iterable[str] = (),
+) -> None:
+    """Refuse, before any work, a templates folder lacking a shipped preset that a command
+    uses by its fixed name (``paper``: System A and B, ``tradeoff``: rain_25, two
+    families...): one ``InputError`` naming ``SENSORGAP_TEMPLATES`` when it is set, and
+    every missing preset (hostile round 28: ``tradeoff`` refused after 15 s of measuring,
+    naming ``--environment``, an option it does not have)."""
+    tdir = templates_dir()
+    missing = [
+        f"vehicles/{n}.toml" for n in vehicles if not (tdir / "vehicles" / f"{n}.toml").is_file()
+    ]
+    missing += [
+        f"scenarios/{n}.toml" for n in families if not (tdir / "scenarios" / f"{n}.toml").is_file()
+    ]
+    wanted_envs, wanted_targets = list(environments), list(targets)
+    if wanted_envs:
+        envs = load_environments()
+        missing += [f"environment {n!r} (environments.toml)" for n in wanted_envs if n not in envs]
+    if wanted_targets:
+        known = load_targets()
+        missing += [f"target {n!r} (targets.toml)" for n in wanted_targets if n not in known]
+    if not missing:
+        return
+    env = os.environ.get("SENSORGAP_TEMPLATES")
+    if env:
+        raise InputError(
+            "SENSORGAP_TEMPLATES",
+            "",
+            f"{env} lacks {', '.join(missing)} (shipped presets this command needs); name a "
+            "folder holding the shipped templates, or do not set it",
+        )
+    raise InputError(tdir, "", f"lacks {', '.join(missing)} (a broken installation)")

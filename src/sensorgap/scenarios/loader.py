@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import os
 from functools import lru_cache
 from pathlib import Path
 from typing import Any
@@ -34,7 +35,7 @@ from sensorgap.config import TargetConfig, load_targets, templates_dir
 from sensorgap.config.common import name_problem
 from sensorgap.config.load import read_toml, short
 from sensorgap.config.parameters import bound_error
-from sensorgap.config.presets import preset_file, resolve_road
+from sensorgap.config.presets import preset_file, resolve_road, roads_dir
 from sensorgap.errors import InputError
 from sensorgap.filesio import same_file
 from sensorgap.roads import RoadNetwork, read_opendrive
@@ -239,7 +240,18 @@ def load_family(name_or_path: str, road: Path | None = None, targets: Path | Non
             ) from None
         settings["road"] = str(road_path)
     if not road_path.is_file():
-        raise InputError(path, "family.road", f"road file {road_path} not found")
+        roads_env = os.environ.get("SENSORGAP_ROADS")
+        if os.path.lexists(road_path):  # a folder, a named pipe, a device
+            why = f"road file {road_path} is not a regular file (an OpenDRIVE .xodr file)"
+        elif road is None and road_path.parent == roads_dir() and roads_env:
+            # a shipped road by name, missing from the folder the variable names
+            why = (
+                f"road {road_text!r} not found: SENSORGAP_ROADS ({roads_env}) holds no "
+                f"{road_path.name}"
+            )
+        else:
+            why = f"road file {road_path} not found"
+        raise InputError(path, "family.road", why)
     net = _network(str(road_path.resolve()))
     if settings["road_id"] not in net.roads:
         raise InputError(
