@@ -151,3 +151,14 @@ def test_paths_never_enter_the_ego_body(system_a: System) -> None:
         corridor_search(scene, -30.0, 10.0, [(-1.0, 1.0)], speed_rel=10.0, lateral_res=0.25)
     # a band ending before the rear bumper is not affected
     corridor_search(scene, -30.0, -4.0, [(-1.0, 1.0)], speed_rel=10.0, lateral_res=0.25)
+
+
+def test_an_unseen_corridor_is_certainly_undetected_without_a_negative_zero(
+    system_a: System,
+) -> None:
+    """Far behind System A in 50 m fog no sensor sees: P(undetected) is exactly 1 and its
+    log10 is 0.0, not -0.0 (hostile round 28: "log10 -0.0" printed and written)."""
+    scene = make_scene(system_a, "car", "fog_50")
+    c = corridor_search(scene, -1900.0, -1890.0, [(-2.0, 2.0)], speed_rel=10.0, lateral_res=1.0)
+    assert np.all(c.pd == 0.0) and c.p_undetected == 1.0
+    assert c.log10_p_undetected == 0.0 and math.copysign(1.0, c.log10_p_undetected) == 1.0

@@ -196,7 +196,7 @@ def corridor_search(
         heading=heading,
         pd=pd_path,
         p_undetected=math.exp(-total),
-        log10_p_undetected=-total / math.log(10.0),
+        log10_p_undetected=-total / math.log(10.0) + 0.0,  # + 0.0: never -0.0 (certain)
         speed_rel=speed_rel,
     )
 
