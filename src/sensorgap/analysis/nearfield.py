@@ -951,21 +951,15 @@ def clear_memo() -> None:
     clear_figures()
 
 
-def _nearfield_key(
-    system: System,
-    resolution: float,
-    radius: float,
-    height_range: tuple[float, float],
-    z: float,
-    dphi_deg: float,
-) -> tuple[str, ...]:
+def _nearfield_key(system: System, *settings: float) -> tuple[str, ...]:
     """What a near field depends on: the vehicle's name, body, each sensor's id and mount,
-    and the settings, every float by its hex form."""
+    and the ``settings`` (resolution, radius, height range, z, angular step), every float
+    by its hex form."""
     return (
         system.name,
         system.config.vehicle.model_dump_json(),
         *(s.id + ":" + ",".join(float(v).hex() for v in astuple(s.mount)) for s in system.sensors),
-        *(float(v).hex() for v in (resolution, radius, *height_range, z, dphi_deg)),
+        *(float(v).hex() for v in settings),
     )
 
 
@@ -980,7 +974,7 @@ def _nearfield_result(
     """The near field of ``system`` (exact and grid; see ``write_nearfield``), computed
     once per vehicle and settings: its name, body, each sensor's id and mount, and the
     settings, every float by its hex form (what the near field depends on)."""
-    key = _nearfield_key(system, resolution, radius, height_range, z, dphi_deg)
+    key = _nearfield_key(system, resolution, radius, *height_range, z, dphi_deg)
     hit: _NearField | None = _nearfield_memo.recall(key)
     if hit is not None:
         return hit
@@ -1087,7 +1081,7 @@ def write_nearfield(
     save_drawn(
         (
             "nearfield_figure",
-            _nearfield_key(system, resolution, radius, height_range, z, dphi_deg),
+            _nearfield_key(system, resolution, radius, *height_range, z, dphi_deg),
             tuple(s.type_name for s in system.sensors),
         ),
         lambda: nearfield_figure(system, r.window, r.fp_any, r.spots, r.uncovered, z, r.unseen),
