@@ -136,3 +136,47 @@ def test_an_address_where_no_scheduler_answers_is_one_line(
     assert code == 2 and err.count("\n") == 1, err
     assert f"--scheduler: 'tcp://127.0.0.1:{port}' did not answer as a Dask scheduler" in err
     assert not out.exists()
+
+
+def test_a_silent_peer_or_a_scheduler_without_workers_is_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Hostile round 29: a server that accepts and never answers hung the search for ever
+    (Dask bounds the connection, not the handshake after it), and so did a real scheduler
+    with no workers. Both are now one line naming --scheduler, exit 2, no --out folder."""
+    import socket
+
+    from distributed import LocalCluster
+
+    from sensorgap.search import executors
+
+    silent = socket.socket()
+    silent.bind(("127.0.0.1", 0))
+    silent.listen()
+    argv = ["search", "--vehicle", "system_b", "--families", "cut_out_reveal"]
+    argv += ["--environments", "fog_50", "--budget", "10", "--executor", "dask"]
+    address = f"tcp://127.0.0.1:{silent.getsockname()[1]}"
+    init = executors.DaskExecutor.__init__
+
+    def quick(self: executors.DaskExecutor, a: str | None = None, workers: int = 2) -> None:
+        init(self, a, workers, timeout_s=1.0)  # 2 s for the handshake, not 20
+
+    executors.DaskExecutor.__init__ = quick  # type: ignore[method-assign]
+    try:
+        code = main([*argv, "--scheduler", address, "--out", str(tmp_path / "a")])
+        err = capsys.readouterr().err
+        assert code == 2 and err.count("\n") == 1, err
+        assert f"--scheduler: '{address}' did not answer as a Dask scheduler within 2 s" in err
+    finally:
+        executors.DaskExecutor.__init__ = init  # type: ignore[method-assign]
+        silent.close()
+    assert not (tmp_path / "a").exists()
+    with LocalCluster(
+        n_workers=0, processes=False, protocol="tcp", host="127.0.0.1", dashboard_address=None
+    ) as cluster:
+        address = cluster.scheduler_address
+        code = main([*argv, "--scheduler", address, "--out", str(tmp_path / "b")])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1, err
+    assert f"--scheduler: the Dask scheduler '{address}' has no workers" in err
+    assert not (tmp_path / "b").exists()

@@ -10,10 +10,11 @@ or the number of workers (same seed -> same ranking; tested).
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import re
 import threading
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -123,6 +124,89 @@ def _quiet_dask_logs() -> None:
         logging.getLogger(name).setLevel(logging.CRITICAL + 1)
 
 
+@contextlib.contextmanager
+def _dask_logs_quiet() -> Iterator[None]:
+    """No log lines of Dask, ``asyncio`` and ``tornado`` while the block runs (their
+    levels put back after it): a peer that is no Dask scheduler made Dask log a CRITICAL
+    line with a traceback before the command's one line (hostile round 29)."""
+    loggers = [logging.getLogger(n) for n in ("distributed", "asyncio", "tornado")]
+    levels = [lg.level for lg in loggers]
+    for lg in loggers:
+        lg.setLevel(logging.CRITICAL + 1)
+    try:
+        yield
+    finally:
+        for lg, level in zip(loggers, levels, strict=True):
+            lg.setLevel(level)
+
+
+def _kind(exc: BaseException) -> str:
+    """An exception's class name, with its module when it is not a builtin one
+    (``struct.error``, not ``error``)."""
+    cls = type(exc)
+    return cls.__name__ if cls.__module__ == "builtins" else f"{cls.__module__}.{cls.__name__}"
+
+
+def _remote_client(client_cls: Any, address: str, timeout_s: float) -> Any:
+    """A Dask client of the scheduler at ``address``, connected within ``2 * timeout_s``
+    (s) or ``InputError``: Dask bounds the connection by ``timeout_s`` but not the
+    handshake after it (hostile round 29: a server that accepted and never answered hung
+    the search forever). Whatever else goes wrong there (bytes that are no Dask message:
+    ``struct.error``, a frame of EiB: ``MemoryError``...) is one line naming the address;
+    a scheduler without workers is refused (its tasks would wait forever)."""
+    box: dict[str, Any] = {}
+
+    def connect() -> None:
+        try:
+            box["client"] = client_cls(address, timeout=timeout_s)
+        except BaseException as exc:  # noqa: BLE001 - handed to the caller
+            box["error"] = exc
+
+    with _dask_logs_quiet():
+        worker = threading.Thread(target=connect, name="sensorgap-dask-connect", daemon=True)
+        worker.start()
+        worker.join(2.0 * timeout_s)
+    if worker.is_alive():
+        raise InputError(
+            "scheduler",
+            "",
+            f"{address!r} did not answer as a Dask scheduler within {2.0 * timeout_s:g} s "
+            "(it accepted the connection, then said nothing); name the address of a "
+            "running dask scheduler",
+        )
+    exc = box.get("error")
+    if isinstance(exc, (OSError, TimeoutError)):
+        raise InputError(
+            "scheduler", "", f"cannot reach the Dask scheduler {address!r}: {exc}"
+        ) from None
+    if isinstance(exc, Exception):
+        raise InputError(
+            "scheduler",
+            "",
+            f"{address!r} did not answer as a Dask scheduler ({_kind(exc)}); "
+            "name the address of a running dask scheduler",
+        ) from None
+    if exc is not None:  # a stop signal
+        raise exc
+    client = box["client"]
+    try:
+        workers = client.scheduler_info().get("workers", {})
+    except Exception as err:  # noqa: BLE001 - the scheduler went away
+        client.close()
+        raise InputError(
+            "scheduler", "", f"the Dask scheduler {address!r} stopped answering: {err}"
+        ) from None
+    if not workers:
+        client.close()
+        raise InputError(
+            "scheduler",
+            "",
+            f"the Dask scheduler {address!r} has no workers (its tasks would wait for "
+            "ever); start workers for it (dask worker ADDRESS) first",
+        )
+    return client
+
+
 class DaskExecutor(Executor):
     """Evaluates batches on Dask distributed: a scheduler at ``address``, or a local
     cluster of ``workers`` processes (one thread each) when no address is given."""
@@ -142,7 +226,7 @@ class DaskExecutor(Executor):
         self._cluster: Any = None
         try:
             if address:
-                self.client = Client(address, timeout=timeout_s)
+                self.client = _remote_client(Client, address, timeout_s)
             else:
                 # its processes (and its event loop's thread) spared the stop signals of
                 # the process group; each worker leaves the group (search.daskworker)
@@ -174,17 +258,6 @@ class DaskExecutor(Executor):
         except (OSError, TimeoutError, ValueError) as exc:
             raise InputError(
                 "scheduler", "", f"cannot reach the Dask scheduler {address!r}: {exc}"
-            ) from None
-        except (MemoryError, TypeError, RuntimeError, EOFError, LookupError) as exc:
-            # something else answered there: Dask's decoding of its bytes asked for EiB
-            # (hostile round 28: reported as "out of memory", an empty store left)
-            if address is None:
-                raise
-            raise InputError(
-                "scheduler",
-                "",
-                f"{address!r} did not answer as a Dask scheduler ({type(exc).__name__}); "
-                "name the address of a running dask scheduler",
             ) from None
         self.workers = max(1, len(self.client.scheduler_info().get("workers", {})) or workers)
 
