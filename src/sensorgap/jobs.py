@@ -29,7 +29,7 @@ from sensorgap.analysis.paper import FarFieldSetup, run_farfield
 from sensorgap.atomic import removed_on_error
 from sensorgap.config import load_environment, load_environments, load_target
 from sensorgap.config.common import name_problem
-from sensorgap.config.load import short
+from sensorgap.config.load import require_shipped, short
 from sensorgap.config.presets import roads_dir, shipped_road, templates_dir
 from sensorgap.coverage import GridSpec, Scene
 from sensorgap.coverage.grid import GridCoverage
@@ -234,6 +234,11 @@ def run_default(
             ref, tuple(fams), tuple(envs), budget, seed, top, "de", workers=workers, seeds=seeds
         )
     )
+    # the shipped target and road its coverage maps and far field use by name (hostile
+    # round 29: a SENSORGAP_ROADS or SENSORGAP_TEMPLATES lacking them failed after the
+    # search had run, as "target: unknown target 'car'")
+    require_shipped(targets=("car", FarFieldSetup().target))
+    shipped_road(FarFieldSetup().road)
     folder = out / name
     refuse_job_clash(prepared, folder)
     # a failed or stopped job leaves OUT as it was: a folder it made removed, an earlier

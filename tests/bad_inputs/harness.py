@@ -733,6 +733,14 @@ def _setup(
             envs = folder / "tpl" / "environments.toml"
             text = envs.read_text(encoding="utf-8")
             envs.write_text(text.replace(f"[environments.{name}", f"[environments.{name}_x"))
+        elif step.startswith("templates_renamed_target:"):  # {dir}/tpl: a target renamed
+            from sensorgap.config.presets import templates_dir
+
+            name = step.removeprefix("templates_renamed_target:")
+            shutil.copytree(templates_dir(), folder / "tpl")
+            targets = folder / "tpl" / "targets.toml"
+            text = targets.read_text(encoding="utf-8")
+            targets.write_text(text.replace(f"[targets.{name}", f"[targets.{name}_x"))
         elif step.startswith("roads_only:"):  # {dir}/rd holding one shipped road
             from sensorgap.config.presets import roads_dir
 

@@ -362,7 +362,7 @@ def require_shipped(
     missing += [
         f"scenarios/{n}.toml" for n in families if not (tdir / "scenarios" / f"{n}.toml").is_file()
     ]
-    wanted_envs, wanted_targets = list(environments), list(targets)
+    wanted_envs, wanted_targets = list(dict.fromkeys(environments)), list(dict.fromkeys(targets))
     if wanted_envs:
         envs = load_environments()
         missing += [f"environment {n!r} (environments.toml)" for n in wanted_envs if n not in envs]
