@@ -2023,3 +2023,108 @@ def test_run_files_the_report_and_compare_read_are_checked(tmp_path: Path) -> No
         else:
             with pytest.raises(InputError, match="collision_probability: expected a number"):
                 anchors_section(tmp_path)
+
+
+def test_esmini_log_read_a_line_at_a_time_with_clear_lines(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Hostile round 29: the CSV log was kept whole as text (~110 bytes of memory per byte
+    of log, 2.5 GB for 20 MB); it is read a line at a time now, a line longer than
+    MAX_ESMINI_LOG_LINE is a bad log, a field that is no number says so (it was Python's
+    own text), and a header without entity columns too ("max() arg is an empty
+    sequence")."""
+    from sensorgap.export import simulate
+
+    good = "0, 0.00, Ego, 0, 10.0, 1.0, 2.0, 0.0, 0.1,"
+    sim = simulate.parse_esmini_csv(_esmini_log(tmp_path / "ok.csv", [good] * 3))
+    assert sim.states["Ego"][0].tolist() == [0.0, 0.0, 0.0]
+    monkeypatch.setattr(simulate, "MAX_ESMINI_LOG_LINE", 300)  # the header has ~200
+    long = good + " " * 300
+    with pytest.raises(ValueError, match=r"long\.csv: line 3: longer than 300 characters$"):
+        simulate.parse_esmini_csv(_esmini_log(tmp_path / "long.csv", [good, long]))
+    with pytest.raises(ValueError, match=r"line 2: #1 World_Position_X \S* is 'x1'; not a number"):
+        simulate.parse_esmini_csv(_esmini_log(tmp_path / "nan.csv", [good.replace("1.0", "x1")]))
+    (tmp_path / "none.csv").write_text("Index, TimeStamp\n0, 0.0\n")
+    with pytest.raises(ValueError, match=r"no entity columns \(#1 \.\.\.\)"):
+        simulate.parse_esmini_csv(tmp_path / "none.csv")
+
+
+def test_library_round_29_refusals(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Hostile round 29, the Python API: ``find_scenarios`` into a certified run (the CLI
+    refuses it; the API wrote there and the run no longer verified), its internal
+    ``stop`` option (an AttributeError after the whole search), a NUL in ``out`` (a raw
+    ValueError), a long double beyond a float (numpy's overflow warning printed first) and
+    ``evaluate_candidate``'s arguments (a NaN sun left a half-written trace.csv, azimuth
+    400 was accepted, a str ``out`` was an AttributeError): each one InputError naming the
+    parameter, nothing written."""
+    import math
+    import warnings
+
+    import numpy as np
+
+    import sensorgap
+    from sensorgap.search.whatif import evaluate_candidate
+
+    monkeypatch.chdir(tmp_path)
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "a.txt").write_text("x")
+    write_manifest(run)
+    kw: dict[str, Any] = {"families": ["cut_out_reveal"], "environments": ["fog_50"]}
+    with pytest.raises(InputError, match=r"^out: .*run/sub lies inside .*give another out "):
+        sensorgap.find_scenarios("system_b", run / "sub", budget=10, **kw)
+    with pytest.raises(InputError, match=r"^stop: unknown option"):
+        sensorgap.find_scenarios("system_b", tmp_path / "o", budget=10, stop=5, **kw)
+    with pytest.raises(InputError, match=r"^out: must not hold a NUL character"):
+        sensorgap.find_scenarios("system_b", "o\x00x", budget=10, **kw)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        big = np.array([[np.longdouble("1e4000"), 0.0, 0.75]], dtype=np.longdouble)
+        with pytest.raises(InputError, match=r"^points: coordinates must be finite"):
+            sensorgap.evaluate_points("system_b", big)
+    args = ("system_b", "slow_ahead_curve", "clear")
+    for sun, out, params in (
+        ((math.nan, 10.0), "ev", []),
+        ((400.0, 10.0), "ev", []),
+        ((60.0,), "ev", []),
+        (None, 3, []),
+        (None, "ev", [1, 2]),
+    ):
+        with pytest.raises(InputError, match=r"^(sun|out|param): "):
+            evaluate_candidate(*args, sun, params, out)  # type: ignore[arg-type]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]
+    assert verify_manifest(run) == []
+
+
+def test_an_esmini_log_after_the_planned_end_is_a_bad_log(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Hostile round 29, F4: a log whose steps all lie after the scenario's planned end
+    left nothing to compare; the deviation was inf and the command an internal error
+    ("refusing to write a non-finite number: inf"). It is a bad log now."""
+    run, cat = tmp_path / "run", tmp_path / "cat"
+    argv = ["search", "--vehicle", "system_b", "--families", "cut_out_reveal"]
+    argv += ["--environments", "fog_50", "--budget", "60", "--top", "1", "--out", str(run)]
+    assert main(argv) == 0
+    assert main(["export", "--run", str(run), "--out", str(cat), "--top", "1"]) == 0
+    fake = tmp_path / "esmini"
+    head = "Index, TimeStamp" + "".join(
+        f", #{k} Entity_Name, #{k} Entity_ID, #{k} Current_Speed, #{k} World_Position_X, "
+        f"#{k} World_Position_Y, #{k} World_Heading_Angle"
+        for k in (1, 2)
+    )
+    rows = "\\n".join(
+        f"{i}, 10{i}, Ego, 0, 10, {i}, 0, 0, Target, 1, 5, 50, 0, 0" for i in range(3)
+    )
+    fake.write_text(
+        "#!/bin/sh\nwhile [ $# -gt 0 ]; do case $1 in --csv_logger) log=$2; shift;; "
+        "--logfile_path) tl=$2; shift;; esac; shift; done\n"
+        f'printf "{head}\\n{rows}\\n" > "$log"\necho log > "$tl"\nexit 0\n'
+    )
+    fake.chmod(0o755)
+    capsys.readouterr()
+    assert main(["simulate", "--catalog", str(cat), "--esmini", str(fake)]) == 0
+    out = capsys.readouterr().out
+    assert "bad log: " in out and "its first step (t = 100 s) is after the planned end" in out
+    text = (cat / "simulation.csv").read_text()
+    assert "bad log" in text and "inf" not in text

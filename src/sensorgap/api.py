@@ -43,6 +43,7 @@ from sensorgap.coverage.points import PointCoverage
 from sensorgap.coverage.points import evaluate_points as _evaluate_points
 from sensorgap.coverage.pointsio import MAX_HEIGHT_M, MAX_POINT_COORD_M, check_point_count
 from sensorgap.errors import InputError
+from sensorgap.filesio import refuse_inside_certified
 from sensorgap.models import Conditions, System, load_system
 from sensorgap.scenarios import family_presets
 from sensorgap.search.run import SearchOutcome, run_search
@@ -82,13 +83,26 @@ def _path(value: object, name: str) -> Path:
         value = os.fspath(value)
     if not isinstance(value, str) or not value.strip():
         raise InputError(name, "", f"must be a path (a non-empty str or Path), got {shown(value)}")
+    if "\x00" in value:  # a raw ValueError of the OS layer (hostile round 29)
+        raise InputError(name, "", f"must not hold a NUL character, got {shown(value)}")
     return Path(value)
 
 
-def _out_folder(value: object) -> Path:
-    """An output folder parameter (``out``): a path whose nearest existing part is a
-    folder (a file there was a raw FileExistsError once the work had started)."""
+def _out_folder(value: object, command: str, inside: Path | None = None) -> Path:
+    """An output folder parameter (``out``) of what ``command`` writes: a path whose
+    nearest existing part is a folder (a file there was a raw FileExistsError once the work
+    had started), not inside another certified folder (a run, a catalog: the CLI refuses
+    it, the API wrote there and ``verify`` of that folder failed, hostile round 29), but
+    for ``inside`` (an export's own run, whose own check says more)."""
     folder = _path(value, "out")
+    try:
+        if inside is None or inside.resolve() not in folder.resolve().parents:
+            refuse_inside_certified(folder, command)
+    except InputError as exc:  # the parameter, not the CLI's option
+        text = exc.message.replace("give another --out", "give another out")
+        raise InputError("out", exc.field, text) from None
+    except (OSError, RuntimeError) as exc:  # a link loop on the way
+        raise InputError("out", "", f"{folder}: cannot be resolved ({exc})") from None
     probe = folder
     try:
         while not probe.exists() and probe != probe.parent:
@@ -272,7 +286,9 @@ def coverage_grid(
 
 
 #: The options of ``find_scenarios``: ``run_search``'s keyword parameters.
-_SEARCH_OPTIONS = frozenset(list(inspect.signature(run_search).parameters)[7:])
+#: ``run_search``'s options a caller may give (``stop``: the CLI's deferred stop, internal:
+#: given, it was an AttributeError after the whole search, hostile round 29).
+_SEARCH_OPTIONS = frozenset(list(inspect.signature(run_search).parameters)[7:]) - {"stop"}
 
 
 @_file_errors_as_input
@@ -292,7 +308,7 @@ def find_scenarios(
     ``environments_file`` option when given); ``options`` as ``run_search`` (strategy,
     mode, workers, resume, ...). Every reported number is an exact evaluation."""
     veh = _vehicle(vehicle)
-    folder = _out_folder(out)
+    folder = _out_folder(out, "search")
     budget, seed, top = _integer(budget, "budget"), _integer(seed, "seed"), _integer(top, "top")
     unknown = sorted(set(options) - _SEARCH_OPTIONS)
     if unknown:
@@ -335,7 +351,7 @@ def export_catalog(
     from sensorgap.export import export_catalog as _export
 
     folder = _path(run, "run")
-    target = None if out is None else _out_folder(out)
+    target = None if out is None else _out_folder(out, "export", inside=folder)
     osc_version = _text(osc_version, "osc_version", "an OpenSCENARIO version such as '1.2'")
     style = _text(style, "style", "'maneuver' or 'replay'")
     rows = None if top is None else _integer(top, "top")

@@ -141,14 +141,18 @@ def real_array(values: object) -> NDArray[np.float64]:
     except (TypeError, ValueError) as exc:
         raise ValueError(f"got {type(values).__name__} ({exc})") from None
     if array.dtype.kind in "iuf":
-        return np.asarray(array, dtype=np.float64)
+        # a long double beyond a float's range becomes inf, which the caller's range check
+        # names (numpy's overflow warning was printed first: hostile round 29)
+        with np.errstate(over="ignore"):
+            return np.asarray(array, dtype=np.float64)
     if array.dtype.kind != "O":
         raise ValueError(f"got {_KIND_WHAT.get(array.dtype.kind, str(array.dtype))}")
     for kind in {type(v) for v in array.flat}:  # the kinds only: fast over 1e6 elements
         if not (issubclass(kind, numbers.Real) and not issubclass(kind, bool | np.timedelta64)):
             raise ValueError(f"got {_what(kind)}")
     try:
-        return np.asarray(array.astype(np.float64), dtype=np.float64)
+        with np.errstate(over="ignore"):  # as above
+            return np.asarray(array.astype(np.float64), dtype=np.float64)
     except OverflowError:
         raise ValueError("got an integer beyond a float's range (1.8e308)") from None
     except (TypeError, ValueError) as exc:

@@ -10,6 +10,7 @@ P(confirmed) by then; path TTC).
 from __future__ import annotations
 
 import math
+import os
 from pathlib import Path
 from typing import Any
 
@@ -17,7 +18,7 @@ import numpy as np
 
 from sensorgap.atomic import atomic_write_bytes
 from sensorgap.config import load_environments
-from sensorgap.config.common import parse_decimal
+from sensorgap.config.common import finite_real, parse_decimal, shown
 from sensorgap.errors import InputError
 from sensorgap.filesio import csv_bytes, write_json
 from sensorgap.models import Conditions, load_system
@@ -94,9 +95,38 @@ def parse_sun(text: str | None) -> tuple[float, float] | None:
     return az, el
 
 
+def _checked_path(value: object, name: str) -> Path:
+    """A path argument (a non-empty ``str`` or ``os.PathLike`` without NUL), else
+    ``InputError`` naming it (hostile round 29: a str ``out`` was an AttributeError)."""
+    if isinstance(value, os.PathLike):
+        value = os.fspath(value)
+    if not isinstance(value, str) or not value.strip() or "\x00" in value:
+        raise InputError(name, "", f"must be a path (a non-empty str or Path), got {shown(value)}")
+    return Path(value)
+
+
+def _checked_sun(sun: object) -> tuple[float, float] | None:
+    """``sun`` as (azimuth, elevation), deg: None, or two real numbers with
+    0 <= azimuth < 360 and -90 <= elevation <= 90 (as ``parse_sun``), else ``InputError``
+    (hostile round 29: a NaN sun left a half-written trace.csv, an infinite one was "math
+    domain error", azimuth 400 was accepted)."""
+    if sun is None:
+        return None
+    pair = tuple(sun) if isinstance(sun, tuple | list) and len(sun) == 2 else (None, None)
+    az, el = finite_real(pair[0]), finite_real(pair[1])
+    if az is None or el is None or not (0.0 <= az < 360.0 and -90.0 <= el <= 90.0):
+        raise InputError(
+            "sun",
+            "",
+            "expected (azimuth, elevation) in degrees with 0 <= azimuth < 360 and "
+            f"-90 <= elevation <= 90, got {shown(sun)}",
+        )
+    return az, el
+
+
 def evaluate_candidate(
     vehicle: str | Path | None,
-    family: str,
+    family: str | Path,
     environment: str,
     sun: tuple[float, float] | None,
     params: list[str],
@@ -107,7 +137,24 @@ def evaluate_candidate(
     """Evaluate one candidate exactly and write ``evaluation.json`` and ``trace.csv``
     into ``out``; returns the evaluation. ``run``: a search run folder whose recorded
     inputs (vehicle, environments, family and road, targets, reaction model) are used
-    instead of ``vehicle``, ``environments_file`` and the presets."""
+    instead of ``vehicle``, ``environments_file`` and the presets. ``sun``: (azimuth,
+    elevation), deg, world frame; ``params``: ``NAME=VALUE`` texts. Every argument is
+    checked before any work (``InputError`` naming it)."""
+    out = _checked_path(out, "out")
+    environments_file = (
+        None if environments_file is None else _checked_path(environments_file, "environments_file")
+    )
+    run = None if run is None else _checked_path(run, "run")
+    if vehicle is not None and not isinstance(vehicle, str | os.PathLike):
+        raise InputError("vehicle", "", f"must be a preset name or a path, got {shown(vehicle)}")
+    if isinstance(family, os.PathLike):  # a family file, as the CLI's --family path
+        family = os.fspath(family)
+    for name, value in (("family", family), ("environment", environment)):
+        if not isinstance(value, str):
+            raise InputError(name, "", f"must be a name (a str), got {shown(value)}")
+    if not isinstance(params, list | tuple) or not all(isinstance(p, str) for p in params):
+        raise InputError("param", "", f"must be a list of NAME=VALUE texts, got {shown(params)}")
+    sun = _checked_sun(sun)
     if run is not None:
         if vehicle is not None or environments_file is not None:
             raise InputError(
