@@ -149,9 +149,7 @@ def _log_lines(path: Path) -> Iterator[tuple[int, str]]:
         while line := f.readline(MAX_ESMINI_LOG_LINE + 1):
             n += 1
             if len(line) > MAX_ESMINI_LOG_LINE:
-                raise ValueError(
-                    f"{path}: line {n}: longer than {MAX_ESMINI_LOG_LINE} characters"
-                )
+                raise ValueError(f"{path}: line {n}: longer than {MAX_ESMINI_LOG_LINE} characters")
             yield n, line.rstrip("\r\n")
 
 
