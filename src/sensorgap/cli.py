@@ -708,6 +708,8 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     except InputError as exc:
         if exc.source == "families":  # the family loader names search's --families
             exc.source = "--family"
+        if exc.source == "sun" and at:  # the sun was written into --environment (round 29)
+            raise InputError("--environment", exc.field, f"{exc.message} (its @sun part)") from None
         raise
     m = ev["metrics"]
     if not ev["feasible"]:
