@@ -44,6 +44,7 @@ from sensorgap.roads import read_opendrive
 from sensorgap.runtime import children_spared_stop_signals, start_resource_tracker
 from sensorgap.scenarios import family_presets
 from sensorgap.search.anchors import (
+    NCAP_ENVIRONMENT,
     NCAP_FAMILY,
     evaluate_anchors,
     ncap_obstructed_cases,
@@ -237,7 +238,11 @@ def run_default(
     # the shipped target and road its coverage maps and far field use by name (hostile
     # round 29: a SENSORGAP_ROADS or SENSORGAP_TEMPLATES lacking them failed after the
     # search had run, as "target: unknown target 'car'")
-    require_shipped(targets=("car", FarFieldSetup().target))
+    require_shipped(
+        targets=("car", FarFieldSetup().target),
+        # the anchor cases' environment (hostile round 30: a KeyError after all the work)
+        environments=(NCAP_ENVIRONMENT,) if NCAP_FAMILY in fams else (),
+    )
     shipped_road(FarFieldSetup().road)
     folder = out / name
     refuse_job_clash(prepared, folder)

@@ -41,6 +41,8 @@ from sensorgap.search.ranking import classify, explain
 
 #: The family the Euro NCAP anchors belong to.
 NCAP_FAMILY = "pedestrian_behind_parked_cars"
+#: The environment preset the anchor cases are evaluated in (Euro NCAP tests in daylight).
+NCAP_ENVIRONMENT = "clear"
 #: Vehicle-under-test speeds of the obstructed near-side crossing, km/h (Euro NCAP AEB VRU
 #: test protocol: 10-60 km/h in 10 km/h steps).
 NCAP_SPEEDS_KMH = (10.0, 20.0, 30.0, 40.0, 50.0, 60.0)
@@ -84,7 +86,7 @@ def ncap_obstructed_cases(x_front_m: float) -> list[AnchorCase]:
             AnchorCase(
                 f"Euro NCAP obstructed crossing {kmh:g} km/h",
                 NCAP_FAMILY,
-                "clear",
+                NCAP_ENVIRONMENT,
                 {
                     "ego_s0_m": 90.0,
                     "ego_speed_m_s": v,
