@@ -2149,3 +2149,20 @@ def test_esmini_log_columns_are_found_by_entity_and_name(tmp_path: Path) -> None
     t, x, y, h, v = sim.states[f"E{n}"]
     assert len(sim.states) == n and t[0] == 0.5 and x[0] == 2 * n and y[0] == 3 * n
     assert v[0] == n and h[0] == 0.1
+
+
+def test_library_refusals_name_the_parameter_not_the_option(tmp_path: Path) -> None:
+    """Hostile round 30, F4: a check the API shares with the command line named its
+    option (``--out: NF holds the certified outputs of another command``); the facade
+    names the parameter (``out``)."""
+    import sensorgap
+
+    nf = tmp_path / "NF"
+    nf.mkdir()
+    (nf / "nearfield.json").write_text("{}")
+    write_manifest(nf)
+    kw: dict[str, Any] = {"families": ["cut_out_reveal"], "environments": ["fog_50"]}
+    with pytest.raises(InputError) as info:
+        sensorgap.find_scenarios("system_b", nf, budget=10, **kw)
+    assert info.value.source == "out" and str(info.value).startswith("out: ")
+    assert "certified outputs of another command" in str(info.value)

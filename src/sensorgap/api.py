@@ -62,6 +62,13 @@ def _file_errors_as_input(fn: Callable[_P, _R]) -> Callable[_P, _R]:
     def wrapper(*args: _P.args, **kwargs: _P.kwargs) -> _R:
         try:
             return fn(*args, **kwargs)
+        except InputError as exc:
+            # a check shared with the command line names its option (--out): the caller
+            # gave a parameter (out; hostile round 30)
+            for e in (exc, *exc.more):
+                if e.source.startswith("--") and " " not in e.source:
+                    e.source = e.source[2:].replace("-", "_")
+            raise InputError(exc.source, exc.field, exc.message, exc.more) from None
         except OSError as exc:
             if exc.filename is None:
                 raise
