@@ -2166,3 +2166,30 @@ def test_library_refusals_name_the_parameter_not_the_option(tmp_path: Path) -> N
         sensorgap.find_scenarios("system_b", nf, budget=10, **kw)
     assert info.value.source == "out" and str(info.value).startswith("out: ")
     assert "certified outputs of another command" in str(info.value)
+
+
+def test_evaluate_candidate_checks_its_out_as_the_command_does(tmp_path: Path) -> None:
+    """Hostile round 30, F2: the library's ``evaluate_candidate`` wrote into a certified
+    run (verify failed), raised raw OS errors for a file as ``out``, and left trace.csv
+    alone when evaluation.json could not be written. Now as ``evaluate --out``."""
+    from sensorgap.search.whatif import evaluate_candidate
+
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "a.txt").write_text("x")
+    write_manifest(run)
+    (tmp_path / "afile").write_text("x")
+    (tmp_path / "e" / "evaluation.json").mkdir(parents=True)
+    params = ["ego_s0_m=20", "ego_speed_m_s=25", "lead_gap_m=30", "target_speed_m_s=10"]
+    params += ["cut_out_s=2", "lc_duration_s=2", "reveal_s=3"]
+    args = ("system_b", "cut_out_reveal", "clear", None, params)
+    for out, said in (
+        (run / "ev", r"^out: .*ev lies inside .*a certified folder"),
+        (tmp_path / "afile", r"^out: .*afile is a file, not a folder$"),
+        (tmp_path / "afile" / "sub", r"^out: .*afile is a file, not a folder$"),
+        (tmp_path / "e", r"e/evaluation\.json: is a folder"),
+    ):
+        with pytest.raises(InputError, match=said):
+            evaluate_candidate(*args, out)
+    assert verify_manifest(run) == [] and not (run / "ev").exists()
+    assert [p.name for p in (tmp_path / "e").iterdir()] == ["evaluation.json"]

@@ -16,11 +16,11 @@ from typing import Any
 
 import numpy as np
 
-from sensorgap.atomic import atomic_write_bytes
+from sensorgap.atomic import atomic_write_bytes, removed_on_error
 from sensorgap.config import load_environments
 from sensorgap.config.common import finite_real, parse_decimal, shown
 from sensorgap.errors import InputError
-from sensorgap.filesio import csv_bytes, write_json
+from sensorgap.filesio import csv_bytes, refuse_certified_out, write_json
 from sensorgap.models import Conditions, load_system
 from sensorgap.scenarios import load_families
 from sensorgap.scenarios.family import ParamValue
@@ -105,6 +105,24 @@ def _checked_path(value: object, name: str) -> Path:
     return Path(value)
 
 
+def _check_out(out: Path) -> None:
+    """``out`` must be a folder or become one (its nearest existing part a folder), not a
+    certified folder nor inside one: the files it writes would be listed by no manifest
+    (as ``evaluate --out``; hostile round 30: the library wrote into a run, and a file
+    there was a raw FileExistsError)."""
+    probe = out
+    try:
+        while not os.path.lexists(probe) and probe != probe.parent:
+            probe = probe.parent
+        if os.path.lexists(probe) and not probe.is_dir():
+            raise InputError("out", "", f"{probe} is a file, not a folder")
+        refuse_certified_out(out, "evaluate")
+    except InputError as exc:
+        raise InputError("out", exc.field, exc.message.replace("--out", "out")) from None
+    except (OSError, RuntimeError) as exc:
+        raise InputError("out", "", f"{out}: cannot be read ({exc})") from None
+
+
 def _checked_sun(sun: object) -> tuple[float, float] | None:
     """``sun`` as (azimuth, elevation), deg: None, or two real numbers with
     0 <= azimuth < 360 and -90 <= elevation <= 90 (as ``parse_sun``), else ``InputError``
@@ -155,6 +173,7 @@ def evaluate_candidate(
     if not isinstance(params, list | tuple) or not all(isinstance(p, str) for p in params):
         raise InputError("param", "", f"must be a list of NAME=VALUE texts, got {shown(params)}")
     sun = _checked_sun(sun)
+    _check_out(out)
     if run is not None:
         if vehicle is not None or environments_file is not None:
             raise InputError(
@@ -211,7 +230,7 @@ def evaluate_candidate(
         "pd": "exact",
         "bodies": ev.bodies,
     }
-    out.mkdir(parents=True, exist_ok=True)
+    trace = None
     if res.feasible:
         ex = explain(prob, cand)
         evaluation.update(
@@ -221,8 +240,14 @@ def evaluate_candidate(
                 "named_step_t_s": output_value("named_step_t_s", ex.step_t_s),
             }
         )
-        atomic_write_bytes(out / "trace.csv", _trace_csv(prob, cand, ev))
-    write_json(out / "evaluation.json", evaluation)
+        trace = _trace_csv(prob, cand, ev)
+    # both files or neither, and a folder it made removed (hostile round 30: a library
+    # caller got trace.csv alone when evaluation.json could not be written)
+    with removed_on_error(out, only=("evaluation.json", "trace.csv")):
+        out.mkdir(parents=True, exist_ok=True)
+        if trace is not None:
+            atomic_write_bytes(out / "trace.csv", trace)
+        write_json(out / "evaluation.json", evaluation)
     return evaluation
 
 
