@@ -43,7 +43,7 @@ from sensorgap.coverage.points import PointCoverage
 from sensorgap.coverage.points import evaluate_points as _evaluate_points
 from sensorgap.coverage.pointsio import MAX_HEIGHT_M, MAX_POINT_COORD_M, check_point_count
 from sensorgap.errors import InputError
-from sensorgap.filesio import refuse_inside_certified
+from sensorgap.filesio import path_argument, refuse_file_on_the_way, refuse_inside_certified
 from sensorgap.models import Conditions, System, load_system
 from sensorgap.scenarios import family_presets
 from sensorgap.search.run import SearchOutcome, run_search
@@ -83,25 +83,13 @@ def _file_errors_as_input(fn: Callable[_P, _R]) -> Callable[_P, _R]:
     return wrapper
 
 
-def _path(value: object, name: str) -> Path:
-    """A path parameter: a non-empty ``str`` or ``os.PathLike`` (``Path("")`` would be the
-    working directory), else ``InputError`` naming the parameter."""
-    if isinstance(value, os.PathLike):
-        value = os.fspath(value)
-    if not isinstance(value, str) or not value.strip():
-        raise InputError(name, "", f"must be a path (a non-empty str or Path), got {shown(value)}")
-    if "\x00" in value:  # a raw ValueError of the OS layer (hostile round 29)
-        raise InputError(name, "", f"must not hold a NUL character, got {shown(value)}")
-    return Path(value)
-
-
 def _out_folder(value: object, command: str, inside: Path | None = None) -> Path:
     """An output folder parameter (``out``) of what ``command`` writes: a path whose
     nearest existing part is a folder (a file there was a raw FileExistsError once the work
     had started), not inside another certified folder (a run, a catalog: the CLI refuses
     it, the API wrote there and ``verify`` of that folder failed, hostile round 29), but
     for ``inside`` (an export's own run, whose own check says more)."""
-    folder = _path(value, "out")
+    folder = path_argument(value, "out")
     try:
         if inside is None or inside.resolve() not in folder.resolve().parents:
             refuse_inside_certified(folder, command)
@@ -110,14 +98,7 @@ def _out_folder(value: object, command: str, inside: Path | None = None) -> Path
         raise InputError("out", exc.field, text) from None
     except (OSError, RuntimeError) as exc:  # a link loop on the way
         raise InputError("out", "", f"{folder}: cannot be resolved ({exc})") from None
-    probe = folder
-    try:
-        while not probe.exists() and probe != probe.parent:
-            probe = probe.parent
-        if probe.exists() and not probe.is_dir():
-            raise InputError("out", "", f"{probe} is a file, not a folder")
-    except OSError as exc:
-        raise InputError("out", "", f"{folder}: cannot be read ({exc.strerror})") from None
+    refuse_file_on_the_way(folder, "out")
     return folder
 
 
@@ -131,7 +112,7 @@ def _text(value: object, name: str, what: str) -> str:
 def _vehicle(value: object) -> str | Path:
     """``vehicle``: a preset name or a path to a vehicle ``.toml`` file."""
     if isinstance(value, os.PathLike):
-        return _path(value, "vehicle")
+        return path_argument(value, "vehicle")
     return _text(value, "vehicle", "a vehicle preset name or a path to a .toml file")
 
 
@@ -184,7 +165,9 @@ def scene(
     system = vehicle if isinstance(vehicle, System) else load_system(_vehicle(vehicle))
     environment = _text(environment, "environment", "an environment preset name")
     target = _text(target, "target", "a target class name")
-    env_file = None if environments_file is None else _path(environments_file, "environments_file")
+    env_file = (
+        None if environments_file is None else path_argument(environments_file, "environments_file")
+    )
     heading = check_heading(ego_heading_deg, "ego_heading_deg")
     env = load_environment(environment, env_file)
     return Scene(system, load_target(target), Conditions.from_config(env, math.radians(heading)))
@@ -333,7 +316,7 @@ def find_scenarios(
             raise InputError(name, "", f"must be a str{none}, got {shown(value)}")
     env_file = options.get("environments_file")
     if env_file is not None:
-        options["environments_file"] = _path(env_file, "environments_file")
+        options["environments_file"] = path_argument(env_file, "environments_file")
     fams = family_presets() if families == "all" else _names(families, "families", paths=True)
     envs = (
         list(load_environments(options.get("environments_file")))
@@ -357,7 +340,7 @@ def export_catalog(
     (``catalog.json``)."""
     from sensorgap.export import export_catalog as _export
 
-    folder = _path(run, "run")
+    folder = path_argument(run, "run")
     target = None if out is None else _out_folder(out, "export", inside=folder)
     osc_version = _text(osc_version, "osc_version", "an OpenSCENARIO version such as '1.2'")
     style = _text(style, "style", "'maneuver' or 'replay'")
@@ -370,7 +353,7 @@ def write_report(run: str | Path) -> tuple[Path, Path]:
     """``report.html`` and ``report.md`` of a run folder; returns their paths."""
     from sensorgap.report import write_report as _write
 
-    return _write(_path(run, "run"))
+    return _write(path_argument(run, "run"))
 
 
 # the names live in ``sensorgap.apinames`` (the root package offers them lazily from there)

@@ -987,3 +987,38 @@ def _manifest_problems(root: Path) -> list[tuple[str, str]]:
         else:
             problems.append((rel, f"{cut_name(rel)} is not in the manifest"))
     return problems
+
+
+def path_argument(value: object, name: str) -> Path:
+    """A path argument of the library: a non-empty ``str`` or ``os.PathLike`` without a
+    NUL character (``Path("")`` would be the working directory; a NUL was a raw
+    ``ValueError`` of the OS layer), else ``InputError`` naming ``name``."""
+    from sensorgap.errors import InputError
+
+    try:
+        shown = repr(value)[:80]
+    except ValueError:  # an int too long for repr
+        shown = f"an {type(value).__name__} of more digits than repr shows"
+    if isinstance(value, os.PathLike):
+        value = os.fspath(value)
+    if not isinstance(value, str) or not value.strip():
+        raise InputError(name, "", f"must be a path (a non-empty str or Path), got {shown}")
+    if "\x00" in value:
+        raise InputError(name, "", f"must not hold a NUL character, got {shown}")
+    return Path(value)
+
+
+def refuse_file_on_the_way(folder: Path, name: str) -> None:
+    """An output folder ``folder`` whose nearest existing part is not a folder (a file
+    there, or on the way to it) is refused (``InputError`` naming ``name``): it was a raw
+    ``FileExistsError`` or ``NotADirectoryError`` once the work had started."""
+    from sensorgap.errors import InputError
+
+    probe = folder
+    try:
+        while not os.path.lexists(probe) and probe != probe.parent:
+            probe = probe.parent
+        if os.path.lexists(probe) and not probe.is_dir():
+            raise InputError(name, "", f"{probe} is a file, not a folder")
+    except OSError as exc:
+        raise InputError(name, "", f"{folder}: cannot be read ({exc.strerror})") from None

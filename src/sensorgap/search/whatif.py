@@ -20,7 +20,13 @@ from sensorgap.atomic import atomic_write_bytes, removed_on_error
 from sensorgap.config import load_environments
 from sensorgap.config.common import finite_real, parse_decimal, shown
 from sensorgap.errors import InputError
-from sensorgap.filesio import csv_bytes, refuse_certified_out, write_json
+from sensorgap.filesio import (
+    csv_bytes,
+    path_argument,
+    refuse_certified_out,
+    refuse_file_on_the_way,
+    write_json,
+)
 from sensorgap.models import Conditions, load_system
 from sensorgap.scenarios import load_families
 from sensorgap.scenarios.family import ParamValue
@@ -95,27 +101,13 @@ def parse_sun(text: str | None) -> tuple[float, float] | None:
     return az, el
 
 
-def _checked_path(value: object, name: str) -> Path:
-    """A path argument (a non-empty ``str`` or ``os.PathLike`` without NUL), else
-    ``InputError`` naming it (hostile round 29: a str ``out`` was an AttributeError)."""
-    if isinstance(value, os.PathLike):
-        value = os.fspath(value)
-    if not isinstance(value, str) or not value.strip() or "\x00" in value:
-        raise InputError(name, "", f"must be a path (a non-empty str or Path), got {shown(value)}")
-    return Path(value)
-
-
 def _check_out(out: Path) -> None:
     """``out`` must be a folder or become one (its nearest existing part a folder), not a
     certified folder nor inside one: the files it writes would be listed by no manifest
     (as ``evaluate --out``; hostile round 30: the library wrote into a run, and a file
     there was a raw FileExistsError)."""
-    probe = out
+    refuse_file_on_the_way(out, "out")
     try:
-        while not os.path.lexists(probe) and probe != probe.parent:
-            probe = probe.parent
-        if os.path.lexists(probe) and not probe.is_dir():
-            raise InputError("out", "", f"{probe} is a file, not a folder")
         refuse_certified_out(out, "evaluate")
     except InputError as exc:
         raise InputError("out", exc.field, exc.message.replace("--out", "out")) from None
@@ -158,11 +150,11 @@ def evaluate_candidate(
     instead of ``vehicle``, ``environments_file`` and the presets. ``sun``: (azimuth,
     elevation), deg, world frame; ``params``: ``NAME=VALUE`` texts. Every argument is
     checked before any work (``InputError`` naming it)."""
-    out = _checked_path(out, "out")
+    out = path_argument(out, "out")
     environments_file = (
-        None if environments_file is None else _checked_path(environments_file, "environments_file")
+        None if environments_file is None else path_argument(environments_file, "environments_file")
     )
-    run = None if run is None else _checked_path(run, "run")
+    run = None if run is None else path_argument(run, "run")
     if vehicle is not None and not isinstance(vehicle, str | os.PathLike):
         raise InputError("vehicle", "", f"must be a preset name or a path, got {shown(vehicle)}")
     if isinstance(family, os.PathLike):  # a family file, as the CLI's --family path
