@@ -2193,3 +2193,45 @@ def test_evaluate_candidate_checks_its_out_as_the_command_does(tmp_path: Path) -
             evaluate_candidate(*args, out)
     assert verify_manifest(run) == [] and not (run / "ev").exists()
     assert [p.name for p in (tmp_path / "e").iterdir()] == ["evaluation.json"]
+
+
+def test_an_export_builds_the_occluders_of_the_runs_recorded_classes(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Hostile round 30, F6: a run searched with templates whose car is 12 m long was
+    exported (without them) with the shipped 4.5 m lead car: exit 0, valid files, verify
+    OK, and not the scenario that was ranked. The occluder's class now comes from the run's
+    recorded targets, also when the templates at export time lack the class."""
+    import re
+    import shutil
+
+    from sensorgap.config.presets import templates_dir
+
+    big = tmp_path / "big"
+    shutil.copytree(templates_dir(), big)
+    targets = big / "targets.toml"
+    text = targets.read_text(encoding="utf-8")
+    i = text.index("[targets.car]")
+    j = text.index("[targets.", i + 1)
+    car = text[i:j].replace("length_m = 4.5", "length_m = 12.0")
+    assert car != text[i:j]
+    targets.write_text(text[:i] + car + text[j:], encoding="utf-8")
+    monkeypatch.setenv("SENSORGAP_TEMPLATES", str(big))
+    run = tmp_path / "run"
+    argv = ["search", "--vehicle", "system_b", "--families", "cut_out_reveal"]
+    argv += ["--environments", "fog_50", "--budget", "50", "--top", "1", "--out", str(run)]
+    assert main(argv) == 0
+    nocar = tmp_path / "nocar"
+    shutil.copytree(templates_dir(), nocar)
+    t = (nocar / "targets.toml").read_text(encoding="utf-8")
+    (nocar / "targets.toml").write_text(t.replace("[targets.car", "[targets.carx"))
+    for env in (None, str(nocar)):  # the shipped templates, then ones without a car
+        if env is None:
+            monkeypatch.delenv("SENSORGAP_TEMPLATES")
+        else:
+            monkeypatch.setenv("SENSORGAP_TEMPLATES", env)
+        cat = tmp_path / f"cat{env is None}"
+        assert main(["export", "--run", str(run), "--out", str(cat), "--top", "1"]) == 0
+        xosc = next((cat / "scenarios").glob("*.xosc")).read_text(encoding="utf-8")
+        lengths = sorted(float(v) for v in re.findall(r'<Dimensions[^>]* length="([0-9.]+)"', xosc))
+        assert 12.0 in lengths and 4.5 not in lengths, lengths

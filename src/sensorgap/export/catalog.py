@@ -27,7 +27,6 @@ from typing import Any
 import numpy as np
 
 from sensorgap.atomic import atomic_path, atomic_write_bytes
-from sensorgap.config import load_target
 from sensorgap.coverage import GridSpec, Scene, evaluate_grid
 from sensorgap.coverage.figurememo import drawn_system, save_drawn
 from sensorgap.coverage.plot import coverage_figure
@@ -91,7 +90,7 @@ def _coverage_maps(specs: list[ScenarioSpec], out: Path) -> list[Path]:
             continue
         done.add(key)
         env = sp.environment.model_copy(update={"sun": None})
-        target = load_target(sp.target.name)
+        target = sp.target  # the run's recorded class, as its scenarios
         grid = GridSpec(xmin, xmax, ymin, ymax, res, target.reference_height_m)
         cov = evaluate_grid(
             Scene(sp.system, target, Conditions(env=env, sun_direction=None)), grid, workers=2

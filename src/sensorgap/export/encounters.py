@@ -11,7 +11,6 @@ from typing import Any
 import numpy as np
 from scenariogeneration import xosc
 
-from sensorgap.config import load_target
 from sensorgap.export.actions import (
     EGO,
     TARGET,
@@ -32,6 +31,7 @@ from sensorgap.export.actions import (
 from sensorgap.export.params import number
 from sensorgap.export.spec import ScenarioSpec
 from sensorgap.scenarios.kinds import CROSSING_ACCEL_M_S2, travel_direction
+from sensorgap.scenarios.occluded import occluder_class
 from sensorgap.scenarios.trajectory import Trajectory
 
 
@@ -70,7 +70,7 @@ def _cut_in(b: Build) -> None:
 def _cut_in_behind_truck(b: Build) -> None:
     sp, p = b.spec, b.spec.params
     tr = travel_direction(sp.family.network, str(b.st["road_id"]), int(b.st["ego_lane"]))
-    truck = load_target(str(b.st["occluder"]))
+    truck = occluder_class(b.spec.family)
     side = int(b.st["target_lane"])
     name = occluder_name(sp.scenario.occluders[0].label)
     b.entities.append((name, truck))
@@ -146,7 +146,7 @@ def _cut_out_reveal(b: Build) -> None:
     sp, p = b.spec, b.spec.params
     lane, other = int(b.st["lane"]), int(b.st["target_lane"])
     tr = travel_direction(sp.family.network, str(b.st["road_id"]), lane)
-    lead = load_target(str(b.st["occluder"]))
+    lead = occluder_class(b.spec.family)
     name = occluder_name(sp.scenario.occluders[0].label)
     b.entities.append((name, lead))
     t_s, t_e = float(p["cut_out_s"]), float(p["cut_out_s"]) + float(p["lc_duration_s"])
@@ -282,7 +282,7 @@ def _crossing_behind_parked(b: Build) -> None:
     _crossing(b)
     for occ in b.spec.scenario.occluders:
         name = occluder_name(occ.label)
-        cfg = load_target(str(b.st["occluder"]))
+        cfg = occluder_class(b.spec.family)
         b.entities.append((name, cfg))
         d = origin_offset(cfg)
         h = float(occ.path.heading[0])

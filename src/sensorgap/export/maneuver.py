@@ -27,7 +27,6 @@ from __future__ import annotations
 
 from scenariogeneration import xosc
 
-from sensorgap.config import load_target
 from sensorgap.export.actions import (
     DEFAULT_EGO_CONTROLLER,
     EGO,
@@ -49,6 +48,7 @@ from sensorgap.export.encounters import KINDS, supported
 from sensorgap.export.params import Expressions
 from sensorgap.export.spec import ScenarioSpec
 from sensorgap.scenarios.kinds import travel_direction
+from sensorgap.scenarios.occluded import occluder_class
 from sensorgap.scenarios.trajectory import Trajectory
 
 __all__ = [
@@ -224,8 +224,7 @@ def planned_origins(spec: ScenarioSpec) -> dict[str, Trajectory]:
         EGO: spec.scenario.ego,
         TARGET: origin_path(spec.scenario.target, origin_offset(spec.target)),
     }
-    occ_class = spec.family.settings.get("occluder")
     for occ in spec.scenario.occluders:
-        cfg = load_target(str(occ_class))
+        cfg = occluder_class(spec.family)
         out[occluder_name(occ.label)] = origin_path(occ.path, origin_offset(cfg))
     return out

@@ -35,7 +35,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sensorgap.atomic import atomic_write_bytes
-from sensorgap.config import load_target
+from sensorgap.config import TargetConfig
 from sensorgap.errors import InputError, cut_quoted, escape_unprintable
 from sensorgap.export.bodies import MAX_BODY_DEV_M, box_deviation, planned_boxes
 from sensorgap.export.catalog import STYLES
@@ -44,6 +44,7 @@ from sensorgap.export.spec import ScenarioSpec, read_run
 from sensorgap.export.xosc import EGO, TARGET, VERSIONS, origin_path, target_origin_offset
 from sensorgap.filesio import bad_entry_name, loads_json
 from sensorgap.scenarios import Scenario, Trajectory
+from sensorgap.scenarios.occluded import occluder_class
 from sensorgap.search.evaluate import Evaluator
 from sensorgap.search.metrics import compute_all
 from sensorgap.search.run import ranking_csv
@@ -258,7 +259,7 @@ def _deviation(planned: Trajectory, t: F64, x: F64, y: F64) -> float:
 
 
 def _simulated_scenario(
-    sim: SimPaths, planned: Scenario, occluder_class: str | None = None
+    sim: SimPaths, planned: Scenario, target: TargetConfig, occluder: TargetConfig | None = None
 ) -> Scenario:
     """The scenario esmini played: ego and target (and the occluders the file has as
     entities, the maneuver style) from the log at the planned times; occluders the file
@@ -276,12 +277,12 @@ def _simulated_scenario(
         )
 
     # esmini logs each entity's origin: the target's rear axle -> back to its box centre
-    ahead = target_origin_offset(load_target(planned.target_class))
+    ahead = target_origin_offset(target)
     occs = []
     for occ in planned.occluders:
         name = occluder_name(occ.label)
-        if name in sim.states and occluder_class is not None:
-            back = target_origin_offset(load_target(occluder_class))
+        if name in sim.states and occluder is not None:
+            back = target_origin_offset(occluder)
             occ = replace(occ, path=origin_path(traj(name, occ.path), -back))
         occs.append(occ)
     return Scenario(
@@ -500,7 +501,10 @@ def run_one(
     dev_b = max(bodies.values(), default=math.inf)
     bodies_ok = dev_b <= MAX_BODY_DEV_M
     occ_class = spec.family.settings.get("occluder")
-    sc_sim = _simulated_scenario(sim, planned, None if occ_class is None else str(occ_class))
+    # the run's target and occluder classes (its recorded targets), as the export's
+    sc_sim = _simulated_scenario(
+        sim, planned, spec.target, None if occ_class is None else occluder_class(spec.family)
+    )
     tr_p = evaluator.trace(planned, spec.environment, spec.family.duration_s)
     tr_s = evaluator.trace(sc_sim, spec.environment, spec.family.duration_s)
     m_p, m_s = compute_all(tr_p), compute_all(tr_s)

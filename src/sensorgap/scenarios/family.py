@@ -17,6 +17,7 @@ from typing import Any, ClassVar, TypeVar
 import numpy as np
 from numpy.typing import NDArray
 
+from sensorgap.config.target import TargetConfig
 from sensorgap.plugins import load_plugins
 from sensorgap.registry import Registry
 from sensorgap.roads import RoadNetwork
@@ -167,6 +168,12 @@ class Family:
     #: the target class's largest speed, m/s (``max_speed_m_s`` of the targets file the
     #: family was loaded with); None: the class's default in ``trajectory.LIMITS``
     max_speed_m_s: float | None = None
+    #: the occluder class's config (``settings['occluder']``) in the targets file the
+    #: family was loaded with (a run's recorded copy); None: no occluder, or a family made
+    #: in code (``scenarios.occluded.occluder_class`` then reads the shipped classes)
+    occluder: TargetConfig | None = None
+    #: the target class's config in that targets file (None: a family made in code)
+    target_config: TargetConfig | None = None
     _names: tuple[str, ...] = field(default=(), repr=False)
     _tables: dict[tuple[str, int], LaneTable] = field(default_factory=dict, repr=False)
 

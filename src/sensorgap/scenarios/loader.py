@@ -22,6 +22,7 @@ range, missing lane, a family whose extreme parameters leave the road).
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import math
 import os
@@ -210,7 +211,10 @@ def load_family(name_or_path: str, road: Path | None = None, targets: Path | Non
             f"must be a string of at most {MAX_DESCRIPTION_CHARS} characters, "
             f"got {short(description)}",
         )
-    classes = load_targets()
+    # the target classes the family is loaded with: a run's recorded copy when given (and
+    # readable), else the shipped ones (hostile round 30: an export of a run took the
+    # occluder's size from the shipped classes, not the ones the run searched with)
+    classes = _classes(targets)
     if settings["target"] not in classes:
         raise InputError(
             path,
@@ -326,25 +330,30 @@ def load_family(name_or_path: str, road: Path | None = None, targets: Path | Non
         network=net,
         source=str(path),
         description=str(fam.get("description", "")),
-        max_speed_m_s=_max_speed(str(settings["target"]), classes, targets),
+        max_speed_m_s=classes[str(settings["target"])].max_speed_m_s,
+        occluder=classes[str(settings["occluder"])] if "occluder" in settings else None,
+        target_config=classes[str(settings["target"])],
     )
     check_fits(family, path)
     return family
 
 
-def _max_speed(name: str, shipped: dict[str, TargetConfig], targets: Path | None) -> float:
-    """The largest speed, m/s, of target class ``name``: from the targets file ``targets``
-    (a run's recorded copy) where it defines the class, else the shipped one's. A recorded
-    copy that is damaged or lacks the class is refused where the run's target classes are
-    loaded (``RunFolder.targets``, ``Evaluator.target``), naming that file."""
+def _classes(targets: Path | None) -> dict[str, TargetConfig]:
+    """The target classes of the targets file ``targets`` (a run's recorded copy) over
+    the shipped ones. A recorded copy that is damaged or lacks a class the family names is
+    refused where the run's target classes are loaded (``RunFolder.targets``,
+    ``Evaluator.target``), naming that file; here the shipped ones stand in."""
+    recorded: dict[str, TargetConfig] = {}
     if targets is not None:
-        try:
+        with contextlib.suppress(InputError):
             recorded = load_targets(targets)
-        except InputError:
-            recorded = {}
-        if name in recorded:
-            return recorded[name].max_speed_m_s
-    return shipped[name].max_speed_m_s
+    try:
+        shipped = load_targets()
+    except InputError:
+        if not recorded:
+            raise
+        shipped = {}
+    return {**shipped, **recorded}
 
 
 def check_fits(family: Family, path: Path | str) -> None:

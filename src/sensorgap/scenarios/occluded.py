@@ -9,7 +9,6 @@ search.
 from __future__ import annotations
 
 import math
-from functools import cache
 
 import numpy as np
 from numpy.typing import NDArray
@@ -54,16 +53,29 @@ def kerbs(net: RoadNetwork, rid: str, s: F64) -> tuple[F64, F64]:
     return left, right
 
 
-@cache
-def _target(name: str) -> TargetConfig:
-    return load_target(name)
+def occluder_class(family: Family) -> TargetConfig:
+    """The config of ``family``'s occluder class (its length, width, height, m): the one
+    of the targets file it was loaded with (``Family.occluder``: a run's recorded copy),
+    else the shipped one (hostile round 30: the shipped classes, cached, were used always:
+    a run searched with a 12 m car was exported with the shipped 4.5 m one)."""
+    if family.occluder is not None:
+        return family.occluder
+    return load_target(str(family.settings["occluder"]))
+
+
+def target_class(family: Family) -> TargetConfig:
+    """The config of ``family``'s target class, from the same targets file as
+    ``occluder_class``."""
+    if family.target_config is not None:
+        return family.target_config
+    return load_target(family.target_class)
 
 
 def _occluder(family: Family, label: str, x: F64, y: F64, h: F64, t: F64) -> OccluderTracks:
     """An occluder of class ``family.settings['occluder']`` along (B, T) centre states."""
     from sensorgap.scenarios.batch import tracks_from_path
 
-    cfg = _target(str(family.settings["occluder"]))
+    cfg = occluder_class(family)
     return OccluderTracks(
         label,
         tracks_from_path(t, x, y, h),
@@ -112,8 +124,8 @@ class CutInBehindTruck(_LaneKind):
         rid, lane, tr, t = self._start(family, "ego_lane")
         side_lane = int(family.settings["target_lane"])
         truck_lane = int(family.settings["occluder_lane"])
-        truck = _target(str(family.settings["occluder"]))
-        car = _target(family.target_class)
+        truck = occluder_class(family)
+        car = target_class(family)
         s0 = _col(cols, "ego_s0_m")
         s_e = lane_progress(s0, tr, 0.0, _col(cols, "ego_speed_m_s"), t)
         v_truck = _col(cols, "truck_speed_m_s")
@@ -160,8 +172,8 @@ class CutOutReveal(_LaneKind):
     def generate_batch(self, family: Family, cols: Columns, net: RoadNetwork) -> ScenarioBatch:
         rid, lane, tr, t = self._start(family, "lane")
         other = int(family.settings["target_lane"])
-        lead_cfg = _target(str(family.settings["occluder"]))
-        car = _target(family.target_class)
+        lead_cfg = occluder_class(family)
+        car = target_class(family)
         s0 = _col(cols, "ego_s0_m")
         ve = _col(cols, "ego_speed_m_s")
         vt = _col(cols, "target_speed_m_s")
@@ -218,7 +230,7 @@ class CrossingBehindParked(Crossing):
         rid = str(family.settings["road_id"])
         tr = self._start(family, "ego_lane")[2]
         t = b.t
-        parked = _target(str(family.settings["occluder"]))
+        parked = occluder_class(family)
         s_c = (_col(cols, "ego_s0_m") + tr * _col(cols, "cross_ahead_m"))[:, 0]
         s_c = np.clip(s_c, 0.0, net.road(rid).length)
         t_left, t_right = kerbs(net, rid, s_c)
