@@ -2235,3 +2235,19 @@ def test_an_export_builds_the_occluders_of_the_runs_recorded_classes(
         xosc = next((cat / "scenarios").glob("*.xosc")).read_text(encoding="utf-8")
         lengths = sorted(float(v) for v in re.findall(r'<Dimensions[^>]* length="([0-9.]+)"', xosc))
         assert 12.0 in lengths and 4.5 not in lengths, lengths
+
+
+def test_the_librarys_report_keeps_a_certified_run_verifying(tmp_path: Path) -> None:
+    """Hostile round 30, F5 (the report half): ``sensorgap.write_report`` left report.html,
+    report.md and report/ unlisted in a certified run, and ``verify`` then failed. It now
+    rewrites the manifest as ``report --run`` does."""
+    import sensorgap
+
+    run = tmp_path / "run"
+    argv = ["search", "--vehicle", "system_b", "--families", "slow_ahead_curve"]
+    argv += ["--environments", "snow", "--budget", "30", "--out", str(run)]
+    assert main(argv) == 0 and (run / "manifest.json").is_file()
+    html, md = sensorgap.write_report(run)
+    assert html.is_file() and md.is_file()
+    assert verify_manifest(run) == []
+    assert main(["verify", str(run)]) == 0
