@@ -193,7 +193,7 @@ def test_evaluate_points_limits_points_times_sensors(monkeypatch: pytest.MonkeyP
         # truthy strings were taken as True
         ({"sun_search": "no"}, r"^sun_search: must be a bool, got 'no'$"),
         ({"resume": "yes"}, r"^resume: must be a bool, got 'yes'$"),
-        ({"lock": "x"}, r"^lock: must be a bool, got 'x'$"),
+        ({"lock": False}, r"^lock: unknown option; allowed: .*$"),
         ({"progress": 1}, r"^progress: must be a bool, got 1$"),
         ({"min_distance": "x"}, r"^min_distance: must be a finite number >= 0, got 'x'$"),
         ({"min_distance": math.nan}, r"^min_distance: must be a finite number >= 0, got nan$"),

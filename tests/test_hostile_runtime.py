@@ -2251,3 +2251,25 @@ def test_the_librarys_report_keeps_a_certified_run_verifying(tmp_path: Path) -> 
     assert html.is_file() and md.is_file()
     assert verify_manifest(run) == []
     assert main(["verify", str(run)]) == 0
+
+
+def test_the_librarys_search_certifies_its_run_as_the_command_does(tmp_path: Path) -> None:
+    """Hostile round 30, F5 (the search half): ``sensorgap.find_scenarios(resume=True)``
+    into an exported run rewrote the ranking and the store, but neither removed the export
+    of the previous ranking nor rewrote the manifest: ``verify`` failed and ``report --run``
+    refused the folder. It now runs the command's step (``searchstep.certified_search``):
+    a new run is certified, a resumed one too, with its stale export removed."""
+    import sensorgap
+
+    run = tmp_path / "run"
+    kw: dict[str, Any] = {"families": ["slow_ahead_curve"], "environments": ["snow"]}
+    sensorgap.find_scenarios("system_b", run, budget=10, seed=0, progress=False, **kw)
+    assert verify_manifest(run) == []  # a new run is certified, as `search` certifies it
+    sensorgap.export_catalog(run, top=1)
+    assert (run / "catalog.json").is_file() and verify_manifest(run) == []
+    before = (run / "ranking.json").read_bytes()
+    sensorgap.find_scenarios("system_b", run, budget=40, seed=0, resume=True, progress=False, **kw)
+    assert (run / "ranking.json").read_bytes() != before  # the ranking changed
+    assert not (run / "catalog.json").exists() and not (run / "scenarios").exists()
+    assert verify_manifest(run) == []
+    assert main(["verify", str(run)]) == 0

@@ -32,6 +32,7 @@ LAYERS = [
     "export",
     "report",
     "stale",
+    "searchstep",
     "jobs",
     "api",
     "cli",

@@ -55,6 +55,7 @@ from sensorgap.filesio import (
 from sensorgap.models import Conditions, System, load_system
 from sensorgap.scenarios import family_presets
 from sensorgap.search.run import SearchOutcome, run_search
+from sensorgap.searchstep import certified_search
 
 _P = ParamSpec("_P")
 _R = TypeVar("_R")
@@ -285,8 +286,12 @@ def coverage_grid(
 
 #: The options of ``find_scenarios``: ``run_search``'s keyword parameters.
 #: ``run_search``'s options a caller may give (``stop``: the CLI's deferred stop, internal:
-#: given, it was an AttributeError after the whole search, hostile round 29).
-_SEARCH_OPTIONS = frozenset(list(inspect.signature(run_search).parameters)[7:]) - {"stop"}
+#: given, it was an AttributeError after the whole search, hostile round 29; ``lock``: the
+#: main job's, which holds the folder's lock itself; the facade always locks).
+_SEARCH_OPTIONS = frozenset(list(inspect.signature(run_search).parameters)[7:]) - {
+    "stop",
+    "lock",
+}
 
 
 @_file_errors_as_input
@@ -301,7 +306,9 @@ def find_scenarios(
     **options: Any,
 ) -> SearchOutcome:
     """Search for sensor-critical scenarios into the run folder ``out`` (SQLite store,
-    ranking.csv/json, summary.json): ``families`` and ``environments`` are ``"all"`` or
+    ranking.csv/json, summary.json, manifest.json: as ``sensorgap search``, whose step it
+    runs, ``searchstep.certified_search``; resuming, an export and report the changed
+    ranking made stale are removed): ``families`` and ``environments`` are ``"all"`` or
     lists of names (families may be .toml paths; environments those of the
     ``environments_file`` option when given); ``options`` as ``run_search`` (strategy,
     mode, workers, resume, ...). Every reported number is an exact evaluation."""
@@ -313,7 +320,7 @@ def find_scenarios(
         raise InputError(
             unknown[0], "", f"unknown option; allowed: {', '.join(sorted(_SEARCH_OPTIONS))}"
         )
-    for name in ("resume", "progress", "lock"):  # 'no' would be true
+    for name in ("resume", "progress"):  # 'no' would be true
         value = options.get(name, False)
         if not (isinstance(value, bool) or (name == "progress" and value is None)):
             raise InputError(name, "", f"must be a bool, got {shown(value)}")
@@ -331,7 +338,13 @@ def find_scenarios(
         if environments == "all"
         else _names(environments, "environments")
     )
-    return run_search(veh, fams, envs, budget, seed, top, folder, **options)
+    # the command line's search step: checks, stale export and report removed, manifest
+    outcome, _ = certified_search(
+        folder,
+        bool(options.get("resume", False)),
+        lambda stop: run_search(veh, fams, envs, budget, seed, top, folder, stop=stop, **options),
+    )
+    return outcome
 
 
 @_file_errors_as_input

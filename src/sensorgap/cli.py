@@ -38,7 +38,6 @@ from sensorgap.filesio import (
 )
 from sensorgap.plugins import load_plugins
 from sensorgap.runtime import (
-    DeferredStop,
     StdoutUnwritable,
     check_numba_environment,
     guarded_stdout,
@@ -531,85 +530,42 @@ def cmd_paper(args: argparse.Namespace) -> int:
     return 0
 
 
-def _small_files(folder: Path, names: tuple[str, ...]) -> dict[str, bytes | None]:
-    """The bytes of the files ``names`` of ``folder`` (None: absent), to ``_put_back``."""
-    return {n: (folder / n).read_bytes() if (folder / n).is_file() else None for n in names}
-
-
-def _put_back(folder: Path, saved: dict[str, bytes | None]) -> None:
-    """The files ``_small_files`` read, as they were (best effort: the failure being
-    reported is the command's)."""
-    from sensorgap.atomic import atomic_write_bytes
-
-    for name, data in saved.items():
-        with suppress(OSError):
-            if data is None:
-                (folder / name).unlink(missing_ok=True)
-            elif not (folder / name).is_file() or (folder / name).read_bytes() != data:
-                atomic_write_bytes(folder / name, data)
-
-
 def cmd_search(args: argparse.Namespace) -> int:
     """Search for critical scenarios into --out (SQLite store, ranking.csv/json)."""
     from sensorgap.search.ranking import RANK_MIN_P
-    from sensorgap.search.run import SEARCH_WRITES, run_search
-    from sensorgap.search.runfolder import RANKING_FILES, RUN_JSON, STORE_FILE
-    from sensorgap.search.store import ranking_record, restore_ranking_record
-    from sensorgap.stale import search_removing_stale, stale_after_search
+    from sensorgap.search.run import run_search
+    from sensorgap.searchstep import certified_search
 
     env_file = Path(args.environments_file) if args.environments_file else None
-    refuse_crowded_out(args.out, "search")
-    refuse_inside_certified(args.out, "search")
-    if args.resume:  # the new manifest must not certify a file changed by hand
-        refuse_if_changed(args.out, SEARCH_WRITES)
-    # a resumed search failing in its last writes (a full disk at ranking.json) puts back
-    # the ranking files, run.json, the manifest and the store's record of the ranking: they
-    # were a mix of the old and the new ranking (hostile round nineteen, F5); its candidates
-    # stay stored. A stop signal there is held until they are all written (DeferredStop).
-    out_dir = Path(args.out)
-    resumed = args.resume and out_dir.is_dir()
-    record = ranking_record(out_dir / STORE_FILE) if resumed else {}
-    before = _small_files(out_dir, (*RANKING_FILES, MANIFEST_NAME, RUN_JSON)) if resumed else {}
-    try:
-        # the ranking files, their record in the store, the removal of the stale export and
-        # report and the manifest: all written, or (stopped before them) none
-        with DeferredStop() as stop:
-            outcome, gone = search_removing_stale(
-                Path(args.out),
-                lambda: run_search(
-                    args.vehicle,
-                    _families(args.families),
-                    _environments(args.environments, env_file),
-                    args.budget,
-                    args.seed,
-                    args.top,
-                    Path(args.out),
-                    strategy=args.strategy,
-                    mode=args.pd,
-                    sun_search=not args.no_sun,
-                    environments_file=env_file,
-                    detection=args.detection,
-                    workers=args.workers,
-                    resume=args.resume,
-                    executor=args.executor,
-                    scheduler=args.scheduler,
-                    seeds=args.seeds,
-                    stop=stop,
-                ),
-            )
-            # what export, simulate and report made of the previous ranking no longer matches
-            stale: tuple[str, ...] = () if gone is None else stale_after_search()
-            if gone:
-                print(
-                    f"the resumed search changed the ranking: removed {len(gone)} files of the "
-                    "previous export and report (run export and report again)"
-                )
-            write_manifest(args.out, (*SEARCH_WRITES, *stale) if args.resume else None)
-    except Exception:
-        if resumed:
-            _put_back(out_dir, before)
-            restore_ranking_record(out_dir / STORE_FILE, record)
-        raise
+    outcome, gone = certified_search(
+        Path(args.out),
+        args.resume,
+        lambda stop: run_search(
+            args.vehicle,
+            _families(args.families),
+            _environments(args.environments, env_file),
+            args.budget,
+            args.seed,
+            args.top,
+            Path(args.out),
+            strategy=args.strategy,
+            mode=args.pd,
+            sun_search=not args.no_sun,
+            environments_file=env_file,
+            detection=args.detection,
+            workers=args.workers,
+            resume=args.resume,
+            executor=args.executor,
+            scheduler=args.scheduler,
+            seeds=args.seeds,
+            stop=stop,
+        ),
+    )
+    if gone:
+        print(
+            f"the resumed search changed the ranking: removed {len(gone)} files of the "
+            "previous export and report (run export and report again)"
+        )
     crit = sum(1 for r in outcome.ranking if r["class"] == "sensor-critical")
     d = outcome.summary["lookup_vs_exact"]
     if args.pd == "lookup" and d.get("reevaluated"):
