@@ -2166,6 +2166,11 @@ def test_library_refusals_name_the_parameter_not_the_option(tmp_path: Path) -> N
         sensorgap.find_scenarios("system_b", nf, budget=10, **kw)
     assert info.value.source == "out" and str(info.value).startswith("out: ")
     assert "certified outputs of another command" in str(info.value)
+    assert "--" not in str(info.value)  # round 31: "give another --out" in its text
+    run = tmp_path / "run"  # a search there already: "add resume=True", not "--resume"
+    sensorgap.find_scenarios("system_b", run, budget=10, progress=False, **kw)
+    with pytest.raises(InputError, match=r"add resume=True to continue it, or use another out"):
+        sensorgap.find_scenarios("system_b", run, budget=10, progress=False, **kw)
 
 
 def test_evaluate_candidate_checks_its_out_as_the_command_does(tmp_path: Path) -> None:
@@ -2257,7 +2262,7 @@ def test_the_librarys_search_certifies_its_run_as_the_command_does(tmp_path: Pat
     """Hostile round 30, F5 (the search half): ``sensorgap.find_scenarios(resume=True)``
     into an exported run rewrote the ranking and the store, but neither removed the export
     of the previous ranking nor rewrote the manifest: ``verify`` failed and ``report --run``
-    refused the folder. It now runs the command's step (``searchstep.certified_search``):
+    refused the folder. It now runs the command's step (``steps.certified_search``):
     a new run is certified, a resumed one too, with its stale export removed."""
     import sensorgap
 
@@ -2273,3 +2278,55 @@ def test_the_librarys_search_certifies_its_run_as_the_command_does(tmp_path: Pat
     assert not (run / "catalog.json").exists() and not (run / "scenarios").exists()
     assert verify_manifest(run) == []
     assert main(["verify", str(run)]) == 0
+
+
+def test_an_occluder_class_missing_from_a_runs_recorded_targets_is_refused(
+    tmp_path: Path,
+) -> None:
+    """Hostile round 31, F1: a family whose occluder class was missing from a run's recorded
+    targets file was given the class of that name from the current templates (shipped, or
+    SENSORGAP_TEMPLATES at export time): one run folder exported two catalogs. A class the
+    family names (target or occluder) missing from the recorded copy is refused naming it."""
+    from sensorgap.config.load import templates_dir
+    from sensorgap.scenarios import load_family
+
+    drop, role = "car", "occluder"  # (a missing target class: the corpus's cases)
+    lines = (templates_dir() / "targets.toml").read_text(encoding="utf-8").splitlines()
+    kept, skipping = [], False
+    for line in lines:  # the class's table and its sub-tables left out
+        if line.startswith("["):
+            skipping = line.startswith((f"[targets.{drop}]", f"[targets.{drop}."))
+        if not skipping:
+            kept.append(line)
+    recorded = tmp_path / "targets.toml"
+    recorded.write_text("\n".join(kept) + "\n", encoding="utf-8")
+    assert f"[targets.{drop}]" not in recorded.read_text(encoding="utf-8")
+    family = load_family("pedestrian_behind_parked_cars")  # shipped: pedestrian behind cars
+    assert family.settings["target"] == "pedestrian" and family.settings["occluder"] == "car"
+    with pytest.raises(InputError) as err:
+        load_family("pedestrian_behind_parked_cars", targets=recorded)
+    assert err.value.source == str(recorded) and err.value.field == "targets"
+    assert f"no target class {drop!r} (the {role} of family" in err.value.message
+
+
+def test_the_librarys_export_runs_the_commands_step(tmp_path: Path) -> None:
+    """Hostile round 31, F2: ``sensorgap.export_catalog`` skipped the command's step: an
+    export in place that changed the scenario files kept the report of the previous one
+    (certified by ``verify``), and a symbolic link the command refuses was removed. It now
+    runs the command's step (``steps.certified_export``)."""
+    import sensorgap
+
+    run = tmp_path / "run"
+    argv = ["search", "--vehicle", "system_b", "--families", "slow_ahead_curve"]
+    argv += ["--environments", "snow", "--budget", "30", "--out", str(run)]
+    assert main(argv) == 0 and main(["export", "--run", str(run), "--top", "1"]) == 0
+    assert main(["report", "--run", str(run)]) == 0 and (run / "report.md").is_file()
+    index = sensorgap.export_catalog(run, osc_version="1.0", top=1)  # other scenario files
+    assert len(index["scenarios"]) == 1
+    assert not (run / "report.md").exists() and not (run / "report.html").exists()
+    assert verify_manifest(run) == [] and main(["verify", str(run)]) == 0
+    link = run / "scenarios" / "x.xosc"
+    link.symlink_to("/etc/hostname")
+    with pytest.raises(InputError, match=r"^run: .*scenarios/x\.xosc, a symbolic link"):
+        sensorgap.export_catalog(run)
+    assert link.is_symlink()  # left for its owner to move, as the command leaves it

@@ -32,7 +32,7 @@ LAYERS = [
     "export",
     "report",
     "stale",
-    "searchstep",
+    "steps",
     "jobs",
     "api",
     "cli",

@@ -13,6 +13,7 @@ import functools
 import inspect
 import math
 import os
+import re
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, ParamSpec, TypeVar
@@ -55,10 +56,23 @@ from sensorgap.filesio import (
 from sensorgap.models import Conditions, System, load_system
 from sensorgap.scenarios import family_presets
 from sensorgap.search.run import SearchOutcome, run_search
-from sensorgap.searchstep import certified_search
+from sensorgap.steps import certified_export, certified_search
 
 _P = ParamSpec("_P")
 _R = TypeVar("_R")
+
+
+#: An option of the command line named in a message of a check the facade shares with it.
+_OPTION = re.compile(r"(?<![\w-])--([a-z][a-z0-9]*(?:-[a-z0-9]+)*)\b")
+#: Options the facade takes as other values than their names (``resume=True``).
+_AS_PARAMETER = {"resume": "resume=True", "no-sun": "sun_search=False", "pd": "mode"}
+
+
+def _parameter(match: re.Match[str]) -> str:
+    """The facade's parameter for the command line's option of ``match`` (``--out`` ->
+    ``out``, ``--resume`` -> ``resume=True``)."""
+    name = match.group(1)
+    return _AS_PARAMETER.get(name, name.replace("-", "_"))
 
 
 def _file_errors_as_input(fn: Callable[_P, _R]) -> Callable[_P, _R]:
@@ -77,6 +91,8 @@ def _file_errors_as_input(fn: Callable[_P, _R]) -> Callable[_P, _R]:
             for e in (exc, *exc.more):
                 if e.source.startswith("--") and " " not in e.source:
                     e.source = e.source[2:].replace("-", "_")
+                # and its text the options ("add --resume", "give another --out"; round 31)
+                e.message = _OPTION.sub(_parameter, e.message)
             raise InputError(exc.source, exc.field, exc.message, exc.more) from None
         except OSError as exc:
             if exc.filename is None:
@@ -307,7 +323,7 @@ def find_scenarios(
 ) -> SearchOutcome:
     """Search for sensor-critical scenarios into the run folder ``out`` (SQLite store,
     ranking.csv/json, summary.json, manifest.json: as ``sensorgap search``, whose step it
-    runs, ``searchstep.certified_search``; resuming, an export and report the changed
+    runs, ``steps.certified_search``; resuming, an export and report the changed
     ranking made stale are removed): ``families`` and ``environments`` are ``"all"`` or
     lists of names (families may be .toml paths; environments those of the
     ``environments_file`` option when given); ``options`` as ``run_search`` (strategy,
@@ -359,14 +375,13 @@ def export_catalog(
     (``maneuver``: actions on triggers relative to the ego, a replaceable ego controller;
     ``replay``: timed trajectories; docs/export.md); returns the catalog index
     (``catalog.json``)."""
-    from sensorgap.export import export_catalog as _export
-
     folder = path_argument(run, "run")
     target = None if out is None else _out_folder(out, "export", inside=folder)
     osc_version = _text(osc_version, "osc_version", "an OpenSCENARIO version such as '1.2'")
     style = _text(style, "style", "'maneuver' or 'replay'")
     rows = None if top is None else _integer(top, "top")
-    return _export(folder, target, osc_version, rows, style=style)
+    # the command line's export step: checks, stale report removed, manifest
+    return certified_export(folder, target, osc_version, rows, style)[0]
 
 
 @_file_errors_as_input

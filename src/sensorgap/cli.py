@@ -27,11 +27,9 @@ from sensorgap.filesio import (
     MANIFEST_NAME,
     refuse_certified_by_other,
     refuse_certified_out,
-    refuse_crowded_out,
     refuse_foreign_outputs,
     refuse_if_changed,
     refuse_inside_certified,
-    refuse_links,
     refuse_uncertifiable,
     same_file,
     write_manifest,
@@ -534,7 +532,7 @@ def cmd_search(args: argparse.Namespace) -> int:
     """Search for critical scenarios into --out (SQLite store, ranking.csv/json)."""
     from sensorgap.search.ranking import RANK_MIN_P
     from sensorgap.search.run import run_search
-    from sensorgap.searchstep import certified_search
+    from sensorgap.steps import certified_search
 
     env_file = Path(args.environments_file) if args.environments_file else None
     outcome, gone = certified_search(
@@ -748,42 +746,15 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
 def cmd_export(args: argparse.Namespace) -> int:
     """OpenSCENARIO + OpenDRIVE catalog of a search run's ranked scenarios."""
-    from sensorgap.export import export_catalog
-    from sensorgap.export.catalog import refuse_linked_paths
-    from sensorgap.stale import export_removing_stale_report
+    from sensorgap.steps import certified_export
 
     out = Path(args.out) if args.out else None
-    folder = out or Path(args.run)
-    refuse_crowded_out(folder, "export")
-    refuse_uncertifiable(folder, "--out" if out else "--run")
-    # a link anywhere in the folder it certifies (hostile round fifteen: RUN/scenarios/x,
-    # a link, exited 0 and the run then failed its own verify); the paths it writes first,
-    # whose lines say more
-    if folder.is_dir():
-        refuse_linked_paths(folder)
-    refuse_links(folder, "--out" if out else "--run", "export")
-    if out is not None and Path(args.run).resolve() not in out.resolve().parents:
-        refuse_inside_certified(out, "export")  # (inside its own run: export says so)
-    # a failed export leaves no partial catalog: a folder it made removed, the scenario
-    # files, maps, catalog.json and manifest.json of an earlier export back in place
-    with removed_on_error(folder, lock=out is not None):  # --run: locked if it exists
-        # a report of the folder describes and links the previous export's files (their
-        # OpenSCENARIO version and style too), or says there was none: removed
-        index, gone = export_removing_stale_report(
-            folder,
-            lambda: export_catalog(
-                Path(args.run), out, osc_version=args.osc_version, top=args.top, style=args.style
-            ),
+    index, gone = certified_export(Path(args.run), out, args.osc_version, args.top, args.style)
+    if gone:
+        print(
+            f"the export changed the scenario files: removed {len(gone)} files of "
+            "the previous report (run report again)"
         )
-        if gone:
-            from sensorgap.export.catalog import EXPORT_WRITES
-            from sensorgap.report.build import REPORT_WRITES
-
-            write_manifest(folder, (*EXPORT_WRITES, *REPORT_WRITES))
-            print(
-                f"the export changed the scenario files: removed {len(gone)} files of "
-                "the previous report (run report again)"
-            )
     print(
         f"{out or args.run}: {len(index['scenarios'])} scenarios, {args.style} style, "
         f"OpenSCENARIO {args.osc_version}, every file XSD-valid"

@@ -77,6 +77,8 @@ class ScenarioSpec:
                     else load_family(str(row["family"]))
                 )
             except InputError as exc:  # named by the row that asked for it
+                if exc.field == "targets":  # but the run's recorded targets file by itself
+                    raise
                 raise ValueError(exc.message) from None
             params: dict[str, ParamValue] = {}
             for p in family.space:

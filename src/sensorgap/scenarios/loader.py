@@ -214,7 +214,17 @@ def load_family(name_or_path: str, road: Path | None = None, targets: Path | Non
     # the target classes the family is loaded with: a run's recorded copy when given (and
     # readable), else the shipped ones (hostile round 30: an export of a run took the
     # occluder's size from the shipped classes, not the ones the run searched with)
-    classes = _classes(targets)
+    classes, recorded = _classes(targets)
+    if recorded is not None and "occluder" in settings and settings["occluder"] not in recorded:
+        # never the shipped class of that name instead of the run's own (hostile round 31:
+        # it was, and one run exported two catalogs); the target class is refused so by the
+        # run's readers (RunFolder.targets, Evaluator.target), each naming its use
+        raise InputError(
+            str(targets),
+            "targets",
+            f"no target class {settings['occluder']!r} (the occluder of family "
+            f"{path.stem!r}); it defines {', '.join(recorded) or 'none'}",
+        )
     if settings["target"] not in classes:
         raise InputError(
             path,
@@ -234,14 +244,17 @@ def load_family(name_or_path: str, road: Path | None = None, targets: Path | Non
         settings["road"] = str(road_path)
     elif road_text.endswith(".xodr") or "/" in road_text:
         # a path: relative to the family file's folder; recorded absolute (export, report)
-        try:
-            road_path = (path.parent / road_path).resolve()
+        try:  # strict: a link loop is an error on every Python (3.13's resolve() was quiet)
+            (path.parent / road_path).resolve(strict=True)
+        except FileNotFoundError:
+            pass  # "not found" below
         except (RuntimeError, OSError):  # a symlink loop
             raise InputError(
                 path,
                 "family.road",
                 f"road file {road_path}: cannot resolve the path (a symbolic link loop?)",
             ) from None
+        road_path = (path.parent / road_path).resolve()
         settings["road"] = str(road_path)
     if not road_path.is_file():
         roads_env = os.environ.get("SENSORGAP_ROADS")
@@ -338,12 +351,16 @@ def load_family(name_or_path: str, road: Path | None = None, targets: Path | Non
     return family
 
 
-def _classes(targets: Path | None) -> dict[str, TargetConfig]:
-    """The target classes of the targets file ``targets`` (a run's recorded copy) over
-    the shipped ones. A recorded copy that is damaged or lacks a class the family names is
-    refused where the run's target classes are loaded (``RunFolder.targets``,
-    ``Evaluator.target``), naming that file; here the shipped ones stand in."""
-    recorded: dict[str, TargetConfig] = {}
+def _classes(
+    targets: Path | None,
+) -> tuple[dict[str, TargetConfig], dict[str, TargetConfig] | None]:
+    """The target classes a family is loaded with: those of the targets file ``targets``
+    (a run's recorded copy) over the shipped ones, and the recorded ones alone (None
+    without a readable copy). A recorded copy that is damaged, or lacks the family's target
+    class, is refused where the run's target classes are loaded (``RunFolder.targets``,
+    ``Evaluator.target``), naming that file; here the shipped ones stand in. A missing
+    occluder class is refused by the caller."""
+    recorded: dict[str, TargetConfig] | None = None
     if targets is not None:
         with contextlib.suppress(InputError):
             recorded = load_targets(targets)
@@ -353,7 +370,7 @@ def _classes(targets: Path | None) -> dict[str, TargetConfig]:
         if not recorded:
             raise
         shipped = {}
-    return {**shipped, **recorded}
+    return {**shipped, **(recorded or {})}, recorded
 
 
 def check_fits(family: Family, path: Path | str) -> None:

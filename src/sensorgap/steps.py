@@ -1,12 +1,12 @@
-"""The search step of a run folder, as ``sensorgap search`` and the facade's
-``find_scenarios`` both run it: the checks before any work, the search, the removal of
-the export and report a resumed search made stale, and the folder's manifest, written
-together or not at all.
+"""The steps that write a certified folder, as the command line (``sensorgap search``,
+``export``) and the facade (``find_scenarios``, ``export_catalog``) both run them: the
+checks before any work, the work, the removal of what it made stale, and the folder's
+manifest, written together or not at all.
 
-Hostile round 30 (F5): ``find_scenarios(..., resume=True)`` into a certified, exported run
-rewrote the ranking files and the store but neither removed the previous export nor
-rewrote the manifest, and ``verify`` of the run failed; the command line did all three.
-One function now does them for both.
+Hostile rounds 30 and 31: ``find_scenarios(..., resume=True)`` into an exported run left
+the previous export and an outdated manifest (``verify`` failed); ``export_catalog`` kept a
+report of the previous export (certified by ``verify``) and removed a symbolic link the
+command refuses. The command line did each right; one function per step now serves both.
 """
 
 from __future__ import annotations
@@ -14,24 +14,34 @@ from __future__ import annotations
 from collections.abc import Callable
 from contextlib import ExitStack, suppress
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
-from sensorgap.atomic import atomic_write_bytes, folder_lock, held_until_done
+from sensorgap.atomic import atomic_write_bytes, folder_lock, held_until_done, removed_on_error
 from sensorgap.filesio import (
     MANIFEST_NAME,
     refuse_crowded_out,
     refuse_if_changed,
     refuse_inside_certified,
+    refuse_links,
+    refuse_uncertifiable,
     write_manifest,
 )
 from sensorgap.runtime import DeferredStop
 from sensorgap.search.run import SEARCH_WRITES
 from sensorgap.search.runfolder import RANKING_FILES, RUN_JSON, STORE_FILE
 from sensorgap.search.store import ranking_record, restore_ranking_record
-from sensorgap.stale import search_removing_stale, stale_after_search
+from sensorgap.stale import (
+    export_removing_stale_report,
+    search_removing_stale,
+    stale_after_search,
+)
 
 if TYPE_CHECKING:
     from sensorgap.search.run import SearchOutcome
+
+#: The option names the steps' refusals give (the command line's; the facade names its
+#: parameters instead, ``api._file_errors_as_input``).
+OUT, RUN = "--out", "--run"
 
 
 def _small_files(folder: Path, names: tuple[str, ...]) -> dict[str, bytes | None]:
@@ -94,3 +104,47 @@ def certified_search(
                 restore_ranking_record(out / STORE_FILE, record)
             raise
     return outcome, gone
+
+
+def certified_export(
+    run: Path, out: Path | None, osc_version: str, top: int | None, style: str
+) -> tuple[dict[str, Any], list[str]]:
+    """The catalog of the run folder ``run`` (``export.export_catalog``) into ``out``, or
+    into ``run`` itself when ``out`` is None, as a certified step:
+
+    - before any work: the folder is not crowded, can be certified, holds no symbolic link
+      (hostile round fifteen: ``RUN/scenarios/x``, a link, was removed and the run then
+      failed its own ``verify``), and a new ``out`` is not inside another certified folder
+      (but its own run, whose export says more); an existing folder is locked for the step;
+    - a failed export leaves no partial catalog: a folder it made removed, the scenario
+      files, maps, ``catalog.json`` and ``manifest.json`` of an earlier export back;
+    - when it changed the scenario files or ``catalog.json``, the folder's previous report
+      (which describes and links the previous export's files, their OpenSCENARIO version
+      and style) is removed and the manifest rewritten.
+
+    Returns (the catalog index, the removed report files' relative paths)."""
+    from sensorgap.export import export_catalog
+    from sensorgap.export.catalog import EXPORT_WRITES, refuse_linked_paths
+    from sensorgap.report.build import REPORT_WRITES
+
+    folder = out or run
+    with held_until_done(), ExitStack() as locks:
+        if folder.is_dir():
+            locks.enter_context(folder_lock(folder))
+        refuse_crowded_out(folder, "export")
+        refuse_uncertifiable(folder, OUT if out else RUN)
+        # a link anywhere in the folder it certifies; the paths it writes first, whose
+        # lines say more
+        if folder.is_dir():
+            refuse_linked_paths(folder)
+        refuse_links(folder, OUT if out else RUN, "export")
+        if out is not None and run.resolve() not in out.resolve().parents:
+            refuse_inside_certified(out, "export")  # (inside its own run: export says so)
+        with removed_on_error(folder, lock=out is not None):
+            index, gone = export_removing_stale_report(
+                folder,
+                lambda: export_catalog(run, out, osc_version=osc_version, top=top, style=style),
+            )
+            if gone:
+                write_manifest(folder, (*EXPORT_WRITES, *REPORT_WRITES))
+    return index, gone
