@@ -3,6 +3,7 @@ ranking as an uninterrupted run; outputs are atomic and every run folder has a m
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import signal
@@ -51,7 +52,7 @@ def _cli(args: list[str]) -> subprocess.Popen[bytes]:
 
 def _rows(db: Path) -> int:
     try:
-        with sqlite3.connect(db) as c:
+        with contextlib.closing(sqlite3.connect(db)) as c:  # (a with alone leaves it open)
             return int(c.execute("SELECT COUNT(*) FROM candidates").fetchone()[0])
     except sqlite3.Error:
         return 0

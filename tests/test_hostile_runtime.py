@@ -2330,3 +2330,20 @@ def test_the_librarys_export_runs_the_commands_step(tmp_path: Path) -> None:
     with pytest.raises(InputError, match=r"^run: .*scenarios/x\.xosc, a symbolic link"):
         sensorgap.export_catalog(run)
     assert link.is_symlink()  # left for its owner to move, as the command leaves it
+
+
+def test_json_nesting_is_bounded_the_same_on_every_python() -> None:
+    """The readers' "nested too deeply" line must not depend on the interpreter: Python
+    3.11's ``json`` gave up near 1,000 levels, 3.13's parses far deeper (and the corpus's
+    deep cases then met other checks). ``filesio.loads_json`` refuses more than
+    ``MAX_JSON_DEPTH`` levels itself; brackets inside strings do not count."""
+    from sensorgap.filesio import MAX_JSON_DEPTH, json_too_deep, loads_json
+
+    n = MAX_JSON_DEPTH
+    assert loads_json("[" * n + "]" * n) is not None
+    for text in ("[" * (n + 1) + "]" * (n + 1), '{"a":' * (n + 1) + "1" + "}" * (n + 1)):
+        assert json_too_deep(text)
+        with pytest.raises(RecursionError, match="nested more than 64 levels"):
+            loads_json(text)
+    inside = '["' + "[{" * 500 + '\\"' + '"]'  # brackets and an escaped quote in a string
+    assert not json_too_deep(inside) and loads_json(inside) == ["[{" * 500 + '"']

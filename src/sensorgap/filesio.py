@@ -122,10 +122,40 @@ def _json_int(text: str) -> int | float:
     return float(text)
 
 
+#: The deepest nesting of arrays and objects a JSON file of a run folder may have (sensorgap
+#: writes at most 4 levels): deeper is ``RecursionError`` before parsing, on every Python
+#: (the ``json`` module's own limit differs: 3.11 failed near 1,000 levels, 3.13 parses far
+#: deeper), so the readers' "nested too deeply" line does not depend on the interpreter.
+MAX_JSON_DEPTH = 64
+_JSON_STRING = re.compile(r'"(?:[^"\\]|\\.)*"')
+_JSON_BRACKET = re.compile(r"[\[\]{}]")
+
+
+def json_too_deep(text: str) -> bool:
+    """Whether the JSON ``text`` nests arrays and objects more than ``MAX_JSON_DEPTH``
+    levels (brackets inside strings do not count)."""
+    if text.count("[") + text.count("{") <= MAX_JSON_DEPTH:
+        return False
+    depth = 0
+    for m in _JSON_BRACKET.finditer(_JSON_STRING.sub('""', text)):
+        depth += 1 if m.group() in "[{" else -1
+        if depth > MAX_JSON_DEPTH:
+            return True
+    return False
+
+
 def loads_json(text: str | bytes) -> Any:
     """Parse JSON as sensorgap's readers of run folders do: an object naming a key twice
     is ``ValueError`` (Python's ``json`` would keep the last one silently); an integer
-    beyond 64 bits is read as a float (``_json_int``)."""
+    beyond 64 bits is read as a float (``_json_int``); nesting deeper than
+    ``MAX_JSON_DEPTH`` is ``RecursionError`` (``json_too_deep``)."""
+    if isinstance(text, bytes | bytearray):
+        text = text.decode("utf-8")
+    if json_too_deep(text):
+        raise RecursionError(
+            f"maximum recursion depth exceeded: arrays and objects nested more than "
+            f"{MAX_JSON_DEPTH} levels"
+        )
     return json.loads(text, object_pairs_hook=_unique_keys, parse_int=_json_int)
 
 
