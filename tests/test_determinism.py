@@ -4,6 +4,7 @@ SOURCE_DATE_EPOCH). SQLite stores are compared by content, not bytes."""
 
 from __future__ import annotations
 
+import contextlib
 import sqlite3
 from pathlib import Path
 
@@ -87,7 +88,7 @@ def _run(name: str, out: Path) -> None:
 
 
 def _table(db: Path) -> list[tuple[object, ...]]:
-    with sqlite3.connect(db) as c:
+    with contextlib.closing(sqlite3.connect(db)) as c:  # (a with alone leaves it open)
         return c.execute("SELECT * FROM candidates ORDER BY family, idx").fetchall()
 
 
