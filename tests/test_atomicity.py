@@ -275,8 +275,8 @@ def test_a_report_failing_after_its_files_were_written_leaves_the_run_verifying(
     scenarios/ as a user) failed while hashing the folder for its manifest, after
     report.html and report.md had been replaced: verify failed. Likewise a write failing
     between report.html and report.md. Now the earlier report is back in place."""
-    import sensorgap.cli as cli
     import sensorgap.report.build as build
+    import sensorgap.steps as steps
 
     run = tmp_path / "run"
     shutil.copytree(reported_run, run)
@@ -287,7 +287,7 @@ def test_a_report_failing_after_its_files_were_written_leaves_the_run_verifying(
         def unreadable(folder: str | Path, *_: object) -> Path:
             raise PermissionError(13, "Permission denied", str(Path(folder) / "scenarios"))
 
-        monkeypatch.setattr(cli, "write_manifest", unreadable)
+        monkeypatch.setattr(steps, "write_manifest", unreadable)
     else:
         write = build.atomic_write_text
 

@@ -22,7 +22,6 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from sensorgap.apinames import API_NAMES
-from sensorgap.atomic import removed_on_error
 from sensorgap.config import load_environment, load_environments, load_target
 from sensorgap.config.common import finite_real, is_integer, real_array, shown
 from sensorgap.coverage import Scene
@@ -48,15 +47,12 @@ from sensorgap.errors import InputError
 from sensorgap.filesio import (
     path_argument,
     refuse_file_on_the_way,
-    refuse_if_changed,
     refuse_inside_certified,
-    refuse_uncertifiable,
-    write_manifest,
 )
 from sensorgap.models import Conditions, System, load_system
 from sensorgap.scenarios import family_presets
 from sensorgap.search.run import SearchOutcome, run_search
-from sensorgap.steps import certified_export, certified_search
+from sensorgap.steps import certified_export, certified_report, certified_search
 
 _P = ParamSpec("_P")
 _R = TypeVar("_R")
@@ -390,17 +386,8 @@ def write_report(run: str | Path) -> tuple[Path, Path]:
     list them, as ``sensorgap report --run`` does (hostile round 30: the facade left them
     unlisted and ``verify`` of the run failed); returns their paths. A failed report
     leaves the run as it was."""
-    from sensorgap.report import write_report as _write
-    from sensorgap.report.build import REPORT_WRITES
-
-    folder = path_argument(run, "run")
-    # the manifest it rewrites must not certify a file changed by hand
-    refuse_if_changed(folder, REPORT_WRITES)
-    refuse_uncertifiable(folder, "run")
-    with removed_on_error(folder):
-        paths = _write(folder)
-        write_manifest(folder, REPORT_WRITES)
-    return paths
+    # the command line's report step: checks, lock, manifest, the run as it was on failure
+    return certified_report(path_argument(run, "run"))
 
 
 # the names live in ``sensorgap.apinames`` (the root package offers them lazily from there)

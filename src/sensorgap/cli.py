@@ -30,7 +30,6 @@ from sensorgap.filesio import (
     refuse_foreign_outputs,
     refuse_if_changed,
     refuse_inside_certified,
-    refuse_uncertifiable,
     same_file,
     write_manifest,
 )
@@ -865,19 +864,9 @@ def cmd_report(args: argparse.Namespace) -> int:
             raise InputError(
                 "--out", "", "only with --compare (the report of --run is written into the run)"
             )
-        from sensorgap.report import write_report
-        from sensorgap.report.build import REPORT_WRITES
+        from sensorgap.steps import certified_report
 
-        # the report rewrites the manifest: it must not certify a file changed by hand
-        writes = REPORT_WRITES
-        refuse_if_changed(args.run, writes)
-        refuse_uncertifiable(args.run, "--run")
-        # a failed report leaves the run as it was: no figure of it left behind, and the
-        # earlier report.html, report.md and manifest.json back in place
-        # (locked before any work when it exists, _written_folders; a missing one refused)
-        with removed_on_error(args.run, lock=False):
-            html_path, md_path = write_report(Path(args.run))
-            write_manifest(args.run, writes)
+        html_path, md_path = certified_report(Path(args.run))
     print(f"{html_path} and {md_path}")
     return 0
 

@@ -1,5 +1,6 @@
 """The steps that write a certified folder, as the command line (``sensorgap search``,
-``export``) and the facade (``find_scenarios``, ``export_catalog``) both run them: the
+``export``, ``report --run``) and the facade (``find_scenarios``, ``export_catalog``,
+``write_report``) both run them: the
 checks before any work, the work, the removal of what it made stale, and the folder's
 manifest, written together or not at all.
 
@@ -148,3 +149,24 @@ def certified_export(
             if gone:
                 write_manifest(folder, (*EXPORT_WRITES, *REPORT_WRITES))
     return index, gone
+
+
+def certified_report(run: Path) -> tuple[Path, Path]:
+    """``report.html`` and ``report.md`` of the run folder ``run`` (``report.write_report``)
+    as a certified step: no file the report rewrites changed by hand (the new manifest would
+    certify it) and the folder certifiable, checked before any work; the folder locked for
+    the step; a failed report leaves it as it was (no figure of it left behind, the earlier
+    report and manifest back in place); the manifest lists the new report. Returns their
+    paths."""
+    from sensorgap.report import write_report
+    from sensorgap.report.build import REPORT_WRITES
+
+    with held_until_done(), ExitStack() as locks:
+        if run.is_dir():
+            locks.enter_context(folder_lock(run))
+        refuse_if_changed(run, REPORT_WRITES)
+        refuse_uncertifiable(run, RUN)
+        with removed_on_error(run, lock=False):
+            paths = write_report(run)
+            write_manifest(run, REPORT_WRITES)
+    return paths
