@@ -25,3 +25,21 @@ def test_tradeoff_quick(tmp_path: Path) -> None:
     assert lookup and all(float(r["mean_error"]) < 0.05 for r in lookup)
     points = [r for r in rows if r["setting"].startswith("exact, points")]
     assert points and all(float(r["time_s"]) > 0 for r in points)
+
+
+#: The columns of tradeoff.csv that are measured times of the run (they differ between runs)
+TIME_COLUMNS = ("time_s", "ms_per_candidate", "path_grid_time_s", "path_exact_time_s")
+
+
+def test_tradeoff_accuracy_columns_are_reproducible(tmp_path: Path) -> None:
+    """Two runs agree on every column but the measured times (and the figure that plots
+    them): the accuracy side of the trade-off is an exact computation, not a sample."""
+    tables = []
+    for name in ("a", "b"):
+        assert main(["tradeoff", "--out", str(tmp_path / name), "--quick"]) == 0
+        rows = list(csv.DictReader((tmp_path / name / "tradeoff.csv").open()))
+        tables.append([{k: v for k, v in r.items() if k not in TIME_COLUMNS} for r in rows])
+    assert tables[0] == tables[1] and len(tables[0]) >= 10
+    assert set(TIME_COLUMNS) <= set(
+        csv.DictReader((tmp_path / "a" / "tradeoff.csv").open()).fieldnames or ()
+    )
