@@ -361,6 +361,11 @@ def test_integers_beyond_a_float_are_refused_by_name(call: Any, line: str) -> No
         (np.array([[np.True_, 30, 0.5]], dtype=object), "booleans"),
         ([[None, 0, 0.5]], "None"),
         ([[30.0, 0.0, 0.5], [1.0, 2.0]], "rows of unequal lengths"),
+        # a remark of round 29: the masked values were evaluated as whatever they held
+        (
+            np.ma.masked_array([[30.0, 0, 0.5], [1e9, 0, 0.5]], mask=[[0, 0, 0], [1, 0, 0]]),
+            r"a masked array with masked values \(give the values to use\)",
+        ),
     ],
 )
 def test_evaluate_points_refuses_what_is_not_a_real_number(points: Any, got: str) -> None:

@@ -132,7 +132,10 @@ def real_array(values: object) -> NDArray[np.float64]:
     the caller's ``InputError`` naming the parameter. Refused, not cast as numpy would:
     booleans (``True`` as 1), text and bytes (``"30"`` as 30), dates and durations (as
     their counts), complex numbers, other objects, and ints beyond a float's range. NaN
-    and infinities pass: the caller's range check names them."""
+    and infinities pass: the caller's range check names them. A masked array with any value
+    masked is refused (its masked values would be read as whatever they hold)."""
+    if isinstance(values, np.ma.MaskedArray) and np.ma.getmaskarray(values).any():
+        raise ValueError("got a masked array with masked values (give the values to use)")
     try:
         if isinstance(values, np.ndarray) or hasattr(values, "__array__"):
             array = np.asarray(values)
