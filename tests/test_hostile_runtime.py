@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import sqlite3
 import stat
 import sys
@@ -2122,12 +2123,17 @@ def test_an_esmini_log_after_the_planned_end_is_a_bad_log(
         f'printf "{head}\\n{rows}\\n" > "$log"\necho log > "$tl"\nexit 0\n'
     )
     fake.chmod(0o755)
+    shutil.copytree(cat, tmp_path / "cat2")
     capsys.readouterr()
     assert main(["simulate", "--catalog", str(cat), "--esmini", str(fake)]) == 0
     out = capsys.readouterr().out
     assert "bad log: " in out and "its first step (t = 100 s) is after the planned end" in out
     text = (cat / "simulation.csv").read_text()
     assert "bad log" in text and "inf" not in text
+    # round 32: the message named esmini's temporary folder (a new random name each run)
+    assert "sensorgap-esmini-" not in text and "log.csv: its first step" in text
+    assert main(["simulate", "--catalog", str(tmp_path / "cat2"), "--esmini", str(fake)]) == 0
+    assert (tmp_path / "cat2" / "simulation.csv").read_text() == text
 
 
 def test_esmini_log_columns_are_found_by_entity_and_name(tmp_path: Path) -> None:
@@ -2347,3 +2353,20 @@ def test_json_nesting_is_bounded_the_same_on_every_python() -> None:
             loads_json(text)
     inside = '["' + "[{" * 500 + '\\"' + '"]'  # brackets and an escaped quote in a string
     assert not json_too_deep(inside) and loads_json(inside) == ["[{" * 500 + '"']
+
+
+def test_an_export_under_warnings_as_errors_is_clean(tmp_path: Path) -> None:
+    """Hostile round 32, F1: on Python 3.12+ scenariogeneration's writing of a scenario
+    warns (an XML element's truth value tested): ``PYTHONWARNINGS=default`` printed it and
+    ``=error`` made every export an internal error. The export ignores that one warning
+    while it writes (``export.xosc.write_scenario_xml``)."""
+    import warnings
+
+    run = tmp_path / "run"
+    argv = ["search", "--vehicle", "system_b", "--families", "slow_ahead_curve"]
+    argv += ["--environments", "fog_50", "--budget", "30", "--top", "1", "--out", str(run)]
+    assert main(argv) == 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # as PYTHONWARNINGS=error
+        assert main(["export", "--run", str(run), "--out", str(tmp_path / "c")]) == 0
+    assert list((tmp_path / "c" / "scenarios").glob("*.xosc"))

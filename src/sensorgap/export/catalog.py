@@ -34,7 +34,7 @@ from sensorgap.errors import InputError
 from sensorgap.export.maneuver import build_maneuver_scenario, supported
 from sensorgap.export.spec import ScenarioSpec, read_run, specs_of_run
 from sensorgap.export.validate import FOOTWAY_M, semantic_errors, xsd_errors
-from sensorgap.export.xosc import DEFAULT_VERSION, VERSIONS, build_scenario
+from sensorgap.export.xosc import DEFAULT_VERSION, VERSIONS, build_scenario, write_scenario_xml
 from sensorgap.filesio import (
     refuse_certified_by_other,
     refuse_if_changed,
@@ -77,7 +77,7 @@ def write_xosc(
         else build_maneuver_scenario(spec, road_rel, version)[0]
     )
     with atomic_path(path) as tmp:
-        sc.write_xml(str(tmp), prettyprint=True)
+        write_scenario_xml(sc, tmp)
 
 
 def _coverage_maps(specs: list[ScenarioSpec], out: Path) -> list[Path]:

@@ -33,7 +33,7 @@ from sensorgap.atomic import atomic_path
 from sensorgap.export.brake import BrakeStep, brake_steps
 from sensorgap.export.maneuver import EGO, TARGET, build_maneuver_scenario, ego_speed_factor
 from sensorgap.export.spec import ScenarioSpec
-from sensorgap.export.xosc import DEFAULT_VERSION, build_scenario
+from sensorgap.export.xosc import DEFAULT_VERSION, build_scenario, write_scenario_xml
 from sensorgap.scenarios.batch import ScenarioBatch
 from sensorgap.search.evaluate import BatchTrace, Evaluator
 from sensorgap.search.outcome import first_confirmation, lost_distance, reaction_outcome
@@ -225,7 +225,7 @@ def write_reaction_file(
         else build_maneuver_scenario(spec, str(road.resolve()), version, steps, step_s)[0]
     )
     with atomic_path(path) as tmp:
-        sc.write_xml(str(tmp), prettyprint=True)
+        write_scenario_xml(sc, tmp)
 
 
 def impact_kmh(sim: Any, t_hit: float) -> float | None:

@@ -458,6 +458,14 @@ def _tail(path: Path) -> str:
         return f.read().decode("utf-8", "backslashreplace").strip()
 
 
+def _in_run_folder(message: str, tmp: Path) -> str:
+    """``message`` with the path of esmini's temporary output folder ``tmp`` (a new random
+    name each run) left out: its files named as esmini names them (``log.csv``), so the
+    same inputs give the same ``simulation.csv`` (hostile round 32: the random folder
+    was written into the row's message)."""
+    return message.replace(f"{tmp}/", "").replace(str(tmp), "esmini's output folder")
+
+
 def run_one(
     esmini: Path,
     xosc: Path,
@@ -476,7 +484,7 @@ def run_one(
             status, _, message = res.partition(": ")
             if status != "timeout":
                 row[WALL_KEY] = round(time.perf_counter() - t0, 3)
-            return {**row, "status": status, "message": message}
+            return {**row, "status": status, "message": _in_run_folder(message, Path(tmp))}
         row[WALL_KEY] = round(time.perf_counter() - t0, 3)
         log, text = res
         try:
@@ -489,7 +497,8 @@ def run_one(
                     f"{log}: its first step (t = {first:g} s) is after the planned end ({end:g} s)"
                 )
         except ValueError as exc:
-            return {**row, "status": "bad log", "message": str(exc)[:300]}
+            message = _in_run_folder(str(exc), Path(tmp))[:300]
+            return {**row, "status": "bad log", "message": message}
         hit = COLLISION_RE.search(text)
     planned = spec.scenario
     dev_e = _deviation(planned.ego, *sim.states[EGO][:3])

@@ -32,6 +32,10 @@ from __future__ import annotations
 
 import datetime as dt
 import math
+import warnings
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
 
 import numpy as np
 from scenariogeneration import xosc
@@ -397,3 +401,23 @@ def build_scenario(
     sb = xosc.StoryBoard(init, stop)
     sb.add_story(story)
     return assemble(spec, params, entities, sb, road_relpath, minor)
+
+
+@contextmanager
+def _element_truth_quiet() -> Iterator[None]:
+    """scenariogeneration 0.16 tests an XML element's truth value when it writes a
+    scenario (``xosc/scenario.py``), which Python 3.12+ warns about: a user's
+    ``PYTHONWARNINGS=default`` printed the warning, ``=error`` made every export an
+    internal error (hostile round 32). That one warning is ignored while it writes."""
+    with warnings.catch_warnings():
+        warnings.filterwarnings(
+            "ignore", message="Testing an element's truth value", category=DeprecationWarning
+        )
+        yield
+
+
+def write_scenario_xml(scenario: xosc.Scenario, path: str | Path) -> None:
+    """Write ``scenario`` (scenariogeneration's) to ``path``, pretty-printed, without the
+    library's element-truth warning (``_element_truth_quiet``)."""
+    with _element_truth_quiet():
+        scenario.write_xml(str(path), prettyprint=True)
