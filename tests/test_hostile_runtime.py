@@ -4,6 +4,7 @@ CLI lines are in the bad-input corpus)."""
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import shutil
@@ -228,6 +229,25 @@ def test_write_manifest_removes_leftover_temporaries_but_keeps_journals(tmp_path
     (run / "s.sqlite-journal").unlink()
     write_manifest(run)
     assert not (run / ".a.txt.abc12345.tmp.txt").exists()
+
+
+def test_verify_refuses_a_listed_temporary_file(tmp_path: Path) -> None:
+    """A remark of round 29: a manifest edited to list a file named like a temporary one
+    (``.x.tmp``) passed ``verify``, while every command writing the folder refused it as
+    "verify would reject": verify now rejects it too."""
+    import json
+
+    run = _folder(tmp_path)
+    write_manifest(run)
+    (run / ".x.tmp").write_text("kept by hand")
+    manifest = json.loads((run / "manifest.json").read_text())
+    manifest["files"][".x.tmp"] = {
+        "bytes": 12,
+        "sha256": hashlib.sha256(b"kept by hand").hexdigest(),
+    }
+    (run / "manifest.json").write_text(json.dumps(manifest))
+    problems = verify_manifest(run)
+    assert len(problems) == 1 and problems[0].startswith(".x.tmp is named like a temporary")
 
 
 @pytest.mark.parametrize(

@@ -962,6 +962,17 @@ def _manifest_problems(root: Path) -> list[tuple[str, str]]:
         if found != "file":
             problems.append((rel, f"{cut_name(rel)} is not a regular file"))
             continue
+        if is_temporary(rel.rsplit("/", 1)[-1]) or _in_temporary_folder(rel):
+            # never listed by sensorgap (write_manifest leaves such files out, and a command
+            # refuses a folder holding one: refuse_uncertifiable): a manifest edited by hand
+            problems.append(
+                (
+                    rel,
+                    f"{cut_name(rel)} is named like a temporary or journal file, which no "
+                    "manifest written by sensorgap lists",
+                )
+            )
+            continue
         try:
             size = (root / rel).lstat().st_size
             same = meta["bytes"] == size and _sha256_file(root / rel) == (size, meta["sha256"])
