@@ -2390,3 +2390,61 @@ def test_an_export_under_warnings_as_errors_is_clean(tmp_path: Path) -> None:
         warnings.simplefilter("error")  # as PYTHONWARNINGS=error
         assert main(["export", "--run", str(run), "--out", str(tmp_path / "c")]) == 0
     assert list((tmp_path / "c" / "scenarios").glob("*.xosc"))
+
+
+def test_a_manifest_verify_could_not_read_is_never_written(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Hostile round 32, F3: 27,000 files under long paths made export write a 107.7 MB
+    manifest, which verify and report then refused (at most 100 MB). write_manifest now
+    refuses one over the limit before writing (the limit lowered here to 300 bytes)."""
+    import sensorgap.filesio as filesio
+
+    run = _folder(tmp_path)
+    before = (run / "manifest.json").read_bytes()
+    for i in range(5):
+        (run / f"{'long_name_' * 8}{i}.txt").write_text("x")
+    monkeypatch.setattr(filesio, "MAX_MANIFEST_BYTES", 300)
+    with pytest.raises(InputError, match=r"manifest\.json: not written: it would be \d+ bytes"):
+        write_manifest(run)
+    assert (run / "manifest.json").read_bytes() == before
+
+
+def test_a_crowded_run_is_refused_naming_the_option_given(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Hostile round 32, F4 and F3: an export in place of a run of more than 100,000 files
+    named --out, which the user had not given; report --run listed them all (45 s). Both
+    refuse before any work, naming --run (the limit lowered here to 40 entries)."""
+    import sensorgap.filesio as filesio
+
+    run = tmp_path / "run"
+    argv = ["search", "--vehicle", "system_b", "--families", "slow_ahead_curve"]
+    argv += ["--environments", "fog_50", "--budget", "20", "--top", "1", "--out", str(run)]
+    assert main(argv) == 0
+    (run / "many").mkdir()
+    for i in range(40):
+        (run / "many" / f"{i}.txt").write_text("x")
+    monkeypatch.setattr(filesio, "MAX_OUT_ENTRIES", 40)
+    for args in (["export", "--run", str(run)], ["report", "--run", str(run)]):
+        capsys.readouterr()
+        assert main(args) == 2
+        err = capsys.readouterr().err
+        assert err.startswith("sensorgap: error: --run: ") and "give another --run" in err
+    assert not (run / "catalog.json").exists() and not (run / "report.html").exists()
+
+
+def test_a_resumed_search_over_a_damaged_run_json_rewrites_it(tmp_path: Path) -> None:
+    """Hostile round 32, F5: a run.json nested 200,001 levels was read back by plain
+    json.loads to keep its fields, and the resumed search stopped with an internal
+    RecursionError. A damaged run.json is read as empty (it is one of the files a search
+    rewrites) and the folder verifies afterwards."""
+    run = tmp_path / "run"
+    argv = ["search", "--vehicle", "system_b", "--families", "slow_ahead_curve"]
+    argv += ["--environments", "fog_50", "--top", "1", "--out", str(run)]
+    assert main([*argv, "--budget", "20"]) == 0
+    n = 200_000
+    (run / "run.json").write_text('{"x":' + "[" * n + "]" * n + "}")
+    assert main([*argv, "--budget", "30", "--resume"]) == 0
+    assert "x" not in json.loads((run / "run.json").read_text())
+    assert verify_manifest(run) == []

@@ -159,6 +159,28 @@ def loads_json(text: str | bytes) -> Any:
     return json.loads(text, object_pairs_hook=_unique_keys, parse_int=_json_int)
 
 
+#: The largest earlier JSON file a command reads back to keep its fields
+#: (``previous_json_object``): as ``search.runfolder.MAX_JSON_BYTES``.
+MAX_PREVIOUS_JSON_BYTES = 20_000_000
+
+
+def previous_json_object(path: Path) -> dict[str, Any]:
+    """The JSON object of the file ``path`` a command is about to rewrite (``run.json``),
+    read to keep its other fields: ``{}`` when it is absent, not a regular file, larger
+    than ``MAX_PREVIOUS_JSON_BYTES``, unreadable, not JSON, nested too deeply
+    (``loads_json``) or not an object. Hostile round 32: a run.json nested 200,001 levels
+    was read by plain ``json.loads`` and a resumed search stopped with an internal
+    RecursionError."""
+    try:
+        st = path.stat()
+        if not stat.S_ISREG(st.st_mode) or st.st_size > MAX_PREVIOUS_JSON_BYTES:
+            return {}
+        data = loads_json(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError, RecursionError):
+        return {}
+    return data if isinstance(data, dict) else {}
+
+
 #: The names ``sensorgap.atomic`` gives its temporary files: ``.NAME.<8 random>.tmp.EXT``
 #: (``tempfile.mkstemp``'s random part: 8 of ``a-z0-9_``).
 _OWN_TEMPORARY = re.compile(r"\..+\.[a-z0-9_]{8}\.tmp(\.[^/]*)?")
@@ -406,9 +428,18 @@ def write_manifest(folder: str | Path, rewrites: tuple[str, ...] | None = None) 
             continue
         size, sha = _sha256_file(p)
         files[rel] = {"bytes": size, "sha256": sha}
-    written = write_json(
-        root / MANIFEST_NAME, {"algorithm": "sha256", "files": dict(sorted(files.items()))}
-    )
+    data = json_bytes({"algorithm": "sha256", "files": dict(sorted(files.items()))})
+    if len(data) > MAX_MANIFEST_BYTES:  # verify would refuse to read it (read_manifest)
+        from sensorgap.errors import InputError
+
+        raise InputError(
+            root / MANIFEST_NAME,
+            "",
+            f"not written: it would be {len(data)} bytes, and verify reads at most "
+            f"{MAX_MANIFEST_BYTES // 1_000_000} MB ({len(files)} files; long paths make it "
+            "larger); move files away and run the command again",
+        )
+    written = atomic_write_bytes(root / MANIFEST_NAME, data)
     found = certified_parent(root)
     if found is not None and holds_lock(found[0]):
         # a command into OUT/<vehicle> or RUN/nearfield (holding the parent's lock): the
@@ -870,18 +901,20 @@ def refuse_links(folder: str | Path, what: str, command: str) -> None:
         )
 
 
-def refuse_crowded_out(folder: str | Path, command: str) -> None:
-    """``--out`` of ``search`` or ``export``, which hash every file of the folder into its
-    manifest: an existing folder of more than ``MAX_OUT_ENTRIES`` files and folders (a
-    user's home) is refused before any work (``InputError`` naming ``--out``)."""
+def refuse_crowded_out(folder: str | Path, command: str, what: str = "--out") -> None:
+    """The folder ``what`` (an option: ``--out``; ``--run`` of an export in place or a
+    report) of ``search``, ``export`` or ``report``, which hash every file of the folder
+    into its manifest: an existing folder of more than ``MAX_OUT_ENTRIES`` files and
+    folders (a user's home) is refused before any work (``InputError`` naming ``what``;
+    hostile round 32: an export in place named --out, which the user had not given)."""
     from sensorgap.errors import InputError
 
     if Path(folder).is_dir() and crowded(folder):
         raise InputError(
-            "--out",
+            what,
             "",
             f"{folder} holds more than {MAX_OUT_ENTRIES} files and folders; {command} lists "
-            "and hashes every file of its folder into manifest.json: give another --out",
+            f"and hashes every file of its folder into manifest.json: give another {what}",
         )
 
 

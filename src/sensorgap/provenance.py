@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import datetime as dt
 import hashlib
-import json
 import os
 import platform
 from collections.abc import Iterable
@@ -18,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from sensorgap.errors import InputError
-from sensorgap.filesio import write_json
+from sensorgap.filesio import previous_json_object, write_json
 
 #: Latest ``SOURCE_DATE_EPOCH`` accepted, seconds: 9999-12-31T23:59:59Z (the last second
 #: an ISO 8601 date of four digits, and Python's ``datetime``, can hold).
@@ -130,13 +129,9 @@ def write_run_info(
         "platform": f"{platform.system()} {platform.machine()}",
     }
     info.update(extra or {})
-    old = Path(folder) / "run.json"
-    if "inputs" not in info and old.is_file():
-        try:
-            prev = json.loads(old.read_text(encoding="utf-8"))
-        except (OSError, ValueError):
-            prev = None
-        if isinstance(prev, dict) and isinstance(prev.get("inputs"), dict):
+    if "inputs" not in info:
+        prev = previous_json_object(Path(folder) / "run.json")  # {} when absent or damaged
+        if isinstance(prev.get("inputs"), dict):
             info["inputs"] = prev["inputs"]
     write_json(Path(folder) / "run.json", info)
     return info

@@ -132,7 +132,7 @@ def certified_export(
     with held_until_done(), ExitStack() as locks:
         if folder.is_dir():
             locks.enter_context(folder_lock(folder))
-        refuse_crowded_out(folder, "export")
+        refuse_crowded_out(folder, "export", OUT if out else RUN)
         refuse_uncertifiable(folder, OUT if out else RUN)
         # a link anywhere in the folder it certifies; the paths it writes first, whose
         # lines say more
@@ -164,6 +164,7 @@ def certified_report(run: Path) -> tuple[Path, Path]:
     with held_until_done(), ExitStack() as locks:
         if run.is_dir():
             locks.enter_context(folder_lock(run))
+        refuse_crowded_out(run, "report", RUN)  # (hostile round 32: 45 s, then listed)
         refuse_if_changed(run, REPORT_WRITES)
         refuse_uncertifiable(run, RUN)
         with removed_on_error(run, lock=False):

@@ -15,7 +15,6 @@ at most ``MAX_WEAKNESSES``: different failure mechanisms rather than variants of
 
 from __future__ import annotations
 
-import json
 import math
 import re
 from collections import Counter
@@ -627,11 +626,11 @@ def _coverage_para(folder: Path, system: System) -> Para | None:
         if (m / "summary.json").is_file():
             try:
                 env = str(
-                    json.loads((m / "summary.json").read_text(encoding="utf-8")).get(
+                    loads_json((m / "summary.json").read_text(encoding="utf-8")).get(
                         "environment", env
                     )
                 )
-            except (OSError, ValueError, AttributeError):
+            except (OSError, ValueError, AttributeError, RecursionError):
                 raise InputError(m / "summary.json", "", "unreadable JSON") from None
         where = sorted(
             ((round(e[0]), n, e[1], e[2]) for n, e in ext.items() if round(e[0]) >= 1),

@@ -27,7 +27,6 @@ rankings) falls back to the shipped presets with a one-line note.
 from __future__ import annotations
 
 import hashlib
-import json
 import math
 import re
 import sys
@@ -48,7 +47,7 @@ from sensorgap.config.reaction import (
     reactions_path,
 )
 from sensorgap.errors import InputError, clip
-from sensorgap.filesio import loads_json, regular_file_size, write_json
+from sensorgap.filesio import loads_json, previous_json_object, regular_file_size, write_json
 from sensorgap.models import System, load_system
 from sensorgap.provenance import sha256_of, versions
 from sensorgap.scenarios import load_family
@@ -181,17 +180,12 @@ def write_search_record(
     inputs; other fields of an existing ``run.json`` (``sensorgap run``'s command and
     config hashes) are kept."""
     path = Path(folder) / RUN_JSON
-    info: dict[str, Any] = {}
-    if path.is_file():
-        try:
-            old = json.loads(path.read_text(encoding="utf-8"))
-            info = old if isinstance(old, dict) else {}
-        except (OSError, ValueError):
-            info = {}
+    info = previous_json_object(path)  # {} when absent or damaged
+    kept = info.get("settings")
     info.update(
         {
             "vehicle": vehicle_ref,
-            "settings": {**info.get("settings", {}), **settings},
+            "settings": {**(kept if isinstance(kept, dict) else {}), **settings},
             "versions": versions(),
             "inputs": inputs,
         }
