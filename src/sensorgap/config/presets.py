@@ -126,6 +126,14 @@ def shipped_road(name: str) -> Path:
                 f"{env} holds no {path.name} (a shipped road this command needs); name a "
                 "folder holding the shipped roads, or do not set it",
             )
+        known = sorted(p.stem for p in roads_dir().glob("*.xodr"))
+        if known:  # a name that is none of them (hostile round 32: "a broken installation")
+            raise InputError(
+                "road",
+                "",
+                f"unknown road {name!r} (no {path.name} among the shipped roads: "
+                f"{', '.join(known)}; or give a path to an OpenDRIVE .xodr file)",
+            )
         raise InputError(path, "", "the shipped road is missing (a broken installation)")
     return path
 
