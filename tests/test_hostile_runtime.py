@@ -2154,6 +2154,18 @@ def test_an_esmini_log_after_the_planned_end_is_a_bad_log(
     assert "sensorgap-esmini-" not in text and "log.csv: its first step" in text
     assert main(["simulate", "--catalog", str(tmp_path / "cat2"), "--esmini", str(fake)]) == 0
     assert (tmp_path / "cat2" / "simulation.csv").read_text() == text
+    # round 33: the reaction runs' messages named their temporary folder too (a log with a
+    # position that is not a number: every run's log is bad)
+    bad = tmp_path / "esmini_bad"
+    bad.write_text(
+        fake.read_text().replace(rows, "0, 0.0, Ego, 0, 10, abc, 0, 0, Target, 1, 5, 50, 0, 0")
+    )
+    bad.chmod(0o755)
+    shutil.copytree(tmp_path / "cat2", tmp_path / "cat3")
+    argv = ["simulate", "--catalog", str(tmp_path / "cat3"), "--esmini", str(bad)]
+    assert main([*argv, "--ego-reaction"]) == 0
+    text = (tmp_path / "cat3" / "simulation.csv").read_text()
+    assert "median: log.csv: line 2: " in text and "sensorgap-" not in text
 
 
 def test_esmini_log_columns_are_found_by_entity_and_name(tmp_path: Path) -> None:

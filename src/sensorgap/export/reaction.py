@@ -276,7 +276,12 @@ def run_reaction(
     step_s: float,
 ) -> ReactionRun:
     """Confirmation at step ``k``: predict, brake the ego in esmini, compare."""
-    from sensorgap.export.simulate import COLLISION_RE, parse_esmini_csv, run_esmini
+    from sensorgap.export.simulate import (
+        COLLISION_RE,
+        parse_esmini_csv,
+        run_esmini,
+        without_temporary_folder,
+    )
 
     pred = predict(bt, evaluator, k)
     brake = braking(spec, evaluator, bt, pred, style, step_s)
@@ -285,12 +290,13 @@ def run_reaction(
         write_reaction_file(spec, road, style, version, brake, xosc, step_s)
         res = run_esmini(esmini, xosc, Path(tmp), timeout_s, step_s)
         if isinstance(res, str):
-            return ReactionRun(pred, None, None, False, res)
+            return ReactionRun(pred, None, None, False, without_temporary_folder(res, Path(tmp)))
         log, text = res
         try:
             sim = parse_esmini_csv(log)
         except ValueError as exc:
-            return ReactionRun(pred, None, None, False, str(exc)[:300])
+            message = without_temporary_folder(str(exc), Path(tmp))[:300]
+            return ReactionRun(pred, None, None, False, message)
     hit = COLLISION_RE.search(text)
     t_sim = float(hit.group(1)) if hit else None
     t_sim = compared_contact(t_sim, spec.family.duration_s, pred)

@@ -458,11 +458,11 @@ def _tail(path: Path) -> str:
         return f.read().decode("utf-8", "backslashreplace").strip()
 
 
-def _in_run_folder(message: str, tmp: Path) -> str:
+def without_temporary_folder(message: str, tmp: Path) -> str:
     """``message`` with the path of esmini's temporary output folder ``tmp`` (a new random
     name each run) left out: its files named as esmini names them (``log.csv``), so the
-    same inputs give the same ``simulation.csv`` (hostile round 32: the random folder
-    was written into the row's message)."""
+    same inputs give the same ``simulation.csv`` (hostile rounds 32 and 33: the random
+    folder was written into the row's message, of a plain run and of a reaction run)."""
     return message.replace(f"{tmp}/", "").replace(str(tmp), "esmini's output folder")
 
 
@@ -484,7 +484,8 @@ def run_one(
             status, _, message = res.partition(": ")
             if status != "timeout":
                 row[WALL_KEY] = round(time.perf_counter() - t0, 3)
-            return {**row, "status": status, "message": _in_run_folder(message, Path(tmp))}
+            message = without_temporary_folder(message, Path(tmp))
+            return {**row, "status": status, "message": message}
         row[WALL_KEY] = round(time.perf_counter() - t0, 3)
         log, text = res
         try:
@@ -497,7 +498,7 @@ def run_one(
                     f"{log}: its first step (t = {first:g} s) is after the planned end ({end:g} s)"
                 )
         except ValueError as exc:
-            message = _in_run_folder(str(exc), Path(tmp))[:300]
+            message = without_temporary_folder(str(exc), Path(tmp))[:300]
             return {**row, "status": "bad log", "message": message}
         hit = COLLISION_RE.search(text)
     planned = spec.scenario
