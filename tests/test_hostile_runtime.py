@@ -2442,7 +2442,7 @@ def test_a_crowded_run_is_refused_naming_the_option_given(
         capsys.readouterr()
         assert main(args) == 2
         err = capsys.readouterr().err
-        assert err.startswith("sensorgap: error: --run: ") and "give another --run" in err
+        assert err.startswith("sensorgap: error: --run: ") and "move the files that" in err
     assert not (run / "catalog.json").exists() and not (run / "report.html").exists()
 
 

@@ -914,7 +914,12 @@ def refuse_crowded_out(folder: str | Path, command: str, what: str = "--out") ->
             what,
             "",
             f"{folder} holds more than {MAX_OUT_ENTRIES} files and folders; {command} lists "
-            f"and hashes every file of its folder into manifest.json: give another {what}",
+            "and hashes every file of its folder into manifest.json: "
+            + (
+                "move the files that are not the run's out of it"
+                if what == "--run"
+                else f"give another {what}"
+            ),
         )
 
 
