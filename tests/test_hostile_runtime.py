@@ -2460,3 +2460,26 @@ def test_a_resumed_search_over_a_damaged_run_json_rewrites_it(tmp_path: Path) ->
     assert main([*argv, "--budget", "30", "--resume"]) == 0
     assert "x" not in json.loads((run / "run.json").read_text())
     assert verify_manifest(run) == []
+
+
+def test_a_run_whose_manifest_verify_could_not_read_is_refused_before_any_work(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A remark of round 33: a folder whose manifest would pass 100 MB (27,000 files under
+    3,900-character paths) was refused only after 85 s of work, when the manifest was
+    written. Its least size (paths plus a fixed part per file, ``manifest_lower_bound``) is
+    now checked with the other folder limits, before any work (the limit lowered here)."""
+    import sensorgap.filesio as filesio
+
+    run = tmp_path / "run"
+    argv = ["search", "--vehicle", "system_b", "--families", "slow_ahead_curve"]
+    argv += ["--environments", "fog_50", "--budget", "20", "--top", "1", "--out", str(run)]
+    assert main(argv) == 0
+    files, least = filesio.manifest_lower_bound(run)
+    assert 0 < least <= len((run / "manifest.json").read_bytes())  # a bound, never above
+    monkeypatch.setattr(filesio, "MAX_MANIFEST_BYTES", least - 1)
+    capsys.readouterr()
+    assert main(["export", "--run", str(run)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("sensorgap: error: --run: ") and f"at least {least} bytes" in err
+    assert not (run / "catalog.json").exists()

@@ -901,6 +901,36 @@ def refuse_links(folder: str | Path, what: str, command: str) -> None:
         )
 
 
+#: The fewest bytes one file's entry takes in ``manifest.json`` besides its path
+#: (``json_bytes``' indented form with a one-digit size and the SHA-256):
+#: ``manifest_lower_bound``.
+MANIFEST_ENTRY_BYTES = 118
+
+
+def manifest_lower_bound(folder: str | Path) -> tuple[int, int]:
+    """(files, bytes): the files below ``folder`` a manifest would list (up to
+    ``MAX_OUT_ENTRIES`` entries walked; not the manifest itself nor temporary-looking
+    files) and the fewest bytes a manifest listing them takes (their relative
+    paths plus ``MANIFEST_ENTRY_BYTES`` each): over ``MAX_MANIFEST_BYTES`` means no
+    manifest ``verify`` can read, known before any work."""
+    import os
+
+    root = os.fspath(folder)
+    files = size = seen = 0
+    for dirpath, dirnames, filenames in os.walk(root):
+        seen += len(dirnames) + len(filenames)
+        rel_dir = os.path.relpath(dirpath, root)
+        base = 0 if rel_dir == "." else len(rel_dir.encode("utf-8", "surrogateescape")) + 1
+        for name in filenames:
+            if (base == 0 and name == MANIFEST_NAME) or is_temporary(name):
+                continue  # never listed
+            files += 1
+            size += base + len(name.encode("utf-8", "surrogateescape")) + MANIFEST_ENTRY_BYTES
+        if seen > MAX_OUT_ENTRIES:
+            break
+    return files, size
+
+
 def refuse_crowded_out(folder: str | Path, command: str, what: str = "--out") -> None:
     """The folder ``what`` (an option: ``--out``; ``--run`` of an export in place or a
     report) of ``search``, ``export`` or ``report``, which hash every file of the folder
@@ -921,6 +951,20 @@ def refuse_crowded_out(folder: str | Path, command: str, what: str = "--out") ->
                 else f"give another {what}"
             ),
         )
+    if Path(folder).is_dir():
+        files, size = manifest_lower_bound(folder)
+        if size > MAX_MANIFEST_BYTES:  # (hostile round 33: refused only after the work)
+            raise InputError(
+                what,
+                "",
+                f"{folder}'s manifest.json would take at least {size} bytes ({files} files, "
+                f"long paths), and verify reads at most {MAX_MANIFEST_BYTES // 1_000_000} MB: "
+                + (
+                    "move the files that are not the run's out of it"
+                    if what == "--run"
+                    else f"give another {what}"
+                ),
+            )
 
 
 def refuse_if_source_changed(folder: str | Path, reads: tuple[str, ...], what: str) -> None:
