@@ -939,32 +939,29 @@ def refuse_crowded_out(folder: str | Path, command: str, what: str = "--out") ->
     hostile round 32: an export in place named --out, which the user had not given)."""
     from sensorgap.errors import InputError
 
-    if Path(folder).is_dir() and crowded(folder):
+    if not Path(folder).is_dir():
+        return
+    advice = (
+        "move the files that are not the run's out of it"
+        if what == "--run"
+        else f"give another {what}"
+    )
+    if crowded(folder):
         raise InputError(
             what,
             "",
             f"{folder} holds more than {MAX_OUT_ENTRIES} files and folders; {command} lists "
-            "and hashes every file of its folder into manifest.json: "
-            + (
-                "move the files that are not the run's out of it"
-                if what == "--run"
-                else f"give another {what}"
-            ),
+            f"and hashes every file of its folder into manifest.json: {advice}",
         )
-    if Path(folder).is_dir():
-        files, size = manifest_lower_bound(folder)
-        if size > MAX_MANIFEST_BYTES:  # (hostile round 33: refused only after the work)
-            raise InputError(
-                what,
-                "",
-                f"{folder}'s manifest.json would take at least {size} bytes ({files} files, "
-                f"long paths), and verify reads at most {MAX_MANIFEST_BYTES // 1_000_000} MB: "
-                + (
-                    "move the files that are not the run's out of it"
-                    if what == "--run"
-                    else f"give another {what}"
-                ),
-            )
+    files, size = manifest_lower_bound(folder)
+    if size > MAX_MANIFEST_BYTES:  # (hostile round 33: refused only after the work)
+        raise InputError(
+            what,
+            "",
+            f"{folder}'s manifest.json would take at least {size} bytes ({files} files, "
+            f"long paths), and verify reads at most {MAX_MANIFEST_BYTES // 1_000_000} MB: "
+            f"{advice}",
+        )
 
 
 def refuse_if_source_changed(folder: str | Path, reads: tuple[str, ...], what: str) -> None:
