@@ -36,6 +36,21 @@ def escape_unprintable(text: str) -> str:
     return "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
 
 
+#: What a written document (report.md, report.html) shows escaped: every character
+#: ``str.isprintable`` refuses but the line breaks and tabs of its text and the no-break
+#: spaces it puts between a number and its unit
+_KEPT_IN_DOCUMENTS = frozenset("\n\t\u00a0\u202f")
+
+
+def escape_controls(text: str) -> str:
+    """``text`` for a written document: as ``escape_unprintable``, but line breaks, tabs
+    and no-break spaces kept (hostile round 35: a run folder named ``q<ESC>[2Jz`` was
+    written raw into report.md, whose ``cat`` then cleared the terminal)."""
+    if text.isprintable():
+        return text
+    return "".join(c if c.isprintable() or c in _KEPT_IN_DOCUMENTS else repr(c)[1:-1] for c in text)
+
+
 def _chars(text: str) -> list[str]:
     """``text`` (escaped) split into the characters it stands for: an escape is one."""
     return _CHAR.findall(text)

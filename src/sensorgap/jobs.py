@@ -36,7 +36,13 @@ from sensorgap.coverage.grid import GridCoverage
 from sensorgap.coverage.outputs import compute_coverage, write_coverage
 from sensorgap.errors import InputError
 from sensorgap.export import export_catalog
-from sensorgap.filesio import MANIFEST_NAME, refuse_if_changed, write_csv, write_manifest
+from sensorgap.filesio import (
+    MANIFEST_NAME,
+    is_temporary,
+    refuse_if_changed,
+    write_csv,
+    write_manifest,
+)
 from sensorgap.models import Conditions, System, load_system
 from sensorgap.provenance import write_run_info
 from sensorgap.report import write_report
@@ -179,13 +185,18 @@ def vehicle_ref(vehicle: str) -> tuple[str, str]:
     """(folder name, reference to record) of a ``--vehicle``: a preset name as it is, a
     .toml path by its stem and its absolute path (the run works from any folder). A stem
     that cannot name a folder inside ``--out`` (``.``, ``..``, a leading dot, characters
-    outside ``config.common.NAME_CHARS``) is refused: ``..toml`` would put the whole job
-    into ``--out`` itself, ``...toml`` into its parent."""
+    outside ``config.common.NAME_CHARS``, a name like a temporary or journal file) is
+    refused: ``..toml`` would put the whole job into ``--out`` itself, ``...toml`` into
+    its parent, ``a-wal.toml`` into a folder ``verify`` takes for a left-over (hostile
+    round 35: refused only after the whole job, naming one of its files)."""
     if vehicle.endswith(".toml") or "/" in vehicle:
         p = Path(vehicle).resolve()
         why = name_problem(p.stem) or (
             "a name that starts with a dot would not make a folder of its own"
             if p.stem.startswith(".")
+            else "a folder named like a temporary or journal file (*.tmp, *-journal, "
+            "*-wal, *-shm) is never part of a finished run folder"
+            if is_temporary(p.stem)
             else None
         )
         if why:

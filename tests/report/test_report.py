@@ -367,3 +367,29 @@ def test_what_a_report_shows_of_a_run_is_bounded_and_checked_where_it_is_used(
     nf.write_text(nf.read_text().replace('"exact": ', '"exact": NaN, "x": ', 1))
     with pytest.raises(InputError, match="blind_spot_m2.exact: expected a number, got nan"):
         build.checked_nearfield(nf, "System A")
+
+
+def test_a_run_folder_named_with_control_characters_is_written_escaped(
+    search_only: Path, tmp_path: Path
+) -> None:
+    """Hostile round 35: a run folder named ``q<ESC>[2Jz`` reached report.md and
+    report.html raw (``cat report.md`` cleared the terminal), in "Run folder:" and, unquoted,
+    in "Reproduce with:". Every text of a report is written with control and format
+    characters escaped (``errors.escape_controls``) and the command line shell-quoted."""
+    from sensorgap.errors import escape_controls
+
+    assert escape_controls("a\x1b[2J\u202eb\n\tc\u00a0m") == "a\\x1b[2J\\u202eb\n\tc\u00a0m"
+    run = tmp_path / "q\x1b[2Jz x;y"
+    shutil.copytree(search_only, run)
+    info = json.loads((run / "run.json").read_text(encoding="utf-8"))
+    assert main(["report", "--run", str(run)]) == 0
+    for name in ("report.md", "report.html"):
+        data = (run / name).read_bytes()
+        assert not re.search(rb"[\x00-\x08\x0b-\x1f\x7f]", data), name
+        assert b"\xe2\x80\xae" not in data, name  # no U+202E either
+    md = (run / "report.md").read_text(encoding="utf-8")
+    assert "Run folder: q\\x1b[2Jz x;y." in md
+    line = next(ln for ln in md.splitlines() if ln.startswith("Reproduce with: "))
+    # a search run through the library records no command: the line is the report's own
+    assert info.get("command") is None
+    assert line.endswith("'" + str(run).replace("\x1b", "\\x1b") + "'"), line

@@ -223,7 +223,7 @@ def test_system_a_ranked_bodies_are_unseen_at_the_named_step(tmp_path: Path) -> 
     from sensorgap.search.ranking import explain
 
     fams = family_presets()
-    out = run_search("system_a", fams, list(ENVS), 7000, 1, 20, tmp_path / "a", progress=False)
+    out = run_search("system_a", fams, list(ENVS), 3500, 1, 20, tmp_path / "a", progress=False)
     assert out.ranking, "System A has sensor-critical scenarios in snow and fog"
     system = load_system("system_a")
     ev = Evaluator(system, "exact")

@@ -291,3 +291,29 @@ def test_an_input_file_named_with_a_backslash(tmp_path: Path) -> None:
     assert (out / "inputs" / "vehicle" / "my_veh.toml").is_file()
     assert main(["verify", str(out)]) == 0
     assert main(["export", "--run", str(out)]) == 0 and main(["verify", str(out)]) == 0
+
+
+def test_input_files_named_like_temporaries_are_recorded_under_other_names(
+    tmp_path: Path,
+) -> None:
+    """Hostile round 35: an environments file ``envs.tmp`` (or a vehicle file ``v-journal``)
+    was copied to ``inputs/`` under its own name, and after the whole search the run's own
+    manifest refused the folder as holding a left-over temporary, leaving it half-written.
+    Now such a copy is named with ``.input`` added (``run.json`` names it): the run
+    verifies, exports and resumes from it."""
+    envs = tmp_path / "envs.tmp"
+    shutil.copyfile(templates_dir() / "environments.toml", envs)
+    vehicle = tmp_path / "v-journal"
+    shutil.copyfile(templates_dir() / "vehicles" / "system_b.toml", vehicle)
+    out = tmp_path / "run"
+    argv = ["search", "--vehicle", str(vehicle), "--environments-file", str(envs)]
+    argv += ["--families", "slow_ahead_curve", "--environments", "fog_50", "--budget", "20"]
+    argv += ["--strategy", "lhs", "--out", str(out)]
+    assert main(argv) == 0
+    inputs = json.loads((out / "run.json").read_text(encoding="utf-8"))["inputs"]
+    assert inputs["environments"]["copy"] == "inputs/environments/envs.tmp.input"
+    assert inputs["vehicle"]["copy"] == "inputs/vehicle/v-journal.input"
+    assert _sha(out / inputs["environments"]["copy"]) == _sha(envs)
+    assert main(["verify", str(out)]) == 0
+    assert main([*argv, "--resume"]) == 0 and main(["verify", str(out)]) == 0
+    assert main(["export", "--run", str(out)]) == 0 and main(["verify", str(out)]) == 0

@@ -16,6 +16,7 @@ import csv
 import json
 import math
 import os
+import shlex
 from pathlib import Path
 from typing import Any
 
@@ -1198,7 +1199,7 @@ def build(folder: Path) -> tuple[str, list[str], Section, list[Section]]:
                     [[k, json.dumps(v, sort_keys=True)] for k, v in sorted(settings.items())],
                     "Settings",
                 ),
-                Para("Reproduce with: " + " ".join(repro)),
+                Para("Reproduce with: " + shlex.join(str(a) for a in repro)),
                 Para("Every file of the folder with its SHA-256: manifest.json."),
             ],
         ),

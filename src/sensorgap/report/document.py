@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
 
-from sensorgap.errors import InputError
+from sensorgap.errors import InputError, escape_controls
 from sensorgap.filesio import regular_file_size
 from sensorgap.markdown import md_cell, md_text
 
@@ -199,21 +199,27 @@ def embedded_png(path: Path) -> bytes:
 _UNIT = re.compile(r"(\d) (?=(?:s|m|m²|km|km/h|mm/h|m/s2|dB|deg|°)(?![\w/²]))")
 
 
+def _h(text: str) -> str:
+    """Text for HTML: escaped, control and format characters written as escapes
+    (``errors.escape_controls``: none reaches the page raw)."""
+    return html.escape(escape_controls(text))
+
+
 def _prose(text: str) -> str:
     """Escaped text with a number and its unit kept on one line (no-break space)."""
-    return html.escape(_UNIT.sub("\\1\u00a0", text))
+    return _h(_UNIT.sub("\\1\u00a0", text))
 
 
 def _breakable(text: str) -> str:
     """Escaped text with optional line breaks after ``_`` and before ``@`` (long names such
     as ``pedestrian_behind_parked_cars`` or ``clear@sun302/24`` may wrap in a narrow
     column; copied text is unchanged)."""
-    return html.escape(text).replace("_", "_<wbr>").replace("@", "<wbr>@")
+    return _h(text).replace("_", "_<wbr>").replace("@", "<wbr>@")
 
 
 def _html_cell(c: Cell) -> str:
     if isinstance(c, Link):
-        return f'<a href="{html.escape(c.href)}">{_breakable(c.text)}</a>'
+        return f'<a href="{_h(c.href)}">{_breakable(c.text)}</a>'
     return _breakable(c)
 
 
@@ -230,7 +236,7 @@ def _html_block(b: Block) -> str:
         )
         return f"<{tag}>{items}</{tag}>"
     if isinstance(b, Table):
-        cap = f"<caption>{html.escape(b.caption)}</caption>" if b.caption else ""
+        cap = f"<caption>{_h(b.caption)}</caption>" if b.caption else ""
         head = "".join(f"<th>{_breakable(h)}</th>" for h in b.headers)
         body = "".join(
             "<tr>" + "".join(f"<td>{_html_cell(c)}</td>" for c in r) + "</tr>" for r in b.rows
@@ -241,14 +247,12 @@ def _html_block(b: Block) -> str:
         )
     if isinstance(b, Image):
         data = base64.b64encode(embedded_png(b.path)).decode("ascii")
-        cap = html.escape(b.caption)
+        cap = _h(b.caption)
         return (
             f'<figure><img src="data:image/png;base64,{data}" alt="{cap}">'
             f"<figcaption>{cap}</figcaption></figure>"
         )
-    items = "".join(
-        f'<li><a href="{html.escape(href)}">{html.escape(text)}</a></li>' for text, href in b.items
-    )
+    items = "".join(f'<li><a href="{_h(href)}">{_h(text)}</a></li>' for text, href in b.items)
     return f'<ul class="links">{items}</ul>'
 
 
@@ -257,8 +261,8 @@ def _html_section(s: Section, level: int) -> str:
     if level == 2:
         cls = ' class="top short"' if s.short else ' class="top"'
     parts = [
-        f'<section id="{html.escape(s.id)}"{cls}>',
-        f"<h{level}>{html.escape(s.title)}</h{level}>",
+        f'<section id="{_h(s.id)}"{cls}>',
+        f"<h{level}>{_h(s.title)}</h{level}>",
     ]
     parts += [_html_block(b) for b in s.blocks]
     parts += [_html_section(sub, min(level + 1, 6)) for sub in s.subsections]
@@ -271,17 +275,15 @@ def render_html(
 ) -> str:
     """One self-contained HTML page (no scripts, no external resources); ``front`` (the
     summary) comes right after the title, before the table of contents."""
-    toc = "".join(
-        f'<li><a href="#{html.escape(s.id)}">{html.escape(s.title)}</a></li>' for s in sections
-    )
-    metas = "".join(f'<p class="meta">{html.escape(m)}</p>' for m in meta)
+    toc = "".join(f'<li><a href="#{_h(s.id)}">{_h(s.title)}</a></li>' for s in sections)
+    metas = "".join(f'<p class="meta">{_h(m)}</p>' for m in meta)
     head = "" if front is None else _html_section(front, 2)
     body = "\n".join(_html_section(s, 2) for s in sections)
     return (
         '<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">'
         '<meta name="viewport" content="width=device-width, initial-scale=1">'
-        f"<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>"
-        f"<h1>{html.escape(title)}</h1>{metas}{head}"
+        f"<title>{_h(title)}</title><style>{_CSS}</style></head><body>"
+        f"<h1>{_h(title)}</h1>{metas}{head}"
         f"<nav><h2>Contents</h2><ol>{toc}</ol></nav>{body}</body></html>\n"
     )
 

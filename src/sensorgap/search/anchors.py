@@ -25,6 +25,7 @@ and carries the ``sensorgap evaluate`` command that reproduces it.
 from __future__ import annotations
 
 import math
+import shlex
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -149,7 +150,7 @@ def evaluate_anchors(
             for k, v in case.params.items()
         )
         row["command"] = (
-            f"sensorgap evaluate --vehicle {vehicle_ref or system.name} "
+            f"sensorgap evaluate --vehicle {shlex.quote(vehicle_ref or system.name)} "
             f"--family {case.family} --environment {case.environment} "
             f"{params} --out OUT"
         )

@@ -47,7 +47,13 @@ from sensorgap.config.reaction import (
     reactions_path,
 )
 from sensorgap.errors import InputError, clip
-from sensorgap.filesio import loads_json, previous_json_object, regular_file_size, write_json
+from sensorgap.filesio import (
+    is_temporary,
+    loads_json,
+    previous_json_object,
+    regular_file_size,
+    write_json,
+)
 from sensorgap.models import System, load_system
 from sensorgap.provenance import sha256_of, versions
 from sensorgap.scenarios import load_family
@@ -55,6 +61,8 @@ from sensorgap.scenarios.family import Family
 from sensorgap.search.evaluate import DetectionRule, Evaluator
 
 INPUTS_DIR = "inputs"
+#: Added to the name of an input's copy that would look like a temporary or journal file
+COPY_SUFFIX = ".input"
 RUN_JSON = "run.json"
 RANKING_JSON = "ranking.json"
 #: Single-file inputs, in the order ``run.json`` lists them.
@@ -130,6 +138,11 @@ class _Recorder:
         # part of a copy's name (hostile round fifteen: 'back\slash.toml' was recorded and
         # the run's own verify refused it); run.json's ``copy`` names the copy
         base = (name or src.name).replace("\\", "_")
+        # a copy named like a temporary or journal file (``envs.tmp``, ``v-wal``) would
+        # make the run's own manifest refuse the folder after the whole search (hostile
+        # round 35): such a copy gets ``.input`` added (run.json's ``copy`` names it)
+        if is_temporary(base):
+            base = f"{base.lstrip('.')}{COPY_SUFFIX}"
         rel = f"{INPUTS_DIR}/{sub}/{base}"
         if rel in self.used:  # another file of the same name
             stem, dot, ext = base.rpartition(".")
