@@ -204,6 +204,14 @@ def vehicle_ref(vehicle: str) -> tuple[str, str]:
                 p, "", f"vehicle file name (stem) {short(p.stem)} names the run's folder: {why}"
             )
         return p.stem, str(p)
+    if is_temporary(vehicle):  # a preset of SENSORGAP_TEMPLATES (hostile round 36)
+        raise InputError(
+            "--vehicle",
+            "",
+            f"preset {short(vehicle)} names the run's folder: a folder named like a "
+            "temporary or journal file (*.tmp, *-journal, *-wal, *-shm) is never part of a "
+            "finished run folder",
+        )
     return vehicle, vehicle
 
 

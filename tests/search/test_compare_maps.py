@@ -144,3 +144,25 @@ def test_unreadable_coverage_map_is_one_line_exit_2(
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "coverage.npz" in err[0] and "unreadable coverage map" in err[0]
     assert not out.exists()  # nothing was computed or left behind
+
+
+@pytest.mark.parametrize(
+    ("name", "part"),
+    [
+        ("System B", "system_b"),
+        ("B.tmp", "b.tmp_"),  # hostile round 36: compare's folder b_b.tmp/ was refused
+        ("X-WAL", "x-wal_"),  # a journal's name only once lower-cased
+        (".hidden.tmp", "hidden.tmp_"),
+        ("a-shm", "a-shm_"),
+        ("  ", "vehicle"),
+    ],
+)
+def test_a_vehicle_name_never_makes_a_folder_verify_would_refuse(name: str, part: str) -> None:
+    """``slug`` turns a vehicle's name into compare's folder names (``b_<slug>/``); a name
+    that would read like a temporary or journal file gets ``_`` added, a leading dot goes:
+    such a folder was written whole, then the comparison's own manifest refused it."""
+    from sensorgap.filesio import is_temporary
+    from sensorgap.search.compare_maps import slug
+
+    assert slug(name) == part
+    assert not is_temporary(f"b_{slug(name)}") and not slug(name).startswith(".")

@@ -12,6 +12,8 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field
 
+from sensorgap.filesio import is_temporary
+
 #: A finite float (NaN and +-inf rejected on load).
 Finite = Annotated[float, Field(allow_inf_nan=False)]
 #: A finite float >= 0.
@@ -59,6 +61,13 @@ def _preset_chars(v: str) -> str:
         raise ValueError(
             f"a preset name may not hold {' '.join(repr(c) for c in bad)} "
             "(@ starts a sun suffix, ',' separates names, '/' and '\\' make folders)"
+        )
+    if is_temporary(v):
+        # it names folders (coverage/car_<environment>/, farfield/<environment>/) that
+        # verify would take for left-overs: hostile round 36's fog.tmp ran a whole job
+        raise ValueError(
+            "a preset name may not read like a temporary or journal file (*.tmp, "
+            "*-journal, *-wal, *-shm): it names folders of a run"
         )
     return v
 

@@ -52,7 +52,7 @@ from sensorgap.coverage import GridSpec, Scene
 from sensorgap.coverage.outputs import compute_coverage, read_coverage_npz, write_coverage
 from sensorgap.coverage.plot import comparison_figure, save_figure
 from sensorgap.errors import InputError
-from sensorgap.filesio import write_json, write_npz
+from sensorgap.filesio import is_temporary, write_json, write_npz
 from sensorgap.models import Conditions, System
 from sensorgap.roads import read_opendrive
 from sensorgap.search.compare import side_labels
@@ -71,8 +71,11 @@ DEFAULT_TARGET = "car"
 
 
 def slug(name: str) -> str:
-    """A vehicle name as a file-name part (letters, digits, ``.``, ``_``, ``-``)."""
-    return re.sub(r"[^A-Za-z0-9._-]+", "_", name).strip("_").lower() or "vehicle"
+    """A vehicle name as a file-name part (letters, digits, ``.``, ``_``, ``-``; no leading
+    dot, and ``_`` added to one that would read like a temporary or journal file, which
+    verify takes for a left-over: hostile round 36's vehicle ``B.tmp``)."""
+    text = re.sub(r"[^A-Za-z0-9._-]+", "_", name).strip("_").lower().lstrip(".") or "vehicle"
+    return f"{text}_" if is_temporary(text) else text
 
 
 @dataclass(frozen=True)
