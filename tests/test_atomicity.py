@@ -639,7 +639,8 @@ def test_export_while_a_report_runs_in_another_process_is_refused(
         err = capsys.readouterr().err
         assert "another sensorgap command is writing this folder" in err, err
     finally:
-        assert proc.wait(timeout=120) == 0, proc.stderr.read() if proc.stderr else ""
+        _, err = proc.communicate(timeout=120)  # waits, and closes its pipe
+        assert proc.returncode == 0, err
     assert main(["verify", str(run)]) == 0
     assert len(list((run / "scenarios").glob("*.xosc"))) == 2
 

@@ -71,7 +71,7 @@ def test_sigkill_then_resume_gives_the_uninterrupted_ranking(
         time.sleep(0.02)
     assert proc.poll() is None, "the search ended before it could be killed"
     os.kill(proc.pid, signal.SIGKILL)
-    proc.wait()
+    proc.communicate()  # waits, and closes its pipes
     assert proc.returncode == -signal.SIGKILL
     n_before = _rows(db)
     assert 0 < n_before < 12000

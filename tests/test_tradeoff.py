@@ -12,7 +12,11 @@ def test_tradeoff_quick(tmp_path: Path) -> None:
     assert main(["tradeoff", "--out", str(tmp_path), "--quick"]) == 0
     for name in ("tradeoff.csv", "tradeoff.md", "resolution.png", "manifest.json"):
         assert (tmp_path / name).is_file()
-    rows = list(csv.DictReader((tmp_path / "tradeoff.csv").open()))
+    rows = list(
+        csv.DictReader(
+            (tmp_path / "tradeoff.csv").read_text(encoding="utf-8").splitlines(keepends=True)
+        )
+    )
     res = [r for r in rows if r["study"] == "grid resolution"]
     assert [r["setting"] for r in res] == ["0.5 m", "0.2 m", "0.1 m"]
     errs = [float(r["error"]) for r in res]
@@ -37,9 +41,18 @@ def test_tradeoff_accuracy_columns_are_reproducible(tmp_path: Path) -> None:
     tables = []
     for name in ("a", "b"):
         assert main(["tradeoff", "--out", str(tmp_path / name), "--quick"]) == 0
-        rows = list(csv.DictReader((tmp_path / name / "tradeoff.csv").open()))
+        rows = list(
+            csv.DictReader(
+                (tmp_path / name / "tradeoff.csv")
+                .read_text(encoding="utf-8")
+                .splitlines(keepends=True)
+            )
+        )
         tables.append([{k: v for k, v in r.items() if k not in TIME_COLUMNS} for r in rows])
     assert tables[0] == tables[1] and len(tables[0]) >= 10
     assert set(TIME_COLUMNS) <= set(
-        csv.DictReader((tmp_path / "a" / "tradeoff.csv").open()).fieldnames or ()
+        csv.DictReader(
+            (tmp_path / "a" / "tradeoff.csv").read_text(encoding="utf-8").splitlines(keepends=True)
+        ).fieldnames
+        or ()
     )

@@ -32,11 +32,17 @@ def test_files(paper: tuple[Path, dict[str, Any]]) -> None:
         assert (out / f"nearfield_{key}" / "nearfield.png").is_file()
         for cond in ("normal", "glare"):
             assert (out / f"farfield_{key}_{cond}" / "farfield.png").is_file()
-    rows = list(csv.DictReader((out / "table_iv.csv").open()))
+    rows = list(
+        csv.DictReader((out / "table_iv.csv").read_text(encoding="utf-8").splitlines(keepends=True))
+    )
     assert len(rows) == 4 * 5
     assert set(rows[0]) == {"system", "condition", "level", "metres"}
     assert {r["level"] for r in rows} == {"pd=1.0", "pd>=0.8", "pd>=0.5", "pd>0", "pd=0"}
-    near = list(csv.DictReader((out / "nearfield.csv").open()))
+    near = list(
+        csv.DictReader(
+            (out / "nearfield.csv").read_text(encoding="utf-8").splitlines(keepends=True)
+        )
+    )
     assert [r["system"] for r in near] == ["A", "B"]
     assert set(near[0]) == {"system", "blind_spot_m2", "uncovered_0p1m_m2"}
 
@@ -49,7 +55,9 @@ def test_qualitative_conclusions(paper: tuple[Path, dict[str, Any]]) -> None:
 def test_table_iv_within_tolerance(paper: tuple[Path, dict[str, Any]]) -> None:
     # every cell within +-20 m, the glare columns with the paper's whole-image glare
     out, _ = paper
-    rows = list(csv.DictReader((out / "table_iv.csv").open()))
+    rows = list(
+        csv.DictReader((out / "table_iv.csv").read_text(encoding="utf-8").splitlines(keepends=True))
+    )
     for r in rows:
         want = PAPER_TABLE_IV[(r["system"], r["condition"])][r["level"]]
         assert abs(float(r["metres"]) - want) <= TABLE_IV_TOLERANCE_M, r
@@ -66,7 +74,9 @@ def test_own_glare_model_printed_beside_the_papers(paper: tuple[Path, dict[str, 
     veil = result["glare_veil"]
     table = {
         (r["system"], r["condition"], r["level"]): float(r["metres"])
-        for r in csv.DictReader((out / "table_iv.csv").open())
+        for r in csv.DictReader(
+            (out / "table_iv.csv").read_text(encoding="utf-8").splitlines(keepends=True)
+        )
     }
     for level in PAPER_TABLE_IV[("A", "glare")]:
         assert abs(veil["A"][level] - table[("A", "glare", level)]) <= 2.0, level
@@ -80,7 +90,9 @@ def test_own_glare_model_printed_beside_the_papers(paper: tuple[Path, dict[str, 
 
 def test_blind_spots_within_tolerance(paper: tuple[Path, dict[str, Any]]) -> None:
     out, _ = paper
-    for r in csv.DictReader((out / "nearfield.csv").open()):
+    for r in csv.DictReader(
+        (out / "nearfield.csv").read_text(encoding="utf-8").splitlines(keepends=True)
+    ):
         want = PAPER_BLIND_SPOT_M2[r["system"]]
         assert abs(float(r["blind_spot_m2"]) - want) <= NEARFIELD_TOLERANCE * want, r
 
@@ -91,7 +103,11 @@ def test_sensitivity_table(paper: tuple[Path, dict[str, Any]]) -> None:
     # stretch); the near field never changes (no knob enters the fields of view); paper.md
     # says plainly that agreement is reproduction, not prediction.
     out, result = paper
-    rows = list(csv.DictReader((out / "sensitivity.csv").open()))
+    rows = list(
+        csv.DictReader(
+            (out / "sensitivity.csv").read_text(encoding="utf-8").splitlines(keepends=True)
+        )
+    )
     assert len(rows) == 14 == len(result["sensitivity"])
     floor0 = next(
         r

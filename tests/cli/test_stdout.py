@@ -132,6 +132,7 @@ def test_probe_into_a_pipe_whose_reader_quits_early(tmp_path: Path) -> None:
     got = proc.stdout.read(100_000)
     proc.stdout.close()
     err = proc.stderr.read().decode().strip().splitlines()
+    proc.stderr.close()
     assert proc.wait(timeout=120) == 2, err
     assert len(got) == 100_000
     assert err == [

@@ -254,8 +254,16 @@ def test_probe_and_coverage_with_heading(tmp_path, capsys):
         )
         == 0
     )
-    point = next(csv.DictReader((tmp_path / "point.csv").open()))
-    body = next(csv.DictReader((tmp_path / "body.csv").open()))
+    point = next(
+        csv.DictReader(
+            (tmp_path / "point.csv").read_text(encoding="utf-8").splitlines(keepends=True)
+        )
+    )
+    body = next(
+        csv.DictReader(
+            (tmp_path / "body.csv").read_text(encoding="utf-8").splitlines(keepends=True)
+        )
+    )
     assert float(point["pd"]) == 0.0
     assert float(body["pd"]) > 0.99
     assert float(body["cam_mirror_right.visible"]) > 0.0

@@ -274,7 +274,11 @@ def test_esmini_reproduces_the_planned_paths(catalog: Path, tmp_path: Path) -> N
     assert main(["simulate", "--catalog", str(work), "--esmini", str(ESMINI)]) == 0
     import csv
 
-    rows = list(csv.DictReader((work / "simulation.csv").open()))
+    rows = list(
+        csv.DictReader(
+            (work / "simulation.csv").read_text(encoding="utf-8").splitlines(keepends=True)
+        )
+    )
     assert len(rows) == len(json.loads((work / "catalog.json").read_text())["scenarios"])
     for r in rows:
         assert r["status"] == "ok", r
@@ -314,7 +318,12 @@ def test_esmini_failures_are_per_scenario(catalog: Path, tmp_path: Path) -> None
     assert main(["simulate", "--catalog", str(work), "--esmini", str(ESMINI)]) == 0
     import csv
 
-    rows = {r["scenario_id"]: r for r in csv.DictReader((work / "simulation.csv").open())}
+    rows = {
+        r["scenario_id"]: r
+        for r in csv.DictReader(
+            (work / "simulation.csv").read_text(encoding="utf-8").splitlines(keepends=True)
+        )
+    }
     sid = [s["scenario_id"] for s in index["scenarios"]]
     assert rows[sid[0]]["status"] == "missing"
     assert rows[sid[1]]["status"] in ("crashed", "bad log")
@@ -325,7 +334,12 @@ def test_esmini_failures_are_per_scenario(catalog: Path, tmp_path: Path) -> None
         main(["simulate", "--catalog", str(work), "--esmini", str(ESMINI), "--timeout", "0.001"])
         == 0
     )
-    rows2 = {r["scenario_id"]: r for r in csv.DictReader((work / "simulation.csv").open())}
+    rows2 = {
+        r["scenario_id"]: r
+        for r in csv.DictReader(
+            (work / "simulation.csv").read_text(encoding="utf-8").splitlines(keepends=True)
+        )
+    }
     assert {rows2[s]["status"] for s in sid[2:]} == {"timeout"}
     # the truncated file: esmini may fail on it by itself before the kill lands (seen
     # under load: the waiting thread ran late)
@@ -399,7 +413,12 @@ def test_simulate_reports_a_run_that_stops_early(catalog: Path, tmp_path: Path) 
     tree.write(str(first))
     (work / "manifest.json").unlink()  # edited by hand: no longer the certified catalog
     assert main(["simulate", "--catalog", str(work), "--esmini", str(ESMINI)]) == 0
-    rows = {r["scenario_id"]: r for r in csv.DictReader((work / "simulation.csv").open())}
+    rows = {
+        r["scenario_id"]: r
+        for r in csv.DictReader(
+            (work / "simulation.csv").read_text(encoding="utf-8").splitlines(keepends=True)
+        )
+    }
     r = rows[index["scenarios"][0]["scenario_id"]]
     assert r["status"] == "stopped early" and r["ran_to_end"] == "no", r
     assert float(r["end_time_s"]) < 3.2

@@ -317,7 +317,11 @@ def _simulate(catalog: Path, tmp_path: Path) -> list[dict[str, str]]:
     work.parent.mkdir(parents=True, exist_ok=True)
     shutil.copytree(catalog, work)
     assert main(["simulate", "--catalog", str(work), "--esmini", str(ESMINI)]) == 0
-    return list(csv.DictReader((work / "simulation.csv").open()))
+    return list(
+        csv.DictReader(
+            (work / "simulation.csv").read_text(encoding="utf-8").splitlines(keepends=True)
+        )
+    )
 
 
 @needs_esmini

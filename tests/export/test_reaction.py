@@ -96,7 +96,11 @@ def _reaction_rows(catalog: Path, tmp_path: Path) -> list[dict[str, str]]:
     assert (
         main(["simulate", "--catalog", str(work), "--esmini", str(ESMINI), "--ego-reaction"]) == 0
     )
-    return list(csv.DictReader((work / "simulation.csv").open()))
+    return list(
+        csv.DictReader(
+            (work / "simulation.csv").read_text(encoding="utf-8").splitlines(keepends=True)
+        )
+    )
 
 
 #: How closely esmini's entities follow the plan (simulate's 'within 0.5 m of the plan').

@@ -340,7 +340,9 @@ def test_glare_reason_names_the_suns_angle_from_the_line_of_sight(tmp_path: Path
         ev["reason"],
     )
     assert said, ev["reason"]
-    rows = list(csv.DictReader((out / "trace.csv").open()))
+    rows = list(
+        csv.DictReader((out / "trace.csv").read_text(encoding="utf-8").splitlines(keepends=True))
+    )
     row = min(rows, key=lambda r: abs(float(r["t_s"]) - ev["named_step_t_s"]))
     h = float(row["ego_heading_rad"])
     az = math.radians(90.0 - 80.0) - h  # compass -> counter-clockwise from the ego's x axis

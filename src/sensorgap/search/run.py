@@ -510,8 +510,12 @@ def run_search(
             # database and no folder this search created
             _remove_fresh_search(db if new_db else None, [], created)
             raise
-        if store.count() and not resume:
+        try:  # a damaged store fails here too: closed then (no connection left open)
             n = store.count()
+        except BaseException:
+            store.close()
+            raise
+        if n and not resume:
             store.close()
             raise InputError(
                 "out",
@@ -519,7 +523,7 @@ def run_search(
                 f"{out} already holds a search ({n} candidates "
                 "stored); add --resume to continue it, or use another --out",
             )
-        resuming = store.count() > 0
+        resuming = n > 0
         # what this search adds before it stores anything (removed again if it fails then)
         fresh = [out / n for n in (RUN_JSON, INPUTS_DIR) if not (out / n).exists()]
         try:
