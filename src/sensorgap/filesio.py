@@ -211,6 +211,15 @@ def is_own_temporary(name: str) -> bool:
     return _OWN_TEMPORARY.fullmatch(name) is not None
 
 
+def not_a_run_folder(path: Path) -> str:
+    """Why ``path``, which is no folder, cannot be read as a run folder: it is something
+    else (a file, a broken link) or it does not exist (hostile round 35: a file given to
+    ``report --run`` was said not to exist)."""
+    if os.path.lexists(path):
+        return "is not a folder: give a run folder"
+    return "run folder does not exist"
+
+
 def is_temporary(name: str) -> bool:
     """Whether a file name is a temporary file of ``sensorgap.atomic`` (``.NAME.*.tmp*``)
     or of an interrupted write (``*.tmp``), or an SQLite journal (``-journal``, ``-wal``,

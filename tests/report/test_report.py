@@ -393,3 +393,16 @@ def test_a_run_folder_named_with_control_characters_is_written_escaped(
     # a search run through the library records no command: the line is the report's own
     assert info.get("command") is None
     assert line.endswith("'" + str(run).replace("\x1b", "\\x1b") + "'"), line
+
+
+def test_a_file_given_as_the_run_is_said_to_be_one(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Hostile round 35 (a remark): ``report --run FILE`` said "run folder does not
+    exist" of a file that exists; it says what it is, and a missing one is still missing."""
+    afile = tmp_path / "run.txt"
+    afile.write_text("x", encoding="utf-8")
+    assert main(["report", "--run", str(afile)]) == 2
+    assert capsys.readouterr().err.strip().endswith("run.txt: is not a folder: give a run folder")
+    assert main(["report", "--run", str(tmp_path / "nope")]) == 2
+    assert capsys.readouterr().err.strip().endswith("nope: run folder does not exist")

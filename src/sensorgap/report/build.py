@@ -26,7 +26,7 @@ from sensorgap.coverage.outputs import read_coverage_npz
 from sensorgap.errors import InputError, cut_quoted
 from sensorgap.export.simulate import read_catalog_index
 from sensorgap.export.spec import ScenarioSpec
-from sensorgap.filesio import regular_file_size
+from sensorgap.filesio import not_a_run_folder, regular_file_size
 from sensorgap.models import System
 from sensorgap.provenance import utc_now, versions
 from sensorgap.report.anchors import anchors_section
@@ -1076,7 +1076,7 @@ def build(folder: Path) -> tuple[str, list[str], Section, list[Section]]:
     ``folder``."""
     folder = Path(folder)
     if not folder.is_dir():
-        raise InputError(folder, "", "run folder does not exist")
+        raise InputError(folder, "", not_a_run_folder(folder))
     for name in (REPORT_DIR, "report.html", "report.md"):  # written through, or refused
         if (folder / name).is_symlink():  # by atomic_path after the figures were redrawn
             raise InputError(

@@ -31,7 +31,7 @@ from sensorgap.analysis.paper import FarFieldSetup
 from sensorgap.atomic import atomic_write_bytes, atomic_write_text
 from sensorgap.config.presets import shipped_road
 from sensorgap.errors import InputError
-from sensorgap.filesio import MANIFEST_NAME, read_manifest, remove_outputs
+from sensorgap.filesio import MANIFEST_NAME, not_a_run_folder, read_manifest, remove_outputs
 from sensorgap.provenance import utc_now
 from sensorgap.report.build import (
     check_pieces,
@@ -491,7 +491,7 @@ def write_compare_report(
     run_a, run_b = Path(run_a), Path(run_b)
     for f in (run_a, run_b):
         if not f.is_dir():
-            raise InputError(f, "", "run folder does not exist")
+            raise InputError(f, "", not_a_run_folder(f))
     for f in (run_a, run_b):  # what the comparison shows of each run, before any work
         try:
             vehicle: str | None = open_run(f, ranking=False).system().name

@@ -50,6 +50,7 @@ from sensorgap.errors import InputError, clip
 from sensorgap.filesio import (
     is_temporary,
     loads_json,
+    not_a_run_folder,
     previous_json_object,
     regular_file_size,
     write_json,
@@ -896,7 +897,8 @@ def open_run(folder: Path, ranking: bool = True) -> RunFolder:
         raise InputError(
             folder,
             "",
-            "run folder does not exist" + (" (ranking.json is missing)" if ranking else ""),
+            not_a_run_folder(folder)
+            + (" (ranking.json is missing)" if ranking and not folder.exists() else ""),
         )
     info = read_run_info(folder)
     rows: list[dict[str, Any]] = []
