@@ -668,3 +668,57 @@ def test_report_into_a_jobs_vehicle_folder_keeps_the_job_certified(
     assert not [p for p in out.iterdir() if p.name.startswith(RESTORE_PREFIX)]
     assert main(_job_argv(vehicle, out)) == 0
     assert main(["verify", str(out)]) == 0
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["nearfield", "--vehicle", "system_a", "--resolution", "0.5"],
+        ["search", "--vehicle", "system_b", "--families", "slow_ahead_curve", "--budget", "10"],
+    ],
+)
+def test_an_out_inside_a_folder_another_command_is_writing_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], argv: list[str]
+) -> None:
+    """Hostile round 37: ``nearfield --out P/sub`` while ``corridor --out P`` ran (P locked,
+    no manifest yet) was not refused; the corridor then certified P without ``sub/`` and
+    ``verify P`` failed. Any --out below a folder another sensorgap command holds is
+    refused at once, nothing written."""
+    busy = tmp_path / "P"
+    busy.mkdir()
+    before = tree_state(busy)
+    with held_elsewhere(busy):
+        capsys.readouterr()
+        assert main([*argv, "--out", str(busy / "a" / "sub")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "another sensorgap command is writing now" in err[0], err
+    assert f"lies inside {busy}," in err[0]
+    assert tree_state(busy) == before
+
+
+def test_a_read_only_out_is_named_not_its_restore_folder(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Hostile round 37: into an existing --out on a read-only file system, the one line
+    named the command's random hidden restore folder (``OUT/.sensorgap-restore.h4gw.tmp:
+    ... Read-only file system``), not the folder the user gave."""
+    import errno
+    import tempfile
+
+    out = tmp_path / "ro"
+    out.mkdir()
+    (out / "mine.txt").write_text("kept", encoding="utf-8")
+
+    def read_only(*args: object, **kwargs: object) -> str:
+        path = os.path.join(str(kwargs.get("dir")), f"{kwargs.get('prefix')}x1y2z3w4.tmp")
+        raise OSError(errno.EROFS, "Read-only file system", path)
+
+    monkeypatch.setattr(tempfile, "mkdtemp", read_only)
+    capsys.readouterr()
+    assert (
+        main(["nearfield", "--vehicle", "system_a", "--resolution", "0.5", "--out", str(out)]) == 2
+    )
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and RESTORE_PREFIX not in err[0], err
+    assert err[0].startswith(f"sensorgap: error: {out}: cannot write or read: Read-only"), err
+    assert sorted(p.name for p in out.iterdir()) == ["mine.txt"]

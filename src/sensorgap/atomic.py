@@ -315,7 +315,15 @@ def _back_up(
     regular = sorted(rel for rel in files if stat.S_ISREG(os.lstat(root / rel).st_mode))
     if not regular:
         return None, {}
-    keep = Path(tempfile.mkdtemp(prefix=RESTORE_PREFIX, suffix=".tmp", dir=root))
+    try:
+        keep = Path(tempfile.mkdtemp(prefix=RESTORE_PREFIX, suffix=".tmp", dir=root))
+    except OSError as exc:  # it named the random hidden folder (hostile round 37: a
+        # read-only --out was "OUT/.sensorgap-restore.h4gwywtd.tmp: ... Read-only")
+        raise OSError(
+            exc.errno,
+            f"{exc.strerror or type(exc).__name__} (keeping its files to restore on failure)",
+            str(root),
+        ) from exc
     # 0700 whatever the umask: under umask 777 it was made 000, its links could not be made
     # nor the folder removed (hostile round fourteen, F16)
     os.chmod(keep, 0o700)
