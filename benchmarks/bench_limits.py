@@ -89,6 +89,28 @@ def _coverage_bodies(tmp: Path, scale: float) -> list[str]:
     ]
 
 
+def _coverage_occluded(tmp: Path, scale: float) -> list[str]:
+    """System A's bodies behind the most occluders, over as many cells as the work limit
+    then allows (``limits.MAX_BODY_WORK``): 100 trucks standing in a block ahead."""
+    n = limits.MAX_OCCLUDERS
+    cells = limits.MAX_BODY_WORK * scale / (SYSTEM_A_SENSORS * (1 + n * limits.OCCLUDER_WORK))
+    side = int(math.sqrt(cells))
+    occluders = []
+    for i in range(n):
+        occluders += ["--occluder", f"truck@{20 + (i % 10) * 15},{-40 + (i // 10) * 9},0"]
+    return [
+        *_car_in_clear("coverage"),
+        "--resolution",
+        "0.1",
+        f"--extent=-{side * 0.05:g},{side * 0.05:g},-{side * 0.05:g},{side * 0.05:g}",
+        "--heading",
+        "0",
+        *occluders,
+        "--out",
+        str(tmp / "occluded"),
+    ]
+
+
 def _coverage_per_sensor(tmp: Path, scale: float) -> list[str]:
     cells = limits.MAX_PER_SENSOR_CELLS * scale / SYSTEM_A_SENSORS
     nx = int(cells // 1000)
@@ -225,6 +247,11 @@ def _search(tmp: Path, scale: float) -> list[str]:
 CASES = [
     Case("coverage, points", f"{limits.MAX_GRID_CELLS:.0e} cells", _coverage),
     Case("coverage, bodies (--heading)", f"{limits.MAX_BODY_CELLS:.0e} cells", _coverage_bodies),
+    Case(
+        "coverage, bodies behind occluders",
+        f"{limits.MAX_BODY_WORK:.0e} cell-sensor evaluations, {limits.MAX_OCCLUDERS} occluders",
+        _coverage_occluded,
+    ),
     Case(
         "coverage --per-sensor",
         f"{limits.MAX_PER_SENSOR_CELLS:.0e} map cells",

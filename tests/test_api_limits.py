@@ -105,6 +105,15 @@ def test_a_nan_occluder_never_reaches_a_map() -> None:
             r"^occluders: 101 occluders; at most 100 allowed$",
         ),
         ({"occluders": [TRUCK]}, r"^occluders: \[0\]: must be an Occluder"),
+        (
+            {
+                "extent": (-100, 100, -75, 75),
+                "resolution": 0.1,
+                "occluders": [Occluder(*TRUCK)] * 50,
+            },
+            r"^resolution: a map of target bodies of 3,000,000 cells x 23 sensors with 50 "
+            r"occluders is too much work",
+        ),
     ],
 )
 def test_coverage_grid_applies_the_coverage_limits(kwargs: dict[str, Any], line: str) -> None:

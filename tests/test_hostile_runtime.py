@@ -591,6 +591,13 @@ def test_a_flooding_or_hanging_esmini_stays_bounded(tmp_path: Path) -> None:
     assert time.perf_counter() - t0 < 5.0
     time.sleep(max(0.0, t0 + 2.0 - time.perf_counter()))
     assert not marker.exists()  # the wrapper's children were killed with it
+    # hostile round 37: a wrapper that ends at once, leaving a child behind in its session
+    left = tmp_path / "left_running"
+    quick = script("quick.sh", f"(sleep 0.5; touch {left}) &\nexit 3")
+    t0 = time.perf_counter()
+    assert simulate.run_esmini(quick, xosc, work, 60.0, 0.05) == "crashed: esmini exit code 3: "
+    time.sleep(max(0.0, t0 + 1.2 - time.perf_counter()))
+    assert not left.exists()  # what it left running was killed when it ended
 
 
 def test_an_oversized_esmini_log_is_a_bad_log(

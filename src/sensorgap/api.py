@@ -30,6 +30,7 @@ from sensorgap.coverage.limits import (
     API_NAMES as GRID_NAMES,
 )
 from sensorgap.coverage.limits import (
+    check_body_work,
     check_heading,
     check_occluders,
     check_per_sensor,
@@ -290,6 +291,8 @@ def coverage_grid(
     sc = scene(vehicle, environment, target)
     check_per_sensor(nx * ny, len(sc.sensors), GRID_NAMES)
     check_occluders(occluders, heading, sc.system.config.vehicle, GRID_NAMES)
+    if heading is not None:
+        check_body_work(nx * ny, len(sc.sensors), len(occluders), GRID_NAMES)
     grid = grid_spec(box, res, nx, ny, sc.target.reference_height_m)
     return compute_coverage(
         sc, grid, per_sensor=True, workers=n_workers, heading_deg=heading, occluders=occluders

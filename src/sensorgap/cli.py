@@ -357,6 +357,8 @@ def cmd_coverage(args: argparse.Namespace) -> int:
     limits.check_occluders(
         occluders, args.heading, scene.system.config.vehicle, CLI_NAMES, shown=args.occluder
     )
+    if args.heading is not None:
+        limits.check_body_work(cells, len(scene.sensors), len(occluders), CLI_NAMES)
     xmin, xmax, ymin, ymax = extent
     clipped = (grid.xmax, grid.ymax)
     with removed_on_error(args.out):

@@ -813,6 +813,25 @@ def _written_above(folder: Path) -> Path | None:
     return None
 
 
+def _written_below(folder: Path) -> Path | None:
+    """A folder below ``folder`` (not through symbolic links) whose lock another sensorgap
+    command holds (``atomic.locked_elsewhere``), None when none is (or ``folder`` is no
+    folder). Hostile round 37: ``corridor --out Q`` while ``nearfield --out Q/sub`` ran
+    certified Q with sub/ half-written."""
+    if not folder.is_dir() or folder.is_symlink():
+        return None
+    seen = 0
+    for dirpath, dirnames, _files in os.walk(folder):
+        for name in dirnames:
+            sub = Path(dirpath) / name
+            if not sub.is_symlink() and locked_elsewhere(sub):
+                return sub
+        seen += len(dirnames)
+        if seen > MAX_OUT_ENTRIES:  # a crowded folder is refused elsewhere
+            return None
+    return None
+
+
 def refuse_certified_out(folder: str | Path, command: str) -> None:
     """Before ``evaluate`` or ``probe --out`` writes its files (which no manifest lists)
     into ``folder``: refused (``InputError`` naming ``--out``) when the folder is certified
@@ -860,6 +879,15 @@ def refuse_inside_certified(folder: str | Path, command: str) -> None:
             f"{root} lies inside {busy}, which another sensorgap command is writing now "
             f"(it certifies that folder when it ends, and its {MANIFEST_NAME} would not list "
             f"what {command} writes): give another --out, outside it, or wait until it ends",
+        )
+    below = _written_below(root)
+    if below is not None:
+        raise InputError(
+            "--out",
+            "",
+            f"{root} holds {below}, which another sensorgap command is writing now "
+            f"({command} would certify its files half-written): give another --out, or wait "
+            "until that command ends",
         )
     if certified_parent(root, command) is not None:
         return

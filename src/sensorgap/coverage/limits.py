@@ -34,6 +34,16 @@ MAX_HEADING_DEG = 360.0
 MAX_OCCLUDERS = 100
 #: Most threads of one map.
 MAX_WORKERS = 64
+#: Work of one map of target bodies (a heading given): cells x sensors x (1 + occluders x
+#: ``OCCLUDER_WORK``), body evaluations of one cell by one sensor. Measured on the 2-core
+#: machine (2026-11-28, one thread): 0.37 us each for System A's sensors without
+#: occluders, 0.017 us more per occluder (20 and 50 trucks over 20,000 cells), so an
+#: occluder counts 1/20; about 0.74 us each for long-range sensors that see every cell
+#: (System A's radars and lidar copied to 128 sensors, 100 trucks, 80,000 cells: 22.5 s on
+#: 2 threads). At the limit that case takes about 75 s on 2 threads. Hostile round 37: the
+#: limits one by one (4e6 cells, 128 sensors, 100 occluders) allowed a map of ~20 minutes.
+MAX_BODY_WORK = 200_000_000
+OCCLUDER_WORK = 0.05
 
 
 @dataclass(frozen=True)
@@ -165,6 +175,22 @@ def check_per_sensor(cells: int, sensors: int, names: Names) -> None:
         )
 
 
+def check_body_work(cells: int, sensors: int, occluders: int, names: Names) -> None:
+    """A map of target bodies: at most ``MAX_BODY_WORK`` cell-sensor evaluations, an
+    occluder adding ``OCCLUDER_WORK`` of one to each (checked before any work)."""
+    work = cells * sensors * (1.0 + occluders * OCCLUDER_WORK)
+    if work > MAX_BODY_WORK:
+        raise InputError(
+            names.resolution,
+            "",
+            f"a map of target bodies of {cells:,} cells x {sensors:,} sensors with "
+            f"{occluders:,} occluders is too much work ({work:.3g} cell-sensor evaluations, "
+            f"an occluder counting {OCCLUDER_WORK:g} of one; at most {MAX_BODY_WORK:.3g}: "
+            "a minute or two); coarsen the resolution, shrink the extent or use fewer "
+            "occluders",
+        )
+
+
 def check_occluder_count(count: int, names: Names) -> None:
     """At most ``MAX_OCCLUDERS`` occluders of one map."""
     if count > MAX_OCCLUDERS:
@@ -218,6 +244,7 @@ __all__ = [
     "API_NAMES",
     "CLI_NAMES",
     "MAX_BODY_CELLS",
+    "MAX_BODY_WORK",
     "MAX_EXTENT_M",
     "MAX_GRID_CELLS",
     "MAX_HEADING_DEG",
@@ -226,6 +253,8 @@ __all__ = [
     "MAX_WORKERS",
     "MIN_RESOLUTION_M",
     "Names",
+    "OCCLUDER_WORK",
+    "check_body_work",
     "check_heading",
     "check_occluder_count",
     "check_occluders",

@@ -436,6 +436,11 @@ def run_esmini(
                     with contextlib.suppress(OSError):
                         os.killpg(proc.pid, signal.SIGKILL)
                     proc.wait()
+                # what a wrapper script left running in esmini's session once it ended
+                # (hostile round 37: a fake esmini's '( sleep 123 ) &' outlived simulate
+                # and kept writing into this temporary folder)
+                with contextlib.suppress(OSError):
+                    os.killpg(proc.pid, signal.SIGKILL)
     except OSError as exc:
         return f"error: cannot run esmini: {exc}"
     if proc.returncode != 0 or not log.is_file():
