@@ -190,6 +190,15 @@ def test_evaluate_points_limits_points_times_sensors(monkeypatch: pytest.MonkeyP
         ({"environments": "clear"}, r"^environments: must be 'all' or a list of names, got the"),
         ({"families": [3]}, r"^families: \[0\]: must be a name"),
         ({"families": None}, r"^families: must be 'all' or a list of names, got None"),
+        # hostile round 38: == "all" on a numpy array was a raw "truth value is ambiguous"
+        (
+            {"families": np.array(["slow_ahead_curve", "cut_in_left"])},
+            r"^families: must be 'all' or a list of names, got array",
+        ),
+        (
+            {"environments": np.array(["clear", "fog_50"])},
+            r"^environments: must be 'all' or a list of names, got array",
+        ),
         ({"workers": "2"}, r"^workers: must be an integer, got '2'$"),
         ({"detection": 3}, r"^detection: must be a str, got 3$"),
         ({"detection": " 3/5"}, r"^detection: expected 'cumulative' or M/N in ASCII digits"),

@@ -347,10 +347,16 @@ def find_scenarios(
     env_file = options.get("environments_file")
     if env_file is not None:
         options["environments_file"] = path_argument(env_file, "environments_file")
-    fams = family_presets() if families == "all" else _names(families, "families", paths=True)
+    # ``== "all"`` only on a str: a numpy array compares element by element (hostile
+    # round 38: a raw "truth value of an array is ambiguous")
+    fams = (
+        family_presets()
+        if isinstance(families, str) and families == "all"
+        else _names(families, "families", paths=True)
+    )
     envs = (
         list(load_environments(options.get("environments_file")))
-        if environments == "all"
+        if isinstance(environments, str) and environments == "all"
         else _names(environments, "environments")
     )
     # the command line's search step: checks, stale export and report removed, manifest
