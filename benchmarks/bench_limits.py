@@ -75,40 +75,27 @@ def _coverage(tmp: Path, scale: float) -> list[str]:
     ]
 
 
+def _body_map(cells: float, occluders: int, out: Path) -> list[str]:
+    """System A's car bodies on a square of about ``cells`` cells of 0.1 m round the
+    vehicle, behind ``occluders`` trucks standing in a block ahead (10 a row)."""
+    half = int(math.sqrt(cells)) * 0.05
+    argv = [*_car_in_clear("coverage"), "--resolution", "0.1", "--heading", "0"]
+    argv.append(f"--extent=-{half:g},{half:g},-{half:g},{half:g}")
+    for i in range(occluders):
+        argv += ["--occluder", f"truck@{20 + (i % 10) * 15},{-40 + (i // 10) * 9},0"]
+    return [*argv, "--out", str(out)]
+
+
 def _coverage_bodies(tmp: Path, scale: float) -> list[str]:
-    side = int(math.sqrt(limits.MAX_BODY_CELLS * scale))
-    return [
-        *_car_in_clear("coverage"),
-        "--resolution",
-        "0.1",
-        f"--extent=-{side * 0.05:g},{side * 0.05:g},-{side * 0.05:g},{side * 0.05:g}",
-        "--heading",
-        "0",
-        "--out",
-        str(tmp / "body"),
-    ]
+    return _body_map(limits.MAX_BODY_CELLS * scale, 0, tmp / "body")
 
 
 def _coverage_occluded(tmp: Path, scale: float) -> list[str]:
     """System A's bodies behind the most occluders, over as many cells as the work limit
-    then allows (``limits.MAX_BODY_WORK``): 100 trucks standing in a block ahead."""
+    then allows (``limits.MAX_BODY_WORK``)."""
     n = limits.MAX_OCCLUDERS
     cells = limits.MAX_BODY_WORK * scale / (SYSTEM_A_SENSORS * (1 + n * limits.OCCLUDER_WORK))
-    side = int(math.sqrt(cells))
-    occluders = []
-    for i in range(n):
-        occluders += ["--occluder", f"truck@{20 + (i % 10) * 15},{-40 + (i // 10) * 9},0"]
-    return [
-        *_car_in_clear("coverage"),
-        "--resolution",
-        "0.1",
-        f"--extent=-{side * 0.05:g},{side * 0.05:g},-{side * 0.05:g},{side * 0.05:g}",
-        "--heading",
-        "0",
-        *occluders,
-        "--out",
-        str(tmp / "occluded"),
-    ]
+    return _body_map(cells, n, tmp / "occluded")
 
 
 def _coverage_per_sensor(tmp: Path, scale: float) -> list[str]:
