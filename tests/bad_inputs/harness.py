@@ -387,7 +387,8 @@ def _edit_manifest(run: Path, entry: str) -> None:
 def _edit_run(case: dict[str, Any], run: Path) -> None:
     """``run_files`` (inline text written into ``{run}``), ``run_edit`` ([file, regex,
     replacement]: the first match replaced) and ``run_input_edit`` (a recorded input's
-    copy edited, [old, new] pairs, with its SHA-256 in run.json updated to match)."""
+    copy edited, [old, new] pairs, with its SHA-256 in run.json updated to match, under
+    every label recording that copy)."""
     for name, text in case.get("run_files", {}).items():
         (run / name).write_text(text, encoding="utf-8")
     for name, pattern, repl in case.get("run_edit", []):
@@ -405,7 +406,10 @@ def _edit_run(case: dict[str, Any], run: Path) -> None:
                 raise CaseError(f"{case['name']}: {old!r} not in {copy.name}")
             text = text.replace(old, new)
         copy.write_text(text, encoding="utf-8")
-        info["inputs"][label]["sha256"] = hashlib.sha256(copy.read_bytes()).hexdigest()
+        digest = hashlib.sha256(copy.read_bytes()).hexdigest()
+        for entry in info["inputs"].values():  # every label of that copy (reaction, friction)
+            if isinstance(entry, dict) and entry.get("copy") == info["inputs"][label]["copy"]:
+                entry["sha256"] = digest
         (run / "run.json").write_text(json.dumps(info))
 
 

@@ -689,11 +689,23 @@ class RunFolder:
         if "reaction" in stored and "reaction" in inputs:
             label = self.reaction().label()
             if label != stored["reaction"]:
+                name, _, now = label.partition(":")
+                then_name, _, then = str(stored["reaction"]).partition(":")
+                if name != then_name:
+                    raise refuse(
+                        run_json,
+                        "inputs.reaction.name",
+                        f"the reaction model {name!r}",
+                        f"{then_name!r}",
+                    )
+                # the same model with other settings (hostile round 39: the line said the
+                # names differed and showed the same name twice)
                 raise refuse(
                     run_json,
-                    "inputs.reaction.name",
-                    f"the reaction model {label.split(':')[0]!r}",
-                    f"{str(stored['reaction']).split(':')[0]!r}",
+                    "inputs.reaction",
+                    f"the settings of reaction model {name!r} in its recorded copy "
+                    f"({now.strip()[:160]})",
+                    then.strip()[:160],
                 )
         fams = inputs.get("families", {})
         names = sorted(k[len("family ") :] for k in digests if k.startswith("family "))
