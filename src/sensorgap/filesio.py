@@ -798,40 +798,6 @@ def _certified_above(folder: Path) -> tuple[Path, str] | None:
     return None
 
 
-def _written_above(folder: Path) -> Path | None:
-    """The nearest folder above ``folder`` (resolved, as ``_certified_above``) whose lock
-    another sensorgap command holds (``atomic.locked_elsewhere``: it is writing that folder
-    now), None when none is. Hostile round 37: ``nearfield --out P/sub`` while ``corridor
-    --out P`` ran was not refused (P had no manifest yet), and ``verify P`` then failed."""
-    try:
-        where = folder.resolve()
-    except (OSError, RuntimeError):  # a loop of links: the written path as given
-        where = Path(os.path.abspath(folder))
-    for parent in where.parents:
-        if locked_elsewhere(parent):
-            return parent
-    return None
-
-
-def _written_below(folder: Path) -> Path | None:
-    """A folder below ``folder`` (not through symbolic links) whose lock another sensorgap
-    command holds (``atomic.locked_elsewhere``), None when none is (or ``folder`` is no
-    folder). Hostile round 37: ``corridor --out Q`` while ``nearfield --out Q/sub`` ran
-    certified Q with sub/ half-written."""
-    if not folder.is_dir() or folder.is_symlink():
-        return None
-    seen = 0
-    for dirpath, dirnames, _files in os.walk(folder):
-        for name in dirnames:
-            sub = Path(dirpath) / name
-            if not sub.is_symlink() and locked_elsewhere(sub):
-                return sub
-        seen += len(dirnames)
-        if seen > MAX_OUT_ENTRIES:  # a crowded folder is refused elsewhere
-            return None
-    return None
-
-
 def refuse_certified_out(folder: str | Path, command: str) -> None:
     """Before ``evaluate`` or ``probe --out`` writes its files (which no manifest lists)
     into ``folder``: refused (``InputError`` naming ``--out``) when the folder is certified
@@ -871,24 +837,6 @@ def refuse_inside_certified(folder: str | Path, command: str) -> None:
     from sensorgap.errors import InputError
 
     root = Path(folder)
-    busy = _written_above(root)
-    if busy is not None:
-        raise InputError(
-            "--out",
-            "",
-            f"{root} lies inside {busy}, which another sensorgap command is writing now "
-            f"(it certifies that folder when it ends, and its {MANIFEST_NAME} would not list "
-            f"what {command} writes): give another --out, outside it, or wait until it ends",
-        )
-    below = _written_below(root)
-    if below is not None:
-        raise InputError(
-            "--out",
-            "",
-            f"{root} holds {below}, which another sensorgap command is writing now "
-            f"({command} would certify its files half-written): give another --out, or wait "
-            "until that command ends",
-        )
     if certified_parent(root, command) is not None:
         return
     above = _certified_above(root)
