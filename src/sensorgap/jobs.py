@@ -181,6 +181,13 @@ def _analysis(
     return times, peak_rss_mib()
 
 
+#: Why a vehicle's stem or preset name cannot name the run's folder (``vehicle_ref``).
+_TEMPORARY_FOLDER = (
+    "a folder named like a temporary or journal file (*.tmp, *-journal, *-wal, *-shm) is "
+    "never part of a finished run folder"
+)
+
+
 def vehicle_ref(vehicle: str) -> tuple[str, str]:
     """(folder name, reference to record) of a ``--vehicle``: a preset name as it is, a
     .toml path by its stem and its absolute path (the run works from any folder). A stem
@@ -194,8 +201,7 @@ def vehicle_ref(vehicle: str) -> tuple[str, str]:
         why = name_problem(p.stem) or (
             "a name that starts with a dot would not make a folder of its own"
             if p.stem.startswith(".")
-            else "a folder named like a temporary or journal file (*.tmp, *-journal, "
-            "*-wal, *-shm) is never part of a finished run folder"
+            else _TEMPORARY_FOLDER
             if is_temporary(p.stem)
             else None
         )
@@ -208,9 +214,7 @@ def vehicle_ref(vehicle: str) -> tuple[str, str]:
         raise InputError(
             "--vehicle",
             "",
-            f"preset {short(vehicle)} names the run's folder: a folder named like a "
-            "temporary or journal file (*.tmp, *-journal, *-wal, *-shm) is never part of a "
-            "finished run folder",
+            f"preset {short(vehicle)} names the run's folder: {_TEMPORARY_FOLDER}",
         )
     return vehicle, vehicle
 
