@@ -13,6 +13,7 @@ from __future__ import annotations
 import fcntl
 import os
 import shutil
+import struct
 import subprocess
 import sys
 from collections.abc import Iterator
@@ -22,11 +23,12 @@ from pathlib import Path
 import pytest
 
 import sensorgap
-from sensorgap.atomic import RESTORE_PREFIX, atomic_write_text, folder_lock, removed_on_error
+from sensorgap.atomic import RESTORE_PREFIX, atomic_write_text, removed_on_error
 from sensorgap.cli import main
 from sensorgap.config.presets import templates_dir
 from sensorgap.errors import InputError
 from sensorgap.filesio import read_manifest, verify_manifest, write_manifest
+from sensorgap.locks import folder_lock
 from tests.bad_inputs.harness import tree_state
 from tests.forked import run_forked
 
@@ -238,7 +240,7 @@ def test_a_folder_moved_while_its_command_runs_is_not_made_again(tmp_path: Path)
 @contextmanager
 def held_elsewhere(folder: Path) -> Iterator[None]:
     """``folder``'s lock held as another process holds it (an ``flock`` on a second
-    open file description conflicts with this process's own ``atomic.folder_lock``)."""
+    open file description conflicts with this process's own ``locks.folder_lock``)."""
     fd = os.open(folder, os.O_RDONLY)
     try:
         fcntl.flock(fd, fcntl.LOCK_EX)
@@ -668,6 +670,97 @@ def test_report_into_a_jobs_vehicle_folder_keeps_the_job_certified(
     assert not [p for p in out.iterdir() if p.name.startswith(RESTORE_PREFIX)]
     assert main(_job_argv(vehicle, out)) == 0
     assert main(["verify", str(out)]) == 0
+
+
+@contextmanager
+def marked_elsewhere(folder: Path, certifies: bool) -> Iterator[None]:
+    """``folder`` marked as another sensorgap command marks the folder it writes
+    (``locks.writing``: a shared open-file-description lock on byte 1 when it certifies
+    the folder, byte 0 when it writes some files there); one on a second open file
+    description conflicts with this process's own."""
+    flock = struct.Struct("hhqqi4x")
+    fd = os.open(folder, os.O_RDONLY)
+    try:
+        lock = flock.pack(fcntl.F_RDLCK, os.SEEK_SET, 1 if certifies else 0, 1, 0)
+        fcntl.fcntl(fd, fcntl.F_OFD_SETLK, lock)
+        yield
+    finally:
+        os.close(fd)
+
+
+NESTED_ARGV = [
+    ["nearfield", "--vehicle", "system_a", "--resolution", "0.5"],
+    ["search", "--vehicle", "system_b", "--families", "slow_ahead_curve", "--budget", "10"],
+]
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="open-file-description locks")
+@pytest.mark.parametrize("where", ["above", "below", "below_writes"])
+@pytest.mark.parametrize("argv", NESTED_ARGV, ids=["nearfield", "search"])
+def test_an_out_nested_with_a_folder_another_command_is_writing_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], argv: list[str], where: str
+) -> None:
+    """Hostile round 37: ``nearfield --out P/sub`` while ``corridor --out P`` ran (P being
+    certified, no manifest yet) was not refused, nor ``corridor --out Q`` while
+    ``nearfield --out Q/sub`` ran; the outer command certified its folder without (or with
+    half of) the inner one's files and ``verify`` failed. An --out below a folder another
+    command certifies, or above one another command writes (``evaluate``: byte 0), is
+    refused, nothing written."""
+    outer = tmp_path / "P"
+    inner = outer / "a" / "sub"
+    inner.mkdir(parents=True)
+    before = tree_state(outer)
+    with marked_elsewhere(outer if where == "above" else inner, certifies=where != "below_writes"):
+        capsys.readouterr()
+        assert main([*argv, "--out", str(inner if where == "above" else outer)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "another sensorgap command is writing now" in err[0], err
+    if where == "above":
+        assert f"{inner}: lies inside {outer}," in err[0], err
+    else:
+        assert f"{outer}: holds {inner}," in err[0], err
+    assert tree_state(outer) == before
+
+
+@pytest.mark.parametrize("argv", NESTED_ARGV, ids=["nearfield", "search"])
+def test_a_folder_above_only_locked_does_not_refuse_a_nested_out(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], argv: list[str]
+) -> None:
+    """The fix of round 37 reverted on 2026-11-27 refused an --out below any folder whose
+    ``flock`` another process held; ``coverage --out /`` holds the lock of / for a moment
+    while it refuses, and a test on another worker was refused ("lies inside /"). A lock
+    alone (no writing marker) refuses nothing below it; with --out the command runs."""
+    outer = tmp_path / "P"
+    inner = outer / "a" / "sub"
+    inner.mkdir(parents=True)
+    with held_elsewhere(outer), held_elsewhere(tmp_path):
+        assert main([*argv, "--out", str(inner)]) == 0
+    assert main(["verify", str(inner)]) == 0
+
+
+def test_a_folder_certified_after_the_first_check_refuses_the_nested_out(
+    tmp_path: Path,
+) -> None:
+    """Hostile round 37's F1 replayed with the markers: ``corridor --out P`` ended (its
+    manifest written, its marker gone) after ``nearfield --out P/sub`` passed its first
+    check but before that one marked its folder; the near field was written into the
+    certified P. The check is repeated once the folder is marked (``locks.
+    recheck_when_marked``): refused then, nothing left."""
+    from sensorgap.filesio import refuse_inside_certified
+
+    outer = tmp_path / "P"
+    inner = outer / "sub"
+    outer.mkdir()
+    refuse_inside_certified(inner, "nearfield")  # passes: P is no certified folder yet
+    atomic_write_text(outer / "corridor.csv", "x\n")
+    write_manifest(outer)  # the other command ends
+    with (
+        pytest.raises(InputError, match=r"lies inside .*P, a certified folder"),
+        removed_on_error(inner),
+    ):
+        (inner / "nearfield.json").write_text("{}", encoding="utf-8")
+    assert not inner.exists()
+    assert verify_manifest(outer) == []
 
 
 def test_a_read_only_out_is_named_not_its_restore_folder(

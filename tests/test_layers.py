@@ -11,6 +11,7 @@ import sensorgap
 LAYERS = [
     "earlystop",
     "errors",
+    "locks",
     "atomic",
     "filesio",
     "registry",

@@ -50,6 +50,7 @@ from sensorgap.filesio import (
     refuse_file_on_the_way,
     refuse_inside_certified,
 )
+from sensorgap.locks import recheck_when_marked
 from sensorgap.models import Conditions, System, load_system
 from sensorgap.scenarios import family_presets
 from sensorgap.search.run import SearchOutcome, run_search
@@ -112,14 +113,19 @@ def _out_folder(value: object, command: str, inside: Path | None = None) -> Path
     it, the API wrote there and ``verify`` of that folder failed, hostile round 29), but
     for ``inside`` (an export's own run, whose own check says more)."""
     folder = path_argument(value, "out")
-    try:
-        if inside is None or inside.resolve() not in folder.resolve().parents:
-            refuse_inside_certified(folder, command)
-    except InputError as exc:  # the parameter, not the CLI's option
-        text = exc.message.replace("give another --out", "give another out")
-        raise InputError("out", exc.field, text) from None
-    except (OSError, RuntimeError) as exc:  # a link loop on the way
-        raise InputError("out", "", f"{folder}: cannot be resolved ({exc})") from None
+
+    def check() -> None:
+        try:
+            if inside is None or inside.resolve() not in folder.resolve().parents:
+                refuse_inside_certified(folder, command)
+        except InputError as exc:  # the parameter, not the CLI's option
+            text = exc.message.replace("give another --out", "give another out")
+            raise InputError("out", exc.field, text) from None
+        except (OSError, RuntimeError) as exc:  # a link loop on the way
+            raise InputError("out", "", f"{folder}: cannot be resolved ({exc})") from None
+
+    check()
+    recheck_when_marked(folder, check)  # (its own, naming the parameter)
     refuse_file_on_the_way(folder, "out")
     return folder
 

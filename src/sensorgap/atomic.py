@@ -5,7 +5,6 @@ A reader never sees a half-written file: either the old content or the new one.
 
 from __future__ import annotations
 
-import fcntl
 import json
 import os
 import secrets
@@ -19,6 +18,7 @@ from contextlib import contextmanager, nullcontext, suppress
 from pathlib import Path
 
 from sensorgap.errors import InputError
+from sensorgap.locks import folder_lock, writing
 
 
 @contextmanager
@@ -130,106 +130,6 @@ def atomic_write_text(path: str | Path, text: str) -> Path:
     """Write UTF-8 ``text`` (``utf8``) with ``\\n`` line ends to ``path`` atomically;
     returns the path."""
     return atomic_write_bytes(path, utf8(text))
-
-
-#: The folder locks this process holds (``folder_lock``): (device, inode) of the folder
-#: -> [open descriptor holding the ``flock``, how many blocks hold it now].
-_HELD: dict[tuple[int, int], list[int]] = {}
-#: ``held_until_done`` blocks running: a lock whose blocks ended stays held until then.
-_UNTIL_DONE = [0]
-
-
-def _key(folder: str | Path) -> tuple[int, int] | None:
-    """(device, inode) of ``folder``, None when it is not there."""
-    try:
-        st = os.stat(folder)
-    except OSError:
-        return None
-    return st.st_dev, st.st_ino
-
-
-def holds_lock(folder: str | Path) -> bool:
-    """Whether this process holds ``folder``'s lock (``folder_lock``): then no other
-    sensorgap command writes it, and a restore folder there that no block of this process
-    uses is a left-over of a killed command (``filesio.write_manifest`` removes it)."""
-    key = _key(folder)
-    return key is not None and key in _HELD
-
-
-def locked_elsewhere(folder: str | Path) -> bool:
-    """Whether another process holds ``folder``'s lock (``folder_lock``: a sensorgap
-    command is writing it now), tested without waiting: a shared ``flock`` taken and
-    released at once (a reader such as ``verify``; it never conflicts with another
-    reader). False when this process holds the lock, or the folder cannot be opened."""
-    if holds_lock(folder):
-        return False
-    try:
-        fd = os.open(folder, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
-    except OSError:
-        return False
-    try:
-        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
-    except BlockingIOError:
-        return True
-    except OSError:
-        return False
-    finally:
-        os.close(fd)  # closing the only descriptor releases a lock taken
-    return False
-
-
-@contextmanager
-def folder_lock(folder: str | Path) -> Iterator[None]:
-    """Hold the exclusive lock of the existing folder ``folder`` while the block runs:
-    an ``flock`` on the folder itself (no lock file in the run folder; the system drops
-    it when the process ends, killed or not). Every sensorgap command that writes into a
-    run folder takes it before any work, so two commands never write one folder at once
-    (one's restore put its start snapshot back over the other's finished output). Taken
-    again by the same process it is shared (the job, then its search). Held by another
-    process -> ``InputError`` naming the folder, at once (no waiting)."""
-    fd = os.open(folder, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
-    st = os.fstat(fd)
-    key = (st.st_dev, st.st_ino)
-    if key in _HELD:
-        os.close(fd)
-        _HELD[key][1] += 1
-    else:
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            os.close(fd)
-            raise InputError(
-                folder,
-                "",
-                "another sensorgap command is writing this folder now; wait for it to "
-                "finish, or write somewhere else",
-            ) from None
-        _HELD[key] = [fd, 1]
-    try:
-        yield
-    finally:
-        entry = _HELD[key]
-        entry[1] -= 1
-        if entry[1] == 0 and not _UNTIL_DONE[0]:
-            del _HELD[key]
-            os.close(entry[0])
-
-
-@contextmanager
-def held_until_done() -> Iterator[None]:
-    """Every folder lock taken while the block runs stays held until it ends (a command:
-    the search of ``sensorgap search`` locks its folder, and the command still writes
-    its manifest after)."""
-    _UNTIL_DONE[0] += 1
-    try:
-        yield
-    finally:
-        _UNTIL_DONE[0] -= 1
-        if not _UNTIL_DONE[0]:
-            for key, entry in list(_HELD.items()):
-                if entry[1] == 0:
-                    del _HELD[key]
-                    os.close(entry[0])
 
 
 #: Name prefix of the folder that holds, while a guarded command runs
@@ -423,6 +323,7 @@ def removed_on_error(
     copies: tuple[str, ...] = (),
     only: tuple[str, ...] | None = None,
     lock: bool = True,
+    certifies: bool | None = None,
 ) -> Iterator[None]:
     """On an exception or an interrupt (Ctrl-C, SIGTERM), put ``folder`` back as it was
     before the block: every file and folder that was not there removed, every file that
@@ -437,10 +338,15 @@ def removed_on_error(
     files of ``folder`` (relative paths; ``evaluate``, ``probe``): nothing else there is
     listed, kept or removed (a user's folder of any size). ``lock``: hold ``folder``'s
     lock (``folder_lock``, made first when it is new) for the block; refused when
-    another command holds it, before anything is kept or changed."""
+    another command holds it, before anything is kept or changed. ``certifies``: the
+    command's manifest will list all that lies below ``folder`` (default: without
+    ``only``); the folder is marked as being written (``locks.writing``) for the block,
+    and the command refused, nothing changed, when another one is certifying a folder
+    above it or, ``certifies``, writing one below it."""
     root = Path(folder)
     created = created_folders(root)
-    with _locked(root, created) if lock else nullcontext():
+    whole = only is None if certifies is None else certifies
+    with _locked(root, created) if lock else nullcontext(), _marked(root, created, whole):
         files, dirs = _entries(root, only)
         keep: Path | None = None
         saved: dict[str, Path] = {}
@@ -470,6 +376,22 @@ def _identity(root: Path) -> tuple[int, int] | None:
     except OSError:
         return None
     return (st.st_dev, st.st_ino) if stat.S_ISDIR(st.st_mode) else None
+
+
+@contextmanager
+def _marked(root: Path, created: list[Path], certifies: bool) -> Iterator[None]:
+    """``locks.writing(root, certifies)`` for the block; refused, the folders this command
+    made (``created``) are removed again."""
+    marker = writing(root, certifies)
+    try:
+        marker.__enter__()
+    except InputError:
+        remove_created_folders(created)
+        raise
+    try:
+        yield
+    finally:
+        marker.__exit__(None, None, None)
 
 
 @contextmanager

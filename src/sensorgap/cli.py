@@ -20,7 +20,7 @@ from sensorgap.runtime import single_blas_thread
 
 single_blas_thread()  # before numpy is imported (by filesio): see its docstring
 
-from sensorgap.atomic import folder_lock, held_until_done, removed_on_error
+from sensorgap.atomic import removed_on_error
 from sensorgap.config.common import parse_decimal, parse_integer
 from sensorgap.errors import InputError, clip, cut_name
 from sensorgap.filesio import (
@@ -33,6 +33,7 @@ from sensorgap.filesio import (
     same_file,
     write_manifest,
 )
+from sensorgap.locks import folder_lock, held_until_done
 from sensorgap.plugins import load_plugins
 from sensorgap.runtime import (
     StdoutUnwritable,
@@ -770,7 +771,9 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     refuse_if_changed(args.catalog, ("simulation.csv",))  # its manifest is rewritten
     # a failed run leaves the catalog as it was (simulation.csv and its manifest entry)
     # locked before any work when it exists (_written_folders); a missing one is refused
-    with removed_on_error(args.catalog, only=("simulation.csv", "manifest.json"), lock=False):
+    with removed_on_error(
+        args.catalog, only=("simulation.csv", "manifest.json"), lock=False, certifies=True
+    ):
         rows = simulate_catalog(
             Path(args.catalog),
             args.esmini,
@@ -875,9 +878,9 @@ def cmd_report(args: argparse.Namespace) -> int:
 
 def _refuse_locked(folder: Path) -> None:
     """``verify`` of a folder another sensorgap command is writing now (it holds the
-    folder's lock, ``atomic.locked_elsewhere``): its files are half-written and its
+    folder's lock, ``locks.locked_elsewhere``): its files are half-written and its
     restore folder is in use, not left over from a killed command. ``InputError``."""
-    from sensorgap.atomic import locked_elsewhere
+    from sensorgap.locks import locked_elsewhere
 
     if locked_elsewhere(folder):
         raise InputError(
@@ -1421,7 +1424,7 @@ def _flag_sources(exc: InputError, parser: argparse.ArgumentParser, command: str
 def _written_folders(args: argparse.Namespace) -> list[Path]:
     """The existing folders the command of ``args`` writes into (``--out``; ``export``
     in place and ``report --run``: ``--run``; ``simulate``: ``--catalog``), locked for
-    its whole run before any work (``atomic.folder_lock``). None for the readers
+    its whole run before any work (``locks.folder_lock``). None for the readers
     (``verify``, ``schema``) and ``probe`` (one file renamed into a user's folder)."""
     func = getattr(args, "func", None)
     if func in (cmd_verify, cmd_schema, cmd_probe):
@@ -1461,7 +1464,9 @@ def _lock_job_out(folder: Path, locks: ExitStack, command: str | None) -> None:
         parent, rel = found
         locks.enter_context(folder_lock(parent))
         refuse_if_changed(parent, (f"{rel}/",))
-        locks.enter_context(removed_on_error(parent, only=(MANIFEST_NAME,), lock=False))
+        locks.enter_context(
+            removed_on_error(parent, only=(MANIFEST_NAME,), lock=False, certifies=True)
+        )
         found = certified_parent(parent)
 
 

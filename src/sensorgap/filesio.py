@@ -21,8 +21,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from sensorgap.atomic import atomic_write_bytes, holds_lock, locked_elsewhere, utf8
+from sensorgap.atomic import atomic_write_bytes, utf8
 from sensorgap.errors import InputError, cut_name
+from sensorgap.locks import holds_lock, locked_elsewhere, recheck_when_marked
 
 _FIXED_ZIP_TIME = (1980, 1, 1, 0, 0, 0)
 
@@ -278,7 +279,7 @@ def _is_active_restore(path: Path) -> bool:
 def _is_leftover_restore(path: Path) -> bool:
     """Whether ``path`` is a restore folder of ``atomic.removed_on_error``
     (``_is_restore_folder``) that no command of this process is using, in a folder whose
-    lock this process holds (``atomic.holds_lock``: no other command is writing there, so
+    lock this process holds (``locks.holds_lock``: no other command is writing there, so
     a killed command left it; another process's restore folder is never removed)."""
     return _is_restore_folder(path) and not _is_active_restore(path) and holds_lock(path.parent)
 
@@ -833,10 +834,16 @@ def refuse_inside_certified(folder: str | Path, command: str) -> None:
     that folder again (``certified_parent``: a job's vehicle folder, a run's near field or
     coverage map): its files would lie in a folder whose manifest does not list them, and
     ``verify`` of that folder would fail (``paper --out RUN/p``, ``export --out
-    RUN/cat`` did, hostile round fourteen)."""
+    RUN/cat`` did, hostile round fourteen). Repeated once the command marks its folder
+    (``locks.recheck_when_marked``: a folder above may be certified meanwhile)."""
+    _refuse_inside_certified_now(Path(folder), command)
+    recheck_when_marked(folder, lambda: _refuse_inside_certified_now(Path(folder), command))
+
+
+def _refuse_inside_certified_now(root: Path, command: str) -> None:
+    """``refuse_inside_certified``'s check, once."""
     from sensorgap.errors import InputError
 
-    root = Path(folder)
     if certified_parent(root, command) is not None:
         return
     above = _certified_above(root)

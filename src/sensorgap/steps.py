@@ -17,7 +17,7 @@ from contextlib import ExitStack, suppress
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from sensorgap.atomic import atomic_write_bytes, folder_lock, held_until_done, removed_on_error
+from sensorgap.atomic import atomic_write_bytes, removed_on_error
 from sensorgap.filesio import (
     MANIFEST_NAME,
     refuse_crowded_out,
@@ -27,6 +27,7 @@ from sensorgap.filesio import (
     refuse_uncertifiable,
     write_manifest,
 )
+from sensorgap.locks import folder_lock, held_until_done
 from sensorgap.runtime import DeferredStop
 from sensorgap.search.run import SEARCH_WRITES
 from sensorgap.search.runfolder import RANKING_FILES, RUN_JSON, STORE_FILE

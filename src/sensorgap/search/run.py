@@ -28,7 +28,6 @@ from tqdm import tqdm
 from sensorgap.atomic import (
     atomic_write_bytes,
     created_folders,
-    folder_lock,
     remove_created_folders,
     utf8,
 )
@@ -39,6 +38,7 @@ from sensorgap.filesio import (
     refuse_certified_by_other,
     refuse_links,
 )
+from sensorgap.locks import folder_lock, writing
 from sensorgap.runtime import DeferredStop
 from sensorgap.search.executors import make_executor
 from sensorgap.search.loop import LoopResult, search_loop
@@ -342,7 +342,7 @@ def write_ranking(out: Path, files: dict[str, bytes]) -> None:
 
 
 def exclusive_folder(out: Path) -> contextlib.AbstractContextManager[None]:
-    """Hold the lock of the folder ``out`` (``atomic.folder_lock``, the one every
+    """Hold the lock of the folder ``out`` (``locks.folder_lock``, the one every
     command writing a run folder takes) while a search writes it; a second command into
     the same folder at the same time -> ``InputError`` (two searches storing into one
     database and writing one ranking left a folder whose manifest did not match it)."""
@@ -501,8 +501,14 @@ def run_search(
     new_db = not db.exists()
     created = created_folders(out)  # removed again if nothing can be stored
     out.mkdir(parents=True, exist_ok=True)
-    with exclusive_folder(out) if lock else contextlib.nullcontext():
+    locked = exclusive_folder(out) if lock else contextlib.nullcontext()
+    with locked, contextlib.ExitStack() as marks:
         refuse_search_clash(p, out, resume)
+        try:  # refused when a command is writing a folder above or below (locks.writing)
+            marks.enter_context(writing(out, certifies=True))
+        except InputError:
+            _remove_fresh_search(None, [], created)
+            raise
         try:
             store = Store(db, p.record, p.inputs)
         except InputError:

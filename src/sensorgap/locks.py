@@ -1,0 +1,299 @@
+"""Who is writing which folder: the lock of a folder a command writes, and the marker
+of a folder it is writing now.
+
+- ``folder_lock``: an exclusive ``flock`` on the folder itself, taken before any work by
+  every command that writes a run folder; a second command into the same folder is
+  refused at once.
+- ``writing``: taken once a command has passed its own refusals and is about to write: a
+  shared open-file-description lock (Linux ``F_OFD_SETLK``, independent of the ``flock``)
+  on one byte of the folder, byte ``WRITES`` for a command writing some files there
+  (``evaluate``, ``probe``), byte ``CERTIFIES`` for one whose manifest will list all that
+  lies below it (a search run, a map, a catalog, a report). A command is refused when a
+  folder above its own is being certified by another command, and a certifying one also
+  when a folder below its own is being written (hostile round 37: ``nearfield --out
+  P/sub`` while ``corridor --out P`` ran, or the other way round; both ended with exit
+  0 and ``verify P`` failed). The ``flock`` alone could not tell: a command also holds it
+  for a moment while it refuses (``coverage --out /``), and other programs take it.
+
+Both are dropped by the system when the process ends, killed or not: no lock file.
+"""
+
+from __future__ import annotations
+
+import fcntl
+import os
+import struct
+import sys
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+from sensorgap.errors import InputError
+
+#: The folder locks this process holds (``folder_lock``): (device, inode) of the folder
+#: -> [open descriptor holding the ``flock``, how many blocks hold it now].
+_HELD: dict[tuple[int, int], list[int]] = {}
+#: ``held_until_done`` blocks running: a lock whose blocks ended stays held until then.
+_UNTIL_DONE = [0]
+
+
+def _key(folder: str | Path) -> tuple[int, int] | None:
+    """(device, inode) of ``folder``, None when it is not there."""
+    try:
+        st = os.stat(folder)
+    except OSError:
+        return None
+    return st.st_dev, st.st_ino
+
+
+def holds_lock(folder: str | Path) -> bool:
+    """Whether this process holds ``folder``'s lock (``folder_lock``): then no other
+    sensorgap command writes it, and a restore folder there that no block of this process
+    uses is a left-over of a killed command (``filesio.write_manifest`` removes it)."""
+    key = _key(folder)
+    return key is not None and key in _HELD
+
+
+def locked_elsewhere(folder: str | Path) -> bool:
+    """Whether another process holds ``folder``'s lock (``folder_lock``: a sensorgap
+    command is writing it now), tested without waiting: a shared ``flock`` taken and
+    released at once (a reader such as ``verify``; it never conflicts with another
+    reader). False when this process holds the lock, or the folder cannot be opened."""
+    if holds_lock(folder):
+        return False
+    try:
+        fd = os.open(folder, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
+    except OSError:
+        return False
+    try:
+        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+    except BlockingIOError:
+        return True
+    except OSError:
+        return False
+    finally:
+        os.close(fd)  # closing the only descriptor releases a lock taken
+    return False
+
+
+@contextmanager
+def folder_lock(folder: str | Path) -> Iterator[None]:
+    """Hold the exclusive lock of the existing folder ``folder`` while the block runs:
+    an ``flock`` on the folder itself (no lock file in the run folder; the system drops
+    it when the process ends, killed or not). Every sensorgap command that writes into a
+    run folder takes it before any work, so two commands never write one folder at once
+    (one's restore put its start snapshot back over the other's finished output). Taken
+    again by the same process it is shared (the job, then its search). Held by another
+    process -> ``InputError`` naming the folder, at once (no waiting)."""
+    fd = os.open(folder, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
+    st = os.fstat(fd)
+    key = (st.st_dev, st.st_ino)
+    if key in _HELD:
+        os.close(fd)
+        _HELD[key][1] += 1
+    else:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            os.close(fd)
+            raise InputError(
+                folder,
+                "",
+                "another sensorgap command is writing this folder now; wait for it to "
+                "finish, or write somewhere else",
+            ) from None
+        _HELD[key] = [fd, 1]
+    try:
+        yield
+    finally:
+        entry = _HELD[key]
+        entry[1] -= 1
+        if entry[1] == 0 and not _UNTIL_DONE[0]:
+            del _HELD[key]
+            os.close(entry[0])
+            _drop_marks(key)
+
+
+@contextmanager
+def held_until_done() -> Iterator[None]:
+    """Every folder lock taken while the block runs stays held until it ends (a command:
+    the search of ``sensorgap search`` locks its folder, and the command still writes
+    its manifest after)."""
+    _UNTIL_DONE[0] += 1
+    try:
+        yield
+    finally:
+        _UNTIL_DONE[0] -= 1
+        if not _UNTIL_DONE[0]:
+            _RECHECKS.clear()  # the command ended: none is left for a later one
+            for key, entry in list(_HELD.items()):
+                if entry[1] == 0:
+                    del _HELD[key]
+                    os.close(entry[0])
+                    _drop_marks(key)
+
+
+#: The bytes of a folder's writing marker (``writing``): a command writing some files
+#: there, one certifying the folder (its manifest lists everything below it).
+WRITES, CERTIFIES = 0, 1
+#: Folders below a certifying command's own looked at for other commands' markers at
+#: most (a folder with more entries is refused as crowded before any of this).
+MAX_MARKED_FOLDERS = 20_000
+#: The markers this process holds: ((device, inode) of the folder, byte) -> descriptor.
+_MARKS: dict[tuple[tuple[int, int], int], int] = {}
+#: Checks a command passed before its work, repeated once its folder is marked
+#: (``recheck_when_marked``): absolute path of the folder -> the check.
+_RECHECKS: dict[str, Callable[[], None]] = {}
+#: ``struct flock`` of 64-bit Linux: l_type, l_whence, l_start, l_len, l_pid (+ padding).
+_FLOCK = struct.Struct("hhqqi4x")
+#: Open-file-description locks exist (Linux 3.15 and later, 64-bit): elsewhere no marker
+#: is taken nor looked for (the ``flock`` of each folder still applies).
+_MARKERS = sys.platform == "linux" and hasattr(fcntl, "F_OFD_SETLK") and sys.maxsize > 2**32
+
+
+def recheck_when_marked(folder: str | Path, check: Callable[[], None]) -> None:
+    """Repeat ``check`` (it raises ``InputError`` to refuse) once ``writing`` has marked
+    ``folder``, in this command. ``filesio.refuse_inside_certified`` passes before the
+    command's work; another command certifying a folder above may finish (its manifest
+    written, its marker gone) before this one marks its own: looked at again after the
+    marker, one of the two always sees the other (hostile round 37's F1, replayed: the
+    near field into P/sub passed while the corridor into P was still running, and was
+    written into P after P's manifest)."""
+    _RECHECKS[os.path.abspath(folder)] = check
+
+
+def _drop_marks(key: tuple[int, int]) -> None:
+    """Release this process's markers on the folder ``key`` (its lock was released)."""
+    for byte in (WRITES, CERTIFIES):
+        fd = _MARKS.pop((key, byte), None)
+        if fd is not None:
+            os.close(fd)
+
+
+def _open_folder(folder: str | Path) -> int | None:
+    """A read-only descriptor of the folder ``folder``, None when it cannot be opened."""
+    try:
+        return os.open(folder, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
+    except OSError:
+        return None
+
+
+def _marked_elsewhere(folder: str | Path, lock_bytes: tuple[int, ...]) -> bool:
+    """Whether another process holds a marker of ``folder`` on one of ``lock_bytes``
+    (``F_OFD_GETLK``: would an exclusive lock of that byte conflict). A byte this
+    process marks itself is not looked at (its own marker would answer). False when the
+    folder cannot be opened or its file system has no such locks."""
+    fd = _open_folder(folder)
+    if fd is None:
+        return False
+    try:
+        st = os.fstat(fd)
+        key = (st.st_dev, st.st_ino)
+        for byte in lock_bytes:
+            if (key, byte) in _MARKS:
+                continue
+            probe = _FLOCK.pack(fcntl.F_WRLCK, os.SEEK_SET, byte, 1, 0)
+            found = _FLOCK.unpack(fcntl.fcntl(fd, fcntl.F_OFD_GETLK, probe))
+            if found[0] != fcntl.F_UNLCK:
+                return True
+    except OSError:
+        return False
+    finally:
+        os.close(fd)
+    return False
+
+
+def _busy_nested(folder: Path, certifies: bool) -> tuple[str, Path] | None:
+    """(how, where) of the nearest other command's marker that clashes with writing
+    ``folder``: a folder above it or itself being certified ("inside"); for a certifying
+    command also the folder itself being written or any folder below it (not through
+    symbolic links) being written or certified ("holds"). None when there is none."""
+    try:
+        where = folder.resolve()
+    except (OSError, RuntimeError):  # a loop of links: the path as given
+        where = Path(os.path.abspath(folder))
+    for above in (where, *where.parents):
+        if _marked_elsewhere(above, (CERTIFIES,)):
+            return "inside", above
+    if not certifies:
+        return None
+    if _marked_elsewhere(where, (WRITES,)):
+        return "holds", where
+    seen = 0
+    for dirpath, dirnames, _files in os.walk(where):
+        for name in dirnames:
+            sub = Path(dirpath) / name
+            if not sub.is_symlink() and _marked_elsewhere(sub, (WRITES, CERTIFIES)):
+                return "holds", sub
+        seen += len(dirnames)
+        if seen > MAX_MARKED_FOLDERS:
+            break
+    return None
+
+
+@contextmanager
+def writing(folder: str | Path, certifies: bool) -> Iterator[None]:
+    """Mark the existing folder ``folder`` as being written by this command while the
+    block runs (see the module docstring; taken once every refusal of the command
+    passed, just before it writes), and refuse (``InputError`` naming the folder, the
+    marker released) when another command's marker clashes (``_busy_nested``): a folder
+    above being certified, or, ``certifies``, one below being written. Two commands
+    starting at once on nested folders may both be refused, never both let through (each
+    marks before it looks). A marker of a folder whose lock this process holds stays
+    until that lock is released (``folder_lock``, ``held_until_done``: the command still
+    writes its manifest after the block)."""
+    fd = _open_folder(folder) if _MARKERS else None
+    if fd is None:  # no marker here (the command's own write reports a missing folder)
+        yield
+        return
+    st = os.fstat(fd)
+    key = (st.st_dev, st.st_ino)
+    mine = (key, CERTIFIES if certifies else WRITES)
+    new = mine not in _MARKS
+    if not new:
+        os.close(fd)
+    else:
+        try:
+            shared = _FLOCK.pack(fcntl.F_RDLCK, os.SEEK_SET, mine[1], 1, 0)
+            fcntl.fcntl(fd, fcntl.F_OFD_SETLK, shared)
+        except OSError:  # a file system without such locks: no marker
+            os.close(fd)
+            yield
+            return
+        _MARKS[mine] = fd
+    try:
+        busy = _busy_nested(Path(folder), certifies)
+    except BaseException:
+        if new:
+            os.close(_MARKS.pop(mine))
+        raise
+    if busy is not None:
+        if new:
+            os.close(_MARKS.pop(mine))
+        how, where = busy
+        if how == "inside":
+            why = (
+                f"lies inside {where}, which another sensorgap command is writing now (it "
+                "certifies that folder when it ends, and its manifest.json would not list "
+                "these files): write somewhere outside it, or wait until that command ends"
+            )
+        else:
+            why = (
+                f"holds {where}, which another sensorgap command is writing now (this "
+                "command would certify its files half-written): write somewhere else, or "
+                "wait until that command ends"
+            )
+        raise InputError(folder, "", why)
+    check = _RECHECKS.pop(os.path.abspath(folder), None)
+    if check is not None:
+        try:
+            check()
+        except BaseException:
+            if new:
+                os.close(_MARKS.pop(mine))
+            raise
+    try:
+        yield
+    finally:
+        if new and key not in _HELD and mine in _MARKS:
+            os.close(_MARKS.pop(mine))
