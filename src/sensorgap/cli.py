@@ -876,6 +876,15 @@ def cmd_report(args: argparse.Namespace) -> int:
     return 0
 
 
+def _has_run(folder: Path) -> bool:
+    """Whether ``folder`` or a folder directly below it holds a search's ``run.json``."""
+    from sensorgap.search.runfolder import RUN_JSON
+
+    return (folder / RUN_JSON).is_file() or any(
+        (p / RUN_JSON).is_file() for p in folder.iterdir() if p.is_dir() and not p.is_symlink()
+    )
+
+
 def _refuse_locked(folder: Path) -> None:
     """``verify`` of a folder another sensorgap command is writing now (it holds the
     folder's lock, ``locks.locked_elsewhere``): its files are half-written and its
@@ -894,6 +903,7 @@ def _refuse_locked(folder: Path) -> None:
 def cmd_verify(args: argparse.Namespace) -> int:
     """Check a run folder against its manifest (nothing lost or changed)."""
     from sensorgap.filesio import verify_manifest
+    from sensorgap.search.runfolder import check_recorded
 
     if not str(args.folder).strip():  # '' would verify the working directory
         raise InputError(
@@ -919,7 +929,15 @@ def cmd_verify(args: argparse.Namespace) -> int:
         _refuse_locked(folder)  # a command that started while it was checked
         more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""
         raise InputError(manifest, "files", f"{problems[0]}{more}")
-    print(f"{folder}: every file of the manifest is present and unchanged")
+    try:  # the recorded inputs as export and report read them
+        check_recorded(folder)
+    except InputError:
+        _refuse_locked(folder)
+        raise
+    print(
+        f"{folder}: every file of the manifest is present and unchanged"
+        + (", and every recorded input matches run.json" if _has_run(folder) else "")
+    )
     return 0
 
 

@@ -235,6 +235,36 @@ def test_a_changed_input_is_named_and_a_modified_copy_refused(
     assert len(err2) == 1 and "was modified" in err2[0] and "my_envs.toml" in err2[0]
 
 
+@pytest.mark.parametrize("layout", ["run", "job"])
+def test_verify_refuses_a_recorded_copy_edited_with_the_manifest_rehashed(
+    custom: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str], layout: str
+) -> None:
+    """A recorded copy edited and every manifest re-hashed (a forged run): ``verify``
+    said OK while ``report`` and ``export`` refused it (remark of session 26). It now reads
+    the recorded inputs as they do: one line naming the copy, exit 2; a job's OUT checks
+    each vehicle folder below it."""
+    from sensorgap.filesio import write_manifest
+
+    out = tmp_path / "OUT"
+    run = out / "system_b" if layout == "job" else out
+    shutil.copytree(custom["run"], run)
+    write_manifest(run)
+    if layout == "job":
+        write_manifest(out)
+    capsys.readouterr()
+    assert main(["verify", str(out)]) == 0
+    said = capsys.readouterr().out
+    assert "every recorded input matches run.json" in said, said
+    copy = run / "inputs" / "environments" / "my_envs.toml"
+    copy.write_text(copy.read_text(encoding="utf-8") + "\n# forged\n", encoding="utf-8")
+    write_manifest(run)
+    if layout == "job":
+        write_manifest(out)
+    assert main(["verify", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and str(copy) in err[0] and "was modified" in err[0], err
+
+
 def test_a_run_without_recorded_inputs_is_refused(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+import os
 import re
 import sys
 from dataclasses import dataclass, field
@@ -541,9 +542,9 @@ class RunFolder:
             ev.targets_source = str(recorded)
         return ev
 
-    def check_inputs(self) -> None:
+    def check_inputs(self, warn: bool = True) -> None:
         """Verify the recorded copies against their SHA-256 (a modified copy is bad
-        input) and warn, one line, about originals changed since the run."""
+        input) and, ``warn``, warn, one line, about originals changed since the run."""
         inputs = self.info.get("inputs")
         if not isinstance(inputs, dict):
             return
@@ -594,7 +595,7 @@ class RunFolder:
                 and sha256_of(orig) != e["sha256"]
             ):
                 changed.append(f"{label} {orig}")
-        if changed:
+        if changed and warn:
             say(
                 f"warning: {self.folder}: input changed since the run: "
                 + "; ".join(changed)
@@ -900,10 +901,11 @@ def _entries(inputs: dict[str, Any]) -> list[tuple[str, dict[str, Any]]]:
     return out
 
 
-def open_run(folder: Path, ranking: bool = True) -> RunFolder:
+def open_run(folder: Path, ranking: bool = True, warn: bool = True) -> RunFolder:
     """Read a run folder (see the module docstring). ``ranking``: ``ranking.json`` is
-    required (else a folder without it reads as one with no ranked scenarios). Bad input
-    -> ``InputError`` naming the file and field."""
+    required (else a folder without it reads as one with no ranked scenarios). ``warn``:
+    one line about recorded originals changed since the run. Bad input -> ``InputError``
+    naming the file and field."""
     folder = Path(folder)
     if not folder.is_dir():
         raise InputError(
@@ -921,7 +923,7 @@ def open_run(folder: Path, ranking: bool = True) -> RunFolder:
         rows, settings, data, vehicle = _read_ranking(folder)
     run = RunFolder(folder, rows, settings, info, vehicle, data)
     if run.recorded:
-        run.check_inputs()
+        run.check_inputs(warn)
         if run.searched:  # run.json and ranking.json as the search's store recorded them
             run.check_store()
     elif rows:  # rebuilding from presets of the same names could silently differ
@@ -934,6 +936,26 @@ def open_run(folder: Path, ranking: bool = True) -> RunFolder:
             "the search again",
         )
     return run
+
+
+def check_recorded(folder: Path) -> None:
+    """The run folders of ``folder`` (itself, and for a job's OUT each vehicle folder
+    directly below it) that hold ``run.json``, read as ``export`` and ``report`` read them
+    (``open_run``, no warning about changed originals): every recorded copy matching the
+    SHA-256 ``run.json`` gives it, ``run.json`` and ``ranking.json`` what the search's
+    store recorded. ``verify`` checks this after the manifest: a copy edited with the
+    manifest re-hashed passed ``verify`` and was refused by ``report`` (remark of
+    session 26). ``InputError`` naming the file and field."""
+    runs = [folder] if (folder / RUN_JSON).is_file() else []
+    try:
+        below = sorted(os.scandir(folder), key=lambda e: e.name)
+    except OSError:
+        below = []
+    for entry in below:
+        if entry.is_dir(follow_symlinks=False) and (Path(entry.path) / RUN_JSON).is_file():
+            runs.append(Path(entry.path))
+    for run in runs:
+        open_run(run, ranking=False, warn=False)
 
 
 def read_run(folder: Path) -> RunFolder:
