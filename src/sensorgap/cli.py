@@ -22,7 +22,7 @@ single_blas_thread()  # before numpy is imported (by filesio): see its docstring
 
 from sensorgap.atomic import removed_on_error
 from sensorgap.config.common import parse_decimal, parse_integer
-from sensorgap.errors import InputError, clip, cut_name
+from sensorgap.errors import InputError, clip, cut_name, notes_after_success
 from sensorgap.filesio import (
     MANIFEST_NAME,
     refuse_certified_by_other,
@@ -1662,7 +1662,9 @@ def _main(argv: Sequence[str] | None) -> int:
                 locks.enter_context(folder_lock(folder))
             for folder in _new_report_inputs(args):  # RUN/nearfield, made by this command
                 _lock_job_out(folder, locks, args.command)
-            with guarded_stdout():
+            # (a note such as "input changed since the run" only when the command succeeds:
+            # a refused one prints its one error line)
+            with guarded_stdout(), notes_after_success():
                 return func(args)
     except StdoutUnwritable as exc:
         if exc.closed:

@@ -8,6 +8,9 @@ error (exit code 1).
 from __future__ import annotations
 
 import re
+import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 #: Longest value quoted in an error line, characters (a longer one is cut: its first
@@ -142,3 +145,38 @@ class InputError(Exception):
     def lines(self) -> list[str]:
         """Every error found: this one, then the others, one line each."""
         return [self.line(), *(e.line() for e in self.more)]
+
+
+#: Lines already printed in this process (each warning or note once per folder).
+_SAID: set[str] = set()
+
+
+#: Lines held while a command runs (``notes_after_success``), printed when it succeeds.
+_HELD_NOTES: list[list[str]] = []
+
+
+def say(text: str) -> None:
+    """One line on stderr, once per process (made safe and short by ``errors.clip``);
+    held until the command succeeds inside ``notes_after_success``."""
+    if text not in _SAID:
+        _SAID.add(text)
+        if _HELD_NOTES:
+            _HELD_NOTES[-1].append(text)
+        else:
+            print(clip(f"sensorgap: {text}"), file=sys.stderr)
+
+
+@contextmanager
+def notes_after_success() -> Iterator[None]:
+    """Hold ``say``'s lines while the block runs (a CLI command) and print them when it
+    ends without an exception; a failed command prints its one error line only (remark of
+    session 26: "input changed since the run", then the refusal of another input, two
+    lines). A later command in the process says them again."""
+    _HELD_NOTES.append([])
+    try:
+        yield
+    except BaseException:
+        _SAID.difference_update(_HELD_NOTES.pop())
+        raise
+    for text in _HELD_NOTES.pop():
+        print(clip(f"sensorgap: {text}"), file=sys.stderr)

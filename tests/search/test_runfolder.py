@@ -265,6 +265,40 @@ def test_verify_refuses_a_recorded_copy_edited_with_the_manifest_rehashed(
     assert len(err) == 1 and str(copy) in err[0] and "was modified" in err[0], err
 
 
+def test_a_refused_command_prints_one_line_not_the_changed_input_note(
+    custom: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """An original changed since the run gives a note ("input changed since the run");
+    a command that is then refused for another reason printed the note and its error, two
+    lines (remark of session 26). The note is held until the command succeeds: refused,
+    one line; the same command succeeding then prints the note."""
+    copy = tmp_path / "run"
+    shutil.copytree(custom["run"], copy)
+    changed = tmp_path / "my_envs.toml"
+    changed.write_text(
+        custom["envs"].read_text(encoding="utf-8") + "\n# edited\n", encoding="utf-8"
+    )
+    info = json.loads((copy / "run.json").read_text(encoding="utf-8"))
+    info["inputs"]["environments"]["path"] = str(changed)
+    (copy / "run.json").write_text(json.dumps(info), encoding="utf-8")
+    r = json.loads((copy / "ranking.json").read_text(encoding="utf-8"))["ranking"][0]
+    argv = ["evaluate", "--run", str(copy), "--family", "my_cut_in", "--environment", "clear"]
+    if r.get("sun_azimuth_deg") is not None:
+        argv += ["--sun", f"{r['sun_azimuth_deg']!r}/{r['sun_elevation_deg']!r}"]
+    argv += [
+        f"--param={k[2:]}={v}"
+        for k, v in r.items()
+        if k.startswith("p_") and k[2:] not in ("never_confirmed", "undetected_end")
+    ]
+    capsys.readouterr()
+    assert main([*argv, "--param", "no_such=1", "--out", str(tmp_path / "e1")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "no_such" in err[0], err
+    assert main([*argv, "--out", str(tmp_path / "e2")]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "input changed since the run" in err[0], err
+
+
 def test_a_run_without_recorded_inputs_is_refused(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -30,7 +30,6 @@ import hashlib
 import math
 import os
 import re
-import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -47,7 +46,7 @@ from sensorgap.config.reaction import (
     load_reaction,
     reactions_path,
 )
-from sensorgap.errors import InputError, clip
+from sensorgap.errors import InputError, say
 from sensorgap.filesio import (
     is_temporary,
     loads_json,
@@ -98,17 +97,6 @@ RUN_INFO_FIELDS: dict[str, type] = {
     "config_sha256": dict,
     "inputs": dict,
 }
-
-#: Lines already printed in this process (each warning or note once per folder).
-_SAID: set[str] = set()
-
-
-def say(text: str) -> None:
-    """One line on stderr, once per process (made safe and short by ``errors.clip``)."""
-    if text not in _SAID:
-        _SAID.add(text)
-        print(clip(f"sensorgap: {text}"), file=sys.stderr)
-
 
 # -- recording -------------------------------------------------------------------------
 
