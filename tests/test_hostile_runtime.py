@@ -580,7 +580,8 @@ def test_a_flooding_or_hanging_esmini_stays_bounded(tmp_path: Path) -> None:
     flood = script("flood.sh", "yes 'flood line' | head -c 200000000\necho 'last words' >&2")
     before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     res = simulate.run_esmini(flood, xosc, work, 60.0, 0.05)
-    assert res == "crashed: esmini exit code 0: last words"
+    # (it was called "crashed: esmini exit code 0"; it ended normally without its log)
+    assert res == "bad log: esmini ended with exit code 0 without writing log.csv: last words"
     assert resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before < 100_000  # KiB
     marker = tmp_path / "still_running"
     wrapper = script("wrap.sh", f"(sleep 1.5; touch {marker}) &\nsleep 30")
@@ -598,6 +599,37 @@ def test_a_flooding_or_hanging_esmini_stays_bounded(tmp_path: Path) -> None:
     assert simulate.run_esmini(quick, xosc, work, 60.0, 0.05) == "crashed: esmini exit code 3: "
     time.sleep(max(0.0, t0 + 1.2 - time.perf_counter()))
     assert not left.exists()  # what it left running was killed when it ended
+
+
+def test_an_esmini_script_with_windows_line_ends_is_named_for_its_interpreter(
+    tmp_path: Path,
+) -> None:
+    """A wrapper script saved with Windows line ends asks for ``/bin/sh\\r``, and the
+    system says "No such file or directory" naming the script, which exists (remark of
+    session 25). The reason names its #! line and the carriage return."""
+    from sensorgap.export import simulate
+
+    crlf = tmp_path / "esmini"
+    crlf.write_bytes(b"#!/bin/sh\r\necho hi\r\n")
+    crlf.chmod(0o755)
+    work = tmp_path / "work"
+    work.mkdir()
+    xosc = tmp_path / "s.xosc"
+    xosc.write_text("<OpenSCENARIO/>")
+    res = simulate.run_esmini(crlf, xosc, work, 60.0, 0.05)
+    assert isinstance(res, str)
+    assert res == (
+        f"error: cannot run esmini: {crlf}: the interpreter of its #! line (/bin/sh\\r) was "
+        "not found (the line ends in a carriage return: saved with Windows line ends)"
+    ), res
+    gone = tmp_path / "gone"
+    gone.write_bytes(b"#!/no/such/shell\necho hi\n")
+    gone.chmod(0o755)
+    res = simulate.run_esmini(gone, xosc, work, 60.0, 0.05)
+    assert res == (
+        f"error: cannot run esmini: {gone}: the interpreter of its #! line (/no/such/shell) "
+        "was not found"
+    ), res
 
 
 def test_an_oversized_esmini_log_is_a_bad_log(

@@ -17,6 +17,7 @@ run.
 from __future__ import annotations
 
 import contextlib
+import errno
 import math
 import os
 import re
@@ -442,17 +443,39 @@ def run_esmini(
                 with contextlib.suppress(OSError):
                     os.killpg(proc.pid, signal.SIGKILL)
     except OSError as exc:
-        return f"error: cannot run esmini: {exc}"
+        return f"error: cannot run esmini: {_start_failure(exc, esmini)}"
     if proc.returncode != 0 or not log.is_file():
         tail = _tail(outputs[1]) or _tail(outputs[0])
         # its last line, control characters escaped (a terminal's escape sequences were
         # printed and written to simulation.csv raw: hostile round eighteen, F12)
         last = escape_unprintable(tail.splitlines()[-1]) if tail else ""
+        if proc.returncode == 0:  # (it was called "crashed: esmini exit code 0")
+            why = f"esmini ended with exit code 0 without writing {log.name}"
+            return f"bad log: {why}: {last}"[:300]
         return f"crashed: esmini exit code {proc.returncode}: {last}"[:300]
     if text_log.is_file() and text_log.stat().st_size > MAX_ESMINI_LOG_BYTES:
         return f"bad log: {text_log}: larger than {MAX_ESMINI_LOG_BYTES} bytes"
     text = text_log.read_text(encoding="utf-8", errors="replace") if text_log.is_file() else ""
     return log, text
+
+
+def _start_failure(exc: OSError, esmini: Path) -> str:
+    """Why esmini could not be started, in words: a missing file reported for a program
+    that exists is its ``#!`` interpreter (a script saved with Windows line ends asks for
+    ``/bin/sh\\r``; it read "No such file or directory", naming the script)."""
+    if exc.errno == errno.ENOENT and esmini.is_file():
+        try:
+            with esmini.open("rb") as f:
+                first = f.readline(256)
+        except OSError:
+            first = b""
+        if first.startswith(b"#!"):
+            line = escape_unprintable(first[2:].decode("utf-8", "backslashreplace").rstrip("\n"))
+            crlf = " (the line ends in a carriage return: saved with Windows line ends)"
+            return f"{esmini}: the interpreter of its #! line ({line.strip()}) was not found" + (
+                crlf if first.rstrip(b"\n").endswith(b"\r") else ""
+            )
+    return str(exc)
 
 
 def _tail(path: Path) -> str:
