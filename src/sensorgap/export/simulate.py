@@ -222,6 +222,10 @@ def parse_esmini_csv(path: Path) -> SimPaths:
         for i in numeric:
             try:
                 number = float(row[i])
+                # float() also reads '1_0' and other scripts' digits ('١'), which no CSV
+                # reader takes for numbers (remark of session 26)
+                if "_" in row[i] or not row[i].isascii():
+                    raise ValueError(row[i])
             except ValueError:
                 shown = cut_quoted(repr(row[i].strip()))
                 raise ValueError(f"{path}: line {n}: {cols[i]} is {shown}; not a number") from None
