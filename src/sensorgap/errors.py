@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import re
 import sys
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -180,3 +180,28 @@ def notes_after_success() -> Iterator[None]:
         raise
     for text in _HELD_NOTES.pop():
         print(clip(f"sensorgap: {text}"), file=sys.stderr)
+
+
+def shell_quote(arg: str) -> str:
+    """``arg`` quoted for a POSIX shell (``shlex.quote``), or, when it holds bytes that
+    are not valid UTF-8 (a path read with ``surrogateescape``) or control characters, as
+    bash's ``$'...'`` with every such byte as ``\\xNN``: a "Reproduce with" line that can
+    be pasted (a non-UTF-8 folder name showed as ``\\udcff``, which no shell reads back;
+    remark of session 25)."""
+    import shlex
+
+    if not any(0xDC80 <= ord(c) <= 0xDCFF or not c.isprintable() for c in arg):
+        return shlex.quote(arg)
+    out = []
+    for b in arg.encode("utf-8", "surrogateescape"):
+        c = chr(b)
+        if 0x20 <= b < 0x7F and c not in "'\\":
+            out.append(c)
+        else:
+            out.append(f"\\x{b:02x}")
+    return "$'" + "".join(out) + "'"
+
+
+def shell_join(args: Iterable[str]) -> str:
+    """``args`` as one shell command line, each quoted by ``shell_quote``."""
+    return " ".join(shell_quote(a) for a in args)

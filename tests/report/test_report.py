@@ -392,7 +392,27 @@ def test_a_run_folder_named_with_control_characters_is_written_escaped(
     line = next(ln for ln in md.splitlines() if ln.startswith("Reproduce with: "))
     # a search run through the library records no command: the line is the report's own
     assert info.get("command") is None
-    assert line.endswith("'" + str(run).replace("\x1b", "\\x1b") + "'"), line
+    # bash's $'...' gives the ESC back when the line is pasted (shlex's '...' did not)
+    assert line.endswith(" $'" + str(run).replace("\x1b", "\\x1b") + "'"), line
+
+
+def test_shell_quote_gives_back_what_a_shell_reads() -> None:
+    """The "Reproduce with" line of a run folder whose name is not valid UTF-8 showed
+    ``\\udcff``, which no shell reads back (remark of session 25). ``errors.shell_quote``
+    writes such bytes, and control characters, as bash's ``$'\\xNN'``; bash itself reads
+    each quoted word back to the same bytes."""
+    import os
+    import subprocess
+
+    from sensorgap.errors import shell_join, shell_quote
+
+    words = [os.fsdecode(b"/tmp/a\xffb"), "x\x1b[2J", "a b'c", "\u00e9t\u00e9", "plain", "\\"]
+    assert shell_quote(words[0]) == "$'/tmp/a\\xffb'"
+    assert shell_quote(words[4]) == "plain"
+    out = subprocess.run(
+        ["bash", "-c", "printf '%s\\0' " + shell_join(words)], capture_output=True, check=True
+    ).stdout
+    assert out.split(b"\0")[:-1] == [os.fsencode(w) for w in words]
 
 
 def test_a_file_given_as_the_run_is_said_to_be_one(

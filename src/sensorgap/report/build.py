@@ -16,14 +16,13 @@ import csv
 import json
 import math
 import os
-import shlex
 from pathlib import Path
 from typing import Any
 
 from sensorgap.atomic import atomic_write_text
 from sensorgap.config.presets import templates_dir
 from sensorgap.coverage.outputs import read_coverage_npz
-from sensorgap.errors import InputError, cut_quoted
+from sensorgap.errors import InputError, cut_quoted, shell_join
 from sensorgap.export.simulate import read_catalog_index
 from sensorgap.export.spec import ScenarioSpec
 from sensorgap.filesio import not_a_run_folder, regular_file_size
@@ -1199,7 +1198,7 @@ def build(folder: Path) -> tuple[str, list[str], Section, list[Section]]:
                     [[k, json.dumps(v, sort_keys=True)] for k, v in sorted(settings.items())],
                     "Settings",
                 ),
-                Para("Reproduce with: " + shlex.join(str(a) for a in repro)),
+                Para("Reproduce with: " + shell_join(str(a) for a in repro)),
                 Para("Every file of the folder with its SHA-256: manifest.json."),
             ],
         ),

@@ -25,13 +25,13 @@ and carries the ``sensorgap evaluate`` command that reproduces it.
 from __future__ import annotations
 
 import math
-import shlex
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from sensorgap.atomic import atomic_write_bytes, utf8
 from sensorgap.config import EnvironmentConfig, load_environments
+from sensorgap.errors import shell_quote
 from sensorgap.filesio import format_float, write_json
 from sensorgap.models import System
 from sensorgap.scenarios import load_families
@@ -150,7 +150,7 @@ def evaluate_anchors(
             for k, v in case.params.items()
         )
         row["command"] = (
-            f"sensorgap evaluate --vehicle {shlex.quote(vehicle_ref or system.name)} "
+            f"sensorgap evaluate --vehicle {shell_quote(vehicle_ref or system.name)} "
             f"--family {case.family} --environment {case.environment} "
             f"{params} --out OUT"
         )
