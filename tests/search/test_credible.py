@@ -369,3 +369,15 @@ def test_evaluate_takes_the_rankings_environment_label(tmp_path: Path) -> None:
     c = tmp_path / "c"
     argv = [*base, "--environment", "clear@sun78/4", "--sun", "70/4", "--out", str(c)]
     assert main(argv) == 2 and not c.exists()
+
+
+def test_a_negative_zero_sun_is_the_sun_at_zero() -> None:
+    """``--sun -0/-0`` got a label and a scenario id of its own, though equal in every
+    metric to ``0/0`` (remark of session 26): both parsers give +0."""
+    import math
+
+    from sensorgap.search.whatif import _checked_sun, parse_sun
+
+    for sun in (parse_sun("-0/-0"), _checked_sun((-0.0, -0.0))):
+        assert sun == (0.0, 0.0)
+        assert sun is not None and all(math.copysign(1.0, v) == 1.0 for v in sun)

@@ -98,7 +98,7 @@ def parse_sun(text: str | None) -> tuple[float, float] | None:
             "",
             f"expected AZ/EL in degrees with 0 <= AZ < 360 and -90 <= EL <= 90, got {text!r}",
         )
-    return az, el
+    return az + 0.0, el + 0.0  # -0 is 0 (it got a label and a scenario id of its own)
 
 
 def _check_out(out: Path) -> None:
@@ -131,7 +131,7 @@ def _checked_sun(sun: object) -> tuple[float, float] | None:
             "expected (azimuth, elevation) in degrees with 0 <= azimuth < 360 and "
             f"-90 <= elevation <= 90, got {shown(sun)}",
         )
-    return az, el
+    return az + 0.0, el + 0.0  # -0 is 0 (as parse_sun)
 
 
 def evaluate_candidate(
