@@ -19,6 +19,7 @@ import sys
 from collections.abc import Iterator
 from contextlib import contextmanager, nullcontext
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -720,6 +721,62 @@ def test_an_out_nested_with_a_folder_another_command_is_writing_is_refused(
     else:
         assert f"{outer}: holds {inner}," in err[0], err
     assert tree_state(outer) == before
+
+
+@contextmanager
+def on_another_thread(block: Any) -> Iterator[None]:
+    """The context manager ``block`` entered on another thread of this process, held
+    while the ``with`` runs (a second library call running beside this one)."""
+    import threading
+
+    entered, leave = threading.Event(), threading.Event()
+    failed: list[BaseException] = []
+
+    def hold() -> None:
+        try:
+            with block:
+                entered.set()
+                leave.wait(60)
+        except BaseException as exc:  # (shown by the assert below)
+            failed.append(exc)
+            entered.set()
+
+    worker = threading.Thread(target=hold)
+    worker.start()
+    entered.wait(60)
+    try:
+        assert not failed, failed
+        yield
+    finally:
+        leave.set()
+        worker.join(60)
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="open-file-description locks")
+@pytest.mark.parametrize("where", ["same", "above", "below"])
+def test_a_call_on_another_thread_counts_as_another_command(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], where: str
+) -> None:
+    """Hostile round 40: two ``find_scenarios`` calls on two threads of one process, on
+    nested folders, both ran (the lock and the markers were the process's, shared by its
+    threads) and ``verify`` of the outer folder failed; on one folder, one failed mid-work.
+    A lock or marker another thread holds is another command's: refused at once."""
+    from sensorgap.locks import writing
+
+    outer = tmp_path / "P"
+    inner = outer / "sub"
+    inner.mkdir(parents=True)
+    held = {"same": folder_lock(outer), "above": writing(outer, certifies=True)}
+    block = held.get(where, writing(inner, certifies=True))
+    out = inner if where == "above" else outer
+    before = tree_state(outer)
+    with on_another_thread(block):
+        capsys.readouterr()
+        assert main([*NESTED_ARGV[0], "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "another sensorgap command is writing" in err[0], err
+    assert tree_state(outer) == before
+    assert main([*NESTED_ARGV[0], "--out", str(out)]) == 0  # once the other call ended
 
 
 @pytest.mark.parametrize("argv", NESTED_ARGV, ids=["nearfield", "search"])

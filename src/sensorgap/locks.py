@@ -24,6 +24,7 @@ import fcntl
 import os
 import struct
 import sys
+import threading
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -31,10 +32,32 @@ from pathlib import Path
 from sensorgap.errors import InputError
 
 #: The folder locks this process holds (``folder_lock``): (device, inode) of the folder
-#: -> [open descriptor holding the ``flock``, how many blocks hold it now].
+#: -> [open descriptor holding the ``flock``, how many blocks hold it now, the thread
+#: that holds it]. A lock or marker another thread of this process holds counts as
+#: another command's (hostile round 40: two ``find_scenarios`` calls on threads of one
+#: process, on nested folders, both ran and ``verify`` of the outer folder failed).
 _HELD: dict[tuple[int, int], list[int]] = {}
-#: ``held_until_done`` blocks running: a lock whose blocks ended stays held until then.
-_UNTIL_DONE = [0]
+#: Guards ``_HELD`` and ``_MARKS`` (two threads taking one folder's lock at once).
+_GUARD = threading.RLock()
+#: The line of a folder another command (process or thread) writes now.
+_BUSY = (
+    "another sensorgap command is writing this folder now; wait for it to finish, or write "
+    "somewhere else"
+)
+#: Per thread, ``held_until_done`` blocks running: a lock whose blocks ended stays held
+#: until then.
+_LOCAL = threading.local()
+
+
+def _until_done() -> int:
+    """``held_until_done`` blocks running on this thread."""
+    return int(getattr(_LOCAL, "until_done", 0))
+
+
+def _mine(key: tuple[int, int]) -> bool:
+    """Whether this thread holds the lock of the folder ``key``."""
+    entry = _HELD.get(key)
+    return entry is not None and entry[2] == threading.get_ident()
 
 
 def _key(folder: str | Path) -> tuple[int, int] | None:
@@ -51,16 +74,18 @@ def holds_lock(folder: str | Path) -> bool:
     sensorgap command writes it, and a restore folder there that no block of this process
     uses is a left-over of a killed command (``filesio.write_manifest`` removes it)."""
     key = _key(folder)
-    return key is not None and key in _HELD
+    return key is not None and _mine(key)
 
 
 def locked_elsewhere(folder: str | Path) -> bool:
     """Whether another process holds ``folder``'s lock (``folder_lock``: a sensorgap
     command is writing it now), tested without waiting: a shared ``flock`` taken and
     released at once (a reader such as ``verify``; it never conflicts with another
-    reader). False when this process holds the lock, or the folder cannot be opened."""
-    if holds_lock(folder):
-        return False
+    reader). False when this thread holds the lock, or the folder cannot be opened; True
+    when another thread of this process does."""
+    key = _key(folder)
+    if key is not None and key in _HELD:
+        return not _mine(key)
     try:
         fd = os.open(folder, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
     except OSError:
@@ -83,54 +108,57 @@ def folder_lock(folder: str | Path) -> Iterator[None]:
     it when the process ends, killed or not). Every sensorgap command that writes into a
     run folder takes it before any work, so two commands never write one folder at once
     (one's restore put its start snapshot back over the other's finished output). Taken
-    again by the same process it is shared (the job, then its search). Held by another
-    process -> ``InputError`` naming the folder, at once (no waiting)."""
+    again by the same thread it is shared (the job, then its search). Held by another
+    process or another thread -> ``InputError`` naming the folder, at once (no
+    waiting)."""
     fd = os.open(folder, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
     st = os.fstat(fd)
     key = (st.st_dev, st.st_ino)
-    if key in _HELD:
-        os.close(fd)
-        _HELD[key][1] += 1
-    else:
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
+    with _GUARD:
+        if _mine(key):
             os.close(fd)
-            raise InputError(
-                folder,
-                "",
-                "another sensorgap command is writing this folder now; wait for it to "
-                "finish, or write somewhere else",
-            ) from None
-        _HELD[key] = [fd, 1]
+            _HELD[key][1] += 1
+        else:
+            try:
+                if key in _HELD:  # another thread's call
+                    raise BlockingIOError
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                os.close(fd)
+                raise InputError(folder, "", _BUSY) from None
+            _HELD[key] = [fd, 1, threading.get_ident()]
     try:
         yield
     finally:
-        entry = _HELD[key]
-        entry[1] -= 1
-        if entry[1] == 0 and not _UNTIL_DONE[0]:
-            del _HELD[key]
-            os.close(entry[0])
-            _drop_marks(key)
+        with _GUARD:
+            entry = _HELD[key]
+            entry[1] -= 1
+            if entry[1] == 0 and not _until_done():
+                del _HELD[key]
+                os.close(entry[0])
+                _drop_marks(key)
 
 
 @contextmanager
 def held_until_done() -> Iterator[None]:
     """Every folder lock taken while the block runs stays held until it ends (a command:
     the search of ``sensorgap search`` locks its folder, and the command still writes
-    its manifest after)."""
-    _UNTIL_DONE[0] += 1
+    its manifest after). Per thread."""
+    _LOCAL.until_done = _until_done() + 1
     try:
         yield
     finally:
-        _UNTIL_DONE[0] -= 1
-        if not _UNTIL_DONE[0]:
-            _RECHECKS.clear()  # the command ended: none is left for a later one
-            for key, entry in list(_HELD.items()):
-                if entry[1] == 0:
-                    del _HELD[key]
-                    os.close(entry[0])
-                    _drop_marks(key)
+        _LOCAL.until_done = _until_done() - 1
+        if not _until_done():
+            me = threading.get_ident()
+            with _GUARD:
+                for check in [k for k in _RECHECKS if k[0] == me]:
+                    del _RECHECKS[check]  # the command ended: none is left for a later one
+                for key, entry in list(_HELD.items()):
+                    if entry[1] == 0 and entry[2] == me:
+                        del _HELD[key]
+                        os.close(entry[0])
+                        _drop_marks(key)
 
 
 #: The bytes of a folder's writing marker (``writing``): a command writing some files
@@ -139,11 +167,12 @@ WRITES, CERTIFIES = 0, 1
 #: Folders below a certifying command's own looked at for other commands' markers at
 #: most (a folder with more entries is refused as crowded before any of this).
 MAX_MARKED_FOLDERS = 20_000
-#: The markers this process holds: ((device, inode) of the folder, byte) -> descriptor.
-_MARKS: dict[tuple[tuple[int, int], int], int] = {}
+#: The markers this process holds: ((device, inode) of the folder, byte) -> (descriptor,
+#: the thread that holds it).
+_MARKS: dict[tuple[tuple[int, int], int], tuple[int, int]] = {}
 #: Checks a command passed before its work, repeated once its folder is marked
-#: (``recheck_when_marked``): absolute path of the folder -> the check.
-_RECHECKS: dict[str, Callable[[], None]] = {}
+#: (``recheck_when_marked``): (thread, absolute path of the folder) -> the check.
+_RECHECKS: dict[tuple[int, str], Callable[[], None]] = {}
 #: ``struct flock`` of 64-bit Linux: l_type, l_whence, l_start, l_len, l_pid (+ padding).
 _FLOCK = struct.Struct("hhqqi4x")
 #: Open-file-description locks exist (Linux 3.15 and later, 64-bit): elsewhere no marker
@@ -159,15 +188,16 @@ def recheck_when_marked(folder: str | Path, check: Callable[[], None]) -> None:
     marker, one of the two always sees the other (hostile round 37's F1, replayed: the
     near field into P/sub passed while the corridor into P was still running, and was
     written into P after P's manifest)."""
-    _RECHECKS[os.path.abspath(folder)] = check
+    _RECHECKS[threading.get_ident(), os.path.abspath(folder)] = check
 
 
 def _drop_marks(key: tuple[int, int]) -> None:
-    """Release this process's markers on the folder ``key`` (its lock was released)."""
+    """Release this thread's markers on the folder ``key`` (its lock was released)."""
     for byte in (WRITES, CERTIFIES):
-        fd = _MARKS.pop((key, byte), None)
-        if fd is not None:
-            os.close(fd)
+        held = _MARKS.get((key, byte))
+        if held is not None and held[1] == threading.get_ident():
+            del _MARKS[key, byte]
+            os.close(held[0])
 
 
 def _open_folder(folder: str | Path) -> int | None:
@@ -180,9 +210,10 @@ def _open_folder(folder: str | Path) -> int | None:
 
 def _marked_elsewhere(folder: str | Path, lock_bytes: tuple[int, ...]) -> bool:
     """Whether another process holds a marker of ``folder`` on one of ``lock_bytes``
-    (``F_OFD_GETLK``: would an exclusive lock of that byte conflict). A byte this
-    process marks itself is not looked at (its own marker would answer). False when the
-    folder cannot be opened or its file system has no such locks."""
+    (``F_OFD_GETLK``: would an exclusive lock of that byte conflict), or another thread of
+    this process does. A byte this thread marks itself is not looked at (its own marker
+    would answer). False when the folder cannot be opened or its file system has no such
+    locks."""
     fd = _open_folder(folder)
     if fd is None:
         return False
@@ -190,7 +221,10 @@ def _marked_elsewhere(folder: str | Path, lock_bytes: tuple[int, ...]) -> bool:
         st = os.fstat(fd)
         key = (st.st_dev, st.st_ino)
         for byte in lock_bytes:
-            if (key, byte) in _MARKS:
+            held = _MARKS.get((key, byte))
+            if held is not None:
+                if held[1] != threading.get_ident():
+                    return True
                 continue
             probe = _FLOCK.pack(fcntl.F_WRLCK, os.SEEK_SET, byte, 1, 0)
             found = _FLOCK.unpack(fcntl.fcntl(fd, fcntl.F_OFD_GETLK, probe))
@@ -249,51 +283,59 @@ def writing(folder: str | Path, certifies: bool) -> Iterator[None]:
     st = os.fstat(fd)
     key = (st.st_dev, st.st_ino)
     mine = (key, CERTIFIES if certifies else WRITES)
-    new = mine not in _MARKS
-    if not new:
-        os.close(fd)
-    else:
-        try:
-            shared = _FLOCK.pack(fcntl.F_RDLCK, os.SEEK_SET, mine[1], 1, 0)
-            fcntl.fcntl(fd, fcntl.F_OFD_SETLK, shared)
-        except OSError:  # a file system without such locks: no marker
+    me = threading.get_ident()
+    with _GUARD:
+        held = _MARKS.get(mine)
+        if held is not None and held[1] != me:  # another thread writes this very folder
             os.close(fd)
-            yield
-            return
-        _MARKS[mine] = fd
+            raise InputError(folder, "", _BUSY)
+        new = held is None
+        if not new:
+            os.close(fd)
+        else:
+            try:
+                shared = _FLOCK.pack(fcntl.F_RDLCK, os.SEEK_SET, mine[1], 1, 0)
+                fcntl.fcntl(fd, fcntl.F_OFD_SETLK, shared)
+            except OSError:  # a file system without such locks: no marker
+                os.close(fd)
+                fd = -1
+            else:
+                _MARKS[mine] = (fd, me)
+    if fd == -1:
+        yield
+        return
+
+    def release() -> None:
+        if new:
+            with _GUARD:
+                os.close(_MARKS.pop(mine)[0])
+
     try:
         busy = _busy_nested(Path(folder), certifies)
-    except BaseException:
-        if new:
-            os.close(_MARKS.pop(mine))
-        raise
-    if busy is not None:
-        if new:
-            os.close(_MARKS.pop(mine))
-        how, where = busy
-        if how == "inside":
-            why = (
-                f"lies inside {where}, which another sensorgap command is writing now (it "
-                "certifies that folder when it ends, and its manifest.json would not list "
-                "these files): write somewhere outside it, or wait until that command ends"
-            )
-        else:
-            why = (
-                f"holds {where}, which another sensorgap command is writing now (this "
-                "command would certify its files half-written): write somewhere else, or "
-                "wait until that command ends"
-            )
-        raise InputError(folder, "", why)
-    check = _RECHECKS.pop(os.path.abspath(folder), None)
-    if check is not None:
-        try:
+        if busy is not None:
+            how, where = busy
+            if how == "inside":
+                why = (
+                    f"lies inside {where}, which another sensorgap command is writing now (it "
+                    "certifies that folder when it ends, and its manifest.json would not "
+                    "list these files): write somewhere outside it, or wait until that "
+                    "command ends"
+                )
+            else:
+                why = (
+                    f"holds {where}, which another sensorgap command is writing now (this "
+                    "command would certify its files half-written): write somewhere else, "
+                    "or wait until that command ends"
+                )
+            raise InputError(folder, "", why)
+        check = _RECHECKS.pop((me, os.path.abspath(folder)), None)
+        if check is not None:
             check()
-        except BaseException:
-            if new:
-                os.close(_MARKS.pop(mine))
-            raise
+    except BaseException:
+        release()
+        raise
     try:
         yield
     finally:
-        if new and key not in _HELD and mine in _MARKS:
-            os.close(_MARKS.pop(mine))
+        if not _mine(key) and mine in _MARKS:  # (held: released with the lock)
+            release()
