@@ -846,3 +846,37 @@ def test_a_read_only_out_is_named_not_its_restore_folder(
     assert len(err) == 1 and RESTORE_PREFIX not in err[0], err
     assert err[0].startswith(f"sensorgap: error: {out}: cannot write or read: Read-only"), err
     assert sorted(p.name for p in out.iterdir()) == ["mine.txt"]
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="open-file-description locks")
+def test_a_certifying_command_looks_at_every_folder_below(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Hostile round 40, F2: the look for other commands' markers below a certifying
+    command's folder stopped after 20,000 folders, and ``corridor --out P`` certified a
+    half-written P/a/sub beside 20,001 empty folders. It looks at as many folders as a
+    certified folder may hold entries (``filesio.MAX_OUT_ENTRIES``); one with more is
+    refused. (The cap is lowered here to keep the test small.)"""
+    from sensorgap import locks
+    from sensorgap.filesio import MAX_OUT_ENTRIES
+
+    assert locks.MAX_MARKED_FOLDERS == MAX_OUT_ENTRIES
+    monkeypatch.setattr(locks, "MAX_MARKED_FOLDERS", 30)
+    outer = tmp_path / "P"
+    for i in range(25):
+        (outer / f"d{i:02d}").mkdir(parents=True)
+    inner = outer / "z" / "sub"  # walked last (os.walk lists folders in no fixed order)
+    inner.mkdir(parents=True)
+    with (
+        marked_elsewhere(inner, certifies=True),
+        pytest.raises(InputError, match="holds "),
+        locks.writing(outer, certifies=True),
+    ):
+        pass
+    for i in range(25, 35):
+        (outer / f"d{i:02d}").mkdir()
+    with (
+        pytest.raises(InputError, match="holds more than 30 folders"),
+        locks.writing(outer, certifies=True),
+    ):
+        pass

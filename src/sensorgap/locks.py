@@ -165,8 +165,10 @@ def held_until_done() -> Iterator[None]:
 #: there, one certifying the folder (its manifest lists everything below it).
 WRITES, CERTIFIES = 0, 1
 #: Folders below a certifying command's own looked at for other commands' markers at
-#: most (a folder with more entries is refused as crowded before any of this).
-MAX_MARKED_FOLDERS = 20_000
+#: most: ``filesio.MAX_OUT_ENTRIES``, the entries a certified folder may hold (a test
+#: keeps them equal). One with more folders is refused (hostile round 40, F2: the walk
+#: stopped after 20,000 folders, and a command writing below them was not seen).
+MAX_MARKED_FOLDERS = 100_000
 #: The markers this process holds: ((device, inode) of the folder, byte) -> (descriptor,
 #: the thread that holds it).
 _MARKS: dict[tuple[tuple[int, int], int], tuple[int, int]] = {}
@@ -241,7 +243,8 @@ def _busy_nested(folder: Path, certifies: bool) -> tuple[str, Path] | None:
     """(how, where) of the nearest other command's marker that clashes with writing
     ``folder``: a folder above it or itself being certified ("inside"); for a certifying
     command also the folder itself being written or any folder below it (not through
-    symbolic links) being written or certified ("holds"). None when there is none."""
+    symbolic links) being written or certified ("holds"), or more folders below it than
+    ``MAX_MARKED_FOLDERS`` ("crowded"). None when there is none."""
     try:
         where = folder.resolve()
     except (OSError, RuntimeError):  # a loop of links: the path as given
@@ -261,7 +264,7 @@ def _busy_nested(folder: Path, certifies: bool) -> tuple[str, Path] | None:
                 return "holds", sub
         seen += len(dirnames)
         if seen > MAX_MARKED_FOLDERS:
-            break
+            return "crowded", where
     return None
 
 
@@ -320,6 +323,12 @@ def writing(folder: str | Path, certifies: bool) -> Iterator[None]:
                     "certifies that folder when it ends, and its manifest.json would not "
                     "list these files): write somewhere outside it, or wait until that "
                     "command ends"
+                )
+            elif how == "crowded":
+                why = (
+                    f"holds more than {MAX_MARKED_FOLDERS:,} folders: whether another "
+                    "sensorgap command is writing one of them cannot be told; write into a "
+                    "new folder"
                 )
             else:
                 why = (
