@@ -408,6 +408,20 @@ def test_evaluate_points_takes_every_kind_of_real_number() -> None:
             np.testing.assert_array_equal(cov.fused, plain.fused)
 
 
+@pytest.mark.parametrize("resolution", [np.array(2.0), np.array(2, dtype=np.int8)])
+def test_a_zero_dimensional_array_is_its_number(resolution: Any) -> None:
+    """Hostile round 40 (a remark): ``coverage_grid(resolution=np.array(0.5))`` was
+    refused while ``Fraction(1, 2)`` passed; a 0-d array of integers or floats is its
+    number (one of booleans, text or NaN is still refused)."""
+    kw: dict[str, Any] = {"extent": (0, 10, 0, 10), "heading_deg": None}
+    grid = sensorgap.coverage_grid("system_a", resolution=resolution, **kw)
+    plain = sensorgap.coverage_grid("system_a", resolution=2.0, **kw)
+    np.testing.assert_array_equal(grid.fused, plain.fused)
+    for bad in (np.array(True), np.array("2"), np.array(np.nan), np.array([2.0])):
+        with pytest.raises(InputError, match=r"^resolution: must be a finite number > 0"):
+            sensorgap.coverage_grid("system_a", resolution=bad, **kw)
+
+
 @pytest.mark.parametrize(
     "extent",
     [

@@ -95,7 +95,11 @@ def finite_real(value: object) -> float | None:
     int, a float, a numpy integer or floating scalar), else None: not a boolean, text
     (``'30'``), bytes, a duration, NaN or an infinity, nor an int beyond a float's range
     (``10**400`` was a raw ``OverflowError``). The one check of every number the library
-    takes (``real_array`` for arrays of them); the caller names the parameter."""
+    takes (``real_array`` for arrays of them); the caller names the parameter. A 0-d
+    numpy array of integers or floats counts as its number (``np.array(0.5)``; hostile
+    round 40: refused while a ``Fraction`` passed)."""
+    if isinstance(value, np.ndarray) and value.ndim == 0 and value.dtype.kind in "iuf":
+        value = value[()]
     if not is_number(value):
         return None
     try:
