@@ -880,3 +880,44 @@ def test_a_certifying_command_looks_at_every_folder_below(
         locks.writing(outer, certifies=True),
     ):
         pass
+
+
+def test_a_reader_looking_at_a_folder_does_not_refuse_a_writer(tmp_path: Path) -> None:
+    """Hostile round 40, R1: ``verify`` looks whether a folder is being written by taking
+    a shared lock for an instant (``locks.locked_elsewhere``); a command starting in that
+    instant was refused, "another sensorgap command is writing this folder now". A writer
+    tries again for ``READER_WAIT_S``; one held longer (a writer) is still refused."""
+    import threading
+    import time
+
+    from sensorgap.locks import READER_WAIT_S
+
+    held = threading.Event()
+
+    def reader(seconds: float) -> None:
+        fd = os.open(tmp_path, os.O_RDONLY)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_SH)
+            held.set()
+            time.sleep(seconds)
+        finally:
+            os.close(fd)
+
+    look = threading.Thread(target=reader, args=(READER_WAIT_S / 4,))
+    look.start()
+    held.wait(10)
+    with folder_lock(tmp_path):  # taken once the reader let go
+        pass
+    look.join()
+    held.clear()
+    stay = threading.Thread(target=reader, args=(READER_WAIT_S * 5,))
+    stay.start()
+    held.wait(10)
+    try:
+        with (
+            pytest.raises(InputError, match="another sensorgap command is writing"),
+            folder_lock(tmp_path),
+        ):
+            pass
+    finally:
+        stay.join()

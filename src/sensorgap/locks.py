@@ -25,6 +25,7 @@ import os
 import struct
 import sys
 import threading
+import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -44,6 +45,9 @@ _BUSY = (
     "another sensorgap command is writing this folder now; wait for it to finish, or write "
     "somewhere else"
 )
+#: How long a writer tries again to take a folder's lock held by someone (s): longer than a
+#: reader's look (``locked_elsewhere``, microseconds), short beside any command's run.
+READER_WAIT_S = 0.2
 #: Per thread, ``held_until_done`` blocks running: a lock whose blocks ended stays held
 #: until then.
 _LOCAL = threading.local()
@@ -109,23 +113,33 @@ def folder_lock(folder: str | Path) -> Iterator[None]:
     run folder takes it before any work, so two commands never write one folder at once
     (one's restore put its start snapshot back over the other's finished output). Taken
     again by the same thread it is shared (the job, then its search). Held by another
-    process or another thread -> ``InputError`` naming the folder, at once (no
-    waiting)."""
+    process or another thread -> ``InputError`` naming the folder, at once (after at most
+    ``READER_WAIT_S``: a reader, ``locked_elsewhere``, holds a shared lock for an
+    instant, and a writer starting in that instant was refused as if another command
+    wrote the folder; hostile round 40, R1)."""
     fd = os.open(folder, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
     st = os.fstat(fd)
     key = (st.st_dev, st.st_ino)
     with _GUARD:
-        if _mine(key):
+        shared = _mine(key)
+        if shared:
             os.close(fd)
             _HELD[key][1] += 1
-        else:
+        elif key in _HELD:  # another thread's call
+            os.close(fd)
+            raise InputError(folder, "", _BUSY)
+    if not shared:
+        deadline = time.monotonic() + READER_WAIT_S
+        while True:
             try:
-                if key in _HELD:  # another thread's call
-                    raise BlockingIOError
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                break
             except BlockingIOError:
-                os.close(fd)
-                raise InputError(folder, "", _BUSY) from None
+                if time.monotonic() >= deadline:
+                    os.close(fd)
+                    raise InputError(folder, "", _BUSY) from None
+                time.sleep(0.01)
+        with _GUARD:
             _HELD[key] = [fd, 1, threading.get_ident()]
     try:
         yield
