@@ -11,6 +11,7 @@ import json
 import re
 import shutil
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -37,6 +38,19 @@ NARROW = [
 
 def _sha(p: Path) -> str:
     return hashlib.sha256(p.read_bytes()).hexdigest()
+
+
+def _evaluate_argv(run: Path, row: dict[str, Any]) -> list[str]:
+    """``sensorgap evaluate`` of the ranked ``row`` of ``run`` (its sun and parameters),
+    without ``--out``."""
+    argv = ["evaluate", "--run", str(run), "--family", "my_cut_in", "--environment", "clear"]
+    if row.get("sun_azimuth_deg") is not None:
+        argv += ["--sun", f"{row['sun_azimuth_deg']!r}/{row['sun_elevation_deg']!r}"]
+    return argv + [
+        f"--param={k[2:]}={v}"
+        for k, v in row.items()
+        if k.startswith("p_") and k[2:] not in ("never_confirmed", "undetected_end")
+    ]
 
 
 @pytest.fixture(scope="module")
@@ -144,25 +158,7 @@ def test_compare_and_evaluate_rebuild_the_ranked_numbers(
     for r in rows:  # exact numbers of the search, recomputed from the recorded inputs
         assert p[r["scenario_id"]] == pytest.approx(r["collision_probability"], abs=1e-12)
     r = rows[0]
-    argv = [
-        "evaluate",
-        "--run",
-        str(run),
-        "--family",
-        "my_cut_in",
-        "--environment",
-        "clear",
-        "--out",
-        str(tmp_path / "ev"),
-    ]
-    if r.get("sun_azimuth_deg") is not None:
-        argv += ["--sun", f"{r['sun_azimuth_deg']!r}/{r['sun_elevation_deg']!r}"]
-    argv += [
-        f"--param={k[2:]}={v}"
-        for k, v in r.items()
-        if k.startswith("p_") and k[2:] not in ("never_confirmed", "undetected_end")
-    ]
-    assert main(argv) == 0
+    assert main([*_evaluate_argv(run, r), "--out", str(tmp_path / "ev")]) == 0
     ev = json.loads((tmp_path / "ev" / "evaluation.json").read_text(encoding="utf-8"))
     assert ev["scenario_id"] == r["scenario_id"]
     assert ev["metrics"]["collision_probability"] == pytest.approx(
@@ -282,14 +278,7 @@ def test_a_refused_command_prints_one_line_not_the_changed_input_note(
     info["inputs"]["environments"]["path"] = str(changed)
     (copy / "run.json").write_text(json.dumps(info), encoding="utf-8")
     r = json.loads((copy / "ranking.json").read_text(encoding="utf-8"))["ranking"][0]
-    argv = ["evaluate", "--run", str(copy), "--family", "my_cut_in", "--environment", "clear"]
-    if r.get("sun_azimuth_deg") is not None:
-        argv += ["--sun", f"{r['sun_azimuth_deg']!r}/{r['sun_elevation_deg']!r}"]
-    argv += [
-        f"--param={k[2:]}={v}"
-        for k, v in r.items()
-        if k.startswith("p_") and k[2:] not in ("never_confirmed", "undetected_end")
-    ]
+    argv = _evaluate_argv(copy, r)
     capsys.readouterr()
     assert main([*argv, "--param", "no_such=1", "--out", str(tmp_path / "e1")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
