@@ -876,15 +876,6 @@ def cmd_report(args: argparse.Namespace) -> int:
     return 0
 
 
-def _has_run(folder: Path) -> bool:
-    """Whether ``folder`` or a folder directly below it holds a search's ``run.json``."""
-    from sensorgap.search.runfolder import RUN_JSON
-
-    return (folder / RUN_JSON).is_file() or any(
-        (p / RUN_JSON).is_file() for p in folder.iterdir() if p.is_dir() and not p.is_symlink()
-    )
-
-
 def _refuse_locked(folder: Path) -> None:
     """``verify`` of a folder another sensorgap command is writing now (it holds the
     folder's lock, ``locks.locked_elsewhere``): its files are half-written and its
@@ -903,7 +894,7 @@ def _refuse_locked(folder: Path) -> None:
 def cmd_verify(args: argparse.Namespace) -> int:
     """Check a run folder against its manifest (nothing lost or changed)."""
     from sensorgap.filesio import verify_manifest
-    from sensorgap.search.runfolder import check_recorded
+    from sensorgap.search.runfolder import check_recorded, search_runs
 
     if not str(args.folder).strip():  # '' would verify the working directory
         raise InputError(
@@ -936,7 +927,7 @@ def cmd_verify(args: argparse.Namespace) -> int:
         raise
     print(
         f"{folder}: every file of the manifest is present and unchanged"
-        + (", and every recorded input matches run.json" if _has_run(folder) else "")
+        + (", and every recorded input matches run.json" if search_runs(folder) else "")
     )
     return 0
 

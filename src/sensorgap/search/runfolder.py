@@ -926,23 +926,38 @@ def open_run(folder: Path, ranking: bool = True, warn: bool = True) -> RunFolder
     return run
 
 
-def check_recorded(folder: Path) -> None:
-    """The run folders of ``folder`` (itself, and for a job's OUT each vehicle folder
-    directly below it) that hold ``run.json``, read as ``export`` and ``report`` read them
-    (``open_run``, no warning about changed originals): every recorded copy matching the
-    SHA-256 ``run.json`` gives it, ``run.json`` and ``ranking.json`` what the search's
-    store recorded. ``verify`` checks this after the manifest: a copy edited with the
-    manifest re-hashed passed ``verify`` and was refused by ``report`` (remark of
-    session 26). ``InputError`` naming the file and field."""
-    runs = [folder] if (folder / RUN_JSON).is_file() else []
+def _is_search_run(folder: Path) -> bool:
+    """Whether ``folder`` is a search's run folder: ``run.json`` beside ``ranking.json`` or
+    the search's store (a ``run.json`` alone may be a user's file: hostile round 41, F1,
+    ``nearfield --out U`` certified ``U/notes/run.json`` and ``verify U`` then read it as
+    a run)."""
+    return (folder / RUN_JSON).is_file() and (
+        (folder / RANKING_JSON).is_file() or (folder / STORE_FILE).is_file()
+    )
+
+
+def search_runs(folder: Path) -> list[Path]:
+    """The search runs of ``folder`` (``_is_search_run``): itself, and for a job's OUT each
+    vehicle folder directly below it."""
+    runs = [folder] if _is_search_run(folder) else []
     try:
         below = sorted(os.scandir(folder), key=lambda e: e.name)
     except OSError:
         below = []
     for entry in below:
-        if entry.is_dir(follow_symlinks=False) and (Path(entry.path) / RUN_JSON).is_file():
+        if entry.is_dir(follow_symlinks=False) and _is_search_run(Path(entry.path)):
             runs.append(Path(entry.path))
-    for run in runs:
+    return runs
+
+
+def check_recorded(folder: Path) -> None:
+    """The search runs of ``folder`` (``search_runs``) read as ``export`` and ``report``
+    read them (``open_run``, no warning about changed originals): every recorded copy
+    matching the SHA-256 ``run.json`` gives it, ``run.json`` and ``ranking.json`` what the
+    search's store recorded. ``verify`` checks this after the manifest: a copy edited with
+    the manifest re-hashed passed ``verify`` and was refused by ``report`` (remark of
+    session 26). ``InputError`` naming the file and field."""
+    for run in search_runs(folder):
         open_run(run, ranking=False, warn=False)
 
 
