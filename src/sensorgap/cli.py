@@ -1645,6 +1645,19 @@ def _main(argv: Sequence[str] | None) -> int:
                     "",
                     f"must not be empty: give a path (or a preset name), got {value!r}",
                 )
+        # the run folders compared: '' was the working directory (hostile round 41, F2)
+        runs = [("RUN_A", getattr(args, "run_a", None)), ("RUN_B", getattr(args, "run_b", None))]
+        both = getattr(args, "compare", None)
+        if isinstance(both, list):
+            runs += [("--compare", value) for value in both]
+        for name, value in runs:
+            if isinstance(value, str) and not value.strip():
+                raise InputError(
+                    name,
+                    "",
+                    "must name a run folder (an empty path would be the working directory), "
+                    f"got {value!r}",
+                )
         with held_until_done(), ExitStack() as locks:
             # every folder the command writes, locked before any work and until it is
             # done: a second command into it is refused (and readers need no lock)
