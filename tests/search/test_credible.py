@@ -381,3 +381,19 @@ def test_a_negative_zero_sun_is_the_sun_at_zero() -> None:
     for sun in (parse_sun("-0/-0"), _checked_sun((-0.0, -0.0))):
         assert sun == (0.0, 0.0)
         assert sun is not None and all(math.copysign(1.0, v) == 1.0 for v in sun)
+
+
+def test_a_negative_zero_parameter_is_zero() -> None:
+    """Hostile round 41, F3: ``evaluate --param ego_s0_m=-0`` kept -0.0, and the same
+    scenario got a second id."""
+    import math
+
+    from sensorgap.scenarios import load_family
+    from sensorgap.search.whatif import parse_params
+
+    family = load_family("slow_ahead_curve")
+    items = [f"{p.name}={p.choices[0] if p.categorical else '-0'}" for p in family.space]
+    problem = type("P", (), {"family": family})()
+    values = parse_params(items, problem)  # type: ignore[arg-type]
+    numbers = [v for v in values.values() if isinstance(v, float)]
+    assert numbers and all(v == 0.0 and math.copysign(1.0, v) == 1.0 for v in numbers)

@@ -67,7 +67,7 @@ def parse_params(items: list[str], problem: SearchProblem) -> dict[str, ParamVal
             v = math.nan
         if not math.isfinite(v):
             raise InputError("param", name, f"must be a finite number, got {text!r}")
-        out[name] = v
+        out[name] = v + 0.0  # -0 is 0 (it got a scenario id of its own; hostile round 41)
     missing = [n for n in space if n not in out]
     if missing:
         raise InputError(
