@@ -235,6 +235,29 @@ def test_find_scenarios_checks_types_before_any_work(
     assert not (tmp_path / "run").exists()
 
 
+def test_find_scenarios_takes_numpy_integers_and_booleans(tmp_path: Path) -> None:
+    """Hostile round 41 (a remark): a 0-d integer array was refused for ``budget`` while
+    one of floats passed for a number, and ``resume=np.bool_(False)`` was refused while
+    ``workers=np.int64(1)`` passed. Both are their values; the run is the same."""
+    kw: dict[str, Any] = {"families": ["slow_ahead_curve"], "environments": ["clear"]}
+    plain = sensorgap.find_scenarios(
+        "system_b", tmp_path / "a", budget=10, seed=1, resume=False, sun_search=True, **kw
+    )
+    numpy = sensorgap.find_scenarios(
+        "system_b",
+        tmp_path / "b",
+        budget=np.array(10),
+        seed=np.array(1, dtype=np.int8),
+        resume=np.bool_(False),
+        sun_search=np.bool_(True),
+        **kw,
+    )
+    assert numpy.ranking == plain.ranking
+    for bad in (np.array(True), np.array(10.0)):
+        with pytest.raises(InputError, match=r"^budget: must be an integer, got "):
+            sensorgap.find_scenarios("system_b", tmp_path / "c", budget=bad, **kw)
+
+
 @pytest.mark.parametrize("where", ["f", "f/run", "f/a/run"])
 def test_an_output_folder_that_is_a_file_is_refused(tmp_path: Path, where: str) -> None:
     """Hostile round thirteen: ``out`` naming a file (or a path below one) was a raw

@@ -146,7 +146,10 @@ def _vehicle(value: object) -> str | Path:
 
 def _integer(value: object, name: str) -> int:
     """An integer parameter (not a bool, not a str: ``'10'`` is refused); the range is
-    checked where the value is used."""
+    checked where the value is used. A 0-d numpy array of integers is its integer (as a
+    0-d array of numbers is its number; hostile round 41, a remark)."""
+    if isinstance(value, np.ndarray) and value.ndim == 0 and value.dtype.kind in "iu":
+        value = value[()]
     if not is_integer(value):
         raise InputError(name, "", f"must be an integer, got {shown(value)}")
     return int(value)
@@ -341,6 +344,9 @@ def find_scenarios(
         raise InputError(
             unknown[0], "", f"unknown option; allowed: {', '.join(sorted(_SEARCH_OPTIONS))}"
         )
+    for name in ("resume", "progress", "sun_search"):  # numpy's True is a bool (round 41)
+        if isinstance(options.get(name), np.bool_):
+            options[name] = bool(options[name])
     for name in ("resume", "progress"):  # 'no' would be true
         value = options.get(name, False)
         if not (isinstance(value, bool) or (name == "progress" and value is None)):
