@@ -159,6 +159,12 @@ def test_verify_of_a_folder_another_command_writes_calls_nothing_left_over(
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "being written by another sensorgap command now" in err[0], err
     assert "left over" not in err[0] and "delete" not in err[0], err
+    new = tmp_path / "new"  # a run being made: no manifest yet (it said "not a sensorgap
+    new.mkdir()  # run"; hostile round 41, a remark)
+    with held_elsewhere(new):
+        assert main(["verify", str(new)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "being written by another sensorgap command now" in err[0], err
     with held_elsewhere(root / "sub"):
         problems = verify_manifest(root)
     in_use = [p for p in problems if p.startswith(f"sub/{RESTORE_PREFIX}")]

@@ -913,6 +913,7 @@ def cmd_verify(args: argparse.Namespace) -> int:
             else "folder does not exist",
         )
     if manifest.is_symlink() or not manifest.is_file():
+        _refuse_locked(folder)  # a run being made has no manifest yet (hostile round 41)
         raise InputError(manifest, "", "no manifest in this folder (not a sensorgap run)")
     _refuse_locked(folder)  # a command writing it: its restore folder is no left-over
     problems = verify_manifest(folder)
