@@ -397,3 +397,16 @@ def test_a_negative_zero_parameter_is_zero() -> None:
     values = parse_params(items, problem)  # type: ignore[arg-type]
     numbers = [v for v in values.values() if isinstance(v, float)]
     assert numbers and all(v == 0.0 and math.copysign(1.0, v) == 1.0 for v in numbers)
+
+
+def test_a_sun_label_gives_its_azimuth_back() -> None:
+    """Hostile round 41 (a remark): an azimuth of 359.99999999999994 deg was labelled
+    ``@sun360``, which ``--environment NAME@sunAZ/EL`` refuses (0 <= AZ < 360). Such an
+    azimuth is written in full; others keep their short form."""
+    from sensorgap.search.problem import Candidate
+    from sensorgap.search.whatif import parse_sun
+
+    near = Candidate("f", "clear", (359.99999999999994, 5.0), {}).environment_label
+    assert near == "clear@sun359.99999999999994/5"
+    assert parse_sun(near.partition("@sun")[2]) == (359.99999999999994, 5.0)
+    assert Candidate("f", "clear", (62.123456, 5.0), {}).environment_label == "clear@sun62.1235/5"

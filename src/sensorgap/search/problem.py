@@ -196,7 +196,10 @@ class Candidate:
         """``name`` or ``name@az/el`` with the world-frame sun."""
         if self.sun is None:
             return self.environment
-        return f"{self.environment}@sun{self.sun[0]:g}/{self.sun[1]:g}"
+        az = f"{self.sun[0]:g}"
+        if az == "360":  # 359.9999995 and up: '360' is no azimuth a label may give back
+            az = repr(float(self.sun[0]))  # (hostile round 41, a remark)
+        return f"{self.environment}@sun{az}/{self.sun[1]:g}"
 
 
 @dataclass
