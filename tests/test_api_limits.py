@@ -222,6 +222,8 @@ def test_evaluate_points_limits_points_times_sensors(monkeypatch: pytest.MonkeyP
         # hostile round fifteen (F5): a raw TypeError (re.match on an int)
         ({"executor": "dask", "scheduler": 5}, r"^scheduler: must be a str or None, got 5$"),
         ({"strategy": None}, r"^strategy: must be a str, got None$"),
+        # hostile round 42, F2: it named the command line's option, "pd: ..."
+        ({"mode": "Exact"}, r"^mode: must be lookup or exact, got 'Exact'$"),
         ({"mode": 1}, r"^mode: must be a str, got 1$"),
         ({"executor": ["local"]}, r"^executor: must be a str, got "),
     ],
@@ -250,6 +252,10 @@ def test_find_scenarios_takes_numpy_integers_and_booleans(tmp_path: Path) -> Non
         seed=np.array(1, dtype=np.int8),
         resume=np.bool_(False),
         sun_search=np.bool_(True),
+        # hostile round 42, F1: these reached the store's JSON, "int64 is not JSON
+        # serializable", a store left behind
+        seeds=np.int64(1),
+        workers=np.array(2, dtype=np.uint8),
         **kw,
     )
     assert numpy.ranking == plain.ranking

@@ -23,7 +23,7 @@ from numpy.typing import ArrayLike
 
 from sensorgap.apinames import API_NAMES
 from sensorgap.config import load_environment, load_environments, load_target
-from sensorgap.config.common import finite_real, is_integer, real_array, shown
+from sensorgap.config.common import as_integer, finite_real, real_array, shown
 from sensorgap.coverage import Scene
 from sensorgap.coverage.grid import GridCoverage
 from sensorgap.coverage.limits import (
@@ -148,11 +148,10 @@ def _integer(value: object, name: str) -> int:
     """An integer parameter (not a bool, not a str: ``'10'`` is refused); the range is
     checked where the value is used. A 0-d numpy array of integers is its integer (as a
     0-d array of numbers is its number; hostile round 41, a remark)."""
-    if isinstance(value, np.ndarray) and value.ndim == 0 and value.dtype.kind in "iu":
-        value = value[()]
-    if not is_integer(value):
+    number = as_integer(value)
+    if number is None:
         raise InputError(name, "", f"must be an integer, got {shown(value)}")
-    return int(value)
+    return number
 
 
 def _names(value: object, name: str, paths: bool = False) -> list[str]:

@@ -90,6 +90,17 @@ def is_integer(value: object) -> TypeGuard[numbers.Integral]:
     return isinstance(value, numbers.Integral) and not isinstance(value, bool | np.timedelta64)
 
 
+def as_integer(value: object) -> int | None:
+    """An integer parameter of the library as an int when it is an int, a numpy integer
+    or a 0-d numpy array of integers, else None (not a boolean, a float, text). Every
+    integer the library keeps is a plain int: a numpy one reached the store's JSON
+    (hostile round 42: ``seeds=np.int64(2)``, "Object of type int64 is not JSON
+    serializable", a store left behind)."""
+    if isinstance(value, np.ndarray) and value.ndim == 0 and value.dtype.kind in "iu":
+        value = value[()]
+    return int(value) if is_integer(value) else None
+
+
 def finite_real(value: object) -> float | None:
     """A number parameter of the library as a float when it is a finite real number (an
     int, a float, a numpy integer or floating scalar), else None: not a boolean, text

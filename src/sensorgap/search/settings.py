@@ -9,12 +9,12 @@ writers (``search.run``) take a ``Prepared``.
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
 from sensorgap.config import EnvironmentConfig, load_environments, load_targets
-from sensorgap.config.common import finite_real, is_integer, shown
+from sensorgap.config.common import as_integer, finite_real, shown
 from sensorgap.config.presets import resolve_road
 from sensorgap.errors import InputError
 from sensorgap.models import System, load_system
@@ -78,7 +78,7 @@ class SearchSettings:
         """Refuse settings out of their ranges (``InputError`` naming the field)."""
         for name in ("budget", "seed", "top", "workers", "seeds"):
             value = getattr(self, name)
-            if not is_integer(value):  # '10' or True, given to the library
+            if as_integer(value) is None:  # '10' or True, given to the library
                 raise InputError(name, "", f"must be an integer, got {shown(value)}")
         for name in ("strategy", "mode", "detection", "executor"):
             value = getattr(self, name)
@@ -127,7 +127,8 @@ class SearchSettings:
                 f"unknown strategy {self.strategy!r}; allowed: {', '.join(strategy_names())}",
             )
         if self.mode not in ("lookup", "exact"):
-            raise InputError("pd", "", f"must be lookup or exact, got {self.mode!r}")
+            # the parameter's name (the command line's --pd offers only these two)
+            raise InputError("mode", "", f"must be lookup or exact, got {self.mode!r}")
         if isinstance(self.seed, bool) or not 0 <= self.seed <= MAX_SEED:
             raise InputError(
                 "seed", "", f"must be an integer within 0..{MAX_SEED}, got {shown(int(self.seed))}"
@@ -224,6 +225,16 @@ def prepare(s: SearchSettings) -> Prepared:
     """Check the settings and resolve them: every input read and checked before any
     candidate is evaluated or any file written."""
     s.check()
+    # plain ints and floats from here on (a numpy integer reached the store's JSON)
+    s = replace(
+        s,
+        budget=int(s.budget),
+        seed=int(s.seed),
+        top=int(s.top),
+        workers=int(s.workers),
+        seeds=int(s.seeds),
+        min_distance=float(s.min_distance),
+    )
     all_envs = load_environments(s.environments_file)
     if not s.environments:
         raise InputError(
