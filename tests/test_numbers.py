@@ -47,3 +47,17 @@ def test_integers() -> None:
     for bad in ("1_000", "1.0", "1e3", "", "+"):
         with pytest.raises(ValueError, match="not a plain integer"):
             parse_integer(bad)
+
+
+@pytest.mark.parametrize("text", ["-0", "-0.0", " -0.000e5 ", "+0", "0"])
+def test_a_typed_negative_zero_is_zero(text: str) -> None:
+    """Hostile round 42, F3: ``coverage --height -0`` wrote ``"height_m": -0.0`` where 0
+    wrote 0.0 (and ``--extent``, ``farfield --ego-s``, ``corridor --start`` alike): other
+    files for the same input. Every number typed on the command line is read by
+    ``parse_decimal``, which gives +0."""
+    import math
+
+    from sensorgap.config.common import parse_decimal
+
+    value = parse_decimal(text)
+    assert value == 0.0 and math.copysign(1.0, value) == 1.0

@@ -228,11 +228,13 @@ MAX_NUMBER_CHARS = 1_000
 def parse_decimal(text: str) -> float:
     """A plain decimal number (``_DECIMAL``; surrounding spaces allowed) as a float;
     anything else -> ``ValueError``. Values beyond the float range are ``inf``; callers
-    check finiteness and range."""
+    check finiteness and range. ``-0`` is 0 (it was kept: ``--height -0`` wrote
+    ``"height_m": -0.0`` where 0 wrote 0.0, other files for the same input; hostile round
+    42, F3)."""
     t = text.strip()
     if len(t) > MAX_NUMBER_CHARS or not _DECIMAL.fullmatch(t):
         raise ValueError(f"not a plain decimal number: {text[:80]!r}")
-    return float(t)
+    return float(t) + 0.0
 
 
 def parse_integer(text: str) -> int:
