@@ -274,3 +274,25 @@ def test_environment_file_must_have_table(tmp_path: Path) -> None:
     p.write_text("rain = 1\n")
     with pytest.raises(InputError, match=r"environments: expected a non-empty table"):
         load_environments(p)
+
+
+def test_a_family_description_is_one_line(tmp_path: Path) -> None:
+    """Hostile round 42, F4: a description with line breaks (a TOML multi-line string)
+    reached report.md raw, and a line of it such as ``# Injected heading`` became a heading
+    of the report. A description is one line: its line breaks and runs of white space are
+    single spaces."""
+    from sensorgap.config.presets import templates_dir
+    from sensorgap.scenarios import load_family
+
+    text = (templates_dir() / "scenarios" / "slow_ahead_curve.toml").read_text(encoding="utf-8")
+    edited = re.sub(
+        r"^description = .*$",
+        'description = """Slow car\\n# Injected heading\\n| a |\\tb |"""',
+        text,
+        count=1,
+        flags=re.M,
+    )
+    assert edited != text
+    path = tmp_path / "sac.toml"
+    path.write_text(edited, encoding="utf-8")
+    assert load_family(str(path)).description == "Slow car # Injected heading | a | b |"

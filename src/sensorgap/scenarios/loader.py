@@ -211,6 +211,9 @@ def load_family(name_or_path: str, road: Path | None = None, targets: Path | Non
             f"must be a string of at most {MAX_DESCRIPTION_CHARS} characters, "
             f"got {short(description)}",
         )
+    # one line of text: a line break (a TOML multi-line string) is a space; one reached
+    # report.md raw and made its text a Markdown heading or table row (hostile round 42, F4)
+    description = " ".join(description.split())
     # the target classes the family is loaded with: a run's recorded copy when given (and
     # readable), else the shipped ones (hostile round 30: an export of a run took the
     # occluder's size from the shipped classes, not the ones the run searched with)
@@ -342,7 +345,7 @@ def load_family(name_or_path: str, road: Path | None = None, targets: Path | Non
         space=space,
         network=net,
         source=str(path),
-        description=str(fam.get("description", "")),
+        description=description,
         max_speed_m_s=classes[str(settings["target"])].max_speed_m_s,
         occluder=classes[str(settings["occluder"])] if "occluder" in settings else None,
         target_config=classes[str(settings["target"])],
