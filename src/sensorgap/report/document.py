@@ -289,8 +289,10 @@ def render_html(
 
 
 def _md(text: str) -> str:
-    """Text for Markdown (``markdown.md_text``)."""
-    return md_text(text)
+    """Text for Markdown (``markdown.md_text``) in a paragraph, a list item, a caption or a
+    heading: one line, its line breaks as spaces (a line of a text given by the user,
+    starting with ``#`` or ``|``, became a heading or a table row; hostile round 42)."""
+    return md_text(text).replace("\n", " ")
 
 
 def _md_cell(c: Cell) -> str:
