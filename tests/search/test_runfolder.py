@@ -261,17 +261,21 @@ def test_verify_refuses_a_recorded_copy_edited_with_the_manifest_rehashed(
     assert len(err) == 1 and str(copy) in err[0] and "was modified" in err[0], err
 
 
+@pytest.mark.parametrize("beside", ["", "ranking.json", "search.sqlite"])
 @pytest.mark.parametrize("text", ['{"my": "notes"}', "[1, 2]", '{"inputs": 5}', "plain"])
 def test_verify_reads_only_search_runs_as_runs(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str], text: str
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], text: str, beside: str
 ) -> None:
-    """Hostile round 41, F1: a folder of the user's files given as ``--out`` holding
-    ``notes/run.json`` of their own was read by ``verify`` as a job's vehicle folder
-    ("expected a JSON object"), though the command had certified it. A search run is a
-    ``run.json`` beside ``ranking.json`` or the search's store."""
+    """Hostile rounds 41 and 42 (F1, F5): a folder of the user's files given as ``--out``
+    holding ``notes/run.json`` of their own (alone, or beside a ``ranking.json`` or a
+    ``search.sqlite`` of theirs) was read by ``verify`` as a job's vehicle folder ("expected
+    a JSON object"), though the command had certified it. A search run is a ``run.json``
+    beside the search's store, an SQLite database."""
     user = tmp_path / "U"
     (user / "notes").mkdir(parents=True)
     (user / "notes" / "run.json").write_text(text, encoding="utf-8")
+    if beside:
+        (user / "notes" / beside).write_text(text, encoding="utf-8")
     assert (
         main(["nearfield", "--vehicle", "system_a", "--resolution", "0.5", "--out", str(user)]) == 0
     )

@@ -235,8 +235,14 @@ def export_catalog(
                 shutil.copyfile(road_src, tmp)
             nets[road_src.name] = read_opendrive(road_dst)
             errs = xsd_errors(road_dst)
-            if errs:
-                raise ExportError(f"{road_dst}: not valid OpenDRIVE 1.7: {errs[0]}")
+            if errs:  # the run's road (a search checks it first: settings'
+                # refuse_unexportable_roads), bad input, not a fault of the export
+                raise InputError(
+                    road_src,
+                    "",
+                    f"not valid OpenDRIVE 1.7 ({errs[0]}): the catalog copies this road and "
+                    "must pass the schema; fix the road (docs/roads.md)",
+                )
             files[f"roads/{road_src.name}"] = {"role": "road"}
         path = out / "scenarios" / f"{sp.scenario_id}.xosc"
         write_xosc(sp, path, f"../roads/{road_src.name}", osc_version, style)

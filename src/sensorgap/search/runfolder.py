@@ -926,14 +926,23 @@ def open_run(folder: Path, ranking: bool = True, warn: bool = True) -> RunFolder
     return run
 
 
+#: The first bytes of every SQLite database file (its header string).
+SQLITE_HEADER = b"SQLite format 3\x00"
+
+
 def _is_search_run(folder: Path) -> bool:
-    """Whether ``folder`` is a search's run folder: ``run.json`` beside ``ranking.json`` or
-    the search's store (a ``run.json`` alone may be a user's file: hostile round 41, F1,
-    ``nearfield --out U`` certified ``U/notes/run.json`` and ``verify U`` then read it as
-    a run)."""
-    return (folder / RUN_JSON).is_file() and (
-        (folder / RANKING_JSON).is_file() or (folder / STORE_FILE).is_file()
-    )
+    """Whether ``folder`` is a search's run folder: ``run.json`` beside the search's store,
+    an SQLite database (its header). A ``run.json`` alone, or beside a ``ranking.json``
+    or a ``search.sqlite`` that is no database, may be a user's files (hostile rounds 41
+    and 42, F1 and F5: ``nearfield --out U`` certified ``U/notes/run.json`` beside a
+    ``ranking.json`` of the user's, and ``verify U`` then read them as a run)."""
+    if not (folder / RUN_JSON).is_file():
+        return False
+    try:
+        with (folder / STORE_FILE).open("rb") as f:
+            return f.read(len(SQLITE_HEADER)) == SQLITE_HEADER
+    except OSError:
+        return False
 
 
 def search_runs(folder: Path) -> list[Path]:
