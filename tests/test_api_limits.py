@@ -449,6 +449,9 @@ def test_a_zero_dimensional_array_is_its_number(resolution: Any) -> None:
     for bad in (np.array(True), np.array("2"), np.array(np.nan), np.array([2.0])):
         with pytest.raises(InputError, match=r"^resolution: must be a finite number > 0"):
             sensorgap.coverage_grid("system_a", resolution=bad, **kw)
+    # hostile round 42: "workers: must be 1..64, got array(1)"
+    threads = sensorgap.coverage_grid("system_a", resolution=2.0, workers=np.array(1), **kw)
+    np.testing.assert_array_equal(threads.fused, plain.fused)
 
 
 @pytest.mark.parametrize(

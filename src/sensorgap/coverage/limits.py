@@ -12,7 +12,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from sensorgap.config.common import finite_real, is_integer, shown
+from sensorgap.config.common import as_integer, finite_real, shown
 from sensorgap.config.vehicle import BodyConfig
 from sensorgap.coverage.grid import GridSpec
 from sensorgap.coverage.occluders import Occluder
@@ -85,9 +85,10 @@ API_NAMES = Names(
 
 def check_workers(workers: object, names: Names) -> int:
     """Threads of a map: an integer within 1..``MAX_WORKERS``."""
-    if not (is_integer(workers) and 1 <= int(workers) <= MAX_WORKERS):
+    number = as_integer(workers)  # (a 0-d integer array too: hostile round 42)
+    if number is None or not 1 <= number <= MAX_WORKERS:
         raise InputError(names.workers, "", f"must be 1..{MAX_WORKERS}, got {shown(workers)}")
-    return int(workers)
+    return number
 
 
 def check_heading(heading_deg: object, name: str) -> float:
