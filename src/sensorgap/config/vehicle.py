@@ -34,6 +34,11 @@ def _xyz(v: list[float]) -> str:
 MAX_PFA = 0.1
 
 
+#: Narrowest smoothstep transition, dB (an estimate: a sensor's detection rises over dB,
+#: not 1e-307 dB; one of 1e-307 dB overflowed in its division, hostile round 44).
+MIN_HALF_WIDTH_DB = 0.01
+
+
 class RocConfig(Strict):
     """How SNR becomes a detection probability (see ``sensorgap.models.roc``).
 
@@ -51,7 +56,9 @@ class RocConfig(Strict):
     kind: Literal["paper", "smoothstep", "swerling0", "swerling1", "albersheim"] = "paper"
     snr50_db: float = Field(default=10.0, ge=-50.0, le=100.0)
     floor_db: float = Field(default=0.0, ge=-300.0, le=100.0)
-    half_width_db: float = Field(default=6.0, gt=0.0, le=50.0)
+    #: at least ``MIN_HALF_WIDTH_DB`` (an estimate: narrower is a step, and 1e-307 dB
+    #: overflowed the smoothstep's division; hostile round 44)
+    half_width_db: float = Field(default=6.0, ge=MIN_HALF_WIDTH_DB, le=50.0)
     #: at most ``MAX_PFA``: a pfa near 1 (1 - 1e-15) overflowed scipy's Marcum Q (tgamma)
     pfa: float = Field(default=1.0e-6, ge=1.0e-15, le=MAX_PFA)
     n_pulses: int = Field(default=1, ge=1, le=8096)
