@@ -134,7 +134,7 @@ def test_negative_geometry_length(write_xodr: Write) -> None:
         '<geometry s="50" x="50" y="0" hdg="0" length="-5"><line/></geometry>'
     )
     path = write_xodr(document(road_xml(road_id="3", geometry=geo)), "neg.xodr")
-    err = _fails(path, "road[id=3]/planView/geometry[1]@length: must be > 0, got -5")
+    err = _fails(path, "road[id=3]/planView/geometry[1]@length: must be at least 1e-09 m, got -5")
     assert err.field == "road[id=3]/planView/geometry[1]@length"
 
 

@@ -63,6 +63,10 @@ _GEOMETRY_KINDS = ("line", "arc", "spiral", "poly3", "paramPoly3")
 MAX_ABS_VALUE = 1.0e8
 #: longest road (and planView geometry), m.
 MAX_ROAD_LENGTH_M = 100_000.0
+#: Shortest road or plan-view geometry, m (an estimate: a nanometre, far below any
+#: converter's sliver; a spiral of 5e-324 m overflowed its curvature rate to inf and its
+#: heading to NaN, with numpy warnings on stderr: hostile round 44).
+MIN_LENGTH_M = 1.0e-9
 #: most roads, planView geometries, lane sections and lanes in one file.
 MAX_ROADS = 10_000
 MAX_GEOMETRIES = 50_000
@@ -184,8 +188,10 @@ class _Reader:
         """The ``length`` attribute of a road or a plan-view geometry: > 0 and at most
         ``MAX_ROAD_LENGTH_M``, m."""
         value = self.num(el, "length", where)
-        if value <= 0.0:
-            self.fail(f"{where}@length", f"must be > 0, got {float(value)!r}", el)
+        if value < MIN_LENGTH_M:  # (a subnormal spiral's curvature rate overflowed: NaN)
+            self.fail(
+                f"{where}@length", f"must be at least {MIN_LENGTH_M:g} m, got {float(value)!r}", el
+            )
         if value > MAX_ROAD_LENGTH_M:
             self.fail(
                 f"{where}@length",
