@@ -34,6 +34,10 @@ def _xyz(v: list[float]) -> str:
 MAX_PFA = 0.1
 
 
+#: Shortest blind zone a mount may have, m, when it has one (an estimate: ultrasonic
+#: blind zones are decimetres; a 5e-324 m one made shapely's union divide by zero in the
+#: near field, RuntimeWarnings on stderr: hostile round 44).
+MIN_BLIND_RANGE_M = 0.001
 #: Narrowest smoothstep transition, dB (an estimate: a sensor's detection rises over dB,
 #: not 1e-307 dB; one of 1e-307 dB overflowed in its division, hostile round 44).
 MIN_HALF_WIDTH_DB = 0.01
@@ -121,6 +125,11 @@ class MountConfig(Strict):
 
     @model_validator(mode="after")
     def _ranges(self) -> MountConfig:
+        if 0.0 < self.min_range_m < MIN_BLIND_RANGE_M:
+            raise ValueError(
+                f"min_range_m must be 0 (no blind zone) or at least {MIN_BLIND_RANGE_M:g} m, "
+                f"got {self.min_range_m!r}"
+            )
         if self.min_range_m >= self.max_range_m:
             raise ValueError(
                 f"min_range_m ({self.min_range_m}) must be below max_range_m ({self.max_range_m})"
