@@ -126,7 +126,9 @@ def measure_case(case: dict[str, Any], finished_run: Path | None) -> CaseResult:
             t0 = time.perf_counter()
             try:
                 proc = subprocess.run(
-                    [sys.executable, "-c", CHILD, str(result_file), *prepared.argv],
+                    # -P: no working directory on sys.path, as for the console script (in a
+                    # deleted one Python 3.13's import of pydantic_core raised SystemError)
+                    [sys.executable, "-P", "-c", CHILD, str(result_file), *prepared.argv],
                     stdout=subprocess.DEVNULL if stdout is None else stdout,
                     stderr=subprocess.PIPE,
                     env={**_env(), **prepared.env},

@@ -167,7 +167,7 @@ class BodyConfig(Strict):
     width_m: float = Field(gt=0.5, le=5.0)
     height_m: float = Field(gt=0.5, le=6.0)
     wheelbase_m: float = Field(gt=0.5, le=20.0)
-    rear_overhang_m: float = Field(ge=0.0, le=10.0)
+    rear_overhang_m: float = Field(gt=0.0, le=10.0)  # (the schema said >= 0; hostile round 45)
     max_speed_m_s: float = Field(default=70.0, ge=0.1, le=150.0)
     sources: dict[str, str] = Field(default_factory=dict)
 
