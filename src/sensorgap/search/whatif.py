@@ -67,7 +67,7 @@ def parse_params(items: list[str], problem: SearchProblem) -> dict[str, ParamVal
             v = math.nan
         if not math.isfinite(v):
             raise InputError("param", name, f"must be a finite number, got {text!r}")
-        out[name] = v + 0.0  # -0 is 0 (it got a scenario id of its own; hostile round 41)
+        out[name] = v  # (-0 is read as 0 by parse_decimal: hostile rounds 41 and 42)
     missing = [n for n in space if n not in out]
     if missing:
         raise InputError(
@@ -98,7 +98,7 @@ def parse_sun(text: str | None) -> tuple[float, float] | None:
             "",
             f"expected AZ/EL in degrees with 0 <= AZ < 360 and -90 <= EL <= 90, got {text!r}",
         )
-    return az + 0.0, el + 0.0  # -0 is 0 (it got a label and a scenario id of its own)
+    return az, el  # (-0 is read as 0 by parse_decimal)
 
 
 def _check_out(out: Path) -> None:
@@ -131,7 +131,7 @@ def _checked_sun(sun: object) -> tuple[float, float] | None:
             "expected (azimuth, elevation) in degrees with 0 <= azimuth < 360 and "
             f"-90 <= elevation <= 90, got {shown(sun)}",
         )
-    return az + 0.0, el + 0.0  # -0 is 0 (as parse_sun)
+    return az + 0.0, el + 0.0  # -0 is 0 (a float given to the library; as parse_decimal)
 
 
 def evaluate_candidate(
